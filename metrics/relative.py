@@ -78,7 +78,9 @@ def check_pose_pair(gt_poses: np.ndarray, est_poses: np.ndarray) -> tuple[np.nda
         raise MetricError("empty trajectory: no poses given")
     if not np.all(np.isfinite(gt)):
         bad = np.flatnonzero(~np.all(np.isfinite(gt), axis=(1, 2)))
-        raise MetricError(f"gt_poses contain non-finite values at {bad.size} poses (first: {bad[0]})")
+        raise MetricError(
+            f"gt_poses contain non-finite values at {bad.size} poses (first: index {bad[0]})"
+        )
     return gt, est
 
 
