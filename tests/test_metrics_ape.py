@@ -1,0 +1,124 @@
+"""Tests for metrics.ape: known answers and cross-check against evo's APE with alignment."""
+
+import copy
+import math
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from metrics import MetricError, ape, ape_errors, umeyama_se3
+
+
+def random_trajectory(rng, n=400):
+    """Smooth 3-D trajectory T_world_body with varying heading, some climb and roll/pitch."""
+    t = np.arange(n) * 0.1
+    pos = np.column_stack([10 * np.sin(0.05 * t), 5 * np.cos(0.03 * t) + t, 0.3 * np.sin(0.2 * t)])
+    rv = np.column_stack([0.05 * np.sin(t), 0.05 * np.cos(0.7 * t), 0.04 * t])
+    poses = np.tile(np.eye(4), (n, 1, 1))
+    poses[:, :3, :3] = Rotation.from_rotvec(rv).as_matrix()
+    poses[:, :3, 3] = pos + rng.normal(0, 0.01, (n, 3))
+    return poses
+
+
+def rigid(rotvec, trans):
+    t = np.eye(4)
+    t[:3, :3] = Rotation.from_rotvec(rotvec).as_matrix()
+    t[:3, 3] = trans
+    return t
+
+
+def perturbed(rng, gt):
+    """GT seen from another world frame, with drift and noise on every pose."""
+    n = gt.shape[0]
+    noise = np.tile(np.eye(4), (n, 1, 1))
+    noise[:, :3, :3] = Rotation.from_rotvec(rng.normal(0, 0.01, (n, 3))).as_matrix()
+    noise[:, :3, 3] = np.cumsum(rng.normal(0, 0.01, (n, 3)), axis=0) + rng.normal(0, 0.05, (n, 3))
+    return rigid([0.3, -0.2, 1.1], [5.0, -3.0, 2.0]) @ gt @ noise
+
+
+def test_rigidly_transformed_gt_has_zero_ape_after_alignment():
+    rng = np.random.default_rng(1)
+    gt = random_trajectory(rng)
+    est = rigid([0.1, 0.2, -2.0], [100.0, -50.0, 3.0]) @ gt
+    for alignment in ("se3", "origin"):
+        s = ape(gt, est, alignment)
+        assert s.trans_rmse_m < 1e-9 and s.trans_max_m < 1e-9
+        assert s.rot_rmse_deg < 1e-6
+        assert s.n == gt.shape[0] and s.alignment == alignment
+    assert ape(gt, est, "none").trans_rmse_m > 10.0
+
+
+def test_umeyama_recovers_transform():
+    rng = np.random.default_rng(2)
+    src = rng.normal(size=(50, 3)) * [10, 5, 1]
+    truth = rigid([0.4, -0.1, 2.5], [1.0, 2.0, 3.0])
+    dst = src @ truth[:3, :3].T + truth[:3, 3]
+    np.testing.assert_allclose(umeyama_se3(src, dst), truth, atol=1e-12)
+
+
+def test_constant_offset_without_alignment():
+    rng = np.random.default_rng(3)
+    gt = random_trajectory(rng)
+    est = gt.copy()
+    est[:, :3, 3] += [3.0, 4.0, 0.0]
+    s = ape(gt, est, "none")
+    assert math.isclose(s.trans_rmse_m, 5.0) and math.isclose(s.trans_median_m, 5.0)
+    assert s.rot_max_deg < 1e-6
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_matches_evo_ape(seed):
+    from evo.core import metrics
+    from evo.core.trajectory import PosePath3D
+
+    rng = np.random.default_rng(seed)
+    gt = random_trajectory(rng)
+    est = perturbed(rng, gt)
+    ref_traj = PosePath3D(poses_se3=list(gt))
+    for alignment in ("se3", "origin", "none"):
+        est_traj = PosePath3D(poses_se3=list(copy.deepcopy(est)))
+        if alignment == "se3":
+            est_traj.align(ref_traj, correct_scale=False)
+        elif alignment == "origin":
+            est_traj.align_origin(ref_traj)
+        trans, rot = ape_errors(gt, est, alignment)
+        for relation, ours in (
+            (metrics.PoseRelation.translation_part, trans),
+            (metrics.PoseRelation.rotation_angle_deg, rot),
+        ):
+            m = metrics.APE(relation)
+            m.process_data((ref_traj, est_traj))
+            np.testing.assert_allclose(ours, m.error, rtol=0, atol=1e-9)
+            stats = m.get_all_statistics()
+            s = ape(gt, est, alignment)
+            if relation == metrics.PoseRelation.translation_part:
+                assert math.isclose(s.trans_rmse_m, stats["rmse"], abs_tol=1e-9)
+                assert math.isclose(s.trans_median_m, stats["median"], abs_tol=1e-9)
+                assert math.isclose(s.trans_std_m, stats["std"], abs_tol=1e-9)
+            else:
+                assert math.isclose(s.rot_rmse_deg, stats["rmse"], abs_tol=1e-9)
+                assert math.isclose(s.rot_mean_deg, stats["mean"], abs_tol=1e-9)
+
+
+def test_nonfinite_estimate_gives_nan_stats():
+    rng = np.random.default_rng(4)
+    gt = random_trajectory(rng)
+    est = gt.copy()
+    est[-5:] = np.nan
+    s = ape(gt, est)
+    assert math.isnan(s.trans_rmse_m) and math.isnan(s.rot_rmse_deg)
+
+
+def test_invalid_inputs_raise():
+    rng = np.random.default_rng(5)
+    gt = random_trajectory(rng, 50)
+    with pytest.raises(MetricError, match="alignment"):
+        ape(gt, gt, "sim3")
+    with pytest.raises(MetricError, match="1:1"):
+        ape(gt, gt[:10])
+    line = np.tile(np.eye(4), (20, 1, 1))
+    line[:, 0, 3] = np.arange(20.0)
+    with pytest.raises(MetricError, match="degenerate"):
+        ape(line, line, "se3")
+    assert ape(line, line, "origin").trans_max_m == 0.0
