@@ -38,9 +38,10 @@ def smooth_trajectory(rng, n, with_pause=False):
     if with_pause:
         speed[n // 3 : n // 3 + 40] = 0.0
     yaw = np.cumsum(rng.normal(0, 0.03, n))
-    step = np.column_stack([np.cos(yaw), np.sin(yaw), 0.02 * rng.normal(size=n)]) * (speed * dt)[
-        :, None
-    ]
+    step = (
+        np.column_stack([np.cos(yaw), np.sin(yaw), 0.02 * rng.normal(size=n)])
+        * (speed * dt)[:, None]
+    )
     pos = np.cumsum(step, axis=0)
     rv = np.column_stack([0.01 * rng.normal(size=n), 0.01 * rng.normal(size=n), yaw])
     return poses_from(pos, rv)
@@ -233,3 +234,26 @@ def test_matches_evo_rpe_all_pairs(case):
         np.testing.assert_allclose(
             ours.rot_deg, evo_rpe(gt, est, length, PoseRelation.rotation_angle_deg), atol=1e-9
         )
+
+
+def test_pairs_match_evo_on_exact_ties_and_pauses():
+    """Half-step lengths on a regular grid (two equally close ends) and quantised pauses."""
+    from evo.core import filters
+
+    from metrics.relative import segment_pairs
+
+    rng = np.random.default_rng(7)
+    for trial in range(60):
+        n = int(rng.integers(50, 300))
+        if trial % 2 == 0:
+            step = float(rng.choice([0.1, 0.2, 0.25]))
+            pos = straight_line(n, step)
+            length = step * (int(rng.integers(5, 40)) + 0.5)
+        else:
+            steps = rng.choice([0.0, 0.0, 0.1, 0.2], size=n)
+            pos = np.column_stack([np.cumsum(steps), np.zeros(n), np.zeros(n)])
+            length = float(rng.choice([0.5, 1.0, 1.05, 2.0, 3.3]))
+        tol = float(rng.choice([0.0, 0.1, 0.2, 0.5]))
+        ref = filters.filter_pairs_by_path(list(poses_from(pos)), length, length * tol, True)
+        start, end = segment_pairs(path_distances(pos), length, tol)
+        assert list(zip(start.tolist(), end.tolist(), strict=True)) == [tuple(p) for p in ref]
