@@ -1,0 +1,130 @@
+"""NumPy frame folders (the reference code's example format).
+
+Layout: ``frame_001.npy`` (N, 3) points [m, sensor frame] and ``frame_001_dop.npy`` (N,) Doppler
+[m/s, positive = receding], either in DIR or in DIR/frames, plus an optional TUM file with one
+row per frame. Such TUM stamps are often not the sensor clock (the NTU4DRadLM sample has
+0.0, 0.1, 0.2, ... for a 12 Hz radar): pass ``period_s`` to stamp scans as index x period, and
+ground truth is then associated with frames by row order when the counts match.
+"""
+
+from __future__ import annotations
+
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from loaders.errors import DataError
+from loaders.scan import Scan, Sequence, SensorInfo, Trajectory
+
+_FRAME = re.compile(r"^frame_(\d+)\.npy$")
+
+
+def find_frames(folder: Path) -> tuple[Path, list[Path]]:
+    """The folder holding ``frame_XXX.npy`` files (DIR or DIR/frames) and the files in order."""
+    for candidate in (folder, folder / "frames"):
+        files = [p for p in candidate.glob("frame_*.npy") if _FRAME.match(p.name)]
+        if files:
+            return candidate, sorted(files, key=lambda p: int(_FRAME.match(p.name).group(1)))
+    raise DataError(f"{folder}: no frame_XXX.npy files (looked in {folder} and {folder}/frames)")
+
+
+def find_tum(folder: Path) -> Path | None:
+    """The single TUM-like .txt file in ``folder``, if there is exactly one."""
+    candidates = sorted(folder.glob("*.txt"))
+    return candidates[0] if len(candidates) == 1 else None
+
+
+class NpyFramesSequence(Sequence):
+    """A folder of .npy frames read lazily, one frame at a time."""
+
+    def __init__(
+        self,
+        folder: str | Path,
+        gt: str | Path | None = None,
+        period_s: float | None = None,
+        kind: str = "radar",
+        name: str | None = None,
+        associate: str = "order",
+    ) -> None:
+        folder = Path(folder)
+        if not folder.is_dir():
+            raise DataError(f"{folder}: not a folder")
+        self.frame_dir, self.files = find_frames(folder)
+        for f in self.files:
+            if not f.with_name(f.stem + "_dop.npy").exists():
+                raise DataError(
+                    f"{f}: missing Doppler file {f.stem}_dop.npy (expected one per frame)"
+                )
+        gt_path = Path(gt) if gt is not None else find_tum(folder)
+        trajectory = Trajectory.read_tum(gt_path) if gt_path is not None else None
+        n = len(self.files)
+        if period_s is not None:
+            self._stamps = np.arange(n) * float(period_s)
+        elif trajectory is not None and len(trajectory) == n:
+            self._stamps = trajectory.stamps.copy()
+            period_s = float(np.median(np.diff(self._stamps))) if n > 1 else 0.1
+            warnings.warn(f"{folder}: no period given; scan stamps taken from {gt_path.name} "
+                          "rows (these may not be the sensor clock)", stacklevel=2)
+        else:
+            raise DataError(f"{folder}: give the scan period (--period) to stamp the frames")
+        self.ground_truth = None
+        self.repeated_gt_poses = 0
+        if trajectory is not None:
+            self.ground_truth = self._associate(trajectory, gt_path, associate)
+        self.name = name or folder.name
+        self.sensor = SensorInfo(kind=kind, period_s=float(period_s), model="npy-frames")
+        self.provenance = {
+            "loader": "npy-frames", "folder": str(folder.resolve()), "frames": n,
+            "gt": str(gt_path) if gt_path else None, "period_s": float(period_s),
+            "gt_association": associate, "repeated_gt_poses": self.repeated_gt_poses,
+        }
+
+    def _associate(self, traj: Trajectory, path: Path, associate: str) -> Trajectory:
+        n = len(self.files)
+        if associate == "order":
+            if len(traj) != n:
+                raise DataError(
+                    f"{path}: {len(traj)} GT rows but {n} frames in {self.frame_dir}; "
+                    "association by order needs one row per frame (use associate='time')"
+                )
+            steps = np.abs(np.diff(traj.poses[:, :3, :], axis=0)).reshape(n - 1, -1).max(axis=1)
+            self.repeated_gt_poses = int((steps == 0).sum())
+            if self.repeated_gt_poses:
+                warnings.warn(
+                    f"{path}: {self.repeated_gt_poses} GT rows repeat the previous pose "
+                    "exactly; frame-to-frame errors are meaningless, evaluate over metres",
+                    stacklevel=3,
+                )
+            return traj.with_stamps(self._stamps)
+        if associate == "time":
+            return traj.interpolate(self._stamps, name=str(path))
+        raise DataError(f"unknown GT association {associate!r} (expected 'order' or 'time')")
+
+    def __len__(self) -> int:
+        return len(self.files)
+
+    @property
+    def stamps(self) -> np.ndarray:
+        return self._stamps.copy()
+
+    def scan(self, index: int) -> Scan:
+        path = self.files[index]
+        source = f"{path}, frame {index}"
+        try:
+            points = np.load(path)
+            doppler = np.load(path.with_name(path.stem + "_dop.npy"))
+        except (OSError, ValueError) as err:
+            raise DataError(f"{source}: cannot read the frame ({err})") from err
+        if points.ndim != 2 or points.shape[1] != 3 or doppler.shape != (len(points),):
+            raise DataError(f"{source}: expected points (N, 3) and Doppler (N,), got "
+                            f"{points.shape} and {doppler.shape}")
+        finite = np.isfinite(points).all(axis=1) & np.isfinite(doppler)
+        if not finite.all():
+            warnings.warn(f"{source}: dropped {int((~finite).sum())} non-finite points",
+                          stacklevel=2)
+            points, doppler = points[finite], doppler[finite]
+        if len(points) == 0:
+            raise DataError(f"{source}: empty scan (no finite points); expected at least one")
+        return Scan(self._stamps[index], points, doppler, source=source)

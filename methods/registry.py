@@ -1,0 +1,40 @@
+"""The explicit registry of methods: name -> class, with a one-line description each.
+
+Add a method by writing one module with a ``Registration`` (pairwise, scan to scan) or an
+``Odometry`` (keeps its own state) subclass and listing it here.
+"""
+
+from __future__ import annotations
+
+from methods.base import Odometry
+from methods.doppler import DopplerCorrespondence
+from methods.icp import PointToPointIcp
+
+METHODS: dict[str, type[Odometry]] = {
+    cls.name: cls
+    for cls in (
+        DopplerCorrespondence,
+        PointToPointIcp,
+    )
+}
+
+
+def get_method(name: str) -> type[Odometry]:
+    try:
+        return METHODS[name]
+    except KeyError:
+        raise KeyError(f"unknown method {name!r}; registered: {', '.join(METHODS)}") from None
+
+
+def make_method(name: str, params: dict | None = None) -> Odometry:
+    """An instance of method ``name`` with ``params`` validated by its pydantic model."""
+    cls = get_method(name)
+    Params = getattr(cls, "Params", None)
+    if Params is None:
+        return cls()
+    return cls(Params.model_validate(params or {}))
+
+
+def seed_options(name: str) -> list[bool]:
+    """The seed options worth running: a method that ignores the guess runs once (as seeded)."""
+    return [True, False] if get_method(name).uses_initial_guess else [True]
