@@ -1,0 +1,163 @@
+"""NTU4DRadLM (semi-dense 4D radar, Oculii Eagle, about 12 Hz) from its ROS1 bags.
+
+- Radar topic (default ``/radar_enhanced_pcl``) of type ``sensor_msgs/PointCloud``: Point32
+  points and named float32 channels, matched by NAME (never by index): ``Doppler`` -> Scan
+  doppler, ``Power`` -> field ``power``, any other channel -> a per-point field with the
+  lowercased name. ``sensor_msgs/PointCloud2`` is also accepted (the Doppler field name is
+  configurable: "doppler", "velocity", ...).
+- Scan stamp = ``header.stamp`` (sensor clock). Frames from several bags are merged and sorted
+  by stamp; repeated stamps are dropped with a warning.
+- Ground truth ``gt_odom.txt`` (TUM, optional header line; R2LIVE pseudo ground truth) is
+  associated by time (``gt_stamp + time_offset_s = header.stamp``), interpolated at the scan
+  stamps and moved into the radar frame with ``T_gtbody_radar``. Scans it does not cover are
+  dropped (counted in ``provenance["gt_association"]``).
+- Doppler is the raw relative radial velocity (positive = receding, not ego-compensated).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from loaders.errors import DataError
+from loaders.gt import associate, parse_extrinsic, read_gt_file
+from loaders.ros1 import (
+    BagTopic,
+    finish_scan,
+    median_period,
+    parse_pointcloud,
+    parse_pointcloud2,
+    sort_unique_stamps,
+)
+from loaders.scan import Scan, SensorInfo, Sequence
+
+POINTCLOUD = "sensor_msgs/msg/PointCloud"
+POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
+
+#: Radar -> GT body (R2LIVE, probably the Livox LiDAR/IMU) extrinsic, TUM order
+#: "x y z qx qy qz qw". Translation from public SLAM code for this dataset, rotation taken as
+#: identity. UNCONFIRMED: the GT body frame itself is not documented by the dataset.
+DEFAULT_T_GTBODY_RADAR = "0.296 -0.130 -0.005 0 0 0 1"
+DEFAULT_PERIOD_S = 1.0 / 12.0
+
+
+class NtuSequence(Sequence):
+    """NTU4DRadLM radar scans streamed from ROS1 bags.
+
+    bags: one or more bags of one route (e.g. ``ntu-car-day-loop1_2022-06-03_{0..4}.bag``),
+    merged in time order. gt: ``gt_odom.txt`` or None. topic: radar topic. doppler_field:
+    channel (PointCloud) or PointField (PointCloud2) name holding Doppler [m/s].
+    T_gtbody_radar: "x y z qx qy qz qw", 16 numbers or a 4x4 array (GT body <- radar).
+    time_offset_s: ``gt_stamp + time_offset_s = header.stamp``. max_gap_s: largest GT gap
+    interpolated across. uncovered: "drop" | "trim" | "error" (see ``loaders.gt.associate``).
+    doppler_sign: multiply the Doppler channel by this (+1: already positive = receding).
+    name: sequence name (default: first bag's stem).
+    """
+
+    def __init__(
+        self,
+        bags: list[Path] | list[str] | Path | str,
+        gt: Path | str | None = None,
+        topic: str = "/radar_enhanced_pcl",
+        doppler_field: str = "Doppler",
+        T_gtbody_radar: str | np.ndarray | None = DEFAULT_T_GTBODY_RADAR,
+        time_offset_s: float = 0.0,
+        max_gap_s: float = 0.5,
+        uncovered: str = "drop",
+        doppler_sign: float = 1.0,
+        name: str | None = None,
+    ) -> None:
+        if isinstance(bags, str | Path):
+            bags = [bags]
+        self.bags = [Path(b) for b in bags]
+        self.topic = topic
+        self.doppler_field = doppler_field
+        self.doppler_sign = float(doppler_sign)
+        if self.doppler_sign not in (1.0, -1.0):
+            raise DataError(f"doppler_sign must be +1 or -1, got {doppler_sign}")
+        self.name = name or self.bags[0].stem
+        self._index = BagTopic(self.bags, topic, accept=(POINTCLOUD, POINTCLOUD2))
+        if len(self._index) == 0:
+            raise DataError(f"{self.bags[0]}: topic {topic} has no messages")
+        where = ", ".join(str(b) for b in self.bags)
+        stamps = self._index.header_stamps()
+        order, dup = sort_unique_stamps(stamps, where)
+        T = parse_extrinsic(T_gtbody_radar)
+        self.provenance: dict = {
+            "loader": "ntu4dradlm",
+            "bags": [str(b) for b in self.bags],
+            "topic": topic,
+            "msgtype": self._index.msgtype,
+            "doppler_field": doppler_field,
+            "doppler_sign": self.doppler_sign,
+            "messages": int(len(stamps)),
+            "repeated_stamps_dropped": dup,
+            "T_gtbody_radar": T.tolist(),
+            "extrinsic_note": "radar->GT body extrinsic unconfirmed (default from public SLAM "
+                              "code, identity rotation)",
+            "nan_points_dropped": 0,
+        }
+        self.ground_truth = None
+        if gt is not None:
+            traj = read_gt_file(gt, "tum")
+            assoc = associate(traj, stamps[order], offset_s=time_offset_s, max_gap_s=max_gap_s,
+                              T_body_sensor=T, uncovered=uncovered, gt_file=gt, scan_file=where)
+            order = order[assoc.keep]
+            self.ground_truth = assoc.ground_truth
+            self.provenance["gt_association"] = assoc.report
+        self._order = order
+        self._stamps = stamps[order]
+        self.sensor = SensorInfo("radar", median_period(self._stamps, DEFAULT_PERIOD_S), T,
+                                 "radar-semidense (Oculii Eagle)")
+
+    def __len__(self) -> int:
+        return len(self._order)
+
+    @property
+    def stamps(self) -> np.ndarray:
+        return self._stamps.copy()
+
+    def close(self) -> None:
+        self._index.close()
+
+    def scan(self, index: int) -> Scan:
+        k = int(self._order[index])
+        where = f"{self._index.where(k)} (frame {index})"
+        data = self._index.raw(k)
+        if self._index.msgtype == POINTCLOUD:
+            stamp, points, channels = parse_pointcloud(data, where)
+            if self.doppler_field not in channels:
+                raise DataError(
+                    f"{where}: no Doppler channel {self.doppler_field!r}; the PointCloud has "
+                    f"channels {sorted(channels)} (set doppler_field)"
+                )
+            doppler = channels.pop(self.doppler_field).astype(np.float64) * self.doppler_sign
+            fields = {}
+            for cname, values in channels.items():
+                key = cname.lower()
+                if key in ("x", "y", "z", "doppler"):
+                    key = f"channel_{key}"
+                fields[key] = values
+        else:
+            stamp, arr, names = parse_pointcloud2(data, where)
+            missing = [f for f in ("x", "y", "z") if f not in names]
+            if missing:
+                raise DataError(
+                    f"{where}: PointCloud2 has no {missing} field(s); fields are {names}"
+                )
+            if self.doppler_field not in names:
+                raise DataError(
+                    f"{where}: no Doppler field {self.doppler_field!r} in the PointCloud2; "
+                    f"fields are {names} (set doppler_field)"
+                )
+            points = np.column_stack([arr["x"], arr["y"], arr["z"]])
+            doppler = arr[self.doppler_field].astype(np.float64) * self.doppler_sign
+            fields = {}
+            for fname in names:
+                if fname in ("x", "y", "z", self.doppler_field):
+                    continue
+                key = fname.lower()
+                fields["field_doppler" if key == "doppler" else key] = arr[fname].astype(
+                    np.float32)
+        return finish_scan(stamp, points, doppler, fields, where, self.provenance)
