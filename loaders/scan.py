@@ -201,7 +201,9 @@ class Trajectory:
                 except ValueError:
                     if not rows:  # a header line such as "timestamp x y z ..."
                         continue
-                    raise DataError(f"{path}, line {lineno}: expected 8 numbers, got {text!r}")
+                    raise DataError(
+                        f"{path}, line {lineno}: expected 8 numbers, got {text!r}"
+                    ) from None
                 if len(values) != 8:
                     raise DataError(
                         f"{path}, line {lineno}: expected 8 values (t x y z qx qy qz qw), "

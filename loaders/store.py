@@ -31,7 +31,7 @@ import numpy as np
 
 from loaders.errors import DataError
 from loaders.fileio import atomic_path
-from loaders.scan import Scan, Sequence, SensorInfo, Trajectory
+from loaders.scan import Scan, SensorInfo, Sequence, Trajectory
 
 FORMAT_NAME = "doppler-bench-store"
 FORMAT_VERSION = 1
@@ -121,8 +121,9 @@ def write_store(
                     progress(i)
             writer.flush()
             frames = h5.create_group("frames")
-            frames.create_dataset("stamp", data=np.asarray(writer.stamps, "f8"), track_times=False)
-            frames.create_dataset("offset", data=np.asarray(writer.offsets, "i8"), track_times=False)
+            for key, values, dtype in (("stamp", writer.stamps, "f8"),
+                                       ("offset", writer.offsets, "i8")):
+                frames.create_dataset(key, data=np.asarray(values, dtype), track_times=False)
             ext = h5.create_group("extrinsic")
             ext.create_dataset("T_body_sensor", data=sequence.sensor.T_body_sensor,
                                track_times=False)

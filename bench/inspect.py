@@ -1,0 +1,81 @@
+"""``bench inspect``: what is in a store (or a frame folder), and is its Doppler sign right."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+from rich.console import Console
+from rich.table import Table
+
+from bench.evaluate import gt_at_stamps
+from loaders.doppler_check import doppler_sign_check
+from loaders.errors import DataError
+from loaders.gt import gt_sanity_report
+from loaders.scan import Sequence
+
+
+def open_sequence(path: Path, period_s: float | None = None) -> Sequence:
+    """A store file, or a NumPy frame folder."""
+    path = Path(path)
+    if path.is_dir():
+        from loaders.npy_frames import NpyFramesSequence
+
+        return NpyFramesSequence(path, period_s=period_s)
+    from loaders.store import StoreSequence
+
+    return StoreSequence(path)
+
+
+def inspect_path(path: Path, period_s: float | None, console: Console) -> dict:
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        seq = open_sequence(path, period_s)
+    for w in caught:
+        console.print(f"[yellow]warning:[/] {w.message}", highlight=False)
+    report = inspect_sequence(seq)
+    table = Table(title=f"{path}", title_justify="left", show_header=False)
+    for key, value in report["rows"]:
+        table.add_row(f"[bold]{key}[/]", value)
+    console.print(table)
+    for finding in report["gt_findings"]:
+        console.print(f"  [yellow]GT:[/] {finding}", highlight=False)
+    style = "green" if report["sign"].verdict == "confirmed" else "yellow"
+    console.print(f"[{style}]{report['sign'].describe()}[/]", highlight=False)
+    return report
+
+
+def inspect_sequence(seq: Sequence) -> dict:
+    counts = (seq.points_per_frame() if hasattr(seq, "points_per_frame")
+              else np.array([len(s) for s in seq]))
+    stamps = seq.stamps
+    dts = np.diff(stamps)
+    rows = [
+        ("name", seq.name),
+        ("sensor", f"{seq.sensor.kind} ({seq.sensor.model or 'unknown model'})"),
+        ("frames", f"{len(seq)}"),
+        ("points per frame", f"min {counts.min()}, median {np.median(counts):.0f}, "
+                             f"max {counts.max()}"),
+        ("period", f"nominal {seq.sensor.period_s:.6f} s, measured median "
+                   f"{np.median(dts):.6f} s" if len(dts) else f"{seq.sensor.period_s} s"),
+        ("duration", f"{stamps[-1] - stamps[0]:.3f} s"),
+    ]
+    gt_findings: list[str] = []
+    gt_poses = None
+    gt = seq.ground_truth
+    if gt is None:
+        rows.append(("ground truth", "none"))
+    else:
+        rows.append(("ground truth", f"{len(gt)} poses, path length {gt.path_length_m():.2f} m"))
+        sanity = gt_sanity_report(gt, stamps)
+        gt_findings = list(sanity["findings"])
+        coverage = sanity.get("scan_coverage_pct", float("nan"))
+        rows.append(("GT coverage of scans", f"{coverage:.1f} %, {sanity['repeated_poses']} "
+                     f"repeated poses, {len(sanity['gaps'])} gaps"))
+        try:
+            gt_poses = gt_at_stamps(gt, stamps)
+        except DataError as err:
+            gt_findings.append(f"cannot associate GT with the scans: {err}")
+    sign = doppler_sign_check(seq, gt_poses)
+    return {"rows": rows, "gt_findings": gt_findings, "sign": sign, "counts": counts}

@@ -1,0 +1,193 @@
+"""The paper's Table III from run folders: rows grouped by sensor class and sequence, one row
+per method and seed option, "rotation / translation" per segment length and the mean time per
+frame. Per sequence and column, the best value is bold and the second underlined; a diverged run
+shows "Div." and is not ranked.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from bench.results import load_runs
+from methods.registry import METHODS
+
+CLASS_ORDER = ["Sparse 4D Radar", "Semi-Dense 4D Radar", "Dense 4D LiDAR"]
+
+
+@dataclass
+class Row:
+    sensor_class: str
+    sequence: str
+    method: str
+    seed: bool | None
+    label: str
+    rot: dict[str, float]     # length -> mean rotation error [deg]
+    trans: dict[str, float]   # length -> mean translation error [m]
+    time_ms: float
+    diverged: bool
+
+
+def method_label(method: str, seed: bool | None) -> str:
+    if seed is None:
+        return f"{method} (no initial guess)"
+    return f"({'With' if seed else 'No'} Seed) {method}"
+
+
+def _value(x) -> float:
+    return math.nan if x is None else float(x)
+
+
+def collect_rows(results_dir: Path) -> tuple[list[Row], list[str]]:
+    """Rows of every finished run with ground truth, sorted as in the paper, and the lengths."""
+    rows, lengths = [], set()
+    for run in load_runs(results_dir):
+        m, cfg = run["metrics"], run["config"]
+        if m.get("relative_error") is None or m.get("diverged") is None:
+            continue
+        seq_cfg = cfg.get("sequence", {})
+        rel = m["relative_error"]
+        lengths.update(rel)
+        rows.append(Row(
+            sensor_class=seq_cfg.get("sensor_class", "4D sensor"),
+            sequence=seq_cfg.get("display_name", m["sequence"]),
+            method=m["method"], seed=m["seed"], label=method_label(m["method"], m["seed"]),
+            rot={k: _value(v["rot_deg_mean"]) if v["n"] else math.nan for k, v in rel.items()},
+            trans={k: _value(v["trans_m_mean"]) if v["n"] else math.nan for k, v in rel.items()},
+            time_ms=_value((m.get("time_ms") or {}).get("mean")),
+            diverged=bool(m["diverged"]),
+        ))
+    order = list(METHODS)
+
+    def key(r: Row):
+        klass = CLASS_ORDER.index(r.sensor_class) if r.sensor_class in CLASS_ORDER else 99
+        # the paper lists the baselines first and its own method last
+        m = order.index(r.method) if r.method in order else 98
+        m = 99 if r.method == "doppler" else m
+        return (klass, r.sensor_class, r.sequence, m, r.method, r.seed is False)
+
+    return sorted(rows, key=key), sorted(lengths, key=float)
+
+
+def _ranks(values: list[float]) -> list[int]:
+    """0 for the best (lowest) finite value, 1 for the second, 2 otherwise (ties share)."""
+    finite = sorted({v for v in values if math.isfinite(v)})
+    return [finite.index(v) if math.isfinite(v) and finite.index(v) < 2 else 2 for v in values]
+
+
+def _fmt(x: float, digits: int = 3) -> str:
+    return "-" if not math.isfinite(x) else f"{x:.{digits}f}"
+
+
+def _fmt_time(x: float) -> str:
+    return "-" if not math.isfinite(x) else (f"{x:.2f}" if x < 10 else f"{x:.1f}")
+
+
+def _cells(rows: list[Row], lengths: list[str], mark) -> list[list[str]]:
+    """Formatted cells per row; ``mark(text, rank)`` applies bold / underline."""
+    out = [[] for _ in rows]
+    groups: dict[tuple, list[int]] = {}
+    for i, r in enumerate(rows):
+        groups.setdefault((r.sensor_class, r.sequence), []).append(i)
+    for idx in groups.values():
+        ranked = [i for i in idx if not rows[i].diverged]
+        for length in lengths:
+            rot = _ranks([rows[i].rot.get(length, math.nan) for i in ranked])
+            trans = _ranks([rows[i].trans.get(length, math.nan) for i in ranked])
+            rank = {i: (a, b) for i, a, b in zip(ranked, rot, trans, strict=True)}
+            for i in idx:
+                r = rows[i]
+                if r.diverged:
+                    out[i].append("Div.")
+                    continue
+                a, b = rank[i]
+                out[i].append(f"{mark(_fmt(r.rot.get(length, math.nan)), a)} / "
+                              f"{mark(_fmt(r.trans.get(length, math.nan)), b)}")
+        times = _ranks([rows[i].time_ms for i in ranked])
+        trank = dict(zip(ranked, times, strict=True))
+        for i in idx:
+            out[i].append("Div." if rows[i].diverged
+                          else mark(_fmt_time(rows[i].time_ms), trank[i]))
+    return out
+
+
+def to_markdown(rows: list[Row], lengths: list[str]) -> str:
+    def mark(text: str, rank: int) -> str:
+        return {0: f"**{text}**", 1: f"<u>{text}</u>"}.get(rank, text) if text != "-" else text
+    header = ["Sensor", "Sequence", "Method", *[f"{float(L):g} m" for L in lengths],
+              "Time (ms)"]
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    prev = (None, None)
+    for r, cells in zip(rows, _cells(rows, lengths, mark), strict=True):
+        klass = r.sensor_class if r.sensor_class != prev[0] else ""
+        seq = r.sequence if (r.sensor_class, r.sequence) != prev else ""
+        prev = (r.sensor_class, r.sequence)
+        lines.append("| " + " | ".join([klass, seq, r.label, *cells]) + " |")
+    caption = ("Each cell: mean rotation [deg] / translation [m] relative error per segment "
+               "length; Time: mean registration time per frame [ms]. Best per sequence in "
+               "bold, second underlined; Div. = diverged.")
+    return "\n".join(lines) + "\n\n" + caption + "\n"
+
+
+def _tex_escape(s: str) -> str:
+    return s.replace("_", r"\_").replace("&", r"\&").replace("%", r"\%")
+
+
+def to_latex(rows: list[Row], lengths: list[str]) -> str:
+    def mark(text: str, rank: int) -> str:
+        return {0: rf"\textbf{{{text}}}", 1: rf"\underline{{{text}}}"}.get(rank, text)
+    ncol = 3 + len(lengths) + 1
+    out = [r"\begin{tabular}{@{}" + "c" * ncol + "@{}}", r"\toprule",
+           " & ".join(["Sensor", "Dataset", "Method",
+                       *[rf"\textbf{{{float(L):g}m}}" for L in lengths], r"\textbf{Time (ms)}"])
+           + r" \\", r"\midrule"]
+    prev = (None, None)
+    for r, cells in zip(rows, _cells(rows, lengths, mark), strict=True):
+        if prev[0] is not None and r.sensor_class != prev[0]:
+            out.append(r"\midrule")
+        elif prev[0] is not None and r.sequence != prev[1]:
+            out.append(rf"\cmidrule{{2-{ncol}}}")
+        klass = _tex_escape(r.sensor_class) if r.sensor_class != prev[0] else ""
+        seq = rf"\emph{{{_tex_escape(r.sequence)}}}" if (r.sensor_class, r.sequence) != prev \
+            else ""
+        prev = (r.sensor_class, r.sequence)
+        out.append(" & ".join([klass, seq, _tex_escape(r.label), *cells]) + r" \\")
+    out += [r"\bottomrule", r"\end{tabular}"]
+    return "\n".join(out) + "\n"
+
+
+def to_csv(rows: list[Row], lengths: list[str]) -> str:
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["sensor_class", "sequence", "method", "seed", "diverged",
+                *[f"{k}_{float(L):g}m" for L in lengths for k in ("rot_deg", "trans_m")],
+                "time_ms_mean"])
+    for r in rows:
+        vals = []
+        for L in lengths:
+            vals += [r.rot.get(L, math.nan), r.trans.get(L, math.nan)]
+        w.writerow([r.sensor_class, r.sequence, r.method,
+                    "" if r.seed is None else r.seed, r.diverged,
+                    *[f"{v:.6f}" for v in vals], f"{r.time_ms:.6f}"])
+    return buf.getvalue()
+
+
+FORMATS = {"md": to_markdown, "tex": to_latex, "csv": to_csv}
+
+
+def write_tables(results_dir: Path, out_dir: Path | None = None) -> dict[str, str]:
+    """Write table.md, table.tex and table.csv; return the texts by format."""
+    from loaders.fileio import atomic_write_text
+
+    rows, lengths = collect_rows(results_dir)
+    if not rows:
+        raise FileNotFoundError(f"{results_dir}: no finished runs with ground truth "
+                                "(no metrics.json found)")
+    out_dir = Path(out_dir or results_dir)
+    texts = {fmt: fn(rows, lengths) for fmt, fn in FORMATS.items()}
+    for fmt, text in texts.items():
+        atomic_write_text(out_dir / f"table.{fmt}", text)
+    return texts

@@ -1,0 +1,89 @@
+"""Doppler sign check: fit the ego velocity from Doppler and compare it with ground truth.
+
+For a static scene, doppler_i = -d_i . v_sensor (receding positive, d_i the unit direction of
+point i, v_sensor the sensor's velocity in its own frame). A per-frame least-squares fit of
+v_sensor (with a robust second pass that drops moving points) is compared with the velocity of
+the ground-truth sensor poses: a cosine near +1 confirms the convention, near -1 means it is
+flipped; the speed ratio |v_doppler| / |v_gt| near 1 also confirms the time base (period).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from loaders.scan import Scan, Sequence
+
+
+def ego_velocity_from_doppler(points: np.ndarray, doppler: np.ndarray) -> np.ndarray | None:
+    """Least-squares v_sensor [m/s, sensor frame] from doppler = -d . v; None if ill-posed."""
+    r = np.linalg.norm(points, axis=1)
+    ok = r > 0.5
+    if ok.sum() < 10:
+        return None
+    A = -points[ok] / r[ok, None]
+    b = doppler[ok]
+    v = np.linalg.lstsq(A, b, rcond=None)[0]
+    resid = np.abs(A @ v - b)
+    inliers = resid <= max(3.0 * np.median(resid), 0.2)  # drop moving points and clutter
+    if inliers.sum() >= 10:
+        v = np.linalg.lstsq(A[inliers], b[inliers], rcond=None)[0]
+    return v
+
+
+def gt_velocities(stamps: np.ndarray, poses: np.ndarray, half_window: int = 2) -> np.ndarray:
+    """Sensor-frame linear velocity from GT poses T_world_sensor by central differences over
+    +-half_window frames (robust to repeated GT poses)."""
+    n = len(stamps)
+    lo = np.clip(np.arange(n) - half_window, 0, n - 1)
+    hi = np.clip(np.arange(n) + half_window, 0, n - 1)
+    dt = stamps[hi] - stamps[lo]
+    dt[dt == 0] = np.nan
+    v_world = (poses[hi, :3, 3] - poses[lo, :3, 3]) / dt[:, None]
+    return np.einsum("nji,nj->ni", poses[:, :3, :3], v_world)  # R^T v
+
+
+@dataclass
+class SignCheck:
+    frames_used: int
+    median_cosine: float
+    median_speed_ratio: float
+    verdict: str  # "confirmed", "flipped", "inconclusive", "no ground truth", "no Doppler"
+
+    def describe(self) -> str:
+        if self.frames_used == 0:
+            return f"Doppler sign check: {self.verdict}"
+        return (f"Doppler sign check over {self.frames_used} moving frames: median cosine "
+                f"{self.median_cosine:+.3f}, median speed ratio {self.median_speed_ratio:.3f} "
+                f"-> receding-positive convention {self.verdict}")
+
+
+def doppler_sign_check(seq: Sequence, gt_poses: np.ndarray | None, max_frames: int = 200,
+                       min_speed_mps: float = 0.5) -> SignCheck:
+    """Compare Doppler ego velocity with GT velocity on up to ``max_frames`` frames.
+
+    ``gt_poses``: T_world_sensor at the scan stamps (None: no ground truth)."""
+    if gt_poses is None:
+        return SignCheck(0, np.nan, np.nan, "not checked (no ground truth)")
+    stamps = seq.stamps
+    v_gt = gt_velocities(stamps, gt_poses)
+    idx = np.unique(np.linspace(0, len(seq) - 1, min(max_frames, len(seq))).astype(int))
+    cosines, ratios = [], []
+    for i in idx:
+        speed = np.linalg.norm(v_gt[i])
+        if not np.isfinite(speed) or speed < min_speed_mps:
+            continue
+        scan: Scan = seq[int(i)]
+        if scan.doppler is None:
+            return SignCheck(0, np.nan, np.nan, "not checked (no Doppler)")
+        v = ego_velocity_from_doppler(scan.points, scan.doppler)
+        if v is None or np.linalg.norm(v) == 0:
+            continue
+        cosines.append(float(v @ v_gt[i] / (np.linalg.norm(v) * speed)))
+        ratios.append(float(np.linalg.norm(v) / speed))
+    if not cosines:
+        return SignCheck(0, np.nan, np.nan, "inconclusive (no moving frames)")
+    cos = float(np.median(cosines))
+    verdict = "confirmed" if cos > 0.5 else "appears FLIPPED" if cos < -0.5 else "inconclusive"
+    return SignCheck(len(cosines), cos, float(np.median(ratios)), verdict)
