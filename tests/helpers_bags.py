@@ -126,6 +126,32 @@ def write_gt_tum(path: Path, motion: Motion, t_start: float, t_end: float, step:
     return t
 
 
+def ego_velocity_from_doppler(points: np.ndarray, doppler: np.ndarray) -> np.ndarray:
+    """Least-squares sensor velocity (sensor frame) from ``doppler = -d . v``."""
+    d = points / np.linalg.norm(points, axis=1, keepdims=True)
+    v, *_ = np.linalg.lstsq(-d, doppler, rcond=None)
+    return v
+
+
+def gt_sensor_velocity(stamps: np.ndarray, poses: np.ndarray, i: int) -> np.ndarray:
+    """Central finite difference of the GT sensor positions at pose ``i``, in the sensor
+    frame."""
+    v_world = (poses[i + 1, :3, 3] - poses[i - 1, :3, 3]) / (stamps[i + 1] - stamps[i - 1])
+    return poses[i, :3, :3].T @ v_world
+
+
+def doppler_sign_cosine(sequence, frames: int = 5) -> float:
+    """Mean cosine similarity between the Doppler-fitted and the GT ego velocity."""
+    gt = sequence.ground_truth
+    cos = []
+    for i in range(1, min(frames + 1, len(sequence) - 1)):
+        scan = sequence.scan(i)
+        a = ego_velocity_from_doppler(scan.points, scan.doppler)
+        b = gt_sensor_velocity(gt.stamps, gt.poses, i)
+        cos.append(a @ b / (np.linalg.norm(a) * np.linalg.norm(b)))
+    return float(np.mean(cos))
+
+
 # -- ROS1 bags -----------------------------------------------------------------------------------
 
 def _stamp(store, t: float):
@@ -307,7 +333,9 @@ def write_campus_bag(path: Path, truth: Truth, *, topic: str = "/radar_scan",
             for n in names:
                 cols.setdefault(n, rng.uniform(0, 1, len(truth.points[i])).astype(np.float32))
             cols_all.append(cols)
-            targets = [Target(**{n: float(cols[n][k]) for n in names})
+            kinds = {n: t[1][0] for n, t in store.fielddefs[TARGET_TYPE][1]}
+            conv = {n: (float if kinds[n].startswith("float") else int) for n in names}
+            targets = [Target(**{n: conv[n](cols[n][k]) for n in names})
                        for k in range(len(truth.points[i]))]
             kwargs = {"header": _header(store, t, i), "targets": targets}
             for n, _ in store.fielddefs[SCAN_TYPE][1]:

@@ -1,0 +1,178 @@
+"""Tests for loaders.gt: association, interpolation, extrinsic, trimming, sanity report."""
+
+import warnings
+
+import numpy as np
+import pytest
+from helpers_bags import Motion
+
+from loaders.errors import DataError
+from loaders.gt import (
+    associate,
+    clean_trajectory,
+    gt_sanity_report,
+    nearest_indices,
+    parse_extrinsic,
+    read_gt_file,
+    remove_origin,
+)
+from loaders.scan import Trajectory
+from loaders.se3 import interpolate_poses, make_T
+
+T_BS = make_T(np.eye(3), [0.296, -0.130, -0.005])
+
+
+def gt_traj(motion: Motion, t0: float, t1: float, step: float) -> Trajectory:
+    t = np.arange(t0, t1 + step / 2, step)
+    return Trajectory(t, motion.body_pose(t))
+
+
+def test_interpolated_gt_with_extrinsic_matches_motion():
+    m = Motion(T_body_sensor=T_BS, t0=0.0)
+    gt = gt_traj(m, 0.0, 2.0, 0.02)
+    scans = 0.5 + 0.08 * np.arange(10)  # on GT rows
+    a = associate(gt, scans, T_body_sensor=T_BS, max_gap_s=0.1)
+    assert a.dropped == 0 and len(a.keep) == 10
+    np.testing.assert_allclose(a.ground_truth.poses, m.sensor_pose(scans), atol=1e-9)
+    np.testing.assert_allclose(a.ground_truth.stamps, scans)
+
+
+def test_interpolation_between_rows_is_se3_interpolation():
+    m = Motion(t0=0.0)
+    gt = gt_traj(m, 0.0, 2.0, 0.1)
+    scans = np.array([0.55, 1.234])
+    a = associate(gt, scans, max_gap_s=0.2)
+    np.testing.assert_allclose(a.ground_truth.poses,
+                               interpolate_poses(gt.stamps, gt.poses, scans), atol=1e-12)
+    # and close to the analytic motion (arc vs chord)
+    np.testing.assert_allclose(a.ground_truth.poses, m.body_pose(scans), atol=1e-2)
+
+
+def test_time_offset_moves_gt_onto_sensor_clock():
+    m = Motion(t0=0.0)
+    gt = gt_traj(m, 0.0, 2.0, 0.02)
+    shifted = Trajectory(gt.stamps - 100.0, gt.poses)  # GT clock 100 s behind
+    scans = 0.5 + 0.08 * np.arange(5)
+    with pytest.raises(DataError, match="does not overlap"):
+        associate(shifted, scans, gt_file="gt.txt", scan_file="run.bag")
+    a = associate(shifted, scans, offset_s=100.0)
+    np.testing.assert_allclose(a.ground_truth.poses, m.body_pose(scans), atol=1e-9)
+
+
+def test_no_overlap_names_both_files_and_spans():
+    gt = Trajectory(np.array([0.0, 1.0]), np.stack([np.eye(4)] * 2))
+    with pytest.raises(DataError) as err:
+        associate(gt, np.array([50.0, 51.0]), gt_file="gt_odom.txt", scan_file="loop1_0.bag")
+    msg = str(err.value)
+    assert "gt_odom.txt" in msg and "loop1_0.bag" in msg
+    assert "[0.000, 1.000]" in msg and "[50.000, 51.000]" in msg
+
+
+def test_uncovered_scans_dropped_with_count():
+    m = Motion(t0=0.0)
+    gt = gt_traj(m, 1.0, 2.0, 0.02)
+    scans = np.arange(0.0, 3.0, 0.1)  # 10 before, 9 after
+    with pytest.warns(UserWarning, match="dropped"):
+        a = associate(gt, scans, max_gap_s=0.1)
+    assert a.dropped_before == 10 and a.dropped_after == 9 and a.dropped_inside == 0
+    assert a.report["kept"] == len(a.keep) == 11
+    np.testing.assert_allclose(a.ground_truth.stamps, scans[a.keep])
+
+
+def test_gap_policies():
+    m = Motion(t0=0.0)
+    t = np.concatenate([np.arange(0.0, 1.0, 0.02), np.arange(2.0, 3.0, 0.02)])
+    gt = Trajectory(t, m.body_pose(t))
+    scans = np.arange(0.1, 2.9, 0.1)
+    with pytest.warns(UserWarning):
+        a = associate(gt, scans, max_gap_s=0.1, uncovered="drop")
+    assert a.dropped_inside > 0 and a.dropped_before == a.dropped_after == 0
+    with pytest.raises(DataError, match="gap"):
+        associate(gt, scans, max_gap_s=0.1, uncovered="trim")
+    with pytest.raises(DataError, match="not covered"):
+        associate(gt, np.arange(0.1, 3.5, 0.1), max_gap_s=2.0, uncovered="error")
+
+
+def test_tolerance_and_nearest_mode():
+    m = Motion(t0=0.0)
+    gt = gt_traj(m, 0.0, 1.0, 0.1)
+    a = associate(gt, np.array([-0.01, 0.5, 1.005]), tolerance_s=0.02)
+    assert a.dropped == 0
+    np.testing.assert_allclose(a.ground_truth.poses[0], gt.poses[0])
+    np.testing.assert_allclose(a.ground_truth.poses[-1], gt.poses[-1])
+    with pytest.warns(UserWarning):
+        n = associate(gt, np.array([0.101, 0.35, 0.9]), mode="nearest", tolerance_s=0.01)
+    assert list(n.keep) == [0, 2]
+    np.testing.assert_allclose(n.ground_truth.poses, gt.poses[[1, 9]])
+    idx, dist = nearest_indices(gt.stamps, np.array([0.04, 0.06]))
+    assert list(idx) == [0, 1] and np.allclose(dist, 0.04)
+
+
+def test_duplicate_and_unsorted_gt_cleaned_with_warning():
+    t = np.array([0.0, 0.2, 0.1, 0.2, 0.3])
+    gt = Trajectory(t, np.stack([make_T(np.eye(3), [s, 0, 0]) for s in t]))
+    with pytest.warns(UserWarning, match="repeated"):
+        clean, info = clean_trajectory(gt)
+    assert info == {"reordered": True, "duplicate_stamps": 1}
+    np.testing.assert_allclose(clean.stamps, [0.0, 0.1, 0.2, 0.3])
+
+
+def test_remove_origin_and_world_fix():
+    m = Motion(t0=0.0)
+    gt = gt_traj(m, 0.0, 1.0, 0.1).transformed(make_T(np.eye(3), [350000.0, 3.4e6, 10.0]))
+    local, origin = remove_origin(gt)
+    np.testing.assert_allclose(origin, [350000.0, 3.4e6, 10.0])
+    np.testing.assert_allclose(local.poses[0, :3, 3], 0.0, atol=1e-9)
+    np.testing.assert_allclose(local.poses[:, :3, :3], gt.poses[:, :3, :3])
+
+
+def test_sanity_report_findings():
+    t = np.concatenate([np.arange(0, 1.0, 0.1), [2.0, 2.1, 2.1, 2.05, 2.3]])
+    poses = np.stack([make_T(np.eye(3), [s, 0, 0]) for s in t])
+    poses[3] = poses[2]  # a repeated pose
+    rep = gt_sanity_report(Trajectory(t, poses), scan_stamps=np.arange(-1.0, 2.0, 0.1))
+    assert rep["poses"] == len(t)
+    assert rep["repeated_poses"] >= 1
+    assert rep["repeated_stamps"] == 1 and rep["non_monotonic"] == 1
+    assert rep["gaps"] and rep["gaps"][0]["gap_s"] == pytest.approx(1.1)
+    assert 0 < rep["scan_coverage_pct"] < 100
+    assert any("gap" in f for f in rep["findings"])
+    assert any("covers" in f for f in rep["findings"])
+    clean = gt_sanity_report(Trajectory(np.arange(0, 1, 0.1),
+                                        np.stack([make_T(np.eye(3), [s, 0, 0])
+                                                  for s in np.arange(0, 1, 0.1)])),
+                             scan_stamps=np.array([0.2, 0.5]))
+    assert clean["findings"] == [] and clean["scan_coverage_pct"] == 100.0
+
+
+def test_parse_extrinsic_forms():
+    T = parse_extrinsic("0.296 -0.130 -0.005 0 0 0 1")
+    np.testing.assert_allclose(T, T_BS)
+    np.testing.assert_allclose(parse_extrinsic(T.ravel()), T)
+    np.testing.assert_allclose(parse_extrinsic([1, 2, 3])[:3, 3], [1, 2, 3])
+    Rz = parse_extrinsic("0 0 0 0 0 0.7071067811865476 0.7071067811865476")
+    np.testing.assert_allclose(Rz[:3, :3] @ [1, 0, 0], [0, 1, 0], atol=1e-12)
+    with pytest.raises(DataError, match="7 numbers"):
+        parse_extrinsic("1 2 3 4")
+    with pytest.raises(DataError, match="unit"):
+        parse_extrinsic("0 0 0 0 0 0 2")
+
+
+def test_read_gt_file_tum_header_and_kitti(tmp_path):
+    p = tmp_path / "gt_odom.txt"
+    p.write_text("timestamp x y z qx qy qz qw\n1.0 1 2 3 0 0 0 1\n2.0 2 2 3 0 0 0 1\n")
+    tr = read_gt_file(p)
+    assert len(tr) == 2 and tr.stamps[0] == 1.0
+    k = tmp_path / "poses.txt"
+    np.savetxt(k, np.tile(np.eye(4)[:3].ravel(), (3, 1)))
+    assert len(read_gt_file(k, stamps=np.array([0.0, 0.1, 0.2]))) == 3
+    with pytest.raises(DataError, match="not found"):
+        read_gt_file(tmp_path / "missing.txt")
+
+
+def test_no_warning_when_clean():
+    m = Motion(t0=0.0)
+    gt = gt_traj(m, 0.0, 1.0, 0.1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        associate(gt, np.array([0.2, 0.3]))

@@ -1,0 +1,113 @@
+"""Tests for loaders.aeva (Doppler-ICP, Open3D demo and steam_icp Aeva folder layouts)."""
+
+import numpy as np
+import pytest
+from helpers_bags import Motion, doppler_sign_cosine, make_truth, write_aeva_folder
+
+from loaders.aeva import STEAM_T_VEHICLE_SENSOR, AevaSequence, detect_layout, sorted_frames
+from loaders.errors import DataError
+from loaders.gt import parse_extrinsic
+from loaders.se3 import make_T
+from loaders.store import StoreSequence, write_store
+
+CARLA_T = make_T(np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]), [1.0, 0.2, 1.8])
+
+
+def truth_for(layout, frames=6, points=50):
+    T = parse_extrinsic(STEAM_T_VEHICLE_SENSOR) if layout == "steam" else CARLA_T
+    return make_truth(Motion(T_body_sensor=T), frames=frames, points=points, period=0.1)
+
+
+@pytest.mark.parametrize("layout", ["dicp", "open3d", "steam"])
+def test_layouts_points_doppler_gt(tmp_path, layout):
+    truth = truth_for(layout)
+    root = write_aeva_folder(tmp_path / layout, truth, layout)
+    assert detect_layout(root) == layout
+    seq = AevaSequence(root)
+    assert len(seq) == 6 and seq.sensor.kind == "lidar"
+    for i in range(len(seq)):
+        s = seq.scan(i)
+        np.testing.assert_allclose(s.points, truth.points[i], rtol=0, atol=2e-6)
+        np.testing.assert_allclose(s.doppler, truth.doppler[i], rtol=0, atol=2e-7)
+    np.testing.assert_allclose(seq.ground_truth.poses, truth.sensor_poses(), atol=1e-6)
+    np.testing.assert_allclose(seq.sensor.T_body_sensor, truth.motion.T_body_sensor, atol=1e-9)
+    assert seq.sensor.period_s == pytest.approx(0.1, abs=1e-6)
+    assert doppler_sign_cosine(seq) > 0.99
+    assert doppler_sign_cosine(AevaSequence(root, doppler_sign=-1)) < -0.99
+    if layout == "steam":
+        t = seq.scan(0).fields["time_offset_s"]
+        assert t[0] == 0.0 and t[-1] == pytest.approx(0.099, abs=1e-6)
+        np.testing.assert_allclose(seq.stamps, truth.stamps, atol=1e-6)
+        assert "(us)" in seq.provenance["stamp_source"]
+    else:
+        np.testing.assert_allclose(seq.stamps, 0.1 * np.arange(6))
+        assert seq.scan(0).fields == {}
+
+
+def test_frames_sorted_numerically_and_stamps_from_period(tmp_path):
+    truth = truth_for("dicp", frames=12, points=10)
+    root = write_aeva_folder(tmp_path / "d", truth, "dicp")
+    for p in (root / "point_clouds").iterdir():
+        p.rename(p.with_name(f"{int(p.stem)}.bin"))  # 1.bin .. 12.bin: lexicographic != numeric
+    assert [p.stem for p in sorted_frames(root / "point_clouds", ".bin")][:3] == ["1", "2", "3"]
+    (root / "ref_poses.txt").unlink()
+    seq = AevaSequence(root, period_s=0.05)
+    assert seq.ground_truth is None and seq.provenance["stamp_source"] == "index x period"
+    np.testing.assert_allclose(seq.stamps, 0.05 * np.arange(12))
+    np.testing.assert_array_equal(seq.scan(10).points.astype(np.float32), truth.points[10])
+
+
+def test_time_association_when_gt_rows_differ(tmp_path):
+    truth = truth_for("open3d", frames=6)
+    root = write_aeva_folder(tmp_path / "o", truth, "open3d")
+    from helpers_bags import write_tum
+
+    t = np.arange(-0.2, 0.81, 0.05)
+    write_tum(root / "ground_truth_poses.txt", t, truth.motion.body_pose(truth.stamps[0] + t))
+    seq = AevaSequence(root)
+    assert seq.provenance["gt_association"]["mode"] == "interpolate"
+    np.testing.assert_allclose(seq.ground_truth.poses, truth.sensor_poses(), atol=1e-6)
+
+
+def test_errors(tmp_path):
+    with pytest.raises(DataError, match="not found"):
+        AevaSequence(tmp_path / "nope")
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(DataError, match=r"point_clouds/\*\.bin"):
+        AevaSequence(tmp_path / "empty")
+    truth = truth_for("dicp", frames=3, points=5)
+    root = write_aeva_folder(tmp_path / "d", truth, "dicp")
+    (root / "point_clouds" / "00002.bin").write_bytes(b"\0" * 20)
+    (root / "point_clouds" / "00003.bin").write_bytes(b"")
+    seq = AevaSequence(root)
+    with pytest.raises(DataError, match=r"00002\.bin, frame 1: 20 bytes.*multiple of 16"):
+        seq.scan(1)
+    with pytest.raises(DataError, match=r"00003\.bin, frame 2: empty scan"):
+        seq.scan(2)
+    steam = write_aeva_folder(tmp_path / "s", truth_for("steam", frames=3), "steam")
+    (steam / "timestamps.txt").write_text("1\n2\n")
+    with pytest.raises(DataError, match="2 stamps for 3 frames"):
+        AevaSequence(steam)
+
+
+def test_nan_points_dropped_with_warning(tmp_path):
+    truth = truth_for("dicp", frames=3, points=5)
+    root = write_aeva_folder(tmp_path / "d", truth, "dicp")
+    f = root / "point_clouds" / "00001.bin"
+    data = np.fromfile(f, dtype="<f4").reshape(-1, 4)
+    data[2, 3] = np.nan
+    data.tofile(f)
+    seq = AevaSequence(root)
+    with pytest.warns(UserWarning, match="dropped 1 of 5"):
+        assert len(seq.scan(0)) == 4
+    assert seq.provenance["nan_points_dropped"] == 1
+
+
+def test_store_round_trip(tmp_path):
+    truth = truth_for("steam", frames=3)
+    seq = AevaSequence(write_aeva_folder(tmp_path / "s", truth, "steam"))
+    st = StoreSequence(write_store(seq, tmp_path / "Tunnel_Empty.h5"))
+    np.testing.assert_array_equal(st.scan(2).fields["time_offset_s"],
+                                  seq.scan(2).fields["time_offset_s"])
+    np.testing.assert_allclose(st.ground_truth.poses, seq.ground_truth.poses)
+    st.close()
