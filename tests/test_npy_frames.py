@@ -1,0 +1,96 @@
+import warnings
+
+import numpy as np
+import pytest
+
+from loaders.doppler_check import doppler_sign_check
+from loaders.errors import DataError
+from loaders.npy_frames import NpyFramesSequence
+from loaders.scan import Trajectory
+
+
+def _load(path, **kw):
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        seq = NpyFramesSequence(path, **kw)
+    return seq, [str(w.message) for w in caught]
+
+
+def test_real_sample_loads_with_period_and_order_association(sample_dir):
+    seq, msgs = _load(sample_dir, period_s=1 / 12)
+    assert len(seq) == 60
+    np.testing.assert_allclose(seq.stamps[:3], [0, 1 / 12, 2 / 12])
+    np.testing.assert_allclose(seq.ground_truth.stamps, seq.stamps)
+    assert seq.provenance["repeated_gt_poses"] == 10
+    assert any("repeat the previous pose" in m for m in msgs)
+    s = seq[0]
+    assert 2000 <= len(s) <= 6000 and s.doppler.shape == (len(s),)
+
+
+def test_real_sample_doppler_convention_is_confirmed(sample_dir):
+    seq, _ = _load(sample_dir, period_s=1 / 12)
+    check = doppler_sign_check(seq, seq.ground_truth.poses)
+    assert check.verdict == "confirmed"
+    assert check.median_cosine > 0.95
+    assert 0.8 < check.median_speed_ratio < 1.3
+
+
+def _write_folder(tmp_path, n=4, gt_rows=None):
+    rng = np.random.default_rng(0)
+    for i in range(1, n + 1):
+        np.save(tmp_path / f"frame_{i:03d}.npy", rng.normal(size=(50, 3)) * 10)
+        np.save(tmp_path / f"frame_{i:03d}_dop.npy", rng.normal(size=50))
+    rows = n if gt_rows is None else gt_rows
+    np.savetxt(tmp_path / "gt.txt", np.column_stack(
+        [np.arange(rows) * 0.1, np.arange(rows), np.zeros((rows, 5)), np.ones(rows)]))
+    return tmp_path
+
+
+def test_sign_check_detects_a_flipped_convention(sample_dir):
+    from loaders.scan import MemorySequence, Scan
+
+    seq, _ = _load(sample_dir, period_s=1 / 12)
+    flipped = MemorySequence("f", seq.sensor, [Scan(s.stamp, s.points, -s.doppler)
+                                               for s in seq], seq.ground_truth)
+    assert doppler_sign_check(flipped, seq.ground_truth.poses).verdict == "appears FLIPPED"
+
+
+def test_bad_folders_get_clear_errors(tmp_path):
+    with pytest.raises(DataError, match="no frame_XXX.npy"):
+        NpyFramesSequence(tmp_path, period_s=0.1)
+    folder = _write_folder(tmp_path)
+    (folder / "frame_002_dop.npy").unlink()
+    with pytest.raises(DataError, match="frame_002.npy: missing Doppler file"):
+        NpyFramesSequence(folder, period_s=0.1)
+
+
+def test_gt_count_mismatch_and_missing_period(tmp_path):
+    folder = _write_folder(tmp_path, n=4, gt_rows=6)
+    with pytest.raises(DataError, match="6 GT rows but 4 frames"):
+        NpyFramesSequence(folder, period_s=0.1)
+    (folder / "gt.txt").unlink()
+    with pytest.raises(DataError, match="--period"):
+        NpyFramesSequence(folder)
+
+
+def test_nan_points_are_dropped_with_a_count_and_empty_scans_fail(tmp_path):
+    folder = _write_folder(tmp_path)
+    pts = np.load(folder / "frame_001.npy")
+    pts[[3, 7]] = np.nan
+    np.save(folder / "frame_001.npy", pts)
+    np.save(folder / "frame_003.npy", np.full((5, 3), np.nan))
+    np.save(folder / "frame_003_dop.npy", np.zeros(5))
+    seq, _ = _load(folder, period_s=0.1)
+    with pytest.warns(UserWarning, match="frame 0: dropped 2 non-finite points"):
+        assert len(seq[0]) == 48
+    with pytest.raises(DataError, match=r"frame_003.npy, frame 2: empty scan"), \
+            warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        seq[2]
+
+
+def test_single_tum_file_in_folder_is_used(tmp_path):
+    folder = _write_folder(tmp_path)
+    seq, _ = _load(folder, period_s=0.25)
+    assert isinstance(seq.ground_truth, Trajectory)
+    np.testing.assert_allclose(seq.ground_truth.stamps, [0, 0.25, 0.5, 0.75])
