@@ -1,0 +1,127 @@
+"""End to end: stores -> runs (resume, failures) -> metrics.json -> paper-shaped tables."""
+
+import json
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from bench.cli import app
+from bench.run import Job, execute, run_job
+from bench.tables import collect_rows, to_latex, to_markdown, write_tables
+from conftest import constant_twist_sequence
+from loaders.store import write_store
+
+METRIC_KEYS = {"sequence", "method", "seed", "frames", "diverged", "relative_error", "ape",
+               "time_ms"}
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    # 60 frames at 8 m/s and 0.1 s: 47 m of travel (48 m segments fit within 20 %)
+    seq = constant_twist_sequence(n_frames=60, n_points=2500, noise_m=0.01, max_range_m=70)
+    return write_store(seq, tmp_path_factory.mktemp("data") / "twist.h5")
+
+
+def test_run_folder_has_every_file_and_exact_metric_keys(store, tmp_path):
+    job = Job(store=store, method="doppler", seed=None, out_root=tmp_path)
+    out = run_job(job)
+    assert out.status == "done", out.message
+    run_dir = tmp_path / "twist" / "doppler"
+    for name in ("est_tum.txt", "est_kitti.txt", "gt_tum.txt", "frames.csv", "config.yaml",
+                 "meta.json", "metrics.json"):
+        assert (run_dir / name).exists(), name
+    metrics = json.loads((run_dir / "metrics.json").read_text())
+    assert set(metrics) == METRIC_KEYS
+    assert metrics["frames"] == 60 and metrics["diverged"] is False
+    assert set(metrics["relative_error"]["8"]) == {"rot_deg_mean", "trans_m_mean",
+                                                   "rot_deg_median", "trans_m_median", "n"}
+    assert metrics["relative_error"]["8"]["trans_m_mean"] < 0.1
+    assert metrics["relative_error"]["8"]["n"] > 0
+    assert set(metrics["time_ms"]) == {"median", "mean", "p95"}
+    meta = json.loads((run_dir / "meta.json").read_text())
+    assert {"git", "packages", "cpu", "threads", "date"} <= set(meta)
+    header = (run_dir / "frames.csv").read_text().splitlines()[0]
+    assert header == "index,stamp,time_ms,points,correspondences,iterations,converged"
+    est = np.loadtxt(run_dir / "est_tum.txt")
+    assert est.shape == (60, 8)
+
+
+def test_finished_runs_are_skipped_unless_forced(store, tmp_path):
+    job = Job(store=store, method="doppler", seed=None, out_root=tmp_path)
+    assert run_job(job).status == "done"
+    assert run_job(job).status == "skipped"
+    assert run_job(job, force=True).status == "done"
+
+
+def test_a_failed_job_is_recorded_and_the_others_carry_on(store, tmp_path):
+    broken = tmp_path / "broken.h5"
+    broken.write_bytes(store.read_bytes()[:5000])
+    jobs = [Job(store=broken, method="doppler", seed=None, out_root=tmp_path / "r"),
+            Job(store=store, method="doppler", seed=None, out_root=tmp_path / "r",
+                params={"tau_spatial_m": -1.0}),
+            Job(store=store, method="icp-p2p", seed=True, out_root=tmp_path / "r")]
+    outcomes = execute(jobs)
+    assert [o.status for o in outcomes] == ["failed", "failed", "done"]
+    assert "broken.h5" in outcomes[0].message
+    failed = json.loads((tmp_path / "r" / "twist" / "doppler" / "failed.json").read_text())
+    assert "tau_spatial_m" in failed["error"]
+    assert (tmp_path / "r" / "twist" / "icp-p2p_seed" / "metrics.json").exists()
+
+
+def test_tables_mark_best_and_second_and_show_divergence(store, tmp_path):
+    for method, seed in (("doppler", None), ("icp-p2p", True), ("icp-p2p", False)):
+        assert run_job(Job(store=store, method=method, seed=seed, out_root=tmp_path)).status \
+            == "done"
+    # make the no-seed run look diverged
+    m_path = tmp_path / "twist" / "icp-p2p_noseed" / "metrics.json"
+    m = json.loads(m_path.read_text())
+    m["diverged"] = True
+    m_path.write_text(json.dumps(m))
+    rows, lengths = collect_rows(tmp_path)
+    assert [r.label for r in rows] == ["(With Seed) icp-p2p", "(No Seed) icp-p2p",
+                                       "doppler (no initial guess)"]
+    assert lengths == ["8", "16", "24", "32", "40", "48"]
+    md = to_markdown(rows, lengths)
+    lines = [line for line in md.splitlines() if "icp-p2p" in line or "doppler" in line]
+    assert "Div." in lines[1] and "**" not in lines[1]
+    # two ranked rows per column: each 8 m cell has one bold and one underlined value
+    cells8 = [line.split("|")[4] for line in (lines[0], lines[2])]
+    assert sum(c.count("**") // 2 for c in cells8) == 2
+    assert sum(c.count("<u>") for c in cells8) == 2
+    tex = to_latex(rows, lengths)
+    assert r"\textbf{" in tex and r"\underline{" in tex and "Div." in tex
+    texts = write_tables(tmp_path)
+    assert (tmp_path / "table.csv").read_text() == texts["csv"]
+    assert texts["csv"].splitlines()[0].startswith("sensor_class,sequence,method,seed")
+
+
+def test_cli_run_table_inspect(store, tmp_path):
+    runner = CliRunner()
+    out_dir = tmp_path / "one"
+    res = runner.invoke(app, ["run", "--method", "icp-p2p", "--no-seed", "--data", str(store),
+                              "--out", str(out_dir)])
+    assert res.exit_code == 0, res.output
+    assert json.loads((out_dir / "metrics.json").read_text())["seed"] is False
+    res = runner.invoke(app, ["table", str(tmp_path), "--format", "csv"])
+    assert res.exit_code == 0, res.output
+    assert "icp-p2p" in res.output
+    res = runner.invoke(app, ["inspect", str(store)])
+    assert res.exit_code == 0, res.output
+    assert "points per frame" in res.output and "confirmed" in res.output
+    res = runner.invoke(app, ["list"])
+    assert res.exit_code == 0 and "doppler" in res.output and "npy-frames" in res.output
+
+
+def test_experiment_yaml_is_validated(tmp_path):
+    from bench.experiment import load_experiment
+    from loaders.errors import DataError
+
+    bad = tmp_path / "exp.yaml"
+    bad.write_text("name: x\nsequences: [{path: a.h5}]\nmethods: [{name: doppler, "
+                   "params: {tau_dopler: 5}}]\n")
+    with pytest.raises(DataError, match="tau_dopler"):
+        load_experiment(bad)
+    bad.write_text("name: x\nsequences: [{path: a.h5}]\nmethods: [{name: nope}]\n")
+    with pytest.raises(DataError, match="unknown method 'nope'"):
+        load_experiment(bad)
