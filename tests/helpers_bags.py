@@ -239,19 +239,24 @@ def write_ntu_bag(path: Path, truth: Truth, *, kind: str = "PointCloud",
                   topic: str = "/radar_enhanced_pcl", channel_order=("Power", "Doppler", "Range"),
                   doppler_name: str = "Doppler", big_endian: bool = False,
                   nan_frame: int | None = None, empty_frame: int | None = None,
-                  extra_topics: bool = True, latency_s: float = 0.005) -> Path:
+                  extra_topics: bool = True, latency_s: float = 0.005,
+                  compression: str | None = None) -> Path:
     """Bag with the radar scans of ``truth`` (record time = stamp + latency) and an IMU topic.
 
     kind "PointCloud": channels in ``channel_order`` (names among Power, Doppler, Range);
     kind "PointCloud2": float32 fields x, y, z, ``doppler_name``, power (4 bytes padding).
     nan_frame: that frame's first point gets NaN coordinates; empty_frame: that frame has none.
+    compression: None, "lz4" or "bz2" (chunk compression).
     """
     from rosbags.rosbag1 import Writer
     from rosbags.typesys import Stores, get_typestore
 
     store = get_typestore(Stores.ROS1_NOETIC)
     msgtype = f"sensor_msgs/msg/{kind}"
-    with Writer(path) as w:
+    writer = Writer(path)
+    if compression:
+        writer.set_compression(Writer.CompressionFormat[compression.upper()])
+    with writer as w:
         conn = w.add_connection(topic, msgtype, typestore=store)
         imu = w.add_connection("/vectornav/imu", "sensor_msgs/msg/Imu", typestore=store) \
             if extra_topics else None
