@@ -177,12 +177,14 @@ def speed(
     = None,
     repeats: Annotated[int, typer.Option(min=1, help="timed repeats per size")] = 7,
     out: Annotated[Path, typer.Option(help="output folder")] = Path("results/speed"),
+    memory: Annotated[bool, typer.Option(help="also measure the peak memory of a LiDAR run")]
+    = True,
 ) -> None:
     """Time every method on the same synthetic scan pairs; print ratios to `doppler`."""
     from bench.speed import run_speed
 
     run_speed([int(s) for s in sizes.split(",")],
-              methods.split(",") if methods else None, repeats, out, console)
+              methods.split(",") if methods else None, repeats, out, console, memory)
 
 
 @app.command()
