@@ -33,6 +33,8 @@ MaxGap = Annotated[float | None, typer.Option(
     "--max-gap", help="largest GT gap interpolated across (s) (default: loader's)")]
 Uncovered = Annotated[str, typer.Option(
     help="scans not covered by GT: drop (counted), trim (ends only) or error")]
+Stamp = Annotated[str, typer.Option(
+    help="scan stamps: header (header.stamp) or record (bag record time)")]
 
 
 CONFIG_DIR = Path(__file__).resolve().parent.parent / "configs" / "datasets"
@@ -122,6 +124,7 @@ def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]
         max_gap: MaxGap = None,
         uncovered: Uncovered = "drop",
         doppler_sign: Annotated[float, typer.Option(help="+1 or -1")] = 1.0,
+        stamp: Stamp = "header",
         name: Name = None,
         start: Start = 0, frames: Frames = None, stride: Stride = 1,
     ) -> None:
@@ -132,7 +135,7 @@ def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]
         seq = NtuSequence(bags, gt=gt, topic=topic, doppler_field=doppler_field,
                           T_gtbody_radar=extrinsic or DEFAULT_T_GTBODY_RADAR,
                           time_offset_s=time_offset, uncovered=uncovered,
-                          doppler_sign=doppler_sign, name=name, **kw)
+                          doppler_sign=doppler_sign, stamp=stamp, name=name, **kw)
         write(_range(seq, start, frames, stride), out)
 
     @convert_app.command("campus")
@@ -153,6 +156,7 @@ def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]
         time_offset: TimeOffset = 0.0,
         max_gap: MaxGap = None,
         uncovered: Uncovered = "drop",
+        stamp: Stamp = "header",
         name: Name = None,
         start: Start = 0, frames: Frames = None, stride: Stride = 1,
     ) -> None:
@@ -163,7 +167,8 @@ def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]
         seq = CampusSequence(bags, topic=topic, gt_topic=gt_topic or None, gt=gt,
                              elevation_sign=elevation_sign, doppler_sign=doppler_sign,
                              T_body_radar=extrinsic, remove_gt_origin=not keep_utm,
-                             time_offset_s=time_offset, uncovered=uncovered, name=name, **kw)
+                             time_offset_s=time_offset, uncovered=uncovered, stamp=stamp,
+                             name=name, **kw)
         write(_range(seq, start, frames, stride), out)
 
     @convert_app.command("aeva")

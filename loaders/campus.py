@@ -34,6 +34,7 @@ from loaders.ros1 import (
     median_period,
     register_bag_definition,
     sort_unique_stamps,
+    topic_stamps,
 )
 from loaders.scan import Scan, SensorInfo, Sequence, Trajectory
 from loaders.se3 import T_from_tum
@@ -134,6 +135,7 @@ class CampusSequence(Sequence):
     (default identity: unknown). remove_gt_origin: subtract the first GT position (UTM ->
     local). time_offset_s: ``gt_stamp + time_offset_s = header.stamp``. max_gap_s: largest GT gap
     interpolated across (GT at 50 Hz). uncovered: "drop" | "trim" | "error".
+    stamp: "header" (header.stamp, default) or "record" (bag record time).
     """
 
     def __init__(
@@ -149,6 +151,7 @@ class CampusSequence(Sequence):
         time_offset_s: float = 0.0,
         max_gap_s: float = 0.2,
         uncovered: str = "drop",
+        stamp: str = "header",
         name: str | None = None,
     ) -> None:
         if isinstance(bags, str | Path):
@@ -172,7 +175,8 @@ class CampusSequence(Sequence):
         if len(self._index) == 0:
             raise DataError(f"{self.bags[0]}: topic {topic} has no messages")
         where = ", ".join(str(b) for b in self.bags)
-        stamps = self._index.header_stamps()
+        stamps = topic_stamps(self._index, stamp, where)
+        self._stamp_mode = stamp
         order, dup = sort_unique_stamps(stamps, where)
         T = parse_extrinsic(T_body_radar)
         self.provenance: dict = {
@@ -182,6 +186,7 @@ class CampusSequence(Sequence):
             "target_fields": self._target_names,
             "elevation_sign": self.elevation_sign,
             "doppler_sign": self.doppler_sign,
+            "stamp": stamp,
             "messages": int(len(stamps)),
             "repeated_stamps_dropped": dup,
             "T_body_radar": T.tolist(),
@@ -271,13 +276,14 @@ class CampusSequence(Sequence):
     def scan(self, index: int) -> Scan:
         k = int(self._order[index])
         where = f"{self._index.where(k)} (frame {index})"
-        stamp, cols = self._targets(self._index.raw(k), where)
+        _, cols = self._targets(self._index.raw(k), where)
         points = spherical_to_xyz(cols["range"], cols["azimuth"], cols["elevation"],
                                   self.elevation_sign)
         doppler = self.doppler_sign * np.asarray(cols["velocity"], dtype=np.float64)
         fields = {name.lower(): np.asarray(v, dtype=np.float32)
                   for name, v in cols.items() if name != "velocity"}
-        return finish_scan(stamp, points, doppler, fields, where, self.provenance)
+        return finish_scan(float(self._stamps[index]), points, doppler, fields, where,
+                           self.provenance)
 
 
 def read_odometry(bags: list[Path], topic: str) -> Trajectory:

@@ -29,6 +29,7 @@ from loaders.ros1 import (
     parse_pointcloud,
     parse_pointcloud2,
     sort_unique_stamps,
+    topic_stamps,
 )
 from loaders.scan import Scan, SensorInfo, Sequence
 
@@ -52,7 +53,8 @@ class NtuSequence(Sequence):
     time_offset_s: ``gt_stamp + time_offset_s = header.stamp``. max_gap_s: largest GT gap
     interpolated across. uncovered: "drop" | "trim" | "error" (see ``loaders.gt.associate``).
     doppler_sign: multiply the Doppler channel by this (+1: already positive = receding).
-    name: sequence name (default: first bag's stem).
+    stamp: "header" (header.stamp, default) or "record" (bag record time, for drivers that
+    leave header.stamp unset). name: sequence name (default: first bag's stem).
     """
 
     def __init__(
@@ -66,6 +68,7 @@ class NtuSequence(Sequence):
         max_gap_s: float = 0.5,
         uncovered: str = "drop",
         doppler_sign: float = 1.0,
+        stamp: str = "header",
         name: str | None = None,
     ) -> None:
         if isinstance(bags, str | Path):
@@ -81,7 +84,8 @@ class NtuSequence(Sequence):
         if len(self._index) == 0:
             raise DataError(f"{self.bags[0]}: topic {topic} has no messages")
         where = ", ".join(str(b) for b in self.bags)
-        stamps = self._index.header_stamps()
+        stamps = topic_stamps(self._index, stamp, where)
+        self._stamp_mode = stamp
         order, dup = sort_unique_stamps(stamps, where)
         T = parse_extrinsic(T_gtbody_radar)
         self.provenance: dict = {
@@ -91,6 +95,7 @@ class NtuSequence(Sequence):
             "msgtype": self._index.msgtype,
             "doppler_field": doppler_field,
             "doppler_sign": self.doppler_sign,
+            "stamp": stamp,
             "messages": int(len(stamps)),
             "repeated_stamps_dropped": dup,
             "T_gtbody_radar": T.tolist(),
@@ -126,7 +131,7 @@ class NtuSequence(Sequence):
         where = f"{self._index.where(k)} (frame {index})"
         data = self._index.raw(k)
         if self._index.msgtype == POINTCLOUD:
-            stamp, points, channels = parse_pointcloud(data, where)
+            _, points, channels = parse_pointcloud(data, where)
             if self.doppler_field not in channels:
                 raise DataError(
                     f"{where}: no Doppler channel {self.doppler_field!r}; the PointCloud has "
@@ -140,7 +145,7 @@ class NtuSequence(Sequence):
                     key = f"channel_{key}"
                 fields[key] = values
         else:
-            stamp, arr, names = parse_pointcloud2(data, where)
+            _, arr, names = parse_pointcloud2(data, where)
             missing = [f for f in ("x", "y", "z") if f not in names]
             if missing:
                 raise DataError(
@@ -160,4 +165,5 @@ class NtuSequence(Sequence):
                 key = fname.lower()
                 fields["field_doppler" if key == "doppler" else key] = arr[fname].astype(
                     np.float32)
-        return finish_scan(stamp, points, doppler, fields, where, self.provenance)
+        return finish_scan(float(self._stamps[index]), points, doppler, fields, where,
+                           self.provenance)

@@ -463,6 +463,24 @@ def sort_unique_stamps(stamps: np.ndarray, where: str) -> tuple[np.ndarray, int]
     return order[keep], dup
 
 
+def topic_stamps(index: BagTopic, stamp: str, where: str) -> np.ndarray:
+    """Scan stamps of every message: ``stamp`` "header" (header.stamp, the sensor clock) or
+    "record" (the bag's record time, for drivers that leave the header stamp unset). Raises
+    when header stamps are mostly repeated (e.g. all zero)."""
+    if stamp == "record":
+        return index.record_time_ns.astype(np.float64) * 1e-9
+    if stamp != "header":
+        raise DataError(f"stamp must be 'header' or 'record', got {stamp!r}")
+    stamps = index.header_stamps()
+    if len(stamps) > 2 and len(np.unique(stamps)) < len(stamps) / 2:
+        raise DataError(
+            f"{where}: {index.topic}: only {len(np.unique(stamps))} distinct header stamps for "
+            f"{len(stamps)} messages (unset header.stamp?); use stamp='record' to take the bag's "
+            "record time"
+        )
+    return stamps
+
+
 def median_period(stamps: np.ndarray, default: float) -> float:
     d = np.diff(np.asarray(stamps, dtype=np.float64))
     d = d[d > 0]

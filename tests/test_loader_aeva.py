@@ -111,3 +111,49 @@ def test_store_round_trip(tmp_path):
                                   seq.scan(2).fields["time_offset_s"])
     np.testing.assert_allclose(st.ground_truth.poses, seq.ground_truth.poses)
     st.close()
+
+
+def test_convert_commands(tmp_path):
+    import typer
+    from helpers_bags import write_campus_bag, write_gt_tum, write_ntu_bag
+    from typer.testing import CliRunner
+
+    from bench.convert_real import register
+
+    app = typer.Typer()
+    written = {}
+
+    def write(seq, out):
+        written[out.name] = seq
+        return write_store(seq, out)
+
+    register(app, write)
+    runner = CliRunner()
+    truth = truth_for("dicp", frames=6, points=20)
+    root = write_aeva_folder(tmp_path / "d", truth, "dicp")
+    r = runner.invoke(app, ["aeva", str(root), "--out", str(tmp_path / "a.h5"), "--start", "1",
+                            "--stride", "2"])
+    assert r.exit_code == 0, r.output
+    st = StoreSequence(tmp_path / "a.h5")
+    assert len(st) == 3 and st.sensor.period_s == pytest.approx(0.2)
+    np.testing.assert_array_equal(st.scan(1).points, truth.points[3])
+    st.close()
+    bag = write_ntu_bag(tmp_path / "n.bag", truth)
+    gt = tmp_path / "gt.txt"
+    write_gt_tum(gt, truth.motion, truth.stamps[0] - 0.2, truth.stamps[-1] + 0.2)
+    r = runner.invoke(app, ["ntu4dradlm", str(bag), "--gt", str(gt), "--extrinsic",
+                            "1 0.2 1.8 0 0 0.7071067811865476 0.7071067811865476",
+                            "--frames", "4", "--out", str(tmp_path / "n.h5")])
+    assert r.exit_code == 0, r.output
+    st = StoreSequence(tmp_path / "n.h5")
+    assert len(st) == 4
+    np.testing.assert_allclose(st.ground_truth.poses, truth.sensor_poses()[:4], atol=1e-5)
+    st.close()
+    cbag, _ = write_campus_bag(tmp_path / "c.bag", truth)
+    r = runner.invoke(app, ["campus", str(cbag), "--elevation-sign", "-1",
+                            "--out", str(tmp_path / "c.h5")])
+    assert r.exit_code == 0, r.output
+    assert written["c.h5"].provenance["elevation_sign"] == -1.0
+    r = runner.invoke(app, ["campus", str(cbag), "--gt-topic", "/nope", "--out",
+                            str(tmp_path / "x.h5")])
+    assert isinstance(r.exception, DataError) and "/ground_truth" in str(r.exception)

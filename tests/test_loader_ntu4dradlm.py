@@ -244,3 +244,16 @@ def test_dataset_configs_match_loader_options(tmp_path, truth):
     seq = sequence_from_config(cfg, tmp_path)
     assert seq.name == "Loop1_0" and len(seq) == len(truth.stamps)
     np.testing.assert_allclose(seq.ground_truth.poses, truth.sensor_poses(), atol=1e-5)
+
+
+def test_record_time_stamps_and_unset_header_stamps(tmp_path, bag, truth):
+    path, _ = bag
+    seq = NtuSequence([path], stamp="record")
+    np.testing.assert_allclose(seq.stamps, truth.stamps + 0.005, atol=1e-6)
+    assert seq.scan(2).stamp == seq.stamps[2]
+    from helpers_bags import Truth
+
+    zero = Truth(np.zeros(4) + 0.0, truth.points[:4], truth.doppler[:4], truth.fields[:4], MOTION)
+    p0 = write_ntu_bag(tmp_path / "zero.bag", zero)
+    with pytest.raises(DataError, match="unset header.stamp"):
+        NtuSequence([p0])
