@@ -203,8 +203,15 @@ def reproduce(
     reproduce_table(out, data_dir, jobs, force, synthetic_only, console)
 
 
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    console.print(f"[yellow]warning:[/] {message}", highlight=False)
+
+
 def main() -> None:
     """Console entry point: bad input ends with one clear message, not a traceback."""
+    import warnings
+
+    warnings.showwarning = _show_warning
     try:
         app(standalone_mode=False)
     except DataError as err:

@@ -77,5 +77,11 @@ def inspect_sequence(seq: Sequence) -> dict:
             gt_poses = gt_at_stamps(gt, stamps)
         except DataError as err:
             gt_findings.append(f"cannot associate GT with the scans: {err}")
+    if seq.sensor.kind == "radar":  # elevation-sign check: the road should be below the sensor
+        from loaders.campus import low_points_median_z
+
+        z = low_points_median_z(seq)
+        rows.append(("height check", f"densest layer at z = {z['dominant_layer_z_m']:+.2f} m: "
+                                     f"{z['verdict']}"))
     sign = doppler_sign_check(seq, gt_poses)
     return {"rows": rows, "gt_findings": gt_findings, "sign": sign, "counts": counts}
