@@ -1,0 +1,199 @@
+"""Sensor models: ray pattern, detection, measurement noise, clutter and ghosts.
+
+Sensor frame: x forward, y left, z up. Azimuth = atan2(y, x), elevation = asin(z / r) [rad];
+range r [m]; Doppler [m/s, positive = receding]. Noise is added in (range, azimuth, elevation,
+Doppler) to the exact values, then points are converted back to Cartesian; points whose noisy
+measurement falls outside the field of view or the range limits are not reported.
+
+Radar: directions are drawn uniformly in the FoV (per-frame RNG); a hit is detected when its
+SNR (patch reflectivity by material, incidence, range loss and Swerling-1 fluctuation) exceeds a
+threshold, then random dropouts, multipath ghosts and clutter are applied and the strongest
+``max_points`` detections are kept. LiDAR: a fixed azimuth x elevation grid (density falls with
+range), a weak-return cut-off and random dropouts.
+
+Per-point fields: radar ``power`` [dB], ``rcs`` [dBsm], ``snr`` [dB]; LiDAR ``intensity``
+[0..1]; both ``gt_label`` (0 static, 1 moving object, 2 clutter/ghost: ground truth, not a
+measurement).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, replace
+
+import numpy as np
+
+from loaders.se3 import make_T
+
+# patch reflectivity by material id (see scenes.MATERIAL_NAMES)
+RADAR_REFLECTIVITY_DB = np.array([-22.0, 8.0, 8.0, 5.0, 10.0, 12.0, 15.0, -2.0, 6.0, 0.0, -6.0])
+LIDAR_REFLECTIVITY = np.array([0.15, 0.4, 0.5, 0.35, 0.45, 0.5, 0.5, 0.3, 0.4, 0.2, 0.15])
+
+LABEL_STATIC, LABEL_DYNAMIC, LABEL_CLUTTER = 0, 1, 2
+
+
+@dataclass(frozen=True)
+class SensorSpec:
+    name: str
+    kind: str  # "radar" | "lidar"
+    description: str
+    period_s: float
+    lever_arm: tuple[float, float, float]  # sensor origin in the body frame [m]
+    az_half_deg: float
+    el_half_deg: float
+    min_range: float
+    max_range: float
+    sigma_range: float  # [m]
+    sigma_az_deg: float
+    sigma_el_deg: float
+    sigma_doppler: float  # [m/s]
+    rays: int = 0  # radar: random rays per frame; lidar: grid rays (~ points)
+    max_points: int = 0  # radar output limit (strongest kept)
+    snr_gain_db: float = 30.0  # SNR of a 0 dB patch at 10 m
+    snr_threshold_db: float = 12.0
+    dropout: float = 0.0  # random per-point loss
+    ghost_frac: float = 0.0  # multipath ghosts per detection
+    clutter_frac: float = 0.0  # random clutter per detection
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+    @property
+    def T_body_sensor(self) -> np.ndarray:
+        return make_T(np.eye(3), np.array(self.lever_arm))
+
+
+SENSORS: dict[str, SensorSpec] = {
+    "radar-sparse": SensorSpec(
+        "radar-sparse", "radar",
+        "ZF FRGen21-like sparse 4D radar: 60 ms, 400-1,400 detections, +-75 x +-15 deg, 100 m",
+        0.06, (3.5, 0.0, 0.6), 75.0, 15.0, 0.5, 100.0, 0.12, 1.0, 1.5, 0.1,
+        rays=2400, max_points=1400, dropout=0.05, ghost_frac=0.03, clutter_frac=0.02),
+    "radar-semidense": SensorSpec(
+        "radar-semidense", "radar",
+        "Oculii Eagle-like semi-dense 4D radar: 1/12 s, 1,000-6,000 points, +-60 x +-15 deg",
+        1.0 / 12.0, (3.6, 0.0, 0.7), 60.0, 15.0, 0.5, 100.0, 0.08, 0.6, 1.0, 0.06,
+        rays=9000, max_points=6000, dropout=0.03, ghost_frac=0.02, clutter_frac=0.015),
+    "lidar-dense": SensorSpec(
+        "lidar-dense", "lidar",
+        "Aeva Aeries-like FMCW LiDAR: 0.1 s, 40k-120k points on a 120 x 30 deg grid, 150 m",
+        0.1, (1.5, 0.0, 1.8), 60.0, 15.0, 1.0, 150.0, 0.02, 0.02, 0.02, 0.03,
+        rays=60000, dropout=0.01),
+}
+
+
+def get_sensor(name: str) -> SensorSpec:
+    """The spec for sensor ``name``."""
+    if name not in SENSORS:
+        raise ValueError(f"unknown sensor {name!r}; known: {', '.join(SENSORS)}")
+    return SENSORS[name]
+
+
+def with_rays(spec: SensorSpec, rays: int) -> SensorSpec:
+    return replace(spec, rays=int(rays))
+
+
+def grid_shape(spec: SensorSpec) -> tuple[int, int]:
+    """(n_az, n_el) of the LiDAR grid: equal angular spacing, about ``rays`` rays."""
+    aspect = spec.az_half_deg / spec.el_half_deg
+    n_el = max(2, int(round(np.sqrt(spec.rays / aspect))))
+    return max(2, int(round(spec.rays / n_el))), n_el
+
+
+def _unit(az: np.ndarray, el: np.ndarray) -> np.ndarray:
+    ce = np.cos(el)
+    return np.stack([ce * np.cos(az), ce * np.sin(az), np.sin(el)], axis=1)
+
+
+def ray_directions(spec: SensorSpec, rng: np.random.Generator) -> np.ndarray:
+    """Unit ray directions (N, 3) in the sensor frame for one frame."""
+    a, e = np.radians(spec.az_half_deg), np.radians(spec.el_half_deg)
+    if spec.kind == "lidar":
+        n_az, n_el = grid_shape(spec)
+        az, el = np.meshgrid(np.linspace(-a, a, n_az), np.linspace(-e, e, n_el))
+        return _unit(az.ravel(), el.ravel())
+    return _unit(rng.uniform(-a, a, spec.rays), rng.uniform(-e, e, spec.rays))
+
+
+def _spherical(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    r = np.linalg.norm(p, axis=1)
+    return r, np.arctan2(p[:, 1], p[:, 0]), np.arcsin(np.clip(p[:, 2] / r, -1.0, 1.0))
+
+
+def measure(spec: SensorSpec, rng: np.random.Generator, points: np.ndarray,
+            doppler: np.ndarray, cos_inc: np.ndarray, material: np.ndarray,
+            dynamic: np.ndarray, v_sensor: np.ndarray, noise: bool):
+    """Turn exact hits (sensor frame) into measurements: returns points (M, 3), Doppler (M,)
+    and the per-point fields. With ``noise=False`` the kept points and Doppler are exact and
+    there is no clutter or ghost (detection sampling and dropouts still apply)."""
+    r, az, el = _spherical(points)
+    label = np.where(dynamic, LABEL_DYNAMIC, LABEL_STATIC)
+    if spec.kind == "lidar":
+        intensity = LIDAR_REFLECTIVITY[material] * cos_inc
+        keep = intensity / np.maximum(r / 100.0, 0.1) ** 2 > 0.01
+        keep &= rng.uniform(size=len(r)) >= spec.dropout
+        fields = {"intensity": intensity}
+        sig_scale = np.ones(len(r))
+    else:
+        fading = 10 * np.log10(np.maximum(rng.exponential(1.0, len(r)), 1e-12))
+        # rough surfaces: 10 log10(cos); the road is near-specular: 30 log10(cos)
+        inc_db = np.where(material == 0, 30.0, 10.0) * np.log10(np.maximum(cos_inc, 1e-3))
+        snr = (RADAR_REFLECTIVITY_DB[material] + inc_db
+               - 20 * np.log10(np.maximum(r, 0.5) / 10.0) + spec.snr_gain_db + fading)
+        keep = (snr > spec.snr_threshold_db) & (rng.uniform(size=len(r)) >= spec.dropout)
+        fields = {"snr": snr}
+        sig_scale = np.clip(10 ** ((20.0 - snr) / 20.0), 0.7, 1.5)
+    r, az, el, doppler, label = r[keep], az[keep], el[keep], doppler[keep], label[keep]
+    sig_scale = sig_scale[keep]
+    fields = {k: v[keep] for k, v in fields.items()}
+    if spec.kind == "radar" and noise:
+        r, az, el, doppler, label, fields, sig_scale = _ghosts_and_clutter(
+            spec, rng, r, az, el, doppler, label, fields, sig_scale, v_sensor)
+    if noise:
+        n = len(r)
+        r = r + rng.normal(0.0, spec.sigma_range, n)
+        az = az + rng.normal(0.0, np.radians(spec.sigma_az_deg), n) * sig_scale
+        el = el + rng.normal(0.0, np.radians(spec.sigma_el_deg), n) * sig_scale
+        doppler = doppler + rng.normal(0.0, spec.sigma_doppler, n)
+    ok = ((r >= spec.min_range) & (r <= spec.max_range)
+          & (np.abs(az) <= np.radians(spec.az_half_deg))
+          & (np.abs(el) <= np.radians(spec.el_half_deg)))
+    if spec.kind == "radar" and spec.max_points and ok.sum() > spec.max_points:
+        strongest = np.argsort(-np.where(ok, fields["snr"], -np.inf), kind="stable")
+        ok = np.zeros(len(r), bool)
+        ok[strongest[:spec.max_points]] = True
+    pts = r[ok, None] * _unit(az[ok], el[ok]) if noise else None
+    if not noise:  # exact: keep the caller's points (no round trip through angles)
+        pts = points[keep][ok]
+    fields = {k: v[ok] for k, v in fields.items()}
+    if spec.kind == "radar":
+        range_loss = 20 * np.log10(np.maximum(r[ok], 0.5) / 10.0)
+        fields["rcs"] = fields["snr"] - spec.snr_gain_db + range_loss
+        fields["power"] = fields["snr"] + 40.0  # receiver noise floor at 40 dB (arbitrary)
+    fields["gt_label"] = label[ok].astype(np.float64)
+    return pts, doppler[ok], fields
+
+
+def _ghosts_and_clutter(spec, rng, r, az, el, doppler, label, fields, sig_scale, v_sensor):
+    """Multipath ghosts (a real detection seen further away, often mirrored in elevation, with
+    its Doppler) and uniform clutter with Doppler unrelated to the scene."""
+    n = len(r)
+    snr = fields["snr"]
+    n_ghost = int(rng.poisson(spec.ghost_frac * n)) if n else 0
+    src = rng.integers(0, max(n, 1), n_ghost)
+    g_r = r[src] * rng.uniform(1.1, 1.7, n_ghost)
+    g_az = az[src] + rng.normal(0.0, np.radians(3.0), n_ghost)
+    g_el = np.where(rng.uniform(size=n_ghost) < 0.5, -el[src], el[src])
+    g_dop = doppler[src].copy()
+    g_snr = snr[src] - rng.uniform(3.0, 10.0, n_ghost)
+    n_clut = int(rng.poisson(spec.clutter_frac * n)) if n else 0
+    a, e = np.radians(spec.az_half_deg), np.radians(spec.el_half_deg)
+    c_r = rng.uniform(spec.min_range, 0.8 * spec.max_range, n_clut)
+    c_az, c_el = rng.uniform(-a, a, n_clut), rng.uniform(-e, e, n_clut)
+    c_dop = -(_unit(c_az, c_el) @ v_sensor) + rng.normal(0.0, 3.0, n_clut)
+    c_snr = spec.snr_threshold_db + rng.exponential(3.0, n_clut)
+    extra = n_ghost + n_clut
+    return (np.concatenate([r, g_r, c_r]), np.concatenate([az, g_az, c_az]),
+            np.concatenate([el, g_el, c_el]), np.concatenate([doppler, g_dop, c_dop]),
+            np.concatenate([label, np.full(extra, LABEL_CLUTTER)]),
+            {"snr": np.concatenate([snr, g_snr, c_snr])},
+            np.concatenate([sig_scale, np.full(extra, 1.5)]))
