@@ -268,3 +268,36 @@ def test_listings_and_bad_input():
         SyntheticSequence("loop", "radar-semidense", 5, uturm=True)
     with pytest.raises(ValueError, match="unknown scene"):
         SyntheticSequence("forest", "radar-semidense", 5)
+
+
+# noise, clutter, stamps, attitude ----------------------------------------------------------
+
+def test_radar_noise_and_clutter_levels():
+    seq = SyntheticSequence("campus", "radar-sparse", 40, seed=4)
+    spec = SENSORS["radar-sparse"]
+    resid, outlier_share = [], []
+    for i in range(0, 40, 8):
+        scan = seq.scan(i)
+        v, _ = seq.sensor_twist(i)
+        static = scan.fields["gt_label"] == 0
+        d = scan.points / np.linalg.norm(scan.points, axis=1, keepdims=True)
+        resid.append((scan.doppler + d @ v)[static])
+        outlier_share.append(np.mean(scan.fields["gt_label"] == 2))
+        assert {"power", "rcs", "snr", "gt_label"} <= set(scan.fields)
+    resid = np.concatenate(resid)
+    # Doppler noise plus the effect of the angle noise on the predicted radial velocity
+    assert spec.sigma_doppler * 0.8 < np.std(resid) < 0.4
+    assert 0.01 < np.mean(outlier_share) < 0.08
+
+
+def test_stamp_jitter_and_small_attitude():
+    seq = SyntheticSequence("loop", "radar-semidense", 50, seed=9, jitter_s=0.002, t0=100.0)
+    dt = np.diff(seq.stamps)
+    assert seq.stamps[0] == pytest.approx(100.0, abs=0.03) and dt.std() > 1e-4
+    assert np.all(np.abs(dt - 1 / 12) < 1 / 24)
+    again = SyntheticSequence("loop", "radar-semidense", 50, seed=9, jitter_s=0.002, t0=100.0)
+    np.testing.assert_array_equal(seq.stamps, again.stamps)
+    np.testing.assert_allclose(seq.ground_truth.poses, again.ground_truth.poses)
+    pitch, _, roll, _ = seq.motion.profile.attitude(np.linspace(0, 10, 2000))
+    assert np.degrees(np.abs(pitch)).max() < 1.0 and np.degrees(np.abs(roll)).max() < 1.0
+    assert np.degrees(np.abs(pitch)).max() > 0.05

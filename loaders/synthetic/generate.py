@@ -25,7 +25,7 @@ from loaders.synthetic.raycast import GROUND_ID, cast
 from loaders.synthetic.scenes import GROUND, SCENES, TUNNEL_WALL, build_scene, motion_spec
 from loaders.synthetic.sensors import SENSORS, get_sensor, measure, ray_directions, with_rays
 
-GENERATOR_VERSION = "doppler-bench-synthetic 1.0"
+GENERATOR_VERSION = "doppler-bench-synthetic 1.1"
 OPTIONS = {
     "points": "target points per frame (the ray count is calibrated on a probe frame)",
     "uturn": "loop: insert a ~0.55 rad/s U-turn",

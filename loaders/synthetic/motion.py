@@ -271,7 +271,7 @@ def make_profile(kind: str, rng: np.random.Generator, duration: float, speed: tu
     if kind == "uturn":
         # cruise, slow to ~5 m/s, U-turn at ~0.55 rad/s (pi rad), speed up again
         t_u = 0.35 * duration
-        ramp = 0.8
+        ramp = 1.0
         a = float(rng.uniform(0.53, 0.57)) * float(rng.choice([-1.0, 1.0]))
         hold = np.pi / abs(a) - ramp  # integral of the bump = |a| (hold + ramp) = pi
         v_turn = float(rng.uniform(4.8, 5.5))

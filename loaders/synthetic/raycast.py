@@ -178,13 +178,18 @@ GROUND_ID = -2
 TUNNEL_ID = -3
 
 
-def _bounding(kind: str, item) -> tuple[np.ndarray, float]:
+def _bounds(kind: str, items: list) -> tuple[np.ndarray, np.ndarray]:
+    """Bounding-sphere centers (K, 3) and radii (K,) of a list of primitives."""
+    if not items:
+        return np.zeros((0, 3)), np.zeros(0)
     if kind == "box":
-        return np.asarray(item[1], float), float(np.linalg.norm(item[2]))
+        return (np.array([it[1] for it in items], float),
+                np.array([np.linalg.norm(it[2]) for it in items]))
     if kind == "cyl":
-        _, cx, cy, r, z0, z1 = item
-        return np.array([cx, cy, 0.5 * (z0 + z1)]), float(np.hypot(r, 0.5 * (z1 - z0)))
-    return np.asarray(item[1], float), float(item[2])
+        a = np.array([it[1:] for it in items], float)  # cx, cy, r, z0, z1
+        return (np.column_stack([a[:, 0], a[:, 1], 0.5 * (a[:, 3] + a[:, 4])]),
+                np.hypot(a[:, 2], 0.5 * (a[:, 4] - a[:, 3])))
+    return np.array([it[1] for it in items], float), np.array([it[2] for it in items], float)
 
 
 def cast(geom: Geometry, o: np.ndarray, D: np.ndarray, D_sensor: np.ndarray,
@@ -215,35 +220,44 @@ def cast(geom: Geometry, o: np.ndarray, D: np.ndarray, D_sensor: np.ndarray,
     az = np.arctan2(D_sensor[:, 1], D_sensor[:, 0])
     order = np.argsort(az, kind="stable")
     az_sorted = az[order]
+    # cull by bounding sphere (range, azimuth span, cone), nearest primitives first so that
+    # rays already blocked closer than a primitive's bounding sphere are skipped
+    jobs = []
     for kind, items in (("box", geom.boxes), ("cyl", geom.vcylinders), ("sph", geom.spheres)):
-        for item in items:
-            c, rad = _bounding(kind, item)
-            cs = R_world_sensor.T @ (c - o)
-            dist = float(np.linalg.norm(cs))
-            if dist - rad > max_range:
-                continue
-            d_xy = float(np.hypot(cs[0], cs[1]))
-            if d_xy > rad * 1.0001:
-                # azimuth span of the bounding sphere, then the exact bounding cone
-                half_az = np.arcsin(rad / d_xy)
-                azc = np.arctan2(cs[1], cs[0])
-                lo, hi = np.searchsorted(az_sorted, [azc - half_az, azc + half_az])
-                if hi <= lo:
-                    continue
-                idx = order[lo:hi]
-                idx = idx[D_sensor[idx] @ (cs / dist) >= np.cos(np.arcsin(rad / dist))]
-                if len(idx) == 0:
-                    continue
-            else:
-                idx = everything
-            Dsub = D[idx]
-            if kind == "box":
-                t, n = hit_box(o, Dsub, np.asarray(item[1]), np.asarray(item[2]), item[3])
-            elif kind == "cyl":
-                t, n = hit_vcylinder(o, Dsub, *item[1:])
-            else:
-                t, n = hit_sphere(o, Dsub, np.asarray(item[1]), item[2])
-            update(idx, t, n, item[0])
+        centers, radii = _bounds(kind, items)
+        if not len(radii):
+            continue
+        cs = (centers - o) @ R_world_sensor
+        dist = np.linalg.norm(cs, axis=1)
+        d_xy = np.hypot(cs[:, 0], cs[:, 1])
+        near = dist - radii <= max_range
+        outside = d_xy > radii * 1.0001
+        half_az = np.arcsin(np.clip(radii / np.maximum(d_xy, 1e-12), 0.0, 1.0))
+        azc = np.arctan2(cs[:, 1], cs[:, 0])
+        lo = np.searchsorted(az_sorted, azc - half_az)
+        hi = np.searchsorted(az_sorted, azc + half_az)
+        keep = near & (~outside | (hi > lo))
+        for k in np.flatnonzero(keep):
+            jobs.append((dist[k] - radii[k], kind, items[k], bool(outside[k]), lo[k], hi[k],
+                         cs[k] / dist[k], np.sqrt(max(0.0, 1.0 - (radii[k] / dist[k]) ** 2))))
+    jobs.sort(key=lambda j: j[0])
+    for front, kind, item, outside, lo, hi, axis, cos_half in jobs:
+        if outside:
+            idx = order[lo:hi]
+            idx = idx[D_sensor[idx] @ axis >= cos_half]
+        else:
+            idx = everything
+        idx = idx[t_best[idx] > front]
+        if len(idx) == 0:
+            continue
+        Dsub = D[idx]
+        if kind == "box":
+            t, n = hit_box(o, Dsub, np.asarray(item[1]), np.asarray(item[2]), item[3])
+        elif kind == "cyl":
+            t, n = hit_vcylinder(o, Dsub, *item[1:])
+        else:
+            t, n = hit_sphere(o, Dsub, np.asarray(item[1]), item[2])
+        update(idx, t, n, item[0])
     t_best[t_best > max_range] = np.inf
     prim[~np.isfinite(t_best)] = -1
     return t_best, prim, normal

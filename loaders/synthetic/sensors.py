@@ -66,13 +66,13 @@ SENSORS: dict[str, SensorSpec] = {
     "radar-sparse": SensorSpec(
         "radar-sparse", "radar",
         "ZF FRGen21-like sparse 4D radar: 60 ms, 400-1,400 detections, +-75 x +-15 deg, 100 m",
-        0.06, (3.5, 0.0, 0.6), 75.0, 15.0, 0.5, 100.0, 0.12, 1.0, 1.5, 0.1,
+        0.06, (3.5, 0.0, 0.6), 75.0, 15.0, 0.5, 100.0, 0.12, 1.0, 1.3, 0.1,
         rays=2400, max_points=1400, dropout=0.05, ghost_frac=0.03, clutter_frac=0.02),
     "radar-semidense": SensorSpec(
         "radar-semidense", "radar",
         "Oculii Eagle-like semi-dense 4D radar: 1/12 s, 1,000-6,000 points, +-60 x +-15 deg",
         1.0 / 12.0, (3.6, 0.0, 0.7), 60.0, 15.0, 0.5, 100.0, 0.08, 0.6, 1.0, 0.06,
-        rays=9000, max_points=6000, dropout=0.03, ghost_frac=0.02, clutter_frac=0.015),
+        rays=6500, max_points=6000, dropout=0.03, ghost_frac=0.02, clutter_frac=0.015),
     "lidar-dense": SensorSpec(
         "lidar-dense", "lidar",
         "Aeva Aeries-like FMCW LiDAR: 0.1 s, 40k-120k points on a 120 x 30 deg grid, 150 m",
