@@ -75,16 +75,19 @@ def synth(
 
 
 def ensure_suite_with_progress(suite: str, data_dir: Path) -> list[Path]:
-    """Generate (or reuse) a synthetic suite with a progress bar."""
-    from rich.progress import Progress
+    """Generate (or reuse) a synthetic suite with a progress bar per sequence."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
     from loaders import synthetic
 
-    with Progress(console=console, transient=True) as progress:
-        task = progress.add_task(f"suite {suite}", total=None)
+    tasks: dict[str, int] = {}
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), console=console) as progress:
 
-        def report(*args) -> None:
-            progress.update(task, description=f"suite {suite}: {' '.join(map(str, args))}")
+        def report(name: str, done: int, total: int) -> None:
+            if name not in tasks:
+                tasks[name] = progress.add_task(f"{suite}/{name}", total=total)
+            progress.update(tasks[name], completed=done)
 
         return synthetic.ensure_suite(suite, data_dir, progress=report)
 

@@ -20,8 +20,7 @@ def suite_sequences(suite: str, data_dir: Path, console: Console | None = None
 
     paths = ensure_suite_with_progress(suite, data_dir)
     entries = suite_entries(suite)
-    return [SequenceEntry(path=p, name=e.name, display_name=e.display_name,
-                          sensor_class=e.sensor_class)
+    return [SequenceEntry(path=p, name=e.name, display_name=e.display, sensor_class=e.klass)
             for p, e in zip(paths, entries, strict=True)]
 
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from loaders.errors import DataError
-from loaders.scan import Scan, Sequence, SensorInfo, Trajectory
+from loaders.scan import Scan, SensorInfo, Sequence, Trajectory
 
 _FRAME = re.compile(r"^frame_(\d+)\.npy$")
 
