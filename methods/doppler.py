@@ -20,7 +20,7 @@ from pydantic import Field
 from loaders.errors import DataError
 from loaders.scan import Scan
 from methods.base import MethodParams, Registration, RegistrationResult, uniform_downsample
-from methods.rigid import fit_rigid
+from methods.rigid import fit_rigid_t
 
 
 class DopplerParams(MethodParams):
@@ -29,59 +29,79 @@ class DopplerParams(MethodParams):
     downsample: int = Field(1, ge=1, description="keep every k-th point")
 
 
+def _feature(points_t: np.ndarray, doppler: np.ndarray, dt_s: float, sign: float) -> np.ndarray:
+    """|p|^2 + sign |p| v dT for (3, N) points (contiguous rows: 1-D passes are fast)."""
+    r2 = points_t[0] * points_t[0]
+    r2 += points_t[1] * points_t[1]
+    r2 += points_t[2] * points_t[2]
+    r = np.sqrt(r2)
+    r *= doppler
+    r *= sign * dt_s
+    r2 += r
+    return r2
+
+
 def source_feature(points: np.ndarray, doppler: np.ndarray, dt_s: float) -> np.ndarray:
-    """f(p) = |p|^2 + |p| v_p dT for the source (previous) scan [m^2]."""
-    r = np.sqrt(np.einsum("ij,ij->i", points, points))
-    return r * (r + doppler * dt_s)
+    """f(p) = |p|^2 + |p| v_p dT for the source (previous) scan [m^2]; points (N, 3)."""
+    return _feature(np.ascontiguousarray(points.T), doppler, dt_s, 1.0)
 
 
 def target_feature(points: np.ndarray, doppler: np.ndarray, dt_s: float) -> np.ndarray:
-    """g(q) = |q|^2 - |q| v_q dT for the target (current) scan [m^2]."""
-    r = np.sqrt(np.einsum("ij,ij->i", points, points))
-    return r * (r - doppler * dt_s)
+    """g(q) = |q|^2 - |q| v_q dT for the target (current) scan [m^2]; points (N, 3)."""
+    return _feature(np.ascontiguousarray(points.T), doppler, dt_s, -1.0)
 
 
 _U32 = np.uint64(32)
-_QUERY_FLAG = 1 << 31
+_FLAG = 1 << 31
+_SIGN = np.uint32(31)
+_TOP = np.uint32(0x80000000)
 
 
 def _order_key(x: np.ndarray) -> np.ndarray:
-    """float -> uint64 whose unsigned order is the float32 order of ``x`` (high 32 bits)."""
+    """float -> uint32 whose unsigned order is the float32 order of ``x``."""
     bits = x.astype(np.float32).view(np.uint32)
-    flipped = np.where(bits >> np.uint32(31), ~bits, bits | np.uint32(0x80000000))
-    return flipped.astype(np.uint64) << _U32
+    return np.where(bits >> _SIGN, ~bits, bits | _TOP)
+
+
+def _decode_key(key: np.ndarray) -> np.ndarray:
+    """Inverse of ``_order_key``: the float32 values."""
+    return np.where(key >> _SIGN, key ^ _TOP, ~key).view(np.float32)
 
 
 def nearest_1d(values: np.ndarray, queries: np.ndarray) -> np.ndarray:
     """Index into ``values`` of the nearest value to each query (1-D nearest neighbour).
 
-    One sort of the values and queries together (float32 sort key in the high 32 bits, index
-    and a query flag in the low 32 bits of a uint64, so NumPy's SIMD integer sort applies); the
-    number of values before a query in the merged order gives its two neighbours, and the
-    closer one in float64 wins. Equivalent to argsort + searchsorted on the values, up to ties
-    within float32 resolution (about 1e-7 relative: 1e-3 m^2 at 100 m range), and about twice
-    as fast.
+    One sort of values and queries together: a uint64 key holds the float32 order key in its
+    high 32 bits and the index (plus a query flag) in its low 32 bits, so NumPy's SIMD integer
+    sort applies. In the merged order, the values just before and after each query are its
+    two candidates; the closer one wins. All comparisons walk the merged order (cache
+    friendly); only the final scatter back to query order is random access.
+
+    Same answer as argsort + searchsorted up to ties within float32 resolution (1e-7
+    relative: about 1e-3 m^2 at 100 m range, far below the feature noise), and 2-3x faster.
     """
     m, n = len(values), len(queries)
     if m == 0:
         raise ValueError("nearest_1d needs at least one value")
     keys = np.empty(m + n, dtype=np.uint64)
     keys[:m] = _order_key(values)
-    keys[:m] |= np.arange(m, dtype=np.uint64)
     keys[m:] = _order_key(queries)
-    keys[m:] |= np.arange(_QUERY_FLAG, _QUERY_FLAG + n, dtype=np.uint64)
+    keys <<= _U32
+    keys[:m] |= np.arange(m, dtype=np.uint64)
+    keys[m:] |= np.arange(_FLAG, _FLAG + n, dtype=np.uint64)
     keys.sort()
-    low = (keys & np.uint64(0xFFFFFFFF)).astype(np.int64)
-    is_query = low >= _QUERY_FLAG
+    low = keys.astype(np.uint32)  # index and query flag
+    is_query = low >= _FLAG
     query_pos = np.flatnonzero(is_query)
-    value_order = low[~is_query]  # value indices in ascending order
-    query_idx = low[query_pos] - _QUERY_FLAG
+    value_pos = np.flatnonzero(~is_query)
     before = query_pos - np.arange(n)  # values sorted before each query
-    lo = value_order[np.maximum(before - 1, 0)]
-    hi = value_order[np.minimum(before, m - 1)]
-    q = queries[query_idx]
+    lo = value_pos[np.maximum(before - 1, 0)]
+    hi = value_pos[np.minimum(before, m - 1)]
+    v = _decode_key((keys >> _U32).astype(np.uint32))
+    q = v[query_pos]
+    pick = np.where(v[hi] - q < q - v[lo], hi, lo)
     nearest = np.empty(n, dtype=np.int64)
-    nearest[query_idx] = np.where(np.abs(values[hi] - q) < np.abs(q - values[lo]), hi, lo)
+    nearest[low[query_pos] - np.uint32(_FLAG)] = low[pick]
     return nearest
 
 
@@ -101,16 +121,23 @@ class DopplerCorrespondence(Registration):
         if len(source) < 3 or len(target) < 3:
             return RegistrationResult(init_T_target_source, 0, 1, False)
         dt_s = target.stamp - source.stamp
-        f = source_feature(source.points, source.doppler, dt_s)
-        g = target_feature(target.points, target.doppler, dt_s)
+        # (3, N) layout: every step below is a pass over contiguous 1-D arrays
+        P = np.ascontiguousarray(source.points.T)
+        Q = np.ascontiguousarray(target.points.T)
+        f = _feature(P, source.doppler, dt_s, 1.0)
+        g = _feature(Q, target.doppler, dt_s, -1.0)
         match = nearest_1d(g, f)
-        matched = target.points[match]
-        diff = source.points - matched
-        keep = (np.einsum("ij,ij->i", diff, diff) <= p.tau_spatial_m**2) & (
-            np.abs(f - g[match]) <= p.tau_doppler
-        )
-        n = int(keep.sum())
-        T = fit_rigid(source.points[keep], matched[keep]) if n >= 3 else None
+        Q_matched = np.take(Q, match, axis=1)
+        d = P - Q_matched
+        d *= d
+        dist2 = d[0] + d[1]
+        dist2 += d[2]
+        keep = dist2 <= p.tau_spatial_m**2
+        keep &= np.abs(f - g.take(match)) <= p.tau_doppler
+        idx = np.flatnonzero(keep)
+        if len(idx) < 3:
+            return RegistrationResult(init_T_target_source, len(idx), 1, False)
+        T = fit_rigid_t(np.take(P, idx, axis=1), np.take(Q_matched, idx, axis=1))
         if T is None:
-            return RegistrationResult(init_T_target_source, n, 1, False)
-        return RegistrationResult(T, n, 1, True)
+            return RegistrationResult(init_T_target_source, len(idx), 1, False)
+        return RegistrationResult(T, len(idx), 1, True)

@@ -15,20 +15,30 @@ def fit_rigid(
 
     source, target: (N, 3) corresponding points. The SVD solution is guarded against
     reflections (det(R) = +1). Fewer than 3 pairs, zero total weight or collinear points give
-    None. Sums go through BLAS (``w @ P``), which is much faster than axis-0 reductions.
+    None.
     """
-    n = len(source)
+    return fit_rigid_t(np.ascontiguousarray(source.T), np.ascontiguousarray(target.T), weights)
+
+
+def fit_rigid_t(
+    source_t: np.ndarray, target_t: np.ndarray, weights: np.ndarray | None = None
+) -> np.ndarray | None:
+    """``fit_rigid`` for points given as (3, N) arrays (contiguous rows: fast sums)."""
+    n = source_t.shape[1]
     if n < 3:
         return None
-    w = np.full(n, 1.0 / n) if weights is None else np.asarray(weights, dtype=np.float64)
-    w_sum = w.sum()
-    if not w_sum > 0:
-        return None
-    w = w / w_sum
-    mu_p = w @ source
-    mu_q = w @ target
-    # cross-covariance sum w (p - mu_p)(q - mu_q)^T without centred copies
-    H = (source.T * w) @ target - np.outer(mu_p, mu_q)
+    if weights is None:
+        mu_p = source_t.sum(axis=1) / n
+        mu_q = target_t.sum(axis=1) / n
+        H = source_t @ target_t.T - n * np.outer(mu_p, mu_q)
+    else:
+        w = np.asarray(weights, dtype=np.float64)
+        w_sum = w.sum()
+        if not w_sum > 0:
+            return None
+        mu_p = source_t @ w / w_sum
+        mu_q = target_t @ w / w_sum
+        H = (source_t * w) @ target_t.T - w_sum * np.outer(mu_p, mu_q)
     U, S, Vt = np.linalg.svd(H)
     if not np.all(np.isfinite(S)) or S[0] <= 0 or S[1] < _DEGENERATE_RATIO * S[0]:
         return None
