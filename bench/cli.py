@@ -173,6 +173,21 @@ def table(
 
 
 @app.command()
+def figures(
+    results_dir: Annotated[Path, typer.Argument(help="results folder (searched recursively)")],
+    out: Annotated[Path | None, typer.Option(help="output folder (default RESULTS_DIR/figures)")]
+    = None,
+) -> None:
+    """Top-view trajectory plots per sequence (estimates aligned at the first pose)."""
+    from bench.figures import plot_trajectories
+
+    paths = plot_trajectories(results_dir, out)
+    if not paths:
+        raise DataError(f"{results_dir}: no finished runs with ground truth to plot")
+    console.print(f"wrote {len(paths)} figures to {paths[0].parent}/")
+
+
+@app.command()
 def speed(
     sizes: Annotated[str, typer.Option(help="point counts, comma separated")]
     = "1000,4000,16000,64000,128000",

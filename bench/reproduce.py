@@ -14,6 +14,7 @@ import yaml
 from rich.console import Console
 
 from bench.experiment import Experiment, MethodEntry, SequenceEntry
+from bench.figures import plot_trajectories
 from bench.run import execute, summarize
 from bench.runplan import jobs_for_experiment
 from bench.tables import write_tables
@@ -52,7 +53,10 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
                          methods=methods, jobs=jobs, out=out)
     outcomes = execute(jobs_for_experiment(exp, console), jobs, force, console)
     texts = write_tables(exp.out_dir)
+    figures = plot_trajectories(exp.out_dir)
     console.print(texts["md"], markup=False, highlight=False)
+    if figures:
+        console.print(f"trajectory figures: {figures[0].parent}/")
     console.print(f"[bold]{summarize(outcomes)}[/] in {time.perf_counter() - t0:.0f} s; wrote "
                   f"{exp.out_dir}/table.{{md,tex,csv}}")
     return texts

@@ -109,6 +109,9 @@ def test_cli_run_table_inspect(store, tmp_path):
     res = runner.invoke(app, ["inspect", str(store)])
     assert res.exit_code == 0, res.output
     assert "points per frame" in res.output and "confirmed" in res.output
+    res = runner.invoke(app, ["figures", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "figures" / "trajectories.png").stat().st_size > 10_000
     res = runner.invoke(app, ["list"])
     assert res.exit_code == 0 and "doppler" in res.output and "npy-frames" in res.output
 
