@@ -17,7 +17,7 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
-from loaders.scan import FrameRange, Sequence
+from loaders.scan import Sequence, select_frames
 from loaders.store import write_store
 
 console = Console()
@@ -53,12 +53,6 @@ def write_with_progress(sequence: Sequence, out: Path) -> Path:
     return Path(out)
 
 
-def frame_range(seq: Sequence, start: int, frames: int | None, stride: int) -> Sequence:
-    if start == 0 and frames is None and stride == 1:
-        return seq
-    return FrameRange(seq, start, frames, stride)
-
-
 Start = Annotated[int, typer.Option(help="first frame")]
 Frames = Annotated[int | None, typer.Option(help="number of frames (default: all)")]
 Stride = Annotated[int, typer.Option(help="keep every k-th frame (period scaled by k)")]
@@ -83,7 +77,7 @@ def npy_frames(
 
     seq = NpyFramesSequence(folder, gt=gt, period_s=period, kind=kind, name=name,
                             associate=associate)
-    write_with_progress(frame_range(seq, start, frames, stride), out)
+    write_with_progress(select_frames(seq, start, frames, stride), out)
 
 
 def _register_real_loaders() -> None:

@@ -13,18 +13,10 @@ from typing import Annotated
 
 import typer
 
-from loaders.scan import FrameRange, Sequence
-
-
-def _range(seq: Sequence, start: int, frames: int | None, stride: int) -> Sequence:
-    if start == 0 and frames is None and stride == 1:
-        return seq
-    return FrameRange(seq, start, frames, stride)
-
+from bench.convert import Frames, Stride
+from loaders.scan import Sequence, select_frames
 
 Start = Annotated[int, typer.Option(help="first frame (after GT trimming)")]
-Frames = Annotated[int | None, typer.Option(help="number of frames (default: all)")]
-Stride = Annotated[int, typer.Option(help="keep every k-th frame (period scaled by k)")]
 Out = Annotated[Path, typer.Option(help="store to write, e.g. data/real/Loop1_0.h5")]
 Name = Annotated[str | None, typer.Option(help="sequence name stored in the file")]
 TimeOffset = Annotated[float, typer.Option(
@@ -86,7 +78,8 @@ def sequence_from_config(cfg: dict, raw_dir: Path | None = None) -> Sequence:
     else:
         seq = Loader(raw, name=cfg["name"], **opts)
     fr = cfg.get("frame_range") or {}
-    return _range(seq, int(fr.get("start") or 0), fr.get("frames"), int(fr.get("stride") or 1))
+    return select_frames(seq, int(fr.get("start") or 0), fr.get("frames"),
+                         int(fr.get("stride") or 1))
 
 
 def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]) -> None:
@@ -136,7 +129,7 @@ def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]
                           T_gtbody_radar=extrinsic or DEFAULT_T_GTBODY_RADAR,
                           time_offset_s=time_offset, uncovered=uncovered,
                           doppler_sign=doppler_sign, stamp=stamp, name=name, **kw)
-        write(_range(seq, start, frames, stride), out)
+        write(select_frames(seq, start, frames, stride), out)
 
     @convert_app.command("campus")
     def campus(
@@ -169,7 +162,7 @@ def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]
                              T_body_radar=extrinsic, remove_gt_origin=not keep_utm,
                              time_offset_s=time_offset, uncovered=uncovered, stamp=stamp,
                              name=name, **kw)
-        write(_range(seq, start, frames, stride), out)
+        write(select_frames(seq, start, frames, stride), out)
 
     @convert_app.command("aeva")
     def aeva(
@@ -200,4 +193,4 @@ def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]
                            invert_calibration=invert_calibration,
                            gt=False if no_gt else gt, gt_association=gt_association,
                            time_offset_s=time_offset, doppler_sign=doppler_sign, name=name)
-        write(_range(seq, start, frames, stride), out)
+        write(select_frames(seq, start, frames, stride), out)

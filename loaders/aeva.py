@@ -28,7 +28,7 @@ from pathlib import Path
 import numpy as np
 
 from loaders.errors import DataError
-from loaders.gt import associate, parse_extrinsic, read_gt_file
+from loaders.gt import associate, detect_pose_format, parse_extrinsic, read_gt_file
 from loaders.ros1 import finish_scan, median_period
 from loaders.scan import Scan, SensorInfo, Sequence, Trajectory
 
@@ -209,7 +209,7 @@ class AevaSequence(Sequence):
             stamp_source = f"{ts_file} ({unit})"
         traj = None
         if gt_path is not None:
-            if _is_kitti(gt_path):
+            if detect_pose_format(gt_path) == "kitti":
                 traj = read_gt_file(gt_path, "kitti")
                 if len(traj) != n:
                     raise DataError(
@@ -306,18 +306,3 @@ class AevaSequence(Sequence):
         doppler = self.doppler_sign * data[:, 3].astype(np.float64)
         return finish_scan(float(self._stamps_all[k]), data[:, :3], doppler, fields, where,
                            self.provenance)
-
-
-def _is_kitti(path: Path) -> bool:
-    with open(path) as f:
-        for line in f:
-            parts = line.replace(",", " ").split()
-            if not parts or parts[0].startswith("#"):
-                continue
-            try:
-                [float(p) for p in parts]
-            except ValueError:
-                continue
-            return len(parts) == 12
-    return False
-

@@ -318,6 +318,21 @@ def clean_trajectory_quiet(gt: Trajectory) -> tuple[Trajectory, dict]:
         return clean_trajectory(gt)
 
 
+def detect_pose_format(path: str | Path) -> str:
+    """"kitti" when the first numeric row has 12 values, else "tum"."""
+    with open(path) as f:
+        for line in f:
+            parts = line.replace(",", " ").split()
+            if not parts or parts[0].startswith("#"):
+                continue
+            try:
+                [float(p) for p in parts]
+            except ValueError:
+                continue
+            return "kitti" if len(parts) == 12 else "tum"
+    return "tum"
+
+
 def read_gt_file(path: str | Path, fmt: str = "auto", stamps: np.ndarray | None = None
                  ) -> Trajectory:
     """Read a TUM (8 columns) or KITTI (12 columns) pose file; ``fmt`` "auto" decides from the
@@ -326,18 +341,7 @@ def read_gt_file(path: str | Path, fmt: str = "auto", stamps: np.ndarray | None 
     if not path.exists():
         raise DataError(f"{path}: ground-truth file not found")
     if fmt == "auto":
-        fmt = "tum"
-        with open(path) as f:
-            for line in f:
-                parts = line.replace(",", " ").split()
-                if not parts or parts[0].startswith("#"):
-                    continue
-                try:
-                    [float(p) for p in parts]
-                except ValueError:
-                    continue
-                fmt = "kitti" if len(parts) == 12 else "tum"
-                break
+        fmt = detect_pose_format(path)
     if fmt == "tum":
         return Trajectory.read_tum(path)
     if fmt == "kitti":

@@ -380,3 +380,11 @@ class FrameRange(Sequence):
     @property
     def stamps(self) -> np.ndarray:
         return self._stamps.copy()
+
+
+def select_frames(seq: Sequence, start: int = 0, frames: int | None = None,
+                  stride: int = 1) -> Sequence:
+    """``seq`` itself for the full range, else a ``FrameRange`` view of it."""
+    if start == 0 and frames is None and stride == 1:
+        return seq
+    return FrameRange(seq, start, frames, stride)
