@@ -301,3 +301,80 @@ def test_stamp_jitter_and_small_attitude():
     pitch, _, roll, _ = seq.motion.profile.attitude(np.linspace(0, 10, 2000))
     assert np.degrees(np.abs(pitch)).max() < 1.0 and np.degrees(np.abs(roll)).max() < 1.0
     assert np.degrees(np.abs(pitch)).max() > 0.05
+
+
+# persistent radar scatterers -------------------------------------------------------------
+
+@pytest.mark.parametrize("scene,sensor,lo,hi", [
+    ("campus", "radar-sparse", 400, 1400),
+    ("loop", "radar-semidense", 1000, 6000),
+])
+def test_radar_scatterers_persist_between_frames(scene, sensor, lo, hi):
+    """Most static detections of frame k come from scattering centres that are detected again
+    in frame k+1 (they flicker with fading, but persist); diffuse returns are a minority."""
+    seq = SyntheticSequence(scene, sensor, 40, seed=21)
+    shares, diffuse = [], []
+    for i in range(0, 39, 6):
+        a, b = seq.scan(i), seq.scan(i + 1)
+        assert lo <= len(a) <= hi and lo <= len(b) <= hi
+        sid, label = a.fields["gt_scatterer"], a.fields["gt_label"]
+        assert np.all(sid[label == 2] == -1)  # clutter and ghosts belong to no scatterer
+        static = label == 0
+        again = np.isin(sid, b.fields["gt_scatterer"][b.fields["gt_label"] == 0]) & (sid >= 0)
+        shares.append(np.sum(again & static) / static.sum())
+        diffuse.append(np.mean(sid[static] < 0))
+    assert np.mean(shares) > 0.5 and min(shares) > 0.4, shares
+    assert 0.03 < np.mean(diffuse) < 0.35, diffuse
+
+
+def test_radar_scatterers_are_world_fixed_and_exact():
+    """Without noise a static scatterer is reported at the same world point in every frame
+    that sees it, and the Doppler of static and moving scatterers is exact."""
+    seq = SyntheticSequence("loop", "radar-semidense", 30, seed=8, noise=False)
+    sc = seq.scatterers
+    seen: dict[int, np.ndarray] = {}
+    repeats = moving = 0
+    for i in range(0, 30, 3):
+        scan = seq.scan(i)
+        T = seq.ground_truth.poses[i]
+        sid = scan.fields["gt_scatterer"].astype(int)
+        pw = transform_points(T, scan.points)
+        v, _ = seq.sensor_twist(i)
+        d = scan.points / np.linalg.norm(scan.points, axis=1, keepdims=True)
+        static = (sid >= 0) & (scan.fields["gt_label"] == 0)
+        np.testing.assert_allclose(scan.doppler[static], -(d[static] @ v), atol=1e-9)
+        fixed = static & (sc.radius[np.maximum(sid, 0)] == 0)
+        np.testing.assert_allclose(pw[fixed], sc.pos[sid[fixed]], atol=1e-6)
+        for k in np.flatnonzero(fixed):
+            repeats += int(sid[k]) in seen
+            seen[int(sid[k])] = pw[k]
+        # moving scatterers: range rate of the body-fixed point (finite differences)
+        raw = seq.raw_hits(i)
+        dyn = np.flatnonzero((raw["scatterer"] >= 0) & raw["dynamic"])[:5]
+        g0 = seq.scene_model.geometry(seq.stamps[i])
+        for k in dyn:
+            pid = raw["prim"][k]
+            owner = int(sc.owner[raw["scatterer"][k]])
+            assert g0.mover_pid[owner] == pid
+            ranges = []
+            for dt in (-1e-4, 1e-4):
+                g = seq.scene_model.geometry(seq.stamps[i] + dt)
+                b = next(b for b in g.boxes if b[0] == g.mover_pid[owner])
+                xw = transform_points(make_T(_rz(b[3]), b[1]), sc.pos[raw["scatterer"][k]][None])
+                Ts = seq.motion.sensor_pose(np.array([seq.stamps[i] + dt]))[0]
+                ranges.append(np.linalg.norm(transform_points(inv_T(Ts), xw)))
+            assert abs(raw["doppler"][k] - (ranges[1] - ranges[0]) / 2e-4) < 1e-5
+            moving += 1
+    assert repeats > 500 and moving > 5
+
+
+def test_radar_scatterers_depend_only_on_the_seed():
+    a = SyntheticSequence("campus", "radar-sparse", 5, seed=3)
+    b = SyntheticSequence("campus", "radar-sparse", 5, seed=3)
+    c = SyntheticSequence("campus", "radar-sparse", 5, seed=4)
+    np.testing.assert_array_equal(a.scatterers.pos, b.scatterers.pos)
+    assert len(a.scatterers) != len(c.scatterers) or not np.array_equal(a.scatterers.pos,
+                                                                         c.scatterers.pos)
+    kinds = set(np.unique(a.scatterers.material))
+    assert {0, 1, 5, 8, 9, 10} <= kinds  # ground, building, car, pole, trunk, crown
+    assert SyntheticSequence("tunnel", "lidar-dense", 2, seed=1, points=2000).scatterers is None

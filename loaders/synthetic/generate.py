@@ -22,10 +22,11 @@ import numpy as np
 from loaders.scan import Scan, SensorInfo, Sequence, Trajectory
 from loaders.synthetic.motion import Motion, make_profile
 from loaders.synthetic.raycast import GROUND_ID, cast
+from loaders.synthetic.scatterers import OCCLUSION_TOL, build_scatterers, candidates, finish
 from loaders.synthetic.scenes import GROUND, SCENES, TUNNEL_WALL, build_scene, motion_spec
 from loaders.synthetic.sensors import SENSORS, get_sensor, measure, ray_directions, with_rays
 
-GENERATOR_VERSION = "doppler-bench-synthetic 1.1"
+GENERATOR_VERSION = "doppler-bench-synthetic 1.2"
 OPTIONS = {
     "points": "target points per frame (the ray count is calibrated on a probe frame)",
     "uturn": "loop: insert a ~0.55 rad/s U-turn",
@@ -106,6 +107,9 @@ class SyntheticSequence(Sequence):
         self.scene_model = build_scene(scene, self.motion, plan,
                                        np.random.default_rng([self.seed, 3]), options,
                                        sigma_end, spec.max_range)
+        # radar: persistent scattering centres of the scene (own RNG stream)
+        self.scatterers = (build_scatterers(self.scene_model, np.random.default_rng([self.seed, 5]))
+                           if spec.kind == "radar" else None)
         self._poses = self.motion.sensor_pose(self._rel)
         self._twist = self.motion.sensor_twist(self._rel)
         self.name = name or f"{scene}_{sensor}_s{self.seed}"
@@ -144,7 +148,11 @@ class SyntheticSequence(Sequence):
 
     def raw_hits(self, index: int) -> dict[str, np.ndarray]:
         """Exact hits of frame ``index`` before the sensor model: points (sensor frame), Doppler,
-        cosine of incidence, material id, dynamic flag, primitive id (see raycast.cast)."""
+        cosine of incidence, material id, dynamic flag, primitive id (see raycast.cast).
+        Radar: the visible scattering centres come first (``scatterer`` = their id, ``rcs_db``
+        their RCS towards the sensor, ``swerling`` their fluctuation model, ``angle_bias``
+        their persistent angle error in units of the sensor's sigma_bias_deg), then the
+        diffuse returns of the random rays (``scatterer`` = -1)."""
         spec = self.spec
         T = self._poses[index]
         R, o = T[:3, :3], T[:3, 3]
@@ -152,8 +160,21 @@ class SyntheticSequence(Sequence):
         D_s = ray_directions(spec, rng)
         D_w = D_s @ R.T
         geom = self.scene_model.geometry(float(self._rel[index]))
-        t, prim, normal = cast(geom, o, D_w, D_s, R, spec.max_range)
-        hit = np.isfinite(t) & (t >= spec.min_range)
+        n_rays = len(D_s)
+        cand = None
+        if self.scatterers is not None:  # one cast for the random rays and the scatterers
+            cand = candidates(self.scatterers, geom, o, R, spec)
+            D_c = cand["points_s"] / cand["range"][:, None]
+            D_s, D_w = np.concatenate([D_s, D_c]), np.concatenate([D_w, D_c @ R.T])
+        t_limit = None
+        if cand is not None:  # scatterer rays: an occlusion test up to the scatterer
+            t_limit = np.concatenate([np.full(n_rays, np.inf), cand["range"] - OCCLUSION_TOL])
+        t, prim, normal = cast(geom, o, D_w, D_s, R, spec.max_range, t_limit)
+        if cand is not None:
+            vis = finish(self.scatterers, geom, o, cand, t[n_rays:])
+            t, prim, normal = t[:n_rays], prim[:n_rays], normal[:n_rays]
+            D_s, D_w = D_s[:n_rays], D_w[:n_rays]
+        hit = np.isfinite(t) & (t >= spec.min_range) & (t <= spec.max_range)
         t, prim, normal, D_s, D_w = t[hit], prim[hit], normal[hit], D_s[hit], D_w[hit]
         pts_s = t[:, None] * D_s
         obj = prim >= 0
@@ -166,14 +187,28 @@ class SyntheticSequence(Sequence):
             pts_w = o + t[dynamic, None] * D_w[dynamic]
             u_s[dynamic] = geom.point_velocity(prim[dynamic], pts_w) @ R
         v_s = self._twist[0][index]
-        return {"points": pts_s, "doppler": doppler_of(pts_s, v_s, u_s),
-                "cos_inc": np.abs(np.einsum("ij,ij->i", D_w, normal)), "material": material,
-                "dynamic": dynamic, "prim": prim, "rng": rng}
+        out = {"points": pts_s, "doppler": doppler_of(pts_s, v_s, u_s),
+               "cos_inc": np.abs(np.einsum("ij,ij->i", D_w, normal)), "material": material,
+               "dynamic": dynamic, "prim": prim}
+        if cand is not None:
+            sc = {"points": vis["points_s"],
+                  "doppler": doppler_of(vis["points_s"], v_s, vis["velocity_w"] @ R),
+                  "cos_inc": vis["cos_inc"], "material": vis["material"],
+                  "dynamic": vis["dynamic"], "prim": vis["prim"]}
+            n_dif = len(t)
+            out = {k: np.concatenate([sc[k], out[k]]) for k in out}
+            out["scatterer"] = np.concatenate([vis["ids"], np.full(n_dif, -1, np.int64)])
+            out["rcs_db"] = np.concatenate([vis["rcs_db"], np.full(n_dif, np.nan)])
+            out["swerling"] = np.concatenate([vis["swerling"], np.ones(n_dif, np.int64)])
+            out["angle_bias"] = np.concatenate([vis["bias"], np.zeros((n_dif, 2))])
+        out["rng"] = rng
+        return out
 
     def scan(self, index: int) -> Scan:
         raw = self.raw_hits(index)
+        extra = {k: raw[k] for k in ("scatterer", "rcs_db", "swerling", "angle_bias") if k in raw}
         pts, dop, fields = measure(self.spec, raw["rng"], raw["points"], raw["doppler"],
                                    raw["cos_inc"], raw["material"], raw["dynamic"],
-                                   self._twist[0][index], self.noise)
+                                   self._twist[0][index], self.noise, **extra)
         return Scan(stamp=self._stamps[index], points=pts, doppler=dop, fields=fields,
                     source=f"{self.name}, frame {index}")

@@ -148,7 +148,8 @@ def hit_tunnel(o, D, tun: Tunnel) -> tuple[np.ndarray, np.ndarray]:
 class Geometry:
     """A scene frozen at one time. Per-primitive metadata is indexed by a global primitive id:
     ``material[id]`` (int), ``dynamic[id]`` (bool), ``velocity[id]`` (3,) world velocity of the
-    reference point ``ref[id]`` (3,), and ``yaw_rate[id]`` [rad/s] (rigid motion about z)."""
+    reference point ``ref[id]`` (3,), and ``yaw_rate[id]`` [rad/s] (rigid motion about z).
+    ``mover_pid[k]`` is the primitive id of the scene's mover k (-1 when it is off its lane)."""
 
     ground_z: float | None = 0.0
     ground_material: int = 0
@@ -162,6 +163,7 @@ class Geometry:
     velocity: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     ref: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     yaw_rate: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    mover_pid: np.ndarray = field(default_factory=lambda: np.zeros(0, int))  # -1: inactive
 
     def point_velocity(self, prim: np.ndarray, points_w: np.ndarray) -> np.ndarray:
         """World velocity (N, 3) of hit points on primitives ``prim`` (ids >= 0)."""
@@ -193,12 +195,14 @@ def _bounds(kind: str, items: list) -> tuple[np.ndarray, np.ndarray]:
 
 
 def cast(geom: Geometry, o: np.ndarray, D: np.ndarray, D_sensor: np.ndarray,
-         R_world_sensor: np.ndarray, max_range: float):
+         R_world_sensor: np.ndarray, max_range: float, t_limit: np.ndarray | None = None):
     """Nearest hit of every ray. ``D_sensor`` are the same rays in the sensor frame (used to
     cull primitives by their bounding cone). Returns t (N,) [m] (inf = no hit within
-    ``max_range``), primitive id (N,) (-1 none, GROUND_ID, TUNNEL_ID or >= 0) and normals."""
+    ``max_range``), primitive id (N,) (-1 none, GROUND_ID, TUNNEL_ID or >= 0) and normals.
+    ``t_limit`` (N,) [m], optional: only hits closer than this are looked for (an occlusion
+    test); a ray with no such hit returns t = t_limit and primitive -1."""
     n_rays = len(D)
-    t_best = np.full(n_rays, np.inf)
+    t_best = np.full(n_rays, np.inf) if t_limit is None else np.array(t_limit, dtype=float)
     prim = np.full(n_rays, -1, dtype=np.int64)
     normal = np.zeros((n_rays, 3))
 
@@ -236,6 +240,19 @@ def cast(geom: Geometry, o: np.ndarray, D: np.ndarray, D_sensor: np.ndarray,
         azc = np.arctan2(cs[:, 1], cs[:, 0])
         lo = np.searchsorted(az_sorted, azc - half_az)
         hi = np.searchsorted(az_sorted, azc + half_az)
+        if kind == "box":  # tighter azimuth span: the corners' (box entirely in front)
+            for k in np.flatnonzero(near & outside):
+                _, c, half, yaw = items[k]
+                cz, sz = np.cos(yaw), np.sin(yaw)
+                sx = np.array([-1.0, 1.0, 1.0, -1.0] * 2) * half[0]
+                sy = np.array([-1.0, -1.0, 1.0, 1.0] * 2) * half[1]
+                corners = np.column_stack([c[0] + cz * sx - sz * sy, c[1] + sz * sx + cz * sy,
+                                           c[2] + np.repeat([-half[2], half[2]], 4)])
+                cs_k = (corners - o) @ R_world_sensor
+                if np.all(cs_k[:, 0] > 1e-3):
+                    a = np.arctan2(cs_k[:, 1], cs_k[:, 0])
+                    lo[k] = np.searchsorted(az_sorted, a.min())
+                    hi[k] = np.searchsorted(az_sorted, a.max())
         keep = near & (~outside | (hi > lo))
         for k in np.flatnonzero(keep):
             jobs.append((dist[k] - radii[k], kind, items[k], bool(outside[k]), lo[k], hi[k],

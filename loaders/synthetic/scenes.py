@@ -133,12 +133,15 @@ class Scene:
         for center, r, m in self.spheres:
             g.spheres.append((meta(m), center, r))
         states = self._mover_states(t) if self.movers else np.zeros((0, 6))
-        for m, st in zip(self.movers, states, strict=True):
+        mover_pid = np.full(len(self.movers), -1, dtype=np.int64)
+        for k, (m, st) in enumerate(zip(self.movers, states, strict=True)):
             if not np.isfinite(st[0]):
                 continue
             center = np.array([st[0], st[1], m.half[2]])
             pid = meta(m.material, True, (st[3], st[4], 0.0), tuple(center), st[5])
             g.boxes.append((pid, center, np.asarray(m.half), st[2]))
+            mover_pid[k] = pid
+        g.mover_pid = mover_pid
         g.material = np.array(mat, dtype=np.int64)
         g.dynamic = np.array(dyn, dtype=bool)
         g.velocity = np.array(vel, dtype=float).reshape(-1, 3)

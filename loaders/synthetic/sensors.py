@@ -5,15 +5,24 @@ range r [m]; Doppler [m/s, positive = receding]. Noise is added in (range, azimu
 Doppler) to the exact values, then points are converted back to Cartesian; points whose noisy
 measurement falls outside the field of view or the range limits are not reported.
 
-Radar: directions are drawn uniformly in the FoV (per-frame RNG); a hit is detected when its
-SNR (patch reflectivity by material, incidence, range loss and Swerling-1 fluctuation) exceeds a
-threshold, then random dropouts, multipath ghosts and clutter are applied and the strongest
-``max_points`` detections are kept. LiDAR: a fixed azimuth x elevation grid (density falls with
-range), a weak-return cut-off and random dropouts.
+Radar: detections come mostly from the scene's persistent scattering centres (see
+scatterers.py: world-fixed, or fixed in a mover's body frame) that are in the field of view,
+face the sensor and are not occluded; each is detected when its SNR (point-target radar
+equation: RCS, aspect, r^-4 range loss, antenna taper and per-frame Swerling 1/3 fading)
+exceeds a threshold, so detections flicker but most persist. A semi-dense sensor also reports
+a strong scatterer in its neighbouring resolution cells (``resolution``, ``spread_loss_db``).
+A smaller share of diffuse surface returns comes from random rays (uniform in the FoV,
+per-frame RNG; patch reflectivity by material, incidence, r^-2 range loss, Swerling 1). Then
+random dropouts, multipath ghosts and clutter are applied and the strongest ``max_points``
+detections are kept. Radar noise follows the SNR (~1/sqrt(SNR), ``sigma_*`` at ``snr_ref_db``,
+floored at ``noise_floor``) and each scatterer has a persistent angle bias
+(``sigma_bias_deg``). LiDAR: a fixed azimuth x elevation grid (density falls with range), a
+weak-return cut-off and random dropouts.
 
 Per-point fields: radar ``power`` [dB], ``rcs`` [dBsm], ``snr`` [dB]; LiDAR ``intensity``
 [0..1]; both ``gt_label`` (0 static, 1 moving object, 2 clutter/ghost: ground truth, not a
-measurement).
+measurement); radar ``gt_scatterer`` (ground truth: id of the scattering centre, -1 for diffuse
+returns, clutter and ghosts).
 """
 
 from __future__ import annotations
@@ -46,9 +55,19 @@ class SensorSpec:
     sigma_az_deg: float
     sigma_el_deg: float
     sigma_doppler: float  # [m/s]
-    rays: int = 0  # radar: random rays per frame; lidar: grid rays (~ points)
+    rays: int = 0  # radar: random rays per frame (diffuse returns); lidar: grid rays (~ points)
     max_points: int = 0  # radar output limit (strongest kept)
-    snr_gain_db: float = 30.0  # SNR of a 0 dB patch at 10 m
+    snr_gain_db: float = 30.0  # SNR of a 0 dB patch at 10 m (diffuse returns)
+    point_gain_db: float = 45.0  # SNR of a 0 dBsm point scatterer at 10 m
+    edge_loss_db: float = 3.0  # antenna loss at the edges of the field of view
+    snr_ref_db: float = 20.0  # radar: SNR at which the noise has the sigma_* values
+    noise_floor: float = 0.7  # radar: smallest noise scale (strong targets)
+    sigma_bias_deg: float = 0.0  # radar: persistent angle bias of each scatterer
+    # radar: resolution cells (range [m], azimuth [deg], elevation [deg]) and the loss [dB] from
+    # a scatterer's cell to its neighbouring cell along each; a strong scatterer is also
+    # detected in the neighbouring cells (point-spread mainlobe). () = peak detections only.
+    resolution: tuple[float, float, float] = ()
+    spread_loss_db: tuple[float, float, float] = ()
     snr_threshold_db: float = 12.0
     dropout: float = 0.0  # random per-point loss
     ghost_frac: float = 0.0  # multipath ghosts per detection
@@ -67,12 +86,15 @@ SENSORS: dict[str, SensorSpec] = {
         "radar-sparse", "radar",
         "ZF FRGen21-like sparse 4D radar: 60 ms, 400-1,400 detections, +-75 x +-15 deg, 100 m",
         0.06, (3.5, 0.0, 0.6), 75.0, 15.0, 0.5, 100.0, 0.12, 1.0, 1.3, 0.1,
-        rays=2400, max_points=1400, dropout=0.05, ghost_frac=0.03, clutter_frac=0.02),
+        rays=250, max_points=1400, point_gain_db=48.0, noise_floor=0.2, snr_ref_db=12.0,
+        sigma_bias_deg=0.5, dropout=0.05, ghost_frac=0.03, clutter_frac=0.02),
     "radar-semidense": SensorSpec(
         "radar-semidense", "radar",
         "Oculii Eagle-like semi-dense 4D radar: 1/12 s, 1,000-6,000 points, +-60 x +-15 deg",
         1.0 / 12.0, (3.6, 0.0, 0.7), 60.0, 15.0, 0.5, 100.0, 0.08, 0.6, 1.0, 0.06,
-        rays=6500, max_points=6000, dropout=0.03, ghost_frac=0.02, clutter_frac=0.015),
+        rays=1000, max_points=6000, point_gain_db=50.0, noise_floor=0.15, snr_ref_db=0.0,
+        sigma_bias_deg=0.3, resolution=(0.25, 1.0, 2.0), spread_loss_db=(6.0, 6.0, 9.0),
+        dropout=0.03, ghost_frac=0.02, clutter_frac=0.015),
     "lidar-dense": SensorSpec(
         "lidar-dense", "lidar",
         "Aeva Aeries-like FMCW LiDAR: 0.1 s, 40k-120k points on a 120 x 30 deg grid, 150 m",
@@ -119,12 +141,35 @@ def _spherical(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return r, np.arctan2(p[:, 1], p[:, 0]), np.arcsin(np.clip(p[:, 2] / r, -1.0, 1.0))
 
 
+def _fading_db(rng: np.random.Generator, swerling: np.ndarray) -> np.ndarray:
+    """Per-frame RCS fluctuation [dB], mean power 1: Swerling 1 (exponential power, many
+    comparable reflectors) or Swerling 3 (chi-square with 4 degrees of freedom, one dominant
+    reflector)."""
+    p = np.where(swerling == 3, rng.gamma(2.0, 0.5, len(swerling)),
+                 rng.exponential(1.0, len(swerling)))
+    return 10 * np.log10(np.maximum(p, 1e-12))
+
+
+def antenna_db(spec: SensorSpec, az: np.ndarray, el: np.ndarray) -> np.ndarray:
+    """Two-way antenna gain relative to boresight [dB]: ``-spec.edge_loss_db`` at the edges of
+    the field of view (quadratic taper in azimuth and elevation)."""
+    return -spec.edge_loss_db * ((az / np.radians(spec.az_half_deg)) ** 2
+                                 + (el / np.radians(spec.el_half_deg)) ** 2) / 2.0
+
+
 def measure(spec: SensorSpec, rng: np.random.Generator, points: np.ndarray,
             doppler: np.ndarray, cos_inc: np.ndarray, material: np.ndarray,
-            dynamic: np.ndarray, v_sensor: np.ndarray, noise: bool):
+            dynamic: np.ndarray, v_sensor: np.ndarray, noise: bool, *,
+            scatterer: np.ndarray | None = None, rcs_db: np.ndarray | None = None,
+            swerling: np.ndarray | None = None, angle_bias: np.ndarray | None = None):
     """Turn exact hits (sensor frame) into measurements: returns points (M, 3), Doppler (M,)
     and the per-point fields. With ``noise=False`` the kept points and Doppler are exact and
-    there is no clutter or ghost (detection sampling and dropouts still apply)."""
+    there is no clutter or ghost (detection sampling and dropouts still apply).
+
+    Radar: rows with ``scatterer >= 0`` are discrete scattering centres with RCS ``rcs_db``
+    [dBsm] (point-target radar equation, SNR ~ RCS / r^4, Swerling ``swerling`` fading); the
+    other rows are diffuse surface returns (patch reflectivity by material and incidence,
+    SNR ~ 1 / r^2, Swerling 1)."""
     r, az, el = _spherical(points)
     label = np.where(dynamic, LABEL_DYNAMIC, LABEL_STATIC)
     if spec.kind == "lidar":
@@ -134,14 +179,29 @@ def measure(spec: SensorSpec, rng: np.random.Generator, points: np.ndarray,
         fields = {"intensity": intensity}
         sig_scale = np.ones(len(r))
     else:
-        fading = 10 * np.log10(np.maximum(rng.exponential(1.0, len(r)), 1e-12))
+        if scatterer is None:
+            scatterer = np.full(len(r), -1, dtype=np.int64)
+        point = scatterer >= 0
+        fading = _fading_db(rng, np.where(point, 3 if swerling is None else swerling, 1))
         # rough surfaces: 10 log10(cos); the road is near-specular: 30 log10(cos)
         inc_db = np.where(material == 0, 30.0, 10.0) * np.log10(np.maximum(cos_inc, 1e-3))
-        snr = (RADAR_REFLECTIVITY_DB[material] + inc_db
-               - 20 * np.log10(np.maximum(r, 0.5) / 10.0) + spec.snr_gain_db + fading)
+        diffuse = (RADAR_REFLECTIVITY_DB[material] + inc_db
+                   - 20 * np.log10(np.maximum(r, 0.5) / 10.0) + spec.snr_gain_db)
+        if point.any():
+            pt = (np.nan_to_num(rcs_db) - 40 * np.log10(np.maximum(r, 0.5) / 10.0)
+                  + spec.point_gain_db)
+            diffuse = np.where(point, pt, diffuse)
+        snr = diffuse + fading + antenna_db(spec, az, el)
+        if noise and spec.spread_loss_db and point.any():
+            r, az, el, doppler, label, snr, scatterer, angle_bias = _spread(
+                spec, rng, r, az, el, doppler, label, snr, scatterer, angle_bias)
         keep = (snr > spec.snr_threshold_db) & (rng.uniform(size=len(r)) >= spec.dropout)
-        fields = {"snr": snr}
-        sig_scale = np.clip(10 ** ((20.0 - snr) / 20.0), 0.7, 1.5)
+        fields = {"snr": snr, "gt_scatterer": scatterer.astype(np.float64)}
+        # thermal noise ~ 1 / sqrt(SNR) (Cramer-Rao), floored by the sensor's resolution limits
+        sig_scale = np.clip(10 ** ((spec.snr_ref_db - snr) / 20.0), spec.noise_floor, 1.5)
+        if angle_bias is not None and noise:
+            b = np.radians(spec.sigma_bias_deg) * angle_bias
+            az, el = az + b[:, 0], el + b[:, 1]
     r, az, el, doppler, label = r[keep], az[keep], el[keep], doppler[keep], label[keep]
     sig_scale = sig_scale[keep]
     fields = {k: v[keep] for k, v in fields.items()}
@@ -150,7 +210,8 @@ def measure(spec: SensorSpec, rng: np.random.Generator, points: np.ndarray,
             spec, rng, r, az, el, doppler, label, fields, sig_scale, v_sensor)
     if noise:
         n = len(r)
-        r = r + rng.normal(0.0, spec.sigma_range, n)
+        r_scale = sig_scale if spec.kind == "radar" else 1.0
+        r = r + rng.normal(0.0, spec.sigma_range, n) * r_scale
         az = az + rng.normal(0.0, np.radians(spec.sigma_az_deg), n) * sig_scale
         el = el + rng.normal(0.0, np.radians(spec.sigma_el_deg), n) * sig_scale
         doppler = doppler + rng.normal(0.0, spec.sigma_doppler, n)
@@ -166,11 +227,42 @@ def measure(spec: SensorSpec, rng: np.random.Generator, points: np.ndarray,
         pts = points[keep][ok]
     fields = {k: v[ok] for k, v in fields.items()}
     if spec.kind == "radar":
-        range_loss = 20 * np.log10(np.maximum(r[ok], 0.5) / 10.0)
-        fields["rcs"] = fields["snr"] - spec.snr_gain_db + range_loss
+        log_r = 10 * np.log10(np.maximum(r[ok], 0.5) / 10.0)
+        point = fields["gt_scatterer"] >= 0
+        fields["rcs"] = np.where(point, fields["snr"] - spec.point_gain_db + 4 * log_r,
+                                 fields["snr"] - spec.snr_gain_db + 2 * log_r)
         fields["power"] = fields["snr"] + 40.0  # receiver noise floor at 40 dB (arbitrary)
     fields["gt_label"] = label[ok].astype(np.float64)
     return pts, doppler[ok], fields
+
+
+def _spread(spec, rng, r, az, el, doppler, label, snr, scatterer, angle_bias):
+    """Detections of strong scatterers in the neighbouring resolution cells: one cell away
+    in range, azimuth or elevation, with the scatterer's Doppler and SNR minus the cell loss
+    (plus a small random variation with the scatterer's position inside its cell)."""
+    res = np.array(spec.resolution, float)
+    res[1:] = np.radians(res[1:])
+    loss = np.array(spec.spread_loss_db, float)
+    src = np.flatnonzero((scatterer >= 0) & (snr - loss.min() + 3.0 > spec.snr_threshold_db))
+    rows, d_r, d_az, d_el, d_snr = [], [], [], [], []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            s_snr = snr[src] - loss[axis] + rng.normal(0.0, 1.5, len(src))
+            ok = s_snr > spec.snr_threshold_db
+            rows.append(src[ok])
+            d_snr.append(s_snr[ok])
+            off = np.zeros((3, ok.sum()))
+            off[axis] = sign * res[axis]
+            d_r.append(off[0])
+            d_az.append(off[1])
+            d_el.append(off[2])
+    rows = np.concatenate(rows)
+    cat = np.concatenate
+    bias = None if angle_bias is None else cat([angle_bias, angle_bias[rows]])
+    return (cat([r, r[rows] + cat(d_r)]), cat([az, az[rows] + cat(d_az)]),
+            cat([el, el[rows] + cat(d_el)]), cat([doppler, doppler[rows]]),
+            cat([label, label[rows]]), cat([snr, cat(d_snr)]), cat([scatterer, scatterer[rows]]),
+            bias)
 
 
 def _ghosts_and_clutter(spec, rng, r, az, el, doppler, label, fields, sig_scale, v_sensor):
@@ -195,5 +287,7 @@ def _ghosts_and_clutter(spec, rng, r, az, el, doppler, label, fields, sig_scale,
     return (np.concatenate([r, g_r, c_r]), np.concatenate([az, g_az, c_az]),
             np.concatenate([el, g_el, c_el]), np.concatenate([doppler, g_dop, c_dop]),
             np.concatenate([label, np.full(extra, LABEL_CLUTTER)]),
-            {"snr": np.concatenate([snr, g_snr, c_snr])},
+            {"snr": np.concatenate([snr, g_snr, c_snr]),
+             **{k: np.concatenate([v, np.full(extra, -1.0)]) for k, v in fields.items()
+                if k != "snr"}},
             np.concatenate([sig_scale, np.full(extra, 1.5)]))
