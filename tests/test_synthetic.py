@@ -378,3 +378,8 @@ def test_radar_scatterers_depend_only_on_the_seed():
     kinds = set(np.unique(a.scatterers.material))
     assert {0, 1, 5, 8, 9, 10} <= kinds  # ground, building, car, pole, trunk, crown
     assert SyntheticSequence("tunnel", "lidar-dense", 2, seed=1, points=2000).scatterers is None
+
+
+def test_radar_points_option_calibrates_the_count():
+    seq = SyntheticSequence("loop", "radar-semidense", 20, seed=2, points=2000)
+    assert abs(len(seq.scan(10)) - 2000) < 300

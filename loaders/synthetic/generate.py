@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+from dataclasses import replace
 
 import numpy as np
 
@@ -28,7 +29,8 @@ from loaders.synthetic.sensors import SENSORS, get_sensor, measure, ray_directio
 
 GENERATOR_VERSION = "doppler-bench-synthetic 1.2"
 OPTIONS = {
-    "points": "target points per frame (the ray count is calibrated on a probe frame)",
+    "points": "target points per frame (LiDAR: the ray count; radar: the diffuse rays and the "
+              "scatterer SNR gain; calibrated on probe frames)",
     "uturn": "loop: insert a ~0.55 rad/s U-turn",
     "speed": "(low, high) speed range [m/s]",
     "road_radius": "curved-wall: road radius [m]",
@@ -128,8 +130,19 @@ class SyntheticSequence(Sequence):
         }
 
     def _calibrated(self, spec, target: int):
-        """Spec whose ray count gives about ``target`` points on the middle frame."""
-        probe_rays = min(spec.rays, 8000) if spec.kind == "lidar" else spec.rays
+        """Spec giving about ``target`` points on the middle frame. LiDAR: the ray count.
+        Radar: the diffuse ray count and the scatterer SNR gain (a few probe frames)."""
+        if spec.kind == "radar":
+            for k in range(6):
+                self.spec = spec
+                ratio = target / max(len(self.scan(len(self) // 2)), 1)
+                if abs(ratio - 1.0) < 0.05:
+                    break
+                rays = spec.rays if k else int(round(min(max(spec.rays * ratio, 50), 50000)))
+                spec = replace(spec, rays=rays,
+                               point_gain_db=spec.point_gain_db + 15.0 * np.log10(ratio))
+            return spec
+        probe_rays = min(spec.rays, 8000)
         self.spec = with_rays(spec, probe_rays)
         n = len(self.scan(len(self) // 2))
         rays = probe_rays * target / max(n, 1)

@@ -53,7 +53,7 @@ EDGE_SPACING = {BUILDING: 0.6, WALL: 1.5, CAR: 0.5, TRUCK: 0.6}
 EDGE_RCS = {BUILDING: (11.0, 4.0), WALL: (4.0, 4.0), CAR: (4.0, 4.0), TRUCK: (7.0, 4.0)}
 BASE_RCS = (8.0, 4.0)  # wall-ground dihedral at the foot of building facades
 CROWN_DENSITY, CROWN_RCS = 2.0, (-13.0, 5.0)
-GROUND_DENSITY, GROUND_RCS, GROUND_HALF_WIDTH = 0.03, (-12.0, 5.0), 60.0
+GROUND_DENSITY, GROUND_RCS, GROUND_HALF_WIDTH = 0.05, (-12.0, 5.0), 60.0
 KERB_OFFSET, KERB_SPACING, KERB_RCS = 5.4, 1.5, (-7.0, 4.0)
 GRID_CELL, GRID_STRIDE = 8.0, 1 << 32  # [m] horizontal grid of the static scatterers
 

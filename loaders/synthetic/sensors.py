@@ -92,7 +92,7 @@ SENSORS: dict[str, SensorSpec] = {
         "radar-semidense", "radar",
         "Oculii Eagle-like semi-dense 4D radar: 1/12 s, 1,000-6,000 points, +-60 x +-15 deg",
         1.0 / 12.0, (3.6, 0.0, 0.7), 60.0, 15.0, 0.5, 100.0, 0.08, 0.6, 1.0, 0.06,
-        rays=1000, max_points=6000, point_gain_db=50.0, noise_floor=0.15, snr_ref_db=0.0,
+        rays=1200, max_points=6000, point_gain_db=52.0, noise_floor=0.15, snr_ref_db=0.0,
         sigma_bias_deg=0.3, resolution=(0.25, 1.0, 2.0), spread_loss_db=(6.0, 6.0, 9.0),
         dropout=0.03, ghost_frac=0.02, clutter_frac=0.015),
     "lidar-dense": SensorSpec(
