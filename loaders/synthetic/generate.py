@@ -10,6 +10,11 @@ Doppler (sensor frame, positive = receding) is the exact radial velocity of each
 to the sensor: doppler = d . (R_world_sensor^T u - v_s), with d the unit direction of the
 noise-free point, u the point's world velocity (0 for static points) and v_s the sensor
 origin's velocity in the sensor frame. The rotation term vanishes because d . (w x p) = 0.
+
+Radar scans come mostly from the scene's persistent scattering centres (scatterers.py; their
+own RNG stream from the seed, so the same physical points are seen frame after frame), plus
+diffuse returns of random rays; each radar point carries ``gt_scatterer`` (the centre's id,
+-1 for diffuse returns, clutter and ghosts).
 """
 
 from __future__ import annotations
@@ -25,7 +30,15 @@ from loaders.synthetic.motion import Motion, make_profile
 from loaders.synthetic.raycast import GROUND_ID, cast
 from loaders.synthetic.scatterers import OCCLUSION_TOL, build_scatterers, candidates, finish
 from loaders.synthetic.scenes import GROUND, SCENES, TUNNEL_WALL, build_scene, motion_spec
-from loaders.synthetic.sensors import SENSORS, get_sensor, measure, ray_directions, with_rays
+from loaders.synthetic.sensors import (
+    SENSORS,
+    fading_db,
+    get_sensor,
+    measure,
+    point_snr_db,
+    ray_directions,
+    with_rays,
+)
 
 GENERATOR_VERSION = "doppler-bench-synthetic 1.2"
 OPTIONS = {
@@ -74,7 +87,8 @@ class SyntheticSequence(Sequence):
 
     ``name`` and ``meta`` (merged into the provenance) do not change the data.
     Attributes besides the Sequence API: ``motion`` (the vehicle model), ``scene_model``,
-    ``spec`` (the sensor spec), ``sensor_twist(i)``.
+    ``spec`` (the sensor spec), ``scatterers`` (radar: the scene's scattering centres, else
+    None), ``sensor_twist(i)``.
     """
 
     def __init__(self, scene: str, sensor: str, frames: int, seed: int = 0, noise: bool = True,
@@ -162,7 +176,8 @@ class SyntheticSequence(Sequence):
     def raw_hits(self, index: int) -> dict[str, np.ndarray]:
         """Exact hits of frame ``index`` before the sensor model: points (sensor frame), Doppler,
         cosine of incidence, material id, dynamic flag, primitive id (see raycast.cast).
-        Radar: the visible scattering centres come first (``scatterer`` = their id, ``rcs_db``
+        Radar: first the visible scattering centres whose SNR with this frame's fading
+        (``fading_db``) exceeds the detection threshold (``scatterer`` = their id, ``rcs_db``
         their RCS towards the sensor, ``swerling`` their fluctuation model, ``angle_bias``
         their persistent angle error in units of the sensor's sigma_bias_deg), then the
         diffuse returns of the random rays (``scatterer`` = -1)."""
@@ -177,7 +192,16 @@ class SyntheticSequence(Sequence):
         cand = None
         if self.scatterers is not None:  # one cast for the random rays and the scatterers
             cand = candidates(self.scatterers, geom, o, R, spec)
+            # this frame's fading first: only the scatterers above the detection threshold
+            # need the occlusion test (the same SNR as in sensors.measure)
             D_c = cand["points_s"] / cand["range"][:, None]
+            cand["fading_db"] = fading_db(rng, self.scatterers.swerling[cand["ids"]])
+            snr = cand["fading_db"] + point_snr_db(
+                spec, cand["rcs_db"], cand["range"], np.arctan2(D_c[:, 1], D_c[:, 0]),
+                np.arcsin(np.clip(D_c[:, 2], -1.0, 1.0)))
+            strong = snr > spec.snr_threshold_db - 1e-6
+            cand = {k: v[strong] for k, v in cand.items()}
+            D_c = D_c[strong]
             D_s, D_w = np.concatenate([D_s, D_c]), np.concatenate([D_w, D_c @ R.T])
         t_limit = None
         if cand is not None:  # scatterer rays: an occlusion test up to the scatterer
@@ -214,12 +238,15 @@ class SyntheticSequence(Sequence):
             out["rcs_db"] = np.concatenate([vis["rcs_db"], np.full(n_dif, np.nan)])
             out["swerling"] = np.concatenate([vis["swerling"], np.ones(n_dif, np.int64)])
             out["angle_bias"] = np.concatenate([vis["bias"], np.zeros((n_dif, 2))])
+            out["fading_db"] = np.concatenate([vis["fading_db"], np.zeros(n_dif)])
         out["rng"] = rng
         return out
 
     def scan(self, index: int) -> Scan:
         raw = self.raw_hits(index)
         extra = {k: raw[k] for k in ("scatterer", "rcs_db", "swerling", "angle_bias") if k in raw}
+        if "fading_db" in raw:
+            extra["fading"] = raw["fading_db"]
         pts, dop, fields = measure(self.spec, raw["rng"], raw["points"], raw["doppler"],
                                    raw["cos_inc"], raw["material"], raw["dynamic"],
                                    self._twist[0][index], self.noise, **extra)

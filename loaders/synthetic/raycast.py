@@ -241,18 +241,20 @@ def cast(geom: Geometry, o: np.ndarray, D: np.ndarray, D_sensor: np.ndarray,
         lo = np.searchsorted(az_sorted, azc - half_az)
         hi = np.searchsorted(az_sorted, azc + half_az)
         if kind == "box":  # tighter azimuth span: the corners' (box entirely in front)
-            for k in np.flatnonzero(near & outside):
-                _, c, half, yaw = items[k]
-                cz, sz = np.cos(yaw), np.sin(yaw)
-                sx = np.array([-1.0, 1.0, 1.0, -1.0] * 2) * half[0]
-                sy = np.array([-1.0, -1.0, 1.0, 1.0] * 2) * half[1]
-                corners = np.column_stack([c[0] + cz * sx - sz * sy, c[1] + sz * sx + cz * sy,
-                                           c[2] + np.repeat([-half[2], half[2]], 4)])
-                cs_k = (corners - o) @ R_world_sensor
-                if np.all(cs_k[:, 0] > 1e-3):
-                    a = np.arctan2(cs_k[:, 1], cs_k[:, 0])
-                    lo[k] = np.searchsorted(az_sorted, a.min())
-                    hi[k] = np.searchsorted(az_sorted, a.max())
+            half = np.array([it[2] for it in items], float)
+            yaw = np.array([it[3] for it in items], float)
+            sgn = np.array([[sx, sy, sz] for sz in (-1.0, 1.0) for sx, sy in
+                            ((-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0))])
+            local = sgn[None] * half[:, None, :]  # (K, 8, 3)
+            cz, sz = np.cos(yaw)[:, None], np.sin(yaw)[:, None]
+            corners = np.stack([centers[:, None, 0] + cz * local[..., 0] - sz * local[..., 1],
+                                centers[:, None, 1] + sz * local[..., 0] + cz * local[..., 1],
+                                centers[:, None, 2] + local[..., 2]], axis=-1)
+            cs_c = (corners - o) @ R_world_sensor
+            front = np.all(cs_c[..., 0] > 1e-3, axis=1) & near & outside
+            a = np.arctan2(cs_c[front, :, 1], cs_c[front, :, 0])
+            lo[front] = np.searchsorted(az_sorted, a.min(axis=1))
+            hi[front] = np.searchsorted(az_sorted, a.max(axis=1))
         keep = near & (~outside | (hi > lo))
         for k in np.flatnonzero(keep):
             jobs.append((dist[k] - radii[k], kind, items[k], bool(outside[k]), lo[k], hi[k],

@@ -380,8 +380,8 @@ def visible(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec) -> dict[st
 
 def candidates(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec) -> dict:
     """Scatterers inside the field of view and range limits that face the sensor (before the
-    occlusion test): ids, world and sensor-frame points, range, incidence cosine, owner yaw
-    and primitive id."""
+    occlusion test): ids, world and sensor-frame points, range, incidence cosine, RCS towards
+    the sensor [dBsm] and primitive id."""
     reach = spec.max_range + 1.0
     heading = float(np.arctan2(R[1, 0], R[0, 0]))
     ids = [sc.static_in_sector(o[:2], heading, np.radians(spec.az_half_deg) + 0.05, reach)]
@@ -418,28 +418,31 @@ def candidates(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec) -> dict
     ok = ((r >= spec.min_range) & (r <= spec.max_range) & (cos_n > sc.cos_min[ids])
           & (np.abs(np.arctan2(ps[:, 1], ps[:, 0])) <= np.radians(spec.az_half_deg))
           & (np.abs(ps[:, 2]) <= r * np.sin(np.radians(spec.el_half_deg))))
-    return {"ids": ids[ok], "points_w": P[ok], "points_s": ps[ok], "range": r[ok],
-            "cos_n": cos_n[ok], "yaw": yaw_of[ok], "prim": prim[ok]}
+    ids, P, ps, r, cos_n, yaw_of, prim = (a[ok] for a in (ids, P, ps, r, cos_n, yaw_of, prim))
+    # RCS towards the sensor: incidence loss and aspect lobe (viewing azimuth in the owner frame)
+    view_az = np.arctan2(o[1] - P[:, 1], o[0] - P[:, 0]) - yaw_of
+    rcs = (sc.rcs_db[ids] + sc.aspect_exp[ids] * 10.0 * np.log10(np.clip(cos_n, 0.05, 1.0))
+           + sc.lobe_db[ids] * np.cos(sc.lobe_k[ids] * view_az + sc.lobe_phase[ids]))
+    return {"ids": ids, "points_w": P, "points_s": ps, "range": r, "cos_n": cos_n,
+            "rcs_db": rcs, "prim": prim}
 
 
 def finish(sc: Scatterers, geom, o: np.ndarray, cand: dict, t: np.ndarray) -> dict:
     """The candidates that are not occluded, given the first-hit distance ``t`` of the rays
     cast towards them; see ``visible``."""
     seen = t >= cand["range"] - OCCLUSION_TOL - 1e-9
-    ids, P, ps, cos_n, yaw_of, prim = (cand[k][seen] for k in (
-        "ids", "points_w", "points_s", "cos_n", "yaw", "prim"))
+    cand = {k: v[seen] for k, v in cand.items()}
+    ids, P, ps, cos_n, rcs, prim = (cand[k] for k in (
+        "ids", "points_w", "points_s", "cos_n", "rcs_db", "prim"))
     iso = sc.cos_min[ids] < -1.0
-    view_az = np.arctan2(o[1] - P[:, 1], o[0] - P[:, 0]) - yaw_of
-    aspect = sc.aspect_exp[ids] * 10.0 * np.log10(np.clip(cos_n, 0.05, 1.0))
-    lobe = sc.lobe_db[ids] * np.cos(sc.lobe_k[ids] * view_az + sc.lobe_phase[ids])
     u = np.zeros_like(P)
     moving = sc.owner[ids] >= 0
     if moving.any():
         u[moving] = geom.point_velocity(prim[moving], P[moving])
     return {"ids": ids, "points_s": ps, "velocity_w": u, "prim": prim,
-            "rcs_db": sc.rcs_db[ids] + aspect + lobe, "cos_inc": np.where(iso, 1.0, cos_n),
+            "rcs_db": rcs, "cos_inc": np.where(iso, 1.0, cos_n),
             "material": sc.material[ids], "dynamic": moving, "swerling": sc.swerling[ids],
-            "bias": sc.bias[ids]}
+            "bias": sc.bias[ids], **{k: v for k, v in cand.items() if k == "fading_db"}}
 
 
 def _box_index(geom, pid: int) -> int:

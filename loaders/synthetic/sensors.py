@@ -92,7 +92,7 @@ SENSORS: dict[str, SensorSpec] = {
         "radar-semidense", "radar",
         "Oculii Eagle-like semi-dense 4D radar: 1/12 s, 1,000-6,000 points, +-60 x +-15 deg",
         1.0 / 12.0, (3.6, 0.0, 0.7), 60.0, 15.0, 0.5, 100.0, 0.08, 0.6, 1.0, 0.06,
-        rays=1200, max_points=6000, point_gain_db=52.0, noise_floor=0.15, snr_ref_db=0.0,
+        rays=1200, max_points=6000, point_gain_db=52.0, noise_floor=0.08, snr_ref_db=0.0,
         sigma_bias_deg=0.3, resolution=(0.25, 1.0, 2.0), spread_loss_db=(6.0, 6.0, 9.0),
         dropout=0.03, ghost_frac=0.02, clutter_frac=0.015),
     "lidar-dense": SensorSpec(
@@ -141,13 +141,19 @@ def _spherical(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     return r, np.arctan2(p[:, 1], p[:, 0]), np.arcsin(np.clip(p[:, 2] / r, -1.0, 1.0))
 
 
-def _fading_db(rng: np.random.Generator, swerling: np.ndarray) -> np.ndarray:
+def fading_db(rng: np.random.Generator, swerling: np.ndarray) -> np.ndarray:
     """Per-frame RCS fluctuation [dB], mean power 1: Swerling 1 (exponential power, many
     comparable reflectors) or Swerling 3 (chi-square with 4 degrees of freedom, one dominant
     reflector)."""
     p = np.where(swerling == 3, rng.gamma(2.0, 0.5, len(swerling)),
                  rng.exponential(1.0, len(swerling)))
     return 10 * np.log10(np.maximum(p, 1e-12))
+
+
+def point_snr_db(spec: SensorSpec, rcs_db, r, az, el) -> np.ndarray:
+    """Mean SNR [dB] of point scatterers (before fading): radar equation, SNR ~ RCS / r^4."""
+    return (rcs_db - 40 * np.log10(np.maximum(r, 0.5) / 10.0) + spec.point_gain_db
+            + antenna_db(spec, az, el))
 
 
 def antenna_db(spec: SensorSpec, az: np.ndarray, el: np.ndarray) -> np.ndarray:
@@ -161,7 +167,8 @@ def measure(spec: SensorSpec, rng: np.random.Generator, points: np.ndarray,
             doppler: np.ndarray, cos_inc: np.ndarray, material: np.ndarray,
             dynamic: np.ndarray, v_sensor: np.ndarray, noise: bool, *,
             scatterer: np.ndarray | None = None, rcs_db: np.ndarray | None = None,
-            swerling: np.ndarray | None = None, angle_bias: np.ndarray | None = None):
+            swerling: np.ndarray | None = None, angle_bias: np.ndarray | None = None,
+            fading: np.ndarray | None = None):
     """Turn exact hits (sensor frame) into measurements: returns points (M, 3), Doppler (M,)
     and the per-point fields. With ``noise=False`` the kept points and Doppler are exact and
     there is no clutter or ghost (detection sampling and dropouts still apply).
@@ -169,7 +176,8 @@ def measure(spec: SensorSpec, rng: np.random.Generator, points: np.ndarray,
     Radar: rows with ``scatterer >= 0`` are discrete scattering centres with RCS ``rcs_db``
     [dBsm] (point-target radar equation, SNR ~ RCS / r^4, Swerling ``swerling`` fading); the
     other rows are diffuse surface returns (patch reflectivity by material and incidence,
-    SNR ~ 1 / r^2, Swerling 1)."""
+    SNR ~ 1 / r^2, Swerling 1). ``fading`` [dB], optional: the scatterers' fading of this frame
+    when the caller has drawn it (the values of the other rows are ignored)."""
     r, az, el = _spherical(points)
     label = np.where(dynamic, LABEL_DYNAMIC, LABEL_STATIC)
     if spec.kind == "lidar":
@@ -182,16 +190,21 @@ def measure(spec: SensorSpec, rng: np.random.Generator, points: np.ndarray,
         if scatterer is None:
             scatterer = np.full(len(r), -1, dtype=np.int64)
         point = scatterer >= 0
-        fading = _fading_db(rng, np.where(point, 3 if swerling is None else swerling, 1))
-        # rough surfaces: 10 log10(cos); the road is near-specular: 30 log10(cos)
+        # diffuse patches: material reflectivity, rough surfaces 10 log10(cos), the road is
+        # near-specular 30 log10(cos), SNR ~ 1 / r^2
         inc_db = np.where(material == 0, 30.0, 10.0) * np.log10(np.maximum(cos_inc, 1e-3))
-        diffuse = (RADAR_REFLECTIVITY_DB[material] + inc_db
-                   - 20 * np.log10(np.maximum(r, 0.5) / 10.0) + spec.snr_gain_db)
+        snr = (RADAR_REFLECTIVITY_DB[material] + inc_db
+               - 20 * np.log10(np.maximum(r, 0.5) / 10.0) + spec.snr_gain_db
+               + antenna_db(spec, az, el))
         if point.any():
-            pt = (np.nan_to_num(rcs_db) - 40 * np.log10(np.maximum(r, 0.5) / 10.0)
-                  + spec.point_gain_db)
-            diffuse = np.where(point, pt, diffuse)
-        snr = diffuse + fading + antenna_db(spec, az, el)
+            snr[point] = point_snr_db(spec, np.asarray(rcs_db)[point], r[point], az[point],
+                                      el[point])
+        if fading is None:
+            fading = fading_db(rng, np.where(point, 3 if swerling is None else swerling, 1))
+        else:  # drawn by the caller for the scatterers; diffuse returns: Swerling 1
+            fading = np.array(fading, dtype=float)
+            fading[~point] = fading_db(rng, np.ones(int((~point).sum()), np.int64))
+        snr = snr + fading
         if noise and spec.spread_loss_db and point.any():
             r, az, el, doppler, label, snr, scatterer, angle_bias = _spread(
                 spec, rng, r, az, el, doppler, label, snr, scatterer, angle_bias)
