@@ -28,9 +28,8 @@ def fit_rigid_t(
     if n < 3:
         return None
     if weights is None:
-        mu_p = source_t.sum(axis=1) / n
-        mu_q = target_t.sum(axis=1) / n
-        H = source_t @ target_t.T - n * np.outer(mu_p, mu_q)
+        return rigid_from_sums(n, source_t.sum(axis=1), target_t.sum(axis=1),
+                               source_t @ target_t.T)
     else:
         w = np.asarray(weights, dtype=np.float64)
         w_sum = w.sum()
@@ -39,6 +38,20 @@ def fit_rigid_t(
         mu_p = source_t @ w / w_sum
         mu_q = target_t @ w / w_sum
         H = (source_t * w) @ target_t.T - w_sum * np.outer(mu_p, mu_q)
+    return _rigid_from_cross_covariance(H, mu_p, mu_q)
+
+
+def rigid_from_sums(n: int, sum_p: np.ndarray, sum_q: np.ndarray, sum_pq: np.ndarray
+                    ) -> np.ndarray | None:
+    """The fit from the sums over n pairs: sum p, sum q (3,) and sum p q^T (3, 3)."""
+    if n < 3:
+        return None
+    mu_p, mu_q = sum_p / n, sum_q / n
+    return _rigid_from_cross_covariance(sum_pq - n * np.outer(mu_p, mu_q), mu_p, mu_q)
+
+
+def _rigid_from_cross_covariance(H: np.ndarray, mu_p: np.ndarray, mu_q: np.ndarray
+                                 ) -> np.ndarray | None:
     U, S, Vt = np.linalg.svd(H)
     if not np.all(np.isfinite(S)) or S[0] <= 0 or S[1] < _DEGENERATE_RATIO * S[0]:
         return None

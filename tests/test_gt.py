@@ -4,8 +4,8 @@ import warnings
 
 import numpy as np
 import pytest
-from helpers_bags import Motion
 
+from helpers_bags import Motion
 from loaders.errors import DataError
 from loaders.gt import (
     associate,

@@ -2,8 +2,8 @@
 
 import numpy as np
 import pytest
-from helpers_bags import Motion, doppler_sign_cosine, make_truth, write_aeva_folder
 
+from helpers_bags import Motion, doppler_sign_cosine, make_truth, write_aeva_folder
 from loaders.aeva import STEAM_T_VEHICLE_SENSOR, AevaSequence, detect_layout, sorted_frames
 from loaders.errors import DataError
 from loaders.gt import parse_extrinsic
@@ -115,10 +115,10 @@ def test_store_round_trip(tmp_path):
 
 def test_convert_commands(tmp_path):
     import typer
-    from helpers_bags import write_campus_bag, write_gt_tum, write_ntu_bag
     from typer.testing import CliRunner
 
     from bench.convert_real import register
+    from helpers_bags import write_campus_bag, write_gt_tum, write_ntu_bag
 
     app = typer.Typer()
     written = {}

@@ -4,6 +4,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from helpers_bags import (
     Motion,
     Truth,
@@ -13,7 +14,6 @@ from helpers_bags import (
     write_imu_only_bag,
     write_tum,
 )
-
 from loaders.campus import (
     RADAR_SCAN_MSG,
     SCAN_TYPE,

@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+
 from helpers_bags import (
     Motion,
     _raw_pointcloud,
@@ -16,7 +17,6 @@ from helpers_bags import (
     write_imu_only_bag,
     write_ntu_bag,
 )
-
 from loaders.errors import DataError
 from loaders.gt import parse_extrinsic
 from loaders.ntu4dradlm import DEFAULT_T_GTBODY_RADAR, NtuSequence
