@@ -55,7 +55,8 @@ def time_method(name: str, source: Scan, target: Scan, repeats: int) -> dict:
     t0 = time.perf_counter()
     result = method.register(src, tgt, init)  # warm-up
     warm_s = time.perf_counter() - t0
-    n_repeats = repeats if warm_s < 1.0 else min(repeats, 3)
+    # fast calls get many repeats (a stable median); calls over a second get three
+    n_repeats = max(repeats, 51) if warm_s < 0.005 else repeats if warm_s < 1.0 else min(repeats, 3)
     times = []
     for _ in range(n_repeats):
         t0 = time.perf_counter_ns()
