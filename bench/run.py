@@ -78,7 +78,7 @@ def sequence_labels(seq: StoreSequence, job: Job) -> tuple[str, str, str]:
     prov = seq.provenance
     name = job.name or seq.name
     display = job.display_name or prov.get("display_name") or name
-    klass = (job.sensor_class or prov.get("sensor_class")
+    klass = (job.sensor_class or prov.get("sensor_class") or prov.get("class")
              or SENSOR_CLASSES.get(seq.sensor.model)
              or ("Dense 4D LiDAR" if seq.sensor.kind == "lidar" else "4D Radar"))
     return name, display, klass
