@@ -186,6 +186,8 @@ def execute(jobs: list[Job], workers: int = 1, force: bool = False,
         # separate processes; one BLAS thread each so workers do not fight over the cores
         for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
             os.environ.setdefault(var, "1")
+        # longest jobs first (iterative methods on large stores), so workers finish together
+        jobs = sorted(jobs, key=_expected_cost, reverse=True)
         ctx = get_context("spawn")
         with ctx.Manager() as manager, ProcessPoolExecutor(workers, mp_context=ctx) as pool:
             q = manager.Queue()
@@ -203,6 +205,11 @@ def execute(jobs: list[Job], workers: int = 1, force: bool = False,
                     except Exception as err:  # noqa: BLE001 - a crashed worker process
                         finish(JobOutcome(job, "failed", f"worker crashed: {err}"))
     return outcomes
+
+
+def _expected_cost(job: Job) -> float:
+    size = job.store.stat().st_size if job.store.exists() else 0
+    return size * (20.0 if get_method(job.method).uses_initial_guess else 1.0)
 
 
 def summarize(outcomes: list[JobOutcome]) -> str:

@@ -108,8 +108,8 @@ def _cells(rows: list[Row], lengths: list[str], mark) -> list[list[str]]:
                               f"{mark(_fmt(r.trans.get(length, math.nan)), b)}")
         times = _ranks([rows[i].time_ms for i in ranked])
         trank = dict(zip(ranked, times, strict=True))
-        for i in idx:
-            out[i].append("Div." if rows[i].diverged
+        for i in idx:  # a diverged run's time is still real: shown, not ranked
+            out[i].append(_fmt_time(rows[i].time_ms) if rows[i].diverged
                           else mark(_fmt_time(rows[i].time_ms), trank[i]))
     return out
 

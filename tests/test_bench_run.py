@@ -84,7 +84,8 @@ def test_tables_mark_best_and_second_and_show_divergence(store, tmp_path):
     assert lengths == ["8", "16", "24", "32", "40", "48"]
     md = to_markdown(rows, lengths)
     lines = [line for line in md.splitlines() if "icp-p2p" in line or "doppler" in line]
-    assert "Div." in lines[1] and "**" not in lines[1]
+    assert "Div." in lines[1] and "**" not in lines[1] and "<u>" not in lines[1]
+    assert lines[1].rstrip(" |").split("|")[-1].strip().replace(".", "").isdigit()  # time
     # two ranked rows per column: each 8 m cell has one bold and one underlined value
     cells8 = [line.split("|")[4] for line in (lines[0], lines[2])]
     assert sum(c.count("**") // 2 for c in cells8) == 2
