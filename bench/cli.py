@@ -47,6 +47,8 @@ def synth(
     seed: Annotated[int, typer.Option(help="random seed")] = 0,
     out: Annotated[Path | None, typer.Option(help="store to write (.h5)")] = None,
     noise: Annotated[bool, typer.Option(help="add sensor noise")] = True,
+    option: Annotated[list[str] | None, typer.Option(
+        "--option", "-o", help="generator option key=value (points, uturn, speed, ...)")] = None,
     list_: Annotated[bool, typer.Option("--list", help="list scenes, sensors and suites")] = False,
     suite: Annotated[str | None, typer.Option(help="generate a named suite instead")] = None,
     data_dir: Annotated[Path, typer.Option(help="cache folder of suites")] = Path("data"),
@@ -58,6 +60,7 @@ def synth(
     if list_:
         for title, items in (("scenes", synthetic.list_scenes()),
                              ("sensors", synthetic.list_sensors()),
+                             ("options (-o key=value)", synthetic.OPTIONS),
                              ("suites", {k: f"{len(v)} sequences"
                                          for k, v in synthetic.SUITES.items()})):
             console.print(f"[bold]{title}[/]")
@@ -70,7 +73,12 @@ def synth(
         return
     if scene is None or out is None:
         raise DataError("give a SCENE and --out PATH.h5 (or --list, or --suite NAME)")
-    seq = synthetic.SyntheticSequence(scene, sensor, frames=frames, seed=seed, noise=noise)
+    options = _parse_params(option)
+    try:
+        seq = synthetic.SyntheticSequence(scene, sensor, frames=frames, seed=seed, noise=noise,
+                                          **options)
+    except (ValueError, KeyError) as err:
+        raise DataError(f"bench synth: {err}") from err
     write_with_progress(seq, out)
 
 
@@ -145,6 +153,7 @@ def run(
 
 
 def _parse_params(items: list[str] | None) -> dict:
+    """``key=value`` strings -> dict (values parsed as YAML: 3, 0.5, true, [1, 2])."""
     import yaml
 
     params = {}
@@ -243,11 +252,9 @@ def main() -> None:
     except (typer.Abort, KeyboardInterrupt):
         console.print("[red]aborted[/]")
         sys.exit(130)
-    except Exception as err:  # click usage errors
-        import click
-
-        if isinstance(err, click.ClickException):
-            err.show()
+    except Exception as err:
+        if callable(getattr(err, "show", None)) and hasattr(err, "exit_code"):
+            err.show()  # a usage error (unknown option, missing argument)
             sys.exit(err.exit_code)
         raise
 

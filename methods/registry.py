@@ -6,6 +6,7 @@ Add a method by writing one module with a ``Registration`` (pairwise, scan to sc
 
 from __future__ import annotations
 
+from loaders.errors import DataError
 from methods.base import Odometry
 from methods.doppler import DopplerCorrespondence
 from methods.icp import PointToPointIcp
@@ -23,7 +24,7 @@ def get_method(name: str) -> type[Odometry]:
     try:
         return METHODS[name]
     except KeyError:
-        raise KeyError(f"unknown method {name!r}; registered: {', '.join(METHODS)}") from None
+        raise DataError(f"unknown method {name!r}; registered: {', '.join(METHODS)}") from None
 
 
 def make_method(name: str, params: dict | None = None) -> Odometry:
