@@ -17,6 +17,7 @@ from rich.progress import (
     TimeRemainingColumn,
 )
 
+from bench.cli_options import Frames, Out, Start, Stride
 from loaders.scan import Sequence, select_frames
 from loaders.store import write_store
 
@@ -53,10 +54,6 @@ def write_with_progress(sequence: Sequence, out: Path) -> Path:
     return Path(out)
 
 
-Start = Annotated[int, typer.Option(help="first frame")]
-Frames = Annotated[int | None, typer.Option(help="number of frames (default: all)")]
-Stride = Annotated[int, typer.Option(help="keep every k-th frame (period scaled by k)")]
-Out = Annotated[Path, typer.Option(help="store to write (.h5)")]
 
 
 @convert_app.command("npy-frames")

@@ -13,7 +13,7 @@ from typing import Annotated
 
 import typer
 
-from bench.convert import Frames, Stride
+from bench.cli_options import Frames, Stride
 from loaders.scan import Sequence, select_frames
 
 Start = Annotated[int, typer.Option(help="first frame (after GT trimming)")]

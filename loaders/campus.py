@@ -23,20 +23,17 @@ from pathlib import Path
 
 import numpy as np
 
+from loaders.bag_sequence import BagRadarSequence
 from loaders.errors import DataError
-from loaders.gt import associate, parse_extrinsic, read_gt_file, remove_origin
+from loaders.gt import parse_extrinsic, read_gt_file, remove_origin
 from loaders.ros1 import (
-    BagTopic,
     _Cursor,
     finish_scan,
     iter_topic_messages,
     make_typestore,
-    median_period,
     register_bag_definition,
-    sort_unique_stamps,
-    topic_stamps,
 )
-from loaders.scan import Scan, SensorInfo, Sequence, Trajectory
+from loaders.scan import Scan, Sequence, Trajectory
 from loaders.se3 import T_from_tum
 
 SCAN_TYPE = "msgs_radar/msg/RadarScanExtended"
@@ -125,7 +122,7 @@ def low_points_median_z(sequence: Sequence, frames: int = 50, quantile: float = 
     }
 
 
-class CampusSequence(Sequence):
+class CampusSequence(BagRadarSequence):
     """Campus radar scans streamed from ROS1 bags.
 
     bags: bag files (merged in time order). topic: radar topic. gt_topic: nav_msgs/Odometry
@@ -154,17 +151,13 @@ class CampusSequence(Sequence):
         stamp: str = "header",
         name: str | None = None,
     ) -> None:
-        if isinstance(bags, str | Path):
-            bags = [bags]
-        self.bags = [Path(b) for b in bags]
         for label, v in (("elevation_sign", elevation_sign), ("doppler_sign", doppler_sign)):
             if float(v) not in (1.0, -1.0):
                 raise DataError(f"{label} must be +1 or -1, got {v}")
         self.elevation_sign = float(elevation_sign)
         self.doppler_sign = float(doppler_sign)
-        self.topic = topic
+        self._open_topic(bags, topic)
         self.name = name or self.bags[0].stem
-        self._index = BagTopic(self.bags, topic)
         if self._index.msgtype != SCAN_TYPE:
             raise DataError(
                 f"{self.bags[0]}: topic {topic} has type {self._index.msgtype}; expected "
@@ -172,12 +165,8 @@ class CampusSequence(Sequence):
                 f"{', '.join(REQUIRED_TARGET_FIELDS)}, ...)"
             )
         self._setup_types()
-        if len(self._index) == 0:
-            raise DataError(f"{self.bags[0]}: topic {topic} has no messages")
-        where = ", ".join(str(b) for b in self.bags)
-        stamps = topic_stamps(self._index, stamp, where)
-        self._stamp_mode = stamp
-        order, dup = sort_unique_stamps(stamps, where)
+        stamps, order, dup = self._frame_stamps(stamp)
+        where = self.where
         T = parse_extrinsic(T_body_radar)
         self.provenance: dict = {
             "loader": "campus",
@@ -193,30 +182,21 @@ class CampusSequence(Sequence):
             "extrinsic_note": "radar extrinsic unknown for this dataset (identity by default)",
             "nan_points_dropped": 0,
         }
-        self.ground_truth = None
         gt_traj, gt_label = None, None
         if gt is not None:
             gt_traj, gt_label = read_gt_file(gt, "tum"), str(gt)
         elif gt_topic:
             gt_traj = read_odometry(self.bags, gt_topic)
             gt_label = f"{gt_topic} in {where}"
-        if gt_traj is not None:
-            fix = None
-            if remove_gt_origin:
-                _, origin = remove_origin(gt_traj)
-                fix = np.eye(4)
-                fix[:3, 3] = -origin
-                self.provenance["gt_origin_removed"] = origin.tolist()
-            assoc = associate(gt_traj, stamps[order], offset_s=time_offset_s,
-                              max_gap_s=max_gap_s, T_body_sensor=T, T_world_fix=fix,
-                              uncovered=uncovered, gt_file=gt_label, scan_file=where)
-            order = order[assoc.keep]
-            self.ground_truth = assoc.ground_truth
-            self.provenance["gt_association"] = assoc.report
-        self._order = order
-        self._stamps = stamps[order]
-        self.sensor = SensorInfo("radar", median_period(self._stamps, DEFAULT_PERIOD_S), T,
-                                 "radar-sparse (ZF FRGen21)")
+        fix = None
+        if gt_traj is not None and remove_gt_origin:
+            _, origin = remove_origin(gt_traj)
+            fix = np.eye(4)
+            fix[:3, 3] = -origin
+            self.provenance["gt_origin_removed"] = origin.tolist()
+        self._finish(stamps, order, gt_traj, gt_label, T, DEFAULT_PERIOD_S,
+                     "radar-sparse (ZF FRGen21)", offset_s=time_offset_s, max_gap_s=max_gap_s,
+                     T_world_fix=fix, uncovered=uncovered)
 
     def _setup_types(self) -> None:
         store = make_typestore(None)
@@ -246,16 +226,6 @@ class CampusSequence(Sequence):
         first = list(scan_fields)[:2] == ["header", "targets"]
         if all_f32 and first:
             self._fast_dtype = np.dtype([(n, "<f4") for n in names])
-
-    def __len__(self) -> int:
-        return len(self._order)
-
-    @property
-    def stamps(self) -> np.ndarray:
-        return self._stamps.copy()
-
-    def close(self) -> None:
-        self._index.close()
 
     def _targets(self, data: bytes, where: str) -> tuple[float, dict[str, np.ndarray]]:
         if self._fast_dtype is not None:

@@ -20,18 +20,15 @@ from pathlib import Path
 
 import numpy as np
 
+from loaders.bag_sequence import BagRadarSequence
 from loaders.errors import DataError
-from loaders.gt import associate, parse_extrinsic, read_gt_file
+from loaders.gt import parse_extrinsic, read_gt_file
 from loaders.ros1 import (
-    BagTopic,
     finish_scan,
-    median_period,
     parse_pointcloud,
     parse_pointcloud2,
-    sort_unique_stamps,
-    topic_stamps,
 )
-from loaders.scan import Scan, SensorInfo, Sequence
+from loaders.scan import Scan
 
 POINTCLOUD = "sensor_msgs/msg/PointCloud"
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
@@ -43,7 +40,7 @@ DEFAULT_T_GTBODY_RADAR = "0.296 -0.130 -0.005 0 0 0 1"
 DEFAULT_PERIOD_S = 1.0 / 12.0
 
 
-class NtuSequence(Sequence):
+class NtuSequence(BagRadarSequence):
     """NTU4DRadLM radar scans streamed from ROS1 bags.
 
     bags: one or more bags of one route (e.g. ``ntu-car-day-loop1_2022-06-03_{0..4}.bag``),
@@ -71,22 +68,13 @@ class NtuSequence(Sequence):
         stamp: str = "header",
         name: str | None = None,
     ) -> None:
-        if isinstance(bags, str | Path):
-            bags = [bags]
-        self.bags = [Path(b) for b in bags]
-        self.topic = topic
+        self._open_topic(bags, topic, accept=(POINTCLOUD, POINTCLOUD2))
         self.doppler_field = doppler_field
         self.doppler_sign = float(doppler_sign)
         if self.doppler_sign not in (1.0, -1.0):
             raise DataError(f"doppler_sign must be +1 or -1, got {doppler_sign}")
         self.name = name or self.bags[0].stem
-        self._index = BagTopic(self.bags, topic, accept=(POINTCLOUD, POINTCLOUD2))
-        if len(self._index) == 0:
-            raise DataError(f"{self.bags[0]}: topic {topic} has no messages")
-        where = ", ".join(str(b) for b in self.bags)
-        stamps = topic_stamps(self._index, stamp, where)
-        self._stamp_mode = stamp
-        order, dup = sort_unique_stamps(stamps, where)
+        stamps, order, dup = self._frame_stamps(stamp)
         T = parse_extrinsic(T_gtbody_radar)
         self.provenance: dict = {
             "loader": "ntu4dradlm",
@@ -103,28 +91,10 @@ class NtuSequence(Sequence):
                               "code, identity rotation)",
             "nan_points_dropped": 0,
         }
-        self.ground_truth = None
-        if gt is not None:
-            traj = read_gt_file(gt, "tum")
-            assoc = associate(traj, stamps[order], offset_s=time_offset_s, max_gap_s=max_gap_s,
-                              T_body_sensor=T, uncovered=uncovered, gt_file=gt, scan_file=where)
-            order = order[assoc.keep]
-            self.ground_truth = assoc.ground_truth
-            self.provenance["gt_association"] = assoc.report
-        self._order = order
-        self._stamps = stamps[order]
-        self.sensor = SensorInfo("radar", median_period(self._stamps, DEFAULT_PERIOD_S), T,
-                                 "radar-semidense (Oculii Eagle)")
-
-    def __len__(self) -> int:
-        return len(self._order)
-
-    @property
-    def stamps(self) -> np.ndarray:
-        return self._stamps.copy()
-
-    def close(self) -> None:
-        self._index.close()
+        self._finish(stamps, order, read_gt_file(gt, "tum") if gt is not None else None,
+                     str(gt) if gt is not None else None, T, DEFAULT_PERIOD_S,
+                     "radar-semidense (Oculii Eagle)", offset_s=time_offset_s,
+                     max_gap_s=max_gap_s, uncovered=uncovered)
 
     def scan(self, index: int) -> Scan:
         k = int(self._order[index])
