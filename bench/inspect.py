@@ -10,7 +10,7 @@ from rich.console import Console
 from rich.table import Table
 
 from bench.evaluate import gt_at_stamps
-from loaders.doppler_check import doppler_sign_check
+from loaders.doppler_check import doppler_sign_check, low_points_median_z
 from loaders.errors import DataError
 from loaders.gt import gt_sanity_report
 from loaders.scan import Sequence
@@ -78,8 +78,6 @@ def inspect_sequence(seq: Sequence) -> dict:
         except DataError as err:
             gt_findings.append(f"cannot associate GT with the scans: {err}")
     if seq.sensor.kind == "radar":  # elevation-sign check: the road should be below the sensor
-        from loaders.campus import low_points_median_z
-
         z = low_points_median_z(seq)
         rows.append(("height check", f"densest layer at z = {z['dominant_layer_z_m']:+.2f} m: "
                                      f"{z['verdict']}"))

@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from loaders.bag_sequence import BagRadarSequence
+from loaders.doppler_check import low_points_median_z  # noqa: F401 (re-exported)
 from loaders.errors import DataError
 from loaders.gt import parse_extrinsic, read_gt_file, remove_origin
 from loaders.ros1 import (
@@ -33,7 +34,7 @@ from loaders.ros1 import (
     make_typestore,
     register_bag_definition,
 )
-from loaders.scan import Scan, Sequence, Trajectory
+from loaders.scan import Scan, Trajectory
 from loaders.se3 import T_from_tum
 
 SCAN_TYPE = "msgs_radar/msg/RadarScanExtended"
@@ -88,38 +89,6 @@ def spherical_to_xyz(r, az, el, elevation_sign: float = 1.0) -> np.ndarray:
     ce = np.cos(el)
     return np.column_stack([r * ce * np.cos(az), r * ce * np.sin(az),
                             elevation_sign * r * np.sin(el)])
-
-
-def low_points_median_z(sequence: Sequence, frames: int = 50, quantile: float = 0.1) -> dict:
-    """Elevation-sign check over the first ``frames`` scans: the median z of the lowest
-    ``quantile`` of the points, the z of the densest 0.25 m height layer (on a road: the road
-    surface) and the share of points above the sensor. With the right ``elevation_sign`` the
-    road surface comes out BELOW the sensor (dominant layer about minus the mounting height,
-    e.g. -0.5 m for a bumper radar); with the wrong sign it comes out mirrored above it."""
-    zs = []
-    for i in range(min(frames, len(sequence))):
-        zs.append(sequence.scan(i).points[:, 2])
-    if not zs:
-        raise DataError(f"{sequence.name}: no frames to check")
-    z = np.concatenate(zs)
-    low = z[z <= np.quantile(z, quantile)]
-    # the densest 0.25 m height layer: on roads this is the road surface
-    edges = np.arange(np.floor(z.min()), np.ceil(z.max()) + 0.5, 0.25)
-    if len(edges) < 2:
-        edges = np.array([z.min() - 0.125, z.max() + 0.125])
-    hist, edges = np.histogram(z, bins=edges)
-    k = int(np.argmax(hist))
-    layer = float(np.median(z[(z >= edges[k]) & (z <= edges[k + 1])]))
-    return {
-        "frames": min(frames, len(sequence)),
-        "points": int(len(z)),
-        "low_points_median_z_m": float(np.median(low)),
-        "dominant_layer_z_m": layer,
-        "median_z_m": float(np.median(z)),
-        "share_above_sensor": float((z > 0).mean()),
-        "verdict": ("road below the sensor (sign looks right)" if layer < 0 else
-                    "densest layer above the sensor: check elevation_sign"),
-    }
 
 
 class CampusSequence(BagRadarSequence):

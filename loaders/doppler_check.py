@@ -1,4 +1,6 @@
-"""Doppler sign check: fit the ego velocity from Doppler and compare it with ground truth.
+"""Sanity checks of a sequence's conventions: the Doppler sign, and (radar) the elevation sign.
+
+Doppler sign check: fit the ego velocity from Doppler and compare it with ground truth.
 
 For a static scene, doppler_i = -d_i . v_sensor (receding positive, d_i the unit direction of
 point i, v_sensor the sensor's velocity in its own frame). A per-frame least-squares fit of
@@ -13,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from loaders.errors import DataError
 from loaders.scan import Scan, Sequence
 
 
@@ -87,3 +90,35 @@ def doppler_sign_check(seq: Sequence, gt_poses: np.ndarray | None, max_frames: i
     cos = float(np.median(cosines))
     verdict = "confirmed" if cos > 0.5 else "appears FLIPPED" if cos < -0.5 else "inconclusive"
     return SignCheck(len(cosines), cos, float(np.median(ratios)), verdict)
+
+
+def low_points_median_z(sequence: Sequence, frames: int = 50, quantile: float = 0.1) -> dict:
+    """Elevation-sign check over the first ``frames`` scans: the median z of the lowest
+    ``quantile`` of the points, the z of the densest 0.25 m height layer (on a road: the road
+    surface) and the share of points above the sensor. With the right ``elevation_sign`` the
+    road surface comes out BELOW the sensor (dominant layer about minus the mounting height,
+    e.g. -0.5 m for a bumper radar); with the wrong sign it comes out mirrored above it."""
+    zs = []
+    for i in range(min(frames, len(sequence))):
+        zs.append(sequence.scan(i).points[:, 2])
+    if not zs:
+        raise DataError(f"{sequence.name}: no frames to check")
+    z = np.concatenate(zs)
+    low = z[z <= np.quantile(z, quantile)]
+    # the densest 0.25 m height layer: on roads this is the road surface
+    edges = np.arange(np.floor(z.min()), np.ceil(z.max()) + 0.5, 0.25)
+    if len(edges) < 2:
+        edges = np.array([z.min() - 0.125, z.max() + 0.125])
+    hist, edges = np.histogram(z, bins=edges)
+    k = int(np.argmax(hist))
+    layer = float(np.median(z[(z >= edges[k]) & (z <= edges[k + 1])]))
+    return {
+        "frames": min(frames, len(sequence)),
+        "points": int(len(z)),
+        "low_points_median_z_m": float(np.median(low)),
+        "dominant_layer_z_m": layer,
+        "median_z_m": float(np.median(z)),
+        "share_above_sensor": float((z > 0).mean()),
+        "verdict": ("road below the sensor (sign looks right)" if layer < 0 else
+                    "densest layer above the sensor: check elevation_sign"),
+    }

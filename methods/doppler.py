@@ -22,6 +22,7 @@ are all inside the timed ``register``.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from typing import Literal
 
 import numpy as np
@@ -151,11 +152,10 @@ def register_numpy(source: DopplerScan, target: DopplerScan, tau_spatial_m: floa
     return fit_rigid_t(P64, Q64), len(idx)
 
 
-def register_numba(source: DopplerScan, target: DopplerScan, tau_spatial_m: float,
+def register_numba(kernel, source: DopplerScan, target: DopplerScan, tau_spatial_m: float,
                    tau_doppler: float) -> tuple[np.ndarray | None, int]:
-    """The same step with the compiled merge pass (``methods.doppler_kernel``)."""
-    from methods import doppler_kernel as kernel
-
+    """The same step with the compiled merge pass of ``kernel`` (``methods.doppler_kernel``,
+    imported once by the method, outside the timed call)."""
     dt_s = target.stamp - source.stamp
     f = kernel.features(source.points_t, source.doppler, dt_s, 1.0)
     g = kernel.features(target.points_t, target.doppler, dt_s, -1.0)
@@ -173,11 +173,12 @@ class DopplerCorrespondence(Registration):
 
     def __init__(self, params: DopplerParams | None = None, **overrides) -> None:
         super().__init__(params, **overrides)
-        self._step = register_numba if self.params.backend == "numba" else register_numpy
+        self._step = register_numpy
         if self.params.backend == "numba":
-            from methods.doppler_kernel import warm_up
+            from methods import doppler_kernel  # numba loads only when this backend is used
 
-            warm_up()
+            doppler_kernel.warm_up()
+            self._step = partial(register_numba, doppler_kernel)
 
     def preprocess(self, scan: Scan) -> DopplerScan:
         if scan.doppler is None:
