@@ -108,7 +108,7 @@ def run_job(job: Job, force: bool = False,
         "lengths_m": list(job.lengths_m),
     }
     try:
-        method = make_method(job.method, job.params)
+        method = make_method(job.method, job.params, seq.sensor)
         params = getattr(method, "params", None)
         config["method"]["params"] = params.model_dump() if params is not None else {}
         total = len(seq)

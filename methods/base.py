@@ -22,7 +22,7 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 from scipy.spatial.transform import Rotation
 
-from loaders.scan import Scan, Sequence
+from loaders.scan import Scan, SensorInfo, Sequence
 from loaders.se3 import inv_T, make_T
 
 
@@ -79,6 +79,12 @@ class Odometry(ABC):
     name: ClassVar[str]
     description: ClassVar[str]
     uses_initial_guess: ClassVar[bool] = True
+
+    def configured_for(self, sensor: SensorInfo) -> Odometry:
+        """This method with the parameters that depend on the sensor resolved for ``sensor``
+        (e.g. radar or LiDAR defaults, the vehicle-to-sensor extrinsic). Called once before a
+        run; the resolved parameters are what a run records. Default: nothing to resolve."""
+        return self
 
     @abstractmethod
     def run(

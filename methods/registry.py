@@ -7,6 +7,7 @@ Add a method by writing one module with a ``Registration`` (pairwise, scan to sc
 from __future__ import annotations
 
 from loaders.errors import DataError
+from loaders.scan import SensorInfo
 from methods.base import Odometry
 from methods.doppler import DopplerCorrespondence
 from methods.icp import PointToPointIcp
@@ -27,13 +28,14 @@ def get_method(name: str) -> type[Odometry]:
         raise DataError(f"unknown method {name!r}; registered: {', '.join(METHODS)}") from None
 
 
-def make_method(name: str, params: dict | None = None) -> Odometry:
-    """An instance of method ``name`` with ``params`` validated by its pydantic model."""
+def make_method(name: str, params: dict | None = None,
+                sensor: SensorInfo | None = None) -> Odometry:
+    """An instance of method ``name`` with ``params`` validated by its pydantic model, and,
+    given the ``sensor``, its sensor-dependent parameters resolved (``configured_for``)."""
     cls = get_method(name)
     Params = getattr(cls, "Params", None)
-    if Params is None:
-        return cls()
-    return cls(Params.model_validate(params or {}))
+    method = cls() if Params is None else cls(Params.model_validate(params or {}))
+    return method.configured_for(sensor) if sensor is not None else method
 
 
 def seed_options(name: str) -> list[bool]:
