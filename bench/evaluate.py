@@ -3,11 +3,13 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from loaders.errors import DataError
 from loaders.scan import Trajectory
+from methods.base import OdometryResult
 from metrics import ape, is_diverged, relative_errors, timing_stats
 from metrics.relative import DEFAULT_LENGTHS_M, MetricError
 
@@ -57,3 +59,25 @@ def score(gt_poses: np.ndarray, est_poses: np.ndarray, times_ms: np.ndarray,
         "ape": ape_dict,
         "time_ms": {k: _num(v) for k, v in t.items()},
     }
+
+
+@dataclass(frozen=True)
+class Evaluation:
+    """What a run is scored with: GT at the scan stamps (``T_world_sensor``; None without GT)
+    and the metric part of ``metrics.json`` (diverged, relative_error, ape, time_ms)."""
+
+    gt: Trajectory | None
+    metrics: dict
+
+
+def evaluate_run(ground_truth: Trajectory | None, result: OdometryResult,
+                 lengths_m=DEFAULT_LENGTHS_M, name: str = "ground truth") -> Evaluation:
+    """Score an odometry result against a sequence's ground truth (the one entry point the
+    job runner uses)."""
+    times = np.array([f.time_ms for f in result.frames])
+    if ground_truth is None:
+        return Evaluation(None, {"diverged": None, "relative_error": {}, "ape": None,
+                                 "time_ms": None})
+    gt_poses = gt_at_stamps(ground_truth, result.stamps, name=name)
+    return Evaluation(Trajectory(result.stamps, gt_poses),
+                      score(gt_poses, result.poses, times, lengths_m))

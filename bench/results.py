@@ -21,7 +21,6 @@ from datetime import UTC, datetime
 from importlib import metadata
 from pathlib import Path
 
-import numpy as np
 import yaml
 
 from loaders.fileio import atomic_path, atomic_write_text
@@ -103,15 +102,15 @@ def frames_csv(result: OdometryResult) -> str:
     return buf.getvalue()
 
 
-def write_run(run_dir: Path, result: OdometryResult, gt_poses: np.ndarray | None,
+def write_run(run_dir: Path, result: OdometryResult, gt: Trajectory | None,
               config: dict, metrics: dict) -> None:
     """Write every file of a finished run; ``metrics.json`` last."""
     run_dir.mkdir(parents=True, exist_ok=True)
     est = Trajectory(result.stamps, result.poses)
     write_trajectory(run_dir / "est_tum.txt", est, "tum")
     write_trajectory(run_dir / "est_kitti.txt", est, "kitti")
-    if gt_poses is not None:
-        write_trajectory(run_dir / "gt_tum.txt", Trajectory(result.stamps, gt_poses), "tum")
+    if gt is not None:
+        write_trajectory(run_dir / "gt_tum.txt", gt, "tum")
     atomic_write_text(run_dir / "frames.csv", frames_csv(result))
     atomic_write_text(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
     atomic_write_text(run_dir / "meta.json", json.dumps(run_meta(), indent=2))

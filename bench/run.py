@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 from multiprocessing import get_context
 from pathlib import Path
 
-import numpy as np
 from rich.console import Console
 from rich.progress import (
     BarColumn,
@@ -27,7 +26,7 @@ from rich.progress import (
     TimeElapsedColumn,
 )
 
-from bench.evaluate import gt_at_stamps, score
+from bench.evaluate import evaluate_run
 from bench.results import is_finished, run_dir_name, write_failure, write_run
 from loaders.errors import DataError
 from loaders.store import StoreSequence
@@ -114,17 +113,10 @@ def run_job(job: Job, force: bool = False,
         total = len(seq)
         result = method.run(seq, seed=bool(job.seed),
                             on_frame=(lambda i: on_frame(i + 1, total)) if on_frame else None)
-        gt_poses = None
+        evaluation = evaluate_run(seq.ground_truth, result, job.lengths_m, name=str(job.store))
         metrics = {"sequence": name, "method": job.method, "seed": job.seed,
-                   "frames": len(seq)}
-        if seq.ground_truth is None:
-            metrics.update({"diverged": None, "relative_error": {}, "ape": None,
-                            "time_ms": None})
-        else:
-            gt_poses = gt_at_stamps(seq.ground_truth, result.stamps, name=str(job.store))
-            times = np.array([f.time_ms for f in result.frames])
-            metrics.update(score(gt_poses, result.poses, times, job.lengths_m))
-        write_run(run_dir, result, gt_poses, config, metrics)
+                   "frames": len(seq), **evaluation.metrics}
+        write_run(run_dir, result, evaluation.gt, config, metrics)
         return JobOutcome(job, "done", str(run_dir), len(seq), time.perf_counter() - t0)
     except Exception as err:  # noqa: BLE001 - record any failure and carry on
         write_failure(run_dir, config, f"{type(err).__name__}: {err}", traceback.format_exc())
