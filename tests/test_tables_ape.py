@@ -1,0 +1,61 @@
+"""The paper's APE tables (IV, V): shape, ranking, Div., seed tags, display names."""
+
+import json
+
+import yaml
+
+from bench.tables_ape import collect_ape, to_csv, to_latex, to_markdown, write_ape_tables
+
+
+def _run(root, seq, display, method, seed, ape_m, diverged=False, label=None):
+    d = root / seq / f"{label or method}_{seed}"
+    d.mkdir(parents=True)
+    cfg = {"sequence": {"name": seq, "display_name": display}}
+    if label:
+        cfg["label"] = label
+    (d / "config.yaml").write_text(yaml.safe_dump(cfg))
+    (d / "metrics.json").write_text(json.dumps({
+        "sequence": seq, "method": method, "seed": seed, "diverged": diverged,
+        "relative_error": {}, "ape": {"trans_rmse_m": ape_m, "rot_rmse_deg": 1.0}}))
+
+
+def test_ranks_divergence_and_order(tmp_path):
+    _run(tmp_path, "T1", "Tunnel (Empty)", "icp-p2p", True, 500.0, diverged=True)
+    _run(tmp_path, "T1", "Tunnel (Empty)", "dicp", True, 65.27)
+    _run(tmp_path, "T1", "Tunnel (Empty)", "doppler", None, 20.16)
+    _run(tmp_path, "T1", "Tunnel (Empty)", "doppler-icp", True, 14.5)
+    _run(tmp_path, "T2", "Tunnel (Vehicles)", "dicp", True, 37.12)
+    _run(tmp_path, "T2", "Tunnel (Vehicles)", "doppler", None, 47.54)
+    _run(tmp_path, "T2", "Tunnel (Vehicles)", "doppler-icp", True, 24.06)
+    table = collect_ape(tmp_path, ["T1", "T2"])
+    assert table.sequences == ["Tunnel (Empty)", "Tunnel (Vehicles)"]
+    # the paper's row order: baselines first, its own methods last
+    assert [label for label, _ in table.rows] == [
+        "ICP point-to-point", "DICP", "Doppler Correspondence (Ours)", "Doppler 4D-ICP (Ours)"]
+    md = to_markdown(table)
+    assert "| ICP point-to-point | Div. | - |" in md
+    assert "| Doppler 4D-ICP (Ours) | **14.50** | **24.06** |" in md
+    assert "| Doppler Correspondence (Ours) | <u>20.16</u> | 47.54 |" in md
+    assert "| DICP | 65.27 | <u>37.12</u> |" in md
+    tex = to_latex(table)
+    assert r"\textbf{14.50}" in tex and r"\underline{20.16}" in tex and "Div." in tex
+    rows = to_csv(table).splitlines()
+    assert rows[0] == "method,sequence,ape_m,diverged"
+    assert "ICP point-to-point,Tunnel (Empty),500.000000,True" in rows
+
+
+def test_both_seed_options_and_labels_get_their_own_rows(tmp_path):
+    _run(tmp_path, "L", "Loop1_0", "icp-p2p", True, 3.0)
+    _run(tmp_path, "L", "Loop1_0", "icp-p2p", False, 2.0)
+    _run(tmp_path, "L", "Loop1_0", "icp-p2p", True, 1.0, label="icp-p2p tau 1 m")
+    labels = [label for label, _ in collect_ape(tmp_path).rows]
+    assert labels == ["ICP point-to-point (With Seed)", "ICP point-to-point (No Seed)",
+                      "icp-p2p tau 1 m (With Seed)"]
+
+
+def test_write_ape_tables_writes_every_format(tmp_path):
+    _run(tmp_path / "r", "L", "Loop1_0", "dicp", True, 2.5)
+    texts = write_ape_tables(tmp_path / "r", tmp_path / "out", stem="table4")
+    assert set(texts) == {"md", "tex", "csv"}
+    for fmt in texts:
+        assert (tmp_path / "out" / f"table4.{fmt}").read_text() == texts[fmt]
