@@ -24,7 +24,7 @@ TimeOffset = Annotated[float, typer.Option(
 MaxGap = Annotated[float | None, typer.Option(
     "--max-gap", help="largest GT gap interpolated across (s) (default: loader's)")]
 Uncovered = Annotated[str, typer.Option(
-    help="scans not covered by GT: drop (counted), trim (ends only) or error")]
+    help="scans without GT: keep (run, unscored), trim (cut the ends) or error")]
 Stamp = Annotated[str, typer.Option(
     help="scan stamps: header (header.stamp) or record (bag record time)")]
 
@@ -115,7 +115,7 @@ def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]
                  "identity rotation; unconfirmed)")] = None,
         time_offset: TimeOffset = 0.0,
         max_gap: MaxGap = None,
-        uncovered: Uncovered = "drop",
+        uncovered: Uncovered = "keep",
         doppler_sign: Annotated[float, typer.Option(help="+1 or -1")] = 1.0,
         stamp: Stamp = "header",
         name: Name = None,
@@ -148,7 +148,7 @@ def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]
         keep_utm: Annotated[bool, typer.Option(help="keep the UTM origin in the GT")] = False,
         time_offset: TimeOffset = 0.0,
         max_gap: MaxGap = None,
-        uncovered: Uncovered = "drop",
+        uncovered: Uncovered = "keep",
         stamp: Stamp = "header",
         name: Name = None,
         start: Start = 0, frames: Frames = None, stride: Stride = 1,

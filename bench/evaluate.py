@@ -1,4 +1,17 @@
-"""Score an estimated trajectory against ground truth the way the paper does."""
+"""Score an estimated trajectory against ground truth the way the paper does.
+
+Ground truth limits the evaluation, not the sequence: the method runs on every scan, and only
+the frames that have ground truth are scored.
+
+- Which frames have GT (:func:`gt_for_frames`): when the ground truth is sampled at the scans
+  (every GT stamp is a scan stamp, as in every store the loaders write), a frame is scored iff
+  the GT has a pose at its stamp. Otherwise (GT at its own rate) the GT is interpolated at the
+  scan stamps between two poses at most 3 median GT steps apart; a longer gap is never bridged.
+- Relative errors pair scored frames only; APE is computed over the scored frames (SE(3)
+  alignment, with the orientation fallback of ``metrics.ape`` for an estimate that never
+  moves); divergence looks at every estimated pose (a non-finite pose anywhere diverges).
+- Timing (``time_ms``) covers every registered frame, with or without ground truth.
+"""
 
 from __future__ import annotations
 
@@ -8,36 +21,74 @@ from dataclasses import dataclass
 import numpy as np
 
 from loaders.errors import DataError
+from loaders.gt import clean_trajectory, nearest_indices
 from loaders.scan import Trajectory
 from methods.base import OdometryResult
 from metrics import ape, is_diverged, relative_errors, timing_stats
 from metrics.relative import DEFAULT_LENGTHS_M, MetricError
 
+#: A scan stamp and a GT stamp closer than this are the same instant [s].
+STAMP_TOLERANCE_S = 1e-4
+#: GT at its own rate is interpolated across at most this many median GT steps.
+MAX_GAP_STEPS = 3.0
 
-def gt_at_stamps(gt: Trajectory, stamps: np.ndarray, tolerance_s: float = 1e-4,
-                 name: str = "ground truth") -> np.ndarray:
-    """GT poses (N, 4, 4) at the scan stamps: exact stamp matches when every scan has one
-    (within ``tolerance_s``), else SE(3) interpolation with a max gap of 3 median GT steps."""
-    idx = np.searchsorted(gt.stamps, stamps).clip(0, len(gt) - 1)
-    prev = (idx - 1).clip(0)
-    best = np.where(np.abs(gt.stamps[prev] - stamps) < np.abs(gt.stamps[idx] - stamps), prev, idx)
-    if np.all(np.abs(gt.stamps[best] - stamps) <= tolerance_s):
-        return gt.poses[best]
-    step = float(np.median(np.diff(gt.stamps))) if len(gt) > 1 else math.inf
-    return gt.interpolate(stamps, max_gap_s=3 * step, name=name).poses
+
+def gt_for_frames(gt: Trajectory, stamps: np.ndarray, tolerance_s: float = STAMP_TOLERANCE_S,
+                  name: str = "ground truth") -> tuple[np.ndarray, np.ndarray]:
+    """GT poses ``T_world_sensor`` (N, 4, 4) at the scan stamps and a mask (N,) of the frames
+    that have ground truth; poses of frames without are NaN. Raises ``DataError`` when the GT
+    rows are not in time order (see ``loaders.gt.clean_trajectory``)."""
+    stamps = np.asarray(stamps, dtype=np.float64)
+    n = len(stamps)
+    poses = np.full((n, 4, 4), np.nan)
+    mask = np.zeros(n, dtype=bool)
+    if len(gt) == 0 or n == 0:
+        return poses, mask
+    gt, _ = clean_trajectory(gt, name)
+    s = gt.stamps
+    near, dist = nearest_indices(s, stamps)  # nearest GT pose of each scan
+    exact = dist <= tolerance_s
+    sorted_scans = np.sort(stamps)
+    _, gt_to_scan = nearest_indices(sorted_scans, s)  # nearest scan of each GT pose
+    inside = (s >= sorted_scans[0] - tolerance_s) & (s <= sorted_scans[-1] + tolerance_s)
+    sampled_at_scans = bool(np.all(gt_to_scan[inside] <= tolerance_s))
+    if sampled_at_scans or len(s) < 2:
+        mask = exact
+        poses[mask] = gt.poses[near[mask]]
+        return poses, mask
+    step = float(np.median(np.diff(s)))
+    mask = gt.coverage_mask(stamps, MAX_GAP_STEPS * step, tolerance_s)
+    if mask.any():
+        poses[mask] = gt.interpolate(stamps[mask], name=name).poses
+    return poses, mask
 
 
 def _num(x: float) -> float | None:
     return None if x is None or not math.isfinite(x) else float(x)
 
 
+def timing_part(times_ms: np.ndarray) -> dict:
+    """``time_ms`` of ``metrics.json``: median, mean, p95 [ms] (None when nothing was timed)."""
+    return {k: _num(v) for k, v in timing_stats(times_ms).items()}
+
+
 def score(gt_poses: np.ndarray, est_poses: np.ndarray, times_ms: np.ndarray,
-          lengths_m=DEFAULT_LENGTHS_M) -> dict:
-    """The metric part of ``metrics.json``: diverged, relative_error, ape, time_ms."""
+          lengths_m=DEFAULT_LENGTHS_M, scored: np.ndarray | None = None,
+          name: str = "ground truth") -> dict:
+    """The metric part of ``metrics.json``: diverged, relative_error, ape, time_ms,
+    frames_scored. ``scored`` (bool per frame, default all) selects the frames with ground
+    truth; relative errors and APE use only them."""
+    est_poses = np.asarray(est_poses, dtype=np.float64)
+    if scored is None:
+        scored = np.ones(len(est_poses), dtype=bool)
+    idx = np.flatnonzero(scored)
+    if len(idx) == 0:
+        raise DataError(f"{name}: no frame has ground truth; nothing to score")
+    gt_s, est_s = np.asarray(gt_poses, dtype=np.float64)[idx], est_poses[idx]
     try:
-        rel = relative_errors(gt_poses, est_poses, lengths_m)
+        rel = relative_errors(gt_s, est_s, lengths_m)
     except MetricError as err:
-        raise DataError(str(err)) from err
+        raise DataError(f"{name}: {err} ({len(idx)} frames with ground truth)") from err
     diverged = bool(is_diverged(est_poses, rel))
     relative = {
         f"{length:g}": {
@@ -47,24 +98,26 @@ def score(gt_poses: np.ndarray, est_poses: np.ndarray, times_ms: np.ndarray,
         }
         for length, s in rel.items()
     }
-    if np.all(np.isfinite(est_poses)):
-        a = ape(gt_poses, est_poses, alignment="se3")
-        ape_dict = {"trans_rmse_m": _num(a.trans_rmse_m), "rot_rmse_deg": _num(a.rot_rmse_deg)}
+    if np.all(np.isfinite(est_poses)) and len(idx) >= 2:
+        a = ape(gt_s, est_s, alignment="se3")
+        ape_dict = {"trans_rmse_m": _num(a.trans_rmse_m), "rot_rmse_deg": _num(a.rot_rmse_deg),
+                    "alignment": a.alignment}
     else:
-        ape_dict = {"trans_rmse_m": None, "rot_rmse_deg": None}
-    t = timing_stats(times_ms)
+        ape_dict = {"trans_rmse_m": None, "rot_rmse_deg": None, "alignment": None}
     return {
         "diverged": diverged,
         "relative_error": relative,
         "ape": ape_dict,
-        "time_ms": {k: _num(v) for k, v in t.items()},
+        "time_ms": timing_part(times_ms),
+        "frames_scored": int(len(idx)),
     }
 
 
 @dataclass(frozen=True)
 class Evaluation:
-    """What a run is scored with: GT at the scan stamps (``T_world_sensor``; None without GT)
-    and the metric part of ``metrics.json`` (diverged, relative_error, ape, time_ms)."""
+    """What a run is scored with: GT at the stamps of the frames that have it
+    (``T_world_sensor``; None without GT) and the metric part of ``metrics.json`` (diverged,
+    relative_error, ape, time_ms, frames_scored)."""
 
     gt: Trajectory | None
     metrics: dict
@@ -73,11 +126,12 @@ class Evaluation:
 def evaluate_run(ground_truth: Trajectory | None, result: OdometryResult,
                  lengths_m=DEFAULT_LENGTHS_M, name: str = "ground truth") -> Evaluation:
     """Score an odometry result against a sequence's ground truth (the one entry point the
-    job runner uses)."""
-    times = np.array([f.time_ms for f in result.frames])
+    job runner uses). Without ground truth only the timing is filled in."""
+    times = np.array([f.time_ms for f in result.frames], dtype=np.float64)
     if ground_truth is None:
         return Evaluation(None, {"diverged": None, "relative_error": {}, "ape": None,
-                                 "time_ms": None})
-    gt_poses = gt_at_stamps(ground_truth, result.stamps, name=name)
-    return Evaluation(Trajectory(result.stamps, gt_poses),
-                      score(gt_poses, result.poses, times, lengths_m))
+                                 "time_ms": timing_part(times), "frames_scored": 0})
+    stamps = np.asarray(result.stamps, dtype=np.float64)
+    gt_poses, scored = gt_for_frames(ground_truth, stamps, name=name)
+    metrics = score(gt_poses, result.poses, times, lengths_m, scored, name)
+    return Evaluation(Trajectory(stamps[scored], gt_poses[scored]), metrics)

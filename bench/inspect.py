@@ -9,7 +9,7 @@ import numpy as np
 from rich.console import Console
 from rich.table import Table
 
-from bench.evaluate import gt_at_stamps
+from bench.evaluate import gt_for_frames
 from loaders.doppler_check import doppler_sign_check, low_points_median_z
 from loaders.errors import DataError
 from loaders.gt import gt_sanity_report
@@ -74,7 +74,10 @@ def inspect_sequence(seq: Sequence) -> dict:
         rows.append(("GT coverage of scans", f"{coverage:.1f} %, {sanity['repeated_poses']} "
                      f"repeated poses, {len(sanity['gaps'])} gaps"))
         try:
-            gt_poses = gt_at_stamps(gt, stamps)
+            poses, scored = gt_for_frames(gt, stamps)
+            rows.append(("frames scored", f"{int(scored.sum())} of {len(stamps)} have ground "
+                                          "truth (the others run, unscored)"))
+            gt_poses = poses  # NaN where a frame has no GT: the sign check skips those
         except DataError as err:
             gt_findings.append(f"cannot associate GT with the scans: {err}")
     if seq.sensor.kind == "radar":  # elevation-sign check: the road should be below the sensor

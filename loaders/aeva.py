@@ -146,7 +146,7 @@ class AevaSequence(Sequence):
         point_time_scale: float = 1e-9,
         timestamp_unit: str = "auto",
         doppler_sign: float = 1.0,
-        uncovered: str = "drop",
+        uncovered: str = "keep",
         name: str | None = None,
     ) -> None:
         self.root = Path(root)

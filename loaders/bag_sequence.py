@@ -41,7 +41,9 @@ class BagRadarSequence(Sequence):
     def _finish(self, stamps: np.ndarray, order: np.ndarray, gt: Trajectory | None,
                 gt_label: str | None, T_body_sensor: np.ndarray, default_period_s: float,
                 model: str, **association) -> None:
-        """Associate ground truth (dropping uncovered frames) and set the sensor."""
+        """Associate ground truth and set the sensor. Every frame is kept (with
+        ``uncovered="trim"`` every frame from the first to the last with GT); frames without
+        GT are excluded from scoring only."""
         self.ground_truth = None
         if gt is not None:
             assoc = associate(gt, stamps[order], T_body_sensor=T_body_sensor,

@@ -100,7 +100,7 @@ class CampusSequence(BagRadarSequence):
     doppler_sign: +1 (default: ``velocity`` is the range rate) or -1. T_body_radar: extrinsic
     (default identity: unknown). remove_gt_origin: subtract the first GT position (UTM ->
     local). time_offset_s: ``gt_stamp + time_offset_s = header.stamp``. max_gap_s: largest GT gap
-    interpolated across (GT at 50 Hz). uncovered: "drop" | "trim" | "error".
+    interpolated across (GT at 50 Hz). uncovered: "keep" | "trim" | "error".
     stamp: "header" (header.stamp, default) or "record" (bag record time).
     """
 
@@ -116,7 +116,7 @@ class CampusSequence(BagRadarSequence):
         remove_gt_origin: bool = True,
         time_offset_s: float = 0.0,
         max_gap_s: float = 0.2,
-        uncovered: str = "drop",
+        uncovered: str = "keep",
         stamp: str = "header",
         name: str | None = None,
     ) -> None:
@@ -237,6 +237,11 @@ def read_odometry(bags: list[Path], topic: str) -> Trajectory:
         quat.append((q.x, q.y, q.z, q.w))
     if not stamps:
         raise DataError(f"{bags[0]}: ground-truth topic {topic} has no messages")
+    # messages come in record order (bag by bag); the poses' own clock is header.stamp
+    order = np.argsort(np.asarray(stamps), kind="stable")
+    stamps = list(np.asarray(stamps)[order])
+    xyz = list(np.asarray(xyz)[order])
+    quat = list(np.asarray(quat)[order])
     q = np.asarray(quat, dtype=np.float64)
     norms = np.linalg.norm(q, axis=1)
     if np.any(norms < 1e-6):

@@ -18,3 +18,8 @@ def where(file: str | Path | None = None, frame: int | None = None) -> str:
     if frame is not None:
         parts.append(f"frame {frame}")
     return ", ".join(parts) + ": " if parts else ""
+
+
+class GroundTruthWarning(UserWarning):
+    """Ground truth was usable but not clean (duplicate rows dropped, scans without ground truth
+    kept but excluded from scoring); the message says what and how many."""

@@ -7,9 +7,14 @@ Conventions (shared/REFERENCE.md):
   onto the clock of the scan stamps before anything is associated.
 - Ground-truth files give ``T_world_body``; the methods see the sensor, so the loaders apply the
   extrinsic: ``T_world_sensor = T_world_body @ T_body_sensor``.
-- Scans that the ground truth does not cover (outside its span, or inside a gap longer than
-  ``max_gap_s``) are dropped with an explicit count; when no scan at all is covered a
-  ``DataError`` names both files and both time spans.
+- Ground truth limits the evaluation, not the sequence: scans that the ground truth does not
+  cover (outside its span, or inside a gap longer than ``max_gap_s``) stay in the sequence,
+  counted and warned about, and are excluded from scoring; when no scan at all is covered a
+  ``DataError`` names both files and both time spans. A gap longer than ``max_gap_s`` is never
+  interpolated across.
+- Ground-truth stamps must increase: exact duplicate rows are dropped with a
+  ``GroundTruthWarning``; a repeated stamp with another pose, or a stamp that goes backwards,
+  is a ``DataError`` (see ``clean_trajectory``).
 """
 
 from __future__ import annotations
@@ -21,11 +26,11 @@ from typing import Literal
 
 import numpy as np
 
-from loaders.errors import DataError
+from loaders.errors import DataError, GroundTruthWarning
 from loaders.scan import Trajectory
 from loaders.se3 import interpolate_poses, make_T
 
-UncoveredPolicy = Literal["drop", "trim", "error"]
+UncoveredPolicy = Literal["keep", "trim", "error"]
 AssociationMode = Literal["interpolate", "nearest"]
 
 
@@ -66,47 +71,77 @@ def parse_extrinsic(text: str | list | tuple | np.ndarray | None) -> np.ndarray:
     return make_T(Rotation.from_quat(q / np.linalg.norm(q)).as_matrix(), v[:3])
 
 
-def clean_trajectory(gt: Trajectory, name: str = "ground truth") -> tuple[Trajectory, dict]:
-    """Sort by stamp and drop rows with a repeated stamp (the first is kept).
+def clean_trajectory(gt: Trajectory, name: str = "ground truth",
+                     tolerance_s: float = 0.0) -> tuple[Trajectory, dict]:
+    """Check that ground-truth stamps increase; drop exact duplicate rows.
 
-    Returns the cleaned trajectory and counts ``{"reordered": bool, "duplicate_stamps": n}``;
-    a ``warnings.warn`` reports any change (never silently)."""
-    stamps = gt.stamps
-    order = np.argsort(stamps, kind="stable")
-    reordered = bool(np.any(order != np.arange(len(order))))
-    s = stamps[order]
-    keep = np.ones(len(s), dtype=bool)
-    keep[1:] = np.diff(s) > 0
-    dup = int((~keep).sum())
-    if reordered or dup:
-        warnings.warn(
-            f"{name}: stamps were {'not monotonic (sorted); ' if reordered else ''}"
-            f"{dup} rows with a repeated stamp dropped",
-            stacklevel=2,
+    - A row that repeats the previous row's stamp *and* pose (within 1e-9) is a duplicate (a
+      logger that wrote a message twice): it is dropped with a ``GroundTruthWarning`` naming the
+      count. Harmless: no information is lost.
+    - A row that repeats the previous stamp with a *different* pose is an error: two poses at
+      one instant, and nothing says which one is right.
+    - A row whose stamp goes backwards is an error: a file whose time runs backwards is garbled
+      or concatenated out of order, and sorting it would silently interleave two trajectories.
+      (Bag topics are sorted by their readers before this check: message order is record
+      order, not stamp order.)
+
+    Both errors are ``DataError`` naming the file and the pose row (0-based). Returns the
+    cleaned trajectory and ``{"duplicate_rows": n}``."""
+    s = gt.stamps
+    if not np.all(np.isfinite(s)):
+        bad = int(np.flatnonzero(~np.isfinite(s))[0])
+        raise DataError(f"{name}, pose row {bad}: stamp is not finite ({s[bad]})")
+    d = np.diff(s)
+    back = np.flatnonzero(d < -tolerance_s)
+    if len(back):
+        i = int(back[0]) + 1
+        raise DataError(
+            f"{name}, pose row {i}: stamp {s[i]:.6f} s goes backwards from {s[i - 1]:.6f} s "
+            f"({len(back)} such rows); ground-truth rows must be in time order (a garbled or "
+            "concatenated file?)"
         )
-    idx = order[keep]
-    return Trajectory(gt.stamps[idx], gt.poses[idx]), {"reordered": reordered,
-                                                      "duplicate_stamps": dup}
+    same_stamp = np.flatnonzero(np.abs(d) <= tolerance_s)
+    same_pose = np.all(np.isclose(gt.poses[same_stamp + 1], gt.poses[same_stamp], rtol=0,
+                                  atol=1e-9), axis=(1, 2))
+    if not same_pose.all():
+        i = int(same_stamp[~same_pose][0]) + 1
+        raise DataError(
+            f"{name}, pose row {i}: repeats the stamp {s[i]:.6f} s of the previous row with a "
+            f"different pose ({int((~same_pose).sum())} such rows); expected one pose per stamp"
+        )
+    dup = len(same_stamp)
+    if dup:
+        warnings.warn(
+            f"{name}: {dup} rows repeat the previous row's stamp and pose (duplicates dropped)",
+            GroundTruthWarning, stacklevel=2,
+        )
+    keep = np.ones(len(s), dtype=bool)
+    keep[same_stamp + 1] = False
+    return Trajectory(s[keep], gt.poses[keep]), {"duplicate_rows": dup}
 
 
 @dataclass
 class Association:
     """Result of associating ground truth with scan stamps.
 
-    keep: indices of the scans that are covered (ascending). ground_truth: ``T_world_sensor`` at
-    the kept scan stamps. dropped_*: scans dropped before the GT span, after it, and inside it
-    (GT gaps). report: a dict for provenance."""
+    keep: indices of the scans the sequence keeps, ascending and consecutive: every scan, or with
+    ``uncovered="trim"`` every scan from the first to the last covered one. covered: per kept
+    scan, True when ground truth is available (the scan is scored). ground_truth:
+    ``T_world_sensor`` at the covered kept scans' stamps. uncovered_*: scans without ground
+    truth before its span, after it and inside gaps (kept unless trimmed). report: provenance."""
 
     keep: np.ndarray
+    covered: np.ndarray
     ground_truth: Trajectory
-    dropped_before: int = 0
-    dropped_after: int = 0
-    dropped_inside: int = 0
+    uncovered_before: int = 0
+    uncovered_after: int = 0
+    uncovered_inside: int = 0
+    trimmed: int = 0
     report: dict = field(default_factory=dict)
 
     @property
-    def dropped(self) -> int:
-        return self.dropped_before + self.dropped_after + self.dropped_inside
+    def uncovered(self) -> int:
+        return self.uncovered_before + self.uncovered_after + self.uncovered_inside
 
 
 def _span(values: np.ndarray) -> str:
@@ -123,25 +158,41 @@ def associate(
     mode: AssociationMode = "interpolate",
     T_body_sensor: np.ndarray | None = None,
     T_world_fix: np.ndarray | None = None,
-    uncovered: UncoveredPolicy = "drop",
+    uncovered: UncoveredPolicy = "keep",
     gt_file: str | Path = "ground truth",
     scan_file: str | Path = "scans",
 ) -> Association:
     """Associate ground truth with scan stamps and return ``T_world_sensor`` at the covered ones.
 
+    Ground truth limits the evaluation, not the sequence: a scan without ground truth stays in
+    the sequence (the methods register consecutive scans) and is only excluded from scoring.
+
     offset_s: added to the GT stamps (``gt_stamp + offset_s = sensor clock``).
     mode: "interpolate" (SE(3): slerp + linear between the two neighbouring GT poses, which
-    must be at most ``max_gap_s`` apart) or "nearest" (the nearest GT pose within
-    ``tolerance_s``; for GT given one row per frame).
+    must be at most ``max_gap_s`` apart: a longer gap is never bridged, not even for a scan
+    just inside it) or "nearest" (the nearest GT pose within ``tolerance_s``; for GT given one
+    row per frame).
     tolerance_s: in interpolate mode, scan stamps up to ``tolerance_s`` outside the GT span take
     the end pose (no extrapolation beyond that).
     T_body_sensor: extrinsic applied on the right (``T_world_body @ T_body_sensor``).
     T_world_fix: applied on the left (e.g. to remove a UTM origin).
-    uncovered: "drop" (drop every uncovered scan, counted), "trim" (drop leading/trailing
-    uncovered scans only; an uncovered scan inside raises) or "error" (raise on any).
+    uncovered: "keep" (default: every scan is kept; those without GT are counted, warned about
+    with a ``GroundTruthWarning`` and excluded from scoring), "trim" (also cut the leading and
+    trailing scans without GT; gaps inside are kept unscored) or "error" (raise on any).
+    "drop" is an old name of "keep" (scans were dropped, which made the methods register
+    non-consecutive scans): it keeps them, with a warning.
     Raises DataError when no scan is covered, naming both files and both time spans.
     """
     q = np.asarray(scan_stamps, dtype=np.float64)
+    if uncovered == "drop":
+        warnings.warn(
+            f"{scan_file}: uncovered='drop' is no longer supported: scans without ground truth "
+            "are kept in the sequence and excluded from scoring (uncovered='keep')",
+            GroundTruthWarning, stacklevel=2,
+        )
+        uncovered = "keep"
+    if uncovered not in ("keep", "trim", "error"):
+        raise DataError(f"uncovered must be 'keep', 'trim' or 'error', got {uncovered!r}")
     if len(gt) == 0:
         raise DataError(f"{gt_file}: ground truth has no poses")
     gt, clean = clean_trajectory(gt, str(gt_file))
@@ -151,7 +202,6 @@ def associate(
     if mode == "nearest":
         idx, dist = nearest_indices(gs, q)
         covered = dist <= tolerance_s
-        src = poses[idx]
     elif mode == "interpolate":
         qc = q.copy()
         if tolerance_s > 0:
@@ -159,11 +209,7 @@ def associate(
             hi_ok = (q > gs[-1]) & (q <= gs[-1] + tolerance_s)
             qc[lo_ok] = gs[0]
             qc[hi_ok] = gs[-1]
-        if len(gs) == 1:
-            covered = np.abs(qc - gs[0]) <= 1e-9
-        else:
-            covered = Trajectory(gs, poses).coverage_mask(qc, max_gap_s)
-        src = None
+        covered = Trajectory(gs, poses).coverage_mask(qc, max_gap_s)
     else:
         raise DataError(f"association mode must be 'interpolate' or 'nearest', got {mode!r}")
 
@@ -173,8 +219,8 @@ def associate(
             f"{_span(gs)} (offset {offset_s:+.3f} s applied), the {n} scans span {_span(q)}; "
             "different clocks? set the time offset (gt_stamp + offset = sensor clock)"
         )
-    first, last = np.flatnonzero(covered)[[0, -1]]
-    before, after = int(first), int(n - 1 - last)
+    first, last = (int(i) for i in np.flatnonzero(covered)[[0, -1]])
+    before, after = first, n - 1 - last
     inside = int((~covered[first:last + 1]).sum())
     if uncovered == "error" and (before or after or inside):
         bad = int(np.flatnonzero(~covered)[0])
@@ -183,33 +229,31 @@ def associate(
             f"(GT spans {_span(gs)}, max gap {max_gap_s} s); {int((~covered).sum())} of {n} "
             "scans uncovered"
         )
-    if uncovered == "trim" and inside:
-        bad = int(first + np.flatnonzero(~covered[first:last + 1])[0])
-        raise DataError(
-            f"{scan_file}, frame {bad}: scan stamp {q[bad]:.3f} s falls in a ground-truth gap "
-            f"longer than {max_gap_s} s in {gt_file} ({inside} scans inside gaps); use "
-            "uncovered='drop' or a larger max gap"
-        )
-    if uncovered not in ("drop", "trim", "error"):
-        raise DataError(f"uncovered must be 'drop', 'trim' or 'error', got {uncovered!r}")
-    keep = np.flatnonzero(covered)
+    keep = np.arange(first, last + 1) if uncovered == "trim" else np.arange(n)
+    kept_covered = covered[keep]
+    scored = keep[kept_covered]
     if mode == "nearest":
-        out = src[keep]
+        out = poses[idx[scored]]
+    elif len(gs) == 1:
+        out = np.repeat(poses[:1], len(scored), axis=0)
     else:
-        if len(gs) == 1:
-            out = np.repeat(poses[:1], len(keep), axis=0)
-        else:
-            out = interpolate_poses(gs, poses, np.clip(qc[keep], gs[0], gs[-1]))
-    traj = Trajectory(q[keep], out)
+        out = interpolate_poses(gs, poses, np.clip(qc[scored], gs[0], gs[-1]))
+    traj = Trajectory(q[scored], out)
     if T_body_sensor is not None or T_world_fix is not None:
         traj = traj.transformed(T_world_fix, T_body_sensor)
-    dropped = before + after + inside
-    if dropped:
+    trimmed = n - len(keep)
+    missing = int((~kept_covered).sum())
+    if missing or trimmed:
+        what = []
+        if missing:
+            what.append(f"{missing} of the {len(keep)} scans kept have no ground truth in "
+                        f"{gt_file} and are excluded from scoring")
+        if trimmed:
+            what.append(f"{trimmed} scans before/after its span trimmed")
         warnings.warn(
-            f"{scan_file}: {dropped} of {n} scans not covered by ground truth {gt_file} were "
-            f"dropped ({before} before, {after} after its span, {inside} inside gaps > "
-            f"{max_gap_s} s)",
-            stacklevel=2,
+            f"{scan_file}: {'; '.join(what)} ({before} before, {after} after its span, "
+            f"{inside} inside gaps > {max_gap_s} s)",
+            GroundTruthWarning, stacklevel=2,
         )
     report = {
         "gt_file": str(gt_file),
@@ -217,14 +261,17 @@ def associate(
         "offset_s": float(offset_s),
         "max_gap_s": max_gap_s,
         "tolerance_s": float(tolerance_s),
+        "uncovered": uncovered,
         "scans": n,
         "kept": int(len(keep)),
-        "dropped_before": before,
-        "dropped_after": after,
-        "dropped_inside": inside,
+        "with_gt": int(len(scored)),
+        "uncovered_before": before,
+        "uncovered_after": after,
+        "uncovered_inside": inside,
+        "trimmed": trimmed,
         **{f"gt_{k}": v for k, v in clean.items()},
     }
-    return Association(keep, traj, before, after, inside, report)
+    return Association(keep, kept_covered, traj, before, after, inside, trimmed, report)
 
 
 def nearest_indices(stamps: np.ndarray, query: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -293,7 +340,7 @@ def gt_sanity_report(
         findings.append(f"{out['non_monotonic']} non-monotonic stamps (time goes backwards)")
     if scan_stamps is not None and len(scan_stamps):
         q = np.asarray(scan_stamps, dtype=np.float64)
-        good, _ = clean_trajectory_quiet(gt)
+        good = _sorted_unique(gt)  # a report, not a check: cover what can be covered
         if len(good) >= 2:
             max_gap = gap_factor * median if np.isfinite(median) else None
             cov = good.coverage_mask(q, max_gap)
@@ -311,11 +358,13 @@ def gt_sanity_report(
     return out
 
 
-def clean_trajectory_quiet(gt: Trajectory) -> tuple[Trajectory, dict]:
-    """``clean_trajectory`` without the warning."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return clean_trajectory(gt)
+def _sorted_unique(gt: Trajectory) -> Trajectory:
+    """The rows sorted by stamp, the first of each repeated stamp kept (for the report only)."""
+    order = np.argsort(gt.stamps, kind="stable")
+    s = gt.stamps[order]
+    keep = np.ones(len(s), dtype=bool)
+    keep[1:] = np.diff(s) > 0
+    return Trajectory(s[keep], gt.poses[order[keep]])
 
 
 def detect_pose_format(path: str | Path) -> str:

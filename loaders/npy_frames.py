@@ -4,7 +4,8 @@ Layout: ``frame_001.npy`` (N, 3) points [m, sensor frame] and ``frame_001_dop.np
 [m/s, positive = receding], either in DIR or in DIR/frames, plus an optional TUM file with one
 row per frame. Such TUM stamps are often not the sensor clock (the NTU4DRadLM sample has
 0.0, 0.1, 0.2, ... for a 12 Hz radar): pass ``period_s`` to stamp scans as index x period, and
-ground truth is then associated with frames by row order when the counts match.
+ground truth is then associated with frames by row order when the counts match (or by time,
+interpolated at the frame stamps: frames outside its span are kept and excluded from scoring).
 """
 
 from __future__ import annotations
@@ -64,6 +65,12 @@ class NpyFramesSequence(Sequence):
             self._stamps = np.arange(n) * float(period_s)
         elif trajectory is not None and len(trajectory) == n:
             self._stamps = trajectory.stamps.copy()
+            back = np.flatnonzero(np.diff(self._stamps) <= 0)
+            if len(back):
+                raise DataError(
+                    f"{gt_path}, pose row {int(back[0]) + 1}: stamps must increase to stamp the "
+                    f"frames ({len(back)} rows repeat or go backwards); give --period instead"
+                )
             period_s = float(np.median(np.diff(self._stamps))) if n > 1 else 0.1
             warnings.warn(f"{folder}: no period given; scan stamps taken from {gt_path.name} "
                           "rows (these may not be the sensor clock)", stacklevel=2)
@@ -99,7 +106,16 @@ class NpyFramesSequence(Sequence):
                 )
             return traj.with_stamps(self._stamps)
         if associate == "time":
-            return traj.interpolate(self._stamps, name=str(path))
+            # every frame stays; frames the GT does not cover are only excluded from scoring
+            from loaders.gt import associate as associate_gt
+
+            steps = np.diff(traj.stamps)
+            steps = steps[steps > 0]
+            max_gap = 3 * float(np.median(steps)) if len(steps) else None
+            assoc = associate_gt(traj, self._stamps, max_gap_s=max_gap, gt_file=path,
+                                 scan_file=self.frame_dir)
+            self.gt_report = assoc.report
+            return assoc.ground_truth
         raise DataError(f"unknown GT association {associate!r} (expected 'order' or 'time')")
 
     def __len__(self) -> int:

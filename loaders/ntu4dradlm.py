@@ -9,8 +9,8 @@
   by stamp; repeated stamps are dropped with a warning.
 - Ground truth ``gt_odom.txt`` (TUM, optional header line; R2LIVE pseudo ground truth) is
   associated by time (``gt_stamp + time_offset_s = header.stamp``), interpolated at the scan
-  stamps and moved into the radar frame with ``T_gtbody_radar``. Scans it does not cover are
-  dropped (counted in ``provenance["gt_association"]``).
+  stamps and moved into the radar frame with ``T_gtbody_radar``. Scans it does not cover stay
+  in the sequence and are excluded from scoring (counted in ``provenance["gt_association"]``).
 - Doppler is the raw relative radial velocity (positive = receding, not ego-compensated).
 """
 
@@ -48,7 +48,7 @@ class NtuSequence(BagRadarSequence):
     channel (PointCloud) or PointField (PointCloud2) name holding Doppler [m/s].
     T_gtbody_radar: "x y z qx qy qz qw", 16 numbers or a 4x4 array (GT body <- radar).
     time_offset_s: ``gt_stamp + time_offset_s = header.stamp``. max_gap_s: largest GT gap
-    interpolated across. uncovered: "drop" | "trim" | "error" (see ``loaders.gt.associate``).
+    interpolated across. uncovered: "keep" | "trim" | "error" (see ``loaders.gt.associate``).
     doppler_sign: multiply the Doppler channel by this (+1: already positive = receding).
     stamp: "header" (header.stamp, default) or "record" (bag record time, for drivers that
     leave header.stamp unset). name: sequence name (default: first bag's stem).
@@ -63,7 +63,7 @@ class NtuSequence(BagRadarSequence):
         T_gtbody_radar: str | np.ndarray | None = DEFAULT_T_GTBODY_RADAR,
         time_offset_s: float = 0.0,
         max_gap_s: float = 0.5,
-        uncovered: str = "drop",
+        uncovered: str = "keep",
         doppler_sign: float = 1.0,
         stamp: str = "header",
         name: str | None = None,

@@ -144,18 +144,28 @@ class Trajectory:
         return Trajectory(self.stamps, poses)
 
     # -- time association --------------------------------------------------------------
-    def coverage_mask(self, query_stamps: np.ndarray, max_gap_s: float | None = None) -> np.ndarray:
+    def coverage_mask(self, query_stamps: np.ndarray, max_gap_s: float | None = None,
+                      tolerance_s: float = 1e-9) -> np.ndarray:
         """True where a query stamp lies inside the trajectory's time span and, if ``max_gap_s``
-        is given, between two poses at most ``max_gap_s`` apart (or within max_gap_s/2 of one)."""
+        is given, between two poses at most ``max_gap_s`` apart. A query within ``tolerance_s``
+        of a pose is covered whatever the gaps around it (it takes that pose).
+
+        Interpolation never bridges a longer gap: a scan just after the last pose before an
+        outage is *not* covered (interpolating across the whole outage puts it on the chord,
+        metres off the path on a curve)."""
         q = np.asarray(query_stamps, dtype=np.float64)
         s = self.stamps
-        inside = (q >= s[0]) & (q <= s[-1])
-        if max_gap_s is None or len(s) < 2:
+        if len(s) == 0:
+            return np.zeros(len(q), dtype=bool)
+        inside = (q >= s[0] - tolerance_s) & (q <= s[-1] + tolerance_s)
+        if len(s) < 2:
             return inside
         hi = np.clip(np.searchsorted(s, q), 1, len(s) - 1)
+        on_pose = np.minimum(np.abs(q - s[hi - 1]), np.abs(s[hi] - q)) <= tolerance_s
+        if max_gap_s is None:
+            return inside
         gap = s[hi] - s[hi - 1]
-        near = np.minimum(np.abs(q - s[hi - 1]), np.abs(s[hi] - q)) <= max_gap_s / 2
-        return inside & ((gap <= max_gap_s) | near)
+        return inside & ((gap <= max_gap_s) | on_pose)
 
     def interpolate(
         self, query_stamps: np.ndarray, max_gap_s: float | None = None, name: str = "trajectory"
@@ -181,7 +191,8 @@ class Trajectory:
                 f"(first: index {first}, t={q[first]:.3f} s; span [{self.stamps[0]:.3f}, "
                 f"{self.stamps[-1]:.3f}] s, max gap {max_gap_s} s)"
             )
-        return Trajectory(q, interpolate_poses(self.stamps, self.poses, q))
+        return Trajectory(q, interpolate_poses(self.stamps, self.poses,
+                                               np.clip(q, self.stamps[0], self.stamps[-1])))
 
     # -- files ---------------------------------------------------------------------------
     @classmethod
@@ -341,7 +352,8 @@ class MemorySequence(Sequence):
 class FrameRange(Sequence):
     """Frames ``start, start+stride, ...`` of another sequence (at most ``frames`` of them).
 
-    The nominal period is scaled by the stride; ground truth is cut to the selected time span.
+    The nominal period is scaled by the stride; ground truth is cut to the selected time span
+    (and, when it is sampled at the base's scans, to the selected scans).
     """
 
     def __init__(self, base: Sequence, start: int = 0, frames: int | None = None,
@@ -365,6 +377,10 @@ class FrameRange(Sequence):
         gt = base.ground_truth
         if gt is not None:
             keep = (gt.stamps >= self._stamps[0] - 1e-9) & (gt.stamps <= self._stamps[-1] + 1e-9)
+            if _all_on(gt.stamps, base.stamps):
+                # GT sampled at the base's scans: keep it at the selected scans only, so the
+                # evaluation never interpolates across skipped scans (or a GT gap between them)
+                keep &= _on(gt.stamps, self._stamps)
             gt = Trajectory(gt.stamps[keep], gt.poses[keep])
         self.ground_truth = gt
         self.provenance = {**base.provenance,
@@ -380,6 +396,20 @@ class FrameRange(Sequence):
     @property
     def stamps(self) -> np.ndarray:
         return self._stamps.copy()
+
+
+def _on(values: np.ndarray, stamps: np.ndarray, tolerance_s: float = 1e-6) -> np.ndarray:
+    """True for each of ``values`` within ``tolerance_s`` of one of ``stamps``."""
+    s = np.sort(np.asarray(stamps, dtype=np.float64))
+    if len(s) == 0:
+        return np.zeros(len(values), dtype=bool)
+    hi = np.clip(np.searchsorted(s, values), 0, len(s) - 1)
+    lo = np.clip(hi - 1, 0, len(s) - 1)
+    return np.minimum(np.abs(s[hi] - values), np.abs(values - s[lo])) <= tolerance_s
+
+
+def _all_on(values: np.ndarray, stamps: np.ndarray) -> bool:
+    return bool(np.all(_on(values, stamps)))
 
 
 def select_frames(seq: Sequence, start: int = 0, frames: int | None = None,

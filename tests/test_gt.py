@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from helpers_bags import Motion
-from loaders.errors import DataError
+from loaders.errors import DataError, GroundTruthWarning
 from loaders.gt import (
     associate,
     clean_trajectory,
@@ -32,7 +32,7 @@ def test_interpolated_gt_with_extrinsic_matches_motion():
     gt = gt_traj(m, 0.0, 2.0, 0.02)
     scans = 0.5 + 0.08 * np.arange(10)  # on GT rows
     a = associate(gt, scans, T_body_sensor=T_BS, max_gap_s=0.1)
-    assert a.dropped == 0 and len(a.keep) == 10
+    assert a.uncovered == 0 and len(a.keep) == 10 and a.covered.all()
     np.testing.assert_allclose(a.ground_truth.poses, m.sensor_pose(scans), atol=1e-9)
     np.testing.assert_allclose(a.ground_truth.stamps, scans)
 
@@ -68,15 +68,19 @@ def test_no_overlap_names_both_files_and_spans():
     assert "[0.000, 1.000]" in msg and "[50.000, 51.000]" in msg
 
 
-def test_uncovered_scans_dropped_with_count():
+def test_uncovered_scans_are_kept_and_counted():
     m = Motion(t0=0.0)
     gt = gt_traj(m, 1.0, 2.0, 0.02)
     scans = np.arange(0.0, 3.0, 0.1)  # 10 before, 9 after
-    with pytest.warns(UserWarning, match="dropped"):
+    with pytest.warns(GroundTruthWarning, match="excluded from scoring"):
         a = associate(gt, scans, max_gap_s=0.1)
-    assert a.dropped_before == 10 and a.dropped_after == 9 and a.dropped_inside == 0
-    assert a.report["kept"] == len(a.keep) == 11
-    np.testing.assert_allclose(a.ground_truth.stamps, scans[a.keep])
+    assert a.uncovered_before == 10 and a.uncovered_after == 9 and a.uncovered_inside == 0
+    assert list(a.keep) == list(range(30))  # ground truth limits the scoring, not the sequence
+    assert a.report["with_gt"] == a.covered.sum() == 11
+    np.testing.assert_allclose(a.ground_truth.stamps, scans[a.keep][a.covered])
+    with pytest.warns(GroundTruthWarning, match="trimmed"):
+        t = associate(gt, scans, max_gap_s=0.1, uncovered="trim")
+    assert list(t.keep) == list(range(10, 21)) and t.covered.all()
 
 
 def test_gap_policies():
@@ -84,37 +88,77 @@ def test_gap_policies():
     t = np.concatenate([np.arange(0.0, 1.0, 0.02), np.arange(2.0, 3.0, 0.02)])
     gt = Trajectory(t, m.body_pose(t))
     scans = np.arange(0.1, 2.9, 0.1)
-    with pytest.warns(UserWarning):
-        a = associate(gt, scans, max_gap_s=0.1, uncovered="drop")
-    assert a.dropped_inside > 0 and a.dropped_before == a.dropped_after == 0
-    with pytest.raises(DataError, match="gap"):
-        associate(gt, scans, max_gap_s=0.1, uncovered="trim")
+    with pytest.warns(GroundTruthWarning):
+        a = associate(gt, scans, max_gap_s=0.1)
+    assert a.uncovered_inside > 0 and a.uncovered_before == a.uncovered_after == 0
+    assert len(a.keep) == len(scans)
+    inside_gap = (scans[a.keep] > t[49]) & (scans[a.keep] < 2.0)
+    np.testing.assert_array_equal(a.covered, ~inside_gap)
+    with pytest.warns(GroundTruthWarning):  # trim cuts the ends only: the gap stays, unscored
+        tr = associate(gt, scans, max_gap_s=0.1, uncovered="trim")
+    assert len(tr.keep) == len(scans) and tr.uncovered_inside == a.uncovered_inside
     with pytest.raises(DataError, match="not covered"):
         associate(gt, np.arange(0.1, 3.5, 0.1), max_gap_s=2.0, uncovered="error")
+    with pytest.warns(GroundTruthWarning, match="no longer supported"):  # old configs
+        old = associate(gt, scans, max_gap_s=0.1, uncovered="drop")
+    assert len(old.keep) == len(scans)
+    with pytest.raises(DataError, match="uncovered"):
+        associate(gt, scans, uncovered="skip")
+
+
+def test_a_long_gap_is_never_bridged_even_near_its_edge():
+    """A 5 s GT outage on an arc: a scan 0.2 s after the last pose before the outage used to be
+    "near" a pose and was interpolated across the whole outage (metres off the arc)."""
+    m = Motion(t0=0.0, v=10.0, w=0.3)
+    t = np.concatenate([np.arange(0.0, 5.0 + 1e-9, 0.02), np.arange(10.0, 15.0, 0.02)])
+    gt = Trajectory(t, m.body_pose(t))
+    scans = np.arange(0.0, 15.0, 1 / 12)
+    with pytest.warns(GroundTruthWarning):
+        a = associate(gt, scans, max_gap_s=0.5)
+    in_outage = (scans > 5.0 + 1e-9) & (scans < 10.0 - 1e-9)
+    np.testing.assert_array_equal(a.covered, ~in_outage)
+    err = np.linalg.norm(a.ground_truth.positions - m.body_pose(a.ground_truth.stamps)[:, :3, 3],
+                         axis=1)
+    assert err.max() < 0.01  # only interpolation between 20 ms-apart poses remains
+    # an edge scan exactly on the last pose before the outage is covered (it takes that pose)
+    b = associate(gt, np.array([4.0, 5.0]), max_gap_s=0.5)
+    assert b.covered.all()
 
 
 def test_tolerance_and_nearest_mode():
     m = Motion(t0=0.0)
     gt = gt_traj(m, 0.0, 1.0, 0.1)
     a = associate(gt, np.array([-0.01, 0.5, 1.005]), tolerance_s=0.02)
-    assert a.dropped == 0
+    assert a.uncovered == 0
     np.testing.assert_allclose(a.ground_truth.poses[0], gt.poses[0])
     np.testing.assert_allclose(a.ground_truth.poses[-1], gt.poses[-1])
     with pytest.warns(UserWarning):
         n = associate(gt, np.array([0.101, 0.35, 0.9]), mode="nearest", tolerance_s=0.01)
-    assert list(n.keep) == [0, 2]
+    assert list(n.keep) == [0, 1, 2] and list(n.covered) == [True, False, True]
     np.testing.assert_allclose(n.ground_truth.poses, gt.poses[[1, 9]])
     idx, dist = nearest_indices(gt.stamps, np.array([0.04, 0.06]))
     assert list(idx) == [0, 1] and np.allclose(dist, 0.04)
 
 
-def test_duplicate_and_unsorted_gt_cleaned_with_warning():
-    t = np.array([0.0, 0.2, 0.1, 0.2, 0.3])
+def test_duplicate_rows_dropped_with_named_warning():
+    t = np.array([0.0, 0.1, 0.2, 0.2, 0.3])
     gt = Trajectory(t, np.stack([make_T(np.eye(3), [s, 0, 0]) for s in t]))
-    with pytest.warns(UserWarning, match="repeated"):
-        clean, info = clean_trajectory(gt)
-    assert info == {"reordered": True, "duplicate_stamps": 1}
+    with pytest.warns(GroundTruthWarning, match="1 rows repeat the previous row's stamp and pose"):
+        clean, info = clean_trajectory(gt, "gt.txt")
+    assert info == {"duplicate_rows": 1}
     np.testing.assert_allclose(clean.stamps, [0.0, 0.1, 0.2, 0.3])
+
+
+def test_repeated_stamp_with_another_pose_or_backwards_stamp_is_an_error():
+    t = np.array([0.0, 0.1, 0.2, 0.2, 0.3])
+    poses = np.stack([make_T(np.eye(3), [k, 0, 0]) for k in range(5)])
+    with pytest.raises(DataError, match=r"gt.txt, pose row 3: repeats the stamp"):
+        clean_trajectory(Trajectory(t, poses), "gt.txt")
+    back = np.array([0.0, 0.2, 0.1, 0.3, 0.4])
+    with pytest.raises(DataError, match=r"gt.txt, pose row 2: stamp 0.100000 s goes backwards"):
+        clean_trajectory(Trajectory(back, poses), "gt.txt")
+    with pytest.raises(DataError, match="backwards"):
+        associate(Trajectory(back, poses), np.array([0.15]), gt_file="gt.txt")
 
 
 def test_remove_origin_and_world_fix():

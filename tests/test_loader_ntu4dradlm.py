@@ -17,7 +17,7 @@ from helpers_bags import (
     write_imu_only_bag,
     write_ntu_bag,
 )
-from loaders.errors import DataError
+from loaders.errors import DataError, GroundTruthWarning
 from loaders.gt import parse_extrinsic
 from loaders.ntu4dradlm import DEFAULT_T_GTBODY_RADAR, NtuSequence
 from loaders.store import StoreSequence, write_store
@@ -82,15 +82,20 @@ def test_time_offset(tmp_path, bag, truth):
     np.testing.assert_allclose(seq.ground_truth.poses, truth.sensor_poses(), atol=1e-5)
 
 
-def test_frames_outside_gt_are_dropped_with_count(tmp_path, bag, truth):
+def test_frames_outside_gt_are_kept_and_unscored(tmp_path, bag, truth):
     path, _ = bag
     gt = tmp_path / "gt_short.txt"
     write_gt_tum(gt, MOTION, truth.stamps[2] - 0.01, truth.stamps[-1] + 0.3)
-    with pytest.warns(UserWarning, match="2 of 8 scans"):
+    with pytest.warns(GroundTruthWarning, match="2 of the 8 scans kept have no ground truth"):
         seq = NtuSequence([path], gt=gt)
-    assert len(seq) == 6 and seq.provenance["gt_association"]["dropped_before"] == 2
-    np.testing.assert_allclose(seq.stamps, truth.stamps[2:], atol=1e-6)
-    np.testing.assert_array_equal(seq.scan(0).points.astype(np.float32), truth.points[2])
+    assert len(seq) == 8 and seq.provenance["gt_association"]["uncovered_before"] == 2
+    np.testing.assert_allclose(seq.stamps, truth.stamps, atol=1e-6)
+    np.testing.assert_allclose(seq.ground_truth.stamps, truth.stamps[2:], atol=1e-6)
+    np.testing.assert_array_equal(seq.scan(0).points.astype(np.float32), truth.points[0])
+    with pytest.warns(GroundTruthWarning, match="trimmed"):
+        trimmed = NtuSequence([path], gt=gt, uncovered="trim")
+    assert len(trimmed) == 6
+    np.testing.assert_array_equal(trimmed.scan(0).points.astype(np.float32), truth.points[2])
 
 
 @pytest.mark.parametrize("big_endian", [False, True])

@@ -120,5 +120,31 @@ def test_invalid_inputs_raise():
     line = np.tile(np.eye(4), (20, 1, 1))
     line[:, 0, 3] = np.arange(20.0)
     with pytest.raises(MetricError, match="degenerate"):
-        ape(line, line, "se3")
+        umeyama_se3(line[:, :3, 3], line[:, :3, 3])
     assert ape(line, line, "origin").trans_max_m == 0.0
+
+
+def test_degenerate_positions_fall_back_to_orientation_alignment():
+    rng = np.random.default_rng(9)
+    gt = random_trajectory(rng, 60)
+    # a straight line is not an error: the orientations fix the rotation about the line
+    line = np.tile(np.eye(4), (20, 1, 1))
+    line[:, 0, 3] = np.arange(20.0)
+    stats = ape(line, line, "se3")
+    assert stats.alignment == "se3-orientation" and stats.trans_max_m < 1e-12
+    # a method that returns the identity on every frame: known answer. The orientations give
+    # R = polar(sum R(G_k)); the translation puts the estimate at the GT mean position, so the
+    # translation error of pose k is |t(G_k) - mean t(G)| whatever R is.
+    ident = np.tile(np.eye(4), (60, 1, 1))
+    stats = ape(gt, ident, "se3")
+    spread = np.linalg.norm(gt[:, :3, 3] - gt[:, :3, 3].mean(axis=0), axis=1)
+    assert stats.alignment == "se3-orientation"
+    assert stats.trans_rmse_m == pytest.approx(np.sqrt(np.mean(spread**2)), rel=1e-12)
+    # the rotation: the polar factor, checked against scipy's mean rotation (chordal L2 mean)
+    from scipy.spatial.transform import Rotation
+
+    from metrics.ape import orientation_alignment
+
+    R = orientation_alignment(gt, ident)[:3, :3]
+    R_mean = Rotation.from_matrix(gt[:, :3, :3]).mean().as_matrix()
+    np.testing.assert_allclose(R, R_mean, atol=1e-9)
