@@ -62,6 +62,9 @@ class _Writer:
         self.offsets = [0]
 
     def append(self, scan: Scan, index: int, source: str) -> None:
+        if len(scan) == 0:
+            raise DataError(f"{source}, frame {index}: empty scan (0 points); expected at least "
+                            "one point")
         if scan.has_doppler != self.has_doppler:
             raise DataError(
                 f"{source}, frame {index}: Doppler is "
@@ -195,6 +198,15 @@ class StoreSequence(Sequence):
         except (OSError, KeyError, ValueError) as err:
             self.close()
             raise DataError(f"{self.path}: damaged or truncated store ({err})") from err
+        for name in (["doppler"] if self.has_doppler else []) + self.fields:
+            rows = h5[f"points/{name}"].shape[0] if f"points/{name}" in h5 else None
+            if rows != n_points:
+                self.close()
+                raise DataError(
+                    f"{self.path}: damaged store: points/{name} has "
+                    f"{'no dataset' if rows is None else f'{rows} rows'}, points/xyz has "
+                    f"{n_points}; expected one value per point"
+                )
         if (len(self._offsets) != len(self._stamps) + 1 or self._offsets[-1] != n_points
                 or int(attrs["n_frames"]) != len(self._stamps)):
             self.close()
@@ -232,6 +244,9 @@ class StoreSequence(Sequence):
 
     def scan(self, index: int) -> Scan:
         lo, hi = int(self._offsets[index]), int(self._offsets[index + 1])
+        if hi <= lo:
+            raise DataError(f"{self.path}, frame {index}: empty scan ({hi - lo} points); "
+                            "expected at least one point")
         h5 = self._file()
         try:
             pts = h5["points"]
