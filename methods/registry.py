@@ -10,6 +10,7 @@ from loaders.errors import DataError
 from loaders.scan import SensorInfo
 from methods.base import Odometry
 from methods.doppler import DopplerCorrespondence
+from methods.doppler_ego import DopplerEgo
 from methods.icp import PointToPointIcp
 
 METHODS: dict[str, type[Odometry]] = {
@@ -17,6 +18,7 @@ METHODS: dict[str, type[Odometry]] = {
     for cls in (
         DopplerCorrespondence,
         PointToPointIcp,
+        DopplerEgo,
     )
 }
 

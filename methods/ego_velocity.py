@@ -1,0 +1,152 @@
+"""The sensor's linear velocity from one scan's Doppler (the ego velocity), robustly.
+
+For a static point at unit direction d (sensor frame) the measured radial velocity is
+``doppler = -d . v`` (v: the sensor's linear velocity in the sensor frame [m/s]; Doppler is
+positive when the point recedes). A scan of N points is N linear equations in the 3 unknowns of
+v; points on moving objects, ghosts and clutter do not obey them. So:
+
+1. RANSAC: hypotheses from 3-point samples (solve 3x3), each scored by how many points agree
+   within ``threshold_mps`` (scored on a fixed random subset for dense scans);
+2. least squares on the best hypothesis' inliers, inliers re-selected, repeated a few times;
+3. covariance ``sigma^2 (D^T D)^-1`` with sigma^2 from the inlier residuals.
+
+"Not observable" is a result, not an exception: when too few points agree, or when the inlier
+directions do not span enough of the sphere (the smallest singular value of D / sqrt(n), the
+RMS extent of the directions along their thinnest axis, is below ``min_spread``: e.g. a
+planar sensor, or every point straight ahead), ``observable`` is False and ``velocity`` is NaN.
+An angular velocity is never observable from one sensor's Doppler: d . (w x p) = 0.
+
+The RNG is seeded (``seed``), so the same scan always gives the same answer.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class EgoVelocity:
+    """One scan's ego velocity.
+
+    velocity: (3,) sensor linear velocity [m/s, sensor frame] (NaN when not observable).
+    inliers: (N,) bool, the points that agree (static points). covariance: (3, 3) [m^2/s^2].
+    sigma_mps: RMS Doppler residual of the inliers [m/s]. spread: smallest singular value of the
+    inlier direction matrix over sqrt(n) [-]. reason: why not observable ("" when observable).
+    """
+
+    velocity: np.ndarray
+    inliers: np.ndarray
+    covariance: np.ndarray
+    sigma_mps: float
+    spread: float
+    observable: bool
+    reason: str = ""
+
+    @property
+    def speed_mps(self) -> float:
+        return float(np.linalg.norm(self.velocity))
+
+
+def _not_observable(n: int, reason: str, inliers=None, spread: float = 0.0) -> EgoVelocity:
+    nan3 = np.full(3, np.nan)
+    mask = np.zeros(n, dtype=bool) if inliers is None else inliers
+    return EgoVelocity(nan3, mask, np.full((3, 3), np.nan), float("nan"), spread, False, reason)
+
+
+def estimate_ego_velocity(
+    points: np.ndarray,
+    doppler: np.ndarray,
+    threshold_mps: float = 0.2,
+    hypotheses: int = 100,
+    min_inliers: int = 10,
+    min_inlier_ratio: float = 0.2,
+    min_spread: float = 0.03,
+    min_range_m: float = 0.5,
+    refinements: int = 3,
+    max_score_points: int = 1500,
+    seed: int = 0,
+) -> EgoVelocity:
+    """Ego velocity of the sensor from one scan: points (N, 3) [m, sensor frame], doppler (N,)
+    [m/s, receding positive]. See the module docstring for the method and its outputs."""
+    points = np.asarray(points, dtype=np.float64)
+    doppler = np.asarray(doppler, dtype=np.float64)
+    n = len(points)
+    rng_m = np.linalg.norm(points, axis=1)
+    usable = rng_m > min_range_m
+    if usable.sum() < max(min_inliers, 3):
+        return _not_observable(n, f"only {int(usable.sum())} points beyond {min_range_m} m")
+    idx_all = np.flatnonzero(usable)
+    D = points[idx_all] / rng_m[idx_all, None]
+    r = doppler[idx_all]
+    m = len(idx_all)
+
+    rng = np.random.default_rng(seed)
+    score_idx = (np.arange(m) if m <= max_score_points
+                 else rng.choice(m, max_score_points, replace=False))
+    samples = rng.integers(0, m, size=(hypotheses, 3))
+    A = D[samples]  # (K, 3, 3): rows are directions; -A v = r
+    det = np.linalg.det(A)
+    good = np.abs(det) > 1e-3  # near-coplanar samples give wild hypotheses: skip them
+    if not good.any():
+        return _not_observable(n, "directions too flat: every 3-point sample is (nearly) planar")
+    V = np.linalg.solve(A[good], -r[samples[good]][..., None])[..., 0]  # (K', 3)
+    resid = np.abs(r[score_idx][None, :] + V @ D[score_idx].T)  # (K', S)
+    best = V[int(np.argmax((resid < threshold_mps).sum(axis=1)))]
+
+    inl = np.abs(r + D @ best) < threshold_mps
+    v = best
+    for _ in range(refinements):
+        if inl.sum() < 3:
+            break
+        v = np.linalg.lstsq(D[inl], -r[inl], rcond=None)[0]
+        new = np.abs(r + D @ v) < threshold_mps
+        if np.array_equal(new, inl):
+            break
+        inl = new
+
+    mask = np.zeros(n, dtype=bool)
+    mask[idx_all[inl]] = True
+    k = int(inl.sum())
+    if k < max(min_inliers, 4) or k < min_inlier_ratio * m:
+        return _not_observable(n, f"only {k} of {m} points agree on one velocity", mask)
+    Di = D[inl]
+    s_min = float(np.linalg.svd(Di, compute_uv=False)[-1] / np.sqrt(k))
+    if s_min < min_spread:
+        return _not_observable(
+            n, f"inlier directions too flat, nearly planar (spread {s_min:.3f} < "
+            f"{min_spread})", mask, s_min)
+    res = r[inl] + Di @ v
+    sigma2 = float(res @ res) / max(k - 3, 1)
+    cov = sigma2 * np.linalg.inv(Di.T @ Di)
+    return EgoVelocity(v, mask, cov, float(np.sqrt(sigma2)), s_min, True)
+
+
+def speed_from_doppler(sequence, threshold_mps: float | None = None
+                       ) -> dict[str, np.ndarray]:
+    """Per-frame ego speed from Doppler and, where ground truth exists, the GT speed.
+
+    Returns arrays of length len(sequence): ``stamps`` [s], ``velocity`` (N, 3) [m/s, sensor
+    frame, NaN where not observable], ``speed_doppler`` [m/s], ``speed_gt`` [m/s] (central
+    differences of the GT positions at the scan stamps; NaN without GT) and ``observable``.
+    For ``bench inspect`` (speed over time) and for the calibration check."""
+    kind = sequence.sensor.kind
+    thr = threshold_mps if threshold_mps is not None else (0.2 if kind == "radar" else 0.1)
+    stamps = sequence.stamps
+    vel = np.full((len(sequence), 3), np.nan)
+    obs = np.zeros(len(sequence), dtype=bool)
+    for i, scan in enumerate(sequence):
+        if scan.doppler is None:
+            continue
+        ego = estimate_ego_velocity(scan.points, scan.doppler, threshold_mps=thr)
+        vel[i], obs[i] = ego.velocity, ego.observable
+    speed_gt = np.full(len(sequence), np.nan)
+    gt = sequence.ground_truth
+    if gt is not None and len(gt) >= 2:
+        covered = gt.coverage_mask(stamps)
+        if covered.sum() >= 3:
+            pos = gt.interpolate(stamps[covered]).positions
+            speed_gt[covered] = np.linalg.norm(np.gradient(pos, stamps[covered], axis=0), axis=1)
+    return {"stamps": stamps, "velocity": vel, "speed_doppler": np.linalg.norm(vel, axis=1),
+            "speed_gt": speed_gt, "observable": obs}

@@ -1,0 +1,188 @@
+"""The local map and the registration step of ``doppler-ego``.
+
+``LocalMap`` keeps the static points of the last ``max_frames`` scans in the world frame, each
+point with the covariance of its neighbourhood in its own scan (computed once, when the scan is
+added, and rotated into the world frame), and a kd-tree (small_gicp) over their union, rebuilt
+once per frame.
+
+``register_to_map`` is a Gauss-Newton generalized-ICP (each pair weighted by the inverse of
+the summed covariances, a Cauchy kernel on the Mahalanobis distance) over the pose
+``T_world_sensor = (R, t)``, perturbed as ``R <- exp(dtheta) R``, ``t <- t + dt`` (rotation about
+the sensor's own position). With ``translation_of(R)`` given, the translation is not a free
+unknown: it is recomputed from the rotation after every step (the Doppler ego-velocity
+translation) and only the 3 rotation unknowns are solved - the geometry is asked only for what
+Doppler cannot observe.
+"""
+
+from __future__ import annotations
+
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numba
+import numpy as np
+import small_gicp
+from scipy.spatial.transform import Rotation
+
+
+def scan_covariances(points: np.ndarray, neighbours: int, floor_m: float) -> np.ndarray:
+    """(N, 3, 3) covariance of each point's ``neighbours`` nearest points in the same scan
+    [m^2], regularised by ``floor_m``^2 on the diagonal (radar neighbourhoods are sparse)."""
+    n = len(points)
+    k = min(neighbours, n)
+    if k < 3:
+        return np.broadcast_to(np.eye(3) * floor_m**2, (n, 3, 3)).copy()
+    idx, _ = small_gicp.KdTree(points).batch_knn_search(points, k)
+    nb = points[np.asarray(idx)]
+    c = nb - nb.mean(axis=1, keepdims=True)
+    cov = np.einsum("nki,nkj->nij", c, c) / (k - 1)
+    return cov + np.eye(3) * floor_m**2
+
+
+class LocalMap:
+    """World-frame points (with covariances) of the last ``max_frames`` scans."""
+
+    def __init__(self, max_frames: int) -> None:
+        self.frames: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=max_frames)
+        self.points = np.empty((0, 3))
+        self.covs = np.empty((0, 3, 3))
+        self.tree: small_gicp.KdTree | None = None
+
+    def add(self, points_sensor: np.ndarray, covs_sensor: np.ndarray,
+            T_world_sensor: np.ndarray) -> None:
+        R, t = T_world_sensor[:3, :3], T_world_sensor[:3, 3]
+        self.frames.append((points_sensor @ R.T + t, R @ covs_sensor @ R.T))
+        self.points = np.concatenate([f[0] for f in self.frames])
+        self.covs = np.concatenate([f[1] for f in self.frames])
+        self.tree = small_gicp.KdTree(self.points) if len(self.points) else None
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+
+@dataclass
+class MapFit:
+    T_world_sensor: np.ndarray
+    correspondences: int
+    iterations: int
+    converged: bool
+
+
+@numba.njit(cache=True)
+def _normal_equations(Rp, moved, covs, R, map_points, map_covs, idx, keep, c2, dof):
+    """H (dof x dof) and g (dof) of the weighted GICP cost over the kept pairs: residual
+    e = R p + t - q, weight W = (C_q + R C_p R^T)^-1 scaled by the Cauchy IRLS factor,
+    Jacobian [-(R p)^, I] (rotation, then translation when dof == 6). Scalar code: small
+    matrix products in numba would allocate per pair."""
+    H = np.zeros((6, 6))
+    g = np.zeros(6)
+    J = np.zeros((3, 6))
+    RC = np.zeros((3, 3))
+    C = np.zeros((3, 3))
+    W = np.zeros((3, 3))
+    for a in range(3):
+        J[a, 3 + a] = 1.0
+    for n in range(len(Rp)):
+        if not keep[n]:
+            continue
+        j = idx[n]
+        for a in range(3):  # C = C_q + R C_p R^T
+            for b in range(3):
+                RC[a, b] = (R[a, 0] * covs[n, 0, b] + R[a, 1] * covs[n, 1, b]
+                            + R[a, 2] * covs[n, 2, b])
+        for a in range(3):
+            for b in range(3):
+                C[a, b] = map_covs[j, a, b] + (RC[a, 0] * R[b, 0] + RC[a, 1] * R[b, 1]
+                                               + RC[a, 2] * R[b, 2])
+        # inverse of a 3x3 by cofactors
+        c00 = C[1, 1] * C[2, 2] - C[1, 2] * C[2, 1]
+        c01 = C[1, 2] * C[2, 0] - C[1, 0] * C[2, 2]
+        c02 = C[1, 0] * C[2, 1] - C[1, 1] * C[2, 0]
+        det = C[0, 0] * c00 + C[0, 1] * c01 + C[0, 2] * c02
+        if not det > 1e-18:
+            continue
+        inv_det = 1.0 / det
+        W[0, 0], W[1, 0], W[2, 0] = c00 * inv_det, c01 * inv_det, c02 * inv_det
+        W[0, 1] = (C[0, 2] * C[2, 1] - C[0, 1] * C[2, 2]) * inv_det
+        W[1, 1] = (C[0, 0] * C[2, 2] - C[0, 2] * C[2, 0]) * inv_det
+        W[2, 1] = (C[0, 1] * C[2, 0] - C[0, 0] * C[2, 1]) * inv_det
+        W[0, 2] = (C[0, 1] * C[1, 2] - C[0, 2] * C[1, 1]) * inv_det
+        W[1, 2] = (C[0, 2] * C[1, 0] - C[0, 0] * C[1, 2]) * inv_det
+        W[2, 2] = (C[0, 0] * C[1, 1] - C[0, 1] * C[1, 0]) * inv_det
+        e0 = moved[n, 0] - map_points[j, 0]
+        e1 = moved[n, 1] - map_points[j, 1]
+        e2 = moved[n, 2] - map_points[j, 2]
+        We0 = W[0, 0] * e0 + W[0, 1] * e1 + W[0, 2] * e2
+        We1 = W[1, 0] * e0 + W[1, 1] * e1 + W[1, 2] * e2
+        We2 = W[2, 0] * e0 + W[2, 1] * e1 + W[2, 2] * e2
+        w = 1.0 / (1.0 + (e0 * We0 + e1 * We1 + e2 * We2) / c2)
+        x, y, z = Rp[n, 0], Rp[n, 1], Rp[n, 2]
+        J[0, 1], J[0, 2] = z, -y  # J[:, :3] = -skew(R p)
+        J[1, 0], J[1, 2] = -z, x
+        J[2, 0], J[2, 1] = y, -x
+        for a in range(dof):
+            # (J^T W)[a, :] then its products with J and e
+            t0 = J[0, a] * W[0, 0] + J[1, a] * W[1, 0] + J[2, a] * W[2, 0]
+            t1 = J[0, a] * W[0, 1] + J[1, a] * W[1, 1] + J[2, a] * W[2, 1]
+            t2 = J[0, a] * W[0, 2] + J[1, a] * W[1, 2] + J[2, a] * W[2, 2]
+            g[a] += w * (t0 * e0 + t1 * e1 + t2 * e2)
+            for b in range(dof):
+                H[a, b] += w * (t0 * J[0, b] + t1 * J[1, b] + t2 * J[2, b])
+    return H[:dof, :dof].copy(), g[:dof].copy()
+
+
+def register_to_map(
+    local_map: LocalMap,
+    points: np.ndarray,
+    covs: np.ndarray,
+    init_T_world_sensor: np.ndarray,
+    translation_of: Callable[[np.ndarray], np.ndarray] | None,
+    max_correspondence_m: float,
+    kernel_scale: float = 3.0,
+    max_iterations: int = 15,
+    min_correspondences: int = 10,
+    tolerance_rad: float = 1e-4,
+) -> MapFit:
+    """Align ``points`` (N, 3) [m, sensor frame] with covariances ``covs`` (N, 3, 3) to the map.
+
+    ``translation_of(R_world_sensor) -> t_world_sensor`` fixes the translation (rotation-only
+    solve); ``None`` solves all 6 degrees of freedom. ``kernel_scale`` is the Cauchy scale on
+    the Mahalanobis distance [-]. Returns the pose T_world_sensor and the last pair count."""
+    R = init_T_world_sensor[:3, :3].copy()
+    t = init_T_world_sensor[:3, 3].copy() if translation_of is None else translation_of(R)
+    n_pairs, converged, it = 0, False, 0
+    if local_map.tree is None:
+        return MapFit(_pose(R, t), 0, 0, False)
+    dof = 6 if translation_of is None else 3
+    c2 = kernel_scale**2
+    for step in range(1, max_iterations + 1):
+        it = step
+        Rp = points @ R.T
+        moved = Rp + t
+        idx, sq = local_map.tree.batch_nearest_neighbor_search(moved)
+        idx, sq = np.asarray(idx), np.asarray(sq)
+        keep = sq < max_correspondence_m**2
+        n_pairs = int(keep.sum())
+        if n_pairs < min_correspondences:
+            break
+        H, g = _normal_equations(Rp, moved, covs, R, local_map.points, local_map.covs,
+                                 idx, keep, c2, dof)
+        try:
+            delta = -np.linalg.solve(H, g)
+        except np.linalg.LinAlgError:
+            break
+        R = Rotation.from_rotvec(delta[:3]).as_matrix() @ R
+        t = t + delta[3:] if dof == 6 else translation_of(R)
+        if np.linalg.norm(delta[:3]) < tolerance_rad and (
+                dof == 3 or np.linalg.norm(delta[3:]) < 1e-4):
+            converged = True
+            break
+    return MapFit(_pose(R, t), n_pairs, it, converged)
+
+
+def _pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
+    U, _, Vt = np.linalg.svd(R)  # back onto SO(3): round-off would compound over a sequence
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = U @ Vt, t
+    return T
