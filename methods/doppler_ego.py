@@ -73,6 +73,8 @@ class DopplerEgoParams(MethodParams):
     neighbours: int = Field(10, ge=3, description="points per covariance")
     kernel_scale: float = Field(3.0, gt=0, description="Cauchy scale, Mahalanobis [-]")
     max_iterations: int = Field(15, ge=1)
+    max_source_points: int = Field(1500, ge=10, description="registration uses at most this "
+                                   "many (strided) source points; the map gets all of them")
 
 
 class DopplerEgo(Odometry):
@@ -126,7 +128,8 @@ class DopplerEgo(Odometry):
                 translation_of = None
                 if p.ego_translation and (v_curr is not None or v_prev is not None):
                     translation_of = _ego_translation(T_wp, v_prev, v_curr, dt)
-                fit = register_to_map(local_map, src, covs, init, translation_of,
+                step = max(1, len(src) // p.max_source_points + (len(src) % p.max_source_points > 0))
+                fit = register_to_map(local_map, src[::step], covs[::step], init, translation_of,
                                       p.max_correspondence_m, p.kernel_scale, p.max_iterations)
                 if fit.correspondences >= 10 and np.all(np.isfinite(fit.T_world_sensor)):
                     poses[i] = fit.T_world_sensor
