@@ -128,7 +128,7 @@ class DopplerEgo(Odometry):
                 translation_of = None
                 if p.ego_translation and (v_curr is not None or v_prev is not None):
                     translation_of = _ego_translation(T_wp, v_prev, v_curr, dt)
-                step = max(1, len(src) // p.max_source_points + (len(src) % p.max_source_points > 0))
+                step = max(1, -(-len(src) // p.max_source_points))  # ceil division
                 fit = register_to_map(local_map, src[::step], covs[::step], init, translation_of,
                                       p.max_correspondence_m, p.kernel_scale, p.max_iterations)
                 if fit.correspondences >= 10 and np.all(np.isfinite(fit.T_world_sensor)):
