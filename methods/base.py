@@ -7,12 +7,12 @@ A ``Registration`` aligns a source scan (previous) to a target scan (current) an
 Seed options (as in the paper): **with seed** the initial guess of a step is the previous
 step's estimate (constant-velocity model, scaled to the current time step); **no seed** uses
 the identity. Methods that keep their own state (a map) subclass ``Odometry`` directly.
-Only the ``register`` call is timed; ``preprocess`` (downsampling) is not.
+Only the ``register`` call is timed (``methods.timing.timed_section``: exclusive of other
+jobs' timed sections when jobs run in parallel); ``preprocess`` (downsampling) is not.
 """
 
 from __future__ import annotations
 
-import time
 from abc import ABC, abstractmethod
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -24,6 +24,7 @@ from scipy.spatial.transform import Rotation
 
 from loaders.scan import Scan, SensorInfo, Sequence
 from loaders.se3 import inv_T, make_T
+from methods.timing import timed_section
 
 
 class MethodParams(BaseModel):
@@ -133,9 +134,9 @@ class Registration(Odometry):
                 init = np.eye(4)
                 if seed and self.uses_initial_guess and last_dt:
                     init = scale_motion(last_motion, dt / last_dt)
-                t0 = time.perf_counter_ns()
-                result = self.register(prev, scan, init)
-                time_ms = (time.perf_counter_ns() - t0) / 1e6
+                with timed_section() as watch:
+                    result = self.register(prev, scan, init)
+                time_ms = watch.time_ms
                 T = result.T_target_source
                 if not np.all(np.isfinite(T)):
                     T = init

@@ -32,7 +32,6 @@ rotation rate it estimated itself), so the harness' initial guess does not apply
 from __future__ import annotations
 
 import math
-import time
 from collections.abc import Callable
 
 import numpy as np
@@ -45,6 +44,7 @@ from loaders.se3 import inv_T
 from methods.base import FrameRecord, MethodParams, Odometry, OdometryResult, scale_motion
 from methods.ego_velocity import estimate_ego_velocity
 from methods.local_map import LocalMap, register_to_map, scan_covariances
+from methods.timing import timed_section
 
 # sensor-dependent defaults: (radar, lidar), each with its physical reason
 DEFAULTS = {
@@ -113,32 +113,37 @@ class DopplerEgo(Odometry):
             if scan.doppler is None:
                 raise DataError(f"{scan.source or sequence.name}: doppler-ego needs Doppler")
             stamps[i] = scan.stamp
-            t0 = time.perf_counter_ns()
-            ego = estimate_ego_velocity(scan.points, scan.doppler, threshold_mps=p.threshold_mps)
-            pts = scan.points[ego.inliers] if (p.static_filter and ego.observable) else scan.points
-            src = _voxel(pts, p.voxel_m)
-            covs = scan_covariances(src, p.neighbours, p.covariance_floor_m)
-            v_curr = ego.velocity if ego.observable else None
-            pairs, iterations, converged = 0, 0, True
-            if i > 0:
-                dt = scan.stamp - stamps[i - 1]
-                T_wp = poses[i - 1]
-                guess = scale_motion(last_motion, dt / last_dt) if last_dt else np.eye(4)
-                init = T_wp @ guess
-                translation_of = None
-                if p.ego_translation and (v_curr is not None or v_prev is not None):
-                    translation_of = _ego_translation(T_wp, v_prev, v_curr, dt)
-                step = max(1, -(-len(src) // p.max_source_points))  # ceil division
-                fit = register_to_map(local_map, src[::step], covs[::step], init, translation_of,
-                                      p.max_correspondence_m, p.kernel_scale, p.max_iterations)
-                if fit.correspondences >= 10 and np.all(np.isfinite(fit.T_world_sensor)):
-                    poses[i] = fit.T_world_sensor
-                else:  # nothing to register to: keep the motion prior
-                    poses[i] = init if translation_of is None else _with_t(init, translation_of)
-                pairs, iterations, converged = fit.correspondences, fit.iterations, fit.converged
-                last_motion, last_dt = inv_T(T_wp) @ poses[i], dt
-            local_map.add(src, covs, poses[i])
-            time_ms = (time.perf_counter_ns() - t0) / 1e6
+            with timed_section() as watch:
+                ego = estimate_ego_velocity(scan.points, scan.doppler,
+                                            threshold_mps=p.threshold_mps)
+                static_only = p.static_filter and ego.observable
+                pts = scan.points[ego.inliers] if static_only else scan.points
+                src = _voxel(pts, p.voxel_m)
+                covs = scan_covariances(src, p.neighbours, p.covariance_floor_m)
+                v_curr = ego.velocity if ego.observable else None
+                pairs, iterations, converged = 0, 0, True
+                if i > 0:
+                    dt = scan.stamp - stamps[i - 1]
+                    T_wp = poses[i - 1]
+                    guess = scale_motion(last_motion, dt / last_dt) if last_dt else np.eye(4)
+                    init = T_wp @ guess
+                    translation_of = None
+                    if p.ego_translation and (v_curr is not None or v_prev is not None):
+                        translation_of = _ego_translation(T_wp, v_prev, v_curr, dt)
+                    step = max(1, -(-len(src) // p.max_source_points))  # ceil division
+                    fit = register_to_map(local_map, src[::step], covs[::step], init,
+                                          translation_of, p.max_correspondence_m,
+                                          p.kernel_scale, p.max_iterations)
+                    if fit.correspondences >= 10 and np.all(np.isfinite(fit.T_world_sensor)):
+                        poses[i] = fit.T_world_sensor
+                    else:  # nothing to register to: keep the motion prior
+                        poses[i] = (init if translation_of is None
+                                    else _with_t(init, translation_of))
+                    pairs, iterations = fit.correspondences, fit.iterations
+                    converged = fit.converged
+                    last_motion, last_dt = inv_T(T_wp) @ poses[i], dt
+                local_map.add(src, covs, poses[i])
+            time_ms = watch.time_ms
             records.append(FrameRecord(i, scan.stamp, time_ms if i else float("nan"),
                                        len(scan), pairs, iterations, converged))
             v_prev = v_curr
