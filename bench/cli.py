@@ -1,21 +1,34 @@
-"""The ``bench`` command line: list, synth, convert, inspect, run, table, speed, reproduce."""
+"""The ``bench`` command line: list, synth, convert, inspect, calibrate, run, table, figures,
+speed, reproduce.
+
+Exit codes: 0 when everything asked for succeeded, 1 when any run failed (the summary lists
+them), 2 for a user error (bad input, option or YAML; one message, no traceback), 130 after
+Ctrl-C.
+"""
 
 from __future__ import annotations
 
+import os
 import sys
-from pathlib import Path
-from typing import Annotated
 
-import typer
-from rich.console import Console
+# library thread counts are pinned before numpy & co. load, the same in every executor mode
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
 
-from bench.convert import convert_app
-from loaders.errors import DataError
+from pathlib import Path  # noqa: E402
+from typing import Annotated  # noqa: E402
 
-app = typer.Typer(add_completion=False, no_args_is_help=True,
+import typer  # noqa: E402
+from rich.markup import escape  # noqa: E402
+
+from bench.console import make_console  # noqa: E402
+from bench.convert import convert_app  # noqa: E402
+from loaders.errors import DataError  # noqa: E402
+
+app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
                   help="Benchmark harness for Doppler-based scan matching (4D radar, FMCW LiDAR).")
 app.add_typer(convert_app, name="convert")
-console = Console()
+console = make_console()
 
 
 @app.command("list")
@@ -68,7 +81,9 @@ def synth(
                 console.print(f"  {name:<18} {text}")
         return
     if suite is not None:
-        paths = ensure_suite_with_progress(suite, data_dir)
+        from bench.progress import ensure_suite_with_progress
+
+        paths = ensure_suite_with_progress(suite, data_dir, console)
         console.print(f"[green]{len(paths)} stores[/] under {data_dir / suite}")
         return
     if scene is None or out is None:
@@ -80,24 +95,6 @@ def synth(
     except (ValueError, KeyError) as err:
         raise DataError(f"bench synth: {err}") from err
     write_with_progress(seq, out)
-
-
-def ensure_suite_with_progress(suite: str, data_dir: Path) -> list[Path]:
-    """Generate (or reuse) a synthetic suite with a progress bar per sequence."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
-
-    from loaders import synthetic
-
-    tasks: dict[str, int] = {}
-    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
-                  TimeElapsedColumn(), console=console) as progress:
-
-        def report(name: str, done: int, total: int) -> None:
-            if name not in tasks:
-                tasks[name] = progress.add_task(f"{suite}/{name}", total=total)
-            progress.update(tasks[name], completed=done)
-
-        return synthetic.ensure_suite(suite, data_dir, progress=report)
 
 
 @app.command()
@@ -112,6 +109,21 @@ def inspect(
 
 
 @app.command()
+def calibrate(
+    store: Annotated[Path, typer.Argument(help="store (.h5) with Doppler and ground truth")],
+    write: Annotated[Path | None, typer.Option(
+        "--write", help="write a store with the corrected GT and extrinsic to this path")] = None,
+    min_speed: Annotated[float, typer.Option(help="use frames faster than this [m/s]")] = 2.0,
+    bootstrap: Annotated[int, typer.Option(min=10, help="bootstrap resamples")] = 200,
+) -> None:
+    """Estimate the rotation between the sensor frame and the ground truth's body frame from
+    the Doppler ego velocity (roll / pitch / yaw with uncertainty, road-plane check)."""
+    from bench.calibrate import calibrate_store
+
+    calibrate_store(store, write, console, min_speed, bootstrap)
+
+
+@app.command()
 def run(
     experiment: Annotated[Path | None, typer.Argument(help="experiment YAML")] = None,
     method: Annotated[str | None, typer.Option(help="method name (see bench list)")] = None,
@@ -122,34 +134,71 @@ def run(
                                        help="constant-velocity initial guess or identity")] = True,
     param: Annotated[list[str] | None, typer.Option("--param", "-p",
                                                     help="method parameter key=value")] = None,
-    jobs: Annotated[int | None, typer.Option(help="parallel worker processes")] = None,
+    jobs: Annotated[int | None, typer.Option(min=1, help="parallel workers")] = None,
     force: Annotated[bool, typer.Option(help="rerun finished runs")] = False,
+    executor: Annotated[str, typer.Option(help="local (in-process), process (one worker "
+                                                "process per job) or dask")] = "process",
+    scheduler: Annotated[str | None, typer.Option(
+        help="dask scheduler address (default: a LocalCluster)")] = None,
+    job_timeout: Annotated[float | None, typer.Option(
+        help="end a job that runs longer than this [s]")] = None,
 ) -> None:
     """Run one method on one store, or every run of an experiment YAML."""
+    from bench.executors import EXECUTORS
     from bench.experiment import load_experiment
-    from bench.run import execute, summarize
+    from bench.progress import run_jobs
+    from bench.run import plan, summarize
     from bench.runplan import jobs_for_experiment, single_job
 
+    if executor not in EXECUTORS:
+        raise DataError(f"unknown executor {executor!r}; choose from {', '.join(EXECUTORS)}")
     if experiment is not None:
         exp = load_experiment(experiment)
         if out is not None:
             exp.out = out
-        job_list = jobs_for_experiment(exp, console)
-        outcomes = execute(job_list, jobs or exp.jobs, force, console)
-        results_dir = exp.out_dir
+        job_list = plan(jobs_for_experiment(exp, console))
+        workers, results_dir = jobs or exp.jobs, exp.out_dir
     else:
         if method is None or data is None:
             raise DataError("give an EXPERIMENT.yaml, or --method M --data PATH.h5 [--out DIR]")
-        job = single_job(method, data, seed, out, _parse_params(param))
-        outcomes = execute([job], 1, force, console)
-        results_dir = None
-    console.print(f"[bold]{summarize(outcomes)}[/]")
-    if results_dir is not None and any(o.status != "failed" for o in outcomes):
+        job_list = plan([single_job(method, data, seed, out, _parse_params(param))])
+        workers, results_dir = 1, None
+    outcomes = run_jobs(job_list, console, workers, force, executor, job_timeout, scheduler)
+    console.print(summarize(outcomes), markup=False)
+    if results_dir is not None and any(o.status in ("done", "skipped") for o in outcomes):
         from bench.tables import write_tables
 
-        console.print(write_tables(results_dir)["md"])
-    if any(o.status == "failed" for o in outcomes):
+        console.print(write_tables(results_dir)["md"], markup=False)
+    elif results_dir is None and outcomes and outcomes[0].run_dir is not None:
+        _print_run(outcomes[0].run_dir)
+    if any(o.status != "done" and o.status != "skipped" for o in outcomes):
         raise typer.Exit(1)
+
+
+def _print_run(run_dir: Path) -> None:
+    """Key metrics of a finished single run, and its folder."""
+    import json
+
+    metrics_path = run_dir / "metrics.json"
+    if metrics_path.exists():
+        m = json.loads(metrics_path.read_text())
+        rel = m.get("relative_error") or {}
+        parts = []
+        for length in dict.fromkeys([k for k in rel][:1] + [k for k in rel][-1:]):
+            r = rel[length]
+            if r.get("n"):
+                parts.append(f"{length} m: {r['rot_deg_mean']:.3f} deg / "
+                             f"{r['trans_m_mean']:.3f} m")
+        ape = m.get("ape") or {}
+        if ape.get("trans_rmse_m") is not None:
+            parts.append(f"APE {ape['trans_rmse_m']:.3f} m")
+        t = m.get("time_ms") or {}
+        if t.get("mean") is not None:
+            parts.append(f"time {t['mean']:.2f} ms/frame")
+        if m.get("diverged"):
+            parts.append("DIVERGED")
+        console.print("; ".join(parts) or "no ground truth: no errors", markup=False)
+    console.print(f"run folder: {run_dir}", markup=False)
 
 
 def _parse_params(items: list[str] | None) -> dict:
@@ -219,19 +268,21 @@ def reproduce(
     out: Annotated[Path, typer.Option(help="results folder")] = Path("results/paper-synthetic"),
     data_dir: Annotated[Path, typer.Option(help="data folder (synthetic cache, real stores)")]
     = Path("data"),
-    jobs: Annotated[int, typer.Option(help="parallel worker processes")] = 2,
+    jobs: Annotated[int, typer.Option(min=1, help="parallel workers")] = 2,
     force: Annotated[bool, typer.Option(help="rerun finished runs")] = False,
     synthetic_only: Annotated[bool, typer.Option(help="ignore real stores")] = False,
+    executor: Annotated[str, typer.Option(help="local, process or dask")] = "process",
 ) -> None:
-    """Reproduce the paper's Table III: every method, both seed options, on the paper's
-    sequences (real stores under DATA_DIR/real when present, else the synthetic suite)."""
+    """Reproduce the paper's Tables III, IV and V (configs/experiments/table3-5.yaml) on the
+    paper's sequences: real stores under DATA_DIR/real when present, else the synthetic suite."""
     from bench.reproduce import reproduce_table
 
-    reproduce_table(out, data_dir, jobs, force, synthetic_only, console)
+    if reproduce_table(out, data_dir, jobs, force, synthetic_only, console, executor):
+        raise typer.Exit(1)
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    console.print(f"[yellow]warning:[/] {message}", highlight=False)
+    console.print(f"[yellow]warning:[/] {escape(str(message))}")
 
 
 def main() -> None:
@@ -240,23 +291,24 @@ def main() -> None:
 
     warnings.showwarning = _show_warning
     try:
-        app(standalone_mode=False)
+        code = app(standalone_mode=False)
     except DataError as err:
-        console.print(f"[bold red]error:[/] {err}", markup=True, highlight=False)
+        console.print(f"[bold red]error:[/] {escape(str(err))}")
         sys.exit(2)
-    except FileNotFoundError as err:
-        console.print(f"[bold red]error:[/] {err}", highlight=False)
+    except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as err:
+        console.print(f"[bold red]error:[/] {escape(str(err))}")
         sys.exit(2)
     except typer.Exit as e:
         sys.exit(e.exit_code)
     except (typer.Abort, KeyboardInterrupt):
-        console.print("[red]aborted[/]")
+        console.print("[red]aborted (Ctrl-C)[/]")
         sys.exit(130)
     except Exception as err:
         if callable(getattr(err, "show", None)) and hasattr(err, "exit_code"):
             err.show()  # a usage error (unknown option, missing argument)
             sys.exit(err.exit_code)
         raise
+    sys.exit(code if isinstance(code, int) else 0)
 
 
 if __name__ == "__main__":

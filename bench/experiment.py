@@ -15,7 +15,10 @@
     jobs: 2
     out: results/paper-synthetic
 
-Unknown keys, unknown methods and unknown method parameters are errors.
+Unknown keys, unknown methods and unknown method parameters are errors. Relative paths
+(``data_dir``, ``out``, sequence ``path``s) are relative to the YAML file. A method entry may
+carry a ``label`` (variants of one method: each its own folder and table row) and a
+``sequences`` list (run it only on those sequences).
 """
 
 from __future__ import annotations
@@ -43,8 +46,10 @@ class SequenceEntry(_Strict):
 
 class MethodEntry(_Strict):
     name: str
+    label: str | None = None           # a variant's name in folders and tables
     params: dict = Field(default_factory=dict)
     seeds: list[bool] | None = None
+    sequences: list[str] | None = None  # run only on these sequences (names or store stems)
 
     @model_validator(mode="after")
     def _check(self) -> MethodEntry:
@@ -83,7 +88,23 @@ class Experiment(_Strict):
     def _has_data(self) -> Experiment:
         if self.suite is None and not self.sequences:
             raise ValueError("an experiment needs a 'suite' or a list of 'sequences'")
+        seen = set()
+        for m in self.methods:
+            if (m.name, m.label) in seen:
+                raise ValueError(f"method {m.name!r} is listed twice: give each variant a "
+                                 "distinct 'label:'")
+            seen.add((m.name, m.label))
         return self
+
+    def resolved(self, base: Path) -> Experiment:
+        """This experiment with its relative paths taken relative to ``base`` (the folder of
+        the YAML file)."""
+        def at(p: Path) -> Path:
+            return p if p.is_absolute() else base / p
+        return self.model_copy(update={
+            "data_dir": at(self.data_dir),
+            "out": at(self.out) if self.out is not None else None,
+            "sequences": [s.model_copy(update={"path": at(s.path)}) for s in self.sequences]})
 
     @property
     def out_dir(self) -> Path:
@@ -94,7 +115,7 @@ def load_experiment(path: str | Path) -> Experiment:
     path = Path(path)
     try:
         data = yaml.safe_load(path.read_text())
-        return Experiment.model_validate(data)
+        return Experiment.model_validate(data).resolved(path.resolve().parent)
     except FileNotFoundError:
         raise DataError(f"{path}: experiment file not found") from None
     except (yaml.YAMLError, ValidationError) as err:

@@ -1,8 +1,11 @@
-"""``make reproduce-table``: the paper's Table III with every registered method.
+"""``make reproduce-table``: the paper's Tables III, IV and V.
 
-Real stores listed in ``configs/datasets/*.yaml`` and present under ``DATA_DIR/real/`` are used
-when there are any; otherwise the synthetic suite ``synthetic-paper`` is generated (or reused
-from its cache) and used.
+The tables are the experiments ``configs/experiments/table3.yaml`` (relative error and time),
+``table4.yaml`` (APE, semi-dense radar) and ``table5.yaml`` (APE, dense LiDAR tunnels). Real
+stores listed in ``configs/datasets/*.yaml`` and present under ``DATA_DIR/real/`` are used when
+there are any; otherwise the synthetic suite ``synthetic-paper`` is generated (or reused) and
+used. The union of the three tables' runs is planned once (a run two tables share runs once),
+executed, and each table is written from its own runs.
 """
 
 from __future__ import annotations
@@ -13,14 +16,23 @@ from pathlib import Path
 import yaml
 from rich.console import Console
 
-from bench.experiment import Experiment, MethodEntry, SequenceEntry
+from bench.experiment import Experiment, SequenceEntry, load_experiment
 from bench.figures import plot_trajectories
-from bench.run import execute, summarize
+from bench.progress import run_jobs
+from bench.run import Job, plan, summarize
 from bench.runplan import jobs_for_experiment
 from bench.tables import write_tables
-from methods.registry import METHODS
+from bench.tables_ape import write_ape_tables
 
-DATASETS_DIR = Path(__file__).resolve().parent.parent / "configs" / "datasets"
+CONFIGS = Path(__file__).resolve().parent.parent / "configs"
+DATASETS_DIR = CONFIGS / "datasets"
+TABLES = {  # experiment -> (kind, output stem, caption)
+    "table3": ("relative", "table3", ""),
+    "table4": ("ape", "table4", "Table IV: absolute pose error [m] on the semi-dense 4D radar "
+                                "sequences (SE(3)-aligned translation RMSE, as evo)."),
+    "table5": ("ape", "table5", "Table V: absolute pose error [m] on the dense 4D LiDAR "
+                                "tunnels; Div. = diverged."),
+}
 
 
 def real_sequences(data_dir: Path) -> list[SequenceEntry]:
@@ -36,27 +48,63 @@ def real_sequences(data_dir: Path) -> list[SequenceEntry]:
     return entries
 
 
+def table_experiments(out: Path, data_dir: Path, real: list[SequenceEntry]) -> dict:
+    """The three table experiments, pointed at ``out`` and at the real stores or the suite."""
+    experiments = {}
+    names = {s.name for s in real}
+    for name in TABLES:
+        exp = load_experiment(CONFIGS / "experiments" / f"{name}.yaml")
+        update = {"out": out, "data_dir": data_dir}
+        if real:
+            methods = []
+            for m in exp.methods:
+                wanted = [s for s in (m.sequences or names) if s in names]
+                if wanted:
+                    methods.append(m.model_copy(update={"sequences": wanted}))
+            if not methods:
+                continue
+            update.update(suite=None, sequences=real, methods=methods)
+        experiments[name] = Experiment.model_validate({**exp.model_dump(), **update})
+    return experiments
+
+
+def _columns(exp: Experiment) -> list[str]:
+    """The APE table's columns: the sequences its methods name, in the YAML's order."""
+    return list(dict.fromkeys(s for m in exp.methods for s in (m.sequences or [])))
+
+
 def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic_only: bool,
-                    console: Console) -> dict[str, str]:
+                    console: Console, executor: str = "process") -> list[str]:
+    """Run and write the three tables; returns the failed runs' messages (empty on success)."""
     t0 = time.perf_counter()
-    methods = [MethodEntry(name=name) for name in METHODS]
     real = [] if synthetic_only else real_sequences(data_dir)
     if real:
-        console.print(f"[bold]real stores[/]: {', '.join(s.name for s in real)}")
-        exp = Experiment(name="paper-real", sequences=real, methods=methods, jobs=jobs,
-                         out=out if out != Path("results/paper-synthetic")
-                         else Path("results/paper-real"))
+        console.print(f"real stores: {', '.join(s.name for s in real)}")
+        out = out if out != Path("results/paper-synthetic") else Path("results/paper-real")
     else:
-        console.print(f"[bold]no real stores under {data_dir / 'real'}[/]: using the "
-                      "synthetic suite 'synthetic-paper'")
-        exp = Experiment(name="paper-synthetic", suite="synthetic-paper", data_dir=data_dir,
-                         methods=methods, jobs=jobs, out=out)
-    outcomes = execute(jobs_for_experiment(exp, console), jobs, force, console)
-    texts = write_tables(exp.out_dir)
-    figures = plot_trajectories(exp.out_dir)
-    console.print(texts["md"], markup=False, highlight=False)
+        console.print(f"no real stores under {data_dir / 'real'}: using the synthetic suite "
+                      "'synthetic-paper'")
+    experiments = table_experiments(out, data_dir, real)
+    per_table: dict[str, list[Job]] = {
+        name: plan(jobs_for_experiment(exp, console)) for name, exp in experiments.items()}
+    all_jobs = plan([j for js in per_table.values() for j in js])
+    outcomes = run_jobs(all_jobs, console, jobs, force, executor)
+    for name, exp in experiments.items():
+        kind, stem, caption = TABLES[name]
+        only = {j.run_dir_override for j in per_table[name]}
+        try:
+            if kind == "relative":
+                texts = write_tables(out, out, only=only, stem=stem)
+            else:
+                texts = write_ape_tables(out, out, _columns(exp), stem, caption, only=only)
+        except FileNotFoundError:
+            console.print(f"{stem}: no finished runs", style="red")
+            continue
+        console.print(f"\n{stem}", style="bold")
+        console.print(texts["md"], markup=False, highlight=False)
+    figures = plot_trajectories(out)
     if figures:
         console.print(f"trajectory figures: {figures[0].parent}/")
-    console.print(f"[bold]{summarize(outcomes)}[/] in {time.perf_counter() - t0:.0f} s; wrote "
-                  f"{exp.out_dir}/table.{{md,tex,csv}}")
-    return texts
+    console.print(f"{summarize(outcomes)} in {time.perf_counter() - t0:.0f} s; wrote "
+                  f"{out}/table{{3,4,5}}.{{md,tex,csv}}", markup=False)
+    return [o.message for o in outcomes if o.status not in ("done", "skipped")]

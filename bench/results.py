@@ -11,10 +11,12 @@ Every file is written atomically (temporary file + rename).
 from __future__ import annotations
 
 import csv
+import hashlib
 import io
 import json
 import os
 import platform
+import re
 import subprocess
 from dataclasses import asdict
 from datetime import UTC, datetime
@@ -26,20 +28,64 @@ import yaml
 from loaders.fileio import atomic_path, atomic_write_text
 from loaders.scan import Trajectory
 from methods.base import OdometryResult
+from methods.timing import TIMING_LOCK_ENV
 
 FRAME_COLUMNS = ["index", "stamp", "time_ms", "points", "correspondences", "iterations",
                  "converged"]
+THREAD_VARS = ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS")
 _PACKAGES = ["doppler-bench", "numpy", "scipy", "h5py", "rosbags", "evo", "kiss-icp",
-             "small_gicp", "pandas", "pydantic"]
+             "small_gicp", "open3d-cpu", "numba", "pandas", "pydantic"]
 
 
-def run_dir_name(method: str, seed: bool | None) -> str:
-    """``doppler`` (method without initial guess), ``icp-p2p_seed`` or ``icp-p2p_noseed``."""
-    return method if seed is None else f"{method}_{'seed' if seed else 'noseed'}"
+RUN_RECORDS = ("metrics.json", "failed.json")
+_store_hashes: dict[tuple, str] = {}
 
 
-def is_finished(run_dir: Path) -> bool:
-    return (run_dir / "metrics.json").exists()
+def run_dir_name(method: str, seed: bool | None, label: str | None = None) -> str:
+    """``doppler`` (method without initial guess), ``icp-p2p_seed`` or ``icp-p2p_noseed``; a
+    labelled variant uses its label (made file-name safe) instead of the method name."""
+    base = re.sub(r"[^A-Za-z0-9._+-]+", "-", label).strip("-") if label else method
+    return base if seed is None else f"{base}_{'seed' if seed else 'noseed'}"
+
+
+def store_identity(path: Path) -> str:
+    """SHA-256 of a store's bytes (its content identity), cached by path, size and mtime."""
+    st = Path(path).stat()
+    cache_key = (str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
+    if cache_key not in _store_hashes:
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+        _store_hashes[cache_key] = h.hexdigest()
+    return _store_hashes[cache_key]
+
+
+def run_key(identity: dict) -> str:
+    """A short key of everything that determines a run's result (``identity``: store content,
+    method, resolved parameters, seed option, evaluation settings)."""
+    text = json.dumps(identity, sort_keys=True, default=str)
+    return hashlib.sha256(text.encode()).hexdigest()[:16]
+
+
+def is_finished(run_dir: Path, key: str | None = None) -> bool:
+    """The run in ``run_dir`` finished (and, given ``key``, was made from the same inputs)."""
+    if not (run_dir / "metrics.json").exists():
+        return False
+    if key is None:
+        return True
+    try:
+        config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}
+    except (OSError, yaml.YAMLError):
+        return False
+    return config.get("run_key") == key
+
+
+def clear_run(run_dir: Path) -> None:
+    """Remove a run folder's result records before it is run again, so a failed re-run never
+    leaves the old metrics behind."""
+    for name in RUN_RECORDS:
+        (run_dir / name).unlink(missing_ok=True)
 
 
 def _git_state() -> dict:
@@ -78,8 +124,8 @@ def run_meta() -> dict:
         "packages": versions,
         "cpu": _cpu_model(),
         "cpu_count": os.cpu_count(),
-        "threads": {k: os.environ.get(k) for k in
-                    ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS")},
+        "threads": {k: os.environ.get(k) for k in THREAD_VARS},
+        "timing_lock": os.environ.get(TIMING_LOCK_ENV),
         "host": platform.node(),
         "date": datetime.now(UTC).isoformat(timespec="seconds"),
     }
@@ -118,19 +164,27 @@ def write_run(run_dir: Path, result: OdometryResult, gt: Trajectory | None,
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
 
 
-def write_failure(run_dir: Path, config: dict, error: str, trace: str) -> None:
+def write_failure(run_dir: Path, config: dict | None, error: str, trace: str = "",
+                  status: str = "failed") -> None:
+    """Record a run that did not finish (``status``: failed, interrupted, timeout, crashed)."""
     run_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
+    (run_dir / "metrics.json").unlink(missing_ok=True)
+    if config is not None:
+        atomic_write_text(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
     atomic_write_text(run_dir / "failed.json", json.dumps(
-        {"error": error, "traceback": trace,
+        {"status": status, "error": error, "traceback": trace,
          "date": datetime.now(UTC).isoformat(timespec="seconds")}, indent=2))
 
 
-def load_runs(results_dir: Path) -> list[dict]:
-    """Every finished run under ``results_dir``: {"dir", "metrics", "config"}."""
+def load_runs(results_dir: Path, only: set[Path] | None = None) -> list[dict]:
+    """Every finished run under ``results_dir`` (or only the folders in ``only``):
+    {"dir", "metrics", "config"}."""
     runs = []
+    wanted = None if only is None else {Path(p).resolve() for p in only}
     for metrics_path in sorted(Path(results_dir).rglob("metrics.json")):
         run_dir = metrics_path.parent
+        if wanted is not None and run_dir.resolve() not in wanted:
+            continue
         config_path = run_dir / "config.yaml"
         config = yaml.safe_load(config_path.read_text()) if config_path.exists() else {}
         runs.append({"dir": run_dir, "metrics": json.loads(metrics_path.read_text()),

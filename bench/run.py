@@ -1,35 +1,37 @@
-"""Jobs (one sequence x method x seed option) and their execution, serial or in processes.
+"""What a job is (one sequence x method x seed option) and how one job runs.
 
-A finished job (its ``metrics.json`` exists) is skipped unless ``force``; a job that raises is
-recorded in ``failed.json`` and the others carry on.
+A job's folder is ``<out>/<sequence>/<method or label>[_seed|_noseed]``; its ``config.yaml``
+holds a ``run_key``: a hash of everything that determines the result (the store's content
+hash, the method, its resolved parameters, the seed option, the evaluation lengths). A job is
+skipped only when its folder holds a finished run with the same key; otherwise the old records
+are removed first and it runs again, so a failed re-run never leaves stale metrics behind.
+``plan`` resolves every job before anything runs (stores, parameters, folders), so bad input
+is one clear error up front. Executors (``bench.executors``) run the planned jobs.
 """
 
 from __future__ import annotations
 
-import os
-import queue as queue_mod
 import time
 import traceback
 from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
-from multiprocessing import get_context
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
-from rich.console import Console
-from rich.progress import (
-    BarColumn,
-    MofNCompleteColumn,
-    Progress,
-    TaskProgressColumn,
-    TextColumn,
-    TimeElapsedColumn,
-)
+from pydantic import ValidationError
 
 from bench.evaluate import evaluate_run
-from bench.results import is_finished, run_dir_name, write_failure, write_run
+from bench.results import (
+    clear_run,
+    is_finished,
+    run_dir_name,
+    run_key,
+    store_identity,
+    write_failure,
+    write_run,
+)
 from loaders.errors import DataError
 from loaders.store import StoreSequence
+from methods.base import Odometry
 from methods.registry import get_method, make_method
 from metrics.relative import DEFAULT_LENGTHS_M
 
@@ -52,24 +54,39 @@ class Job:
     display_name: str | None = None
     sensor_class: str | None = None
     run_dir_override: Path | None = None
+    label: str | None = None
 
     @property
-    def label(self) -> str:
-        return f"{self.name or self.store.stem} / {run_dir_name(self.method, self.seed)}"
+    def title(self) -> str:
+        folder = run_dir_name(self.method, self.seed, self.label)
+        return f"{self.name or self.store.stem} / {folder}"
 
     def run_dir(self, sequence_name: str) -> Path:
         if self.run_dir_override is not None:
             return self.run_dir_override
-        return self.out_root / sequence_name / run_dir_name(self.method, self.seed)
+        return self.out_root / sequence_name / run_dir_name(self.method, self.seed, self.label)
 
 
 @dataclass
 class JobOutcome:
     job: Job
-    status: str  # "done", "skipped", "failed"
+    status: str  # "done", "skipped", "failed", "interrupted"
     message: str = ""
     frames: int = 0
     wall_s: float = 0.0
+    run_dir: Path | None = None
+
+
+@dataclass
+class Prepared:
+    """A job resolved against its store: the open sequence, the configured method, the folder,
+    the run key and the configuration to record."""
+
+    sequence: StoreSequence
+    method: Odometry
+    run_dir: Path
+    key: str
+    config: dict
 
 
 def sequence_labels(seq: StoreSequence, job: Job) -> tuple[str, str, str]:
@@ -83,127 +100,156 @@ def sequence_labels(seq: StoreSequence, job: Job) -> tuple[str, str, str]:
     return name, display, klass
 
 
+def _method_error(job: Job, err: Exception) -> DataError:
+    if isinstance(err, ValidationError):
+        problems = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in err.errors())
+        return DataError(f"method {job.method!r}: invalid parameters {job.params}: {problems}")
+    return DataError(f"method {job.method!r}: {err}")
+
+
+def prepare(job: Job) -> Prepared:
+    """Open the store and configure the method; DataError on bad input (store or parameters).
+    A method configuration error names the run folder it belongs to (``err.run_dir``)."""
+    seq = StoreSequence(job.store)
+    try:
+        name, display, klass = sequence_labels(seq, job)
+        run_dir = job.run_dir(name)
+        cls = get_method(job.method)
+        config = {
+            "sequence": {"name": name, "display_name": display, "sensor_class": klass,
+                         "store": str(job.store), "frames": len(seq),
+                         "sensor_kind": seq.sensor.kind, "sensor_model": seq.sensor.model,
+                         "period_s": seq.sensor.period_s},
+            "method": {"name": job.method, "description": cls.description,
+                       "uses_initial_guess": cls.uses_initial_guess},
+            "label": job.label,
+            "seed": job.seed,
+            "lengths_m": list(job.lengths_m),
+        }
+        try:
+            method = make_method(job.method, job.params, seq.sensor)
+        except (ValidationError, ValueError, TypeError) as err:
+            error = _method_error(job, err)
+            error.run_dir, error.config = run_dir, config  # type: ignore[attr-defined]
+            raise error from None
+        params = getattr(method, "params", None)
+        config["method"]["params"] = params.model_dump(mode="json") if params is not None else {}
+        identity = {"store_sha256": store_identity(job.store), "method": job.method,
+                    "params": config["method"]["params"], "seed": job.seed,
+                    "lengths_m": [float(x) for x in job.lengths_m]}
+        config["run_key"] = run_key(identity)
+        config["identity"] = identity
+        return Prepared(seq, method, run_dir, config["run_key"], config)
+    except BaseException:
+        seq.close()
+        raise
+
+
+def plan(jobs: list[Job]) -> list[Job]:
+    """Resolve every job before any runs: the stores open, the parameters are valid, the
+    output folders are writable and no two jobs share a folder. Raises one DataError listing
+    every problem; returns the jobs with their folders fixed."""
+    problems, planned, owners = [], [], {}
+    for job in jobs:
+        try:
+            prep = prepare(job)
+        except DataError as err:
+            problems.append(str(err))
+            continue
+        prep.sequence.close()
+        other = owners.get(prep.run_dir)
+        if other is not None and other[1] != prep.key:
+            problems.append(
+                f"{prep.run_dir}: two runs would share this folder ({other[0].title} and "
+                f"{job.title}); give the sequences distinct names or the method variants "
+                "distinct 'label:'s")
+            continue
+        owners[prep.run_dir] = (job, prep.key)
+        _check_writable(prep.run_dir)
+        planned.append(replace(job, run_dir_override=prep.run_dir))
+    if problems:
+        raise DataError("\n".join(dict.fromkeys(problems)))
+    # the same run asked for twice (e.g. by two tables) runs once
+    return list({j.run_dir_override: j for j in planned}.values())
+
+
+def _check_writable(run_dir: Path) -> None:
+    parent = run_dir
+    while not parent.exists():
+        parent = parent.parent
+    if not parent.is_dir():
+        raise DataError(f"{run_dir}: cannot write results here: {parent} is a file, "
+                        "expected a folder")
+    if not (parent / "metrics.json").exists() and not _writable(parent):
+        raise DataError(f"{run_dir}: cannot write results here: {parent} is not writable")
+
+
+def _writable(path: Path) -> bool:
+    import os
+
+    return os.access(path, os.W_OK | os.X_OK)
+
+
 def run_job(job: Job, force: bool = False,
             on_frame: Callable[[int, int], None] | None = None) -> JobOutcome:
-    """Run one job and write its folder. ``on_frame(done, total)`` reports progress."""
+    """Run one job and write its folder. ``on_frame(done, total)`` reports progress. Never
+    raises for a failing run: the failure is recorded in ``failed.json`` and returned."""
     t0 = time.perf_counter()
     try:
-        seq = StoreSequence(job.store)
+        prep = prepare(job)
     except DataError as err:
-        return JobOutcome(job, "failed", str(err))
-    name, display, klass = sequence_labels(seq, job)
-    run_dir = job.run_dir(name)
-    if is_finished(run_dir) and not force:
-        return JobOutcome(job, "skipped", str(run_dir))
-    method_cls = get_method(job.method)
-    config = {
-        "sequence": {"name": name, "display_name": display, "sensor_class": klass,
-                     "store": str(job.store), "frames": len(seq),
-                     "sensor_kind": seq.sensor.kind, "sensor_model": seq.sensor.model,
-                     "period_s": seq.sensor.period_s},
-        "method": {"name": job.method, "description": method_cls.description,
-                   "uses_initial_guess": method_cls.uses_initial_guess},
-        "seed": job.seed,
-        "lengths_m": list(job.lengths_m),
-    }
+        run_dir = getattr(err, "run_dir", None)
+        if run_dir is not None:
+            _record_failure(run_dir, getattr(err, "config", None), str(err), "")
+        return JobOutcome(job, "failed", str(err), run_dir=run_dir)
+    seq, run_dir = prep.sequence, prep.run_dir
     try:
-        method = make_method(job.method, job.params, seq.sensor)
-        params = getattr(method, "params", None)
-        config["method"]["params"] = params.model_dump() if params is not None else {}
+        if is_finished(run_dir, prep.key) and not force:
+            return JobOutcome(job, "skipped", str(run_dir), run_dir=run_dir)
+        clear_run(run_dir)
         total = len(seq)
-        result = method.run(seq, seed=bool(job.seed),
-                            on_frame=(lambda i: on_frame(i + 1, total)) if on_frame else None)
+        result = prep.method.run(seq, seed=bool(job.seed),
+                                 on_frame=(lambda i: on_frame(i + 1, total)) if on_frame else None)
         evaluation = evaluate_run(seq.ground_truth, result, job.lengths_m, name=str(job.store))
-        metrics = {"sequence": name, "method": job.method, "seed": job.seed,
-                   "frames": len(seq), **evaluation.metrics}
-        write_run(run_dir, result, evaluation.gt, config, metrics)
-        return JobOutcome(job, "done", str(run_dir), len(seq), time.perf_counter() - t0)
+        metrics = {"sequence": prep.config["sequence"]["name"], "method": job.method,
+                   "seed": job.seed, "frames": len(seq), **evaluation.metrics}
+        write_run(run_dir, result, evaluation.gt, prep.config, metrics)
+        return JobOutcome(job, "done", str(run_dir), len(seq), time.perf_counter() - t0,
+                          run_dir=run_dir)
     except Exception as err:  # noqa: BLE001 - record any failure and carry on
-        write_failure(run_dir, config, f"{type(err).__name__}: {err}", traceback.format_exc())
-        return JobOutcome(job, "failed", f"{type(err).__name__}: {err}",
-                          wall_s=time.perf_counter() - t0)
+        message = f"{type(err).__name__}: {err}" if not isinstance(err, DataError) else str(err)
+        _record_failure(run_dir, prep.config, message, traceback.format_exc())
+        return JobOutcome(job, "failed", message, wall_s=time.perf_counter() - t0,
+                          run_dir=run_dir)
     finally:
         seq.close()
 
 
-def _worker(job: Job, force: bool, q) -> JobOutcome:
-    last = [0.0]
-
-    def report(done: int, total: int) -> None:
-        now = time.monotonic()
-        if done == total or now - last[0] > 0.2:
-            last[0] = now
-            q.put((job.label, done, total))
-
-    return run_job(job, force, report)
+def _record_failure(run_dir: Path, config: dict | None, message: str, trace: str,
+                    status: str = "failed") -> None:
+    try:
+        write_failure(run_dir, config, message, trace, status)
+    except (OSError, DataError):
+        pass  # the outcome still carries the message; the folder itself is the problem
 
 
-def _progress(console: Console) -> Progress:
-    return Progress(TextColumn("{task.description}", style="bold"), BarColumn(),
-                    MofNCompleteColumn(), TaskProgressColumn(),
-                    TextColumn("{task.fields[fps]} frames/s"), TimeElapsedColumn(),
-                    console=console, transient=False)
+def record_unfinished(job: Job, message: str, status: str) -> None:
+    """Record a job that an executor ended (interrupted, timed out, crashed worker)."""
+    if job.run_dir_override is not None:
+        _record_failure(job.run_dir_override, None, message, "", status)
 
 
-def execute(jobs: list[Job], workers: int = 1, force: bool = False,
-            console: Console | None = None) -> list[JobOutcome]:
-    """Run ``jobs`` with a progress bar (frames per second); serial or in ``workers`` processes."""
-    console = console or Console()
-    outcomes: list[JobOutcome] = []
-    with _progress(console) as progress:
-        overall = progress.add_task(f"{len(jobs)} runs", total=len(jobs), fps="-")
-        tasks: dict[str, tuple[int, float]] = {}
-
-        def update(label: str, done: int, total: int) -> None:
-            if label not in tasks:
-                tasks[label] = (progress.add_task(label, total=total, fps="-"), time.monotonic())
-            task, start = tasks[label]
-            fps = done / max(time.monotonic() - start, 1e-9)
-            progress.update(task, completed=done, fps=f"{fps:6.1f}")
-
-        def finish(outcome: JobOutcome) -> None:
-            outcomes.append(outcome)
-            progress.advance(overall)
-            if outcome.job.label in tasks:
-                progress.remove_task(tasks.pop(outcome.job.label)[0])
-            style = {"done": "green", "skipped": "dim", "failed": "red"}[outcome.status]
-            extra = (f"{outcome.frames / outcome.wall_s:.1f} frames/s"
-                     if outcome.status == "done" and outcome.wall_s > 0 else outcome.message)
-            progress.console.print(f"[{style}]{outcome.status:>7}[/] {outcome.job.label}  {extra}")
-
-        if workers <= 1:
-            for job in jobs:
-                finish(run_job(job, force, lambda d, t, j=job: update(j.label, d, t)))
-            return outcomes
-        # separate processes; one BLAS thread each so workers do not fight over the cores
-        for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
-            os.environ.setdefault(var, "1")
-        # longest jobs first (iterative methods on large stores), so workers finish together
-        jobs = sorted(jobs, key=_expected_cost, reverse=True)
-        ctx = get_context("spawn")
-        with ctx.Manager() as manager, ProcessPoolExecutor(workers, mp_context=ctx) as pool:
-            q = manager.Queue()
-            pending = {pool.submit(_worker, job, force, q): job for job in jobs}
-            while pending:
-                try:
-                    while True:
-                        update(*q.get(timeout=0.1))
-                except queue_mod.Empty:
-                    pass
-                for fut in [f for f in pending if f.done()]:
-                    job = pending.pop(fut)
-                    try:
-                        finish(fut.result())
-                    except Exception as err:  # noqa: BLE001 - a crashed worker process
-                        finish(JobOutcome(job, "failed", f"worker crashed: {err}"))
-    return outcomes
-
-
-def _expected_cost(job: Job) -> float:
+def expected_cost(job: Job) -> float:
     size = job.store.stat().st_size if job.store.exists() else 0
     return size * (20.0 if get_method(job.method).uses_initial_guess else 1.0)
 
 
 def summarize(outcomes: list[JobOutcome]) -> str:
-    counts = {s: sum(o.status == s for o in outcomes) for s in ("done", "skipped", "failed")}
-    return ", ".join(f"{v} {k}" for k, v in counts.items() if v or k == "failed")
+    statuses = ("done", "skipped", "failed", "interrupted")
+    counts = {s: sum(o.status == s for o in outcomes) for s in statuses}
+    text = ", ".join(f"{v} {k}" for k, v in counts.items() if v or k == "failed")
+    failed = [o for o in outcomes if o.status in ("failed", "interrupted")]
+    for o in failed:
+        first_line = o.message.splitlines()[0] if o.message else ""
+        text += f"\n  {o.status}: {o.job.title}: {first_line}"
+    return text

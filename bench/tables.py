@@ -12,8 +12,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from bench.names import order_key, short_name
 from bench.results import load_runs
-from methods.registry import METHODS
 
 CLASS_ORDER = ["Sparse 4D Radar", "Semi-Dense 4D Radar", "Dense 4D LiDAR"]
 
@@ -31,20 +31,25 @@ class Row:
     diverged: bool
 
 
-def method_label(method: str, seed: bool | None) -> str:
+def method_label(method: str, seed: bool | None, label: str | None = None) -> str:
+    """The row name as in the paper's Table III, e.g. "(With Seed) DICP"; a labelled variant
+    shows its label."""
+    name = label or short_name(method)
     if seed is None:
-        return f"{method} (no initial guess)"
-    return f"({'With' if seed else 'No'} Seed) {method}"
+        return f"{name} (no initial guess)"
+    return f"({'With' if seed else 'No'} Seed) {name}"
 
 
 def _value(x) -> float:
     return math.nan if x is None else float(x)
 
 
-def collect_rows(results_dir: Path) -> tuple[list[Row], list[str]]:
-    """Rows of every finished run with ground truth, sorted as in the paper, and the lengths."""
+def collect_rows(results_dir: Path, only: set[Path] | None = None
+                 ) -> tuple[list[Row], list[str]]:
+    """Rows of every finished run with ground truth (or of the run folders in ``only``), sorted
+    as in the paper, and the lengths."""
     rows, lengths = [], set()
-    for run in load_runs(results_dir):
+    for run in load_runs(results_dir, only):
         m, cfg = run["metrics"], run["config"]
         if m.get("relative_error") is None or m.get("diverged") is None:
             continue
@@ -54,20 +59,18 @@ def collect_rows(results_dir: Path) -> tuple[list[Row], list[str]]:
         rows.append(Row(
             sensor_class=seq_cfg.get("sensor_class", "4D sensor"),
             sequence=seq_cfg.get("display_name", m["sequence"]),
-            method=m["method"], seed=m["seed"], label=method_label(m["method"], m["seed"]),
+            method=m["method"], seed=m["seed"],
+            label=method_label(m["method"], m["seed"], cfg.get("label")),
             rot={k: _value(v["rot_deg_mean"]) if v["n"] else math.nan for k, v in rel.items()},
             trans={k: _value(v["trans_m_mean"]) if v["n"] else math.nan for k, v in rel.items()},
             time_ms=_value((m.get("time_ms") or {}).get("mean")),
             diverged=bool(m["diverged"]),
         ))
-    order = list(METHODS)
-
     def key(r: Row):
         klass = CLASS_ORDER.index(r.sensor_class) if r.sensor_class in CLASS_ORDER else 99
-        # the paper lists the baselines first and its own method last
-        m = order.index(r.method) if r.method in order else 98
-        m = 99 if r.method == "doppler" else m
-        return (klass, r.sensor_class, r.sequence, m, r.method, r.seed is False)
+        # the paper lists the baselines first and its own methods last
+        return (klass, r.sensor_class, r.sequence, order_key(r.method), r.method,
+                r.seed is False, r.label)
 
     return sorted(rows, key=key), sorted(lengths, key=float)
 
@@ -178,16 +181,18 @@ def to_csv(rows: list[Row], lengths: list[str]) -> str:
 FORMATS = {"md": to_markdown, "tex": to_latex, "csv": to_csv}
 
 
-def write_tables(results_dir: Path, out_dir: Path | None = None) -> dict[str, str]:
-    """Write table.md, table.tex and table.csv; return the texts by format."""
+def write_tables(results_dir: Path, out_dir: Path | None = None, only: set[Path] | None = None,
+                 stem: str = "table") -> dict[str, str]:
+    """Write <stem>.md, .tex and .csv (of every run, or of the folders in ``only``); return the
+    texts by format."""
     from loaders.fileio import atomic_write_text
 
-    rows, lengths = collect_rows(results_dir)
+    rows, lengths = collect_rows(results_dir, only)
     if not rows:
         raise FileNotFoundError(f"{results_dir}: no finished runs with ground truth "
                                 "(no metrics.json found)")
     out_dir = Path(out_dir or results_dir)
     texts = {fmt: fn(rows, lengths) for fmt, fn in FORMATS.items()}
     for fmt, text in texts.items():
-        atomic_write_text(out_dir / f"table.{fmt}", text)
+        atomic_write_text(out_dir / f"{stem}.{fmt}", text)
     return texts

@@ -37,12 +37,13 @@ def _row_label(method: str, seed: bool | None, label: str | None, tag_seed: bool
     return name
 
 
-def collect_ape(results_dir: Path, sequences: list[str] | None = None) -> ApeTable:
+def collect_ape(results_dir: Path, sequences: list[str] | None = None,
+                only: set[Path] | None = None) -> ApeTable:
     """The APE table of every finished run with ground truth under ``results_dir``.
 
     ``sequences``: the columns (display names or sequence names) in order; default: every
     sequence found, in name order."""
-    runs = [r for r in load_runs(results_dir)
+    runs = [r for r in load_runs(results_dir, only)
             if r["metrics"].get("diverged") is not None and r["metrics"].get("ape") is not None]
     seeds_of: dict[str, set] = {}
     for r in runs:
@@ -142,11 +143,11 @@ FORMATS = {"md": to_markdown, "tex": to_latex, "csv": to_csv}
 
 def write_ape_tables(results_dir: Path, out_dir: Path | None = None,
                      sequences: list[str] | None = None, stem: str = "table_ape",
-                     caption: str = "") -> dict[str, str]:
+                     caption: str = "", only: set[Path] | None = None) -> dict[str, str]:
     """Write ``<stem>.{md,tex,csv}`` and return the texts by format."""
     from loaders.fileio import atomic_write_text
 
-    table = collect_ape(results_dir, sequences)
+    table = collect_ape(results_dir, sequences, only)
     if not table.rows:
         raise FileNotFoundError(f"{results_dir}: no finished runs with ground truth "
                                 "(no metrics.json with an APE found)")

@@ -7,13 +7,14 @@ import pytest
 from typer.testing import CliRunner
 
 from bench.cli import app
-from bench.run import Job, execute, run_job
+from bench.progress import run_jobs
+from bench.run import Job, run_job
 from bench.tables import collect_rows, to_latex, to_markdown, write_tables
 from conftest import constant_twist_sequence
 from loaders.store import write_store
 
-METRIC_KEYS = {"sequence", "method", "seed", "frames", "diverged", "relative_error", "ape",
-               "time_ms"}
+METRIC_KEYS = {"sequence", "method", "seed", "frames", "frames_scored", "diverged",
+               "relative_error", "ape", "time_ms"}
 
 
 @pytest.fixture(scope="module")
@@ -61,7 +62,7 @@ def test_a_failed_job_is_recorded_and_the_others_carry_on(store, tmp_path):
             Job(store=store, method="doppler", seed=None, out_root=tmp_path / "r",
                 params={"tau_spatial_m": -1.0}),
             Job(store=store, method="icp-p2p", seed=True, out_root=tmp_path / "r")]
-    outcomes = execute(jobs)
+    outcomes = run_jobs(jobs)
     assert [o.status for o in outcomes] == ["failed", "failed", "done"]
     assert "broken.h5" in outcomes[0].message
     failed = json.loads((tmp_path / "r" / "twist" / "doppler" / "failed.json").read_text())
@@ -79,11 +80,11 @@ def test_tables_mark_best_and_second_and_show_divergence(store, tmp_path):
     m["diverged"] = True
     m_path.write_text(json.dumps(m))
     rows, lengths = collect_rows(tmp_path)
-    assert [r.label for r in rows] == ["(With Seed) icp-p2p", "(No Seed) icp-p2p",
-                                       "doppler (no initial guess)"]
+    assert [r.label for r in rows] == ["(With Seed) point-to-point", "(No Seed) point-to-point",
+                                       "Ours (no initial guess)"]
     assert lengths == ["8", "16", "24", "32", "40", "48"]
     md = to_markdown(rows, lengths)
-    lines = [line for line in md.splitlines() if "icp-p2p" in line or "doppler" in line]
+    lines = [line for line in md.splitlines() if "point-to-point" in line or "Ours" in line]
     assert "Div." in lines[1] and "**" not in lines[1] and "<u>" not in lines[1]
     assert lines[1].rstrip(" |").split("|")[-1].strip().replace(".", "").isdigit()  # time
     # two ranked rows per column: each 8 m cell has one bold and one underlined value
@@ -106,7 +107,7 @@ def test_cli_run_table_inspect(store, tmp_path):
     assert json.loads((out_dir / "metrics.json").read_text())["seed"] is False
     res = runner.invoke(app, ["table", str(tmp_path), "--format", "csv"])
     assert res.exit_code == 0, res.output
-    assert "icp-p2p" in res.output
+    assert "icp-p2p" in res.output and res.output.count("\n") >= 2
     res = runner.invoke(app, ["inspect", str(store)])
     assert res.exit_code == 0, res.output
     assert "points per frame" in res.output and "confirmed" in res.output

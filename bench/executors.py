@@ -1,0 +1,250 @@
+"""Executors: where jobs run. Metrics are the same whichever runs them (timing apart).
+
+- ``local``: in this process, one after another (for debugging; a crash in a native library
+  ends the command).
+- ``process`` (default): every job in its own fresh worker process (spawned), at most
+  ``workers`` at once, so a segfault or abort inside a native library fails that job only.
+  Workers die with the main process (PR_SET_PDEATHSIG and a parent watchdog), ignore Ctrl-C
+  (the main process ends them and records their runs as interrupted), and a job that runs
+  longer than ``job_timeout_s`` is killed and recorded as failed.
+- ``dask``: dask.distributed, on an existing cluster (``scheduler`` address) or a LocalCluster
+  of ``workers`` single-threaded worker processes; ``job_timeout_s`` counts from submission.
+
+In every mode the BLAS/OpenMP/numba thread counts are pinned (``pin_threads``) and every timed
+section holds a machine-wide lock (``methods.timing``), so no two timed sections overlap and a
+reported time is the method's own.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import os
+import queue as queue_mod
+import signal
+import tempfile
+import threading
+import time
+from collections.abc import Callable
+from multiprocessing import get_context
+
+from bench.run import Job, JobOutcome, expected_cost, record_unfinished, run_job
+from loaders.errors import DataError
+from methods.timing import TIMING_LOCK_ENV
+
+EXECUTORS = ("local", "process", "dask")
+THREAD_DEFAULTS = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
+                   "NUMBA_NUM_THREADS": "1"}
+TIMING_LOCK = os.path.join(tempfile.gettempdir(), "doppler-bench-timing.lock")
+
+Report = Callable[[Job, int, int], None]   # (job, frames done, frames total)
+Finish = Callable[[JobOutcome], None]
+
+
+def pin_threads() -> dict[str, str]:
+    """Pin library thread counts (unless the user set them) and name the timing lock; the
+    values are inherited by worker processes and recorded in each run's meta.json."""
+    for var, value in THREAD_DEFAULTS.items():
+        os.environ.setdefault(var, value)
+    os.environ.setdefault(TIMING_LOCK_ENV, TIMING_LOCK)
+    return {var: os.environ[var] for var in THREAD_DEFAULTS}
+
+
+def execute(jobs: list[Job], executor: str, workers: int, force: bool, report: Report,
+            finish: Finish, job_timeout_s: float | None = None,
+            scheduler: str | None = None) -> list[JobOutcome]:
+    """Run ``jobs`` with ``executor``; ``finish`` is called once per job as it ends. Ctrl-C
+    ends the workers, records the runs in flight as interrupted and re-raises."""
+    pin_threads()
+    if executor == "local":
+        return _run_local(jobs, force, report, finish)
+    if executor == "process":
+        return _run_processes(jobs, workers, force, report, finish, job_timeout_s)
+    if executor == "dask":
+        return _run_dask(jobs, workers, force, finish, job_timeout_s, scheduler)
+    raise DataError(f"unknown executor {executor!r}; choose from {', '.join(EXECUTORS)}")
+
+
+def _run_local(jobs, force, report, finish) -> list[JobOutcome]:
+    outcomes = []
+    for job in jobs:
+        try:
+            outcome = run_job(job, force, lambda d, t, j=job: report(j, d, t))
+        except KeyboardInterrupt:
+            record_unfinished(job, "interrupted by the user (Ctrl-C)", "interrupted")
+            finish(JobOutcome(job, "interrupted", "interrupted by the user (Ctrl-C)"))
+            raise
+        outcomes.append(outcome)
+        finish(outcome)
+    return outcomes
+
+
+# ---- process executor ---------------------------------------------------------------------
+
+def _die_with_parent(parent_pid: int) -> None:
+    """End this worker when the main process dies, even by SIGKILL."""
+    with contextlib.suppress(OSError, AttributeError):
+        libc = ctypes.CDLL("libc.so.6", use_errno=True)
+        libc.prctl(1, signal.SIGKILL)  # PR_SET_PDEATHSIG
+
+    def watch() -> None:
+        while True:
+            if os.getppid() != parent_pid:
+                os._exit(1)
+            time.sleep(0.5)
+
+    threading.Thread(target=watch, daemon=True).start()
+    if os.getppid() != parent_pid:  # died before the guard was set
+        os._exit(1)
+
+
+def _worker(index: int, job: Job, force: bool, messages, parent_pid: int) -> None:
+    _die_with_parent(parent_pid)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process decides what Ctrl-C ends
+    last = [0.0]
+
+    def progress(done: int, total: int) -> None:
+        now = time.monotonic()
+        if done == total or now - last[0] > 0.2:
+            last[0] = now
+            messages.put(("progress", index, done, total))
+
+    messages.put(("outcome", index, run_job(job, force, progress)))
+
+
+def _exit_reason(exitcode: int | None) -> str:
+    if exitcode is not None and exitcode < 0:
+        try:
+            return f"worker killed by signal {signal.Signals(-exitcode).name}"
+        except ValueError:
+            return f"worker killed by signal {-exitcode}"
+    return f"worker exited with code {exitcode} before reporting"
+
+
+def _run_processes(jobs, workers, force, report, finish, job_timeout_s) -> list[JobOutcome]:
+    ctx = get_context("spawn")
+    messages = ctx.Queue()
+    # longest jobs first (iterative methods on large stores), so workers finish together
+    pending = sorted(range(len(jobs)), key=lambda i: expected_cost(jobs[i]), reverse=True)
+    running: dict[int, tuple] = {}   # index -> (process, start time)
+    results: dict[int, JobOutcome] = {}
+
+    def done(index: int, outcome: JobOutcome) -> None:
+        results[index] = outcome
+        finish(outcome)
+
+    def drain(timeout: float) -> None:
+        try:
+            while True:
+                kind, index, *rest = messages.get(timeout=timeout)
+                timeout = 0.0
+                if kind == "progress":
+                    report(jobs[index], *rest)
+                elif index not in results:
+                    done(index, rest[0])
+        except queue_mod.Empty:
+            pass
+
+    try:
+        while pending or running:
+            while pending and len(running) < max(1, workers):
+                index = pending.pop(0)
+                proc = ctx.Process(target=_worker, daemon=True,
+                                   args=(index, jobs[index], force, messages, os.getpid()))
+                proc.start()
+                running[index] = (proc, time.monotonic())
+            drain(0.1)
+            for index, (proc, start) in list(running.items()):
+                if proc.is_alive():
+                    if job_timeout_s and time.monotonic() - start > job_timeout_s:
+                        proc.kill()
+                        proc.join()
+                        message = f"timeout: ended after {job_timeout_s:g} s (--job-timeout)"
+                        record_unfinished(jobs[index], message, "timeout")
+                        done(index, JobOutcome(jobs[index], "failed", message))
+                        del running[index]
+                    continue
+                proc.join()
+                del running[index]
+                deadline = time.monotonic() + 2.0
+                while index not in results and time.monotonic() < deadline:
+                    drain(0.1)
+                if index not in results:
+                    message = _exit_reason(proc.exitcode)
+                    record_unfinished(jobs[index], message, "crashed")
+                    done(index, JobOutcome(jobs[index], "failed", message))
+    except KeyboardInterrupt:
+        for proc, _ in running.values():
+            proc.kill()
+        for index, (proc, _) in running.items():
+            proc.join(timeout=5)
+            message = "interrupted by the user (Ctrl-C)"
+            record_unfinished(jobs[index], message, "interrupted")
+            results[index] = JobOutcome(jobs[index], "interrupted", message)
+        raise
+    finally:
+        messages.close()
+    return [results[i] for i in range(len(jobs)) if i in results]
+
+
+# ---- dask executor ------------------------------------------------------------------------
+
+def _dask_task(job: Job, force: bool, threads: dict[str, str]) -> JobOutcome:
+    for var, value in threads.items():
+        os.environ.setdefault(var, value)
+    os.environ.setdefault(TIMING_LOCK_ENV, TIMING_LOCK)
+    return run_job(job, force)
+
+
+def _run_dask(jobs, workers, force, finish, job_timeout_s, scheduler) -> list[JobOutcome]:
+    try:
+        from dask.distributed import Client, LocalCluster, wait
+    except ImportError:
+        raise DataError("the dask executor needs dask.distributed: "
+                        "pip install 'doppler-bench[dask]'") from None
+    cluster = None
+    if scheduler is None:
+        cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=True,
+                               dashboard_address=None)
+    results: dict[int, JobOutcome] = {}
+    threads = pin_threads()
+    with Client(scheduler or cluster) as client:
+        futures = {client.submit(_dask_task, job, force, threads, pure=False): i
+                   for i, job in enumerate(jobs)}
+        submitted = time.monotonic()
+        try:
+            remaining = set(futures)
+            while remaining:
+                finished, remaining = wait(list(remaining), timeout=0.5,
+                                           return_when="FIRST_COMPLETED")
+                for fut in finished:
+                    index = futures[fut]
+                    try:
+                        outcome = fut.result()
+                    except Exception as err:  # noqa: BLE001 - a worker died or raised
+                        outcome = JobOutcome(jobs[index], "failed", f"dask: {err}")
+                        record_unfinished(jobs[index], outcome.message, "crashed")
+                    results[index] = outcome
+                    finish(outcome)
+                if job_timeout_s and remaining and time.monotonic() - submitted > job_timeout_s:
+                    for fut in remaining:
+                        index = futures[fut]
+                        message = f"timeout: not finished {job_timeout_s:g} s after submission"
+                        fut.cancel()
+                        record_unfinished(jobs[index], message, "timeout")
+                        results[index] = JobOutcome(jobs[index], "failed", message)
+                        finish(results[index])
+                    remaining = set()
+        except KeyboardInterrupt:
+            for fut, index in futures.items():
+                if index not in results:
+                    fut.cancel()
+                    record_unfinished(jobs[index], "interrupted by the user (Ctrl-C)",
+                                      "interrupted")
+                    results[index] = JobOutcome(jobs[index], "interrupted",
+                                                "interrupted by the user (Ctrl-C)")
+            raise
+        finally:
+            if cluster is not None:
+                cluster.close()
+    return [results[i] for i in range(len(jobs)) if i in results]

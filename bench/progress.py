@@ -1,0 +1,84 @@
+"""Progress bars for long work: running jobs (frames/s per run) and generating suites."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from rich.console import Console
+from rich.markup import escape
+from rich.progress import (
+    BarColumn,
+    MofNCompleteColumn,
+    Progress,
+    TaskProgressColumn,
+    TextColumn,
+    TimeElapsedColumn,
+)
+
+from bench.executors import execute
+from bench.run import Job, JobOutcome
+
+
+def _progress(console: Console) -> Progress:
+    return Progress(TextColumn("{task.description}", style="bold"), BarColumn(),
+                    MofNCompleteColumn(), TaskProgressColumn(),
+                    TextColumn("{task.fields[fps]} frames/s"), TimeElapsedColumn(),
+                    console=console, transient=False)
+
+
+def run_jobs(jobs: list[Job], console: Console | None = None, workers: int = 1,
+             force: bool = False, executor: str = "process", job_timeout_s: float | None = None,
+             scheduler: str | None = None) -> list[JobOutcome]:
+    """Run ``jobs`` with an overall bar, a bar per running job and one line per finished job.
+    Returns the outcomes in job order; Ctrl-C propagates after the executor cleaned up."""
+    console = console or Console()
+    finished: list[JobOutcome] = []
+    with _progress(console) as progress:
+        overall = progress.add_task(f"{len(jobs)} runs", total=len(jobs), fps="-")
+        tasks: dict[str, tuple[int, float]] = {}
+
+        def report(job: Job, done: int, total: int) -> None:
+            if job.title not in tasks:
+                tasks[job.title] = (progress.add_task(escape(job.title), total=total, fps="-"),
+                                    time.monotonic())
+            task, start = tasks[job.title]
+            fps = done / max(time.monotonic() - start, 1e-9)
+            progress.update(task, completed=done, fps=f"{fps:6.1f}")
+
+        def finish(outcome: JobOutcome) -> None:
+            finished.append(outcome)
+            progress.advance(overall)
+            if outcome.job.title in tasks:
+                progress.remove_task(tasks.pop(outcome.job.title)[0])
+            style = {"done": "green", "skipped": "dim"}.get(outcome.status, "red")
+            extra = (f"{outcome.frames / outcome.wall_s:.1f} frames/s"
+                     if outcome.status == "done" and outcome.wall_s > 0 else outcome.message)
+            progress.console.print(f"[{style}]{outcome.status:>11}[/] "
+                                   f"{escape(outcome.job.title)}  {escape(extra)}")
+
+        try:
+            return execute(jobs, executor, workers, force, report, finish, job_timeout_s,
+                           scheduler)
+        except KeyboardInterrupt:
+            kept = sum(o.status in ("done", "skipped") for o in finished)
+            console.print(f"interrupted: {kept} runs finished and kept, "
+                          f"{len(jobs) - len(finished)} interrupted or not started", style="red")
+            raise
+
+
+def ensure_suite_with_progress(suite: str, data_dir: Path,
+                               console: Console | None = None) -> list[Path]:
+    """Generate (or reuse) a synthetic suite with a progress bar per sequence."""
+    from loaders import synthetic
+
+    tasks: dict[str, int] = {}
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), console=console or Console()) as progress:
+
+        def report(name: str, done: int, total: int) -> None:
+            if name not in tasks:
+                tasks[name] = progress.add_task(escape(f"{suite}/{name}"), total=total)
+            progress.update(tasks[name], completed=done)
+
+        return synthetic.ensure_suite(suite, data_dir, progress=report)
