@@ -1,10 +1,16 @@
 """The explicit registry of methods: name -> class, with a one-line description each.
 
 Add a method by writing one module with a ``Registration`` (pairwise, scan to scan) or an
-``Odometry`` (keeps its own state) subclass and listing it here.
+``Odometry`` (keeps its own state) subclass and listing it here. Your own methods can also live
+outside this package: name their modules in the environment variable ``DOPPLER_BENCH_METHODS``
+(comma separated); each module lists its classes in a ``METHODS`` sequence. Worker processes
+inherit the variable, so plugins run under every executor.
 """
 
 from __future__ import annotations
+
+import importlib
+import os
 
 from loaders.errors import DataError
 from loaders.scan import SensorInfo
@@ -21,6 +27,23 @@ METHODS: dict[str, type[Odometry]] = {
         DopplerEgo,
     )
 }
+
+PLUGINS_ENV = "DOPPLER_BENCH_METHODS"
+
+
+def _load_plugins() -> None:
+    for module_name in filter(None, (m.strip() for m in os.environ.get(PLUGINS_ENV, "")
+                                     .split(","))):
+        try:
+            module = importlib.import_module(module_name)
+        except ImportError as err:
+            raise DataError(f"{PLUGINS_ENV}: cannot import method module {module_name!r}: "
+                            f"{err}") from None
+        for cls in getattr(module, "METHODS", ()):
+            METHODS[cls.name] = cls
+
+
+_load_plugins()
 
 
 def get_method(name: str) -> type[Odometry]:
