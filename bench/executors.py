@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
+import logging
 import os
 import queue as queue_mod
 import signal
@@ -205,7 +206,7 @@ def _run_dask(jobs, workers, force, finish, job_timeout_s, scheduler) -> list[Jo
     cluster = None
     if scheduler is None:
         cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=True,
-                               dashboard_address=None)
+                               dashboard_address=None, silence_logs=logging.ERROR)
     results: dict[int, JobOutcome] = {}
     threads = pin_threads()
     with Client(scheduler or cluster) as client:
@@ -215,8 +216,11 @@ def _run_dask(jobs, workers, force, finish, job_timeout_s, scheduler) -> list[Jo
         try:
             remaining = set(futures)
             while remaining:
-                finished, remaining = wait(list(remaining), timeout=0.5,
-                                           return_when="FIRST_COMPLETED")
+                try:
+                    finished, remaining = wait(list(remaining), timeout=0.5,
+                                               return_when="FIRST_COMPLETED")
+                except TimeoutError:  # nothing finished within the poll interval
+                    finished = set()
                 for fut in finished:
                     index = futures[fut]
                     try:

@@ -1,0 +1,158 @@
+"""Executors and the command line's exit codes: crashes fail alone, Ctrl-C and the death of
+the main process leave no worker, and every executor gives the same metrics."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import psutil
+import pytest
+
+from bench.progress import run_jobs
+from bench.run import Job, plan
+from conftest import constant_twist_sequence
+from loaders.store import write_store
+
+TESTS = Path(__file__).resolve().parent
+ENV = {**os.environ, "DOPPLER_BENCH_METHODS": "bench_test_methods",
+       "PYTHONPATH": os.pathsep.join([str(TESTS / "plugins"), str(TESTS.parent)])}
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    seq = constant_twist_sequence(n_frames=40, n_points=1500, noise_m=0.01, max_range_m=70)
+    return write_store(seq, tmp_path_factory.mktemp("data") / "twist.h5")
+
+
+def _metrics(run_dir: Path) -> dict:
+    m = json.loads((run_dir / "metrics.json").read_text())
+    m.pop("time_ms")
+    return m
+
+
+def test_every_executor_gives_the_same_metrics(store, tmp_path):
+    results = {}
+    for executor in ("local", "process", "dask"):
+        jobs = plan([Job(store=store, method=m, seed=s, out_root=tmp_path / executor)
+                     for m, s in (("doppler", None), ("icp-p2p", True))])
+        outcomes = run_jobs(jobs, workers=2, executor=executor)
+        assert [o.status for o in outcomes] == ["done", "done"], [o.message for o in outcomes]
+        results[executor] = [_metrics(j.run_dir_override) for j in jobs]
+    assert results["local"] == results["process"] == results["dask"]
+
+
+def _bench(args, **kw):
+    return subprocess.Popen([sys.executable, "-m", "bench.cli", *args], env=ENV,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, **kw)
+
+
+def _experiment(tmp_path, store, methods):
+    exp = tmp_path / "e.yaml"
+    exp.write_text(f"name: e\nsequences: [{{path: {store}, name: twist}}]\n"
+                   f"methods: {methods}\nlengths_m: [8]\nout: results\njobs: 2\n")
+    return exp
+
+
+def test_a_job_that_aborts_fails_alone(store, tmp_path):
+    exp = _experiment(tmp_path, store, "[{name: test-abort}, {name: doppler}]")
+    proc = _bench(["run", str(exp)])
+    out, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 1, out
+    assert "SIGABRT" in out and "Traceback" not in out
+    failed = json.loads((tmp_path / "results/twist/test-abort/failed.json").read_text())
+    assert "SIGABRT" in failed["error"] and failed["status"] == "crashed"
+    assert (tmp_path / "results/twist/doppler/metrics.json").exists()
+
+
+def _workers_of(pid: int) -> list[psutil.Process]:
+    try:
+        return psutil.Process(pid).children(recursive=True)
+    except psutil.NoSuchProcess:
+        return []
+
+
+def _wait_for_workers(proc, n, timeout_s=60.0):
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        workers = [w for w in _workers_of(proc.pid) if "python" in w.name().lower()]
+        if len(workers) >= n:
+            return workers
+        time.sleep(0.2)
+    raise AssertionError("workers did not start")
+
+
+def _slow_experiment(tmp_path, store):
+    variants = ", ".join(f"{{name: test-sleep, label: s{k}, params: {{sleep_s: 0.5}}}}"
+                         for k in range(4))
+    return _experiment(tmp_path, store, f"[{variants}]")
+
+
+def test_ctrl_c_exits_130_within_seconds_and_leaves_no_worker(store, tmp_path):
+    proc = _bench(["run", str(_slow_experiment(tmp_path, store))])
+    workers = _wait_for_workers(proc, 2)
+    time.sleep(2.0)  # inside the runs
+    t0 = time.monotonic()
+    proc.send_signal(signal.SIGINT)
+    out, _ = proc.communicate(timeout=10)
+    assert proc.returncode == 130, out
+    assert time.monotonic() - t0 < 10
+    assert "interrupted" in out and "Traceback" not in out
+    time.sleep(0.5)
+    assert not [w for w in workers if w.is_running() and w.status() != psutil.STATUS_ZOMBIE]
+    records = [json.loads(p.read_text()) for p in (tmp_path / "results").rglob("failed.json")]
+    assert records and all(r["status"] == "interrupted" for r in records)
+
+
+def test_sigkill_of_the_main_process_leaves_no_worker(store, tmp_path):
+    proc = _bench(["run", str(_slow_experiment(tmp_path, store))])
+    workers = _wait_for_workers(proc, 2)
+    proc.kill()
+    proc.wait()
+    deadline = time.monotonic() + 10
+    while time.monotonic() < deadline and any(w.is_running() for w in workers):
+        time.sleep(0.2)
+    assert not [w for w in workers if w.is_running() and w.status() != psutil.STATUS_ZOMBIE]
+
+
+def test_a_job_timeout_ends_the_job(store, tmp_path):
+    exp = _experiment(tmp_path, store, "[{name: test-sleep, params: {sleep_s: 1.0}}]")
+    proc = _bench(["run", str(exp), "--job-timeout", "3"])
+    out, _ = proc.communicate(timeout=60)
+    assert proc.returncode == 1, out
+    assert "timeout" in out
+
+
+@pytest.mark.parametrize("args, code", [
+    (["run", "--method", "doppler", "--data", "STORE", "-p", "tau_spatial_m=abc"], 2),
+    (["run", "--method", "doppler", "--data", "STORE", "-p", "nonsense=1"], 2),
+    (["run", "--method", "nope", "--data", "STORE"], 2),
+    (["run", "--method", "doppler", "--data", "STORE", "--executor", "cloud"], 2),
+    (["run", "--method", "doppler", "--data", "STORE", "--out", "OUT"], 0),
+    (["run", "--method", "test-abort", "--data", "STORE", "--out", "OUT2"], 1),
+])
+def test_exit_codes(store, tmp_path, args, code):
+    args = [a.replace("STORE", str(store)).replace("OUT", str(tmp_path / "o")) for a in args]
+    proc = _bench(args)
+    out, _ = proc.communicate(timeout=120)
+    assert proc.returncode == code, out
+    assert "Traceback" not in out
+    if code == 0:
+        assert "run folder:" in out and "8 m:" in out and "APE" in out
+
+
+def test_piped_output_is_plain_and_keeps_units(store, tmp_path):
+    out_dir = tmp_path / "runs"
+    assert _bench(["run", "--method", "doppler", "--data", str(store), "--out",
+                   str(out_dir / "twist" / "doppler")]).wait(timeout=120) == 0
+    proc = _bench(["table", str(out_dir), "-f", "csv"])
+    out, _ = proc.communicate(timeout=60)
+    header = out.splitlines()[0]
+    assert header.startswith("sensor_class,sequence,method") and "\x1b[" not in out
+    assert len(header) > 80  # not wrapped at 80 columns
+    proc = _bench(["run", "--help"])
+    help_text, _ = proc.communicate(timeout=60)
+    assert "[s]" in help_text

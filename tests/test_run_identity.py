@@ -1,0 +1,99 @@
+"""Run identity: a run is keyed by what determines it; labelled variants; no stale rows."""
+
+import json
+
+import pytest
+import yaml
+
+from bench.experiment import load_experiment
+from bench.progress import run_jobs
+from bench.run import Job, plan, run_job
+from bench.runplan import jobs_for_experiment
+from bench.tables import collect_rows
+from conftest import constant_twist_sequence
+from loaders.errors import DataError
+from loaders.store import write_store
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    seq = constant_twist_sequence(n_frames=40, n_points=1500, noise_m=0.01, max_range_m=70)
+    return write_store(seq, tmp_path_factory.mktemp("data") / "twist.h5")
+
+
+def test_a_parameter_or_length_change_reruns_and_an_unchanged_job_is_skipped(store, tmp_path):
+    job = Job(store=store, method="doppler", seed=None, out_root=tmp_path)
+    assert run_job(job).status == "done"
+    assert run_job(job).status == "skipped"
+    changed = Job(store=store, method="doppler", seed=None, out_root=tmp_path,
+                  params={"tau_spatial_m": 2.0})
+    assert run_job(changed).status == "done"
+    config = yaml.safe_load((tmp_path / "twist" / "doppler" / "config.yaml").read_text())
+    assert config["method"]["params"]["tau_spatial_m"] == 2.0
+    shorter = Job(store=store, method="doppler", seed=None, out_root=tmp_path,
+                  params={"tau_spatial_m": 2.0}, lengths_m=(8.0,))
+    assert run_job(shorter).status == "done"
+    assert run_job(shorter).status == "skipped"
+
+
+def test_a_changed_store_reruns(store, tmp_path):
+    copy = tmp_path / "twist.h5"
+    copy.write_bytes(store.read_bytes())
+    job = Job(store=copy, method="doppler", seed=None, out_root=tmp_path / "r")
+    assert run_job(job).status == "done"
+    other = constant_twist_sequence(n_frames=40, n_points=1500, noise_m=0.01, seed=5)
+    write_store(other, copy)
+    assert run_job(job).status == "done"
+
+
+def test_a_failing_forced_rerun_leaves_no_stale_metrics(store, tmp_path):
+    job = Job(store=store, method="doppler", seed=None, out_root=tmp_path)
+    assert run_job(job).status == "done"
+    run_dir = tmp_path / "twist" / "doppler"
+    assert (run_dir / "metrics.json").exists()
+    broken = Job(store=store, method="doppler", seed=None, out_root=tmp_path,
+                 params={"tau_spatial_m": -1.0})
+    assert run_job(broken, force=True).status == "failed"
+    assert not (run_dir / "metrics.json").exists()
+    assert json.loads((run_dir / "failed.json").read_text())["status"] == "failed"
+    assert collect_rows(tmp_path)[0] == []
+
+
+def _experiment(tmp_path, store, methods: str):
+    exp = tmp_path / "exp" / "e.yaml"
+    exp.parent.mkdir(parents=True)
+    exp.write_text(f"name: e\nsequences: [{{path: {store}, name: twist}}]\n"
+                   f"methods: {methods}\nlengths_m: [8, 16]\nout: results\n")
+    return exp
+
+
+def test_labelled_variants_get_two_rows_and_yaml_paths_are_relative(store, tmp_path):
+    exp_path = _experiment(tmp_path, store, "[{name: doppler, label: tau3}, "
+                           "{name: doppler, label: tau1, params: {tau_spatial_m: 1.0}}]")
+    exp = load_experiment(exp_path)
+    assert exp.out_dir == exp_path.parent / "results"
+    outcomes = run_jobs(plan(jobs_for_experiment(exp)), executor="local")
+    assert [o.status for o in outcomes] == ["done", "done"]
+    rows, _ = collect_rows(exp.out_dir)
+    assert sorted(r.label for r in rows) == ["tau1 (no initial guess)", "tau3 (no initial guess)"]
+    assert rows[0].trans != rows[1].trans
+
+
+def test_two_unlabelled_variants_and_folder_collisions_are_user_errors(store, tmp_path):
+    exp_path = _experiment(tmp_path, store, "[{name: doppler}, {name: doppler, "
+                           "params: {tau_spatial_m: 1.0}}]")
+    with pytest.raises(DataError, match="label"):
+        load_experiment(exp_path)
+    copy = tmp_path / "copy.h5"
+    write_store(constant_twist_sequence(n_frames=10, seed=3), copy)  # same internal name
+    jobs = [Job(store=s, method="doppler", seed=None, out_root=tmp_path / "c")
+            for s in (store, copy)]
+    with pytest.raises(DataError, match="share this folder"):
+        plan(jobs)
+
+
+def test_method_sequence_filter(store, tmp_path):
+    exp_path = _experiment(tmp_path, store, "[{name: doppler, sequences: [twist]}, "
+                           "{name: icp-p2p, sequences: [elsewhere]}]")
+    with pytest.raises(DataError, match="unknown sequences elsewhere"):
+        jobs_for_experiment(load_experiment(exp_path))
