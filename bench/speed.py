@@ -77,7 +77,7 @@ def _prep_note(method) -> str:
     factor = getattr(params, "downsample", None)
     notes = [f"1 in {factor} points" if factor and factor > 1 else "all points"]
     voxel = getattr(params, "voxel_size_m", None)
-    if voxel:
+    if voxel and "vgicp" in getattr(method, "name", ""):
         notes.append(f"voxel {voxel:g} m")
     return ", ".join(notes)
 

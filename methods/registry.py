@@ -17,6 +17,7 @@ from loaders.scan import SensorInfo
 from methods.base import Odometry
 from methods.doppler import DopplerCorrespondence
 from methods.doppler_ego import DopplerEgo
+from methods.gicp import GeneralizedIcp, PointToPlaneIcp, VoxelizedGicp
 from methods.icp import PointToPointIcp
 
 METHODS: dict[str, type[Odometry]] = {
@@ -24,6 +25,9 @@ METHODS: dict[str, type[Odometry]] = {
     for cls in (
         DopplerCorrespondence,
         PointToPointIcp,
+        PointToPlaneIcp,
+        GeneralizedIcp,
+        VoxelizedGicp,
         DopplerEgo,
     )
 }
