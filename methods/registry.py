@@ -19,6 +19,7 @@ from methods.doppler import DopplerCorrespondence
 from methods.doppler_ego import DopplerEgo
 from methods.gicp import GeneralizedIcp, PointToPlaneIcp, VoxelizedGicp
 from methods.icp import PointToPointIcp
+from methods.kiss import KissIcp
 
 METHODS: dict[str, type[Odometry]] = {
     cls.name: cls
@@ -28,6 +29,7 @@ METHODS: dict[str, type[Odometry]] = {
         PointToPlaneIcp,
         GeneralizedIcp,
         VoxelizedGicp,
+        KissIcp,
         DopplerEgo,
     )
 }

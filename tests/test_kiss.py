@@ -1,0 +1,91 @@
+"""KISS-ICP wrapper: known motion over a short sequence, seed / no seed, refused deskew."""
+
+import subprocess
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from loaders.errors import DataError
+from loaders.scan import MemorySequence, Scan, SensorInfo, Trajectory
+from loaders.se3 import exp_se3, inv_T, rotation_angle_deg, transform_points
+from methods.kiss import KissIcp
+from methods.registry import make_method
+from test_gicp import _planar_world
+
+
+def _world() -> np.ndarray:
+    """Dense planes plus 80 poles (1 m boxes, 3 m tall) scattered around: structure in every
+    direction, as a scan-to-map method needs."""
+    rng = np.random.default_rng(7)
+    poles = []
+    for cx, cy in rng.uniform([-25, -9], [45, 11], (80, 2)):
+        poles.append(rng.uniform([cx, cy, -2], [cx + 1, cy + 1, 1], (400, 3)))
+    return np.vstack([_planar_world(), *poles])
+
+
+def _sequence(n_frames=12, twist=(8.0, 0.0, 0.0, 0.0, 0.0, 0.05), dt=0.1, times=None):
+    world = _world()
+    poses = [exp_se3(np.asarray(twist) * k * dt) for k in range(n_frames)]
+    scans = []
+    for k, T in enumerate(poses):
+        fields = {} if times is None else {"time_offset_s": np.full(len(world), times)}
+        scans.append(Scan(k * dt, transform_points(inv_T(T), world), fields=fields))
+    return MemorySequence("planes", SensorInfo("lidar", dt), scans,
+                          Trajectory(np.arange(n_frames) * dt, np.array(poses)))
+
+
+def test_noise_free_sequence_is_recovered():
+    seq = _sequence()
+    method = make_method("kiss-icp", {}, seq.sensor)
+    assert method.params.voxel_size_m == 1.0  # max_range / 100, set explicitly
+    result = method.run(seq, seed=True)
+    E = inv_T(seq.ground_truth.poses[-1]) @ result.poses[-1]
+    assert np.linalg.norm(E[:3, 3]) < 1e-3 and rotation_angle_deg(E[:3, :3]) < 0.05, E
+    assert all(f.correspondences > 100 for f in result.frames)
+
+
+def test_no_seed_resets_the_constant_velocity_prediction(monkeypatch):
+    from kiss_icp.kiss_icp import KissICP
+
+    guesses = []
+    original = KissICP.register_frame
+
+    def spy(self, frame, timestamps):
+        guesses.append(self.last_delta.copy())
+        return original(self, frame, timestamps)
+
+    monkeypatch.setattr(KissICP, "register_frame", spy)
+    seq = _sequence(n_frames=5)
+    KissIcp().configured_for(seq.sensor).run(seq, seed=False)
+    assert all(np.allclose(g, np.eye(4)) for g in guesses)
+    guesses.clear()
+    KissIcp().configured_for(seq.sensor).run(seq, seed=True)
+    assert not np.allclose(guesses[-1], np.eye(4))
+
+
+def test_constant_point_times_are_refused_not_aborted():
+    # in a child process: if the check regressed, kiss-icp's abort would kill pytest itself
+    code = textwrap.dedent("""
+        import sys
+        sys.path[:0] = ["tests", "."]
+        from test_kiss import _sequence
+        from methods.kiss import KissIcp
+        from loaders.errors import DataError
+        seq = _sequence(n_frames=3, times=0.05)
+        try:
+            KissIcp().configured_for(seq.sensor).run(seq, seed=True)
+        except DataError as err:
+            print("REFUSED", err)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "REFUSED" in out.stdout and "frame 0" in out.stdout and "deskew" in out.stdout
+
+
+def test_deskew_true_without_times_is_an_error():
+    seq = _sequence(n_frames=2)
+    with pytest.raises(DataError, match="per-point"):
+        KissIcp(deskew=True).configured_for(seq.sensor).run(seq, seed=True)
