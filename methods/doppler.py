@@ -124,32 +124,40 @@ class DopplerScan:
     stamp: float
     points_t: np.ndarray
     doppler: np.ndarray
+    points: np.ndarray | None = None  # (N, 3) float64, for methods that iterate on the points
 
     def __len__(self) -> int:
         return self.points_t.shape[1]
 
 
-def register_numpy(source: DopplerScan, target: DopplerScan, tau_spatial_m: float,
-                   tau_doppler: float) -> tuple[np.ndarray | None, int]:
-    """Reference implementation of one step: (T_target_source or None, correspondences)."""
+def doppler_pairs(source: DopplerScan, target: DopplerScan, tau_spatial_m: float,
+                  tau_doppler: float) -> tuple[np.ndarray, np.ndarray]:
+    """Doppler correspondences (Algorithm 2's matching and masks): indices of the kept source
+    points and of their matched target points."""
     dt_s = target.stamp - source.stamp
     P, Q = source.points_t, target.points_t
     f = _feature(P, source.doppler, dt_s, 1.0)
     g = _feature(Q, target.doppler, dt_s, -1.0)
     match = nearest_1d(g, f)
-    Q_matched = np.take(Q, match, axis=1)
-    d = P - Q_matched
+    d = P - np.take(Q, match, axis=1)
     d *= d
     dist2 = d[0] + d[1]
     dist2 += d[2]
     keep = dist2 <= np.float32(tau_spatial_m**2)
     keep &= np.abs(f - g.take(match)) <= np.float32(tau_doppler)
     idx = np.flatnonzero(keep)
-    if len(idx) < 3:
-        return None, len(idx)
-    P64 = np.take(P, idx, axis=1).astype(np.float64)
-    Q64 = np.take(Q_matched, idx, axis=1).astype(np.float64)
-    return fit_rigid_t(P64, Q64), len(idx)
+    return idx, match[idx]
+
+
+def register_numpy(source: DopplerScan, target: DopplerScan, tau_spatial_m: float,
+                   tau_doppler: float) -> tuple[np.ndarray | None, int]:
+    """Reference implementation of one step: (T_target_source or None, correspondences)."""
+    src_idx, tgt_idx = doppler_pairs(source, target, tau_spatial_m, tau_doppler)
+    if len(src_idx) < 3:
+        return None, len(src_idx)
+    P64 = np.take(source.points_t, src_idx, axis=1).astype(np.float64)
+    Q64 = np.take(target.points_t, tgt_idx, axis=1).astype(np.float64)
+    return fit_rigid_t(P64, Q64), len(src_idx)
 
 
 def register_numba(kernel, source: DopplerScan, target: DopplerScan, tau_spatial_m: float,

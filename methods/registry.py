@@ -17,6 +17,7 @@ from loaders.scan import SensorInfo
 from methods.base import Odometry
 from methods.doppler import DopplerCorrespondence
 from methods.doppler_ego import DopplerEgo
+from methods.doppler_icp import DopplerIcp
 from methods.gicp import GeneralizedIcp, PointToPlaneIcp, VoxelizedGicp
 from methods.icp import PointToPointIcp
 from methods.kiss import KissIcp
@@ -30,6 +31,7 @@ METHODS: dict[str, type[Odometry]] = {
         GeneralizedIcp,
         VoxelizedGicp,
         KissIcp,
+        DopplerIcp,
         DopplerEgo,
     )
 }
