@@ -58,16 +58,18 @@ class DopplerIcpParams(MethodParams):
 @nb.njit(cache=True)
 def _accumulate(src, tgt, scale, huber, A, b):  # pragma: no cover - compiled
     """A += scale * sum w J^T J, b += scale * sum w J^T r for r = q - p, J = [I, -[p]x]."""
+    J = np.zeros((3, 6))
+    J[0, 0] = J[1, 1] = J[2, 2] = 1.0
+    r = np.empty(3)
     for i in range(src.shape[0]):
         px, py, pz = src[i, 0], src[i, 1], src[i, 2]
-        rx, ry, rz = tgt[i, 0] - px, tgt[i, 1] - py, tgt[i, 2] - pz
-        e = np.sqrt(rx * rx + ry * ry + rz * rz)
+        r[0], r[1], r[2] = tgt[i, 0] - px, tgt[i, 1] - py, tgt[i, 2] - pz
+        e = np.sqrt(r[0] * r[0] + r[1] * r[1] + r[2] * r[2])
         w = scale * (1.0 if e <= huber else huber / e)
         # J rows: [1 0 0 | 0 pz -py], [0 1 0 | -pz 0 px], [0 0 1 | py -px 0]
-        J = np.array([[1.0, 0.0, 0.0, 0.0, pz, -py],
-                      [0.0, 1.0, 0.0, -pz, 0.0, px],
-                      [0.0, 0.0, 1.0, py, -px, 0.0]])
-        r = np.array([rx, ry, rz])
+        J[0, 4], J[0, 5] = pz, -py
+        J[1, 3], J[1, 5] = -pz, px
+        J[2, 3], J[2, 4] = py, -px
         for a in range(6):
             b[a] += w * (J[0, a] * r[0] + J[1, a] * r[1] + J[2, a] * r[2])
             for c in range(a, 6):
