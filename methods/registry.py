@@ -15,6 +15,7 @@ import os
 from loaders.errors import DataError
 from loaders.scan import SensorInfo
 from methods.base import Odometry
+from methods.dicp import Dicp
 from methods.doppler import DopplerCorrespondence
 from methods.doppler_ego import DopplerEgo
 from methods.doppler_icp import DopplerIcp
@@ -27,6 +28,7 @@ METHODS: dict[str, type[Odometry]] = {
     for cls in (
         DopplerCorrespondence,
         PointToPointIcp,
+        Dicp,
         PointToPlaneIcp,
         GeneralizedIcp,
         VoxelizedGicp,

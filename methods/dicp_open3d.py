@@ -1,0 +1,54 @@
+"""``dicp`` with ``backend=open3d``: the authors' own implementation, upstream in Open3D, run
+on the scans ``methods.dicp`` prepared (downsampled, vehicle frame, directions); Open3D
+estimates the target normals itself (hybrid search: 10 m, at most 30 neighbours)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from loaders.errors import DataError
+
+
+def _open3d():
+    try:
+        import open3d as o3d
+    except ImportError as err:
+        raise DataError("dicp backend=open3d needs Open3D: pip install 'doppler-bench[open3d]'"
+                        " (on Debian also: apt-get install libusb-1.0-0); import failed: "
+                        f"{err}") from None
+    return o3d
+
+
+def register_open3d(params, source, target, T_init: np.ndarray, period_s: float,
+                    T_vehicle_sensor: np.ndarray) -> tuple[np.ndarray, int, int, bool]:
+    """(T_target_source in the vehicle frame, pairs, iterations, converged)."""
+    o3d = _open3d()
+    reg = o3d.t.pipelines.registration
+    f64 = o3d.core.float64
+    src = o3d.t.geometry.PointCloud(o3d.core.Tensor(source.points, f64))
+    src.point["dopplers"] = o3d.core.Tensor(source.doppler.reshape(-1, 1), f64)
+    src.point["directions"] = o3d.core.Tensor(source.directions, f64)
+    tgt = o3d.t.geometry.PointCloud(o3d.core.Tensor(target.points, f64))
+    tgt.estimate_normals(max_nn=params.normal_neighbours, radius=params.normal_radius_m)
+    kernel = reg.robust_kernel
+    estimation = reg.TransformationEstimationForDopplerICP(
+        period=period_s, lambda_doppler=params.lambda_doppler,
+        reject_dynamic_outliers=params.reject_dynamic,
+        doppler_outlier_threshold=params.dynamic_threshold_mps,
+        outlier_rejection_min_iteration=params.reject_from,
+        geometric_robust_loss_min_iteration=params.geometric_kernel_from,
+        doppler_robust_loss_min_iteration=params.doppler_kernel_from,
+        geometric_kernel=kernel.RobustKernel(kernel.RobustKernelMethod.TukeyLoss,
+                                             params.geometric_kernel),
+        doppler_kernel=kernel.RobustKernel(kernel.RobustKernelMethod.TukeyLoss,
+                                           params.doppler_kernel),
+        transform_vehicle_to_sensor=o3d.core.Tensor(T_vehicle_sensor, f64))
+    iterations = []
+    result = reg.icp(src, tgt, params.max_correspondence_m, o3d.core.Tensor(T_init, f64),
+                     estimation,
+                     reg.ICPConvergenceCriteria(params.convergence, params.convergence,
+                                                params.max_iterations),
+                     -1.0, lambda info: iterations.append(1))
+    pairs = int(round(result.fitness * len(source.points)))
+    return (result.transformation.numpy(), pairs, len(iterations),
+            len(iterations) < params.max_iterations)
