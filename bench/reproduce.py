@@ -20,7 +20,7 @@ from bench.experiment import Experiment, SequenceEntry, load_experiment
 from bench.figures import plot_trajectories
 from bench.progress import run_jobs
 from bench.run import Job, plan, summarize
-from bench.runplan import jobs_for_experiment
+from bench.runplan import jobs_for_experiment, suite_sequences
 from bench.tables import write_tables
 from bench.tables_ape import write_ape_tables
 
@@ -85,6 +85,10 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
         console.print(f"no real stores under {data_dir / 'real'}: using the synthetic suite "
                       "'synthetic-paper'")
     experiments = table_experiments(out, data_dir, real)
+    suites = {e.suite for e in experiments.values() if e.suite is not None}
+    resolved = {name: suite_sequences(name, data_dir, console) for name in suites}
+    experiments = {k: e if e.suite is None else e.model_copy(update={
+        "suite": None, "sequences": resolved[e.suite]}) for k, e in experiments.items()}
     per_table: dict[str, list[Job]] = {
         name: plan(jobs_for_experiment(exp, console)) for name, exp in experiments.items()}
     all_jobs = plan([j for js in per_table.values() for j in js])

@@ -130,7 +130,7 @@ class Registration(Odometry):
             if prev is None:
                 frames.append(FrameRecord(i, raw.stamp, float("nan"), len(scan), 0, 0, True))
             else:
-                dt = scan.stamp - prev.stamp
+                dt = raw.stamp - stamps[i - 1]
                 init = np.eye(4)
                 if seed and self.uses_initial_guess and last_dt:
                     init = scale_motion(last_motion, dt / last_dt)
