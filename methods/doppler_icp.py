@@ -1,22 +1,31 @@
 """Doppler 4D-ICP: the paper's Algorithm 1 (Doppler Correspondence combined with ICP).
 
-Facts of the paper (Section "Practical Use") and its public reference code (C++ node):
-1. Doppler correspondences from ``doppler``'s matching - the features f(p) = |p|^2 + |p| v_p dT
-   and g(q) = |q|^2 - |q| v_q dT, each source point's nearest g in 1-D, kept when
-   |f - g| <= tau_doppler and |p - q| <= tau_spatial on the untransformed points - computed
-   once before the loop and kept fixed, then moved by the initial guess with the source.
-2. Every iteration: closest points of the moved source in the target (within 2.0 m), then one
+Returns T_target_source: source = previous scan, target = current scan, both in the sensor
+frame; points in m, Doppler in m/s (positive receding), dT [s] from the scans' stamps.
+
+Facts of the paper (Section "Practical Use") and its public reference code
+(github.com/Tars0523/Doppler_Correspondence, pipeline/icp_doppler.cpp, icp_iter.cpp):
+1. Doppler correspondences from ``doppler``'s matching (``methods.doppler.doppler_pairs``: the
+   features f(p) = |p|^2 + |p| v_p dT and g(q) = |q|^2 - |q| v_q dT in float32, each source
+   point's nearest g in 1-D with the same tie rules, kept when |f - g| <= tau_doppler and
+   |p - q| <= tau_spatial on the untransformed points), computed once before the loop and kept
+   fixed, then moved by the initial guess with the source.
+2. Every iteration: closest points of the moved source in the target (small_gicp's compiled
+   kd-tree, built once per call; pairs closer than 2.0 m, strict as the reference), then one
    Gauss-Newton step of point-to-point residuals r = q - p' with Jacobian [I, -[p']x] on the
-   weighted sum (1 - alpha) * huber over the spatial pairs + alpha * huber over the Doppler
-   pairs (Huber weight 1 or 0.5 / |r|; not normalised by pair counts), applied on the left.
-3. At most 20 iterations; converged when the mean spatial pair distance (before the step)
-   changes by less than 1e-4 m.
+   weighted sum (1 - alpha) * Huber over the spatial pairs + alpha * Huber over the Doppler
+   pairs (Huber weight 1 or 0.5 / |r| on the residual norm; not normalised by pair counts),
+   applied on the left.
+3. At most 20 iterations; converged when the mean distance of the iteration's spatial pairs
+   (before its step) changes by less than 1e-4 m.
 Parameter sets (paper): radar tau_spatial 3 m, tau_doppler 10 m^2, alpha 0.7; LiDAR 2, 5, 0.9,
 chosen by the sequence's sensor kind (``configured_for``) unless set; without a sensor the
-radar set is used. The reference code's radar config uses tau_doppler 8 and a fixed period of
-1/12 s; here dT comes from the scans' stamps. No downsampling (the reference code's default:
-"radar point clouds are already sparse"). The target kd-tree (small_gicp) is built inside the
-timed call, as the reference code builds its tree per registration.
+radar set is used. The reference code's radar config uses tau_doppler 8 (not 10) and a fixed
+period of 1/12 s; here dT comes from the scans' stamps. Downsampling as the reference code:
+a uniform stride on both scans before the Doppler pairs, default 1 ("radar point clouds are
+already sparse"); here it is untimed preparation. The target kd-tree is built inside the timed
+call, as the reference code builds its tree per registration. The reference's 1-D search is a
+PCL kd-tree on float32 casts of double features: the same pairs up to ties and rounding.
 """
 
 from __future__ import annotations
