@@ -184,7 +184,8 @@ class DopplerIcp(Registration):
                             "values")
         scan = uniform_downsample(scan, self.params.downsample)
         return DopplerScan(scan.stamp, np.ascontiguousarray(scan.points.T, dtype=np.float32),
-                           scan.doppler.astype(np.float32), scan.points)
+                           scan.doppler.astype(np.float32),
+                           np.ascontiguousarray(scan.points, dtype=np.float64))
 
     def register(self, source: DopplerScan, target: DopplerScan,
                  init_T_target_source: np.ndarray) -> RegistrationResult:
