@@ -61,6 +61,25 @@ def store_identity(path: Path) -> str:
     return _store_hashes[cache_key]
 
 
+_ROOT = Path(__file__).resolve().parent.parent
+_code_hash: list[str] = []
+
+
+def code_identity() -> str:
+    """SHA-256 of the code that determines a result (methods/, metrics/, the scoring in
+    bench/evaluate.py): a change there re-runs every run, so no result of older code is
+    shown as current."""
+    if not _code_hash:
+        h = hashlib.sha256()
+        files = sorted([*(_ROOT / "methods").glob("*.py"), *(_ROOT / "metrics").glob("*.py"),
+                        _ROOT / "bench" / "evaluate.py"])
+        for path in files:
+            h.update(path.name.encode())
+            h.update(path.read_bytes())
+        _code_hash.append(h.hexdigest()[:16])
+    return _code_hash[0]
+
+
 def run_key(identity: dict) -> str:
     """A short key of everything that determines a run's result (``identity``: store content,
     method, resolved parameters, seed option, evaluation settings)."""

@@ -2,9 +2,10 @@
 
 A job's folder is ``<out>/<sequence>/<method or label>[_seed|_noseed]``; its ``config.yaml``
 holds a ``run_key``: a hash of everything that determines the result (the store's content
-hash, the method, its resolved parameters, the seed option, the evaluation lengths). A job is
-skipped only when its folder holds a finished run with the same key; otherwise the old records
-are removed first and it runs again, so a failed re-run never leaves stale metrics behind.
+hash, the method, its resolved parameters, the seed option, the evaluation lengths, and the
+hash of the code that computes results: methods/, metrics/, the scoring). A job is skipped
+only when its folder holds a finished run with the same key; otherwise the old records are
+removed first and it runs again, so a failed re-run never leaves stale metrics behind.
 ``plan`` resolves every job before anything runs (stores, parameters, folders), so bad input
 is one clear error up front. Executors (``bench.executors``) run the planned jobs.
 """
@@ -22,6 +23,7 @@ from pydantic import ValidationError
 from bench.evaluate import evaluate_run
 from bench.results import (
     clear_run,
+    code_identity,
     is_finished,
     run_dir_name,
     run_key,
@@ -136,7 +138,8 @@ def prepare(job: Job) -> Prepared:
         config["method"]["params"] = params.model_dump(mode="json") if params is not None else {}
         identity = {"store_sha256": store_identity(job.store), "method": job.method,
                     "params": config["method"]["params"], "seed": job.seed,
-                    "lengths_m": [float(x) for x in job.lengths_m]}
+                    "lengths_m": [float(x) for x in job.lengths_m],
+                    "code_sha256": code_identity()}
         config["run_key"] = run_key(identity)
         config["identity"] = identity
         return Prepared(seq, method, run_dir, config["run_key"], config)
