@@ -231,6 +231,28 @@ def table(
 
 
 @app.command()
+def compare(
+    a: Annotated[Path, typer.Argument(help="results folder or run folder A (the baseline)")],
+    b: Annotated[Path, typer.Argument(help="results folder or run folder B")],
+    threshold: Annotated[float, typer.Option(help="relative growth marked as a regression")]
+    = 0.10,
+    fail_on_regression: Annotated[bool, typer.Option(help="exit 1 when B regresses")] = False,
+) -> None:
+    """Two result folders side by side: A -> B and the change per sequence, method, seed and
+    segment length; regressions marked with '!'."""
+    from bench.compare import compare as compare_runs
+    from bench.compare import to_text
+
+    df = compare_runs(a, b, threshold)
+    console.print(to_text(df), markup=False, highlight=False)
+    n = int(df["regression"].sum())
+    console.print(f"{len(df)} cells, {n} regressions (> {threshold:.0%} growth or newly "
+                  "diverged)", markup=False)
+    if fail_on_regression and n:
+        raise typer.Exit(1)
+
+
+@app.command()
 def figures(
     results_dir: Annotated[Path, typer.Argument(help="results folder (searched recursively)")],
     out: Annotated[Path | None, typer.Option(help="output folder (default RESULTS_DIR/figures)")]
