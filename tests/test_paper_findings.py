@@ -61,3 +61,32 @@ def test_uturn_doubles_the_rotation_error_of_doppler():
     uturn, uturn_rate = _doppler_rotation_error_8m(uturn=True)
     assert gentle_rate < 0.15 and 0.45 < uturn_rate < 0.65  # the paper's two regimes
     assert uturn >= 2 * gentle, (uturn, gentle)
+
+
+def test_dicp_slides_along_straight_walls_five_times_less_than_point_to_plane():
+    # the degenerate geometry DICP was made for (Hexsel et al.): two parallel walls
+    seq = _in_memory(SyntheticSequence("straight-wall", "lidar-dense", frames=15, seed=4,
+                                       points=12000))
+    gt = seq.ground_truth.poses
+    dicp = make_method("dicp", {}, seq.sensor).run(seq, seed=True).poses
+    plane = make_method("icp-p2plane", {}, seq.sensor).run(seq, seed=True).poses
+    drift_dicp = along_track_drift_m(gt, dicp)
+    drift_plane = along_track_drift_m(gt, plane) if np.all(np.isfinite(plane)) else np.inf
+    assert drift_plane >= 5 * drift_dicp, (drift_dicp, drift_plane)
+
+
+def test_doppler_icp_is_no_worse_than_doppler_and_icp_on_a_loop():
+    # (on the suite's 80-frame empty tunnel it holds too, by about 1 %: see bench reproduce's
+    # Table V; on short tunnels it does not, so that case is not a test)
+    from metrics import ape
+
+    for scene, sensor, options in (("loop", "radar-semidense", {}),):
+        seq = _in_memory(SyntheticSequence(scene, sensor, frames=30, seed=2, **options))
+        gt = seq.ground_truth.poses
+        errors = {}
+        for name in ("doppler", "icp-p2p", "doppler-icp"):
+            est = make_method(name, {}, seq.sensor).run(seq, seed=True).poses
+            errors[name] = (ape(gt, est, alignment="se3").trans_rmse_m
+                            if np.all(np.isfinite(est)) else np.inf)
+        assert errors["doppler-icp"] <= min(errors["doppler"], errors["icp-p2p"]) * 1.02, \
+            (scene, errors)
