@@ -74,6 +74,18 @@ SUITES: dict[str, list[SuiteEntry]] = {
         SuiteEntry("Tunnel_Vehicles", "Baker-Barry Tunnel (Vehicles)", DENSE,
                    "tunnel-vehicles", "lidar-dense", 80, 123, dict(_LIDAR)),
     ],
+    # small sequences of every sensor class for CI regression (configs/experiments/ci.yaml)
+    "synthetic-ci": [
+        SuiteEntry("ci-sparse", "CI sparse radar", SPARSE, "campus", "radar-sparse", 60, 201),
+        SuiteEntry("ci-semidense", "CI semi-dense radar", SEMI_DENSE, "loop", "radar-semidense",
+                   50, 202),
+        SuiteEntry("ci-uturn", "CI semi-dense radar U-turn", SEMI_DENSE, "loop",
+                   "radar-semidense", 50, 203, {"uturn": True}),
+        SuiteEntry("ci-tunnel", "CI dense LiDAR tunnel", DENSE, "tunnel", "lidar-dense", 25, 204,
+                   {"points": 8000}),
+        SuiteEntry("ci-wall", "CI dense LiDAR straight wall", DENSE, "straight-wall",
+                   "lidar-dense", 25, 205, {"points": 8000}),
+    ],
 }
 
 
