@@ -253,6 +253,45 @@ def compare(
 
 
 @app.command()
+def regress(
+    update: Annotated[bool, typer.Option(help="accept the current results as the new baseline "
+                                              "and print what changed")] = False,
+    tolerance: Annotated[float, typer.Option(help="relative growth that fails")] = 0.10,
+    jobs: Annotated[int, typer.Option(min=1, help="parallel workers")] = 2,
+) -> None:
+    """CI regression: run configs/experiments/ci.yaml (unchanged runs are reused) and compare
+    with configs/ci/baseline.json; exit 1 when a method's error grows by more than the
+    tolerance or it newly diverges."""
+    from bench import regress as rg
+    from bench.experiment import load_experiment
+    from bench.progress import run_jobs
+    from bench.run import plan, summarize
+    from bench.runplan import jobs_for_experiment
+
+    exp = load_experiment(rg.CI_EXPERIMENT)
+    outcomes = run_jobs(plan(jobs_for_experiment(exp, console)), console, jobs)
+    if any(o.status not in ("done", "skipped") for o in outcomes):
+        console.print(summarize(outcomes), markup=False)
+        raise typer.Exit(1)
+    only = {o.run_dir for o in outcomes}
+    current = rg.snapshot(exp.out_dir, only)
+    baseline = {} if update and not rg.BASELINE.exists() else rg.read_baseline(rg.BASELINE)
+    findings = rg.check(baseline, current, tolerance)
+    for f in findings:
+        console.print(str(f), markup=False)
+    if update:
+        rg.write_baseline(current, rg.BASELINE)
+        console.print(f"baseline updated: {rg.BASELINE} ({len(findings)} changes)",
+                      markup=False)
+        return
+    bad = [f for f in findings if f.regression]
+    console.print(f"{len(current)} runs, {len(findings)} changes, {len(bad)} regressions",
+                  markup=False)
+    if bad:
+        raise typer.Exit(1)
+
+
+@app.command()
 def figures(
     results_dir: Annotated[Path, typer.Argument(help="results folder (searched recursively)")],
     out: Annotated[Path | None, typer.Option(help="output folder (default RESULTS_DIR/figures)")]

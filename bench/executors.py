@@ -21,14 +21,15 @@ import contextlib
 import ctypes
 import logging
 import os
-import queue as queue_mod
 import signal
 import tempfile
 import threading
 import time
 from collections.abc import Callable
 from multiprocessing import get_context
+from multiprocessing.connection import wait as wait_for
 
+from bench.results import is_finished
 from bench.run import Job, JobOutcome, expected_cost, record_unfinished, run_job
 from loaders.errors import DataError
 from methods.timing import TIMING_LOCK_ENV
@@ -57,6 +58,18 @@ def execute(jobs: list[Job], executor: str, workers: int, force: bool, report: R
     """Run ``jobs`` with ``executor``; ``finish`` is called once per job as it ends. Ctrl-C
     ends the workers, records the runs in flight as interrupted and re-raises."""
     pin_threads()
+    if not force:  # planned runs already finished with the same inputs: no worker needed
+        done = {i for i, j in enumerate(jobs) if j.run_key and j.run_dir_override
+                and is_finished(j.run_dir_override, j.run_key)}
+        if done:
+            skipped = {i: JobOutcome(jobs[i], "skipped", str(jobs[i].run_dir_override),
+                                     run_dir=jobs[i].run_dir_override) for i in done}
+            for outcome in skipped.values():
+                finish(outcome)
+            rest = [j for i, j in enumerate(jobs) if i not in done]
+            ran = iter(execute(rest, executor, workers, force, report, finish,
+                               job_timeout_s, scheduler) if rest else [])
+            return [skipped[i] if i in done else next(ran) for i in range(len(jobs))]
     if executor == "local":
         return _run_local(jobs, force, report, finish)
     if executor == "process":
@@ -99,7 +112,9 @@ def _die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
-def _worker(index: int, job: Job, force: bool, messages, parent_pid: int) -> None:
+def _worker(job: Job, force: bool, conn, parent_pid: int) -> None:
+    """One job in a fresh process; reports on its own pipe (no lock shared with other workers,
+    so a worker that crashes mid-message cannot block the others)."""
     _die_with_parent(parent_pid)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process decides what Ctrl-C ends
     last = [0.0]
@@ -108,9 +123,10 @@ def _worker(index: int, job: Job, force: bool, messages, parent_pid: int) -> Non
         now = time.monotonic()
         if done == total or now - last[0] > 0.2:
             last[0] = now
-            messages.put(("progress", index, done, total))
+            conn.send(("progress", done, total))
 
-    messages.put(("outcome", index, run_job(job, force, progress)))
+    conn.send(("outcome", run_job(job, force, progress)))
+    conn.close()
 
 
 def _exit_reason(exitcode: int | None) -> str:
@@ -124,10 +140,9 @@ def _exit_reason(exitcode: int | None) -> str:
 
 def _run_processes(jobs, workers, force, report, finish, job_timeout_s) -> list[JobOutcome]:
     ctx = get_context("spawn")
-    messages = ctx.Queue()
     # longest jobs first (iterative methods on large stores), so workers finish together
     pending = sorted(range(len(jobs)), key=lambda i: expected_cost(jobs[i]), reverse=True)
-    running: dict[int, tuple] = {}   # index -> (process, start time)
+    running: dict[int, tuple] = {}   # index -> (process, start time, receiving end)
     results: dict[int, JobOutcome] = {}
 
     def done(index: int, outcome: JobOutcome) -> None:
@@ -135,27 +150,31 @@ def _run_processes(jobs, workers, force, report, finish, job_timeout_s) -> list[
         finish(outcome)
 
     def drain(timeout: float) -> None:
-        try:
-            while True:
-                kind, index, *rest = messages.get(timeout=timeout)
-                timeout = 0.0
-                if kind == "progress":
-                    report(jobs[index], *rest)
-                elif index not in results:
-                    done(index, rest[0])
-        except queue_mod.Empty:
-            pass
+        conns = {entry[2]: index for index, entry in running.items()}
+        for conn in wait_for(list(conns), timeout=timeout):
+            index = conns[conn]
+            try:
+                while conn.poll():
+                    kind, *rest = conn.recv()
+                    if kind == "progress":
+                        report(jobs[index], *rest)
+                    elif index not in results:
+                        done(index, rest[0])
+            except (EOFError, OSError):
+                pass  # the worker ended; its exit is handled below
 
     try:
         while pending or running:
             while pending and len(running) < max(1, workers):
                 index = pending.pop(0)
+                receiver, sender = ctx.Pipe(duplex=False)
                 proc = ctx.Process(target=_worker, daemon=True,
-                                   args=(index, jobs[index], force, messages, os.getpid()))
+                                   args=(jobs[index], force, sender, os.getpid()))
                 proc.start()
-                running[index] = (proc, time.monotonic())
+                sender.close()
+                running[index] = (proc, time.monotonic(), receiver)
             drain(0.1)
-            for index, (proc, start) in list(running.items()):
+            for index, (proc, start, receiver) in list(running.items()):
                 if proc.is_alive():
                     if job_timeout_s and time.monotonic() - start > job_timeout_s:
                         proc.kill()
@@ -163,28 +182,26 @@ def _run_processes(jobs, workers, force, report, finish, job_timeout_s) -> list[
                         message = f"timeout: ended after {job_timeout_s:g} s (--job-timeout)"
                         record_unfinished(jobs[index], message, "timeout")
                         done(index, JobOutcome(jobs[index], "failed", message))
+                        receiver.close()
                         del running[index]
                     continue
                 proc.join()
-                del running[index]
-                deadline = time.monotonic() + 2.0
-                while index not in results and time.monotonic() < deadline:
-                    drain(0.1)
+                drain(0.0)
                 if index not in results:
                     message = _exit_reason(proc.exitcode)
                     record_unfinished(jobs[index], message, "crashed")
                     done(index, JobOutcome(jobs[index], "failed", message))
+                receiver.close()
+                del running[index]
     except KeyboardInterrupt:
-        for proc, _ in running.values():
+        for proc, _, _ in running.values():
             proc.kill()
-        for index, (proc, _) in running.items():
+        for index, (proc, _, _) in running.items():
             proc.join(timeout=5)
             message = "interrupted by the user (Ctrl-C)"
             record_unfinished(jobs[index], message, "interrupted")
             results[index] = JobOutcome(jobs[index], "interrupted", message)
         raise
-    finally:
-        messages.close()
     return [results[i] for i in range(len(jobs)) if i in results]
 
 

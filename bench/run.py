@@ -57,6 +57,7 @@ class Job:
     sensor_class: str | None = None
     run_dir_override: Path | None = None
     label: str | None = None
+    run_key: str | None = None  # set by ``plan``
 
     @property
     def title(self) -> str:
@@ -169,7 +170,7 @@ def plan(jobs: list[Job]) -> list[Job]:
             continue
         owners[prep.run_dir] = (job, prep.key)
         _check_writable(prep.run_dir)
-        planned.append(replace(job, run_dir_override=prep.run_dir))
+        planned.append(replace(job, run_dir_override=prep.run_dir, run_key=prep.key))
     if problems:
         raise DataError("\n".join(dict.fromkeys(problems)))
     # the same run asked for twice (e.g. by two tables) runs once
