@@ -295,7 +295,10 @@ def plot_speed(sequence: Sequence, path: str | Path) -> Path:
     ax.legend(loc="best")
     fig.tight_layout()
     path = Path(path)
-    fig.savefig(path, dpi=120)
+    from loaders.fileio import atomic_path
+
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=120, format="png")
     plt.close(fig)
     return path
 

@@ -101,11 +101,17 @@ def synth(
 def inspect(
     path: Annotated[Path, typer.Argument(help="a store (.h5) or a NumPy frame folder")],
     period: Annotated[float | None, typer.Option(help="scan period [s] for frame folders")] = None,
+    plot: Annotated[Path | None, typer.Option(
+        help="PNG of the speed from Doppler against GT speed (default: "
+             "results/inspect/NAME_speed.png; '-' for none)")] = None,
 ) -> None:
-    """Print frames, points per frame, period, duration, GT figures and a Doppler-sign check."""
+    """Print frames, points per frame, period, duration, GT figures, a Doppler-sign check and
+    a sensor-to-GT rotation check; plot the speed from Doppler against the GT speed."""
     from bench.inspect import inspect_path
 
-    inspect_path(path, period, console)
+    if plot is None:
+        plot = Path("results/inspect") / f"{path.stem}_speed.png"
+    inspect_path(path, period, console, None if str(plot) == "-" else plot)
 
 
 @app.command()

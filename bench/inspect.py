@@ -7,6 +7,7 @@ from pathlib import Path
 
 import numpy as np
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 from bench.evaluate import gt_for_frames
@@ -28,7 +29,10 @@ def open_sequence(path: Path, period_s: float | None = None) -> Sequence:
     return StoreSequence(path)
 
 
-def inspect_path(path: Path, period_s: float | None, console: Console) -> dict:
+def inspect_path(path: Path, period_s: float | None, console: Console,
+                 plot: Path | None = None) -> dict:
+    """Print the figures of a store or frame folder; with GT and Doppler also the
+    sensor-to-GT rotation check and (``plot``) a PNG of Doppler speed against GT speed."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         seq = open_sequence(path, period_s)
@@ -43,6 +47,18 @@ def inspect_path(path: Path, period_s: float | None, console: Console) -> dict:
         console.print(f"  [yellow]GT:[/] {finding}", highlight=False)
     style = "green" if report["sign"].verdict == "confirmed" else "yellow"
     console.print(f"[{style}]{report['sign'].describe()}[/]", highlight=False)
+    if seq.ground_truth is not None and len(seq) and seq[0].doppler is not None:
+        from bench.calibrate import plot_speed, rotation_check
+
+        cal, warning = rotation_check(seq)
+        if warning:
+            console.print(f"[yellow]warning:[/] {escape(warning)}")
+        elif cal is not None:
+            console.print("sensor-to-GT rotation: consistent within 0.5 deg (Doppler ego "
+                          "velocity vs GT velocity)", highlight=False)
+        if plot is not None:
+            plot.parent.mkdir(parents=True, exist_ok=True)
+            console.print(f"speed from Doppler vs GT: {plot_speed(seq, plot)}", markup=False)
     return report
 
 

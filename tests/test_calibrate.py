@@ -66,3 +66,21 @@ def test_inspect_check_and_corrected_store(loop, tmp_path):
     assert again.total_deg < 0.1 < cal.total_deg
     np.testing.assert_allclose(fixed[3].points, short[3].points)  # points untouched
     assert "calibration" in fixed.provenance
+
+
+def test_bench_inspect_warns_and_plots_the_doppler_speed(loop, tmp_path):
+    from typer.testing import CliRunner
+
+    from bench.cli import app
+
+    short = MemorySequence("s", loop.sensor, [loop[i] for i in range(25)],
+                           loop.ground_truth, {})
+    src = write_store(rotated_gt(short), tmp_path / "rot.h5")
+    png = tmp_path / "speed.png"
+    res = CliRunner().invoke(app, ["inspect", str(src), "--plot", str(png)])
+    assert res.exit_code == 0, res.output
+    assert "looks rotated" in res.output and "pitch" in res.output
+    assert png.stat().st_size > 10_000
+    ok = write_store(short, tmp_path / "ok.h5")
+    res = CliRunner().invoke(app, ["inspect", str(ok), "--plot", "-"])
+    assert res.exit_code == 0 and "consistent within 0.5 deg" in res.output
