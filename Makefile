@@ -5,7 +5,7 @@ PY := $(VENV)/bin/python
 BENCH := $(VENV)/bin/bench
 STAMP := $(VENV)/.installed
 
-.PHONY: install system-deps test lint reproduce-table speed clean
+.PHONY: install system-deps test lint reproduce-table figures speed clean
 
 # Open3D's wheel (the DICP cross-check, an optional extra for users) needs libusb-1.0 from the
 # system; install it with apt when it is missing and we may (root), else say what to run.
@@ -36,6 +36,10 @@ lint: $(STAMP)
 # the paper's Tables III-V on the synthetic suite (or on real stores under data/real when present)
 reproduce-table: system-deps $(STAMP)
 	$(BENCH) reproduce
+
+# every paper figure of the reproduced tables (and of `make speed` when it has run)
+figures: $(STAMP)
+	$(BENCH) figures results/paper-synthetic
 
 speed: $(STAMP)
 	$(BENCH) speed

@@ -299,17 +299,34 @@ def regress(
 
 @app.command()
 def figures(
-    results_dir: Annotated[Path, typer.Argument(help="results folder (searched recursively)")],
+    results_dir: Annotated[Path | None, typer.Argument(
+        help="results folder (searched recursively)")] = None,
     out: Annotated[Path | None, typer.Option(help="output folder (default RESULTS_DIR/figures)")]
     = None,
+    speed_csv: Annotated[Path | None, typer.Option(
+        help="a `bench speed` CSV to plot (default results/speed/speed.csv when present)")]
+    = None,
+    pair: Annotated[tuple[Path, int] | None, typer.Option(
+        help="STORE FRAME: closest-point vs Doppler correspondences of one scan pair")] = None,
 ) -> None:
-    """Top-view trajectory plots per sequence (estimates aligned at the first pose)."""
-    from bench.figures import plot_trajectories
+    """Paper figures (PDF and PNG): trajectories, relative-error box plots, error along the
+    path, per-frame time and correspondences, speed scaling; or one scan pair's
+    correspondences (--pair STORE FRAME)."""
+    from bench.figures import make_figures
+    from bench.figures_pair import plot_pair
 
-    paths = plot_trajectories(results_dir, out)
+    paths = []
+    if pair is not None:
+        paths += plot_pair(pair[0], pair[1], out or Path("results/figures"))
+    if results_dir is not None:
+        default_csv = Path("results/speed/speed.csv")
+        paths += make_figures(results_dir, out, speed_csv or
+                              (default_csv if default_csv.exists() else None))
     if not paths:
-        raise DataError(f"{results_dir}: no finished runs with ground truth to plot")
-    console.print(f"wrote {len(paths)} figures to {paths[0].parent}/")
+        raise DataError("give a RESULTS_DIR with finished runs, or --pair STORE FRAME")
+    for p in paths:
+        if p.suffix == ".png":
+            console.print(f"wrote {p} (+ .pdf)", markup=False)
 
 
 @app.command()

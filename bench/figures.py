@@ -1,92 +1,110 @@
-"""Paper-style figures from run folders: top-view trajectories per sequence (paper Fig. 4).
+"""Paper figures from run folders (``bench figures RESULTS_DIR``, ``make figures``).
 
-Each estimate is aligned to the ground truth at its first pose (origin alignment), as the
-odometry is drawn in the paper; diverged runs are drawn dashed.
+- ``trajectories/<sequence>``: every method over the ground truth, top view (paper Fig. 5).
+  Estimates are aligned at their first pose; start and end are marked; with-seed runs are
+  solid and no-seed runs dashed so neither hides the other; the axes follow the ground truth
+  (equal scale unless the path is very elongated), and a diverged run is clipped to them and
+  labelled "Div.".
+- the error figures of ``bench.figures_errors`` (box plots per length, error along the path,
+  per-frame time and correspondences) and, given a ``bench speed`` CSV, its scaling curves.
+Every figure is written as PDF and PNG, one paper column wide, one colour per method.
 """
 
 from __future__ import annotations
 
-import json
-import math
 from pathlib import Path
 
 import numpy as np
 
-from bench.tables import method_label
-from loaders.fileio import atomic_path
-from loaders.scan import Trajectory
+from bench.figstyle import COLUMN_IN, Run, color, load_runs_with_gt, save, use_paper_style
 from loaders.se3 import inv_T
 
 
-def _runs_by_sequence(results_dir: Path) -> dict[str, list[Path]]:
-    groups: dict[str, list[Path]] = {}
-    for metrics in sorted(Path(results_dir).rglob("metrics.json")):
-        run_dir = metrics.parent
-        if (run_dir / "gt_tum.txt").exists():
-            groups.setdefault(run_dir.parent.name, []).append(run_dir)
-    return groups
+def _aligned_xy(run: Run) -> np.ndarray:
+    T = run.gt[0] @ inv_T(run.est[0]) @ run.est
+    return T[:, :2, 3]
+
+
+def plot_sequence(sequence: str, runs: list[Run], out_dir: Path) -> list[Path]:
+    import matplotlib.pyplot as plt
+
+    gt = runs[0].gt[:, :2, 3]
+    # the axes hold the ground truth and every run that did not diverge; per-axis margins,
+    # so lateral errors stay visible on a long straight path
+    kept = [gt] + [_aligned_xy(r) for r in runs
+                   if not r.diverged and np.all(np.isfinite(r.est))]
+    lo, hi = np.min([k.min(axis=0) for k in kept], 0), np.max([k.max(axis=0) for k in kept], 0)
+    span = np.maximum(hi - lo, 1.0)
+    pad = np.maximum(0.08 * span, 2.0)
+    elongated = span.max() / span.min() > 4
+    width = COLUMN_IN
+    height = COLUMN_IN * (0.55 if elongated else min(1.0, max(0.5, span[1] / span[0])))
+    fig, ax = plt.subplots(figsize=(width, height + 0.5))
+    ax.plot(gt[:, 0], gt[:, 1], color="black", lw=1.6, label="ground truth", zorder=1)
+    ax.plot(*gt[0], "o", color="black", ms=4, zorder=5)
+    ax.plot(*gt[-1], "s", color="black", ms=4, zorder=5)
+    xlim = (lo[0] - pad[0], hi[0] + pad[0])
+    ylim = (lo[1] - pad[1], hi[1] + pad[1])
+    for run in sorted(runs, key=lambda r: (r.method, r.seed is False)):
+        if not np.all(np.isfinite(run.est)):
+            continue
+        xy = _aligned_xy(run)
+        inside = ((xy[:, 0] >= xlim[0]) & (xy[:, 0] <= xlim[1]) & (xy[:, 1] >= ylim[0])
+                  & (xy[:, 1] <= ylim[1]))
+        # a run that leaves the axes is drawn up to where it leaves them (clipped, labelled)
+        shown = xy if inside.all() else xy[: max(1, int(np.argmin(inside)))]
+        name = run.name + (" - Div." if run.diverged else "")
+        ax.plot(shown[:, 0], shown[:, 1], color=color(run.method),
+                ls="--" if run.seed is False else "-", alpha=0.9, label=name, zorder=2)
+        if inside.all():
+            ax.plot(*xy[-1], "s", color=color(run.method), ms=3, zorder=4)
+        else:
+            ax.annotate("Div.", shown[-1], fontsize=6, color=color(run.method))
+    ax.set_xlim(*xlim)
+    ax.set_ylim(*ylim)
+    if not elongated:
+        ax.set_aspect("equal", adjustable="box")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.set_title(f"{sequence} (o start, \u25a0 end)")
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2, frameon=False)
+    return save(fig, out_dir / "trajectories" / _safe(sequence))
+
+
+def _safe(name: str) -> str:
+    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
 
 
 def plot_trajectories(results_dir: Path, out_dir: Path | None = None) -> list[Path]:
-    """One PNG per sequence plus ``trajectories.png`` with all of them; returns the paths."""
-    import matplotlib
+    """One trajectory figure per sequence; returns the written files."""
+    use_paper_style()
+    out_dir = Path(out_dir or Path(results_dir) / "figures")
+    groups: dict[str, list[Run]] = {}
+    for run in load_runs_with_gt(results_dir):
+        if len(run.gt) >= 2:
+            groups.setdefault(run.sequence, []).append(run)
+    written = []
+    for sequence, runs in sorted(groups.items()):
+        written += plot_sequence(sequence, runs, out_dir)
+    return written
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+
+def make_figures(results_dir: Path, out_dir: Path | None = None,
+                 speed_csv: Path | None = None) -> list[Path]:
+    """Every figure of a results folder (and of a ``bench speed`` CSV when given)."""
+    from bench.figures_errors import (
+        plot_boxplots,
+        plot_error_along_path,
+        plot_frames,
+        plot_speed_csv,
+    )
 
     out_dir = Path(out_dir or Path(results_dir) / "figures")
-    groups = _runs_by_sequence(results_dir)
-    if not groups:
-        return []
-    cols = min(5, len(groups))
-    rows = math.ceil(len(groups) / cols)
-    grid, axes = plt.subplots(rows, cols, figsize=(3.6 * cols, 3.4 * rows), squeeze=False)
-    written = []
-    for k, (sequence, run_dirs) in enumerate(groups.items()):
-        fig, ax = plt.subplots(figsize=(5, 4.5))
-        for target in (ax, axes[k // cols][k % cols]):
-            _draw(target, sequence, run_dirs)
-        ax.legend(fontsize=7, loc="best")
-        fig.tight_layout()
-        path = out_dir / f"{sequence}.png"
-        _save(fig, path)
-        written.append(path)
-        plt.close(fig)
-    for k in range(len(groups), rows * cols):
-        axes[k // cols][k % cols].axis("off")
-    axes[0][0].legend(fontsize=6, loc="best")
-    grid.tight_layout()
-    _save(grid, out_dir / "trajectories.png")
-    plt.close(grid)
-    return [out_dir / "trajectories.png", *written]
-
-
-def _draw(ax, sequence: str, run_dirs: list[Path]) -> None:
-    gt = Trajectory.read_tum(run_dirs[0] / "gt_tum.txt").positions
-    ax.plot(gt[:, 0], gt[:, 1], color="black", lw=2.0, label="ground truth")
-    for run_dir in run_dirs:
-        metrics = json.loads((run_dir / "metrics.json").read_text())
-        gt_T = Trajectory.read_tum(run_dir / "gt_tum.txt").poses
-        est_T = Trajectory.read_tum(run_dir / "est_tum.txt").poses
-        if not np.all(np.isfinite(est_T)):
-            continue
-        aligned = gt_T[0] @ inv_T(est_T[0]) @ est_T
-        ax.plot(aligned[:, 0, 3], aligned[:, 1, 3], lw=1.0,
-                ls="--" if metrics.get("diverged") else "-",
-                label=method_label(metrics["method"], metrics["seed"])
-                + (" (Div.)" if metrics.get("diverged") else ""))
-    span = np.ptp(gt[:, :2], axis=0).max() if len(gt) > 1 else 1.0
-    center = gt[:, :2].mean(axis=0)
-    ax.set_xlim(center[0] - 0.65 * span, center[0] + 0.65 * span)
-    ax.set_ylim(center[1] - 0.65 * span, center[1] + 0.65 * span)
-    ax.set_aspect("equal")
-    ax.set_title(sequence, fontsize=9)
-    ax.set_xlabel("x [m]", fontsize=8)
-    ax.set_ylabel("y [m]", fontsize=8)
-    ax.tick_params(labelsize=7)
-    ax.grid(alpha=0.3)
-
-
-def _save(fig, path: Path) -> None:
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=110)
+    written = plot_trajectories(results_dir, out_dir)
+    runs = load_runs_with_gt(results_dir)
+    written += plot_boxplots(runs, out_dir)
+    written += plot_error_along_path(runs, out_dir)
+    written += plot_frames(runs, out_dir)
+    if speed_csv is not None and Path(speed_csv).exists():
+        written += plot_speed_csv(Path(speed_csv), out_dir)
+    return written

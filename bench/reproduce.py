@@ -17,7 +17,7 @@ import yaml
 from rich.console import Console
 
 from bench.experiment import Experiment, SequenceEntry, load_experiment
-from bench.figures import plot_trajectories
+from bench.figures import make_figures
 from bench.progress import run_jobs
 from bench.run import Job, plan, summarize
 from bench.runplan import jobs_for_experiment, suite_sequences
@@ -106,9 +106,9 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
             continue
         console.print(f"\n{stem}", style="bold")
         console.print(texts["md"], markup=False, highlight=False)
-    figures = plot_trajectories(out)
+    figures = make_figures(out)
     if figures:
-        console.print(f"trajectory figures: {figures[0].parent}/")
+        console.print(f"figures: {out / 'figures'}/ ({len(figures)} files)", markup=False)
     console.print(f"{summarize(outcomes)} in {time.perf_counter() - t0:.0f} s; wrote "
                   f"{out}/table{{3,4,5}}.{{md,tex,csv}}", markup=False)
     return [o.message for o in outcomes if o.status not in ("done", "skipped")]
