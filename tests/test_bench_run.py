@@ -113,7 +113,8 @@ def test_cli_run_table_inspect(store, tmp_path):
     assert "points per frame" in res.output and "confirmed" in res.output
     res = runner.invoke(app, ["figures", str(tmp_path)])
     assert res.exit_code == 0, res.output
-    assert (tmp_path / "figures" / "trajectories.png").stat().st_size > 10_000
+    pngs = list((tmp_path / "figures" / "trajectories").glob("*.png"))
+    assert pngs and all(p.stat().st_size > 10_000 for p in pngs)
     res = runner.invoke(app, ["list"])
     assert res.exit_code == 0 and "doppler" in res.output and "npy-frames" in res.output
 

@@ -1,6 +1,5 @@
 """Paper figures: every kind is written (PDF and PNG) from run folders, and the pair figure."""
 
-from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
