@@ -330,6 +330,26 @@ def figures(
 
 
 @app.command()
+def view(
+    store: Annotated[Path, typer.Argument(help="store (.h5)")],
+    run: Annotated[Path | None, typer.Option(help="a run folder: its estimated trajectory")]
+    = None,
+    out: Annotated[Path | None, typer.Option(help="recording to write (default "
+                                             "results/view/STORE.rrd)")] = None,
+    pair: Annotated[int | None, typer.Option(help="FRAME: log this pair's correspondences")]
+    = None,
+    stride: Annotated[int, typer.Option(min=1, help="log every k-th scan")] = 1,
+) -> None:
+    """Write a rerun recording: scans coloured by Doppler, GT and estimated trajectories, one
+    pair's correspondences (open it with `rerun FILE.rrd`)."""
+    from bench.view import write_recording
+
+    out = out or Path("results/view") / f"{store.stem}.rrd"
+    path = write_recording(store, out, run, pair, stride)
+    console.print(f"wrote {path}; open it with: rerun {path}", markup=False)
+
+
+@app.command()
 def speed(
     sizes: Annotated[str, typer.Option(help="point counts, comma separated")]
     = "1000,4000,16000,64000,128000",
