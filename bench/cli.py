@@ -222,7 +222,8 @@ def _parse_params(items: list[str] | None) -> dict:
 
 @app.command()
 def table(
-    results_dir: Annotated[Path, typer.Argument(help="results folder (searched recursively)")],
+    results_dirs: Annotated[list[Path], typer.Argument(
+        help="results folder(s), searched recursively; several: rows labelled by folder")],
     format: Annotated[str, typer.Option("--format", "-f", help="md, tex or csv")] = "md",
     out: Annotated[Path | None, typer.Option(help="folder for table.{md,tex,csv}")] = None,
 ) -> None:
@@ -231,9 +232,10 @@ def table(
 
     if format not in FORMATS:
         raise DataError(f"unknown table format {format!r}; choose from {', '.join(FORMATS)}")
-    texts = write_tables(results_dir, out)
-    console.print(texts[format], markup=False, highlight=False)
-    console.print(f"[dim]wrote {(out or results_dir)}/table.{{md,tex,csv}}[/]")
+    texts = write_tables(list(results_dirs), out)
+    sys.stdout.write(texts[format])  # plain text, unwrapped (a pipe gets valid CSV)
+    console.print(f"wrote {(out or results_dirs[0])}/table.{{md,tex,csv}}", style="dim",
+                  markup=False)
 
 
 @app.command()

@@ -66,13 +66,29 @@ def collect_rows(results_dir: Path, only: set[Path] | None = None
             time_ms=_value((m.get("time_ms") or {}).get("mean")),
             diverged=bool(m["diverged"]),
         ))
-    def key(r: Row):
-        klass = CLASS_ORDER.index(r.sensor_class) if r.sensor_class in CLASS_ORDER else 99
-        # the paper lists the baselines first and its own methods last
-        return (klass, r.sensor_class, r.sequence, order_key(r.method), r.method,
-                r.seed is False, r.label)
+    return sorted(rows, key=_row_order), sorted(lengths, key=float)
 
-    return sorted(rows, key=key), sorted(lengths, key=float)
+
+def _row_order(r: Row):
+    klass = CLASS_ORDER.index(r.sensor_class) if r.sensor_class in CLASS_ORDER else 99
+    # the paper lists the baselines first and its own methods last
+    return (klass, r.sensor_class, r.sequence, order_key(r.method), r.method,
+            r.seed is False, r.label)
+
+
+def collect_rows_of(results_dirs: list[Path]) -> tuple[list[Row], list[str]]:
+    """Rows of several results folders in one table; with more than one folder, each row's
+    label starts with its folder's name (the experiment)."""
+    if len(results_dirs) == 1:
+        return collect_rows(results_dirs[0])
+    rows, lengths = [], set()
+    for d in results_dirs:
+        these, lens = collect_rows(d)
+        lengths.update(lens)
+        for r in these:
+            r.label = f"{Path(d).name}: {r.label}"
+        rows += these
+    return sorted(rows, key=_row_order), sorted(lengths, key=float)
 
 
 def _ranks(values: list[float]) -> list[int]:
@@ -165,7 +181,7 @@ def to_latex(rows: list[Row], lengths: list[str]) -> str:
 def to_csv(rows: list[Row], lengths: list[str]) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["sensor_class", "sequence", "method", "seed", "diverged",
+    w.writerow(["sensor_class", "sequence", "method", "seed", "row", "diverged",
                 *[f"{k}_{float(L):g}m" for L in lengths for k in ("rot_deg", "trans_m")],
                 "time_ms_mean"])
     for r in rows:
@@ -173,7 +189,7 @@ def to_csv(rows: list[Row], lengths: list[str]) -> str:
         for L in lengths:
             vals += [r.rot.get(L, math.nan), r.trans.get(L, math.nan)]
         w.writerow([r.sensor_class, r.sequence, r.method,
-                    "" if r.seed is None else r.seed, r.diverged,
+                    "" if r.seed is None else r.seed, r.label, r.diverged,
                     *[f"{v:.6f}" for v in vals], f"{r.time_ms:.6f}"])
     return buf.getvalue()
 
@@ -181,13 +197,17 @@ def to_csv(rows: list[Row], lengths: list[str]) -> str:
 FORMATS = {"md": to_markdown, "tex": to_latex, "csv": to_csv}
 
 
-def write_tables(results_dir: Path, out_dir: Path | None = None, only: set[Path] | None = None,
-                 stem: str = "table") -> dict[str, str]:
-    """Write <stem>.md, .tex and .csv (of every run, or of the folders in ``only``); return the
-    texts by format."""
+def write_tables(results_dir: Path | list[Path], out_dir: Path | None = None,
+                 only: set[Path] | None = None, stem: str = "table") -> dict[str, str]:
+    """Write <stem>.md, .tex and .csv (of every run, or of the folders in ``only``; of several
+    results folders, each row labelled with its folder); return the texts by format."""
     from loaders.fileio import atomic_write_text
 
-    rows, lengths = collect_rows(results_dir, only)
+    if isinstance(results_dir, list):
+        rows, lengths = collect_rows_of(results_dir)
+        results_dir = results_dir[0]
+    else:
+        rows, lengths = collect_rows(results_dir, only)
     if not rows:
         raise FileNotFoundError(f"{results_dir}: no finished runs with ground truth "
                                 "(no metrics.json found)")

@@ -56,3 +56,15 @@ def test_compare_shows_the_changed_cell(store, tmp_path):
     same = CliRunner().invoke(app, ["compare", str(tmp_path / "a"), str(tmp_path / "a"),
                                     "--fail-on-regression"])
     assert same.exit_code == 0 and "0 regressions" in same.output
+
+
+def test_table_over_several_experiments_labels_each(store, tmp_path):
+    run_method("doppler", store, out=tmp_path / "exp-a" / "twist" / "doppler")
+    run_method("doppler", store, params={"tau_spatial_m": 1.0},
+               out=tmp_path / "exp-b" / "twist" / "doppler")
+    res = CliRunner().invoke(app, ["table", str(tmp_path / "exp-a"), str(tmp_path / "exp-b"),
+                                   "-f", "csv", "--out", str(tmp_path)])
+    assert res.exit_code == 0, res.output
+    rows = [line for line in res.output.splitlines() if line.startswith("4D")
+            or ",twist," in line]
+    assert any("exp-a: Ours" in r for r in rows) and any("exp-b: Ours" in r for r in rows)
