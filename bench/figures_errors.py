@@ -84,7 +84,7 @@ def plot_error_along_path(runs: list[Run], out_dir: Path) -> list[Path]:
         axes[1].set_ylabel("rotation error [deg]")
         axes[1].set_xlabel("distance travelled [m]")
         axes[0].set_title(f"{sequence}: error along the path")
-        axes[0].legend(ncol=2, frameon=False, loc="upper left")
+        _legend_below(axes)
         written += save(fig, out_dir / "error_along_path" / _safe(sequence))
     return written
 
@@ -102,15 +102,15 @@ def plot_frames(runs: list[Run], out_dir: Path) -> list[Path]:
             idx = [int(r["index"]) for r in rows]
             ls = "--" if run.seed is False else "-"
             axes[0].plot(idx, [float(r["time_ms"]) for r in rows], ls, color=color(run.method),
-                         label=run.name)
-            axes[1].plot(idx, [int(r["correspondences"]) for r in rows], ls,
+                         label=run.name, lw=0.6)
+            axes[1].plot(idx, [int(r["correspondences"]) for r in rows], ls, lw=0.8,
                          color=color(run.method))
         axes[0].set_yscale("log")
         axes[0].set_ylabel("time per frame [ms]")
         axes[1].set_ylabel("correspondences")
         axes[1].set_xlabel("frame")
         axes[0].set_title(f"{sequence}: per-frame time and correspondences")
-        axes[0].legend(ncol=2, frameon=False, fontsize=5)
+        _legend_below(axes)
         written += save(fig, out_dir / "frames" / _safe(sequence))
     return written
 
@@ -134,6 +134,12 @@ def plot_speed_csv(path: Path, out_dir: Path) -> list[Path]:
     ax.set_title("speed scaling (median, p5-p95 band)")
     ax.legend(ncol=2, frameon=False, fontsize=5)
     return save(fig, out_dir / "speed")
+
+
+def _legend_below(axes) -> None:
+    handles, labels = axes[0].get_legend_handles_labels()
+    axes[-1].legend(handles, labels, loc="upper center", bbox_to_anchor=(0.5, -0.35), ncol=2,
+                    frameon=False)
 
 
 def _safe(name: str) -> str:
