@@ -211,8 +211,14 @@ def write_tables(results_dir: Path | list[Path], out_dir: Path | None = None,
     if not rows:
         raise FileNotFoundError(f"{results_dir}: no finished runs with ground truth "
                                 "(no metrics.json found)")
-    out_dir = Path(out_dir or results_dir)
-    texts = {fmt: fn(rows, lengths) for fmt, fn in FORMATS.items()}
+    return save_formats(Path(out_dir or results_dir), stem,
+                        {fmt: fn(rows, lengths) for fmt, fn in FORMATS.items()})
+
+
+def save_formats(out_dir: Path, stem: str, texts: dict[str, str]) -> dict[str, str]:
+    """Write ``<stem>.<format>`` for every text (atomically) and return the texts."""
+    from loaders.fileio import atomic_write_text
+
     for fmt, text in texts.items():
-        atomic_write_text(out_dir / f"{stem}.{fmt}", text)
+        atomic_write_text(Path(out_dir) / f"{stem}.{fmt}", text)
     return texts

@@ -145,14 +145,11 @@ def write_ape_tables(results_dir: Path, out_dir: Path | None = None,
                      sequences: list[str] | None = None, stem: str = "table_ape",
                      caption: str = "", only: set[Path] | None = None) -> dict[str, str]:
     """Write ``<stem>.{md,tex,csv}`` and return the texts by format."""
-    from loaders.fileio import atomic_write_text
+    from bench.tables import save_formats
 
     table = collect_ape(results_dir, sequences, only)
     if not table.rows:
         raise FileNotFoundError(f"{results_dir}: no finished runs with ground truth "
                                 "(no metrics.json with an APE found)")
-    out_dir = Path(out_dir or results_dir)
-    texts = {fmt: fn(table, caption) for fmt, fn in FORMATS.items()}
-    for fmt, text in texts.items():
-        atomic_write_text(out_dir / f"{stem}.{fmt}", text)
-    return texts
+    return save_formats(Path(out_dir or results_dir), stem,
+                        {fmt: fn(table, caption) for fmt, fn in FORMATS.items()})
