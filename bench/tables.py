@@ -201,7 +201,6 @@ def write_tables(results_dir: Path | list[Path], out_dir: Path | None = None,
                  only: set[Path] | None = None, stem: str = "table") -> dict[str, str]:
     """Write <stem>.md, .tex and .csv (of every run, or of the folders in ``only``; of several
     results folders, each row labelled with its folder); return the texts by format."""
-    from loaders.fileio import atomic_write_text
 
     if isinstance(results_dir, list):
         rows, lengths = collect_rows_of(results_dir)
