@@ -94,9 +94,12 @@ def _slow_experiment(tmp_path, store):
 def test_ctrl_c_exits_130_within_seconds_and_leaves_no_worker(store, tmp_path):
     log = tmp_path / "out.log"
     with log.open("w") as sink:  # a file, not a pipe: nothing can block on a full pipe
+        # a background job (nohup, CI) inherits SIGINT ignored, and Python then keeps it
+        # ignored: give the child the default disposition a terminal's Ctrl-C meets
         proc = subprocess.Popen([sys.executable, "-m", "bench.cli", "run",
                                  str(_slow_experiment(tmp_path, store))], env=ENV,
-                                stdout=sink, stderr=subprocess.STDOUT, text=True)
+                                stdout=sink, stderr=subprocess.STDOUT, text=True,
+                                preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
         workers = _wait_for_workers(proc, 3)  # two workers and multiprocessing's tracker
         time.sleep(2.0)  # inside the runs
         t0 = time.monotonic()
