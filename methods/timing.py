@@ -22,7 +22,11 @@ _lock_files: dict[str, int] = {}
 def _lock_fd(path: str) -> int:
     fd = _lock_files.get(path)
     if fd is None:
-        fd = _lock_files[path] = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        try:
+            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+        except PermissionError:  # another user's lock file: one of our own
+            fd = os.open(f"{path}.{os.getuid()}", os.O_RDWR | os.O_CREAT, 0o600)
+        _lock_files[path] = fd
     return fd
 
 
