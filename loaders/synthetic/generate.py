@@ -3,8 +3,14 @@
 Deterministic from (scene, sensor, frames, seed, noise, options): the plan, the motion and the
 scene each use their own RNG stream derived from the seed, and frame i uses an RNG seeded from
 (seed, i), so ``scan(i)`` gives the same scan in any order. Ground truth is the exact
-``T_world_sensor`` at the scan stamps; every point of a scan is taken at the scan stamp (no
-motion distortion).
+``T_world_sensor`` at the scan stamps. By default every point of a scan is taken at the scan
+stamp (no motion distortion). LiDAR option ``sweep=True`` (an FMCW LiDAR that scans its field
+of view during the frame, like the Aeva Aeries I): the azimuth columns of the grid are fired in
+``SWEEP_STEPS`` groups, left to right, at offsets ``k * period / SWEEP_STEPS`` after the stamp
+(the sweep starts at the stamp and spans one period); each group is cast from the sensor pose at
+its own time, so a point is reported in the sensor frame of its own time (motion distortion),
+its Doppler is the radial velocity at that time, and the per-point field ``time_offset_s`` [s]
+holds the offset.
 
 Doppler (sensor frame, positive = receding) is the exact radial velocity of each point relative
 to the sensor: doppler = d . (R_world_sensor^T u - v_s), with d the unit direction of the
@@ -37,6 +43,7 @@ from loaders.synthetic.sensors import (
     measure,
     point_snr_db,
     ray_directions,
+    sweep_offsets,
     with_rays,
 )
 
@@ -51,6 +58,8 @@ OPTIONS = {
     "attitude_deg": "pitch/roll oscillation amplitude [deg] (0 = flat, default 0.6)",
     "jitter_s": "deterministic stamp jitter, standard deviation [s] (default 0)",
     "t0": "first stamp [s] (default 0)",
+    "sweep": "LiDAR: scan the field of view during the period (per-point time_offset_s, "
+             "motion distortion, Doppler at each point's own time); default False",
 }
 
 
@@ -180,14 +189,36 @@ class SyntheticSequence(Sequence):
         (``fading_db``) exceeds the detection threshold (``scatterer`` = their id, ``rcs_db``
         their RCS towards the sensor, ``swerling`` their fluctuation model, ``angle_bias``
         their persistent angle error in units of the sensor's sigma_bias_deg), then the
-        diffuse returns of the random rays (``scatterer`` = -1)."""
+        diffuse returns of the random rays (``scatterer`` = -1). LiDAR with ``sweep``: also
+        ``time_offset_s`` (each point's time after the stamp; points and Doppler at that time)."""
         spec = self.spec
-        T = self._poses[index]
-        R, o = T[:3, :3], T[:3, 3]
         rng = np.random.default_rng([self.seed, int(index), 7])
         D_s = ray_directions(spec, rng)
+        t_rel = float(self._rel[index])
+        if spec.kind == "lidar" and self.options.get("sweep"):
+            offsets = sweep_offsets(spec, len(D_s))
+            parts = []
+            for tau in np.unique(offsets):
+                rows = offsets == tau
+                part = self._cast(D_s[rows], t_rel + tau, None)
+                part["time_offset_s"] = np.full(len(part["points"]), tau)
+                parts.append(part)
+            out = {k: np.concatenate([p[k] for p in parts]) for k in parts[0]}
+        else:
+            out = self._cast(D_s, t_rel, rng)
+        out["rng"] = rng
+        return out
+
+    def _cast(self, D_s: np.ndarray, t_rel: float, rng) -> dict[str, np.ndarray]:
+        """Hits of the rays ``D_s`` (sensor frame) from the sensor pose at motion time ``t_rel``
+        [s]; radar (``self.scatterers``): plus the visible scattering centres (``rng`` draws
+        their fading)."""
+        spec = self.spec
+        T = self.motion.sensor_pose(np.array([t_rel]))[0]
+        v_s = self.motion.sensor_twist(np.array([t_rel]))[0][0]
+        R, o = T[:3, :3], T[:3, 3]
         D_w = D_s @ R.T
-        geom = self.scene_model.geometry(float(self._rel[index]))
+        geom = self.scene_model.geometry(t_rel)
         n_rays = len(D_s)
         cand = None
         if self.scatterers is not None:  # one cast for the random rays and the scatterers
@@ -223,7 +254,6 @@ class SyntheticSequence(Sequence):
         if dynamic.any():
             pts_w = o + t[dynamic, None] * D_w[dynamic]
             u_s[dynamic] = geom.point_velocity(prim[dynamic], pts_w) @ R
-        v_s = self._twist[0][index]
         out = {"points": pts_s, "doppler": doppler_of(pts_s, v_s, u_s),
                "cos_inc": np.abs(np.einsum("ij,ij->i", D_w, normal)), "material": material,
                "dynamic": dynamic, "prim": prim}
@@ -239,12 +269,12 @@ class SyntheticSequence(Sequence):
             out["swerling"] = np.concatenate([vis["swerling"], np.ones(n_dif, np.int64)])
             out["angle_bias"] = np.concatenate([vis["bias"], np.zeros((n_dif, 2))])
             out["fading_db"] = np.concatenate([vis["fading_db"], np.zeros(n_dif)])
-        out["rng"] = rng
         return out
 
     def scan(self, index: int) -> Scan:
         raw = self.raw_hits(index)
-        extra = {k: raw[k] for k in ("scatterer", "rcs_db", "swerling", "angle_bias") if k in raw}
+        extra = {k: raw[k] for k in ("scatterer", "rcs_db", "swerling", "angle_bias",
+                                     "time_offset_s") if k in raw}
         if "fading_db" in raw:
             extra["fading"] = raw["fading_db"]
         pts, dop, fields = measure(self.spec, raw["rng"], raw["points"], raw["doppler"],

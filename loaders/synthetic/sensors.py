@@ -121,6 +121,22 @@ def grid_shape(spec: SensorSpec) -> tuple[int, int]:
     return max(2, int(round(spec.rays / n_el))), n_el
 
 
+#: LiDAR sweep: the grid's azimuth columns are fired in this many groups, one after the other,
+#: evenly over one period (2 ms apart at 10 Hz); see ``sweep_offsets``
+SWEEP_STEPS = 50
+
+
+def sweep_offsets(spec: SensorSpec, n_rays: int) -> np.ndarray:
+    """Time offset [s] after the stamp of each ray of ``ray_directions`` (LiDAR grid, row-major
+    (elevation, azimuth)): the columns are swept from the right edge (-az) to the left edge
+    (+az) over one period in ``SWEEP_STEPS`` groups, every elevation row of a column at once."""
+    n_az, n_el = grid_shape(spec)
+    if n_rays != n_az * n_el:
+        raise ValueError(f"sweep_offsets: {n_rays} rays, expected the {n_az} x {n_el} grid")
+    column = np.arange(n_rays) % n_az
+    return np.floor(column * SWEEP_STEPS / n_az) * spec.period_s / SWEEP_STEPS
+
+
 def _unit(az: np.ndarray, el: np.ndarray) -> np.ndarray:
     ce = np.cos(el)
     return np.stack([ce * np.cos(az), ce * np.sin(az), np.sin(el)], axis=1)
@@ -168,7 +184,7 @@ def measure(spec: SensorSpec, rng: np.random.Generator, points: np.ndarray,
             dynamic: np.ndarray, v_sensor: np.ndarray, noise: bool, *,
             scatterer: np.ndarray | None = None, rcs_db: np.ndarray | None = None,
             swerling: np.ndarray | None = None, angle_bias: np.ndarray | None = None,
-            fading: np.ndarray | None = None):
+            fading: np.ndarray | None = None, time_offset_s: np.ndarray | None = None):
     """Turn exact hits (sensor frame) into measurements: returns points (M, 3), Doppler (M,)
     and the per-point fields. With ``noise=False`` the kept points and Doppler are exact and
     there is no clutter or ghost (detection sampling and dropouts still apply).
@@ -177,7 +193,8 @@ def measure(spec: SensorSpec, rng: np.random.Generator, points: np.ndarray,
     [dBsm] (point-target radar equation, SNR ~ RCS / r^4, Swerling ``swerling`` fading); the
     other rows are diffuse surface returns (patch reflectivity by material and incidence,
     SNR ~ 1 / r^2, Swerling 1). ``fading`` [dB], optional: the scatterers' fading of this frame
-    when the caller has drawn it (the values of the other rows are ignored)."""
+    when the caller has drawn it (the values of the other rows are ignored). ``time_offset_s``
+    (LiDAR sweep), optional: each hit's time after the stamp [s], kept as a per-point field."""
     r, az, el = _spherical(points)
     label = np.where(dynamic, LABEL_DYNAMIC, LABEL_STATIC)
     if spec.kind == "lidar":
@@ -185,6 +202,8 @@ def measure(spec: SensorSpec, rng: np.random.Generator, points: np.ndarray,
         keep = intensity / np.maximum(r / 100.0, 0.1) ** 2 > 0.01
         keep &= rng.uniform(size=len(r)) >= spec.dropout
         fields = {"intensity": intensity}
+        if time_offset_s is not None:
+            fields["time_offset_s"] = np.asarray(time_offset_s, dtype=np.float64)
         sig_scale = np.ones(len(r))
     else:
         if scatterer is None:
