@@ -1,15 +1,12 @@
-"""The small_gicp family (icp-p2plane, gicp, vgicp) and the fast point-to-point ICP."""
+"""The small_gicp family (icp-p2plane, gicp, vgicp) (icp-p2p: tests/test_icp.py)."""
 
 import numpy as np
 import pytest
-from scipy.spatial import cKDTree
 
 from conftest import constant_twist_sequence
 from loaders.scan import Scan
 from loaders.se3 import exp_se3, inv_T, rotation_angle_deg, transform_points
-from methods.icp import PointToPointIcp
 from methods.registry import make_method
-from methods.rigid import fit_rigid
 
 
 def _planar_world() -> np.ndarray:
@@ -45,25 +42,6 @@ def test_noise_free_pair_recovers_the_motion(method):
     assert np.linalg.norm(E[:3, 3]) < TOLERANCE_M[method], E
     assert rotation_angle_deg(E[:3, :3]) < 0.05
     assert res.correspondences > 10000
-
-
-def test_fast_icp_matches_a_scipy_reference():
-    seq = constant_twist_sequence(n_frames=3, n_points=4000, noise_m=0.02, max_range_m=60)
-    m = PointToPointIcp()
-    src, tgt = m.preprocess(seq[0]), m.preprocess(seq[1])
-    fast = m.register(src, tgt, np.eye(4))
-    # reference: the same algorithm with scipy's kd-tree
-    tree = cKDTree(tgt.points)
-    T, prev = np.eye(4), np.inf
-    for _ in range(100):
-        moved = transform_points(T, src.points)
-        dist, idx = tree.query(moved, distance_upper_bound=3.0)
-        keep = np.isfinite(dist)
-        T = fit_rigid(moved[keep], tgt.points[idx[keep]]) @ T
-        if abs(prev - dist[keep].mean()) < 1e-5:
-            break
-        prev = dist[keep].mean()
-    np.testing.assert_allclose(fast.T_target_source, T, atol=1e-9)
 
 
 def test_small_gicp_family_prepares_scans_once_with_their_downsampling():
