@@ -3,13 +3,17 @@
 Uniform downsampling by ``downsample`` (untimed preparation, which also lays the points out as
 contiguous float64), then inside the timed call: a kd-tree of the target (small_gicp's
 compiled kd-tree; building it is part of the correspondence search, as in Open3D's ICP that
-times DICP), and per iteration the closest target point of every moved source point (the
-kd-tree's batch search, ``num_threads`` threads), pairs within tau_spatial, a closed-form rigid
-fit (``methods.rigid``, from sums gathered by one compiled pass), repeated until the mean pair
-distance changes by less than ``convergence`` or ``max_iterations`` is reached.
+times DICP), and per iteration the closest target point of every moved source point, pairs
+within tau_spatial, a closed-form rigid fit (``methods.rigid``, from sums gathered by one
+compiled pass), repeated until the mean pair distance changes by less than ``convergence`` or
+``max_iterations`` is reached.
 Paper values: max iterations 100, convergence 1e-5 [m], downsampling 2, tau_spatial 3 m.
-Cost: the nearest-neighbour search is ~85 % of an iteration (about 0.3 us per query point on
-one core here), so a frame costs about iterations x source points x 0.35 us.
+
+Closest points are exact, found fast: a point is searched in the kd-tree (its two nearest
+target points, ``num_threads`` threads) only when the triangle inequality cannot prove that
+its previous closest point still is the unique closest one (see ``_move_and_check``). Late
+iterations move points by micrometres, so most points skip the search; the answers are those
+of searching every point every iteration (tested against scipy and brute force).
 """
 
 from __future__ import annotations
@@ -45,22 +49,49 @@ def closest_points(tree: small_gicp.KdTree, points: np.ndarray, max_dist_m: floa
     return idx, dist
 
 
+# Certificate margin [m] for floating-point rounding in the distances (far below any noise).
+_MARGIN_M = 1e-9
+
+
 @nb.njit(cache=True)
-def _transform(T, points):  # pragma: no cover - compiled
-    """T applied to (N, 3) points in a plain loop (NumPy's matmul goes through BLAS, whose
-    threads are slow when the cores are busy)."""
-    out = np.empty_like(points)
-    for i in range(points.shape[0]):
-        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+def _move_and_check(T, src, anchor, d1, d2):  # pragma: no cover - compiled
+    """Moved source points (T applied) and the indices whose closest target point must be
+    searched again. Point i was last searched at ``anchor[i]``, where its closest and second
+    closest target points were d1 <= d2 away; having moved by delta since, the old closest
+    point is still the unique closest when d1 + 2 delta < d2 (triangle inequality: it is
+    at most d1 + delta away, every other point at least d2 - delta), so no search is needed."""
+    n = src.shape[0]
+    moved = np.empty_like(src)
+    stale = np.empty(n, dtype=np.int64)
+    k = 0
+    for i in range(n):
+        x, y, z = src[i, 0], src[i, 1], src[i, 2]
+        delta_sq = 0.0
         for a in range(3):
-            out[i, a] = T[a, 0] * x + T[a, 1] * y + T[a, 2] * z + T[a, 3]
-    return out
+            moved[i, a] = T[a, 0] * x + T[a, 1] * y + T[a, 2] * z + T[a, 3]
+            delta_sq += (moved[i, a] - anchor[i, a]) ** 2
+        if not d1[i] + 2.0 * np.sqrt(delta_sq) + _MARGIN_M < d2[i]:  # NaN anchor: stale
+            stale[k] = i
+            k += 1
+    return moved, stale[:k]
 
 
 @nb.njit(cache=True)
-def _pair_sums(moved, target, idx, sq_dist, max_sq_dist):  # pragma: no cover - compiled
-    """Over the pairs (moved[i], target[idx[i]]) within sqrt(max_sq_dist): their count, sum p,
-    sum q, sum p q^T and the sum of pair distances [m]."""
+def _refresh(stale, moved, knn_idx, knn_sq, anchor, nearest, d1, d2):  # pragma: no cover
+    """Store the new two-nearest search results of the ``stale`` points."""
+    for a in range(stale.shape[0]):
+        i = stale[a]
+        anchor[i] = moved[i]
+        nearest[i] = knn_idx[a, 0]
+        d1[i] = np.sqrt(knn_sq[a, 0])
+        # no second point (a 1-point target): small_gicp leaves its distance at the maximum
+        d2[i] = np.sqrt(knn_sq[a, 1]) if knn_idx.shape[1] > 1 else np.inf
+
+
+@nb.njit(cache=True)
+def _pair_sums(moved, target, nearest, max_sq_dist):  # pragma: no cover - compiled
+    """Over the pairs (moved[i], target[nearest[i]]) within sqrt(max_sq_dist): their count,
+    sum p, sum q, sum p q^T and the sum of pair distances [m]."""
     n = 0
     sum_p = np.zeros(3)
     sum_q = np.zeros(3)
@@ -68,11 +99,16 @@ def _pair_sums(moved, target, idx, sq_dist, max_sq_dist):  # pragma: no cover - 
     dist_sum = 0.0
     n_target = target.shape[0]
     for i in range(moved.shape[0]):
-        j = idx[i]
-        if j >= n_target or not sq_dist[i] <= max_sq_dist:  # no neighbour / beyond the gate
+        j = nearest[i]
+        if j >= n_target:  # none found
+            continue
+        sq = 0.0
+        for a in range(3):
+            sq += (moved[i, a] - target[j, a]) ** 2
+        if not sq <= max_sq_dist:
             continue
         n += 1
-        dist_sum += np.sqrt(sq_dist[i])
+        dist_sum += np.sqrt(sq)
         for a in range(3):
             sum_p[a] += moved[i, a]
             sum_q[a] += target[j, a]
@@ -84,7 +120,12 @@ def _pair_sums(moved, target, idx, sq_dist, max_sq_dist):  # pragma: no cover - 
 def warm_up() -> None:
     """Compile (or load from numba's cache) once, so no timed call pays for it."""
     pts = np.zeros((4, 3))
-    _pair_sums(_transform(np.eye(4), pts), pts, np.zeros(4, dtype=np.uint64), np.zeros(4), 1.0)
+    d = np.full(4, np.inf)
+    nearest = np.zeros(4, dtype=np.uint64)
+    moved, stale = _move_and_check(np.eye(4), pts, np.full((4, 3), np.nan), d, d.copy())
+    _refresh(stale, moved, np.zeros((4, 2), dtype=np.uint64), np.zeros((4, 2)), pts.copy(),
+             nearest, d.copy(), d.copy())
+    _pair_sums(moved, pts, nearest, 1.0)
 
 
 class PointToPointIcp(Registration):
@@ -109,14 +150,22 @@ class PointToPointIcp(Registration):
         tgt = np.ascontiguousarray(target.points, dtype=np.float64)
         tree = small_gicp.KdTree(tgt, num_threads=p.num_threads)
         max_sq = p.tau_spatial_m ** 2
+        # per source point: where it was last searched, its closest target point (index and
+        # distance) and the second closest distance; NaN anchors: search all at first
+        anchor = np.full_like(src, np.nan)
+        nearest = np.zeros(len(src), dtype=np.uint64)
+        d1 = np.full(len(src), np.inf)
+        d2 = np.full(len(src), np.inf)
         T = np.array(init_T_target_source, dtype=np.float64)
         prev_error = np.inf
         n = 0
         for iteration in range(1, p.max_iterations + 1):
-            moved = _transform(T, src)
-            idx, sq = tree.batch_knn_search(moved, 1, num_threads=p.num_threads)
-            n, sum_p, sum_q, sum_pq, dist_sum = _pair_sums(moved, tgt, idx[:, 0], sq[:, 0],
-                                                           max_sq)
+            moved, stale = _move_and_check(T, src, anchor, d1, d2)
+            if len(stale):
+                knn_idx, knn_sq = tree.batch_knn_search(moved[stale], 2,
+                                                        num_threads=p.num_threads)
+                _refresh(stale, moved, knn_idx, knn_sq, anchor, nearest, d1, d2)
+            n, sum_p, sum_q, sum_pq, dist_sum = _pair_sums(moved, tgt, nearest, max_sq)
             delta = rigid_from_sums(n, sum_p, sum_q, sum_pq)
             if delta is None:
                 return RegistrationResult(T, n, iteration, False)

@@ -89,3 +89,47 @@ def test_deskew_true_without_times_is_an_error():
     seq = _sequence(n_frames=2)
     with pytest.raises(DataError, match="per-point"):
         KissIcp(deskew=True).configured_for(seq.sensor).run(seq, seed=True)
+
+
+def test_poses_are_kiss_icps_own_and_only_registration_is_timed():
+    # the timed wrapper around kiss-icp's registration must not change kiss-icp's answer
+    from kiss_icp.kiss_icp import KissICP
+
+    seq = _sequence(n_frames=4)
+    method = KissIcp().configured_for(seq.sensor)
+    result = method.run(seq, seed=True)
+    plain = KissICP(config=method._kiss(False).config)
+    for i, scan in enumerate(seq):
+        plain.register_frame(np.ascontiguousarray(scan.points), np.empty(0))
+        np.testing.assert_array_equal(result.poses[i], plain.last_pose)
+    times = [f.time_ms for f in result.frames[1:]]
+    assert all(np.isfinite(t) and t > 0 for t in times)
+
+
+def _later_scan_without_times():
+    seq = _sequence(n_frames=3)
+    rng = np.random.default_rng(0)
+    scans = [Scan(s.stamp, s.points, fields={"time_offset_s": rng.uniform(0, 0.1, len(s))})
+             for s in seq]
+    scans[2] = Scan(scans[2].stamp, scans[2].points)
+    return MemorySequence("planes", seq.sensor, scans, seq.ground_truth)
+
+
+def test_a_later_scan_without_times_is_refused_when_deskewing():
+    # in a child process: handed to kiss-icp with deskew on, the scan could abort pytest
+    code = textwrap.dedent("""
+        import sys
+        sys.path[:0] = ["tests", "."]
+        from test_kiss import _later_scan_without_times
+        from methods.kiss import KissIcp
+        from loaders.errors import DataError
+        seq = _later_scan_without_times()
+        try:
+            KissIcp(max_range_m=30.0).configured_for(seq.sensor).run(seq, seed=True)
+        except DataError as err:
+            print("REFUSED", err)
+    """)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert "REFUSED frame 2" in out.stdout and "lacks" in out.stdout
