@@ -4,8 +4,10 @@ The normal equations follow the authors' implementation in Open3D
 (``ComputePoseDopplerICP``): per source point with a geometric pair, a point-to-plane residual
 r_G = sqrt(1 - lambda) n . (p - q) with Jacobian sqrt(1 - lambda) [p x n, n], and a Doppler
 residual r_D = sqrt(lambda) (doppler - doppler_pred) with Jacobian
-sqrt(lambda) / period [d x r_vs, -d] (d: the point's direction, r_vs: the lever arm); each
-weighted by a Tukey kernel on the scaled residual (or 1 before the kernel's first iteration).
+sqrt(lambda) / period [d x r_vs, -d] (d: the point's direction attribute, r_vs: the lever arm),
+doppler_pred = -(R_sv d) . v_s (R_sv: the extrinsic's inverse rotation, v_s: the predicted
+sensor velocity in sensor axes); each weighted by a Tukey kernel on the scaled residual (or 1
+before the kernel's first iteration).
 The unknowns are (rotation x, y, z, translation x, y, z), as in Open3D.
 """
 
@@ -27,7 +29,7 @@ def _tukey(r: float, k: float) -> float:  # pragma: no cover - compiled
 
 @nb.njit(cache=True)
 def normal_equations(points, idx, target_points, target_normals, dopplers, directions,
-                     doppler_pred, lever_arm, period, lam, k_geometric, k_doppler,
+                     R_sv, v_sensor, lever_arm, period, lam, k_geometric, k_doppler,
                      reject, reject_mps):  # pragma: no cover - compiled
     """(A 6x6, b 6) of one DICP step over the source points with a pair (idx >= 0)."""
     A = np.zeros((6, 6))
@@ -41,7 +43,11 @@ def normal_equations(points, idx, target_points, target_normals, dopplers, direc
         j = idx[i]
         if j < 0:
             continue
-        err_d = dopplers[i] - doppler_pred[i]
+        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
+        pred = 0.0
+        for a in range(3):
+            pred -= (R_sv[a, 0] * dx + R_sv[a, 1] * dy + R_sv[a, 2] * dz) * v_sensor[a]
+        err_d = dopplers[i] - pred
         if reject and abs(err_d) > reject_mps:
             continue  # a dynamic point: neither residual (as upstream)
         px, py, pz = points[i, 0], points[i, 1], points[i, 2]
@@ -52,7 +58,6 @@ def normal_equations(points, idx, target_points, target_normals, dopplers, direc
         JG[1] = s_g * (pz * nx - px * nz)
         JG[2] = s_g * (px * ny - py * nx)
         JG[3], JG[4], JG[5] = s_g * nx, s_g * ny, s_g * nz
-        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
         rx, ry, rz = lever_arm[0], lever_arm[1], lever_arm[2]
         JD[0] = s_dt * (dy * rz - dz * ry)
         JD[1] = s_dt * (dz * rx - dx * rz)
@@ -69,6 +74,18 @@ def normal_equations(points, idx, target_points, target_normals, dopplers, direc
         for c in range(a):
             A[c, a] = A[a, c]
     return A, b
+
+
+@nb.njit(cache=True)
+def transform(T, points):  # pragma: no cover - compiled
+    """T applied to (N, 3) points in a plain loop (NumPy's matmul goes through BLAS, whose
+    threads are slow when the cores are busy)."""
+    out = np.empty_like(points)
+    for i in range(points.shape[0]):
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        for a in range(3):
+            out[i, a] = T[a, 0] * x + T[a, 1] * y + T[a, 2] * z + T[a, 3]
+    return out
 
 
 @nb.njit(cache=True)

@@ -1,30 +1,26 @@
 """DICP: known motion, the turning bias of its velocity model, and the cross-check against the
 authors' own implementation in Open3D on synthetic radar and LiDAR pairs."""
 
+import importlib.util
+
 import numpy as np
 import pytest
 
+from conftest import constant_twist_sequence
 from loaders.errors import DataError
 from loaders.scan import Scan, SensorInfo
-from loaders.se3 import exp_se3, inv_T, rotation_angle_deg, transform_points
+from loaders.se3 import inv_T, rotation_angle_deg
 from methods.dicp import Dicp, euler_zyx, pose_to_T
 from methods.registry import make_method
-from test_gicp import _planar_world
-
-LIDAR = SensorInfo("lidar", 0.1)
 
 
-def _pair(speed_mps: float, yaw_rate: float, dt: float = 0.1):
-    """Two exact scans of a planar world (walls along x: geometry alone cannot fix x) from a
-    sensor moving at ``speed_mps`` along x while turning at ``yaw_rate`` [rad/s]."""
-    world = _planar_world()
-    T_w1 = exp_se3(np.array([speed_mps * dt, 0, 0, 0, 0, yaw_rate * dt]))
-    scans = []
-    for k, T in enumerate((np.eye(4), T_w1)):
-        p = transform_points(inv_T(T), world)
-        d = p / np.linalg.norm(p, axis=1, keepdims=True)
-        scans.append(Scan(k * dt, p, -d @ np.array([speed_mps, 0.0, 0.0])))
-    return scans, inv_T(T_w1)
+def _twist_pair(v, w, T_body_sensor=None):
+    """Two exact scans of static random points (all visible in both) from a sensor moving with
+    a constant body twist; returns (scans, true T_target_source, sensor)."""
+    seq = constant_twist_sequence(n_frames=2, n_points=20000, v=v, w=w, max_range_m=1e4)
+    sensor = SensorInfo("lidar", 0.1, **({} if T_body_sensor is None
+                                         else {"T_body_sensor": T_body_sensor}))
+    return [seq[0], seq[1]], inv_T(seq.ground_truth.poses[1]) @ seq.ground_truth.poses[0], sensor
 
 
 def _error(T, T_true):
@@ -32,25 +28,29 @@ def _error(T, T_true):
     return np.linalg.norm(E[:3, 3]), rotation_angle_deg(E[:3, :3])
 
 
+def _register(backend, scans, sensor, init, **params):
+    m = make_method("dicp", {"backend": backend, **params}, sensor)
+    return m.register(m.preprocess(scans[0]), m.preprocess(scans[1]), init)
+
+
 def test_straight_noise_free_motion_is_recovered():
-    scans, T_true = _pair(2.0, 0.0)
-    m = make_method("dicp", {}, LIDAR)
-    r = m.register(m.preprocess(scans[0]), m.preprocess(scans[1]), np.eye(4))
+    scans, T_true, sensor = _twist_pair((8.0, 0.0, 0.0), (0.0, 0.0, 0.0))  # 0.8 m per scan
+    r = _register("numba", scans, sensor, np.eye(4))
     trans, rot = _error(r.T_target_source, T_true)
     assert r.converged and trans < 1e-3 and rot < 0.05, (trans, rot)
 
 
 def test_the_first_order_velocity_model_biases_a_turn():
-    # 12 m/s and 0.15 rad/s over 0.1 s, started at the truth: the Doppler term pulls the
-    # estimate off by millimetres (the docstring states the figure)
-    scans, T_true = _pair(12.0, 0.15)
-    m = make_method("dicp", {}, LIDAR)
-    r = m.register(m.preprocess(scans[0]), m.preprocess(scans[1]), T_true)
+    # 12 m/s and 0.15 rad/s over 0.1 s, started at the truth: -t / period is not the velocity
+    # at the source scan, and the Doppler term pulls the estimate off by millimetres (the
+    # docstring states the figure); Open3D's implementation has the same bias
+    scans, T_true, sensor = _twist_pair((12.0, 0.0, 0.0), (0.0, 0.0, 0.15))
+    r = _register("numba", scans, sensor, T_true)
     trans, _ = _error(r.T_target_source, T_true)
-    assert 1e-3 < trans < 2e-2
-    scans, T_true = _pair(12.0, 0.0)
-    r = m.register(m.preprocess(scans[0]), m.preprocess(scans[1]), T_true)
-    assert _error(r.T_target_source, T_true)[0] < 1e-6
+    assert 3e-3 < trans < 1.5e-2, trans
+    if importlib.util.find_spec("open3d"):
+        upstream = _register("open3d", scans, sensor, T_true)
+        assert abs(_error(upstream.T_target_source, T_true)[0] - trans) < 1e-6
 
 
 def test_pose_conventions_are_open3ds():
@@ -63,27 +63,39 @@ def test_pose_conventions_are_open3ds():
     np.testing.assert_allclose(euler_zyx(T[:3, :3]), x[:3], atol=1e-12)
 
 
-@pytest.mark.parametrize("scene, sensor, points", [("loop", "radar-semidense", None),
-                                                    ("campus", "lidar-dense", 12000)])
-@pytest.mark.parametrize("seeded", [False, True])
-def test_same_transform_as_open3d(scene, sensor, points, seeded):
+def _rotated_extrinsic(sensor: SensorInfo) -> SensorInfo:
+    """The sensor with a yawed and pitched mounting (Open3D rotates the directions with it)."""
+    T = np.array(sensor.T_body_sensor, dtype=float)
+    T[:3, :3] = pose_to_T(np.array([0.0, 0.05, 0.3, 0, 0, 0]))[:3, :3]
+    return SensorInfo(sensor.kind, sensor.period_s, T_body_sensor=T, model=sensor.model)
+
+
+@pytest.mark.parametrize("scene, sensor, points, seeded, rotated", [
+    ("loop", "radar-semidense", None, False, False),
+    ("loop", "radar-semidense", None, True, False),
+    ("loop", "radar-semidense", None, False, True),
+    ("campus", "lidar-dense", 12000, False, False),
+    ("campus", "lidar-dense", 12000, True, False),
+])
+def test_same_transform_as_open3d(scene, sensor, points, seeded, rotated):
     pytest.importorskip("open3d")
     from loaders.synthetic import SyntheticSequence
 
     options = {"points": points} if points else {}
-    seq = SyntheticSequence(scene, sensor, frames=3, seed=7, **options)
+    seq = SyntheticSequence(scene, sensor, frames=3, seed=7, noise=True, **options)
+    info = _rotated_extrinsic(seq.sensor) if rotated else seq.sensor
     init = np.eye(4)
     if seeded:
         init = inv_T(seq.ground_truth.poses[2]) @ seq.ground_truth.poses[1]
         init[:3, 3] += [0.05, -0.03, 0.01]
-    results = {}
-    for backend in ("numba", "open3d"):
-        m = make_method("dicp", {"backend": backend}, seq.sensor)
-        results[backend] = m.register(m.preprocess(seq[1]), m.preprocess(seq[2]), init)
-    trans, rot = _error(results["numba"].T_target_source, results["open3d"].T_target_source)
+    ours, upstream = (_register(b, [seq[1], seq[2]], info, init) for b in ("numba", "open3d"))
+    trans, rot = _error(ours.T_target_source, upstream.T_target_source)
     assert trans < 1e-3 and rot < 0.05, (trans, rot)
-    assert results["numba"].correspondences == results["open3d"].correspondences > 100
-    assert results["numba"].iterations == results["open3d"].iterations
+    assert ours.correspondences == upstream.correspondences > 100
+    assert ours.iterations == upstream.iterations
+    assert ours.converged and upstream.converged
+    truth = inv_T(seq.ground_truth.poses[2]) @ seq.ground_truth.poses[1]
+    assert _error(ours.T_target_source, truth)[0] < 0.1  # and both found the motion
 
 
 def test_bad_input():
@@ -98,8 +110,10 @@ def test_bad_input():
 def test_the_extrinsic_is_taken_from_the_sequence():
     T_bs = np.eye(4)
     T_bs[:3, 3] = [1.4, 0.2, 1.3]
-    m = make_method("dicp", {}, SensorInfo("lidar", 0.1, T_body_sensor=T_bs))
+    scans, T_true, sensor = _twist_pair((2.0, 0.0, 0.0), (0.0, 0.0, 0.0), T_bs)
+    m = make_method("dicp", {}, sensor)
     np.testing.assert_allclose(m.T_vehicle_sensor, T_bs)
-    scans, T_true = _pair(2.0, 0.0)
     r = m.register(m.preprocess(scans[0]), m.preprocess(scans[1]), np.eye(4))
     assert _error(r.T_target_source, T_true)[0] < 1e-3  # answered in the sensor frame
+    assert make_method("dicp", {}, SensorInfo("lidar", 0.1)).T_vehicle_sensor.tolist() \
+        == np.eye(4).tolist()
