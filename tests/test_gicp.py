@@ -50,3 +50,19 @@ def test_small_gicp_family_prepares_scans_once_with_their_downsampling():
     prepared = m.preprocess(seq[0])
     assert len(prepared) == (len(seq[0]) + 1) // 2
     assert np.asarray(prepared.cloud.covs()).shape == (len(prepared), 4, 4)
+
+
+@pytest.mark.parametrize("method", ["icp-p2plane", "gicp", "vgicp"])
+def test_the_initial_guess_is_used(method):
+    # one iteration from the true motion stays there; one from the identity cannot get there
+    world = _planar_world()[::4]
+    T_w1 = exp_se3(np.array([1.5, 0.2, 0.0, 0.0, 0.0, 0.03]))
+    scans = [Scan(k * 0.1, transform_points(inv_T(T), world))
+             for k, T in enumerate((np.eye(4), T_w1))]
+    m = make_method(method, {"downsample": 1, "max_iterations": 1})
+    src, tgt = m.preprocess(scans[0]), m.preprocess(scans[1])
+    errors = []
+    for init in (inv_T(T_w1), np.eye(4)):
+        E = T_w1 @ m.register(src, tgt, init).T_target_source
+        errors.append(np.linalg.norm(E[:3, 3]))
+    assert errors[0] < 0.005 and errors[1] > 0.03, errors
