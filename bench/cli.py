@@ -29,6 +29,7 @@ app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=N
                   help="Benchmark harness for Doppler-based scan matching (4D radar, FMCW LiDAR).")
 app.add_typer(convert_app, name="convert")
 console = make_console()
+status = make_console(stderr=True)  # status lines beside data written to stdout
 
 
 @app.command("list")
@@ -189,12 +190,12 @@ def _print_run(run_dir: Path) -> None:
     if metrics_path.exists():
         m = json.loads(metrics_path.read_text())
         rel = m.get("relative_error") or {}
+        scored = [k for k, r in rel.items() if r.get("n")]  # lengths with segments
         parts = []
-        for length in dict.fromkeys([k for k in rel][:1] + [k for k in rel][-1:]):
+        for length in dict.fromkeys(scored[:1] + scored[-1:]):  # the shortest and longest
             r = rel[length]
-            if r.get("n"):
-                parts.append(f"{length} m: {r['rot_deg_mean']:.3f} deg / "
-                             f"{r['trans_m_mean']:.3f} m")
+            parts.append(f"{length} m: {r['rot_deg_mean']:.3f} deg / "
+                         f"{r['trans_m_mean']:.3f} m")
         ape = m.get("ape") or {}
         if ape.get("trans_rmse_m") is not None:
             parts.append(f"APE {ape['trans_rmse_m']:.3f} m")
@@ -234,8 +235,8 @@ def table(
         raise DataError(f"unknown table format {format!r}; choose from {', '.join(FORMATS)}")
     texts = write_tables(list(results_dirs), out)
     sys.stdout.write(texts[format])  # plain text, unwrapped (a pipe gets valid CSV)
-    console.print(f"wrote {(out or results_dirs[0])}/table.{{md,tex,csv}}", style="dim",
-                  markup=False)
+    status.print(f"wrote {(out or results_dirs[0])}/table.{{md,tex,csv}}", style="dim",
+                 markup=False)
 
 
 @app.command()

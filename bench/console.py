@@ -11,8 +11,10 @@ import sys
 from rich.console import Console
 
 
-def make_console() -> Console:
-    if sys.stdout.isatty():
-        return Console(highlight=False)
+def make_console(stderr: bool = False) -> Console:
+    """The Console for stdout (results) or, with ``stderr``, for status lines that must not
+    mix with data written to stdout (``bench table -f csv > t.csv``)."""
+    if (sys.stderr if stderr else sys.stdout).isatty():
+        return Console(highlight=False, stderr=stderr)
     return Console(soft_wrap=True, no_color=True, highlight=False, width=200,
-                   force_terminal=False)
+                   force_terminal=False, stderr=stderr)

@@ -8,7 +8,7 @@
   (the main process ends them and records their runs as interrupted), and a job that runs
   longer than ``job_timeout_s`` is killed and recorded as failed.
 - ``dask``: dask.distributed, on an existing cluster (``scheduler`` address) or a LocalCluster
-  of ``workers`` single-threaded worker processes; ``job_timeout_s`` counts from submission.
+  of ``workers`` single-threaded worker processes (``bench.executor_dask``).
 
 In every mode the BLAS/OpenMP/numba thread counts are pinned (``pin_threads``) and every timed
 section holds a machine-wide lock (``methods.timing``), so no two timed sections overlap and a
@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import contextlib
 import ctypes
-import logging
 import os
 import signal
 import tempfile
@@ -75,7 +74,10 @@ def execute(jobs: list[Job], executor: str, workers: int, force: bool, report: R
     if executor == "process":
         return _run_processes(jobs, workers, force, report, finish, job_timeout_s)
     if executor == "dask":
-        return _run_dask(jobs, workers, force, finish, job_timeout_s, scheduler)
+        from bench.executor_dask import run_dask
+
+        return run_dask(jobs, workers, force, report, finish, job_timeout_s, scheduler,
+                        pin_threads())
     raise DataError(f"unknown executor {executor!r}; choose from {', '.join(EXECUTORS)}")
 
 
@@ -170,9 +172,16 @@ def _run_processes(jobs, workers, force, report, finish, job_timeout_s) -> list[
                 receiver, sender = ctx.Pipe(duplex=False)
                 proc = ctx.Process(target=_worker, daemon=True,
                                    args=(jobs[index], force, sender, os.getpid()))
-                proc.start()
+                # the worker starts with SIGINT blocked (inherited through exec), so a Ctrl-C
+                # during its start-up cannot print a traceback there; here it is only
+                # deferred until the worker is registered, never lost
+                mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
+                try:
+                    proc.start()
+                    running[index] = (proc, time.monotonic(), receiver)
+                finally:
+                    signal.pthread_sigmask(signal.SIG_SETMASK, mask)
                 sender.close()
-                running[index] = (proc, time.monotonic(), receiver)
             drain(0.1)
             for index, (proc, start, receiver) in list(running.items()):
                 if proc.is_alive():
@@ -202,70 +211,4 @@ def _run_processes(jobs, workers, force, report, finish, job_timeout_s) -> list[
             record_unfinished(jobs[index], message, "interrupted")
             results[index] = JobOutcome(jobs[index], "interrupted", message)
         raise
-    return [results[i] for i in range(len(jobs)) if i in results]
-
-
-# ---- dask executor ------------------------------------------------------------------------
-
-def _dask_task(job: Job, force: bool, threads: dict[str, str]) -> JobOutcome:
-    for var, value in threads.items():
-        os.environ.setdefault(var, value)
-    os.environ.setdefault(TIMING_LOCK_ENV, TIMING_LOCK)
-    return run_job(job, force)
-
-
-def _run_dask(jobs, workers, force, finish, job_timeout_s, scheduler) -> list[JobOutcome]:
-    try:
-        from dask.distributed import Client, LocalCluster, wait
-    except ImportError:
-        raise DataError("the dask executor needs dask.distributed: "
-                        "pip install 'doppler-bench[dask]'") from None
-    cluster = None
-    if scheduler is None:
-        cluster = LocalCluster(n_workers=max(1, workers), threads_per_worker=1, processes=True,
-                               dashboard_address=None, silence_logs=logging.ERROR)
-    results: dict[int, JobOutcome] = {}
-    threads = pin_threads()
-    with Client(scheduler or cluster) as client:
-        futures = {client.submit(_dask_task, job, force, threads, pure=False): i
-                   for i, job in enumerate(jobs)}
-        submitted = time.monotonic()
-        try:
-            remaining = set(futures)
-            while remaining:
-                try:
-                    finished, remaining = wait(list(remaining), timeout=0.5,
-                                               return_when="FIRST_COMPLETED")
-                except TimeoutError:  # nothing finished within the poll interval
-                    finished = set()
-                for fut in finished:
-                    index = futures[fut]
-                    try:
-                        outcome = fut.result()
-                    except Exception as err:  # noqa: BLE001 - a worker died or raised
-                        outcome = JobOutcome(jobs[index], "failed", f"dask: {err}")
-                        record_unfinished(jobs[index], outcome.message, "crashed")
-                    results[index] = outcome
-                    finish(outcome)
-                if job_timeout_s and remaining and time.monotonic() - submitted > job_timeout_s:
-                    for fut in remaining:
-                        index = futures[fut]
-                        message = f"timeout: not finished {job_timeout_s:g} s after submission"
-                        fut.cancel()
-                        record_unfinished(jobs[index], message, "timeout")
-                        results[index] = JobOutcome(jobs[index], "failed", message)
-                        finish(results[index])
-                    remaining = set()
-        except KeyboardInterrupt:
-            for fut, index in futures.items():
-                if index not in results:
-                    fut.cancel()
-                    record_unfinished(jobs[index], "interrupted by the user (Ctrl-C)",
-                                      "interrupted")
-                    results[index] = JobOutcome(jobs[index], "interrupted",
-                                                "interrupted by the user (Ctrl-C)")
-            raise
-        finally:
-            if cluster is not None:
-                cluster.close()
     return [results[i] for i in range(len(jobs)) if i in results]

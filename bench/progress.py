@@ -34,37 +34,38 @@ def run_jobs(jobs: list[Job], console: Console | None = None, workers: int = 1,
     Returns the outcomes in job order; Ctrl-C propagates after the executor cleaned up."""
     console = console or Console()
     finished: list[JobOutcome] = []
-    with _progress(console) as progress:
-        overall = progress.add_task(f"{len(jobs)} runs", total=len(jobs), fps="-")
-        tasks: dict[str, tuple[int, float]] = {}
+    try:
+        with _progress(console) as progress:
+            overall = progress.add_task(f"{len(jobs)} runs", total=len(jobs), fps="-")
+            tasks: dict[str, tuple[int, float]] = {}
 
-        def report(job: Job, done: int, total: int) -> None:
-            if job.title not in tasks:
-                tasks[job.title] = (progress.add_task(escape(job.title), total=total, fps="-"),
-                                    time.monotonic())
-            task, start = tasks[job.title]
-            fps = done / max(time.monotonic() - start, 1e-9)
-            progress.update(task, completed=done, fps=f"{fps:6.1f}")
+            def report(job: Job, done: int, total: int) -> None:
+                if job.title not in tasks:
+                    tasks[job.title] = (progress.add_task(escape(job.title), total=total,
+                                                          fps="-"), time.monotonic())
+                task, start = tasks[job.title]
+                fps = done / max(time.monotonic() - start, 1e-9)
+                progress.update(task, completed=done, fps=f"{fps:6.1f}")
 
-        def finish(outcome: JobOutcome) -> None:
-            finished.append(outcome)
-            progress.advance(overall)
-            if outcome.job.title in tasks:
-                progress.remove_task(tasks.pop(outcome.job.title)[0])
-            style = {"done": "green", "skipped": "dim"}.get(outcome.status, "red")
-            extra = (f"{outcome.frames / outcome.wall_s:.1f} frames/s"
-                     if outcome.status == "done" and outcome.wall_s > 0 else outcome.message)
-            progress.console.print(f"[{style}]{outcome.status:>11}[/] "
-                                   f"{escape(outcome.job.title)}  {escape(extra)}")
+            def finish(outcome: JobOutcome) -> None:
+                finished.append(outcome)
+                progress.advance(overall)
+                if outcome.job.title in tasks:
+                    progress.remove_task(tasks.pop(outcome.job.title)[0])
+                style = {"done": "green", "skipped": "dim"}.get(outcome.status, "red")
+                extra = (f"{outcome.frames / outcome.wall_s:.1f} frames/s"
+                         if outcome.status == "done" and outcome.wall_s > 0 else outcome.message)
+                progress.console.print(f"[{style}]{outcome.status:>11}[/] "
+                                       f"{escape(outcome.job.title)}  {escape(extra)}")
 
-        try:
             return execute(jobs, executor, workers, force, report, finish, job_timeout_s,
                            scheduler)
-        except KeyboardInterrupt:
-            kept = sum(o.status in ("done", "skipped") for o in finished)
-            console.print(f"interrupted: {kept} runs finished and kept, "
-                          f"{len(jobs) - len(finished)} interrupted or not started", style="red")
-            raise
+    except KeyboardInterrupt:  # after the bars, so the line is the last one printed
+        kept = sum(o.status in ("done", "skipped") for o in finished)
+        console.print(f"interrupted: {kept} runs finished and kept, "
+                      f"{len(jobs) - kept} interrupted or not started", style="red",
+                      markup=False)
+        raise
 
 
 def ensure_suite_with_progress(suite: str, data_dir: Path,

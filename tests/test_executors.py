@@ -12,7 +12,7 @@ from pathlib import Path
 import psutil
 import pytest
 
-from bench.progress import run_jobs
+from bench.executors import execute
 from bench.run import Job, plan
 from conftest import constant_twist_sequence
 from loaders.store import write_store
@@ -34,13 +34,20 @@ def _metrics(run_dir: Path) -> dict:
     return m
 
 
-def test_every_executor_gives_the_same_metrics(store, tmp_path):
+def test_every_executor_gives_the_same_metrics_and_reports_progress(store, tmp_path):
     results = {}
     for executor in ("local", "process", "dask"):
         jobs = plan([Job(store=store, method=m, seed=s, out_root=tmp_path / executor)
                      for m, s in (("doppler", None), ("icp-p2p", True))])
-        outcomes = run_jobs(jobs, workers=2, executor=executor)
+        progress, finished = {}, []
+        outcomes = execute(jobs, executor, 2, False,
+                           lambda job, done, total, p=progress: p.setdefault(job.title, [])
+                           .append((done, total)), finished.append)
         assert [o.status for o in outcomes] == ["done", "done"], [o.message for o in outcomes]
+        assert len(finished) == 2
+        # every run reported frames as it went (the bars' frames/s), ending with all of them
+        assert {title: reports[-1] for title, reports in progress.items()} == {
+            j.title: (40, 40) for j in jobs}, executor
         results[executor] = [_metrics(j.run_dir_override) for j in jobs]
     assert results["local"] == results["process"] == results["dask"]
 
@@ -132,6 +139,25 @@ def test_a_job_timeout_ends_the_job(store, tmp_path):
     out, _ = proc.communicate(timeout=60)
     assert proc.returncode == 1, out
     assert "timeout" in out
+
+
+def test_dask_job_timeout_ends_that_job_only(store, tmp_path):
+    # more jobs than workers, each ~1 s: the timeout counts from a job's start (not its
+    # submission: the last ones start ~4 s after it), and the jobs queued behind the slow one
+    # must not die with it
+    quick = ", ".join(f"{{name: test-sleep, label: q{k}, params: {{sleep_s: 0, "
+                      "untimed_sleep_s: 0.025}}" for k in range(5))
+    # the slow job sleeps outside the timed section, so it does not hold the timing lock
+    slow = "{name: test-sleep, label: slow, params: {sleep_s: 0, untimed_sleep_s: 0.3}}"
+    exp = _experiment(tmp_path, store, f"[{slow}, {quick}]")
+    proc = _bench(["run", str(exp), "--executor", "dask", "--job-timeout", "5"])
+    out, _ = proc.communicate(timeout=120)
+    assert proc.returncode == 1, out
+    slow = tmp_path / "results/twist/slow"
+    assert json.loads((slow / "failed.json").read_text())["status"] == "timeout"
+    assert not (slow / "metrics.json").exists()
+    for k in range(5):
+        assert (tmp_path / f"results/twist/q{k}/metrics.json").exists(), out
 
 
 @pytest.mark.parametrize("args, code", [

@@ -22,7 +22,9 @@ class AbortingMethod(Registration):
 
 
 class SleepParams(MethodParams):
-    sleep_s: float = Field(0.05, ge=0, description="sleep per frame [s]")
+    sleep_s: float = Field(0.05, ge=0, description="sleep per frame in the timed call [s]")
+    untimed_sleep_s: float = Field(0.0, ge=0, description="sleep per frame in preprocess, "
+                                   "outside the timed section and its lock [s]")
 
 
 class SleepingMethod(Registration):
@@ -30,6 +32,10 @@ class SleepingMethod(Registration):
     description = "test only: returns the identity after sleeping"
     uses_initial_guess = False
     Params = SleepParams
+
+    def preprocess(self, scan):
+        time.sleep(self.params.untimed_sleep_s)
+        return scan
 
     def register(self, source, target, init_T_target_source):
         time.sleep(self.params.sleep_s)
