@@ -1,6 +1,8 @@
 """Executors and the command line's exit codes: crashes fail alone, Ctrl-C and the death of
 the main process leave no worker, and every executor gives the same metrics."""
 
+import csv
+import io
 import json
 import os
 import signal
@@ -167,26 +169,38 @@ def test_dask_job_timeout_ends_that_job_only(store, tmp_path):
     (["run", "--method", "doppler", "--data", "STORE", "--executor", "cloud"], 2),
     (["run", "--method", "doppler", "--data", "STORE", "--out", "OUT"], 0),
     (["run", "--method", "test-abort", "--data", "STORE", "--out", "OUT2"], 1),
+    (["run", "BADYAML"], 2),
 ])
 def test_exit_codes(store, tmp_path, args, code):
-    args = [a.replace("STORE", str(store)).replace("OUT", str(tmp_path / "o")) for a in args]
+    bad_yaml = tmp_path / "bad.yaml"
+    bad_yaml.write_text("name: e\nmethods: [{name: doppler\n")  # unclosed flow sequence
+    args = [a.replace("STORE", str(store)).replace("OUT", str(tmp_path / "o"))
+            .replace("BADYAML", str(bad_yaml)) for a in args]
     proc = _bench(args)
     out, _ = proc.communicate(timeout=120)
     assert proc.returncode == code, out
     assert "Traceback" not in out
     if code == 0:
         assert "run folder:" in out and "8 m:" in out and "APE" in out
+    if code == 1:
+        assert "1 failed" in out and "SIGABRT" in out  # the summary names the failed run
+    if args[-1] == str(bad_yaml):
+        assert "bad.yaml" in out  # the message names the file
 
 
 def test_piped_output_is_plain_and_keeps_units(store, tmp_path):
     out_dir = tmp_path / "runs"
     assert _bench(["run", "--method", "doppler", "--data", str(store), "--out",
                    str(out_dir / "twist" / "doppler")]).wait(timeout=120) == 0
-    proc = _bench(["table", str(out_dir), "-f", "csv"])
-    out, _ = proc.communicate(timeout=60)
+    proc = subprocess.Popen([sys.executable, "-m", "bench.cli", "table", str(out_dir), "-f",
+                             "csv"], env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                            text=True)
+    out, err = proc.communicate(timeout=60)
     header = out.splitlines()[0]
     assert header.startswith("sensor_class,sequence,method") and "\x1b[" not in out
     assert len(header) > 80  # not wrapped at 80 columns
+    rows = list(csv.reader(io.StringIO(out)))  # stdout is the CSV alone: status on stderr
+    assert len(rows) == 2 and len(rows[1]) == len(rows[0]) and "wrote" in err
     proc = _bench(["run", "--help"])
     help_text, _ = proc.communicate(timeout=60)
     assert "[s]" in help_text
