@@ -25,6 +25,7 @@ from pathlib import Path
 
 import yaml
 
+from loaders.errors import DataError
 from loaders.fileio import atomic_path, atomic_write_text
 from loaders.scan import Trajectory
 from methods.base import OdometryResult
@@ -38,7 +39,7 @@ _PACKAGES = ["doppler-bench", "numpy", "scipy", "h5py", "rosbags", "evo", "kiss-
 
 
 RUN_RECORDS = ("metrics.json", "failed.json")
-_store_hashes: dict[tuple, str] = {}
+_store_hashes: dict[str, str] = {}
 
 
 def run_dir_name(method: str, seed: bool | None, label: str | None = None) -> str:
@@ -48,17 +49,40 @@ def run_dir_name(method: str, seed: bool | None, label: str | None = None) -> st
     return base if seed is None else f"{base}_{'seed' if seed else 'noseed'}"
 
 
+def _hash_cache_file() -> Path:
+    base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
+    return Path(base) / "doppler-bench" / "store-sha256.json"
+
+
 def store_identity(path: Path) -> str:
-    """SHA-256 of a store's bytes (its content identity), cached by path, size and mtime."""
+    """SHA-256 of a store's bytes (its content identity). Cached in memory and in
+    ~/.cache/doppler-bench/store-sha256.json by resolved path, size, mtime and inode (a store
+    rewritten by an atomic rename has a new inode), so an unchanged store is hashed once."""
     st = Path(path).stat()
-    cache_key = (str(Path(path).resolve()), st.st_size, st.st_mtime_ns)
-    if cache_key not in _store_hashes:
+    cache_key = f"{Path(path).resolve()}|{st.st_size}|{st.st_mtime_ns}|{st.st_ino}"
+    if cache_key in _store_hashes:
+        return _store_hashes[cache_key]
+    cache_file = _hash_cache_file()
+    try:
+        cached = json.loads(cache_file.read_text())
+    except (OSError, ValueError):
+        cached = {}
+    digest = cached.get(cache_key) if isinstance(cached, dict) else None
+    if not isinstance(digest, str):
         h = hashlib.sha256()
         with open(path, "rb") as f:
             for chunk in iter(lambda: f.read(1 << 20), b""):
                 h.update(chunk)
-        _store_hashes[cache_key] = h.hexdigest()
-    return _store_hashes[cache_key]
+        digest = h.hexdigest()
+        cached = cached if isinstance(cached, dict) else {}
+        live = {k: v for k, v in cached.items() if Path(k.split("|")[0]).exists()}
+        try:  # best effort: a read-only home only costs re-hashing next time
+            cache_file.parent.mkdir(parents=True, exist_ok=True)
+            atomic_write_text(cache_file, json.dumps({**live, cache_key: digest}))
+        except (OSError, DataError):
+            pass
+    _store_hashes[cache_key] = digest
+    return digest
 
 
 _ROOT = Path(__file__).resolve().parent.parent

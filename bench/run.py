@@ -58,6 +58,7 @@ class Job:
     run_dir_override: Path | None = None
     label: str | None = None
     run_key: str | None = None  # set by ``plan``
+    store_sha256: str | None = None  # set by ``plan``, so workers do not hash the store again
 
     @property
     def title(self) -> str:
@@ -137,7 +138,8 @@ def prepare(job: Job) -> Prepared:
             raise error from None
         params = getattr(method, "params", None)
         config["method"]["params"] = params.model_dump(mode="json") if params is not None else {}
-        identity = {"store_sha256": store_identity(job.store), "method": job.method,
+        identity = {"store_sha256": job.store_sha256 or store_identity(job.store),
+                    "method": job.method,
                     "params": config["method"]["params"], "seed": job.seed,
                     "lengths_m": [float(x) for x in job.lengths_m],
                     "code_sha256": code_identity()}
@@ -170,7 +172,8 @@ def plan(jobs: list[Job]) -> list[Job]:
             continue
         owners[prep.run_dir] = (job, prep.key)
         _check_writable(prep.run_dir)
-        planned.append(replace(job, run_dir_override=prep.run_dir, run_key=prep.key))
+        planned.append(replace(job, run_dir_override=prep.run_dir, run_key=prep.key,
+                               store_sha256=prep.config["identity"]["store_sha256"]))
     if problems:
         raise DataError("\n".join(dict.fromkeys(problems)))
     # the same run asked for twice (e.g. by two tables) runs once

@@ -97,3 +97,28 @@ def test_method_sequence_filter(store, tmp_path):
                            "{name: icp-p2p, sequences: [elsewhere]}]")
     with pytest.raises(DataError, match="unknown sequences elsewhere"):
         jobs_for_experiment(load_experiment(exp_path))
+
+
+def test_store_hashes_are_cached_by_path_size_mtime_and_inode(store, tmp_path, monkeypatch):
+    import hashlib
+
+    from bench import results
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr(results, "_store_hashes", {})
+    copy = tmp_path / "twist.h5"
+    copy.write_bytes(store.read_bytes())
+    true_hash = hashlib.sha256(copy.read_bytes()).hexdigest()
+    assert results.store_identity(copy) == true_hash
+    cache_file = tmp_path / "cache" / "doppler-bench" / "store-sha256.json"
+    cached = json.loads(cache_file.read_text())
+    assert list(cached.values()) == [true_hash]
+    # another process (empty memory cache) takes the hash from the file, without reading
+    # the store: a planted value proves it
+    cache_file.write_text(json.dumps({k: "planted" for k in cached}))
+    monkeypatch.setattr(results, "_store_hashes", {})
+    assert results.store_identity(copy) == "planted"
+    # a rewritten store (new inode, size or mtime) is hashed again
+    write_store(constant_twist_sequence(n_frames=12, seed=7), copy)
+    monkeypatch.setattr(results, "_store_hashes", {})
+    assert results.store_identity(copy) == hashlib.sha256(copy.read_bytes()).hexdigest()
