@@ -389,7 +389,7 @@ def reproduce(
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
-    console.print(f"[yellow]warning:[/] {escape(str(message))}")
+    status.print(f"[yellow]warning:[/] {escape(str(message))}")
 
 
 def main() -> None:
@@ -399,16 +399,16 @@ def main() -> None:
     warnings.showwarning = _show_warning
     try:
         code = app(standalone_mode=False)
-    except DataError as err:
-        console.print(f"[bold red]error:[/] {escape(str(err))}")
+    except DataError as err:  # errors and warnings on stderr: stdout may be data (a CSV)
+        status.print(f"[bold red]error:[/] {escape(str(err))}")
         sys.exit(2)
     except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as err:
-        console.print(f"[bold red]error:[/] {escape(str(err))}")
+        status.print(f"[bold red]error:[/] {escape(str(err))}")
         sys.exit(2)
     except typer.Exit as e:
         sys.exit(e.exit_code)
     except (typer.Abort, KeyboardInterrupt):
-        console.print("[red]aborted (Ctrl-C)[/]")
+        status.print("[red]aborted (Ctrl-C)[/]")
         sys.exit(130)
     except Exception as err:
         if callable(getattr(err, "show", None)) and hasattr(err, "exit_code"):
