@@ -18,6 +18,7 @@ import os
 import platform
 import re
 import subprocess
+import sys
 from dataclasses import asdict
 from datetime import UTC, datetime
 from importlib import metadata
@@ -168,6 +169,9 @@ def run_meta() -> dict:
         "cpu": _cpu_model(),
         "cpu_count": os.cpu_count(),
         "threads": {k: os.environ.get(k) for k in THREAD_VARS},
+        # what numba actually uses (read when it was imported, which may precede the pinning)
+        "numba_threads": (sys.modules["numba"].config.NUMBA_NUM_THREADS
+                          if "numba" in sys.modules else None),
         "timing_lock": os.environ.get(TIMING_LOCK_ENV),
         "host": platform.node(),
         "date": datetime.now(UTC).isoformat(timespec="seconds"),
