@@ -102,7 +102,7 @@ class DopplerEgo(Odometry):
         p = self._resolved(sequence.sensor)
         frames_kept = 1 if not p.use_map else max(1, math.ceil(p.map_seconds
                                                                / sequence.sensor.period_s))
-        local_map = LocalMap(frames_kept)
+        local_map = LocalMap(frames_kept, p.max_correspondence_m)
         n = len(sequence)
         poses = np.repeat(np.eye(4)[None], n, axis=0)
         stamps = np.empty(n)

@@ -2,8 +2,8 @@
 
 ``LocalMap`` keeps the static points of the last ``max_frames`` scans in the world frame, each
 point with the covariance of its neighbourhood in its own scan (computed once, when the scan is
-added, and rotated into the world frame), and a kd-tree (small_gicp) over their union, rebuilt
-once per frame.
+added, and rotated into the world frame), and an exact radius-limited nearest-neighbour index
+over their union (``methods/spatial_hash.py``), rebuilt once per frame in O(N).
 
 ``register_to_map`` is a Gauss-Newton generalized-ICP (each pair weighted by the inverse of
 the summed covariances, a Cauchy kernel on the Mahalanobis distance) over the pose
@@ -25,6 +25,8 @@ import numpy as np
 import small_gicp
 from scipy.spatial.transform import Rotation
 
+from methods.spatial_hash import SpatialHash
+
 
 def scan_covariances(points: np.ndarray, neighbours: int, floor_m: float) -> np.ndarray:
     """(N, 3, 3) covariance of each point's ``neighbours`` nearest points in the same scan
@@ -34,20 +36,53 @@ def scan_covariances(points: np.ndarray, neighbours: int, floor_m: float) -> np.
     if k < 3:
         return np.broadcast_to(np.eye(3) * floor_m**2, (n, 3, 3)).copy()
     idx, _ = small_gicp.KdTree(points).batch_knn_search(points, k)
-    nb = points[np.asarray(idx)]
-    c = nb - nb.mean(axis=1, keepdims=True)
-    cov = np.einsum("nki,nkj->nij", c, c) / (k - 1)
-    return cov + np.eye(3) * floor_m**2
+    return _neighbourhood_covariances(np.ascontiguousarray(points, dtype=np.float64),
+                                      np.asarray(idx, dtype=np.int64), float(floor_m) ** 2)
+
+
+@numba.njit(cache=True)
+def _neighbourhood_covariances(points, idx, floor2):
+    """Sample covariance (divisor k - 1) of the points idx[n, :], plus floor2 on the diagonal."""
+    n, k = idx.shape
+    cov = np.empty((n, 3, 3))
+    for i in range(n):
+        m0 = m1 = m2 = 0.0
+        for j in range(k):
+            p = idx[i, j]
+            m0 += points[p, 0]
+            m1 += points[p, 1]
+            m2 += points[p, 2]
+        m0, m1, m2 = m0 / k, m1 / k, m2 / k
+        s00 = s01 = s02 = s11 = s12 = s22 = 0.0
+        for j in range(k):
+            p = idx[i, j]
+            a, b, c = points[p, 0] - m0, points[p, 1] - m1, points[p, 2] - m2
+            s00 += a * a
+            s01 += a * b
+            s02 += a * c
+            s11 += b * b
+            s12 += b * c
+            s22 += c * c
+        f = 1.0 / (k - 1)
+        cov[i, 0, 0] = s00 * f + floor2
+        cov[i, 1, 1] = s11 * f + floor2
+        cov[i, 2, 2] = s22 * f + floor2
+        cov[i, 0, 1] = cov[i, 1, 0] = s01 * f
+        cov[i, 0, 2] = cov[i, 2, 0] = s02 * f
+        cov[i, 1, 2] = cov[i, 2, 1] = s12 * f
+    return cov
 
 
 class LocalMap:
-    """World-frame points (with covariances) of the last ``max_frames`` scans."""
+    """World-frame points (with covariances) of the last ``max_frames`` scans, searchable for
+    the nearest point within ``search_radius_m``."""
 
-    def __init__(self, max_frames: int) -> None:
+    def __init__(self, max_frames: int, search_radius_m: float) -> None:
         self.frames: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=max_frames)
         self.points = np.empty((0, 3))
         self.covs = np.empty((0, 3, 3))
-        self.tree: small_gicp.KdTree | None = None
+        self.search_radius_m = float(search_radius_m)
+        self.index: SpatialHash | None = None
 
     def add(self, points_sensor: np.ndarray, covs_sensor: np.ndarray,
             T_world_sensor: np.ndarray) -> None:
@@ -55,7 +90,12 @@ class LocalMap:
         self.frames.append((points_sensor @ R.T + t, R @ covs_sensor @ R.T))
         self.points = np.concatenate([f[0] for f in self.frames])
         self.covs = np.concatenate([f[1] for f in self.frames])
-        self.tree = small_gicp.KdTree(self.points) if len(self.points) else None
+        self.index = SpatialHash(self.points, self.search_radius_m) if len(self.points) else None
+
+    def nearest(self, points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Nearest map point of each point within the search radius: index (-1: none) and
+        squared distance [m^2] (inf: none)."""
+        return self.index.nearest(points_world, self.search_radius_m)
 
     def __len__(self) -> int:
         return len(self.points)
@@ -152,16 +192,18 @@ def register_to_map(
     R = init_T_world_sensor[:3, :3].copy()
     t = init_T_world_sensor[:3, 3].copy() if translation_of is None else translation_of(R)
     n_pairs, converged, it = 0, False, 0
-    if local_map.tree is None:
+    if local_map.index is None:
         return MapFit(_pose(R, t), 0, 0, False)
+    if max_correspondence_m > local_map.search_radius_m:
+        raise ValueError(f"pair gate {max_correspondence_m} m exceeds the map's search radius "
+                         f"{local_map.search_radius_m} m")
     dof = 6 if translation_of is None else 3
     c2 = kernel_scale**2
     for step in range(1, max_iterations + 1):
         it = step
         Rp = points @ R.T
         moved = Rp + t
-        idx, sq = local_map.tree.batch_nearest_neighbor_search(moved)
-        idx, sq = np.asarray(idx), np.asarray(sq)
+        idx, sq = local_map.nearest(moved)
         keep = sq < max_correspondence_m**2
         n_pairs = int(keep.sum())
         if n_pairs < min_correspondences:
