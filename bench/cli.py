@@ -227,13 +227,22 @@ def table(
         help="results folder(s), searched recursively; several: rows labelled by folder")],
     format: Annotated[str, typer.Option("--format", "-f", help="md, tex or csv")] = "md",
     out: Annotated[Path | None, typer.Option(help="folder for table.{md,tex,csv}")] = None,
+    lengths: Annotated[str | None, typer.Option(
+        help="only these segment lengths [m], comma separated (e.g. 8,48)")] = None,
 ) -> None:
     """Print the paper-shaped table (Table III) and write table.md / .tex / .csv."""
     from bench.tables import FORMATS, write_tables
 
     if format not in FORMATS:
         raise DataError(f"unknown table format {format!r}; choose from {', '.join(FORMATS)}")
-    texts = write_tables(list(results_dirs), out)
+    try:
+        lengths_m = None if lengths is None else [float(x) for x in lengths.split(",")]
+    except ValueError:
+        raise DataError(f"--lengths {lengths!r}: expected numbers in metres, e.g. 8,48") from None
+    try:
+        texts = write_tables(list(results_dirs), out, lengths_m=lengths_m)
+    except ValueError as e:
+        raise DataError(str(e)) from None
     sys.stdout.write(texts[format])  # plain text, unwrapped (a pipe gets valid CSV)
     status.print(f"wrote {(out or results_dirs[0])}/table.{{md,tex,csv}}", style="dim",
                  markup=False)

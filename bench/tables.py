@@ -198,9 +198,11 @@ FORMATS = {"md": to_markdown, "tex": to_latex, "csv": to_csv}
 
 
 def write_tables(results_dir: Path | list[Path], out_dir: Path | None = None,
-                 only: set[Path] | None = None, stem: str = "table") -> dict[str, str]:
+                 only: set[Path] | None = None, stem: str = "table",
+                 lengths_m: list[float] | None = None) -> dict[str, str]:
     """Write <stem>.md, .tex and .csv (of every run, or of the folders in ``only``; of several
-    results folders, each row labelled with its folder); return the texts by format."""
+    results folders, each row labelled with its folder; only the segment lengths in
+    ``lengths_m`` when given); return the texts by format."""
 
     if isinstance(results_dir, list):
         rows, lengths = collect_rows_of(results_dir)
@@ -210,6 +212,12 @@ def write_tables(results_dir: Path | list[Path], out_dir: Path | None = None,
     if not rows:
         raise FileNotFoundError(f"{results_dir}: no finished runs with ground truth "
                                 "(no metrics.json found)")
+    if lengths_m is not None:
+        missing = [L for L in lengths_m if not any(float(x) == L for x in lengths)]
+        if missing:
+            raise ValueError(f"{results_dir}: no results at {', '.join(f'{L:g}' for L in missing)}"
+                             f" m (scored lengths: {', '.join(f'{float(x):g}' for x in lengths)})")
+        lengths = [x for x in lengths if float(x) in lengths_m]
     return save_formats(Path(out_dir or results_dir), stem,
                         {fmt: fn(rows, lengths) for fmt, fn in FORMATS.items()})
 

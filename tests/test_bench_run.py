@@ -108,6 +108,22 @@ def test_cli_run_table_inspect(store, tmp_path):
     res = runner.invoke(app, ["table", str(tmp_path), "--format", "csv"])
     assert res.exit_code == 0, res.output
     assert "icp-p2p" in res.output and res.output.count("\n") >= 2
+    def csv_header(output: str) -> list[str]:
+        return next(ln for ln in output.splitlines() if ln.startswith("sensor_class")).split(",")
+
+    header = csv_header(res.output)
+    res = runner.invoke(app, ["table", str(tmp_path), "-f", "csv", "--lengths", "8,16",
+                              "--out", str(tmp_path / "short")])
+    assert res.exit_code == 0, res.output
+    short = csv_header(res.output)
+    per_length = [c for c in short if c.endswith("m") and c[0] in "rt"]
+    assert per_length == ["rot_deg_8m", "trans_m_8m", "rot_deg_16m", "trans_m_16m"]
+    assert set(short) < set(header)
+    res = runner.invoke(app, ["table", str(tmp_path), "--lengths", "8,1000", "--out",
+                              str(tmp_path / "short")])
+    # a DataError: `bench` (main) prints it as one line and exits 2
+    assert type(res.exception).__name__ == "DataError" and "no results at 1000 m" in str(
+        res.exception)
     res = runner.invoke(app, ["inspect", str(store)])
     assert res.exit_code == 0, res.output
     assert "points per frame" in res.output and "confirmed" in res.output
