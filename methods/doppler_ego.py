@@ -52,8 +52,6 @@ DEFAULTS = {
     "threshold_mps": (0.25, 0.1),
     # radar: about the cross-range noise at 30 m (1 deg); dense LiDAR: ~1 m cells
     "voxel_m": (0.5, 1.0),
-    # radar angular noise ~1 deg is ~0.9 m at 50 m; LiDAR points are cm-accurate
-    "max_correspondence_m": (2.0, 1.0),
     "covariance_floor_m": (0.15, 0.03),
     # ~1 s of radar scans for enough structure; LiDAR scans are dense on their own
     "map_seconds": (1.0, 0.5),
@@ -67,7 +65,11 @@ class DopplerEgoParams(MethodParams):
     threshold_mps: float | None = Field(None, gt=0, description="RANSAC Doppler inlier gate "
                                         "[m/s] (radar 0.25, LiDAR 0.1)")
     voxel_m: float | None = Field(None, gt=0, description="source voxel size [m]")
-    max_correspondence_m: float | None = Field(None, gt=0, description="pair gate [m]")
+    # The translation is fixed by Doppler (to mm) and the rotation predicted from the last
+    # step, so a correctly associated point lies within about a voxel diagonal (0.87 m for the
+    # radar's 0.5 m) of its nearest map point; farther pairs are wrong associations. (2 m, the
+    # radar's angular noise at 100 m, let wrong pairs in: 48 m rotation error 2.3x in a U-turn.)
+    max_correspondence_m: float = Field(1.0, gt=0, description="pair gate [m]")
     covariance_floor_m: float | None = Field(None, gt=0, description="covariance floor [m]")
     map_seconds: float | None = Field(None, gt=0, description="local map span [s]")
     neighbours: int = Field(10, ge=3, description="points per covariance")

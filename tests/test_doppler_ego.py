@@ -73,6 +73,6 @@ def test_sensor_defaults_and_registry():
     radar = make_method("doppler-ego", {}, SensorInfo("radar", 1 / 12))
     lidar = make_method("doppler-ego", {"voxel_m": 0.7}, SensorInfo("lidar", 0.1))
     assert radar.params.threshold_mps > lidar.params.threshold_mps
-    assert radar.params.max_correspondence_m > lidar.params.max_correspondence_m
+    assert radar.params.map_seconds > lidar.params.map_seconds
     assert lidar.params.voxel_m == 0.7  # an explicit value is kept
     assert seed_options("doppler-ego") == [True]  # its own motion prior: runs once
