@@ -229,9 +229,12 @@ def table(
     out: Annotated[Path | None, typer.Option(help="folder for table.{md,tex,csv}")] = None,
     lengths: Annotated[str | None, typer.Option(
         help="only these segment lengths [m], comma separated (e.g. 8,48)")] = None,
+    pivot: Annotated[bool, typer.Option(
+        help="methods x sequences, one markdown table per length (writes pivot.md)")] = False,
 ) -> None:
     """Print the paper-shaped table (Table III) and write table.md / .tex / .csv."""
-    from bench.tables import FORMATS, write_tables
+    from bench.tables import FORMATS, collect_rows_of, save_formats, write_tables
+    from bench.tables_pivot import to_pivot_markdown
 
     if format not in FORMATS:
         raise DataError(f"unknown table format {format!r}; choose from {', '.join(FORMATS)}")
@@ -243,6 +246,15 @@ def table(
         texts = write_tables(list(results_dirs), out, lengths_m=lengths_m)
     except ValueError as e:
         raise DataError(str(e)) from None
+    if pivot:
+        rows, all_lengths = collect_rows_of(list(results_dirs))
+        chosen = [x for x in all_lengths if lengths_m is None or float(x) in lengths_m]
+        text = "\n".join(to_pivot_markdown(rows, x) for x in chosen)
+        save_formats(out or results_dirs[0], "pivot", {"md": text})
+        sys.stdout.write(text)
+        status.print(f"wrote {(out or results_dirs[0])}/pivot.md and table.{{md,tex,csv}}",
+                     style="dim", markup=False)
+        return
     sys.stdout.write(texts[format])  # plain text, unwrapped (a pipe gets valid CSV)
     status.print(f"wrote {(out or results_dirs[0])}/table.{{md,tex,csv}}", style="dim",
                  markup=False)

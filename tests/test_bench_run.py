@@ -121,6 +121,10 @@ def test_cli_run_table_inspect(store, tmp_path):
     assert set(short) < set(header)
     res = runner.invoke(app, ["table", str(tmp_path), "--lengths", "8,1000", "--out",
                               str(tmp_path / "short")])
+    res = runner.invoke(app, ["table", str(tmp_path), "--pivot", "--lengths", "8",
+                              "--out", str(tmp_path / "short")])
+    assert res.exit_code == 0, res.output
+    assert (tmp_path / "short" / "pivot.md").read_text().startswith("| 8 m |")
     # a DataError: `bench` (main) prints it as one line and exits 2
     assert type(res.exception).__name__ == "DataError" and "no results at 1000 m" in str(
         res.exception)
@@ -147,3 +151,22 @@ def test_experiment_yaml_is_validated(tmp_path):
     bad.write_text("name: x\nsequences: [{path: a.h5}]\nmethods: [{name: nope}]\n")
     with pytest.raises(DataError, match="unknown method 'nope'"):
         load_experiment(bad)
+
+
+def test_pivot_table_ranks_methods_per_sequence():
+    from bench.tables import Row
+    from bench.tables_pivot import to_pivot_markdown
+
+    def row(seq, label, rot, trans, diverged=False):
+        return Row("Semi-Dense 4D Radar", seq, label, True, label, {"48": rot}, {"48": trans},
+                   1.0, diverged)
+
+    rows = [row("A", "m1", 0.5, 2.0), row("A", "m2", 0.2, 3.0), row("A", "m3", 9.0, 0.001),
+            row("B", "m1", 1.5, 0.1), row("B", "m2", 0.0, 0.0, diverged=True)]
+    lines = to_pivot_markdown(rows, "48").splitlines()
+    assert lines[0] == "| 48 m | A | B |"
+    cells = {ln.split("|")[1].strip(): [c.strip() for c in ln.split("|")[2:4]]
+             for ln in lines[2:5]}
+    assert cells["m1"] == ["<u>0.500</u> / <u>2.00</u>", "**1.50** / **0.100**"]
+    assert cells["m2"] == ["**0.200** / 3.00", "Div."]  # diverged: not ranked
+    assert cells["m3"] == ["9.00 / **0.001**", ""]     # not run on B
