@@ -108,6 +108,7 @@ def test_cli_run_table_inspect(store, tmp_path):
     res = runner.invoke(app, ["table", str(tmp_path), "--format", "csv"])
     assert res.exit_code == 0, res.output
     assert "icp-p2p" in res.output and res.output.count("\n") >= 2
+
     def csv_header(output: str) -> list[str]:
         return next(ln for ln in output.splitlines() if ln.startswith("sensor_class")).split(",")
 
@@ -121,13 +122,13 @@ def test_cli_run_table_inspect(store, tmp_path):
     assert set(short) < set(header)
     res = runner.invoke(app, ["table", str(tmp_path), "--lengths", "8,1000", "--out",
                               str(tmp_path / "short")])
+    # a DataError: `bench` (main) prints it as one line and exits 2
+    assert type(res.exception).__name__ == "DataError" and "no results at 1000 m" in str(
+        res.exception)
     res = runner.invoke(app, ["table", str(tmp_path), "--pivot", "--lengths", "8",
                               "--out", str(tmp_path / "short")])
     assert res.exit_code == 0, res.output
     assert (tmp_path / "short" / "pivot.md").read_text().startswith("| 8 m |")
-    # a DataError: `bench` (main) prints it as one line and exits 2
-    assert type(res.exception).__name__ == "DataError" and "no results at 1000 m" in str(
-        res.exception)
     res = runner.invoke(app, ["inspect", str(store)])
     assert res.exit_code == 0, res.output
     assert "points per frame" in res.output and "confirmed" in res.output
