@@ -35,9 +35,24 @@ def ego_velocity_from_doppler(points: np.ndarray, doppler: np.ndarray) -> np.nda
     return v
 
 
-def gt_velocities(stamps: np.ndarray, poses: np.ndarray, half_window: int = 2) -> np.ndarray:
+GT_SPEED_HALF_WINDOW_S = 0.5
+
+
+def half_window_frames(stamps: np.ndarray, half_window_s: float = GT_SPEED_HALF_WINDOW_S) -> int:
+    """Frames in +-``half_window_s`` at the median period (at least 2). Ground truth at a lower
+    rate resampled to the scans (NTU4DRadLM: 10 Hz onto 12 Hz, one pose in six repeated) makes
+    differences over a few frames jump by a whole GT step; over a second the jump is ~5 %."""
+    dt = np.diff(stamps)
+    period = float(np.median(dt[dt > 0])) if np.any(dt > 0) else 1.0
+    return max(2, int(np.ceil(half_window_s / period)))
+
+
+def gt_velocities(stamps: np.ndarray, poses: np.ndarray, half_window: int | None = None
+                  ) -> np.ndarray:
     """Sensor-frame linear velocity from GT poses T_world_sensor by central differences over
-    +-half_window frames (robust to repeated GT poses)."""
+    +-half_window frames (default: +-0.5 s, robust to repeated GT poses)."""
+    if half_window is None:
+        half_window = half_window_frames(stamps)
     n = len(stamps)
     lo = np.clip(np.arange(n) - half_window, 0, n - 1)
     hi = np.clip(np.arange(n) + half_window, 0, n - 1)

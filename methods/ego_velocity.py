@@ -25,6 +25,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from loaders.doppler_check import gt_velocities
+
 
 @dataclass(frozen=True)
 class EgoVelocity:
@@ -129,7 +131,8 @@ def speed_from_doppler(sequence, threshold_mps: float | None = None
 
     Returns arrays of length len(sequence): ``stamps`` [s], ``velocity`` (N, 3) [m/s, sensor
     frame, NaN where not observable], ``speed_doppler`` [m/s], ``speed_gt`` [m/s] (central
-    differences of the GT positions at the scan stamps; NaN without GT) and ``observable``.
+    differences of the GT positions at the scan stamps over +-0.5 s, so that GT resampled from
+    a lower rate does not jump; NaN without GT) and ``observable``.
     For ``bench inspect`` (speed over time) and for the calibration check."""
     kind = sequence.sensor.kind
     thr = threshold_mps if threshold_mps is not None else (0.2 if kind == "radar" else 0.1)
@@ -146,7 +149,7 @@ def speed_from_doppler(sequence, threshold_mps: float | None = None
     if gt is not None and len(gt) >= 2:
         covered = gt.coverage_mask(stamps)
         if covered.sum() >= 3:
-            pos = gt.interpolate(stamps[covered]).positions
-            speed_gt[covered] = np.linalg.norm(np.gradient(pos, stamps[covered], axis=0), axis=1)
+            st = stamps[covered]
+            speed_gt[covered] = np.linalg.norm(gt_velocities(st, gt.interpolate(st).poses), axis=1)
     return {"stamps": stamps, "velocity": vel, "speed_doppler": np.linalg.norm(vel, axis=1),
             "speed_gt": speed_gt, "observable": obs}
