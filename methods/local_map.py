@@ -28,48 +28,69 @@ from scipy.spatial.transform import Rotation
 from methods.spatial_hash import SpatialHash
 
 
-def scan_covariances(points: np.ndarray, neighbours: int, floor_m: float) -> np.ndarray:
-    """(N, 3, 3) covariance of each point's ``neighbours`` nearest points in the same scan
-    [m^2], regularised by ``floor_m``^2 on the diagonal (radar neighbourhoods are sparse)."""
+def scan_covariances(points: np.ndarray, neighbours: int, floor_m: float,
+                     angle_noise_deg: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+    """(N, 3, 3) covariance of each point [m^2, sensor frame]: the spread of its
+    ``neighbours`` nearest points in the same scan (the local surface), plus the measurement
+    noise: ``floor_m``^2 in every direction (range noise; radar neighbourhoods are sparse) and
+    the angular noise across the ray, (r sigma_az)^2 along the azimuth direction and
+    (r sigma_el)^2 along the elevation direction (``angle_noise_deg`` = (sigma_az, sigma_el)):
+    a radar's far points are metres uncertain across the ray but centimetres along it."""
     n = len(points)
+    pts = np.ascontiguousarray(points, dtype=np.float64)
     k = min(neighbours, n)
     if k < 3:
-        return np.broadcast_to(np.eye(3) * floor_m**2, (n, 3, 3)).copy()
-    idx, _ = small_gicp.KdTree(points).batch_knn_search(points, k)
-    return _neighbourhood_covariances(np.ascontiguousarray(points, dtype=np.float64),
-                                      np.asarray(idx, dtype=np.int64), float(floor_m) ** 2)
+        idx = np.zeros((n, 0), dtype=np.int64)
+    else:
+        idx = np.asarray(small_gicp.KdTree(pts).batch_knn_search(pts, k)[0], dtype=np.int64)
+    az, el = np.radians(angle_noise_deg)
+    return _point_covariances(pts, idx, float(floor_m) ** 2, float(az) ** 2, float(el) ** 2)
 
 
 @numba.njit(cache=True)
-def _neighbourhood_covariances(points, idx, floor2):
-    """Sample covariance (divisor k - 1) of the points idx[n, :], plus floor2 on the diagonal."""
+def _point_covariances(points, idx, floor2, az2, el2):
+    """Sample covariance (divisor k - 1) of the points idx[n, :] (none when k < 3), plus
+    floor2 on the diagonal and the ray-transverse angular noise (variances az2, el2 [rad^2])."""
     n, k = idx.shape
-    cov = np.empty((n, 3, 3))
+    cov = np.zeros((n, 3, 3))
     for i in range(n):
-        m0 = m1 = m2 = 0.0
-        for j in range(k):
-            p = idx[i, j]
-            m0 += points[p, 0]
-            m1 += points[p, 1]
-            m2 += points[p, 2]
-        m0, m1, m2 = m0 / k, m1 / k, m2 / k
-        s00 = s01 = s02 = s11 = s12 = s22 = 0.0
-        for j in range(k):
-            p = idx[i, j]
-            a, b, c = points[p, 0] - m0, points[p, 1] - m1, points[p, 2] - m2
-            s00 += a * a
-            s01 += a * b
-            s02 += a * c
-            s11 += b * b
-            s12 += b * c
-            s22 += c * c
-        f = 1.0 / (k - 1)
-        cov[i, 0, 0] = s00 * f + floor2
-        cov[i, 1, 1] = s11 * f + floor2
-        cov[i, 2, 2] = s22 * f + floor2
-        cov[i, 0, 1] = cov[i, 1, 0] = s01 * f
-        cov[i, 0, 2] = cov[i, 2, 0] = s02 * f
-        cov[i, 1, 2] = cov[i, 2, 1] = s12 * f
+        if k >= 3:
+            m0 = m1 = m2 = 0.0
+            for j in range(k):
+                p = idx[i, j]
+                m0 += points[p, 0]
+                m1 += points[p, 1]
+                m2 += points[p, 2]
+            m0, m1, m2 = m0 / k, m1 / k, m2 / k
+            s00 = s01 = s02 = s11 = s12 = s22 = 0.0
+            for j in range(k):
+                p = idx[i, j]
+                a, b, c = points[p, 0] - m0, points[p, 1] - m1, points[p, 2] - m2
+                s00 += a * a
+                s01 += a * b
+                s02 += a * c
+                s11 += b * b
+                s12 += b * c
+                s22 += c * c
+            f = 1.0 / (k - 1)
+            cov[i, 0, 0], cov[i, 1, 1], cov[i, 2, 2] = s00 * f, s11 * f, s22 * f
+            cov[i, 0, 1] = cov[i, 1, 0] = s01 * f
+            cov[i, 0, 2] = cov[i, 2, 0] = s02 * f
+            cov[i, 1, 2] = cov[i, 2, 1] = s12 * f
+        for a in range(3):
+            cov[i, a, a] += floor2
+        x, y, z = points[i, 0], points[i, 1], points[i, 2]
+        rh2 = x * x + y * y
+        r2 = rh2 + z * z
+        if (az2 > 0.0 or el2 > 0.0) and rh2 > 0.0:
+            rh = np.sqrt(rh2)
+            # unit vectors of increasing azimuth and elevation, times the range r
+            ua = (-y / rh, x / rh, 0.0)  # r cos(el) times this is the azimuth step
+            ue = (-z * x / (rh * np.sqrt(r2)), -z * y / (rh * np.sqrt(r2)), rh / np.sqrt(r2))
+            va, ve = az2 * rh2, el2 * r2  # azimuth moves the point by r cos(el) d_az
+            for a in range(3):
+                for b in range(3):
+                    cov[i, a, b] += va * ua[a] * ua[b] + ve * ue[a] * ue[b]
     return cov
 
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from methods.local_map import _neighbourhood_covariances
+from methods.local_map import _point_covariances, scan_covariances
 from methods.spatial_hash import SpatialHash, _build
 
 
@@ -50,6 +50,30 @@ def test_neighbourhood_covariances_equal_numpy():
     rng = np.random.default_rng(1)
     pts = rng.normal(size=(200, 3))
     idx = rng.integers(0, 200, (200, 7))
-    cov = _neighbourhood_covariances(pts, idx, 0.01)
+    cov = _point_covariances(pts, idx, 0.01, 0.0, 0.0)
     ref = np.array([np.cov(pts[i].T) for i in idx]) + 0.01 * np.eye(3)
     np.testing.assert_allclose(cov, ref, atol=1e-12)
+
+
+def test_angular_noise_covariance_is_the_propagated_spherical_noise():
+    """The angular part equals J diag(0, s_az^2, s_el^2) J^T, J the Jacobian of
+    (r, az, el) -> xyz (an independent derivation by finite differences)."""
+    rng = np.random.default_rng(2)
+    r, az, el = rng.uniform(5, 80, 50), rng.uniform(-1, 1, 50), rng.uniform(-0.3, 0.3, 50)
+
+    def xyz(r, az, el):
+        return np.stack([r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az),
+                         r * np.sin(el)], axis=-1)
+
+    pts = xyz(r, az, el)
+    s_az, s_el = np.radians(0.5), np.radians(1.0)
+    cov = scan_covariances(pts, 0, 0.0, (0.5, 1.0))  # no neighbours, no floor: noise only
+    h = 1e-7
+    J_az = (xyz(r, az + h, el) - xyz(r, az - h, el)) / (2 * h)
+    J_el = (xyz(r, az, el + h) - xyz(r, az, el - h)) / (2 * h)
+    ref = (s_az**2 * J_az[:, :, None] * J_az[:, None, :]
+           + s_el**2 * J_el[:, :, None] * J_el[:, None, :])
+    np.testing.assert_allclose(cov, ref, atol=1e-9 * np.abs(ref).max())
+    # nothing along the ray: the range is not uncertain here
+    d = pts / r[:, None]
+    np.testing.assert_allclose(np.einsum("ni,nij,nj->n", d, cov, d), 0, atol=1e-9)
