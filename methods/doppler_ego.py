@@ -7,13 +7,16 @@ for static points), and a scan holds thousands of them; what Doppler cannot see 
     scan k (points, Doppler)
       -> ego velocity v_k [sensor frame] by RANSAC + least squares  (methods/ego_velocity.py)
          and the static points (its inliers: movers, ghosts and clutter are dropped)
-      -> static points voxel-downsampled, each with its neighbourhood covariance
+      -> static points voxel-downsampled, each with a covariance: its neighbourhood's spread
+         plus the sensor noise (range noise in every direction, range x angular noise across
+         the ray)
       -> translation as a function of the rotation (trapezoid over the scan interval, both
          velocities in the previous frame):  t_prev_curr(R) = dT/2 (v_{k-1} + R_prev_curr v_k)
       -> rotation: generalized ICP of the static points against a local map (the static points
          of the last ``map_seconds`` of scans, in the world frame), solving only the 3 rotation
-         unknowns with the translation tied to t_prev_curr(R); initial rotation from the
-         previous step's rotation rate                                    (methods/local_map.py)
+         unknowns with the translation tied to t_prev_curr(R); pairs within 1 m (exact nearest
+         neighbour through a spatial hash); initial rotation from the previous step's rotation
+         rate                                                             (methods/local_map.py)
       -> T_world_curr = T_world_prev (R_prev_curr, t_prev_curr); the scan joins the map.
 
 When a scan's ego velocity is not observable the other scan's velocity alone is used, and when
