@@ -216,11 +216,14 @@ def build_scene(name: str, motion: Motion, spec: dict, rng: np.random.Generator,
         scene.params = {"tunnel_radius_m": radius, "rib_spacing_m": spacing}
         if name == "tunnel-vehicles":
             kinds, w = ["car", "van", "truck", "bus"], [0.5, 0.2, 0.2, 0.1]
-            # a queue ahead in the ego lane (slightly faster than the ego) and dense oncoming
+            # a queue ahead in the ego lane (slightly faster than the ego); option
+            # one_lane=False adds dense oncoming traffic (the Baker-Barry tunnel has one lane
+            # and a signal that alternates the direction, so its traffic drives with the ego)
             _line_lanes(rng, scene.movers, 0.0, 1.0, (6.0, 20.0), (v_max + 0.3, v_max + 1.5),
                         (14.0, hi + 200.0), kinds, w)
-            _line_lanes(rng, scene.movers, 3.8, -1.0, (4.0, 14.0), (11.0, 16.0),
-                        (lo - 100.0, hi + 400.0), kinds, w)
+            if not options.get("one_lane", False):
+                _line_lanes(rng, scene.movers, 3.8, -1.0, (4.0, 14.0), (11.0, 16.0),
+                            (lo - 100.0, hi + 400.0), kinds, w)
     elif name in ("campus", "loop"):
         _urban(scene, motion, rng, name, lo, hi, v_max)
     else:

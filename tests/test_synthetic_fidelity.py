@@ -1,0 +1,176 @@
+"""Fidelity of the synthetic suite: the LiDAR sweep (per-point time offsets, motion distortion,
+Doppler at each point's own time), the real-sample statistics of the semi-dense radar, and the
+fidelity table's arithmetic and orderings."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from loaders.se3 import transform_points
+from loaders.synthetic import SyntheticSequence
+from loaders.synthetic import fidelity as F
+from loaders.synthetic import realism as R
+from loaders.synthetic.sensors import SENSORS, SWEEP_STEPS
+
+
+def _fd_velocity(motion, t: float, h: float = 1e-4) -> np.ndarray:
+    """Sensor velocity in the sensor frame at motion time t by central differences of the GT
+    sensor poses (independent of the model's analytic twist)."""
+    Tp, T0, Tm = (motion.sensor_pose(np.array([t + d]))[0] for d in (h, 0.0, -h))
+    return T0[:3, :3].T @ (Tp[:3, 3] - Tm[:3, 3]) / (2 * h)
+
+
+# LiDAR sweep ---------------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def wall_sweep():
+    return SyntheticSequence("straight-wall", "lidar-dense", 12, seed=7, noise=False,
+                             points=6000, sweep=True)
+
+
+def test_sweep_offsets_span_one_period_in_azimuth_order(wall_sweep):
+    period = SENSORS["lidar-dense"].period_s
+    scan = wall_sweep.scan(5)
+    tau = scan.fields["time_offset_s"]
+    assert len(tau) == len(scan)
+    steps = np.round(tau / (period / SWEEP_STEPS))
+    np.testing.assert_allclose(tau, steps * period / SWEEP_STEPS, atol=1e-12)
+    assert tau.min() == 0.0 and period - period / SWEEP_STEPS - 1e-12 <= tau.max() < period
+    # columns are swept right (-az) to left (+az): the offset never decreases with azimuth
+    az = np.arctan2(scan.points[:, 1], scan.points[:, 0])
+    assert np.all(np.diff(tau[np.argsort(az, kind="stable")]) >= 0)
+
+
+def test_sweep_points_lie_on_the_scene_at_their_own_time(wall_sweep):
+    """Known answer: the straight-wall scene is the road z = 0 and the walls' inner faces
+    y = left and y = -right (world frame). Each point mapped with the sensor pose at its own
+    time lies on one of them; mapped with the stamp's pose (ignoring the offset) it does not."""
+    p = wall_sweep.scene_model.params
+    faces_y = np.array([p["wall_left_m"], -p["wall_right_m"]])
+    i = 6
+    scan = wall_sweep.scan(i)
+    tau = scan.fields["time_offset_s"]
+    t = wall_sweep.stamps[i] + tau
+    T = wall_sweep.motion.sensor_pose(t)
+    world = np.einsum("nij,nj->ni", T[:, :3, :3], scan.points) + T[:, :3, 3]
+
+    def off_surface(w):
+        return np.minimum(np.abs(w[:, 2]), np.abs(w[:, 1:2] - faces_y).min(axis=1))
+
+    assert off_surface(world).max() < 1e-6
+    at_stamp = transform_points(wall_sweep.ground_truth.poses[i], scan.points)
+    late = tau > 0.05
+    # the car moves ~1.3 m/s * ... : the distortion is centimetres to decimetres on the walls
+    assert np.median(off_surface(at_stamp[late])) > 1e-3
+
+
+def test_sweep_doppler_is_the_radial_velocity_at_each_points_time(wall_sweep):
+    i = 9
+    scan = wall_sweep.scan(i)
+    tau = scan.fields["time_offset_s"]
+    d = scan.points / np.linalg.norm(scan.points, axis=1, keepdims=True)
+    expected = np.empty(len(scan))
+    for step in np.unique(tau):
+        rows = tau == step
+        v = _fd_velocity(wall_sweep.motion, wall_sweep.stamps[i] + step)
+        expected[rows] = -(d[rows] @ v)
+    np.testing.assert_allclose(scan.doppler, expected, atol=1e-6)
+    # the sensor-frame velocity changes over the sweep (attitude oscillation), so the Doppler
+    # at the stamp's velocity would differ: the test can tell the two apart
+    v0 = _fd_velocity(wall_sweep.motion, wall_sweep.stamps[i])
+    assert np.abs(scan.doppler - (-(d @ v0))).max() > 1e-4
+
+
+def test_no_sweep_no_time_offsets():
+    seq = SyntheticSequence("tunnel", "lidar-dense", 3, seed=1, points=3000)
+    assert "time_offset_s" not in seq.scan(1).fields
+
+
+def test_sweep_with_movers_gives_their_doppler_at_the_points_time():
+    """Tunnel with traffic: a moving point's Doppler includes the mover's velocity at its own
+    time; static points still obey -d . v_sensor(t + tau)."""
+    seq = SyntheticSequence("tunnel-vehicles", "lidar-dense", 6, seed=5, noise=False,
+                            points=4000, sweep=True)
+    scan = seq.scan(3)
+    tau = scan.fields["time_offset_s"]
+    static = scan.fields["gt_label"] == 0
+    assert (~static).sum() > 20
+    d = scan.points / np.linalg.norm(scan.points, axis=1, keepdims=True)
+    own = np.array([seq.motion.sensor_twist(np.array([seq.stamps[3] + s]))[0][0]
+                    for s in tau[static]])
+    np.testing.assert_allclose(scan.doppler[static], -np.einsum("ij,ij->i", d[static], own),
+                               atol=1e-9)
+    assert np.abs(scan.doppler[~static] + np.einsum(
+        "ij,j->i", d[~static], seq.sensor_twist(3)[0])).max() > 1.0
+
+
+# real-sample statistics ------------------------------------------------------------------------
+
+def test_sequence_stats_known_answer():
+    """Exact static radar scans: the ego-velocity residual vanishes, every point is an inlier."""
+    seq = SyntheticSequence("straight-wall", "lidar-dense", 4, seed=2, noise=False, points=2000)
+    st = R.sequence_stats(seq)
+    assert st["doppler_resid_mps"] < 1e-9 and st["inlier_frac"] == 1.0
+    counts = [len(seq.scan(i)) for i in range(4)]
+    assert st["points"] == np.median(counts)
+    r = np.concatenate([np.linalg.norm(seq.scan(i).points, axis=1) for i in range(4)])
+    assert st["range_p50_m"] == pytest.approx(np.median(r))
+
+
+@pytest.fixture(scope="module")
+def real_vs_synth():
+    if not R.REAL_SAMPLE.is_dir():
+        pytest.skip("the real NTU4DRadLM sample is not on this machine")
+    real = R.sequence_stats(R.real_sample())
+    synth = R.sequence_stats(R.synthetic_semidense(60))
+    return {row[0]: row for row in R.compare(real, synth)}
+
+
+#: not reached yet (issue 11, see loaders/synthetic/README.md): the loop scene lacks the real
+#: sample's far content (median range 71 m, elevations 2-6 deg) and its spatially clustered
+#: detections; strict, so reaching one fails here until it is moved back to the asserted set
+NOT_REACHED = {"range_p50_m", "range_p90_m", "elev_iqr_deg", "kept_frac"}
+
+
+@pytest.mark.parametrize("name", [
+    pytest.param(n, marks=pytest.mark.xfail(strict=True, reason="scene texture not calibrated"))
+    if n in NOT_REACHED else n for n in R.STAT_NAMES])
+def test_semidense_radar_matches_the_real_sample(real_vs_synth, name):
+    _, real, synth, ratio, ok = real_vs_synth[name]
+    assert ok, f"{name}: real {real:.3f}, synthetic {synth:.3f} (ratio {ratio:.2f})"
+
+
+# fidelity table ------------------------------------------------------------------------------
+
+def test_paper_table_and_ratios():
+    paper = F.paper_table()
+    row = paper[("Loop1_4", "doppler", None)]
+    assert row["rot_48"] == pytest.approx(15.604)
+    assert ("Campus1", "icp-p2p", False) in paper and ("Tunnel_Vehicles", "dicp", True) in paper
+    r = F.Row("Loop1_4", "Semi-Dense 4D Radar", "doppler", None, row,
+              {"rot_8": 6.246, "trans_8": 0.44, "rot_48": 15.604, "trans_48": np.nan}, False)
+    assert r.ratio("rot_8") == pytest.approx(2.0, rel=1e-3)
+    assert r.ratio("trans_8") == pytest.approx(0.5, rel=1e-2)
+    assert r.ratio("rot_48") == pytest.approx(1.0)
+    assert np.isnan(r.ratio("trans_48"))
+    csv_text = F.format_csv([r])
+    assert "Loop1_4" in csv_text.splitlines()[1] and ",2.0" in csv_text
+
+
+def _row(seq, method, seed, rot8, rot48):
+    v = {"rot_8": rot8, "trans_8": 1.0, "rot_48": rot48, "trans_48": 1.0}
+    return F.Row(seq, "", method, seed, v, v, False)
+
+
+def test_orderings_hold_and_fail():
+    rows = [_row("Campus1", "doppler", None, 1.0, 2.0), _row("Campus1", "icp-p2p", True, 2.0, 3.0),
+            _row("Loop1_0", "doppler", None, 1.0, 2.0), _row("Loop1_0", "dicp", True, 0.5, 3.0),
+            _row("Loop1_4", "doppler", None, 1.0, 5.0),
+            _row("Tunnel_Empty", "doppler", None, 1.0, 2.0),
+            _row("Tunnel_Empty", "dicp", True, 0.5, 1.0)]
+    checks = {c[0].split(":")[0]: c[2] for c in F.orderings(rows)}
+    assert checks["Campus1"] is True
+    assert checks["Loop1_0"] is False  # dicp's 48 m rotation 3.0 > doppler's 2.0
+    assert checks["Loop1_4 (U-turn)"] is False  # 5.0 < 3 x 2.0
+    assert checks["Tunnel_Empty"] is True
