@@ -118,6 +118,44 @@ def test_sequence_stats_known_answer():
     assert st["range_p50_m"] == pytest.approx(np.median(r))
 
 
+def test_noise_split_recovers_known_doppler_and_azimuth_noise():
+    """Static points seen from a known velocity, Doppler noise 0.04 m/s and azimuth noise 0.8
+    deg added: the fit of e^2 on the squared azimuth sensitivity returns both."""
+    rng = np.random.default_rng(3)
+    n, v = 200_000, np.array([8.0, 0.5, 0.1])
+    az, el = rng.uniform(-1.0, 1.0, n), rng.uniform(-0.2, 0.2, n)
+    r = rng.uniform(5.0, 150.0, n)
+    d = np.column_stack([np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)])
+    doppler = -(d @ v) + rng.normal(0.0, 0.04, n)
+    az_meas = az + rng.normal(0.0, np.radians(0.8), n)  # the point is reported off its ray
+    d_meas = np.column_stack([np.cos(el) * np.cos(az_meas), np.cos(el) * np.sin(az_meas),
+                              np.sin(el)])
+    e2, s2 = R.noise_split(r[:, None] * d_meas, doppler, v, np.ones(n, bool))
+    sd, saz = R._fit_noise(e2, s2)
+    assert sd == pytest.approx(0.04, rel=0.05) and saz == pytest.approx(0.8, rel=0.05)
+
+
+def test_feature_residuals_known_answer():
+    """Exact static pair: |f - g| ~ 0 (second order in the motion); a range error dr of the
+    target point adds 2 r dr."""
+    from methods.doppler import DopplerScan
+
+    p = np.array([[30.0, 4.0, 1.0], [80.0, -10.0, 3.0]])
+    v, dt = np.array([9.0, 0.0, 0.0]), 0.1
+    q = p - v * dt  # the sensor moved forward: the same static points in the later frame
+    dop = lambda x: -(x / np.linalg.norm(x, axis=1, keepdims=True)) @ v  # noqa: E731
+    src = DopplerScan(0.0, np.ascontiguousarray(p.T, np.float32), dop(p).astype(np.float32))
+    idx = np.arange(2)
+    exact = R.feature_residuals(src, DopplerScan(dt, np.ascontiguousarray(q.T, np.float32),
+                                                 dop(q).astype(np.float32)), idx, idx)
+    assert exact.max() < 0.02
+    rq = np.linalg.norm(q, axis=1)
+    q_off = q * ((rq + 0.05) / rq)[:, None]  # 5 cm farther
+    off = R.feature_residuals(src, DopplerScan(dt, np.ascontiguousarray(q_off.T, np.float32),
+                                               dop(q).astype(np.float32)), idx, idx)
+    np.testing.assert_allclose(off, 2 * rq * 0.05, rtol=0.05)
+
+
 @pytest.fixture(scope="module")
 def real_vs_synth():
     if not R.REAL_SAMPLE.is_dir():

@@ -47,7 +47,7 @@ from loaders.synthetic.sensors import (
     with_rays,
 )
 
-GENERATOR_VERSION = "doppler-bench-synthetic 1.3"
+GENERATOR_VERSION = "doppler-bench-synthetic 1.4"
 OPTIONS = {
     "points": "target points per frame (LiDAR: the ray count; radar: the diffuse rays and the "
               "scatterer SNR gain; calibrated on probe frames)",
