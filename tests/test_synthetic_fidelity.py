@@ -212,3 +212,18 @@ def test_orderings_hold_and_fail():
     assert checks["Loop1_0"] is False  # dicp's 48 m rotation 3.0 > doppler's 2.0
     assert checks["Loop1_4 (U-turn)"] is False  # 5.0 < 3 x 2.0
     assert checks["Tunnel_Empty"] is True
+
+
+def test_bench_synth_realism_prints_every_statistic_and_exits_by_the_check():
+    """`bench synth --realism`: one line per statistic; exit 0 only when all are within 20 %."""
+    from typer.testing import CliRunner
+
+    from bench.cli import app
+
+    if not R.REAL_SAMPLE.is_dir():
+        pytest.skip("the real NTU4DRadLM sample is not on this machine")
+    res = CliRunner().invoke(app, ["synth", "--realism"])
+    lines = {ln.split()[0]: ln for ln in res.output.splitlines() if ln.strip()}
+    assert all(name in lines for name in R.STAT_NAMES + R.EXTRA_NAMES), res.output
+    all_within = all(lines[name].rstrip().endswith("yes") for name in R.STAT_NAMES)
+    assert res.exit_code == (0 if all_within else 1), res.output
