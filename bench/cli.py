@@ -66,10 +66,30 @@ def synth(
     list_: Annotated[bool, typer.Option("--list", help="list scenes, sensors and suites")] = False,
     suite: Annotated[str | None, typer.Option(help="generate a named suite instead")] = None,
     data_dir: Annotated[Path, typer.Option(help="cache folder of suites")] = Path("data"),
+    fidelity: Annotated[bool, typer.Option(
+        "--fidelity", help="synthetic-paper vs the paper's Table III: every method the paper "
+        "reports on each sequence, values side by side with ratios, and the paper's orderings "
+        "(runs under --fidelity-out)")] = False,
+    fidelity_out: Annotated[Path, typer.Option(help="run folder of --fidelity")] = Path(
+        "results/fidelity"),
+    doppler_only: Annotated[bool, typer.Option(help="--fidelity: only the doppler rows")] = False,
+    realism: Annotated[bool, typer.Option(
+        "--realism", help="the real NTU4DRadLM sample's statistics next to the synthetic "
+        "semi-dense radar, with ratios (exit 1 while one is off by more than 20 %)")] = False,
 ) -> None:
     """Generate a synthetic 4D-sensor sequence (exact Doppler and ground truth) into a store."""
     from bench.convert import write_with_progress
     from loaders import synthetic
+
+    if fidelity:
+        from loaders.synthetic.fidelity import fidelity_table
+
+        fidelity_table(data_dir, console, fidelity_out, doppler_only)
+        return
+    if realism:
+        from loaders.synthetic.realism import main as realism_main
+
+        raise typer.Exit(realism_main([]))
 
     if list_:
         for title, items in (("scenes", synthetic.list_scenes()),

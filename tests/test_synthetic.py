@@ -383,3 +383,21 @@ def test_radar_scatterers_depend_only_on_the_seed():
 def test_radar_points_option_calibrates_the_count():
     seq = SyntheticSequence("loop", "radar-semidense", 20, seed=2, points=2000)
     assert abs(len(seq.scan(10)) - 2000) < 300
+
+
+def test_one_lane_tunnel_has_no_oncoming_traffic():
+    """Baker-Barry-like one-lane tunnel: every mover drives with the ego (in its lane), and
+    every dynamic point's Doppler is larger than the static Doppler in its direction would be
+    (the movers are faster than the ego, so they recede relative to static points)."""
+    seq = SyntheticSequence("tunnel-vehicles", "lidar-dense", 20, seed=123, noise=False,
+                            points=4000, one_lane=True)
+    movers = seq.scene_model.movers
+    assert movers and all(m.speed > 0 and m.line[1] == 0.0 for m in movers)
+    two_way = SyntheticSequence("tunnel-vehicles", "lidar-dense", 20, seed=123, points=4000)
+    assert any(m.speed < 0 for m in two_way.scene_model.movers)
+    scan = seq.scan(10)
+    dyn = scan.fields["gt_label"] == 1
+    assert dyn.sum() > 10
+    d = scan.points / np.linalg.norm(scan.points, axis=1, keepdims=True)
+    static_doppler = -(d[dyn] @ seq.sensor_twist(10)[0])
+    assert np.all(scan.doppler[dyn] > static_doppler)

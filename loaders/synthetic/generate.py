@@ -47,7 +47,7 @@ from loaders.synthetic.sensors import (
     with_rays,
 )
 
-GENERATOR_VERSION = "doppler-bench-synthetic 1.2"
+GENERATOR_VERSION = "doppler-bench-synthetic 1.4"
 OPTIONS = {
     "points": "target points per frame (LiDAR: the ray count; radar: the diffuse rays and the "
               "scatterer SNR gain; calibrated on probe frames)",
@@ -55,6 +55,8 @@ OPTIONS = {
     "speed": "(low, high) speed range [m/s]",
     "road_radius": "curved-wall: road radius [m]",
     "rib_spacing": "tunnel: rib spacing [m]",
+    "one_lane": "tunnel-vehicles: traffic only ahead in the ego's lane, none oncoming "
+                "(a one-lane tunnel with alternating signals, like Baker-Barry); default False",
     "attitude_deg": "pitch/roll oscillation amplitude [deg] (0 = flat, default 0.6)",
     "jitter_s": "deterministic stamp jitter, standard deviation [s] (default 0)",
     "t0": "first stamp [s] (default 0)",

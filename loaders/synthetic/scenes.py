@@ -27,7 +27,8 @@ SCENES = {
     "straight-wall": "two long featureless parallel walls and a flat road (CARLA Town04-like)",
     "curved-wall": "concentric curved walls around a road of radius 150-250 m (Town05-like)",
     "tunnel": "long tube (radius 6-7 m) with periodic ribs every few metres, no traffic",
-    "tunnel-vehicles": "the tunnel with moving vehicles in both directions (10-30 % dynamic)",
+    "tunnel-vehicles": "the tunnel with moving vehicles in both directions (10-30 % dynamic); "
+                       "option one_lane=True: only a queue ahead in the ego's lane",
     "campus": "buildings, trees, poles, parked cars, walking pedestrians, some traffic",
     "loop": "urban blocks with moving cars, gentle turns; option uturn=True adds a U-turn",
 }
@@ -216,16 +217,35 @@ def build_scene(name: str, motion: Motion, spec: dict, rng: np.random.Generator,
         scene.params = {"tunnel_radius_m": radius, "rib_spacing_m": spacing}
         if name == "tunnel-vehicles":
             kinds, w = ["car", "van", "truck", "bus"], [0.5, 0.2, 0.2, 0.1]
-            # a queue ahead in the ego lane (slightly faster than the ego) and dense oncoming
+            # a queue ahead in the ego lane (slightly faster than the ego); option
+            # one_lane=False adds dense oncoming traffic (the Baker-Barry tunnel has one lane
+            # and a signal that alternates the direction, so its traffic drives with the ego)
             _line_lanes(rng, scene.movers, 0.0, 1.0, (6.0, 20.0), (v_max + 0.3, v_max + 1.5),
                         (14.0, hi + 200.0), kinds, w)
-            _line_lanes(rng, scene.movers, 3.8, -1.0, (4.0, 14.0), (11.0, 16.0),
-                        (lo - 100.0, hi + 400.0), kinds, w)
+            if not options.get("one_lane", False):
+                _line_lanes(rng, scene.movers, 3.8, -1.0, (4.0, 14.0), (11.0, 16.0),
+                            (lo - 100.0, hi + 400.0), kinds, w)
     elif name in ("campus", "loop"):
         _urban(scene, motion, rng, name, lo, hi, v_max)
     else:
         raise ValueError(f"unknown scene {name!r}; known: {', '.join(SCENES)}")
     return scene
+
+
+#: loop scene buildings: half length along the road, half height, setback of the facade from
+#: the road centre line (uniform ranges) and the gaps between them [m]. Half height 3-8 m
+#: (6-16 m tall; was 5-15): the real loop-1 sample's returns at 20-100 m lie 3.0 / 5.7 / 7.3 /
+#: 8.9 m above the radar (25/50/75/90 %, radar frame pitched ~2 deg down, REFERENCE.md) and
+#: their elevation spread is 2.2 deg (IQR) at 50-100 m; see README.md section 2
+LOOP_BUILDINGS = {"half_length_m": (8.0, 25.0), "half_height_m": (3.0, 8.0),
+                  "setback_m": (9.0, 14.0), "gaps_m": (0.5, 1.0, 15.0)}
+
+#: roadside trees (uniform ranges): offset from the road centre line, trunk height below the
+#: crown, crown radius, spacing along the road [m]
+CAMPUS_TREES = {"offset_m": (7.5, 10.5), "trunk_m": (2.0, 3.5), "crown_radius_m": (1.5, 3.0),
+                "spacing_m": (8.0, 16.0)}
+LOOP_TREES = {"offset_m": (7.5, 10.5), "trunk_m": (2.0, 3.5), "crown_radius_m": (1.5, 3.0),
+              "spacing_m": (10.0, 25.0)}
 
 
 def _urban(scene: Scene, motion: Motion, rng, name: str, lo: float, hi: float,
@@ -242,22 +262,24 @@ def _urban(scene: Scene, motion: Motion, rng, name: str, lo: float, hi: float,
     for side in (-1.0, 1.0):
         s = lo
         while s < hi:  # buildings (campus: detached; loop: blocks with cross streets)
-            hx = rng.uniform(5.0, 18.0) if campus else rng.uniform(8.0, 25.0)
+            lb = LOOP_BUILDINGS
+            hx = rng.uniform(5.0, 18.0) if campus else rng.uniform(*lb["half_length_m"])
             hy = rng.uniform(4.0, 10.0)
-            hz = rng.uniform(3.0, 10.0) if campus else rng.uniform(5.0, 15.0)
-            front = rng.uniform(12.0, 22.0) if campus else rng.uniform(9.0, 14.0)
+            hz = rng.uniform(3.0, 10.0) if campus else rng.uniform(*lb["half_height_m"])
+            front = rng.uniform(12.0, 22.0) if campus else rng.uniform(*lb["setback_m"])
             box(s + hx, side * (front + hy), (hx, hy, hz), BUILDING, front - 1.0)
-            gap = rng.uniform(6.0, 25.0) if campus else rng.choice([0.5, 1.0, 15.0])
+            gap = rng.uniform(6.0, 25.0) if campus else rng.choice(lb["gaps_m"])
             s += 2 * hx + gap
         s = lo + rng.uniform(0, 10)
         while s < hi:  # trees
-            xy, _ = placer.anchor(s, side * rng.uniform(7.5, 10.5))
+            lt = CAMPUS_TREES if campus else LOOP_TREES
+            xy, _ = placer.anchor(s, side * rng.uniform(*lt["offset_m"]))
             if placer.tree.query(xy)[0] >= 6.5:
-                h, r_c = rng.uniform(2.0, 3.5), rng.uniform(1.5, 3.0)
+                h, r_c = rng.uniform(*lt["trunk_m"]), rng.uniform(*lt["crown_radius_m"])
                 scene.vcylinders.append((xy[0], xy[1], rng.uniform(0.15, 0.3), 0.0, h + r_c,
                                          TRUNK))
                 scene.spheres.append((np.array([xy[0], xy[1], h + 0.7 * r_c]), r_c, CROWN))
-            s += rng.uniform(8.0, 16.0) if campus else rng.uniform(10.0, 25.0)
+            s += rng.uniform(*lt["spacing_m"])
         s = lo + rng.uniform(0, 20)
         while s < hi:  # poles
             xy, _ = placer.anchor(s, side * 6.2)

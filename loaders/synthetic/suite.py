@@ -69,10 +69,13 @@ SUITES: dict[str, list[SuiteEntry]] = {
                    120, dict(_LIDAR)),
         SuiteEntry("CurvedWall", "Curved Wall", DENSE, "curved-wall", "lidar-dense", 80, 121,
                    dict(_LIDAR)),
+        # the real Aeva tunnel data has per-point times (sweep); Baker-Barry has one lane with
+        # alternating signals, so its traffic drives with the ego (one_lane); README.md
         SuiteEntry("Tunnel_Empty", "Baker-Barry Tunnel (Empty)", DENSE, "tunnel",
-                   "lidar-dense", 80, 122, dict(_LIDAR)),
+                   "lidar-dense", 80, 122, {**_LIDAR, "sweep": True}),
         SuiteEntry("Tunnel_Vehicles", "Baker-Barry Tunnel (Vehicles)", DENSE,
-                   "tunnel-vehicles", "lidar-dense", 80, 123, dict(_LIDAR)),
+                   "tunnel-vehicles", "lidar-dense", 80, 123,
+                   {**_LIDAR, "sweep": True, "one_lane": True}),
     ],
     # small sequences of every sensor class for CI regression (configs/experiments/ci.yaml)
     "synthetic-ci": [
