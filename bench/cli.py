@@ -251,10 +251,20 @@ def table(
         help="only these segment lengths [m], comma separated (e.g. 8,48)")] = None,
     pivot: Annotated[bool, typer.Option(
         help="methods x sequences, one markdown table per length (writes pivot.md)")] = False,
+    methods: Annotated[str | None, typer.Option(
+        help="only these methods (registry names, comma separated), with their variants")] = None,
+    variants: Annotated[bool, typer.Option(
+        help="include labelled variants (e.g. ablations); --no-variants: plain methods only")]
+    = True,
 ) -> None:
     """Print the paper-shaped table (Table III) and write table.md / .tex / .csv."""
-    from bench.tables import FORMATS, collect_rows_of, save_formats, write_tables
+    from bench.tables import FORMATS, collect_rows_of, is_variant, save_formats, write_tables
     from bench.tables_pivot import to_pivot_markdown
+
+    wanted = None if methods is None else {m.strip() for m in methods.split(",")}
+
+    def keep(row) -> bool:
+        return (wanted is None or row.method in wanted) and (variants or not is_variant(row))
 
     if format not in FORMATS:
         raise DataError(f"unknown table format {format!r}; choose from {', '.join(FORMATS)}")
@@ -263,11 +273,12 @@ def table(
     except ValueError:
         raise DataError(f"--lengths {lengths!r}: expected numbers in metres, e.g. 8,48") from None
     try:
-        texts = write_tables(list(results_dirs), out, lengths_m=lengths_m)
+        texts = write_tables(list(results_dirs), out, lengths_m=lengths_m, keep=keep)
     except ValueError as e:
         raise DataError(str(e)) from None
     if pivot:
         rows, all_lengths = collect_rows_of(list(results_dirs))
+        rows = [r for r in rows if keep(r)]
         chosen = [x for x in all_lengths if lengths_m is None or float(x) in lengths_m]
         text = "\n".join(to_pivot_markdown(rows, x) for x in chosen)
         save_formats(out or results_dirs[0], "pivot", {"md": text})

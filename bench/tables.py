@@ -9,6 +9,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -197,18 +198,28 @@ def to_csv(rows: list[Row], lengths: list[str]) -> str:
 FORMATS = {"md": to_markdown, "tex": to_latex, "csv": to_csv}
 
 
+def is_variant(row: Row) -> bool:
+    """A labelled variant of a method (an experiment entry with its own ``label:``)."""
+    return row.label != method_label(row.method, row.seed)
+
+
 def write_tables(results_dir: Path | list[Path], out_dir: Path | None = None,
                  only: set[Path] | None = None, stem: str = "table",
-                 lengths_m: list[float] | None = None) -> dict[str, str]:
+                 lengths_m: list[float] | None = None,
+                 keep: Callable[[Row], bool] | None = None) -> dict[str, str]:
     """Write <stem>.md, .tex and .csv (of every run, or of the folders in ``only``; of several
     results folders, each row labelled with its folder; only the segment lengths in
-    ``lengths_m`` when given); return the texts by format."""
+    ``lengths_m`` when given; only the rows ``keep`` accepts); return the texts by format."""
 
     if isinstance(results_dir, list):
         rows, lengths = collect_rows_of(results_dir)
         results_dir = results_dir[0]
     else:
         rows, lengths = collect_rows(results_dir, only)
+    if keep is not None and rows:
+        rows = [r for r in rows if keep(r)]
+        if not rows:
+            raise ValueError(f"{results_dir}: no run matches the chosen methods / variants")
     if not rows:
         raise FileNotFoundError(f"{results_dir}: no finished runs with ground truth "
                                 "(no metrics.json found)")

@@ -129,6 +129,12 @@ def test_cli_run_table_inspect(store, tmp_path):
                               "--out", str(tmp_path / "short")])
     assert res.exit_code == 0, res.output
     assert (tmp_path / "short" / "pivot.md").read_text().startswith("| 8 m |")
+    res = runner.invoke(app, ["table", str(tmp_path), "-f", "csv", "--methods", "doppler",
+                              "--out", str(tmp_path / "short")])
+    assert type(res.exception).__name__ == "DataError" and "no run matches" in str(res.exception)
+    res = runner.invoke(app, ["table", str(tmp_path), "-f", "csv", "--methods", "icp-p2p",
+                              "--no-variants", "--out", str(tmp_path / "short")])
+    assert res.exit_code == 0 and "icp-p2p" in res.output
     res = runner.invoke(app, ["inspect", str(store)])
     assert res.exit_code == 0, res.output
     assert "points per frame" in res.output and "confirmed" in res.output
@@ -152,6 +158,15 @@ def test_experiment_yaml_is_validated(tmp_path):
     bad.write_text("name: x\nsequences: [{path: a.h5}]\nmethods: [{name: nope}]\n")
     with pytest.raises(DataError, match="unknown method 'nope'"):
         load_experiment(bad)
+
+
+def test_labelled_variants_are_told_apart_from_plain_methods():
+    from bench.tables import Row, is_variant, method_label
+
+    plain = Row("c", "s", "doppler-ego", None, method_label("doppler-ego", None), {}, {}, 1, False)
+    ablation = Row("c", "s", "doppler-ego", None, method_label("doppler-ego", None, "w/o map"),
+                   {}, {}, 1, False)
+    assert not is_variant(plain) and is_variant(ablation)
 
 
 def test_pivot_table_ranks_methods_per_sequence():
