@@ -57,9 +57,9 @@ DEFAULTS = {
     "voxel_m": (0.5, 1.0),
     "covariance_floor_m": (0.15, 0.03),
     # angular noise across the ray (azimuth, elevation) [deg]: the real Eagle sample's Doppler
-    # residual grows with the azimuth sensitivity as ~0.45-0.7 deg of azimuth noise; 4D radar
-    # elevation is resolved about half as finely (synthetic sensors: 1 / 2 deg cells); FMCW
-    # LiDAR beams ~0.02 deg
+    # residual grows with the azimuth sensitivity as 0.45 deg of azimuth noise (top 1 % of
+    # residuals trimmed; 0.9 untrimmed, `bench synth --realism`), so 0.5; 4D radar elevation is
+    # resolved about half as finely (synthetic sensors: 1 / 2 deg cells); FMCW LiDAR ~0.02 deg
     "angle_noise_deg": ((0.5, 1.0), (0.02, 0.02)),
     # ~1 s of radar scans for enough structure; LiDAR scans are dense on their own
     "map_seconds": (1.0, 0.5),
