@@ -100,7 +100,6 @@ class DopplerEgo(Odometry):
     def __init__(self, params: DopplerEgoParams | None = None, **overrides) -> None:
         base = params if params is not None else DopplerEgoParams()
         self.params = DopplerEgoParams.model_validate({**base.model_dump(), **overrides})
-        self.map_frames: int | None = None
 
     def configured_for(self, sensor: SensorInfo) -> DopplerEgo:
         col = 0 if sensor.kind == "radar" else 1
