@@ -84,10 +84,11 @@ def _point_covariances(points, idx, floor2, az2, el2):
         r2 = rh2 + z * z
         if (az2 > 0.0 or el2 > 0.0) and rh2 > 0.0:
             rh = np.sqrt(rh2)
-            # unit vectors of increasing azimuth and elevation, times the range r
-            ua = (-y / rh, x / rh, 0.0)  # r cos(el) times this is the azimuth step
+            # unit vectors of increasing azimuth (ua) and elevation (ue); a step d_az moves the
+            # point by r cos(el) d_az = rh d_az along ua, a step d_el by r d_el along ue
+            ua = (-y / rh, x / rh, 0.0)
             ue = (-z * x / (rh * np.sqrt(r2)), -z * y / (rh * np.sqrt(r2)), rh / np.sqrt(r2))
-            va, ve = az2 * rh2, el2 * r2  # azimuth moves the point by r cos(el) d_az
+            va, ve = az2 * rh2, el2 * r2
             for a in range(3):
                 for b in range(3):
                     cov[i, a, b] += va * ua[a] * ua[b] + ve * ue[a] * ue[b]
