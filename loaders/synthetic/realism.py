@@ -37,7 +37,9 @@ import numpy as np
 
 from loaders.scan import Sequence
 
-REAL_SAMPLE = Path("/work/shared/data/ntu4dradlm-loop1-sample")
+#: the project's shared/ folder sits beside the checkout (as in tests/conftest.py)
+REAL_SAMPLE = (Path(__file__).resolve().parents[3] / "shared" / "data"
+               / "ntu4dradlm-loop1-sample")
 EAGLE_PERIOD_S = 1.0 / 12.0
 #: statistic -> allowed relative deviation of synthetic from real (issue 11: each within 20 %)
 TOLERANCE = 0.20
