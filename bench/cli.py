@@ -258,7 +258,7 @@ def table(
     = True,
 ) -> None:
     """Print the paper-shaped table (Table III) and write table.md / .tex / .csv."""
-    from bench.tables import FORMATS, collect_rows_of, is_variant, save_formats, write_tables
+    from bench.tables import FORMATS, is_variant, save_formats, select_rows, write_tables
     from bench.tables_pivot import to_pivot_markdown
 
     wanted = None if methods is None else {m.strip() for m in methods.split(",")}
@@ -273,13 +273,11 @@ def table(
     except ValueError:
         raise DataError(f"--lengths {lengths!r}: expected numbers in metres, e.g. 8,48") from None
     try:
-        texts = write_tables(list(results_dirs), out, lengths_m=lengths_m, keep=keep)
+        rows, chosen = select_rows(list(results_dirs), lengths_m=lengths_m, keep=keep)
     except ValueError as e:
         raise DataError(str(e)) from None
+    texts = write_tables(list(results_dirs), out, rows_lengths=(rows, chosen))
     if pivot:
-        rows, all_lengths = collect_rows_of(list(results_dirs))
-        rows = [r for r in rows if keep(r)]
-        chosen = [x for x in all_lengths if lengths_m is None or float(x) in lengths_m]
         text = "\n".join(to_pivot_markdown(rows, x) for x in chosen)
         save_formats(out or results_dirs[0], "pivot", {"md": text})
         sys.stdout.write(text)

@@ -134,9 +134,13 @@ def _cells(rows: list[Row], lengths: list[str], mark) -> list[list[str]]:
     return out
 
 
+def md_mark(text: str, rank: int) -> str:
+    """Markdown emphasis by rank: best bold, second underlined ("-" stays plain)."""
+    return {0: f"**{text}**", 1: f"<u>{text}</u>"}.get(rank, text) if text != "-" else text
+
+
 def to_markdown(rows: list[Row], lengths: list[str]) -> str:
-    def mark(text: str, rank: int) -> str:
-        return {0: f"**{text}**", 1: f"<u>{text}</u>"}.get(rank, text) if text != "-" else text
+    mark = md_mark
     header = ["Sensor", "Sequence", "Method", *[f"{float(L):g} m" for L in lengths],
               "Time (ms)"]
     lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
@@ -203,14 +207,12 @@ def is_variant(row: Row) -> bool:
     return row.label != method_label(row.method, row.seed)
 
 
-def write_tables(results_dir: Path | list[Path], out_dir: Path | None = None,
-                 only: set[Path] | None = None, stem: str = "table",
-                 lengths_m: list[float] | None = None,
-                 keep: Callable[[Row], bool] | None = None) -> dict[str, str]:
-    """Write <stem>.md, .tex and .csv (of every run, or of the folders in ``only``; of several
+def select_rows(results_dir: Path | list[Path], only: set[Path] | None = None,
+                lengths_m: list[float] | None = None,
+                keep: Callable[[Row], bool] | None = None) -> tuple[list[Row], list[str]]:
+    """The rows and lengths of a table (of every run, or of the folders in ``only``; of several
     results folders, each row labelled with its folder; only the segment lengths in
-    ``lengths_m`` when given; only the rows ``keep`` accepts); return the texts by format."""
-
+    ``lengths_m`` when given; only the rows ``keep`` accepts). Raises when nothing is left."""
     if isinstance(results_dir, list):
         rows, lengths = collect_rows_of(results_dir)
         results_dir = results_dir[0]
@@ -229,7 +231,19 @@ def write_tables(results_dir: Path | list[Path], out_dir: Path | None = None,
             raise ValueError(f"{results_dir}: no results at {', '.join(f'{L:g}' for L in missing)}"
                              f" m (scored lengths: {', '.join(f'{float(x):g}' for x in lengths)})")
         lengths = [x for x in lengths if float(x) in lengths_m]
-    return save_formats(Path(out_dir or results_dir), stem,
+    return rows, lengths
+
+
+def write_tables(results_dir: Path | list[Path], out_dir: Path | None = None,
+                 only: set[Path] | None = None, stem: str = "table",
+                 lengths_m: list[float] | None = None,
+                 keep: Callable[[Row], bool] | None = None,
+                 rows_lengths: tuple[list[Row], list[str]] | None = None) -> dict[str, str]:
+    """Write <stem>.md, .tex and .csv of ``select_rows``'s rows (or of ``rows_lengths`` when
+    already selected); return the texts by format."""
+    rows, lengths = rows_lengths or select_rows(results_dir, only, lengths_m, keep)
+    first = results_dir[0] if isinstance(results_dir, list) else results_dir
+    return save_formats(Path(out_dir or first), stem,
                         {fmt: fn(rows, lengths) for fmt, fn in FORMATS.items()})
 
 

@@ -8,16 +8,12 @@ from __future__ import annotations
 
 import math
 
-from bench.tables import Row, _ranks
+from bench.tables import Row, _ranks, md_mark
 
 
 def _fmt(x: float) -> str:
     """Three decimals below 1 (LiDAR translations are millimetres), two above."""
     return "-" if not math.isfinite(x) else (f"{x:.2f}" if abs(x) >= 1 else f"{x:.3f}")
-
-
-def _mark(text: str, rank: int) -> str:
-    return f"**{text}**" if rank == 0 else (f"<u>{text}</u>" if rank == 1 else text)
 
 
 def to_pivot_markdown(rows: list[Row], length: str) -> str:
@@ -32,8 +28,8 @@ def to_pivot_markdown(rows: list[Row], length: str) -> str:
         rot = _ranks([r.rot.get(length, math.nan) for r in ranked])
         trans = _ranks([r.trans.get(length, math.nan) for r in ranked])
         for r, a, b in zip(ranked, rot, trans, strict=True):
-            cells[(r.label, seq)] = (f"{_mark(_fmt(r.rot.get(length, math.nan)), a)} / "
-                                     f"{_mark(_fmt(r.trans.get(length, math.nan)), b)}")
+            cells[(r.label, seq)] = (f"{md_mark(_fmt(r.rot.get(length, math.nan)), a)} / "
+                                     f"{md_mark(_fmt(r.trans.get(length, math.nan)), b)}")
         for lab in labels:
             if (lab, seq) in by_key and by_key[(lab, seq)].diverged:
                 cells[(lab, seq)] = "Div."
