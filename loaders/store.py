@@ -38,23 +38,28 @@ FORMAT_VERSION = 1
 CHUNK_POINTS = 32768
 _FLUSH_POINTS = 1 << 18
 _DS = dict(compression="lzf", shuffle=True, track_times=False)
+#: filters by name: lzf (fast, the default) or gzip (level 9: about 15 % smaller, for files kept
+#: in the repository such as the vendored real sample)
+COMPRESSION = {"lzf": _DS, "gzip": dict(_DS, compression="gzip", compression_opts=9)}
 
 
 class _Writer:
     """Appends scans to resizable datasets, buffering small frames into large blocks."""
 
-    def __init__(self, h5: h5py.File, has_doppler: bool, fields: list[str]) -> None:
+    def __init__(self, h5: h5py.File, has_doppler: bool, fields: list[str],
+                 compression: str = "lzf") -> None:
         self.h5 = h5
+        filters = COMPRESSION[compression]
         self.has_doppler = has_doppler
         self.fields = fields
         pts = h5.create_group("points")
         self.ds = {"xyz": pts.create_dataset(
-            "xyz", shape=(0, 3), maxshape=(None, 3), dtype="f4", chunks=(CHUNK_POINTS, 3), **_DS
-        )}
+            "xyz", shape=(0, 3), maxshape=(None, 3), dtype="f4", chunks=(CHUNK_POINTS, 3),
+            **filters)}
         names = (["doppler"] if has_doppler else []) + fields
         for name in names:
             self.ds[name] = pts.create_dataset(
-                name, shape=(0,), maxshape=(None,), dtype="f4", chunks=(CHUNK_POINTS,), **_DS
+                name, shape=(0,), maxshape=(None,), dtype="f4", chunks=(CHUNK_POINTS,), **filters
             )
         self.buffer: dict[str, list[np.ndarray]] = {k: [] for k in self.ds}
         self.buffered = 0
@@ -103,8 +108,13 @@ def write_store(
     sequence: Sequence,
     path: str | Path,
     progress: Callable[[int], None] | None = None,
+    compression: str = "lzf",
 ) -> Path:
-    """Write ``sequence`` to ``path`` (streaming, atomic). ``progress(i)`` is called per frame."""
+    """Write ``sequence`` to ``path`` (streaming, atomic). ``progress(i)`` is called per frame;
+    ``compression``: a key of ``COMPRESSION`` (the reader does not care which)."""
+    if compression not in COMPRESSION:
+        raise DataError(f"unknown store compression {compression!r}; choose from "
+                        f"{', '.join(COMPRESSION)}")
     path = Path(path)
     source = getattr(sequence, "name", str(path))
     scans = iter(sequence)
@@ -114,7 +124,7 @@ def write_store(
         raise DataError(f"{source}: the sequence has no frames; nothing to store") from None
     with atomic_path(path) as tmp:
         with h5py.File(tmp, "w", libver="earliest") as h5:
-            writer = _Writer(h5, first.has_doppler, sorted(first.fields))
+            writer = _Writer(h5, first.has_doppler, sorted(first.fields), compression)
             writer.append(first, 0, source)
             if progress:
                 progress(0)
