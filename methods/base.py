@@ -43,6 +43,9 @@ class RegistrationResult:
 
 @dataclass
 class FrameRecord:
+    """One registered frame. ``time_ms``: all per-frame work from the scan in memory to its
+    pose; ``register_ms``: the registration call alone (NaN where a method has none)."""
+
     index: int
     stamp: float
     time_ms: float
@@ -50,6 +53,7 @@ class FrameRecord:
     correspondences: int
     iterations: int
     converged: bool
+    register_ms: float = float("nan")
 
 
 @dataclass
