@@ -82,12 +82,12 @@ def synth(
     from loaders import synthetic
 
     if fidelity:
-        from loaders.synthetic.fidelity import fidelity_table
+        from bench.studies.fidelity import fidelity_table
 
         fidelity_table(data_dir, console, fidelity_out, doppler_only)
         return
     if realism:
-        from loaders.synthetic.realism import main as realism_main
+        from bench.studies.realism import main as realism_main
 
         raise typer.Exit(realism_main([]))
 

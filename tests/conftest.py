@@ -10,7 +10,8 @@ import pytest
 from loaders.scan import MemorySequence, Scan, SensorInfo, Trajectory
 from loaders.se3 import exp_se3, inv_T, transform_points
 
-SAMPLE = Path(__file__).resolve().parents[2] / "shared" / "data" / "ntu4dradlm-loop1-sample"
+#: the vendored real radar frames (samples/README.md); frames 0-59 are the 60-frame sample
+SAMPLE_STORE = Path(__file__).resolve().parents[1] / "samples" / "ntu4dradlm-loop1.h5"
 
 
 def exact_doppler(points_sensor: np.ndarray, v_sensor: np.ndarray) -> np.ndarray:
@@ -51,8 +52,30 @@ def twist_sequence() -> MemorySequence:
     return constant_twist_sequence()
 
 
+def real_sample_store() -> Path:
+    """The vendored store; a missing file fails the test (it is part of the repository)."""
+    assert SAMPLE_STORE.exists(), f"the vendored real sample {SAMPLE_STORE} is missing"
+    return SAMPLE_STORE
+
+
 @pytest.fixture(scope="session")
-def sample_dir() -> Path:
-    if not SAMPLE.exists():
-        pytest.skip(f"real sample not found at {SAMPLE}")
-    return SAMPLE
+def sample_dir(tmp_path_factory) -> Path:
+    """The real 60-frame sample in the reference code's NumPy-frame layout, as published:
+    frames/frame_001.npy (float64 points) + frame_001_dop.npy and gt_tum.txt with one row per
+    frame at 0.1 s steps (not the radar clock), written from the vendored store."""
+    from loaders.scan import Trajectory
+    from loaders.store import StoreSequence
+
+    folder = tmp_path_factory.mktemp("ntu4dradlm-loop1-sample")
+    (folder / "frames").mkdir()
+    seq = StoreSequence(real_sample_store())
+    try:
+        for i in range(60):
+            scan = seq[i]
+            np.save(folder / "frames" / f"frame_{i + 1:03d}.npy", scan.points)
+            np.save(folder / "frames" / f"frame_{i + 1:03d}_dop.npy", scan.doppler)
+        gt = seq.ground_truth
+        Trajectory(np.arange(60) * 0.1, gt.poses[:60]).write_tum(folder / "gt_tum.txt")
+    finally:
+        seq.close()
+    return folder

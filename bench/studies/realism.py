@@ -24,7 +24,7 @@ Shown beside them (calibration evidence, not in the 20 % check):
   azimuth parts by a linear fit of the squared residual on the squared azimuth sensitivity
   |d(-d . v) / d az| of each inlier (``noise_split``).
 
-``python -m loaders.synthetic.realism [--data-dir D] [--frames N]`` prints the real sample and
+``python -m bench.studies.realism [--data-dir D] [--frames N]`` prints the real sample and
 the synthetic ``Loop1_0`` side by side with the ratios (see ``compare``).
 """
 
@@ -37,10 +37,8 @@ import numpy as np
 
 from loaders.scan import Sequence
 
-#: the project's shared/ folder sits beside the checkout (as in tests/conftest.py)
-REAL_SAMPLE = (Path(__file__).resolve().parents[3] / "shared" / "data"
-               / "ntu4dradlm-loop1-sample")
-EAGLE_PERIOD_S = 1.0 / 12.0
+from bench.paths import REAL_SAMPLE, REAL_SAMPLE_60
+
 #: statistic -> allowed relative deviation of synthetic from real (issue 11: each within 20 %)
 TOLERANCE = 0.20
 STAT_NAMES = ("points", "range_p50_m", "range_p90_m", "elev_iqr_deg", "doppler_resid_mps",
@@ -141,15 +139,13 @@ def feature_residuals(source, target, src_idx: np.ndarray, tgt_idx: np.ndarray) 
     return np.abs(f - g)
 
 
-def real_sample(folder: Path = REAL_SAMPLE) -> Sequence:
-    """The real 60-frame Oculii Eagle sample (stamps from the 12 Hz period, GT by row)."""
-    import warnings
+def real_sample(store: Path = REAL_SAMPLE) -> Sequence:
+    """The real 60-frame Oculii Eagle sample: the first 60 frames of the vendored store (12 Hz
+    stamps, GT by row; samples/README.md)."""
+    from loaders.scan import FrameRange
+    from loaders.store import StoreSequence
 
-    from loaders.npy_frames import NpyFramesSequence
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")  # the sample's repeated GT rows (documented there)
-        return NpyFramesSequence(folder, period_s=EAGLE_PERIOD_S)
+    return FrameRange(StoreSequence(store), *REAL_SAMPLE_60)
 
 
 def synthetic_semidense(frames: int = 60, seed: int = 110, **options) -> Sequence:
@@ -184,7 +180,7 @@ def format_rows(rows) -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description="Real Oculii Eagle sample vs synthetic "
                                  "semi-dense radar (Loop1_0): per-frame statistics")
-    ap.add_argument("--real", type=Path, default=REAL_SAMPLE, help="the real sample folder")
+    ap.add_argument("--real", type=Path, default=REAL_SAMPLE, help="the real sample store")
     ap.add_argument("--frames", type=int, default=60, help="synthetic frames to compare")
     args = ap.parse_args(argv)
     real = sequence_stats(real_sample(args.real))

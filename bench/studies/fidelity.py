@@ -9,9 +9,9 @@ relative error at 8 m and 48 m (rotation [deg], translation [m]) is put next to 
 Table III value with the ratio synthetic / paper. Then the paper's orderings are checked on the
 synthetic numbers (``orderings``).
 
-Command line (the lead wires it to ``bench synth --fidelity``)::
+Command line (also ``bench synth --fidelity``)::
 
-    python -m loaders.synthetic.fidelity [--data-dir data] [--out results/fidelity]
+    python -m bench.studies.fidelity [--data-dir data] [--out results/fidelity]
         [--csv FILE] [--doppler-only]
 """
 
@@ -23,7 +23,8 @@ import io
 from dataclasses import dataclass
 from pathlib import Path
 
-PAPER_TABLE3 = Path("/work/shared/paper/table3.csv")
+from bench.paths import PAPER_TABLE3
+
 SUITE = "synthetic-paper"
 LENGTHS = ("8", "48")
 #: within this factor of the paper counts as faithful (issue 11; goal 1.5)
