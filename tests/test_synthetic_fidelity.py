@@ -7,10 +7,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from loaders.se3 import transform_points
-from loaders.synthetic import SyntheticSequence
 from bench.studies import fidelity as F
 from bench.studies import realism as R
+from loaders.se3 import transform_points
+from loaders.synthetic import SyntheticSequence
 from loaders.synthetic.sensors import SENSORS, SWEEP_STEPS
 
 

@@ -35,9 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
-from loaders.scan import Sequence
-
 from bench.paths import REAL_SAMPLE, REAL_SAMPLE_60
+from loaders.scan import Sequence
 
 #: statistic -> allowed relative deviation of synthetic from real (issue 11: each within 20 %)
 TOLERANCE = 0.20
