@@ -8,12 +8,12 @@ Ctrl-C.
 
 from __future__ import annotations
 
-import os
 import sys
 
+from bench.threads import pin_threads
+
 # library thread counts are pinned before numpy & co. load, the same in every executor mode
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
-    os.environ.setdefault(_var, "1")
+pin_threads()
 
 from pathlib import Path  # noqa: E402
 from typing import Annotated  # noqa: E402
@@ -22,7 +22,7 @@ import typer  # noqa: E402
 from rich.markup import escape  # noqa: E402
 
 from bench.console import make_console  # noqa: E402
-from bench.convert import convert_app  # noqa: E402
+from bench.data.convert import convert_app  # noqa: E402
 from loaders.errors import DataError  # noqa: E402
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
@@ -35,22 +35,9 @@ status = make_console(stderr=True)  # status lines beside data written to stdout
 @app.command("list")
 def list_cmd() -> None:
     """List the registered methods, loaders, synthetic scenes and sensors."""
-    from rich.table import Table
+    from bench.report.listing import print_registries
 
-    from bench.convert import LOADERS
-    from loaders.synthetic import list_scenes, list_sensors
-    from methods.registry import METHODS
-
-    for title, items in (
-        ("Methods", {name: cls.description for name, cls in METHODS.items()}),
-        ("Loaders (bench convert LOADER)", LOADERS),
-        ("Synthetic scenes (bench synth SCENE)", list_scenes()),
-        ("Synthetic sensors (--sensor)", list_sensors()),
-    ):
-        table = Table(title=title, title_justify="left", show_header=False)
-        for name, text in items.items():
-            table.add_row(f"[bold]{name}[/]", text)
-        console.print(table)
+    print_registries(console)
 
 
 @app.command()
@@ -78,44 +65,12 @@ def synth(
         "semi-dense radar, with ratios (exit 1 while one is off by more than 20 %)")] = False,
 ) -> None:
     """Generate a synthetic 4D-sensor sequence (exact Doppler and ground truth) into a store."""
-    from bench.convert import write_with_progress
-    from loaders import synthetic
+    from bench.commands import synth_dispatch
 
-    if fidelity:
-        from bench.studies.fidelity import fidelity_table
-
-        fidelity_table(data_dir, console, fidelity_out, doppler_only)
-        return
-    if realism:
-        from bench.studies.realism import main as realism_main
-
-        raise typer.Exit(realism_main([]))
-
-    if list_:
-        for title, items in (("scenes", synthetic.list_scenes()),
-                             ("sensors", synthetic.list_sensors()),
-                             ("options (-o key=value)", synthetic.OPTIONS),
-                             ("suites", {k: f"{len(v)} sequences"
-                                         for k, v in synthetic.SUITES.items()})):
-            console.print(f"[bold]{title}[/]")
-            for name, text in items.items():
-                console.print(f"  {name:<18} {text}")
-        return
-    if suite is not None:
-        from bench.progress import ensure_suite_with_progress
-
-        paths = ensure_suite_with_progress(suite, data_dir, console)
-        console.print(f"[green]{len(paths)} stores[/] under {data_dir / suite}")
-        return
-    if scene is None or out is None:
-        raise DataError("give a SCENE and --out PATH.h5 (or --list, or --suite NAME)")
-    options = _parse_params(option)
-    try:
-        seq = synthetic.SyntheticSequence(scene, sensor, frames=frames, seed=seed, noise=noise,
-                                          **options)
-    except (ValueError, KeyError) as err:
-        raise DataError(f"bench synth: {err}") from err
-    write_with_progress(seq, out)
+    raise typer.Exit(synth_dispatch(
+        console, fidelity, fidelity_out, doppler_only, realism, data_dir, scene=scene,
+        sensor=sensor, frames=frames, seed=seed, out=out, noise=noise,
+        options=_parse_params(option), list_=list_, suite=suite))
 
 
 @app.command()
@@ -128,7 +83,7 @@ def inspect(
 ) -> None:
     """Print frames, points per frame, period, duration, GT figures, a Doppler-sign check and
     a sensor-to-GT rotation check; plot the speed from Doppler against the GT speed."""
-    from bench.inspect import inspect_path
+    from bench.data.inspection import inspect_path
 
     if plot is None:
         plot = Path("results/inspect") / f"{path.stem}_speed.png"
@@ -145,7 +100,7 @@ def calibrate(
 ) -> None:
     """Estimate the rotation between the sensor frame and the ground truth's body frame from
     the Doppler ego velocity (roll / pitch / yaw with uncertainty, road-plane check)."""
-    from bench.calibrate import calibrate_store
+    from bench.data.calibrate import calibrate_store
 
     calibrate_store(store, write, console, min_speed, bootstrap)
 
@@ -171,61 +126,11 @@ def run(
         help="end a job that runs longer than this [s]")] = None,
 ) -> None:
     """Run one method on one store, or every run of an experiment YAML."""
-    from bench.executors import EXECUTORS
-    from bench.experiment import load_experiment
-    from bench.progress import run_jobs
-    from bench.run import plan, summarize
-    from bench.runplan import jobs_for_experiment, single_job
+    from bench.commands import run_command
 
-    if executor not in EXECUTORS:
-        raise DataError(f"unknown executor {executor!r}; choose from {', '.join(EXECUTORS)}")
-    if experiment is not None:
-        exp = load_experiment(experiment)
-        if out is not None:
-            exp.out = out
-        job_list = plan(jobs_for_experiment(exp, console))
-        workers, results_dir = jobs or exp.jobs, exp.out_dir
-    else:
-        if method is None or data is None:
-            raise DataError("give an EXPERIMENT.yaml, or --method M --data PATH.h5 [--out DIR]")
-        job_list = plan([single_job(method, data, seed, out, _parse_params(param))])
-        workers, results_dir = 1, None
-    outcomes = run_jobs(job_list, console, workers, force, executor, job_timeout, scheduler)
-    console.print(summarize(outcomes), markup=False)
-    if results_dir is not None and any(o.status in ("done", "skipped") for o in outcomes):
-        from bench.tables import write_tables
-
-        console.print(write_tables(results_dir)["md"], markup=False)
-    elif results_dir is None and outcomes and outcomes[0].run_dir is not None:
-        _print_run(outcomes[0].run_dir)
-    if any(o.status != "done" and o.status != "skipped" for o in outcomes):
-        raise typer.Exit(1)
-
-
-def _print_run(run_dir: Path) -> None:
-    """Key metrics of a finished single run, and its folder."""
-    import json
-
-    metrics_path = run_dir / "metrics.json"
-    if metrics_path.exists():
-        m = json.loads(metrics_path.read_text())
-        rel = m.get("relative_error") or {}
-        scored = [k for k, r in rel.items() if r.get("n")]  # lengths with segments
-        parts = []
-        for length in dict.fromkeys(scored[:1] + scored[-1:]):  # the shortest and longest
-            r = rel[length]
-            parts.append(f"{length} m: {r['rot_deg_mean']:.3f} deg / "
-                         f"{r['trans_m_mean']:.3f} m")
-        ape = m.get("ape") or {}
-        if ape.get("trans_rmse_m") is not None:
-            parts.append(f"APE {ape['trans_rmse_m']:.3f} m")
-        t = m.get("time_ms") or {}
-        if t.get("mean") is not None:
-            parts.append(f"time {t['mean']:.2f} ms/frame")
-        if m.get("diverged"):
-            parts.append("DIVERGED")
-        console.print("; ".join(parts) or "no ground truth: no errors", markup=False)
-    console.print(f"run folder: {run_dir}", markup=False)
+    raise typer.Exit(run_command(console, experiment, method, data, out, seed,
+                                 _parse_params(param), jobs, force, executor, scheduler,
+                                 job_timeout))
 
 
 def _parse_params(items: list[str] | None) -> dict:
@@ -258,35 +163,10 @@ def table(
     = True,
 ) -> None:
     """Print the paper-shaped table (Table III) and write table.md / .tex / .csv."""
-    from bench.tables import FORMATS, is_variant, save_formats, select_rows, write_tables
-    from bench.tables_pivot import to_pivot_markdown
+    from bench.report.commands import table_command
 
-    wanted = None if methods is None else {m.strip() for m in methods.split(",")}
-
-    def keep(row) -> bool:
-        return (wanted is None or row.method in wanted) and (variants or not is_variant(row))
-
-    if format not in FORMATS:
-        raise DataError(f"unknown table format {format!r}; choose from {', '.join(FORMATS)}")
-    try:
-        lengths_m = None if lengths is None else [float(x) for x in lengths.split(",")]
-    except ValueError:
-        raise DataError(f"--lengths {lengths!r}: expected numbers in metres, e.g. 8,48") from None
-    try:
-        rows, chosen = select_rows(list(results_dirs), lengths_m=lengths_m, keep=keep)
-    except ValueError as e:
-        raise DataError(str(e)) from None
-    texts = write_tables(list(results_dirs), out, rows_lengths=(rows, chosen))
-    if pivot:
-        text = "\n".join(to_pivot_markdown(rows, x) for x in chosen)
-        save_formats(out or results_dirs[0], "pivot", {"md": text})
-        sys.stdout.write(text)
-        status.print(f"wrote {(out or results_dirs[0])}/pivot.md and table.{{md,tex,csv}}",
-                     style="dim", markup=False)
-        return
-    sys.stdout.write(texts[format])  # plain text, unwrapped (a pipe gets valid CSV)
-    status.print(f"wrote {(out or results_dirs[0])}/table.{{md,tex,csv}}", style="dim",
-                 markup=False)
+    raise typer.Exit(table_command(console, status, list(results_dirs), format, out, lengths,
+                                   pivot, methods, variants))
 
 
 @app.command()
@@ -299,16 +179,9 @@ def compare(
 ) -> None:
     """Two result folders side by side: A -> B and the change per sequence, method, seed and
     segment length; regressions marked with '!'."""
-    from bench.compare import compare as compare_runs
-    from bench.compare import to_text
+    from bench.report.commands import compare_command
 
-    df = compare_runs(a, b, threshold)
-    console.print(to_text(df), markup=False, highlight=False)
-    n = int(df["regression"].sum())
-    console.print(f"{len(df)} cells, {n} regressions (> {threshold:.0%} growth or newly "
-                  "diverged)", markup=False)
-    if fail_on_regression and n:
-        raise typer.Exit(1)
+    raise typer.Exit(compare_command(console, a, b, threshold, fail_on_regression))
 
 
 @app.command()
@@ -321,33 +194,9 @@ def regress(
     """CI regression: run configs/experiments/ci.yaml (unchanged runs are reused) and compare
     with configs/ci/baseline.json; exit 1 when a method's error grows by more than the
     tolerance or it newly diverges."""
-    from bench import regress as rg
-    from bench.experiment import load_experiment
-    from bench.progress import run_jobs
-    from bench.run import plan, summarize
-    from bench.runplan import jobs_for_experiment
+    from bench.studies.regress import regress_command
 
-    exp = load_experiment(rg.CI_EXPERIMENT)
-    outcomes = run_jobs(plan(jobs_for_experiment(exp, console)), console, jobs)
-    if any(o.status not in ("done", "skipped") for o in outcomes):
-        console.print(summarize(outcomes), markup=False)
-        raise typer.Exit(1)
-    only = {o.run_dir for o in outcomes}
-    current = rg.snapshot(exp.out_dir, only)
-    baseline = {} if update and not rg.BASELINE.exists() else rg.read_baseline(rg.BASELINE)
-    findings = rg.check(baseline, current, tolerance)
-    for f in findings:
-        console.print(str(f), markup=False)
-    if update:
-        rg.write_baseline(current, rg.BASELINE)
-        console.print(f"baseline updated: {rg.BASELINE} ({len(findings)} changes)",
-                      markup=False)
-        return
-    bad = [f for f in findings if f.regression]
-    console.print(f"{len(current)} runs, {len(findings)} changes, {len(bad)} regressions",
-                  markup=False)
-    if bad:
-        raise typer.Exit(1)
+    raise typer.Exit(regress_command(console, update, tolerance, jobs))
 
 
 @app.command()
@@ -365,21 +214,9 @@ def figures(
     """Paper figures (PDF and PNG): trajectories, relative-error box plots, error along the
     path, per-frame time and correspondences, speed scaling; or one scan pair's
     correspondences (--pair STORE FRAME)."""
-    from bench.figures import make_figures
-    from bench.figures_pair import plot_pair
+    from bench.report.commands import figures_command
 
-    paths = []
-    if pair is not None:
-        paths += plot_pair(pair[0], pair[1], out or Path("results/figures"))
-    if results_dir is not None:
-        default_csv = Path("results/speed/speed.csv")
-        paths += make_figures(results_dir, out, speed_csv or
-                              (default_csv if default_csv.exists() else None))
-    if not paths:
-        raise DataError("give a RESULTS_DIR with finished runs, or --pair STORE FRAME")
-    for p in paths:
-        if p.suffix == ".png":
-            console.print(f"wrote {p} (+ .pdf)", markup=False)
+    raise typer.Exit(figures_command(console, results_dir, out, speed_csv, pair))
 
 
 @app.command()
@@ -395,7 +232,7 @@ def view(
 ) -> None:
     """Write a rerun recording: scans coloured by Doppler, GT and estimated trajectories, one
     pair's correspondences (open it with `rerun FILE.rrd`)."""
-    from bench.view import write_recording
+    from bench.report.view import write_recording
 
     out = out or Path("results/view") / f"{store.stem}.rrd"
     path = write_recording(store, out, run, pair, stride)
@@ -414,7 +251,7 @@ def speed(
     = True,
 ) -> None:
     """Time every method on the same synthetic scan pairs; print ratios to `doppler`."""
-    from bench.speed import run_speed
+    from bench.studies.speed import run_speed
 
     run_speed([int(s) for s in sizes.split(",")],
               methods.split(",") if methods else None, repeats, out, console, memory)
@@ -432,7 +269,7 @@ def reproduce(
 ) -> None:
     """Reproduce the paper's Tables III, IV and V (configs/experiments/table3-5.yaml) on the
     paper's sequences: real stores under DATA_DIR/real when present, else the synthetic suite."""
-    from bench.reproduce import reproduce_table
+    from bench.studies.reproduce import reproduce_table
 
     if reproduce_table(out, data_dir, jobs, force, synthetic_only, console, executor):
         raise typer.Exit(1)

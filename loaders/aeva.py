@@ -27,10 +27,12 @@ from pathlib import Path
 
 import numpy as np
 
+from loaders.assemble import finish_scan, median_period
 from loaders.errors import DataError
-from loaders.gt import associate, detect_pose_format, parse_extrinsic, read_gt_file
-from loaders.ros1 import finish_scan, median_period
-from loaders.scan import Scan, SensorInfo, Sequence, Trajectory
+from loaders.gt import associate
+from loaders.posefile import detect_pose_format, parse_extrinsic, read_gt_file
+from loaders.scan import Scan, SensorInfo, Sequence
+from loaders.trajectory import Trajectory
 
 #: steam_icp's sensor -> vehicle translation for the Aeva real data (identity rotation).
 STEAM_T_VEHICLE_SENSOR = "1.42 0.24 1.37 0 0 0 1"

@@ -7,10 +7,12 @@ from pathlib import Path
 
 import numpy as np
 
+from loaders.assemble import median_period
 from loaders.errors import DataError
 from loaders.gt import associate
-from loaders.ros1 import BagTopic, median_period, sort_unique_stamps, topic_stamps
-from loaders.scan import SensorInfo, Sequence, Trajectory
+from loaders.ros1 import BagTopic, sort_unique_stamps, topic_stamps
+from loaders.scan import SensorInfo, Sequence
+from loaders.trajectory import Trajectory
 
 
 class BagRadarSequence(Sequence):

@@ -23,19 +23,17 @@ from pathlib import Path
 
 import numpy as np
 
+from loaders.assemble import finish_scan
 from loaders.bag_sequence import BagRadarSequence
 from loaders.doppler_check import low_points_median_z  # noqa: F401 (re-exported)
 from loaders.errors import DataError
-from loaders.gt import parse_extrinsic, read_gt_file, remove_origin
-from loaders.ros1 import (
-    _Cursor,
-    finish_scan,
-    iter_topic_messages,
-    make_typestore,
-    register_bag_definition,
-)
-from loaders.scan import Scan, Trajectory
+from loaders.gt import remove_origin
+from loaders.posefile import parse_extrinsic, read_gt_file
+from loaders.ros1 import iter_topic_messages, make_typestore, register_bag_definition
+from loaders.ros1_msgs import Cursor
+from loaders.scan import Scan
 from loaders.se3 import T_from_tum
+from loaders.trajectory import Trajectory
 
 SCAN_TYPE = "msgs_radar/msg/RadarScanExtended"
 TARGET_TYPE = "msgs_radar/msg/RadarTargetExtended"
@@ -198,7 +196,7 @@ class CampusSequence(BagRadarSequence):
 
     def _targets(self, data: bytes, where: str) -> tuple[float, dict[str, np.ndarray]]:
         if self._fast_dtype is not None:
-            c = _Cursor(data, where)
+            c = Cursor(data, where)
             stamp, _ = c.header()
             n = c.u32()
             arr = c.array(self._fast_dtype, n)

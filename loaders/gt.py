@@ -1,5 +1,5 @@
 """Ground truth for real datasets: clean-up, time association with the scan stamps,
-interpolation, extrinsic application and a sanity report.
+interpolation and a sanity report (pose files and extrinsics: ``loaders.posefile``).
 
 Conventions (shared/REFERENCE.md):
 
@@ -27,48 +27,11 @@ from typing import Literal
 import numpy as np
 
 from loaders.errors import DataError, GroundTruthWarning
-from loaders.scan import Trajectory
 from loaders.se3 import interpolate_poses, make_T
+from loaders.trajectory import Trajectory
 
 UncoveredPolicy = Literal["keep", "trim", "error"]
 AssociationMode = Literal["interpolate", "nearest"]
-
-
-def parse_extrinsic(text: str | list | tuple | np.ndarray | None) -> np.ndarray:
-    """A 4x4 extrinsic from "x y z qx qy qz qw" (TUM order), 7 numbers, 16 numbers (row-major
-    4x4) or a 4x4 array; ``None`` gives the identity."""
-    if text is None:
-        return np.eye(4)
-    if isinstance(text, str):
-        try:
-            values = [float(v) for v in text.replace(",", " ").split()]
-        except ValueError as err:
-            raise DataError(
-                f"extrinsic {text!r}: expected numbers 'x y z qx qy qz qw' ({err})"
-            ) from None
-    else:
-        values = np.asarray(text, dtype=np.float64).ravel().tolist()
-    v = np.asarray(values, dtype=np.float64)
-    if v.size == 16:
-        T = v.reshape(4, 4)
-        if not np.allclose(T[3], [0, 0, 0, 1]) or not np.allclose(
-            T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-5
-        ):
-            raise DataError(f"extrinsic {values}: the 4x4 matrix is not a rigid transform")
-        return T
-    if v.size == 3:
-        return make_T(np.eye(3), v)
-    if v.size != 7:
-        raise DataError(
-            f"extrinsic {values}: expected 7 numbers 'x y z qx qy qz qw', 3 (translation only) "
-            f"or 16 (row-major 4x4), got {v.size}"
-        )
-    q = v[3:]
-    if not np.isclose(np.linalg.norm(q), 1.0, atol=1e-3):
-        raise DataError(f"extrinsic {values}: quaternion (qx qy qz qw) is not unit length")
-    from scipy.spatial.transform import Rotation
-
-    return make_T(Rotation.from_quat(q / np.linalg.norm(q)).as_matrix(), v[:3])
 
 
 def clean_trajectory(gt: Trajectory, name: str = "ground truth",
@@ -367,32 +330,37 @@ def _sorted_unique(gt: Trajectory) -> Trajectory:
     return Trajectory(s[keep], gt.poses[order[keep]])
 
 
-def detect_pose_format(path: str | Path) -> str:
-    """"kitti" when the first numeric row has 12 values, else "tum"."""
-    with open(path) as f:
-        for line in f:
-            parts = line.replace(",", " ").split()
-            if not parts or parts[0].startswith("#"):
-                continue
-            try:
-                [float(p) for p in parts]
-            except ValueError:
-                continue
-            return "kitti" if len(parts) == 12 else "tum"
-    return "tum"
+#: A scan stamp and a GT stamp closer than this are the same instant [s].
+STAMP_TOLERANCE_S = 1e-4
+#: GT at its own rate is interpolated across at most this many median GT steps.
+MAX_GAP_STEPS = 3.0
 
 
-def read_gt_file(path: str | Path, fmt: str = "auto", stamps: np.ndarray | None = None
-                 ) -> Trajectory:
-    """Read a TUM (8 columns) or KITTI (12 columns) pose file; ``fmt`` "auto" decides from the
-    first numeric row. KITTI rows get ``stamps`` (default: the row index)."""
-    path = Path(path)
-    if not path.exists():
-        raise DataError(f"{path}: ground-truth file not found")
-    if fmt == "auto":
-        fmt = detect_pose_format(path)
-    if fmt == "tum":
-        return Trajectory.read_tum(path)
-    if fmt == "kitti":
-        return Trajectory.read_kitti(path, stamps)
-    raise DataError(f"{path}: unknown ground-truth format {fmt!r} (expected tum or kitti)")
+def gt_for_frames(gt: Trajectory, stamps: np.ndarray, tolerance_s: float = STAMP_TOLERANCE_S,
+                  name: str = "ground truth") -> tuple[np.ndarray, np.ndarray]:
+    """GT poses ``T_world_sensor`` (N, 4, 4) at the scan stamps and a mask (N,) of the frames
+    that have ground truth; poses of frames without are NaN. Raises ``DataError`` when the GT
+    rows are not in time order (see ``loaders.gt.clean_trajectory``)."""
+    stamps = np.asarray(stamps, dtype=np.float64)
+    n = len(stamps)
+    poses = np.full((n, 4, 4), np.nan)
+    mask = np.zeros(n, dtype=bool)
+    if len(gt) == 0 or n == 0:
+        return poses, mask
+    gt, _ = clean_trajectory(gt, name)
+    s = gt.stamps
+    near, dist = nearest_indices(s, stamps)  # nearest GT pose of each scan
+    exact = dist <= tolerance_s
+    sorted_scans = np.sort(stamps)
+    _, gt_to_scan = nearest_indices(sorted_scans, s)  # nearest scan of each GT pose
+    inside = (s >= sorted_scans[0] - tolerance_s) & (s <= sorted_scans[-1] + tolerance_s)
+    sampled_at_scans = bool(np.all(gt_to_scan[inside] <= tolerance_s))
+    if sampled_at_scans or len(s) < 2:
+        mask = exact
+        poses[mask] = gt.poses[near[mask]]
+        return poses, mask
+    step = float(np.median(np.diff(s)))
+    mask = gt.coverage_mask(stamps, MAX_GAP_STEPS * step, tolerance_s)
+    if mask.any():
+        poses[mask] = gt.interpolate(stamps[mask], name=name).poses
+    return poses, mask

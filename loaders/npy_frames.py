@@ -16,8 +16,11 @@ from pathlib import Path
 
 import numpy as np
 
+from loaders.assemble import finish_scan
 from loaders.errors import DataError
-from loaders.scan import Scan, SensorInfo, Sequence, Trajectory
+from loaders.posefile import read_tum
+from loaders.scan import Scan, SensorInfo, Sequence
+from loaders.trajectory import Trajectory
 
 _FRAME = re.compile(r"^frame_(\d+)\.npy$")
 
@@ -59,7 +62,7 @@ class NpyFramesSequence(Sequence):
                     f"{f}: missing Doppler file {f.stem}_dop.npy (expected one per frame)"
                 )
         gt_path = Path(gt) if gt is not None else find_tum(folder)
-        trajectory = Trajectory.read_tum(gt_path) if gt_path is not None else None
+        trajectory = read_tum(gt_path) if gt_path is not None else None
         n = len(self.files)
         if period_s is not None:
             self._stamps = np.arange(n) * float(period_s)
@@ -136,11 +139,4 @@ class NpyFramesSequence(Sequence):
         if points.ndim != 2 or points.shape[1] != 3 or doppler.shape != (len(points),):
             raise DataError(f"{source}: expected points (N, 3) and Doppler (N,), got "
                             f"{points.shape} and {doppler.shape}")
-        finite = np.isfinite(points).all(axis=1) & np.isfinite(doppler)
-        if not finite.all():
-            warnings.warn(f"{source}: dropped {int((~finite).sum())} non-finite points",
-                          stacklevel=2)
-            points, doppler = points[finite], doppler[finite]
-        if len(points) == 0:
-            raise DataError(f"{source}: empty scan (no finite points); expected at least one")
-        return Scan(self._stamps[index], points, doppler, source=source)
+        return finish_scan(self._stamps[index], points, doppler, {}, source)

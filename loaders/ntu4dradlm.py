@@ -20,14 +20,11 @@ from pathlib import Path
 
 import numpy as np
 
+from loaders.assemble import finish_scan
 from loaders.bag_sequence import BagRadarSequence
 from loaders.errors import DataError
-from loaders.gt import parse_extrinsic, read_gt_file
-from loaders.ros1 import (
-    finish_scan,
-    parse_pointcloud,
-    parse_pointcloud2,
-)
+from loaders.posefile import parse_extrinsic, read_gt_file
+from loaders.ros1_msgs import parse_pointcloud, parse_pointcloud2
 from loaders.scan import Scan
 
 POINTCLOUD = "sensor_msgs/msg/PointCloud"

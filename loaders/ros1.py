@@ -1,17 +1,14 @@
-"""Shared ROS1 bag reading for the real-dataset loaders (rosbags, pure Python).
+"""ROS1 bag indexing for the real-dataset loaders (rosbags, pure Python).
 
 - ``BagTopic``: opens one or more bags, finds a topic (a ``DataError`` lists the topics a bag
   has when it is missing), checks the message type, and keeps a small per-message index
   (bag, chunk, offset). Messages are read lazily one at a time with plain file seeks (at most
   one decompressed chunk is cached per bag), so memory stays bounded by a few frames whatever
   the bag size. After indexing no rosbags reader stays open: instances pickle to workers.
-- Fast numpy parsers for the ROS1 wire format of ``std_msgs/Header``,
-  ``sensor_msgs/PointCloud`` (Point32 + named channels) and ``sensor_msgs/PointCloud2``
-  (PointField layout -> numpy dtype, big-endian aware).
+- ``topic_stamps`` / ``sort_unique_stamps``: scan stamps of a topic, in order.
 - ``make_typestore``: the ROS1 Noetic type store plus custom .msg definitions registered from
   text (and, when a bag carries its own definition, from the bag).
-- ``finish_scan``: the common last step of every loader (drop non-finite points with a
-  ``warnings.warn`` and a count, refuse empty scans with a ``DataError``).
+Message parsers are ``loaders.ros1_msgs``; every loader's last step is ``loaders.assemble``.
 
 Truncated or unindexed bags give one ``DataError`` naming the file.
 """
@@ -27,7 +24,6 @@ from pathlib import Path
 import numpy as np
 
 from loaders.errors import DataError
-from loaders.scan import Scan
 
 try:  # rosbags internals used for the record layout; pinned in pyproject (>= 0.10)
     from rosbags.rosbag1.reader import Header as _RecordHeader
@@ -292,164 +288,6 @@ def iter_topic_messages(bags: list[Path], topic: str, typestore,
         index.close()
 
 
-# -- ROS1 wire format parsers ------------------------------------------------------------------
-
-class _Cursor:
-    """Reads the ROS1 serialization (little-endian, u32-prefixed strings and arrays)."""
-
-    __slots__ = ("buf", "pos", "where")
-
-    def __init__(self, buf: bytes, where: str) -> None:
-        self.buf = buf
-        self.pos = 0
-        self.where = where
-
-    def need(self, n: int) -> None:
-        if self.pos + n > len(self.buf):
-            raise DataError(
-                f"{self.where}: message ends after {len(self.buf)} bytes, needed "
-                f"{self.pos + n}; wrong message type or damaged data"
-            )
-
-    def u8(self) -> int:
-        self.need(1)
-        self.pos += 1
-        return self.buf[self.pos - 1]
-
-    def u32(self) -> int:
-        self.need(4)
-        (v,) = struct.unpack_from("<I", self.buf, self.pos)
-        self.pos += 4
-        return v
-
-    def string(self) -> str:
-        n = self.u32()
-        self.need(n)
-        s = self.buf[self.pos:self.pos + n].decode("utf-8", errors="replace")
-        self.pos += n
-        return s
-
-    def array(self, dtype: str | np.dtype, count: int) -> np.ndarray:
-        dt = np.dtype(dtype)
-        self.need(count * dt.itemsize)
-        a = np.frombuffer(self.buf, dtype=dt, count=count, offset=self.pos)
-        self.pos += count * dt.itemsize
-        return a
-
-    def header(self) -> tuple[float, str]:
-        self.u32()  # seq
-        self.need(8)
-        sec, nsec = struct.unpack_from("<II", self.buf, self.pos)
-        self.pos += 8
-        return sec + nsec * 1e-9, self.string()
-
-
-def parse_pointcloud(data: bytes, where: str) -> tuple[float, np.ndarray, dict[str, np.ndarray]]:
-    """``sensor_msgs/PointCloud`` -> (stamp, points (N,3) float32, {channel name: (N,)})."""
-    c = _Cursor(data, where)
-    stamp, _ = c.header()
-    n = c.u32()
-    points = c.array("<f4", 3 * n).reshape(n, 3)
-    channels = {}
-    for _ in range(c.u32()):
-        name = c.string()
-        m = c.u32()
-        values = c.array("<f4", m)
-        if m != n:
-            raise DataError(
-                f"{where}: channel {name!r} has {m} values for {n} points; expected one per point"
-            )
-        channels[name] = values
-    return stamp, points, channels
-
-
-_PF_TYPES = {1: "i1", 2: "u1", 3: "i2", 4: "u2", 5: "i4", 6: "u4", 7: "f4", 8: "f8"}
-
-
-def parse_pointcloud2(data: bytes, where: str) -> tuple[float, np.ndarray, list[str]]:
-    """``sensor_msgs/PointCloud2`` -> (stamp, structured array (N,) with one field per
-    PointField of count 1, field names in message order)."""
-    c = _Cursor(data, where)
-    stamp, _ = c.header()
-    height, width = c.u32(), c.u32()
-    fields = []
-    for _ in range(c.u32()):
-        name = c.string()
-        offset = c.u32()
-        datatype = c.u8()
-        count = c.u32()
-        fields.append((name, offset, datatype, count))
-    big = bool(c.u8())
-    point_step, row_step = c.u32(), c.u32()
-    nbytes = c.u32()
-    c.need(nbytes)
-    blob = c.buf[c.pos:c.pos + nbytes]
-    endian = ">" if big else "<"
-    names, formats, offsets = [], [], []
-    for name, offset, datatype, count in fields:
-        if datatype not in _PF_TYPES:
-            raise DataError(f"{where}: PointField {name!r} has unknown datatype {datatype}")
-        if count != 1:
-            continue  # arrays per point are not per-point scalars; skipped
-        if offset + np.dtype(_PF_TYPES[datatype]).itemsize > point_step:
-            raise DataError(
-                f"{where}: PointField {name!r} at offset {offset} overruns point_step {point_step}"
-            )
-        names.append(name)
-        formats.append(endian + _PF_TYPES[datatype])
-        offsets.append(offset)
-    dtype = np.dtype({"names": names, "formats": formats, "offsets": offsets,
-                      "itemsize": point_step})
-    n = height * width
-    if point_step == 0 or row_step < width * point_step or nbytes < height * row_step:
-        raise DataError(
-            f"{where}: PointCloud2 layout inconsistent: {height}x{width} points, point_step "
-            f"{point_step}, row_step {row_step}, {nbytes} data bytes"
-        )
-    if row_step == width * point_step:
-        arr = np.frombuffer(blob, dtype=dtype, count=n)
-    else:
-        rows = np.frombuffer(blob, dtype=np.uint8, count=height * row_step).reshape(height, -1)
-        packed = np.ascontiguousarray(rows[:, :width * point_step]).tobytes()
-        arr = np.frombuffer(packed, dtype=dtype, count=n)
-    return stamp, arr, names
-
-
-# -- common scan assembly ----------------------------------------------------------------------
-
-def finish_scan(
-    stamp: float,
-    points: np.ndarray,
-    doppler: np.ndarray | None,
-    fields: dict[str, np.ndarray],
-    source: str,
-    counters: dict | None = None,
-) -> Scan:
-    """Drop points with a non-finite coordinate or Doppler (``warnings.warn`` with the count,
-    added to ``counters["nan_points_dropped"]``) and build the Scan; an empty scan (0 points
-    before or after dropping) raises ``DataError`` naming the file and frame."""
-    points = np.asarray(points)
-    n = len(points)
-    if n == 0:
-        raise DataError(f"{source}: empty scan (0 points); expected at least one point")
-    good = np.isfinite(points).all(axis=1)
-    if doppler is not None:
-        good &= np.isfinite(doppler)
-    bad = int(n - good.sum())
-    if bad:
-        warnings.warn(f"{source}: dropped {bad} of {n} points with NaN/inf coordinates or "
-                      "Doppler", stacklevel=3)
-        if counters is not None:
-            counters["nan_points_dropped"] = counters.get("nan_points_dropped", 0) + bad
-            counters["frames_with_nan"] = counters.get("frames_with_nan", 0) + 1
-        if bad == n:
-            raise DataError(f"{source}: empty scan (all {n} points are NaN/inf)")
-        points = points[good]
-        doppler = None if doppler is None else doppler[good]
-        fields = {k: v[good] for k, v in fields.items()}
-    return Scan(stamp=stamp, points=points, doppler=doppler, fields=fields, source=source)
-
-
 def sort_unique_stamps(stamps: np.ndarray, where: str) -> tuple[np.ndarray, int]:
     """Order of the frames by stamp with repeated stamps removed (first kept); warns with the
     count of repeats. Returns (indices into ``stamps``, repeats dropped)."""
@@ -479,9 +317,3 @@ def topic_stamps(index: BagTopic, stamp: str, where: str) -> np.ndarray:
             "record time"
         )
     return stamps
-
-
-def median_period(stamps: np.ndarray, default: float) -> float:
-    d = np.diff(np.asarray(stamps, dtype=np.float64))
-    d = d[d > 0]
-    return float(np.median(d)) if len(d) else default

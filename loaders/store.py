@@ -31,7 +31,8 @@ import numpy as np
 
 from loaders.errors import DataError
 from loaders.fileio import atomic_path
-from loaders.scan import Scan, SensorInfo, Sequence, Trajectory
+from loaders.scan import Scan, SensorInfo, Sequence
+from loaders.trajectory import Trajectory
 
 FORMAT_NAME = "doppler-bench-store"
 FORMAT_VERSION = 1

@@ -73,6 +73,16 @@ def make_method(name: str, params: dict | None = None,
     return method.configured_for(sensor) if sensor is not None else method
 
 
-def seed_options(name: str) -> list[bool]:
-    """The seed options worth running: a method that ignores the guess runs once (as seeded)."""
-    return [True, False] if get_method(name).uses_initial_guess else [True]
+def seed_options(name: str, wanted: list[bool] | None = None) -> list[bool | None]:
+    """The seed options to run method ``name`` with (the one rule): ``[None]`` for a method
+    that takes no motion prior at all (it runs once), else ``wanted`` (default: both, with and
+    without seed)."""
+    if not get_method(name).uses_initial_guess:
+        return [None]
+    return list(wanted) if wanted is not None else [True, False]
+
+
+def seed_option(name: str, seed: bool) -> bool | None:
+    """The seed option of a single run asked for with ``seed`` (None when the method takes no
+    prior)."""
+    return seed_options(name, [seed])[0]

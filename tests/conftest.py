@@ -7,8 +7,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from loaders.scan import MemorySequence, Scan, SensorInfo, Trajectory
+from loaders.scan import MemorySequence, Scan, SensorInfo
 from loaders.se3 import exp_se3, inv_T, transform_points
+from loaders.trajectory import Trajectory
 
 #: the vendored real radar frames (samples/README.md); frames 0-59 are the 60-frame sample
 SAMPLE_STORE = Path(__file__).resolve().parents[1] / "samples" / "ntu4dradlm-loop1.h5"
@@ -63,7 +64,7 @@ def sample_dir(tmp_path_factory) -> Path:
     """The real 60-frame sample in the reference code's NumPy-frame layout, as published:
     frames/frame_001.npy (float64 points) + frame_001_dop.npy and gt_tum.txt with one row per
     frame at 0.1 s steps (not the radar clock), written from the vendored store."""
-    from loaders.scan import Trajectory
+    from loaders.posefile import write_tum
     from loaders.store import StoreSequence
 
     folder = tmp_path_factory.mktemp("ntu4dradlm-loop1-sample")
@@ -75,7 +76,7 @@ def sample_dir(tmp_path_factory) -> Path:
             np.save(folder / "frames" / f"frame_{i + 1:03d}.npy", scan.points)
             np.save(folder / "frames" / f"frame_{i + 1:03d}_dop.npy", scan.doppler)
         gt = seq.ground_truth
-        Trajectory(np.arange(60) * 0.1, gt.poses[:60]).write_tum(folder / "gt_tum.txt")
+        write_tum(Trajectory(np.arange(60) * 0.1, gt.poses[:60]), folder / "gt_tum.txt")
     finally:
         seq.close()
     return folder

@@ -7,9 +7,9 @@ import pytest
 from typer.testing import CliRunner
 
 from bench.cli import app
-from bench.progress import run_jobs
-from bench.run import Job, run_job
-from bench.tables import collect_rows, to_latex, to_markdown, write_tables
+from bench.report.tables import collect_rows, to_latex, to_markdown, write_tables
+from bench.runs.job import Job, run_job
+from bench.runs.progress import run_jobs
 from conftest import constant_twist_sequence
 from loaders.store import write_store
 
@@ -147,7 +147,7 @@ def test_cli_run_table_inspect(store, tmp_path):
 
 
 def test_experiment_yaml_is_validated(tmp_path):
-    from bench.experiment import load_experiment
+    from bench.runs.experiment import load_experiment
     from loaders.errors import DataError
 
     bad = tmp_path / "exp.yaml"
@@ -161,7 +161,7 @@ def test_experiment_yaml_is_validated(tmp_path):
 
 
 def test_labelled_variants_are_told_apart_from_plain_methods():
-    from bench.tables import Row, is_variant, method_label
+    from bench.report.tables import Row, is_variant, method_label
 
     plain = Row("c", "s", "doppler-ego", None, method_label("doppler-ego", None), {}, {}, 1, False)
     ablation = Row("c", "s", "doppler-ego", None, method_label("doppler-ego", None, "w/o map"),
@@ -170,8 +170,8 @@ def test_labelled_variants_are_told_apart_from_plain_methods():
 
 
 def test_pivot_table_ranks_methods_per_sequence():
-    from bench.tables import Row
-    from bench.tables_pivot import to_pivot_markdown
+    from bench.report.tables import Row
+    from bench.report.tables_pivot import to_pivot_markdown
 
     def row(seq, label, rot, trans, diverged=False):
         return Row("Semi-Dense 4D Radar", seq, label, True, label, {"48": rot}, {"48": trans},

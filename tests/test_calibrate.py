@@ -6,12 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from bench.calibrate import (
-    CorrectedSequence,
-    calibrate_sequence,
-    calibrate_store,
-    rotation_check,
-)
+from bench.data.calibrate import calibrate_store
+from bench.data.calibration import CorrectedSequence, calibrate_sequence, rotation_check
 from loaders.scan import MemorySequence
 from loaders.store import StoreSequence, write_store
 from loaders.synthetic import SyntheticSequence

@@ -75,4 +75,4 @@ def test_sensor_defaults_and_registry():
     assert radar.params.threshold_mps > lidar.params.threshold_mps
     assert radar.params.map_seconds > lidar.params.map_seconds
     assert lidar.params.voxel_m == 0.7  # an explicit value is kept
-    assert seed_options("doppler-ego") == [True]  # its own motion prior: runs once
+    assert seed_options("doppler-ego") == [None]  # its own motion prior: runs once

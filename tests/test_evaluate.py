@@ -7,12 +7,14 @@ import warnings
 import numpy as np
 import pytest
 
-from bench.evaluate import evaluate_run, gt_for_frames
-from bench.run import Job, run_job
+from bench.runs.evaluate import evaluate_run
+from bench.runs.job import Job, run_job
 from conftest import constant_twist_sequence
 from loaders.errors import DataError
-from loaders.scan import MemorySequence, Trajectory, select_frames
+from loaders.gt import gt_for_frames
+from loaders.scan import MemorySequence, select_frames
 from loaders.store import StoreSequence, write_store
+from loaders.trajectory import Trajectory
 from methods.base import FrameRecord, OdometryResult
 from metrics import ape, relative_errors
 

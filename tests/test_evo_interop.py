@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from bench.run import Job, run_job
+from bench.runs.job import Job, run_job
 from conftest import constant_twist_sequence
 from loaders.store import write_store
 

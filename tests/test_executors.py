@@ -14,8 +14,9 @@ from pathlib import Path
 import psutil
 import pytest
 
-from bench.executors import execute
-from bench.run import Job, plan
+from bench.runs.executors import execute
+from bench.runs.job import Job
+from bench.runs.plan import plan
 from conftest import constant_twist_sequence
 from loaders.store import write_store
 

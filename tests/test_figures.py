@@ -5,9 +5,10 @@ import pytest
 from typer.testing import CliRunner
 
 from bench.cli import app
-from bench.figstyle import color
-from bench.progress import run_jobs
-from bench.run import Job, plan
+from bench.report.figstyle import color
+from bench.runs.job import Job
+from bench.runs.plan import plan
+from bench.runs.progress import run_jobs
 from conftest import constant_twist_sequence
 from loaders.store import write_store
 

@@ -7,17 +7,10 @@ import pytest
 
 from helpers_bags import Motion
 from loaders.errors import DataError, GroundTruthWarning
-from loaders.gt import (
-    associate,
-    clean_trajectory,
-    gt_sanity_report,
-    nearest_indices,
-    parse_extrinsic,
-    read_gt_file,
-    remove_origin,
-)
-from loaders.scan import Trajectory
+from loaders.gt import associate, clean_trajectory, gt_sanity_report, nearest_indices, remove_origin
+from loaders.posefile import parse_extrinsic, read_gt_file
 from loaders.se3 import interpolate_poses, make_T
+from loaders.trajectory import Trajectory
 
 T_BS = make_T(np.eye(3), [0.296, -0.130, -0.005])
 

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from loaders.errors import DataError
-from loaders.scan import MemorySequence, Scan, SensorInfo, Trajectory
+from loaders.scan import MemorySequence, Scan, SensorInfo
 from loaders.se3 import exp_se3, inv_T, rotation_angle_deg, transform_points
+from loaders.trajectory import Trajectory
 from methods.kiss import KissIcp
 from methods.registry import make_method
 from test_gicp import _planar_world

@@ -6,7 +6,7 @@ import pytest
 from helpers_bags import Motion, doppler_sign_cosine, make_truth, write_aeva_folder
 from loaders.aeva import STEAM_T_VEHICLE_SENSOR, AevaSequence, detect_layout, sorted_frames
 from loaders.errors import DataError
-from loaders.gt import parse_extrinsic
+from loaders.posefile import parse_extrinsic
 from loaders.se3 import make_T
 from loaders.store import StoreSequence, write_store
 
@@ -117,7 +117,7 @@ def test_convert_commands(tmp_path):
     import typer
     from typer.testing import CliRunner
 
-    from bench.convert_real import register
+    from bench.data.convert_real import register
     from helpers_bags import write_campus_bag, write_gt_tum, write_ntu_bag
 
     app = typer.Typer()

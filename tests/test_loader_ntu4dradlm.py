@@ -18,8 +18,8 @@ from helpers_bags import (
     write_ntu_bag,
 )
 from loaders.errors import DataError, GroundTruthWarning
-from loaders.gt import parse_extrinsic
 from loaders.ntu4dradlm import DEFAULT_T_GTBODY_RADAR, NtuSequence
+from loaders.posefile import parse_extrinsic
 from loaders.store import StoreSequence, write_store
 
 T_BS = parse_extrinsic(DEFAULT_T_GTBODY_RADAR)
@@ -223,30 +223,24 @@ def test_compressed_bags(tmp_path, truth, compression):
 def test_dataset_configs_match_loader_options(tmp_path, truth):
     import inspect
 
-    from bench.convert_real import (
-        CONFIG_DIR,
-        LOADER_CLASSES,
-        read_dataset_config,
-        sequence_from_config,
-    )
+    from bench.data.datasets import read_dataset_config
+    from bench.paths import DATASET_CONFIGS as CONFIG_DIR
+    from loaders.registry import LOADERS
 
     names = sorted(p.stem for p in CONFIG_DIR.glob("*.yaml"))
     assert {"Campus1", "Campus2", "Loop1_0", "Loop1_4", "StraightWall", "CurvedWall",
             "Tunnel_Empty", "Tunnel_Vehicles"} <= set(names)
     for name in names:
         cfg = read_dataset_config(name)
-        assert cfg["store"] == f"{cfg['name']}.h5"
-        assert cfg["sensor_class"] in ("Sparse 4D Radar", "Semi-Dense 4D Radar", "Dense 4D LiDAR")
-        module, cls = LOADER_CLASSES[cfg["loader"]]
-        import importlib
-
-        params = inspect.signature(getattr(importlib.import_module(module), cls)).parameters
-        assert set(cfg["options"]) <= set(params), (name, set(cfg["options"]) - set(params))
+        assert cfg.store == f"{cfg.name}.h5"
+        assert cfg.sensor_class in ("Sparse 4D Radar", "Semi-Dense 4D Radar", "Dense 4D LiDAR")
+        params = inspect.signature(LOADERS[cfg.loader].load_class()).parameters
+        assert set(cfg.options) <= set(params), (name, set(cfg.options) - set(params))
     # the config opens a bag laid out as documented
     cfg = read_dataset_config("Loop1_0")
-    write_ntu_bag(tmp_path / cfg["raw_files"][0], truth)
+    write_ntu_bag(tmp_path / cfg.raw_files[0], truth)
     write_gt_tum(tmp_path / "gt_odom.txt", MOTION, truth.stamps[0] - 0.3, truth.stamps[-1] + 0.3)
-    seq = sequence_from_config(cfg, tmp_path)
+    seq = cfg.open(tmp_path)
     assert seq.name == "Loop1_0" and len(seq) == len(truth.stamps)
     np.testing.assert_allclose(seq.ground_truth.poses, truth.sensor_poses(), atol=1e-5)
 

@@ -6,7 +6,7 @@ import pytest
 from loaders.doppler_check import doppler_sign_check
 from loaders.errors import DataError
 from loaders.npy_frames import NpyFramesSequence
-from loaders.scan import Trajectory
+from loaders.trajectory import Trajectory
 
 
 def _load(path, **kw):
@@ -81,7 +81,7 @@ def test_nan_points_are_dropped_with_a_count_and_empty_scans_fail(tmp_path):
     np.save(folder / "frame_003.npy", np.full((5, 3), np.nan))
     np.save(folder / "frame_003_dop.npy", np.zeros(5))
     seq, _ = _load(folder, period_s=0.1)
-    with pytest.warns(UserWarning, match="frame 0: dropped 2 non-finite points"):
+    with pytest.warns(UserWarning, match=r"frame 0: dropped 2 of \d+ points"):
         assert len(seq[0]) == 48
     with pytest.raises(DataError, match=r"frame_003.npy, frame 2: empty scan"), \
             warnings.catch_warnings():

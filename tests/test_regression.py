@@ -7,12 +7,11 @@ import copy
 import pytest
 from typer.testing import CliRunner
 
-from bench import regress as rg
 from bench.api import run_method
-from bench.experiment import load_experiment
-from bench.progress import run_jobs
-from bench.run import plan
-from bench.runplan import jobs_for_experiment
+from bench.runs.experiment import load_experiment
+from bench.runs.plan import jobs_for_experiment, plan
+from bench.runs.progress import run_jobs
+from bench.studies import regress as rg
 
 
 @pytest.fixture(scope="module")

@@ -5,11 +5,11 @@ import json
 import pytest
 import yaml
 
-from bench.experiment import load_experiment
-from bench.progress import run_jobs
-from bench.run import Job, plan, run_job
-from bench.runplan import jobs_for_experiment
-from bench.tables import collect_rows
+from bench.report.tables import collect_rows
+from bench.runs.experiment import load_experiment
+from bench.runs.job import Job, run_job
+from bench.runs.plan import jobs_for_experiment, plan
+from bench.runs.progress import run_jobs
 from conftest import constant_twist_sequence
 from loaders.errors import DataError
 from loaders.store import write_store
@@ -102,7 +102,7 @@ def test_method_sequence_filter(store, tmp_path):
 def test_store_hashes_are_cached_by_path_size_mtime_and_inode(store, tmp_path, monkeypatch):
     import hashlib
 
-    from bench import results
+    from bench.runs import identity as results
 
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
     monkeypatch.setattr(results, "_store_hashes", {})

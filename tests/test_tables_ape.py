@@ -4,7 +4,7 @@ import json
 
 import yaml
 
-from bench.tables_ape import collect_ape, to_csv, to_latex, to_markdown, write_ape_tables
+from bench.report.tables_ape import collect_ape, to_csv, to_latex, to_markdown, write_ape_tables
 
 
 def _run(root, seq, display, method, seed, ape_m, diverged=False, label=None):

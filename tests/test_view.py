@@ -4,8 +4,8 @@ import pytest
 from typer.testing import CliRunner
 
 from bench.cli import app
-from bench.run import Job, run_job
-from bench.view import doppler_colors
+from bench.report.view import doppler_colors
+from bench.runs.job import Job, run_job
 from conftest import constant_twist_sequence
 from loaders.store import write_store
 

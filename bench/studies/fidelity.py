@@ -3,8 +3,8 @@
 For every sequence of the suite, every method the paper reports on it (sparse radar:
 point-to-point ICP with and without seed, and ``doppler``; semi-dense radar and dense LiDAR:
 DICP with and without seed, and ``doppler``; on the tunnels also point-to-point ICP, which
-Table V reports as diverged) is run on the suite's store (``bench.api.
-run_method``: the same runs as ``bench run``, reused when already finished), and its mean
+Table V reports as diverged) is run on the suite's store (``bench.runs.plan.
+run_single``: the same runs as ``bench run``, reused when already finished), and its mean
 relative error at 8 m and 48 m (rotation [deg], translation [m]) is put next to the paper's
 Table III value with the ratio synthetic / paper. Then the paper's orderings are checked on the
 synthetic numbers (``orderings``).
@@ -24,6 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.paths import PAPER_TABLE3
+from loaders.sensor_classes import DENSE_LIDAR, SEMI_DENSE_RADAR, SPARSE_RADAR
 
 SUITE = "synthetic-paper"
 LENGTHS = ("8", "48")
@@ -31,9 +32,9 @@ LENGTHS = ("8", "48")
 FACTOR = 2.0
 #: (method, seed) the paper reports per sensor class (Table III)
 PAPER_METHODS = {
-    "Sparse 4D Radar": [("icp-p2p", True), ("icp-p2p", False), ("doppler", None)],
-    "Semi-Dense 4D Radar": [("dicp", True), ("dicp", False), ("doppler", None)],
-    "Dense 4D LiDAR": [("dicp", True), ("dicp", False), ("doppler", None)],
+    SPARSE_RADAR: [("icp-p2p", True), ("icp-p2p", False), ("doppler", None)],
+    SEMI_DENSE_RADAR: [("dicp", True), ("dicp", False), ("doppler", None)],
+    DENSE_LIDAR: [("dicp", True), ("dicp", False), ("doppler", None)],
 }
 #: runs beyond Table III for the paper's other orderings: Table V reports point-to-point ICP
 #: as diverged ("Div.") on both tunnels
@@ -86,7 +87,7 @@ def _synth_values(metrics: dict) -> dict[str, float]:
 def fidelity_rows(data_dir: Path, out_dir: Path, doppler_only: bool = False,
                   progress=None) -> list[Row]:
     """Run (or reuse) every reported method on every store of the suite; one Row each."""
-    from bench.api import run_method
+    from bench.runs.plan import run_single
     from loaders.synthetic.suite import ensure_suite, suite_entries
 
     paper = paper_table()
@@ -99,8 +100,8 @@ def fidelity_rows(data_dir: Path, out_dir: Path, doppler_only: bool = False,
             tag = method if seed is None else f"{method}_{'seed' if seed else 'noseed'}"
             if progress:
                 progress(f"{entry.name}: {tag}")
-            metrics = run_method(method, path, seed=bool(seed) if seed is not None else True,
-                                 out=out_dir / entry.name / tag)
+            metrics = run_single(method, path, seed=bool(seed) if seed is not None else True,
+                                 out=out_dir / entry.name / tag).metrics
             rows.append(Row(entry.name, entry.klass, method, seed,
                             paper.get((entry.name, method, seed), {}), _synth_values(metrics),
                             bool(metrics.get("diverged"))))

@@ -73,9 +73,10 @@ def _fit_noise(e2: np.ndarray, s2: np.ndarray) -> tuple[float, float]:
 
 def sequence_stats(seq: Sequence, frames: int | None = None, start: int = 0) -> dict[str, float]:
     """The statistics above over ``frames`` consecutive scans of ``seq`` from ``start``."""
-    from methods.doppler import DopplerScan, doppler_pairs
+    from methods.doppler import DopplerParams, DopplerScan, doppler_pairs
     from methods.ego_velocity import estimate_ego_velocity
 
+    gates = DopplerParams()  # the paper's defaults (tau_spatial 3 m, tau_doppler 5 m^2)
     n = len(seq) - start if frames is None else min(frames, len(seq) - start)
     counts, ranges, elevs, resid, inl, kept = [], [], [], [], [], []
     e2s, s2s, fres, fr = [], [], [], []
@@ -97,7 +98,7 @@ def sequence_stats(seq: Sequence, frames: int | None = None, start: int = 0) -> 
         cur = DopplerScan(float(scan.stamp), np.ascontiguousarray(p.T, np.float32),
                           np.asarray(scan.doppler, np.float32))
         if prev is not None and len(prev) and len(cur):
-            idx, match = doppler_pairs(prev, cur, 3.0, 5.0)
+            idx, match = doppler_pairs(prev, cur, gates.tau_spatial_m, gates.tau_doppler)
             kept.append(len(idx) / len(prev))
             fres.append(feature_residuals(prev, cur, idx, match))
             fr.append(prev_r[idx])

@@ -31,7 +31,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from loaders.scan import Scan, SensorInfo, Sequence, Trajectory
+from loaders.scan import Scan, SensorInfo, Sequence
 from loaders.synthetic.motion import Motion, make_profile
 from loaders.synthetic.raycast import GROUND_ID, cast
 from loaders.synthetic.scatterers import OCCLUSION_TOL, build_scatterers, candidates, finish
@@ -46,6 +46,7 @@ from loaders.synthetic.sensors import (
     sweep_offsets,
     with_rays,
 )
+from loaders.trajectory import Trajectory
 
 GENERATOR_VERSION = "doppler-bench-synthetic 1.4"
 OPTIONS = {

@@ -16,10 +16,11 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from loaders.errors import DataError
+from loaders.sensor_classes import DENSE_LIDAR, SEMI_DENSE_RADAR, SPARSE_RADAR
 from loaders.store import StoreSequence, write_store
 from loaders.synthetic.generate import GENERATOR_VERSION, SyntheticSequence
 
-SPARSE, SEMI_DENSE, DENSE = "Sparse 4D Radar", "Semi-Dense 4D Radar", "Dense 4D LiDAR"
+SPARSE, SEMI_DENSE, DENSE = SPARSE_RADAR, SEMI_DENSE_RADAR, DENSE_LIDAR
 
 
 @dataclass(frozen=True)

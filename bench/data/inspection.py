@@ -1,0 +1,130 @@
+"""``bench inspect``: what is in a store (or a frame folder), and is its Doppler sign right."""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+from rich.console import Console
+from rich.markup import escape
+from rich.table import Table
+
+from loaders.gt import gt_for_frames
+from loaders.doppler_check import doppler_sign_check, low_points_median_z
+from loaders.errors import DataError
+from loaders.fileio import atomic_path
+from loaders.gt import gt_sanity_report
+from loaders.scan import Sequence
+from methods.ego_velocity import speed_from_doppler
+
+
+def open_sequence(path: Path, period_s: float | None = None) -> Sequence:
+    """A store file, or a NumPy frame folder."""
+    path = Path(path)
+    if path.is_dir():
+        from loaders.npy_frames import NpyFramesSequence
+
+        return NpyFramesSequence(path, period_s=period_s)
+    from loaders.store import StoreSequence
+
+    return StoreSequence(path)
+
+
+def inspect_path(path: Path, period_s: float | None, console: Console,
+                 plot: Path | None = None) -> dict:
+    """Print the figures of a store or frame folder; with GT and Doppler also the
+    sensor-to-GT rotation check and (``plot``) a PNG of Doppler speed against GT speed."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        seq = open_sequence(path, period_s)
+    for w in caught:
+        console.print(f"[yellow]warning:[/] {w.message}", highlight=False)
+    report = inspect_sequence(seq)
+    table = Table(title=f"{path}", title_justify="left", show_header=False)
+    for key, value in report["rows"]:
+        table.add_row(f"[bold]{key}[/]", value)
+    console.print(table)
+    for finding in report["gt_findings"]:
+        console.print(f"  [yellow]GT:[/] {finding}", highlight=False)
+    style = "green" if report["sign"].verdict == "confirmed" else "yellow"
+    console.print(f"[{style}]{report['sign'].describe()}[/]", highlight=False)
+    if seq.ground_truth is not None and len(seq) and seq[0].doppler is not None:
+        from bench.data.calibration import rotation_check
+
+        cal, warning = rotation_check(seq)
+        if warning:
+            console.print(f"[yellow]warning:[/] {escape(warning)}")
+        elif cal is not None:
+            console.print("sensor-to-GT rotation: consistent within 0.5 deg (Doppler ego "
+                          "velocity vs GT velocity)", highlight=False)
+        if plot is not None:
+            plot.parent.mkdir(parents=True, exist_ok=True)
+            console.print(f"speed from Doppler vs GT: {plot_speed(seq, plot)}", markup=False)
+    return report
+
+
+def inspect_sequence(seq: Sequence) -> dict:
+    counts = (seq.points_per_frame() if hasattr(seq, "points_per_frame")
+              else np.array([len(s) for s in seq]))
+    stamps = seq.stamps
+    dts = np.diff(stamps)
+    rows = [
+        ("name", seq.name),
+        ("sensor", f"{seq.sensor.kind} ({seq.sensor.model or 'unknown model'})"),
+        ("frames", f"{len(seq)}"),
+        ("points per frame", f"min {counts.min()}, median {np.median(counts):.0f}, "
+                             f"max {counts.max()}"),
+        ("period", f"nominal {seq.sensor.period_s:.6f} s, measured median "
+                   f"{np.median(dts):.6f} s" if len(dts) else f"{seq.sensor.period_s} s"),
+        ("duration", f"{stamps[-1] - stamps[0]:.3f} s"),
+    ]
+    gt_findings: list[str] = []
+    gt_poses = None
+    gt = seq.ground_truth
+    if gt is None:
+        rows.append(("ground truth", "none"))
+    else:
+        rows.append(("ground truth", f"{len(gt)} poses, path length {gt.path_length_m():.2f} m"))
+        sanity = gt_sanity_report(gt, stamps)
+        gt_findings = list(sanity["findings"])
+        coverage = sanity.get("scan_coverage_pct", float("nan"))
+        rows.append(("GT coverage of scans", f"{coverage:.1f} %, {sanity['repeated_poses']} "
+                     f"repeated poses, {len(sanity['gaps'])} gaps"))
+        try:
+            poses, scored = gt_for_frames(gt, stamps)
+            rows.append(("frames scored", f"{int(scored.sum())} of {len(stamps)} have ground "
+                                          "truth (the others run, unscored)"))
+            gt_poses = poses  # NaN where a frame has no GT: the sign check skips those
+        except DataError as err:
+            gt_findings.append(f"cannot associate GT with the scans: {err}")
+    if seq.sensor.kind == "radar":  # elevation-sign check: the road should be below the sensor
+        z = low_points_median_z(seq)
+        rows.append(("height check", f"densest layer at z = {z['dominant_layer_z_m']:+.2f} m: "
+                                     f"{z['verdict']}"))
+    sign = doppler_sign_check(seq, gt_poses)
+    return {"rows": rows, "gt_findings": gt_findings, "sign": sign, "counts": counts}
+
+
+def plot_speed(sequence: Sequence, path: str | Path) -> Path:
+    """Speed from Doppler against GT speed over time (PNG at ``path``), for ``bench inspect``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    s = speed_from_doppler(sequence)
+    t = s["stamps"] - s["stamps"][0]
+    fig, ax = plt.subplots(figsize=(8, 3.2))
+    ax.plot(t, s["speed_gt"], label="ground truth", color="k", lw=1.2)
+    ax.plot(t, s["speed_doppler"], ".", ms=3, label="Doppler ego velocity", color="C1")
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("speed [m/s]")
+    ax.set_title(f"{sequence.name}: speed from Doppler vs ground truth")
+    ax.legend(loc="best")
+    fig.tight_layout()
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=120, format="png")
+    plt.close(fig)
+    return path

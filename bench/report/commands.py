@@ -1,0 +1,81 @@
+"""The report commands: ``bench table``, ``bench compare`` and ``bench figures``."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from rich.console import Console
+
+from loaders.errors import DataError
+
+
+def table_command(console: Console, status: Console, results_dirs: list[Path], format: str,
+                  out: Path | None, lengths: str | None, pivot: bool, methods: str | None,
+                  variants: bool) -> int:
+    """Print the paper-shaped table (or the pivot) and write its files; returns 0."""
+    from bench.report.cells import save_formats
+    from bench.report.tables import FORMATS, is_variant, select_rows, write_tables
+    from bench.report.tables_pivot import to_pivot_markdown
+
+    wanted = None if methods is None else {m.strip() for m in methods.split(",")}
+
+    def keep(row) -> bool:
+        return (wanted is None or row.method in wanted) and (variants or not is_variant(row))
+
+    if format not in FORMATS:
+        raise DataError(f"unknown table format {format!r}; choose from {', '.join(FORMATS)}")
+    try:
+        lengths_m = None if lengths is None else [float(x) for x in lengths.split(",")]
+    except ValueError:
+        raise DataError(f"--lengths {lengths!r}: expected numbers in metres, e.g. 8,48") from None
+    try:
+        rows, chosen = select_rows(list(results_dirs), lengths_m=lengths_m, keep=keep)
+    except ValueError as e:
+        raise DataError(str(e)) from None
+    texts = write_tables(list(results_dirs), out, rows_lengths=(rows, chosen))
+    where = out or results_dirs[0]
+    if pivot:
+        text = "\n".join(to_pivot_markdown(rows, x) for x in chosen)
+        save_formats(where, "pivot", {"md": text})
+        sys.stdout.write(text)
+        status.print(f"wrote {where}/pivot.md and table.{{md,tex,csv}}", style="dim",
+                     markup=False)
+        return 0
+    sys.stdout.write(texts[format])  # plain text, unwrapped (a pipe gets valid CSV)
+    status.print(f"wrote {where}/table.{{md,tex,csv}}", style="dim", markup=False)
+    return 0
+
+
+def compare_command(console: Console, a: Path, b: Path, threshold: float,
+                    fail_on_regression: bool) -> int:
+    """Print A -> B per cell; returns 1 when asked to fail and B regresses."""
+    from bench.report.compare import compare, to_text
+
+    df = compare(a, b, threshold)
+    console.print(to_text(df), markup=False, highlight=False)
+    n = int(df["regression"].sum())
+    console.print(f"{len(df)} cells, {n} regressions (> {threshold:.0%} growth or newly "
+                  "diverged)", markup=False)
+    return 1 if fail_on_regression and n else 0
+
+
+def figures_command(console: Console, results_dir: Path | None, out: Path | None,
+                    speed_csv: Path | None, pair: tuple[Path, int] | None) -> int:
+    """Write the figures asked for and list them; returns 0."""
+    from bench.report.figures import make_figures
+    from bench.report.figures_pair import plot_pair
+
+    paths = []
+    if pair is not None:
+        paths += plot_pair(pair[0], pair[1], out or Path("results/figures"))
+    if results_dir is not None:
+        default_csv = Path("results/speed/speed.csv")
+        paths += make_figures(results_dir, out, speed_csv or
+                              (default_csv if default_csv.exists() else None))
+    if not paths:
+        raise DataError("give a RESULTS_DIR with finished runs, or --pair STORE FRAME")
+    for p in paths:
+        if p.suffix == ".png":
+            console.print(f"wrote {p} (+ .pdf)", markup=False)
+    return 0

@@ -1,0 +1,120 @@
+"""Experiment configuration (YAML under configs/experiments/), validated with pydantic.
+
+    name: paper-synthetic
+    suite: synthetic-paper          # a synthetic suite, generated/cached under data_dir
+    sequences:                      # and/or explicit stores
+      - path: data/real/Loop1_0.h5
+        display_name: Loop1_0
+        sensor_class: Semi-Dense 4D Radar
+    methods:
+      - name: doppler
+      - name: icp-p2p
+        params: {max_iterations: 100}
+        seeds: [true, false]        # default: both, or [true] for methods without a guess
+    lengths_m: [8, 16, 24, 32, 40, 48]
+    jobs: 2
+    out: results/paper-synthetic
+
+Unknown keys, unknown methods and unknown method parameters are errors. Relative paths
+(``data_dir``, ``out``, sequence ``path``s) are relative to the YAML file. A method entry may
+carry a ``label`` (variants of one method: each its own folder and table row) and a
+``sequences`` list (run it only on those sequences).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from loaders.errors import DataError
+from methods.registry import METHODS, get_method, seed_options
+from metrics.relative import DEFAULT_LENGTHS_M
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid")
+
+
+class SequenceEntry(_Strict):
+    path: Path
+    name: str | None = None
+    display_name: str | None = None
+    sensor_class: str | None = None
+
+
+class MethodEntry(_Strict):
+    name: str
+    label: str | None = None           # a variant's name in folders and tables
+    params: dict = Field(default_factory=dict)
+    seeds: list[bool] | None = None
+    sequences: list[str] | None = None  # run only on these sequences (names or store stems)
+
+    @model_validator(mode="after")
+    def _check(self) -> MethodEntry:
+        if self.name not in METHODS:
+            raise ValueError(f"unknown method {self.name!r}; registered: {', '.join(METHODS)}")
+        Params = getattr(get_method(self.name), "Params", None)
+        if Params is not None:
+            Params.model_validate(self.params)
+        return self
+
+    def seed_options(self) -> list[bool | None]:
+        """Seed options to run (``methods.registry.seed_options``)."""
+        return seed_options(self.name, self.seeds)
+
+
+class Experiment(_Strict):
+    name: str
+    suite: str | None = None
+    data_dir: Path = Path("data")
+    sequences: list[SequenceEntry] = Field(default_factory=list)
+    methods: list[MethodEntry]
+    lengths_m: list[float] = Field(default_factory=lambda: list(DEFAULT_LENGTHS_M))
+    jobs: int = Field(1, ge=1)
+    out: Path | None = None
+
+    @field_validator("lengths_m")
+    @classmethod
+    def _positive(cls, v: list[float]) -> list[float]:
+        if not v or min(v) <= 0:
+            raise ValueError("lengths_m must be a non-empty list of positive lengths [m]")
+        return v
+
+    @model_validator(mode="after")
+    def _has_data(self) -> Experiment:
+        if self.suite is None and not self.sequences:
+            raise ValueError("an experiment needs a 'suite' or a list of 'sequences'")
+        seen = set()
+        for m in self.methods:
+            if (m.name, m.label) in seen:
+                raise ValueError(f"method {m.name!r} is listed twice: give each variant a "
+                                 "distinct 'label:'")
+            seen.add((m.name, m.label))
+        return self
+
+    def resolved(self, base: Path) -> Experiment:
+        """This experiment with its relative paths taken relative to ``base`` (the folder of
+        the YAML file)."""
+        def at(p: Path) -> Path:
+            return p if p.is_absolute() else base / p
+        return self.model_copy(update={
+            "data_dir": at(self.data_dir),
+            "out": at(self.out) if self.out is not None else None,
+            "sequences": [s.model_copy(update={"path": at(s.path)}) for s in self.sequences]})
+
+    @property
+    def out_dir(self) -> Path:
+        return self.out if self.out is not None else Path("results") / self.name
+
+
+def load_experiment(path: str | Path) -> Experiment:
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+        return Experiment.model_validate(data).resolved(path.resolve().parent)
+    except FileNotFoundError:
+        raise DataError(f"{path}: experiment file not found") from None
+    except (yaml.YAMLError, ValidationError) as err:
+        raise DataError(f"{path}: invalid experiment:\n{err}") from err

@@ -1,0 +1,203 @@
+"""What a job is (one sequence x method x seed option) and how one job runs.
+
+A job's folder is ``<out>/<sequence>/<method or label>[_seed|_noseed]``; its ``config.yaml``
+holds a ``run_key``: a hash of everything that determines the result (the store's content
+hash, the method, its resolved parameters, the seed option, the evaluation lengths, and the
+hash of the code that computes results: methods/, metrics/, the scoring). A job is skipped
+only when its folder holds a finished run with the same key; otherwise the old records are
+removed first and it runs again, so a failed re-run never leaves stale metrics behind.
+``bench.runs.plan`` resolves every job before anything runs (stores, parameters, folders), so
+bad input is one clear error up front; executors (``bench.runs.executors``) run the planned
+jobs through ``run_job``.
+"""
+
+from __future__ import annotations
+
+import time
+import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from pydantic import ValidationError
+
+from bench.runs.evaluate import evaluate_run
+from bench.runs.folders import clear_run, is_finished, run_dir_name, write_failure, write_run
+from bench.runs.identity import code_identity, run_key, store_identity
+from loaders.errors import DataError
+from loaders.sensor_classes import sensor_class
+from loaders.store import StoreSequence
+from methods.base import Odometry
+from methods.registry import get_method, make_method
+from metrics.relative import DEFAULT_LENGTHS_M
+
+
+@dataclass(frozen=True)
+class Job:
+    store: Path
+    method: str
+    seed: bool | None
+    out_root: Path
+    params: dict = field(default_factory=dict)
+    lengths_m: tuple[float, ...] = DEFAULT_LENGTHS_M
+    name: str | None = None
+    display_name: str | None = None
+    sensor_class: str | None = None
+    run_dir_override: Path | None = None
+    label: str | None = None
+    run_key: str | None = None  # set by ``plan``
+    store_sha256: str | None = None  # set by ``plan``, so workers do not hash the store again
+
+    @property
+    def title(self) -> str:
+        folder = run_dir_name(self.method, self.seed, self.label)
+        return f"{self.name or self.store.stem} / {folder}"
+
+    def run_dir(self, sequence_name: str) -> Path:
+        if self.run_dir_override is not None:
+            return self.run_dir_override
+        return self.out_root / sequence_name / run_dir_name(self.method, self.seed, self.label)
+
+
+@dataclass
+class JobOutcome:
+    job: Job
+    status: str  # "done", "skipped", "failed", "interrupted"
+    message: str = ""
+    frames: int = 0
+    wall_s: float = 0.0
+    run_dir: Path | None = None
+
+
+@dataclass
+class Prepared:
+    """A job resolved against its store: the open sequence, the configured method, the folder,
+    the run key and the configuration to record."""
+
+    sequence: StoreSequence
+    method: Odometry
+    run_dir: Path
+    key: str
+    config: dict
+
+
+def sequence_labels(seq: StoreSequence, job: Job) -> tuple[str, str, str]:
+    """(name, display name, sensor class) from the job, else the store's provenance."""
+    prov = seq.provenance
+    name = job.name or seq.name
+    display = job.display_name or prov.get("display_name") or name
+    klass = (job.sensor_class or prov.get("sensor_class") or prov.get("class")
+             or sensor_class(seq.sensor))
+    return name, display, klass
+
+
+def _method_error(job: Job, err: Exception) -> DataError:
+    if isinstance(err, ValidationError):
+        problems = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in err.errors())
+        return DataError(f"method {job.method!r}: invalid parameters {job.params}: {problems}")
+    return DataError(f"method {job.method!r}: {err}")
+
+
+def prepare(job: Job) -> Prepared:
+    """Open the store and configure the method; DataError on bad input (store or parameters).
+    A method configuration error names the run folder it belongs to (``err.run_dir``)."""
+    seq = StoreSequence(job.store)
+    try:
+        name, display, klass = sequence_labels(seq, job)
+        run_dir = job.run_dir(name)
+        cls = get_method(job.method)
+        config = {
+            "sequence": {"name": name, "display_name": display, "sensor_class": klass,
+                         "store": str(job.store), "frames": len(seq),
+                         "sensor_kind": seq.sensor.kind, "sensor_model": seq.sensor.model,
+                         "period_s": seq.sensor.period_s},
+            "method": {"name": job.method, "description": cls.description,
+                       "uses_initial_guess": cls.uses_initial_guess},
+            "label": job.label,
+            "seed": job.seed,
+            "lengths_m": list(job.lengths_m),
+        }
+        try:
+            method = make_method(job.method, job.params, seq.sensor)
+        except (ValidationError, ValueError, TypeError) as err:
+            error = _method_error(job, err)
+            error.run_dir, error.config = run_dir, config  # type: ignore[attr-defined]
+            raise error from None
+        params = getattr(method, "params", None)
+        config["method"]["params"] = params.model_dump(mode="json") if params is not None else {}
+        identity = {"store_sha256": job.store_sha256 or store_identity(job.store),
+                    "method": job.method,
+                    "params": config["method"]["params"], "seed": job.seed,
+                    "lengths_m": [float(x) for x in job.lengths_m],
+                    "code_sha256": code_identity()}
+        config["run_key"] = run_key(identity)
+        config["identity"] = identity
+        return Prepared(seq, method, run_dir, config["run_key"], config)
+    except BaseException:
+        seq.close()
+        raise
+
+
+def run_job(job: Job, force: bool = False,
+            on_frame: Callable[[int, int], None] | None = None) -> JobOutcome:
+    """Run one job and write its folder. ``on_frame(done, total)`` reports progress. Never
+    raises for a failing run: the failure is recorded in ``failed.json`` and returned."""
+    t0 = time.perf_counter()
+    try:
+        prep = prepare(job)
+    except DataError as err:
+        run_dir = getattr(err, "run_dir", None)
+        if run_dir is not None:
+            _record_failure(run_dir, getattr(err, "config", None), str(err), "")
+        return JobOutcome(job, "failed", str(err), run_dir=run_dir)
+    seq, run_dir = prep.sequence, prep.run_dir
+    try:
+        if is_finished(run_dir, prep.key) and not force:
+            return JobOutcome(job, "skipped", str(run_dir), run_dir=run_dir)
+        clear_run(run_dir)
+        total = len(seq)
+        result = prep.method.run(seq, seed=bool(job.seed),
+                                 on_frame=(lambda i: on_frame(i + 1, total)) if on_frame else None)
+        evaluation = evaluate_run(seq.ground_truth, result, job.lengths_m, name=str(job.store))
+        metrics = {"sequence": prep.config["sequence"]["name"], "method": job.method,
+                   "seed": job.seed, "frames": len(seq), **evaluation.metrics}
+        write_run(run_dir, result, evaluation.gt, prep.config, metrics)
+        return JobOutcome(job, "done", str(run_dir), len(seq), time.perf_counter() - t0,
+                          run_dir=run_dir)
+    except Exception as err:  # noqa: BLE001 - record any failure and carry on
+        message = f"{type(err).__name__}: {err}" if not isinstance(err, DataError) else str(err)
+        _record_failure(run_dir, prep.config, message, traceback.format_exc())
+        return JobOutcome(job, "failed", message, wall_s=time.perf_counter() - t0,
+                          run_dir=run_dir)
+    finally:
+        seq.close()
+
+
+def _record_failure(run_dir: Path, config: dict | None, message: str, trace: str,
+                    status: str = "failed") -> None:
+    try:
+        write_failure(run_dir, config, message, trace, status)
+    except (OSError, DataError):
+        pass  # the outcome still carries the message; the folder itself is the problem
+
+
+def record_unfinished(job: Job, message: str, status: str) -> None:
+    """Record a job that an executor ended (interrupted, timed out, crashed worker)."""
+    if job.run_dir_override is not None:
+        _record_failure(job.run_dir_override, None, message, "", status)
+
+
+def expected_cost(job: Job) -> float:
+    size = job.store.stat().st_size if job.store.exists() else 0
+    return size * (20.0 if get_method(job.method).uses_initial_guess else 1.0)
+
+
+def summarize(outcomes: list[JobOutcome]) -> str:
+    statuses = ("done", "skipped", "failed", "interrupted")
+    counts = {s: sum(o.status == s for o in outcomes) for s in statuses}
+    text = ", ".join(f"{v} {k}" for k, v in counts.items() if v or k == "failed")
+    failed = [o for o in outcomes if o.status in ("failed", "interrupted")]
+    for o in failed:
+        first_line = o.message.splitlines()[0] if o.message else ""
+        text += f"\n  {o.status}: {o.job.title}: {first_line}"
+    return text

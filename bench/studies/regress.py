@@ -1,0 +1,129 @@
+"""CI regression: the experiment ``configs/experiments/ci.yaml`` against a committed baseline.
+
+The baseline (``configs/ci/baseline.json``) holds, per sequence x method x seed option, the
+mean relative rotation [deg] and translation [m] error at every length, and whether the run
+diverged. A run regresses when an error grows by more than ``tolerance`` (10 %) plus a small
+absolute floor (1 mm, 0.01 deg: below those the synthetic numbers are at rounding level), or
+when it newly diverges; a run missing from either side is reported too. ``--update`` rewrites
+the baseline from the current results and prints what changed.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import dataclass
+from pathlib import Path
+
+from bench.paths import CI_BASELINE as BASELINE
+from bench.paths import CI_EXPERIMENT
+from bench.runs.folders import load_runs
+from loaders.fileio import atomic_write_text
+
+FLOOR = {"rot_deg": 0.01, "trans_m": 0.001}
+
+
+def _key(m: dict) -> str:
+    seed = {True: "seed", False: "noseed", None: "-"}[m["seed"]]
+    return f"{m['sequence']}/{m['method']}/{seed}"
+
+
+def snapshot(results_dir: Path, only: set[Path] | None = None) -> dict:
+    """{run key: {"diverged", "rot_deg": {length: mean}, "trans_m": {length: mean}}}."""
+    out = {}
+    for run in load_runs(results_dir, only):
+        rel = run.relative_error
+        out[_key(run.metrics)] = {
+            "diverged": bool(run.diverged),
+            "rot_deg": {k: v["rot_deg_mean"] for k, v in rel.items() if v["n"]},
+            "trans_m": {k: v["trans_m_mean"] for k, v in rel.items() if v["n"]},
+        }
+    return dict(sorted(out.items()))
+
+
+@dataclass
+class Finding:
+    run: str
+    what: str
+    baseline: float | None
+    current: float | None
+    regression: bool
+
+    def __str__(self) -> str:
+        mark = "REGRESSION" if self.regression else "changed"
+        return f"{mark:>10}  {self.run}  {self.what}: {_fmt(self.baseline)} -> " \
+               f"{_fmt(self.current)}"
+
+
+def _fmt(x) -> str:
+    return "-" if x is None else (f"{x:.4f}" if isinstance(x, float) else str(x))
+
+
+def check(baseline: dict, current: dict, tolerance: float = 0.10) -> list[Finding]:
+    """Every difference between two snapshots; ``regression`` marks the ones that fail CI."""
+    findings = []
+    for run in sorted(set(baseline) | set(current)):
+        b, c = baseline.get(run), current.get(run)
+        if b is None or c is None:
+            findings.append(Finding(run, "run", None if b is None else "present",
+                                    None if c is None else "present", c is None))
+            continue
+        if c["diverged"] != b["diverged"]:
+            findings.append(Finding(run, "diverged", b["diverged"], c["diverged"],
+                                    c["diverged"]))
+        for q in ("rot_deg", "trans_m"):
+            for length in sorted(set(b[q]) | set(c[q]), key=float):
+                old, new = b[q].get(length), c[q].get(length)
+                if old is None or new is None:
+                    findings.append(Finding(run, f"{q} at {length} m", old, new, new is None))
+                    continue
+                if not (math.isfinite(old) and math.isfinite(new)):
+                    continue
+                worse = new > old * (1 + tolerance) + FLOOR[q]
+                if worse or abs(new - old) > 1e-9:
+                    findings.append(Finding(run, f"{q} at {length} m", old, new, worse))
+    return findings
+
+
+def read_baseline(path: Path | None = None) -> dict:
+    path = path or BASELINE
+    if not path.exists():
+        raise FileNotFoundError(f"{path}: no CI baseline yet; run `bench regress --update`")
+    return json.loads(path.read_text())["runs"]
+
+
+def write_baseline(current: dict, path: Path | None = None) -> None:
+    path = path or BASELINE
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_text(path, json.dumps({
+        "about": "bench regress baseline: mean relative error per sequence/method/seed and "
+                 "length of configs/experiments/ci.yaml; update with `bench regress --update`",
+        "runs": current}, indent=1) + "\n")
+
+
+def regress_command(console, update: bool, tolerance: float, jobs: int) -> int:
+    """Run the CI experiment (finished runs reused) and compare with the baseline (or, with
+    ``update``, rewrite it and print what changed); returns the exit code."""
+    from bench.runs.experiment import load_experiment
+    from bench.runs.job import summarize
+    from bench.runs.plan import jobs_for_experiment, plan
+    from bench.runs.progress import run_jobs
+
+    exp = load_experiment(CI_EXPERIMENT)
+    outcomes = run_jobs(plan(jobs_for_experiment(exp, console)), console, jobs)
+    if any(o.status not in ("done", "skipped") for o in outcomes):
+        console.print(summarize(outcomes), markup=False)
+        return 1
+    current = snapshot(exp.out_dir, {o.run_dir for o in outcomes})
+    baseline = {} if update and not BASELINE.exists() else read_baseline(BASELINE)
+    findings = check(baseline, current, tolerance)
+    for f in findings:
+        console.print(str(f), markup=False)
+    if update:
+        write_baseline(current, BASELINE)
+        console.print(f"baseline updated: {BASELINE} ({len(findings)} changes)", markup=False)
+        return 0
+    bad = [f for f in findings if f.regression]
+    console.print(f"{len(current)} runs, {len(findings)} changes, {len(bad)} regressions",
+                  markup=False)
+    return 1 if bad else 0

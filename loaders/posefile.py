@@ -1,0 +1,144 @@
+"""Pose files and extrinsics: every file format of poses in one place.
+
+- TUM: rows ``t x y z qx qy qz qw`` (``read_tum`` / ``write_tum``);
+- KITTI: rows of 12 values, the 3x4 ``T_world_frame`` row-major, no stamps (``read_kitti`` /
+  ``write_kitti``);
+- ``read_gt_file``: either, detected from the first numeric row;
+- ``parse_extrinsic``: a 4x4 transform from "x y z qx qy qz qw", 3, 7 or 16 numbers.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from loaders.errors import DataError
+from loaders.se3 import T_from_tum, make_T, tum_from_T
+from loaders.trajectory import Trajectory
+
+
+def read_tum(path: str | Path) -> Trajectory:
+    """Read TUM rows ``t x y z qx qy qz qw``; '#' comments and one leading header line that
+    is not numeric are skipped."""
+    path = Path(path)
+    rows = []
+    with open(path) as f:
+        for lineno, line in enumerate(f, start=1):
+            text = line.strip()
+            if not text or text.startswith("#"):
+                continue
+            parts = text.replace(",", " ").split()
+            try:
+                values = [float(v) for v in parts]
+            except ValueError:
+                if not rows:  # a header line such as "timestamp x y z ..."
+                    continue
+                raise DataError(
+                    f"{path}, line {lineno}: expected 8 numbers, got {text!r}"
+                ) from None
+            if len(values) != 8:
+                raise DataError(
+                    f"{path}, line {lineno}: expected 8 values (t x y z qx qy qz qw), "
+                    f"got {len(values)}"
+                )
+            rows.append(values)
+    if not rows:
+        raise DataError(f"{path}: no TUM pose rows found")
+    data = np.array(rows)
+    if not np.isfinite(data).all():
+        raise DataError(f"{path}: non-finite values in the TUM rows")
+    return Trajectory(data[:, 0], T_from_tum(data[:, 1:4], data[:, 4:8]))
+
+def write_tum(traj: Trajectory, path: str | Path) -> None:
+    """Write TUM rows ``t x y z qx qy qz qw`` (9 decimals)."""
+    xyz, quat = tum_from_T(traj.poses)
+    np.savetxt(path, np.column_stack([traj.stamps, xyz, quat]), fmt="%.9f")
+
+def read_kitti(path: str | Path, stamps: np.ndarray | None = None) -> Trajectory:
+    """Read KITTI rows (12 values, 3x4 row-major); stamps default to the row index."""
+    path = Path(path)
+    try:
+        data = np.loadtxt(path, ndmin=2)
+    except ValueError as err:
+        raise DataError(f"{path}: not a KITTI pose file ({err})") from err
+    if data.shape[1] != 12:
+        raise DataError(f"{path}: expected 12 values per KITTI row, got {data.shape[1]}")
+    poses = make_T(data[:, [0, 1, 2, 4, 5, 6, 8, 9, 10]].reshape(-1, 3, 3), data[:, [3, 7, 11]])
+    if stamps is None:
+        stamps = np.arange(len(poses), dtype=np.float64)
+    elif len(stamps) != len(poses):
+        raise DataError(f"{path}: {len(poses)} poses but {len(stamps)} stamps")
+    return Trajectory(np.asarray(stamps, dtype=np.float64), poses)
+
+def write_kitti(traj: Trajectory, path: str | Path) -> None:
+    """Write KITTI rows (3x4 row-major, no stamps)."""
+    np.savetxt(path, traj.poses[:, :3, :].reshape(-1, 12), fmt="%.9e")
+
+
+def parse_extrinsic(text: str | list | tuple | np.ndarray | None) -> np.ndarray:
+    """A 4x4 extrinsic from "x y z qx qy qz qw" (TUM order), 7 numbers, 16 numbers (row-major
+    4x4) or a 4x4 array; ``None`` gives the identity."""
+    if text is None:
+        return np.eye(4)
+    if isinstance(text, str):
+        try:
+            values = [float(v) for v in text.replace(",", " ").split()]
+        except ValueError as err:
+            raise DataError(
+                f"extrinsic {text!r}: expected numbers 'x y z qx qy qz qw' ({err})"
+            ) from None
+    else:
+        values = np.asarray(text, dtype=np.float64).ravel().tolist()
+    v = np.asarray(values, dtype=np.float64)
+    if v.size == 16:
+        T = v.reshape(4, 4)
+        if not np.allclose(T[3], [0, 0, 0, 1]) or not np.allclose(
+            T[:3, :3] @ T[:3, :3].T, np.eye(3), atol=1e-5
+        ):
+            raise DataError(f"extrinsic {values}: the 4x4 matrix is not a rigid transform")
+        return T
+    if v.size == 3:
+        return make_T(np.eye(3), v)
+    if v.size != 7:
+        raise DataError(
+            f"extrinsic {values}: expected 7 numbers 'x y z qx qy qz qw', 3 (translation only) "
+            f"or 16 (row-major 4x4), got {v.size}"
+        )
+    q = v[3:]
+    if not np.isclose(np.linalg.norm(q), 1.0, atol=1e-3):
+        raise DataError(f"extrinsic {values}: quaternion (qx qy qz qw) is not unit length")
+    from scipy.spatial.transform import Rotation
+
+    return make_T(Rotation.from_quat(q / np.linalg.norm(q)).as_matrix(), v[:3])
+
+
+def detect_pose_format(path: str | Path) -> str:
+    """"kitti" when the first numeric row has 12 values, else "tum"."""
+    with open(path) as f:
+        for line in f:
+            parts = line.replace(",", " ").split()
+            if not parts or parts[0].startswith("#"):
+                continue
+            try:
+                [float(p) for p in parts]
+            except ValueError:
+                continue
+            return "kitti" if len(parts) == 12 else "tum"
+    return "tum"
+
+
+def read_gt_file(path: str | Path, fmt: str = "auto", stamps: np.ndarray | None = None
+                 ) -> Trajectory:
+    """Read a TUM (8 columns) or KITTI (12 columns) pose file; ``fmt`` "auto" decides from the
+    first numeric row. KITTI rows get ``stamps`` (default: the row index)."""
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"{path}: ground-truth file not found")
+    if fmt == "auto":
+        fmt = detect_pose_format(path)
+    if fmt == "tum":
+        return read_tum(path)
+    if fmt == "kitti":
+        return read_kitti(path, stamps)
+    raise DataError(f"{path}: unknown ground-truth format {fmt!r} (expected tum or kitti)")

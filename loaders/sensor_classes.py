@@ -1,0 +1,25 @@
+"""The sensor classes of the paper's tables, in the paper's order, and the class of a sensor
+model (the synthetic sensors and the real datasets' sensors)."""
+
+from __future__ import annotations
+
+from loaders.scan import SensorInfo
+
+SPARSE_RADAR = "Sparse 4D Radar"
+SEMI_DENSE_RADAR = "Semi-Dense 4D Radar"
+DENSE_LIDAR = "Dense 4D LiDAR"
+#: the paper's row order (Table III)
+CLASS_ORDER = (SPARSE_RADAR, SEMI_DENSE_RADAR, DENSE_LIDAR)
+#: sensor model -> class (synthetic sensor names)
+BY_MODEL = {"radar-sparse": SPARSE_RADAR, "radar-semidense": SEMI_DENSE_RADAR,
+            "lidar-dense": DENSE_LIDAR}
+
+
+def sensor_class(sensor: SensorInfo) -> str:
+    """The class of ``sensor`` by its model, else by its kind ("4D Radar" when unknown)."""
+    return BY_MODEL.get(sensor.model) or (DENSE_LIDAR if sensor.kind == "lidar" else "4D Radar")
+
+
+def class_rank(klass: str) -> int:
+    """Position of a class in the paper's order (unknown classes last)."""
+    return CLASS_ORDER.index(klass) if klass in CLASS_ORDER else len(CLASS_ORDER)
