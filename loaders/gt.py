@@ -107,7 +107,7 @@ class Association:
         return self.uncovered_before + self.uncovered_after + self.uncovered_inside
 
 
-def _span(values: np.ndarray) -> str:
+def time_span(values: np.ndarray) -> str:
     return f"[{values.min():.3f}, {values.max():.3f}] s" if len(values) else "[] s"
 
 
@@ -179,7 +179,7 @@ def associate(
     if not covered.any():
         raise DataError(
             f"ground truth {gt_file} does not overlap the scans of {scan_file}: GT spans "
-            f"{_span(gs)} (offset {offset_s:+.3f} s applied), the {n} scans span {_span(q)}; "
+            f"{time_span(gs)} (offset {offset_s:+.3f} s applied), the {n} scans span {time_span(q)}; "
             "different clocks? set the time offset (gt_stamp + offset = sensor clock)"
         )
     first, last = (int(i) for i in np.flatnonzero(covered)[[0, -1]])
@@ -189,7 +189,7 @@ def associate(
         bad = int(np.flatnonzero(~covered)[0])
         raise DataError(
             f"{scan_file}, frame {bad}: scan stamp {q[bad]:.3f} s is not covered by {gt_file} "
-            f"(GT spans {_span(gs)}, max gap {max_gap_s} s); {int((~covered).sum())} of {n} "
+            f"(GT spans {time_span(gs)}, max gap {max_gap_s} s); {int((~covered).sum())} of {n} "
             "scans uncovered"
         )
     keep = np.arange(first, last + 1) if uncovered == "trim" else np.arange(n)
@@ -255,79 +255,6 @@ def remove_origin(gt: Trajectory) -> tuple[Trajectory, np.ndarray]:
     trajectory and the removed origin (3,)."""
     origin = gt.poses[0, :3, 3].copy()
     return gt.transformed(make_T(np.eye(3), -origin)), origin
-
-
-def gt_sanity_report(
-    gt: Trajectory, scan_stamps: np.ndarray | None = None, gap_factor: float = 3.0
-) -> dict:
-    """Findings about a ground-truth trajectory, for ``bench inspect``.
-
-    Keys: poses, span_s, median_step_s, gaps (list of {index, t, gap_s} where the step exceeds
-    ``gap_factor`` x the median step), largest_gap_s, repeated_poses (consecutive rows with the
-    same pose), repeated_stamps, non_monotonic (steps <= 0 that are not repeats), path_length_m,
-    scan_coverage_pct (share of the scan stamps inside the span and not in a gap), and
-    ``findings``: human-readable lines for each problem (empty when clean).
-    """
-    s = np.asarray(gt.stamps, dtype=np.float64)
-    out: dict = {"poses": int(len(s))}
-    findings: list[str] = []
-    if len(s) == 0:
-        out["findings"] = ["ground truth has no poses"]
-        return out
-    d = np.diff(s)
-    pos_steps = d[d > 0]
-    median = float(np.median(pos_steps)) if len(pos_steps) else float("nan")
-    out["span_s"] = [float(s.min()), float(s.max())]
-    out["median_step_s"] = median
-    gaps = []
-    if len(pos_steps):
-        for i in np.flatnonzero(d > gap_factor * median):
-            gaps.append({"index": int(i), "t": float(s[i]), "gap_s": float(d[i])})
-    out["gaps"] = gaps
-    out["largest_gap_s"] = float(d.max()) if len(d) else 0.0
-    same_pose = np.all(np.isclose(gt.poses[1:], gt.poses[:-1], atol=1e-9, rtol=0), axis=(1, 2))
-    out["repeated_poses"] = int(same_pose.sum())
-    out["repeated_stamps"] = int((d == 0).sum())
-    out["non_monotonic"] = int((d < 0).sum())
-    out["path_length_m"] = gt.path_length_m()
-    if gaps:
-        findings.append(
-            f"{len(gaps)} gaps longer than {gap_factor:g} x the median step {median:.4f} s "
-            f"(largest {max(g['gap_s'] for g in gaps):.3f} s at t={gaps[0]['t']:.3f} s first)"
-        )
-    if out["repeated_poses"]:
-        findings.append(f"{out['repeated_poses']} consecutive repeated poses (GT stalled?)")
-    if out["repeated_stamps"]:
-        findings.append(f"{out['repeated_stamps']} repeated stamps")
-    if out["non_monotonic"]:
-        findings.append(f"{out['non_monotonic']} non-monotonic stamps (time goes backwards)")
-    if scan_stamps is not None and len(scan_stamps):
-        q = np.asarray(scan_stamps, dtype=np.float64)
-        good = _sorted_unique(gt)  # a report, not a check: cover what can be covered
-        if len(good) >= 2:
-            max_gap = gap_factor * median if np.isfinite(median) else None
-            cov = good.coverage_mask(q, max_gap)
-        else:
-            cov = np.isclose(q, s[0])
-        pct = 100.0 * float(cov.mean())
-        out["scan_coverage_pct"] = pct
-        out["scan_span_s"] = [float(q.min()), float(q.max())]
-        if pct < 100.0:
-            findings.append(
-                f"ground truth covers {pct:.1f} % of the {len(q)} scans (GT {_span(s)}, "
-                f"scans {_span(q)})"
-            )
-    out["findings"] = findings
-    return out
-
-
-def _sorted_unique(gt: Trajectory) -> Trajectory:
-    """The rows sorted by stamp, the first of each repeated stamp kept (for the report only)."""
-    order = np.argsort(gt.stamps, kind="stable")
-    s = gt.stamps[order]
-    keep = np.ones(len(s), dtype=bool)
-    keep[1:] = np.diff(s) > 0
-    return Trajectory(s[keep], gt.poses[order[keep]])
 
 
 #: A scan stamp and a GT stamp closer than this are the same instant [s].

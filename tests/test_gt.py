@@ -7,7 +7,8 @@ import pytest
 
 from helpers_bags import Motion
 from loaders.errors import DataError, GroundTruthWarning
-from loaders.gt import associate, clean_trajectory, gt_sanity_report, nearest_indices, remove_origin
+from loaders.gt import associate, clean_trajectory, nearest_indices, remove_origin
+from loaders.gt_report import gt_sanity_report
 from loaders.posefile import parse_extrinsic, read_gt_file
 from loaders.se3 import interpolate_poses, make_T
 from loaders.trajectory import Trajectory
