@@ -179,7 +179,8 @@ def associate(
     if not covered.any():
         raise DataError(
             f"ground truth {gt_file} does not overlap the scans of {scan_file}: GT spans "
-            f"{time_span(gs)} (offset {offset_s:+.3f} s applied), the {n} scans span {time_span(q)}; "
+            f"{time_span(gs)} (offset {offset_s:+.3f} s applied), the {n} scans span "
+            f"{time_span(q)}; "
             "different clocks? set the time offset (gt_stamp + offset = sensor clock)"
         )
     first, last = (int(i) for i in np.flatnonzero(covered)[[0, -1]])
