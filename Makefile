@@ -1,14 +1,23 @@
 # doppler-bench: every target sets up .venv first if needed.
+# Installs are pinned by the lock files in requirements/ (pip constraints, made by `make lock`):
+# runtime.txt for the package, dev.txt for the package with its dev extras (the same pins plus
+# the dev tools). `make reproduce-table` installs the runtime only; `make test` adds the dev
+# extras. A stamp per install records what the venv has, so neither reinstalls needlessly.
 PYTHON ?= python3
 VENV ?= .venv
 PY := $(VENV)/bin/python
 BENCH := $(VENV)/bin/bench
-STAMP := $(VENV)/.installed
+RUNTIME_LOCK := requirements/runtime.txt
+DEV_LOCK := requirements/dev.txt
+RUNTIME_STAMP := $(VENV)/.installed-runtime
+DEV_STAMP := $(VENV)/.installed-dev
+PIP_TOOLS := pip-tools==7.6.2
+LOCK_VENV := .venv-lock
 
-.PHONY: install system-deps test lint reproduce-table figures speed clean
+.PHONY: install install-dev system-deps test lint reproduce-table figures speed lock clean
 
-# Open3D's wheel (the DICP cross-check, an optional extra for users) needs libusb-1.0 from the
-# system; install it with apt when it is missing and we may (root), else say what to run.
+# Open3D's wheel (a dev extra: the DICP cross-check) needs libusb-1.0 from the system; install
+# it with apt when it is missing and we may (root), else say what to run.
 system-deps:
 	@if ! ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; then \
 	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
@@ -19,30 +28,57 @@ system-deps:
 	  fi; \
 	fi
 
-$(STAMP): pyproject.toml
+$(PY):
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
-	$(PY) -m pip install --quiet -e ".[dev]"
-	touch $(STAMP)
 
-install: system-deps $(STAMP)
+# the package and its runtime dependencies, pinned
+$(RUNTIME_STAMP): pyproject.toml $(RUNTIME_LOCK) | $(PY)
+	$(PY) -m pip install --quiet -c $(RUNTIME_LOCK) -e .
+	touch $@
 
-test: system-deps $(STAMP)
+# the package with its dev extras, pinned (dev.txt holds the runtime pins too, so the runtime
+# install is then complete as well)
+$(DEV_STAMP): pyproject.toml $(RUNTIME_LOCK) $(DEV_LOCK) | $(PY)
+	$(PY) -m pip install --quiet -c $(DEV_LOCK) -e ".[dev]"
+	touch $(RUNTIME_STAMP) $@
+
+install: $(RUNTIME_STAMP)
+
+install-dev: system-deps $(DEV_STAMP)
+
+test: system-deps $(DEV_STAMP)
 	$(PY) -m pytest
 
-lint: $(STAMP)
+lint: $(DEV_STAMP)
 	$(VENV)/bin/ruff check .
 
 # the paper's Tables III-V on the synthetic suite (or on real stores under data/real when present)
-reproduce-table: system-deps $(STAMP)
+reproduce-table: $(RUNTIME_STAMP)
 	$(BENCH) reproduce
 
 # every paper figure of the reproduced tables (and of `make speed` when it has run)
-figures: $(STAMP)
+figures: $(RUNTIME_STAMP)
 	$(BENCH) figures results/paper-synthetic
 
-speed: $(STAMP)
+speed: $(RUNTIME_STAMP)
 	$(BENCH) speed
 
+# Refresh the lock files with pip-tools (in a venv of its own) for Python 3.11: keeps every pin
+# that still satisfies pyproject.toml and resolves what changed; `make lock UPGRADE=1` moves
+# every pin to the newest allowed version. The dev lock is constrained by the runtime lock, so
+# the two agree on every shared package.
+LOCK_FLAGS := --quiet --strip-extras --no-emit-index-url --no-emit-find-links \
+	--no-emit-trusted-host $(if $(UPGRADE),--upgrade)
+lock:
+	@$(PYTHON) -c 'import sys; sys.exit(sys.version_info[:2] != (3, 11))' || \
+	  { echo "make lock: the lock files are for Python 3.11; run PYTHON=python3.11 make lock"; exit 1; }
+	test -x $(LOCK_VENV)/bin/pip-compile || \
+	  { $(PYTHON) -m venv $(LOCK_VENV) && $(LOCK_VENV)/bin/python -m pip install --quiet "$(PIP_TOOLS)"; }
+	CUSTOM_COMPILE_COMMAND="make lock" $(LOCK_VENV)/bin/pip-compile $(LOCK_FLAGS) \
+	  -o $(RUNTIME_LOCK) pyproject.toml
+	CUSTOM_COMPILE_COMMAND="make lock" $(LOCK_VENV)/bin/pip-compile $(LOCK_FLAGS) \
+	  --extra dev -c $(RUNTIME_LOCK) -o $(DEV_LOCK) pyproject.toml
+
 clean:
-	rm -rf $(VENV) .pytest_cache .ruff_cache
+	rm -rf $(VENV) $(LOCK_VENV) .pytest_cache .ruff_cache

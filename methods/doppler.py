@@ -11,6 +11,16 @@ binary search, no kd-tree); pairs farther apart than tau_spatial [m] in space or
 [m^2] in feature space are dropped, and one closed-form rigid fit gives T_target_source.
 No iteration, no robust kernel, no initial guess.
 
+Optional RANSAC (off by default; ``ransac_iterations > 0``). The paper's Algorithm 2 has no
+RANSAC; the authors' reference notebook (example/example.ipynb of Tars0523/Doppler_Correspondence)
+adds it after the two gates: hypotheses from 3 pairs drawn at random without replacement, a pair
+is an inlier when |R p + t - q| < ``ransac_threshold_m``, the hypothesis with the most inliers
+wins (the first on ties), the search stops early once more than ``ransac_stop_ratio`` of the
+pairs are inliers, and a final rigid fit on the winner's inliers gives T_target_source (the
+notebook: 200 hypotheses, 1 m, 0.8). The random generator is NumPy's PCG64 seeded with
+``ransac_seed`` afresh in every call, so a registration is a function of its two scans alone.
+RANSAC works on the pairs of the reference matching (``doppler_pairs``) with either backend.
+
 Two interchangeable backends compute the same step: ``numpy`` (the reference below, readable
 array code) and ``numba`` (``methods.doppler_kernel``: the same sorts, then one compiled merge
 pass; the default, several times faster). Both use float32 features and the same tie rules, so
@@ -39,6 +49,13 @@ class DopplerParams(MethodParams):
     tau_doppler: float = Field(5.0, gt=0, description="max |f(p) - g(q)| of a pair [m^2]")
     downsample: int = Field(1, ge=1, description="keep every k-th point")
     backend: Literal["numba", "numpy"] = Field("numba", description="compiled or reference")
+    ransac_iterations: int = Field(
+        0, ge=0, description="RANSAC hypotheses over the pairs (0: off, as in the paper)")
+    ransac_threshold_m: float = Field(
+        1.0, gt=0, description="RANSAC inlier when |R p + t - q| is below this [m]")
+    ransac_stop_ratio: float = Field(
+        0.8, gt=0, le=1, description="RANSAC stops once more than this fraction are inliers")
+    ransac_seed: int = Field(0, ge=0, description="seed of RANSAC's random generator (PCG64)")
 
 
 def _feature(points_t: np.ndarray, doppler: np.ndarray, dt_s: float, sign: float) -> np.ndarray:
@@ -173,6 +190,50 @@ def register_numba(kernel, source: DopplerScan, target: DopplerScan, tau_spatial
     return (rigid_from_sums(n, sum_p, sum_q, sum_pq) if n >= 3 else None), n
 
 
+def ransac_rigid(P: np.ndarray, Q: np.ndarray, iterations: int, threshold_m: float,
+                 stop_ratio: float, rng: np.random.Generator
+                 ) -> tuple[np.ndarray | None, np.ndarray]:
+    """RANSAC rigid fit of (3, N) float64 pairs P -> Q: (T_target_source refitted on the best
+    hypothesis' inliers, or None when fewer than 3 pairs agree; the inlier mask).
+
+    Each hypothesis is the closed-form fit of 3 pairs drawn without replacement (collinear
+    draws are skipped); it replaces the best one only with strictly more inliers."""
+    n = P.shape[1]
+    best = np.zeros(n, dtype=bool)
+    best_count = 0
+    if n < 3:
+        return None, best
+    threshold_sq = threshold_m * threshold_m
+    for _ in range(iterations):
+        sample = rng.choice(n, 3, replace=False)
+        T = fit_rigid_t(P[:, sample], Q[:, sample])
+        if T is None:
+            continue
+        r = T[:3, :3] @ P
+        r += T[:3, 3:]
+        r -= Q
+        inliers = np.einsum("ij,ij->j", r, r) < threshold_sq
+        count = int(inliers.sum())
+        if count > best_count:
+            best, best_count = inliers, count
+            if count > stop_ratio * n:
+                break
+    if best_count < 3:
+        return None, best
+    return fit_rigid_t(P[:, best], Q[:, best]), best
+
+
+def register_ransac(params: DopplerParams, source: DopplerScan, target: DopplerScan
+                    ) -> tuple[np.ndarray | None, int]:
+    """One step with RANSAC over the gated pairs: (T_target_source or None, inliers)."""
+    src_idx, tgt_idx = doppler_pairs(source, target, params.tau_spatial_m, params.tau_doppler)
+    P64 = np.take(source.points_t, src_idx, axis=1).astype(np.float64)
+    Q64 = np.take(target.points_t, tgt_idx, axis=1).astype(np.float64)
+    T, inliers = ransac_rigid(P64, Q64, params.ransac_iterations, params.ransac_threshold_m,
+                              params.ransac_stop_ratio, np.random.default_rng(params.ransac_seed))
+    return T, int(inliers.sum())
+
+
 class DopplerCorrespondence(Registration):
     name = "doppler"
     description = "Doppler Correspondence, non-iterative (paper Algorithm 2); no initial guess"
@@ -199,7 +260,11 @@ class DopplerCorrespondence(Registration):
                  init_T_target_source: np.ndarray) -> RegistrationResult:
         if len(source) < 3 or len(target) < 3:
             return RegistrationResult(init_T_target_source, 0, 1, False)
-        T, n = self._step(source, target, self.params.tau_spatial_m, self.params.tau_doppler)
+        p = self.params
+        if p.ransac_iterations:
+            T, n = register_ransac(p, source, target)
+        else:
+            T, n = self._step(source, target, p.tau_spatial_m, p.tau_doppler)
         if T is None:
             return RegistrationResult(init_T_target_source, n, 1, False)
         return RegistrationResult(T, n, 1, True)

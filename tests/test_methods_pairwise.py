@@ -10,7 +10,13 @@ from conftest import constant_twist_sequence
 from loaders.npy_frames import NpyFramesSequence
 from loaders.scan import Scan
 from loaders.se3 import inv_T, rotation_angle_deg
-from methods.doppler import DopplerCorrespondence, nearest_1d, source_feature, target_feature
+from methods.doppler import (
+    DopplerCorrespondence,
+    nearest_1d,
+    ransac_rigid,
+    source_feature,
+    target_feature,
+)
 from methods.icp import PointToPointIcp
 from methods.registry import METHODS, make_method
 from methods.rigid import fit_rigid
@@ -125,3 +131,71 @@ def test_real_sample_matches_the_independent_implementation(sample_dir):
         assert rel[length].trans_m_mean == pytest.approx(trans_m, rel=0.05)
         assert rel[length].rot_deg_mean == pytest.approx(rot_deg, rel=0.05)
     assert all(f.converged for f in result.frames)
+
+
+def _pairs_with_outliers(seed: int = 4):
+    """A known motion and Doppler values that make Doppler Correspondence pair each source point
+    with a chosen target point: 70 % true pairs, 30 % pairs displaced by 1.5-2.5 m (beyond the
+    tests' 0.3 m RANSAC threshold). Source Doppler is 0, so f(p) = |p|^2; the target Doppler
+    makes g(q) = f(p) for the chosen q, and distinct ranges keep the pairs apart in feature
+    space (at least 1.8 m^2)."""
+    rng = np.random.default_rng(seed)
+    n, dt_s = 300, 0.1
+    directions = rng.normal(size=(n, 3))
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    P = directions * np.linspace(5.0, 60.0, n)[:, None]  # ranges 0.18 m apart: features apart
+    T_true = np.eye(4)
+    T_true[:3, :3] = Rotation.from_rotvec([0.01, -0.02, 0.05]).as_matrix()
+    T_true[:3, 3] = [0.8, -0.1, 0.05]
+    Q = P @ T_true[:3, :3].T + T_true[:3, 3]
+    outlier = rng.random(n) < 0.3
+    offset = rng.normal(size=(n, 3))
+    offset *= rng.uniform(1.5, 2.5, (n, 1)) / np.linalg.norm(offset, axis=1, keepdims=True)
+    Q[outlier] += offset[outlier]
+    r_p, r_q = np.linalg.norm(P, axis=1), np.linalg.norm(Q, axis=1)
+    target_doppler = (r_q**2 - r_p**2) / (r_q * dt_s)  # g(q) = |q|^2 - |q| v dT = |p|^2
+    source = Scan(0.0, P, np.zeros(n))
+    target = Scan(dt_s, Q, target_doppler)
+    return source, target, T_true, outlier
+
+
+def test_doppler_ransac_rejects_outliers_and_recovers_the_motion():
+    """RANSAC (the reference notebook's addition, off by default) keeps exactly the true pairs
+    and recovers the motion that the plain one-shot fit misses because of the outliers."""
+    source, target, T_true, outlier = _pairs_with_outliers()
+    gates = {"tau_spatial_m": 10.0, "tau_doppler": 1.0}  # wide: every designed pair passes
+    plain = DopplerCorrespondence(backend="numpy", **gates)
+    assert plain.params.ransac_iterations == 0  # the paper's Algorithm 2: no RANSAC
+    res = plain.register(plain.preprocess(source), plain.preprocess(target), np.eye(4))
+    assert res.correspondences == len(outlier)  # every designed pair passes both gates
+    assert _motion_error(res.T_target_source, T_true)[0] > 0.01  # outliers bias the fit
+
+    for backend in ("numpy", "numba"):
+        for seed in (0, 1):
+            m = DopplerCorrespondence(backend=backend, ransac_iterations=200,
+                                      ransac_threshold_m=0.3, ransac_seed=seed, **gates)
+            res = m.register(m.preprocess(source), m.preprocess(target), np.eye(4))
+            trans_err, rot_err = _motion_error(res.T_target_source, T_true)
+            assert res.converged
+            assert res.correspondences == int((~outlier).sum())
+            # float32 points (the method's layout): exact up to their rounding
+            assert trans_err < 1e-5 and rot_err < 1e-5, (trans_err, rot_err)
+
+
+def test_ransac_rigid_returns_the_consensus_inliers_and_stops_early():
+    source, target, T_true, outlier = _pairs_with_outliers(seed=5)
+    P, Q = source.points.T.copy(), target.points.T.copy()
+    T, inliers = ransac_rigid(P, Q, 200, 0.3, 0.8, np.random.default_rng(0))
+    np.testing.assert_array_equal(inliers, ~outlier)
+    np.testing.assert_allclose(T, T_true, atol=1e-9)
+    # fewer than 3 pairs: no fit
+    assert ransac_rigid(P[:, :2], Q[:, :2], 10, 0.3, 0.8, np.random.default_rng(0))[0] is None
+    # all pairs true: the first hypothesis already has more than 80 % inliers and ends the
+    # search, so the generator has drawn one sample only
+    rng = np.random.default_rng(0)
+    Q_true = T_true[:3, :3] @ P + T_true[:3, 3:]
+    T, inliers = ransac_rigid(P, Q_true, 200, 0.3, 0.8, rng)
+    assert inliers.all()
+    reference = np.random.default_rng(0)
+    reference.choice(P.shape[1], 3, replace=False)
+    assert rng.random() == reference.random()

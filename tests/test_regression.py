@@ -76,4 +76,17 @@ def test_regress_update_rewrites_the_baseline_and_prints_the_diff(tmp_path, monk
     assert res.exit_code == 1 and "REGRESSION  ci-sparse/doppler/-  trans_m at 8 m" in res.output
     res = CliRunner().invoke(app, ["regress", "--update"])
     assert res.exit_code == 0 and "ci-sparse/doppler/-  trans_m at 8 m" in res.output
-    assert rg.read_baseline(path)["ci-sparse/doppler/-"] == old["ci-sparse/doppler/-"]
+    _assert_same_run(rg.read_baseline(path)["ci-sparse/doppler/-"], old["ci-sparse/doppler/-"])
+
+
+def _assert_same_run(got: dict, expected: dict) -> None:
+    """One run's snapshot equals another's: the same divergence flag and lengths, and errors
+    equal within 1e-4 relative. The rewritten baseline holds numbers regenerated on this
+    machine, the committed one numbers from the machine that made it: compiled code and BLAS
+    differ across CPUs in the last digits (the 14th was seen), so never compare them exactly.
+    1e-4 is far above that and far below the planted 50 % change (and the 10 % tolerance)."""
+    assert got["diverged"] == expected["diverged"]
+    for kind in ("rot_deg", "trans_m"):
+        assert got[kind].keys() == expected[kind].keys(), kind
+        for length, value in expected[kind].items():
+            assert got[kind][length] == pytest.approx(value, rel=1e-4), (kind, length)
