@@ -1,0 +1,62 @@
+"""``bench synth``: one synthetic sequence into a store, a named suite (with a progress bar per
+sequence), or the list of scenes, sensors, options and suites."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from rich.console import Console
+from rich.markup import escape
+from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
+
+from loaders.errors import DataError
+
+
+def synth_command(console: Console, scene: str | None, sensor: str, frames: int, seed: int,
+                  out: Path | None, noise: bool, options: dict, list_: bool, suite: str | None,
+                  data_dir: Path) -> int:
+    """Do what the options ask for; returns the exit code."""
+    from loaders import synthetic
+
+    if list_:
+        for title, items in (("scenes", synthetic.list_scenes()),
+                             ("sensors", synthetic.list_sensors()),
+                             ("options (-o key=value)", synthetic.OPTIONS),
+                             ("suites", {k: f"{len(v)} sequences"
+                                         for k, v in synthetic.SUITES.items()})):
+            console.print(f"[bold]{title}[/]")
+            for name, text in items.items():
+                console.print(f"  {name:<18} {text}")
+        return 0
+    if suite is not None:
+        paths = ensure_suite_with_progress(suite, data_dir, console)
+        console.print(f"[green]{len(paths)} stores[/] under {data_dir / suite}")
+        return 0
+    if scene is None or out is None:
+        raise DataError("give a SCENE and --out PATH.h5 (or --list, or --suite NAME)")
+    try:
+        seq = synthetic.SyntheticSequence(scene, sensor, frames=frames, seed=seed, noise=noise,
+                                          **options)
+    except (ValueError, KeyError) as err:
+        raise DataError(f"bench synth: {err}") from err
+    from bench.data.convert import write_with_progress
+
+    write_with_progress(seq, out)
+    return 0
+
+
+def ensure_suite_with_progress(suite: str, data_dir: Path,
+                               console: Console | None = None) -> list[Path]:
+    """Generate (or reuse) a synthetic suite with a progress bar per sequence."""
+    from loaders import synthetic
+
+    tasks: dict[str, int] = {}
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), console=console or Console()) as progress:
+
+        def report(name: str, done: int, total: int) -> None:
+            if name not in tasks:
+                tasks[name] = progress.add_task(escape(f"{suite}/{name}"), total=total)
+            progress.update(tasks[name], completed=done)
+
+        return synthetic.ensure_suite(suite, data_dir, progress=report)
