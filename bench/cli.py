@@ -247,14 +247,17 @@ def speed(
     = None,
     repeats: Annotated[int, typer.Option(min=1, help="timed repeats per size")] = 7,
     out: Annotated[Path, typer.Option(help="output folder")] = Path("results/speed"),
-    memory: Annotated[bool, typer.Option(help="also measure the peak memory of a LiDAR run")]
-    = True,
+    memory: Annotated[bool, typer.Option(help="also measure each method's peak memory on a "
+                                              "64k-point LiDAR run")] = True,
+    threads: Annotated[int, typer.Option(min=1, help="threads for the methods that take a "
+                                                    "thread count")] = 1,
 ) -> None:
-    """Time every method on the same synthetic scan pairs; print ratios to `doppler`."""
+    """Time every method on the same synthetic scan pairs (total per-frame work and the
+    registration call); print ratios to `doppler` and each method's peak memory."""
     from bench.studies.speed import run_speed
 
-    run_speed([int(s) for s in sizes.split(",")],
-              methods.split(",") if methods else None, repeats, out, console, memory)
+    run_speed([int(s) for s in sizes.split(",")], methods.split(",") if methods else None,
+              repeats, out, console, memory, threads=threads)
 
 
 @app.command()

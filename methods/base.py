@@ -1,14 +1,25 @@
-"""Method interface: a registration step, the scan-to-scan odometry driver, seed / no seed.
+"""Method interface: a registration step, the scan-to-scan odometry driver, seed / no seed and
+the timing protocol every method follows.
 
 A ``Registration`` aligns a source scan (previous) to a target scan (current) and returns
 ``T_target_source`` (maps source-frame points into the target frame, i.e. ``T_curr_prev``).
-``ScanToScan`` chains steps over a sequence: ``T_world_curr = T_world_prev @ inv(T_curr_prev)``.
+``Registration.run`` chains steps over a sequence:
+``T_world_curr = T_world_prev @ inv(T_curr_prev)``.
 
-Seed options (as in the paper): **with seed** the initial guess of a step is the previous
-step's estimate (constant-velocity model, scaled to the current time step); **no seed** uses
-the identity. Methods that keep their own state (a map) subclass ``Odometry`` directly.
-Only the ``register`` call is timed (``methods.timing.timed_section``: exclusive of other
-jobs' timed sections when jobs run in parallel); ``preprocess`` (downsampling) is not.
+Seed options: **with seed** a step starts from a motion prior: for a ``Registration`` the
+previous step's estimate (constant-velocity model, scaled to the current time step); a method
+with its own prior (``motion_prior`` names it: KISS-ICP's constant-velocity prediction,
+doppler-ego's rotation rate) uses that. **No seed**: every step starts from the identity and
+every internal prior is reset. A method that takes no prior at all (``uses_initial_guess`` is
+False: ``doppler``) runs once. Methods that keep their own state (a map) subclass ``Odometry``.
+
+Timing protocol (the same for every method, ``FrameRecord``): ``time_ms`` is all per-frame work
+from a scan in memory to its pose (downsampling, normals / covariances, kd-trees, voxel maps,
+registration, map update), excluding file I/O; ``register_ms`` is the registration call alone.
+The first frame has no registration and is not timed. Before the timed run, ``run_timed`` gives
+every method the same warm-up (``Odometry.warm_up``: one untimed run on a separate pair), so no
+compilation, import or first-call cost lands in a timed frame. Timed sections are exclusive of
+other jobs' timed sections (``methods.timing``).
 """
 
 from __future__ import annotations
@@ -22,9 +33,9 @@ import numpy as np
 from pydantic import BaseModel, ConfigDict
 from scipy.spatial.transform import Rotation
 
-from loaders.scan import Scan, SensorInfo, Sequence
+from loaders.scan import MemorySequence, Scan, SensorInfo, Sequence
 from loaders.se3 import inv_T, make_T
-from methods.timing import timed_section
+from methods.timing import stopwatch, timed_section
 
 
 class MethodParams(BaseModel):
@@ -44,7 +55,9 @@ class RegistrationResult:
 @dataclass
 class FrameRecord:
     """One registered frame. ``time_ms``: all per-frame work from the scan in memory to its
-    pose; ``register_ms``: the registration call alone (NaN where a method has none)."""
+    pose; ``register_ms``: the registration call alone; both by the method's clock
+    (``Odometry.clock``: CPU time of a one-thread method, else wall time); ``wall_ms``: the
+    elapsed time of the frame's work (beside ``time_ms``, it shows waiting for a core)."""
 
     index: int
     stamp: float
@@ -54,6 +67,7 @@ class FrameRecord:
     iterations: int
     converged: bool
     register_ms: float = float("nan")
+    wall_ms: float = float("nan")
 
 
 @dataclass
@@ -78,12 +92,41 @@ def scale_motion(T: np.ndarray, ratio: float) -> np.ndarray:
     return make_T(Rotation.from_rotvec(rotvec).as_matrix(), T[:3, 3] * ratio)
 
 
+#: the harness's motion prior of a seeded ``Registration`` (the previous step's motion)
+CONSTANT_VELOCITY = "constant velocity"
+
+
 class Odometry(ABC):
     """Anything that turns a sequence into an estimated trajectory."""
 
     name: ClassVar[str]
     description: ClassVar[str]
+    #: False for a method that takes no motion prior at all (it runs once, no seed options)
     uses_initial_guess: ClassVar[bool] = True
+    #: what "with seed" starts from: ``CONSTANT_VELOCITY`` (the harness's guess) or the name of
+    #: the method's own prior; None when ``uses_initial_guess`` is False
+    motion_prior: ClassVar[str | None] = CONSTANT_VELOCITY
+
+    @property
+    def threads(self) -> int:
+        """Threads the method computes with (its ``num_threads`` parameter; 1 without one)."""
+        return int(getattr(getattr(self, "params", None), "num_threads", 1) or 1)
+
+    @property
+    def clock(self) -> str:
+        """How its frames are timed (``methods.timing``): "cpu" (the thread's CPU time: the
+        same alone or beside other jobs) on one thread, "wall" on several."""
+        return "cpu" if self.threads == 1 else "wall"
+
+    def frame_record(self, index: int, stamp: float, total, register, points: int,
+                     correspondences: int, iterations: int, converged: bool) -> FrameRecord:
+        """A frame's record from its ``timed_section`` (``total``; None: not timed, as the
+        first frame) and the stopwatch of its registration call (``register``; None: none)."""
+        nan = float("nan")
+        return FrameRecord(index, stamp, nan if total is None else total.ms(self.clock),
+                           points, correspondences, iterations, converged,
+                           nan if register is None else register.ms(self.clock),
+                           nan if total is None else total.wall_ms)
 
     def configured_for(self, sensor: SensorInfo) -> Odometry:
         """This method with the parameters that depend on the sensor resolved for ``sensor``
@@ -95,6 +138,24 @@ class Odometry(ABC):
     def run(
         self, sequence: Sequence, seed: bool, on_frame: Callable[[int], None] | None = None
     ) -> OdometryResult: ...
+
+    def warm_up(self, sequence: Sequence) -> None:
+        """One untimed run on a separate pair of ``sequence``'s scans (its last two, or its
+        first two when it is short), so that compilation, imports and first-call costs never
+        land in a timed frame. The result is discarded; runs share no state."""
+        n = len(sequence)
+        if n < 2:
+            return
+        a, b = (n - 2, n - 1) if n >= 4 else (0, 1)
+        pair = MemorySequence(sequence.name, sequence.sensor, [sequence[a], sequence[b]])
+        self.run(pair, seed=True)
+
+
+def run_timed(method: Odometry, sequence: Sequence, seed: bool,
+              on_frame: Callable[[int], None] | None = None) -> OdometryResult:
+    """How the harness runs a method: the common warm-up, then the timed run."""
+    method.warm_up(sequence)
+    return method.run(sequence, seed, on_frame)
 
 
 class Registration(Odometry):
@@ -109,7 +170,9 @@ class Registration(Odometry):
             self.params = self.Params.model_validate(self.params.model_dump())
 
     def preprocess(self, scan: Scan) -> Scan:
-        """Per-scan preparation outside the timed call (downsampling, filtering)."""
+        """Per-scan preparation (downsampling, normals, kd-trees): part of the frame's
+        ``time_ms``, not of ``register_ms``. Each scan is prepared once and serves as the
+        target of one step and the source of the next."""
         return scan
 
     @abstractmethod
@@ -128,29 +191,33 @@ class Registration(Odometry):
         prev = None
         last_motion = np.eye(4)  # T_curr_prev of the previous step
         last_dt = None
-        for i, raw in enumerate(sequence):
-            scan = self.preprocess(raw)
+        exclusive = self.clock == "wall"
+        for i, raw in enumerate(sequence):  # reading the scan (file I/O) is not timed
             stamps[i] = raw.stamp
-            if prev is None:
-                frames.append(FrameRecord(i, raw.stamp, float("nan"), len(scan), 0, 0, True))
+            reg = None
+            with timed_section(exclusive) as total:
+                scan = self.preprocess(raw)
+                if prev is not None:
+                    dt = raw.stamp - stamps[i - 1]
+                    init = np.eye(4)
+                    if seed and self.uses_initial_guess and last_dt:
+                        init = scale_motion(last_motion, dt / last_dt)
+                    with stopwatch() as reg:
+                        result = self.register(prev, scan, init)
+                    T = result.T_target_source
+                    if not np.all(np.isfinite(T)):
+                        T = init
+                        result = RegistrationResult(init, result.correspondences,
+                                                    result.iterations, False)
+                    poses[i] = poses[i - 1] @ inv_T(T)
+                    last_motion, last_dt = T, dt
+            if prev is None:  # the first frame: no registration, not timed
+                frames.append(self.frame_record(i, raw.stamp, None, None, len(scan), 0, 0,
+                                                True))
             else:
-                dt = raw.stamp - stamps[i - 1]
-                init = np.eye(4)
-                if seed and self.uses_initial_guess and last_dt:
-                    init = scale_motion(last_motion, dt / last_dt)
-                with timed_section() as watch:
-                    result = self.register(prev, scan, init)
-                time_ms = watch.time_ms
-                T = result.T_target_source
-                if not np.all(np.isfinite(T)):
-                    T = init
-                    result = RegistrationResult(init, result.correspondences,
-                                                result.iterations, False)
-                poses[i] = poses[i - 1] @ inv_T(T)
-                last_motion, last_dt = T, dt
-                frames.append(FrameRecord(i, raw.stamp, time_ms, len(scan),
-                                          result.correspondences, result.iterations,
-                                          result.converged))
+                frames.append(self.frame_record(i, raw.stamp, total, reg, len(scan),
+                                                result.correspondences, result.iterations,
+                                                result.converged))
             prev = scan
             if on_frame:
                 on_frame(i)

@@ -6,7 +6,8 @@ Frames: scans arrive in the sensor frame; registration runs in the vehicle frame
 with the extrinsic T_vehicle_sensor, by default the sequence's ``T_body_sensor``, identity when
 it has none) and the answer is conjugated back: ``register`` returns T_target_source in the
 sensor frame [m]. Facts of the authors' implementation followed here:
-- preparation (``preprocess``, untimed: the authors' pipeline does it before registration):
+- preparation (``preprocess``, in the frame's ``time_ms``; the authors' pipeline does it before
+  registration):
   uniform downsampling by 2 (Doppler kept); points into the vehicle frame; unit directions from
   the raw sensor-frame points (not the vehicle-frame ones), turned into vehicle axes as Open3D's
   kernel expects its ``directions`` attribute (it turns them back to sensor axes for the
@@ -37,9 +38,11 @@ Open3D's both end 5.7 mm off (0.0005 deg) on 20000 of tests/conftest.py's random
 the truth or from identity (0.1 mm on a straight motion, 0.8 m per scan, from identity);
 issue 7 quotes about 1.2 cm measured with Open3D on another scene (the size depends on the
 geometry, which holds the translation against the biased Doppler term).
-Timed (``register``): the target's kd-tree (small_gicp, built per call as Open3D builds its
-index inside ``icp``) and the iterations. ``backend=open3d`` runs Open3D's implementation
-itself (normals then from Open3D's ``estimate_normals``, in ``preprocess``).
+Timing (``methods.base``): ``time_ms`` = preparation of the new scan (downsampling, vehicle
+frame, directions, target normals) + ``register``; ``register_ms`` = ``register`` alone: the
+target's kd-tree (small_gicp, built per call as Open3D builds its index inside ``icp``) and the
+iterations. ``backend=open3d`` runs Open3D's implementation itself (normals then from Open3D's
+``estimate_normals``, in ``preprocess``).
 """
 
 from __future__ import annotations

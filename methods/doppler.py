@@ -24,9 +24,10 @@ RANSAC works on the pairs of the reference matching (``doppler_pairs``) with eit
 Two interchangeable backends compute the same step: ``numpy`` (the reference below, readable
 array code) and ``numba`` (``methods.doppler_kernel``: the same sorts, then one compiled merge
 pass; the default, several times faster). Both use float32 features and the same tie rules, so
-they find the same correspondences. ``preprocess`` (untimed, like downsampling) only puts the
-points in the (3, N) float32 layout both work on; ranges, features, matching, masks and the fit
-are all inside the timed ``register``.
+they find the same correspondences. ``preprocess`` only puts the points in the (3, N) float32
+layout both work on; ranges, features, matching, masks and the fit are all inside ``register``.
+Timing (``methods.base``): ``time_ms`` = that layout + ``register``; ``register_ms`` =
+``register`` alone.
 """
 
 from __future__ import annotations
@@ -237,6 +238,7 @@ def register_ransac(params: DopplerParams, source: DopplerScan, target: DopplerS
 class DopplerCorrespondence(Registration):
     name = "doppler"
     description = "Doppler Correspondence, non-iterative (paper Algorithm 2); no initial guess"
+    motion_prior = None
     uses_initial_guess = False
     Params = DopplerParams
 

@@ -47,7 +47,7 @@ from loaders.se3 import inv_T
 from methods.base import FrameRecord, MethodParams, Odometry, OdometryResult, scale_motion
 from methods.ego_velocity import estimate_ego_velocity
 from methods.local_map import LocalMap, register_to_map, scan_covariances
-from methods.timing import timed_section
+from methods.timing import stopwatch, timed_section
 
 # sensor-dependent defaults: (radar, lidar), each with its physical reason
 DEFAULTS = {
@@ -125,7 +125,8 @@ class DopplerEgo(Odometry):
             if scan.doppler is None:
                 raise DataError(f"{scan.source or sequence.name}: doppler-ego needs Doppler")
             stamps[i] = scan.stamp
-            with timed_section() as watch:
+            reg = None
+            with timed_section(self.clock == "wall") as watch:
                 ego = estimate_ego_velocity(scan.points, scan.doppler,
                                             threshold_mps=p.threshold_mps)
                 static_only = p.static_filter and ego.observable
@@ -144,9 +145,10 @@ class DopplerEgo(Odometry):
                     if p.ego_translation and (v_curr is not None or v_prev is not None):
                         translation_of = _ego_translation(T_wp, v_prev, v_curr, dt)
                     step = max(1, -(-len(src) // p.max_source_points))  # ceil division
-                    fit = register_to_map(local_map, src[::step], covs[::step], init,
-                                          translation_of, p.max_correspondence_m,
-                                          p.kernel_scale, p.max_iterations)
+                    with stopwatch() as reg:
+                        fit = register_to_map(local_map, src[::step], covs[::step], init,
+                                              translation_of, p.max_correspondence_m,
+                                              p.kernel_scale, p.max_iterations)
                     if fit.correspondences >= 10 and np.all(np.isfinite(fit.T_world_sensor)):
                         poses[i] = fit.T_world_sensor
                     else:  # nothing to register to: keep the motion prior
@@ -156,9 +158,8 @@ class DopplerEgo(Odometry):
                     converged = fit.converged
                     last_motion, last_dt = inv_T(T_wp) @ poses[i], dt
                 local_map.add(src, covs, poses[i])
-            time_ms = watch.time_ms
-            records.append(FrameRecord(i, scan.stamp, time_ms if i else float("nan"),
-                                       len(scan), pairs, iterations, converged))
+            records.append(self.frame_record(i, scan.stamp, watch if i else None, reg,
+                                             len(scan), pairs, iterations, converged))
             v_prev = v_curr
             if on_frame:
                 on_frame(i)

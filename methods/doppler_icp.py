@@ -23,8 +23,10 @@ chosen by the sequence's sensor kind (``configured_for``) unless set; without a 
 radar set is used. The reference code's radar config uses tau_doppler 8 (not 10) and a fixed
 period of 1/12 s; here dT comes from the scans' stamps. Downsampling as the reference code:
 a uniform stride on both scans before the Doppler pairs, default 1 ("radar point clouds are
-already sparse"); here it is untimed preparation. The target kd-tree is built inside the timed
-call, as the reference code builds its tree per registration. The reference's 1-D search is a
+already sparse"), in ``preprocess``. The target kd-tree is built inside ``register``, as the
+reference code builds its tree per registration. Timing (``methods.base``): ``time_ms`` =
+``preprocess`` (stride, layouts) + ``register``; ``register_ms`` = ``register`` alone (Doppler
+pairs, kd-tree, iterations). The reference's 1-D search is a
 PCL kd-tree on float32 casts of double features: the same pairs up to ties and rounding.
 """
 

@@ -1,13 +1,15 @@
 """Point-to-point ICP, the paper's baseline (its Section IV-A parameters).
 
-Uniform downsampling by ``downsample`` (untimed preparation, which also lays the points out as
-contiguous float64), then inside the timed call: a kd-tree of the target (small_gicp's
+Uniform downsampling by ``downsample`` (``preprocess``, which also lays the points out as
+contiguous float64), then inside ``register``: a kd-tree of the target (small_gicp's
 compiled kd-tree; building it is part of the correspondence search, as in Open3D's ICP that
 times DICP), and per iteration the closest target point of every moved source point, pairs
 within tau_spatial, a closed-form rigid fit (``methods.rigid``, from sums gathered by one
 compiled pass), repeated until the mean pair distance changes by less than ``convergence`` or
 ``max_iterations`` is reached.
 Paper values: max iterations 100, convergence 1e-5 [m], downsampling 2, tau_spatial 3 m.
+Timing (``methods.base``): ``time_ms`` = ``preprocess`` + ``register``; ``register_ms`` =
+``register`` alone (kd-tree and iterations).
 
 Closest points are exact, found fast: a point is searched in the kd-tree (its two nearest
 target points, ``num_threads`` threads) only when the triangle inequality cannot prove that

@@ -1,10 +1,18 @@
-"""Timed sections that no other job of the same experiment can disturb.
+"""How a frame's work is timed: the clock, and a lock for wall-clock timings.
 
-When jobs run in parallel, the executor names a lock file in ``DOPPLER_BENCH_TIMING_LOCK``;
-every timed section (a method's registration work for one frame) then holds an exclusive
-``flock`` on it, so no two timed sections on this machine overlap and a reported time is the
-method's own. Without the variable (serial runs) the guard costs nothing. Only the work inside
-the ``with`` block is timed; waiting for the lock is not.
+Every timed section measures two clocks:
+- ``cpu_ms``: the CPU time of the calling thread (``CLOCK_THREAD_CPUTIME_ID``). For a method
+  that runs on one thread (the default of every method) it is exactly its work: time the thread
+  spends waiting for a core, because other jobs or programs run on the machine, is not counted,
+  so the same run gives the same time alone, beside other jobs or on a cluster.
+- ``wall_ms``: the elapsed time. It is the latency of a method that runs on several threads
+  (whose helper threads the calling thread's CPU time does not see); such a run is only
+  meaningful alone.
+
+``Odometry.clock`` picks ``cpu`` for one thread and ``wall`` otherwise. A wall-clock section
+holds an exclusive ``flock`` on the file named by ``DOPPLER_BENCH_TIMING_LOCK`` (set by the
+executors when jobs run in parallel), so no two wall-clock sections on this machine overlap;
+waiting for the lock is not timed.
 """
 
 from __future__ import annotations
@@ -31,23 +39,38 @@ def _lock_fd(path: str) -> int:
 
 
 class Stopwatch:
-    """Milliseconds spent inside a ``timed_section`` (``time_ms`` is set when it ends)."""
+    """Milliseconds spent inside a ``timed_section`` or ``stopwatch``, by both clocks (set when
+    it ends)."""
 
-    time_ms: float = float("nan")
+    wall_ms: float = float("nan")
+    cpu_ms: float = float("nan")
+
+    def ms(self, clock: str) -> float:
+        """The time by ``clock`` ("cpu" or "wall")."""
+        return self.cpu_ms if clock == "cpu" else self.wall_ms
 
 
 @contextmanager
-def timed_section() -> Iterator[Stopwatch]:
-    """``with timed_section() as watch: ...`` then ``watch.time_ms``; exclusive when asked."""
+def stopwatch() -> Iterator[Stopwatch]:
+    """Time a block by both clocks (e.g. the registration call inside a frame's work)."""
     watch = Stopwatch()
-    path = os.environ.get(TIMING_LOCK_ENV)
+    c0, w0 = time.thread_time_ns(), time.perf_counter_ns()
+    yield watch
+    watch.wall_ms = (time.perf_counter_ns() - w0) / 1e6
+    watch.cpu_ms = (time.thread_time_ns() - c0) / 1e6
+
+
+@contextmanager
+def timed_section(exclusive: bool = False) -> Iterator[Stopwatch]:
+    """A frame's timed work: ``with timed_section(exclusive) as watch: ...``. ``exclusive``
+    (wall-clock timing) holds the machine-wide lock when the executor named one."""
+    path = os.environ.get(TIMING_LOCK_ENV) if exclusive else None
     fd = _lock_fd(path) if path else None
     if fd is not None:
         fcntl.flock(fd, fcntl.LOCK_EX)
     try:
-        t0 = time.perf_counter_ns()
-        yield watch
-        watch.time_ms = (time.perf_counter_ns() - t0) / 1e6
+        with stopwatch() as watch:
+            yield watch
     finally:
         if fd is not None:
             fcntl.flock(fd, fcntl.LOCK_UN)

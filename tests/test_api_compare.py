@@ -67,4 +67,5 @@ def test_table_over_several_experiments_labels_each(store, tmp_path):
     assert res.exit_code == 0, res.output
     rows = [line for line in res.output.splitlines() if line.startswith("4D")
             or ",twist," in line]
-    assert any("exp-a: Ours" in r for r in rows) and any("exp-b: Ours" in r for r in rows)
+    assert any("exp-a: (No initial guess) Doppler Correspondence (Ours)" in r for r in rows)
+    assert any("exp-b: (No initial guess) Doppler Correspondence (Ours)" in r for r in rows)

@@ -14,7 +14,8 @@ from conftest import constant_twist_sequence
 from loaders.store import write_store
 
 METRIC_KEYS = {"sequence", "method", "seed", "frames", "frames_scored", "diverged",
-               "relative_error", "ape", "time_ms"}
+               "relative_error", "ape", "time_ms", "register_ms", "wall_ms", "clock",
+               "threads"}
 
 
 @pytest.fixture(scope="module")
@@ -43,7 +44,11 @@ def test_run_folder_has_every_file_and_exact_metric_keys(store, tmp_path):
     meta = json.loads((run_dir / "meta.json").read_text())
     assert {"git", "packages", "cpu", "threads", "date"} <= set(meta)
     header = (run_dir / "frames.csv").read_text().splitlines()[0]
-    assert header == "index,stamp,time_ms,points,correspondences,iterations,converged"
+    assert header == ("index,stamp,time_ms,register_ms,wall_ms,points,correspondences,"
+                      "iterations,converged")
+    assert metrics["clock"] == "cpu" and metrics["threads"] == 1
+    assert set(metrics["register_ms"]) == {"median", "mean", "p95"}
+    assert metrics["register_ms"]["mean"] <= metrics["time_ms"]["mean"]
     est = np.loadtxt(run_dir / "est_tum.txt")
     assert est.shape == (60, 8)
 
@@ -80,8 +85,9 @@ def test_tables_mark_best_and_second_and_show_divergence(store, tmp_path):
     m["diverged"] = True
     m_path.write_text(json.dumps(m))
     rows, lengths = collect_rows(tmp_path)
-    assert [r.label for r in rows] == ["(With Seed) point-to-point", "(No Seed) point-to-point",
-                                       "Ours (no initial guess)"]
+    assert [r.label for r in rows] == ["(With Seed) ICP point-to-point",
+                                       "(No Seed) ICP point-to-point",
+                                       "(No initial guess) Doppler Correspondence (Ours)"]
     assert lengths == ["8", "16", "24", "32", "40", "48"]
     md = to_markdown(rows, lengths)
     lines = [line for line in md.splitlines() if "point-to-point" in line or "Ours" in line]
@@ -161,7 +167,8 @@ def test_experiment_yaml_is_validated(tmp_path):
 
 
 def test_labelled_variants_are_told_apart_from_plain_methods():
-    from bench.report.tables import Row, is_variant, method_label
+    from bench.report.names import run_label as method_label
+    from bench.report.tables import Row, is_variant
 
     plain = Row("c", "s", "doppler-ego", None, method_label("doppler-ego", None), {}, {}, 1, False)
     ablation = Row("c", "s", "doppler-ego", None, method_label("doppler-ego", None, "w/o map"),

@@ -1,4 +1,5 @@
-"""Regression tests: the paper's qualitative findings on small synthetic sequences.
+"""The paper's own qualitative findings on small synthetic sequences (only claims the paper
+makes: CI protects against regressions through `bench regress`'s baseline, not rankings).
 
 - Repetitive geometry (empty tunnel, dense FMCW LiDAR): point-to-point ICP slides along the
   tunnel axis; Doppler Correspondence does not (paper Sec. V, Table VI).
@@ -66,18 +67,6 @@ def test_uturn_doubles_the_rotation_error_of_doppler():
     uturn, uturn_rate = _doppler_rotation_error_8m(uturn=True)
     assert gentle_rate < 0.15 and 0.45 < uturn_rate < 0.65  # the paper's two regimes
     assert uturn >= 2 * gentle, (uturn, gentle)
-
-
-def test_dicp_slides_along_straight_walls_five_times_less_than_point_to_plane():
-    # the degenerate geometry DICP was made for (Hexsel et al.): two parallel walls
-    seq = _in_memory(SyntheticSequence("straight-wall", "lidar-dense", frames=15, seed=4,
-                                       points=12000))
-    gt = seq.ground_truth.poses
-    dicp = make_method("dicp", {}, seq.sensor).run(seq, seed=True).poses
-    plane = make_method("icp-p2plane", {}, seq.sensor).run(seq, seed=True).poses
-    drift_dicp = along_track_drift_m(gt, dicp)
-    drift_plane = along_track_drift_m(gt, plane) if np.all(np.isfinite(plane)) else np.inf
-    assert drift_plane >= 5 * drift_dicp, (drift_dicp, drift_plane)
 
 
 def test_doppler_icp_beats_doppler_and_icp_through_a_uturn():

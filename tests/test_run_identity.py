@@ -75,7 +75,7 @@ def test_labelled_variants_get_two_rows_and_yaml_paths_are_relative(store, tmp_p
     outcomes = run_jobs(plan(jobs_for_experiment(exp)), executor="local")
     assert [o.status for o in outcomes] == ["done", "done"]
     rows, _ = collect_rows(exp.out_dir)
-    assert sorted(r.label for r in rows) == ["tau1 (no initial guess)", "tau3 (no initial guess)"]
+    assert sorted(r.label for r in rows) == ["(No initial guess) tau1", "(No initial guess) tau3"]
     assert rows[0].trans != rows[1].trans
 
 

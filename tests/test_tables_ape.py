@@ -31,17 +31,18 @@ def test_ranks_divergence_and_order(tmp_path):
     assert table.sequences == ["Tunnel (Empty)", "Tunnel (Vehicles)"]
     # the paper's row order: baselines first, its own methods last
     assert [label for label, _ in table.rows] == [
-        "ICP point-to-point", "DICP", "Doppler Correspondence (Ours)", "Doppler 4D-ICP (Ours)"]
+        "(With Seed) ICP point-to-point", "(With Seed) DICP",
+        "(No initial guess) Doppler Correspondence (Ours)", "(With Seed) Doppler 4D-ICP (Ours)"]
     md = to_markdown(table)
-    assert "| ICP point-to-point | Div. | - |" in md
-    assert "| Doppler 4D-ICP (Ours) | **14.50** | **24.06** |" in md
-    assert "| Doppler Correspondence (Ours) | <u>20.16</u> | 47.54 |" in md
-    assert "| DICP | 65.27 | <u>37.12</u> |" in md
+    assert "| (With Seed) ICP point-to-point | Div. | - |" in md
+    assert "| (With Seed) Doppler 4D-ICP (Ours) | **14.50** | **24.06** |" in md
+    assert "| (No initial guess) Doppler Correspondence (Ours) | <u>20.16</u> | 47.54 |" in md
+    assert "| (With Seed) DICP | 65.27 | <u>37.12</u> |" in md
     tex = to_latex(table)
     assert r"\textbf{14.50}" in tex and r"\underline{20.16}" in tex and "Div." in tex
     rows = to_csv(table).splitlines()
     assert rows[0] == "method,sequence,ape_m,diverged"
-    assert "ICP point-to-point,Tunnel (Empty),500.000000,True" in rows
+    assert "(With Seed) ICP point-to-point,Tunnel (Empty),500.000000,True" in rows
 
 
 def test_both_seed_options_and_labels_get_their_own_rows(tmp_path):
@@ -49,8 +50,8 @@ def test_both_seed_options_and_labels_get_their_own_rows(tmp_path):
     _run(tmp_path, "L", "Loop1_0", "icp-p2p", False, 2.0)
     _run(tmp_path, "L", "Loop1_0", "icp-p2p", True, 1.0, label="icp-p2p tau 1 m")
     labels = [label for label, _ in collect_ape(tmp_path).rows]
-    assert labels == ["ICP point-to-point (With Seed)", "ICP point-to-point (No Seed)",
-                      "icp-p2p tau 1 m (With Seed)"]
+    assert labels == ["(With Seed) ICP point-to-point", "(No Seed) ICP point-to-point",
+                      "(With Seed) icp-p2p tau 1 m"]
 
 
 def test_write_ape_tables_writes_every_format(tmp_path):

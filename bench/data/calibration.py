@@ -27,7 +27,6 @@ R_gt_sensor`` (methods see the same data; the scores then refer to the sensor's 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -35,7 +34,7 @@ from scipy.spatial.transform import Rotation
 from loaders.errors import DataError
 from loaders.scan import Scan, SensorInfo, Sequence
 from loaders.trajectory import Trajectory
-from methods.ego_velocity import estimate_ego_velocity, speed_from_doppler
+from methods.ego_velocity import estimate_ego_velocity
 
 ANGLES = ("roll", "pitch", "yaw")
 AXES = np.eye(3)  # roll about x, pitch about y, yaw about z

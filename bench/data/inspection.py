@@ -10,10 +10,10 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from loaders.gt import gt_for_frames
 from loaders.doppler_check import doppler_sign_check, low_points_median_z
 from loaders.errors import DataError
 from loaders.fileio import atomic_path
+from loaders.gt import gt_for_frames
 from loaders.gt_report import gt_sanity_report
 from loaders.scan import Sequence
 from methods.ego_velocity import speed_from_doppler

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from bench.report.names import PAPER_ORDER, long_name
+from bench.report.names import PAPER_ORDER, run_label
 from loaders.fileio import atomic_path
 
 COLUMN_IN = 3.5  # one paper column [inch]
@@ -17,11 +17,6 @@ def color(method: str) -> str:
     """The method's colour, the same in every figure."""
     i = PAPER_ORDER.index(method) if method in PAPER_ORDER else len(PAPER_ORDER)
     return PALETTE[i % len(PALETTE)]
-
-
-def run_label(method: str, seed: bool | None, label: str | None = None) -> str:
-    name = label or long_name(method)
-    return name if seed is None else f"{name} ({'seed' if seed else 'no seed'})"
 
 
 def use_paper_style() -> None:

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.report.figstyle import COLUMN_IN, color, run_name, save, use_paper_style
-from bench.report.names import long_name
+from bench.report.names import display_name
 from bench.runs.folders import RunRecord
 from loaders.se3 import inv_T, rotation_angle_deg
 from metrics.relative import DEFAULT_LENGTHS_M, MetricError, path_distances, segment_errors
@@ -129,7 +129,7 @@ def plot_speed_csv(path: Path, out_dir: Path) -> list[Path]:
         pts = sorted((int(r["points"]), float(r["median_ms"]), float(r["p5_ms"]),
                       float(r["p95_ms"])) for r in rows if r["method"] == method)
         n, med, lo, hi = (np.array(v) for v in zip(*pts, strict=True))
-        ax.loglog(n, med, "o-", ms=3, color=color(method), label=long_name(method))
+        ax.loglog(n, med, "o-", ms=3, color=color(method), label=display_name(method))
         ax.fill_between(n, lo, hi, color=color(method), alpha=0.2, lw=0)
     ax.set_xlabel("input points per scan")
     ax.set_ylabel("registration time per frame [ms]")

@@ -1,37 +1,59 @@
-"""Display names of the methods as the paper's tables print them, and the paper's row order.
+"""How methods and runs are named in every table and figure: one display name per method, the
+paper's row order, and the seed tag that says which motion prior a run used.
 
-One place for every table and figure, so a method reads the same everywhere. A method that is
-not listed shows its registry name.
+A method that is not listed shows its registry name.
 """
 
 from __future__ import annotations
 
-# registry name -> (Table III name, Tables IV/V name)
-_NAMES: dict[str, tuple[str, str]] = {
-    "icp-p2p": ("point-to-point", "ICP point-to-point"),
-    "icp-p2plane": ("point-to-plane", "ICP point-to-plane"),
-    "gicp": ("GICP", "Generalized-ICP"),
-    "vgicp": ("VGICP", "VGICP"),
-    "dicp": ("DICP", "DICP"),
-    "kiss-icp": ("KISS-ICP", "KISS-ICP"),
-    "doppler": ("Ours", "Doppler Correspondence (Ours)"),
-    "doppler-icp": ("Doppler 4D-ICP", "Doppler 4D-ICP (Ours)"),
-    "doppler-ego": ("Doppler-Ego", "Doppler-Ego (this harness)"),
+#: registry name -> display name (the paper's Tables IV/V names)
+_NAMES: dict[str, str] = {
+    "icp-p2p": "ICP point-to-point",
+    "icp-p2plane": "ICP point-to-plane",
+    "gicp": "Generalized-ICP",
+    "vgicp": "VGICP",
+    "dicp": "DICP",
+    "kiss-icp": "KISS-ICP",
+    "doppler": "Doppler Correspondence (Ours)",
+    "doppler-icp": "Doppler 4D-ICP (Ours)",
+    "doppler-ego": "Doppler-Ego (this harness)",
 }
 
 # the paper lists the baselines first and its own methods last; methods beyond the paper follow
 PAPER_ORDER = ["icp-p2p", "icp-p2plane", "gicp", "vgicp", "dicp", "kiss-icp", "doppler",
                "doppler-icp", "doppler-ego"]
 
+#: what the seed tags mean (table captions and figure notes)
+SEED_NOTE = ("With Seed: each step starts from the previous step's motion (constant velocity); "
+             "With Seed, own model: from the method's own motion prediction instead; No Seed: "
+             "from the identity, with every internal prior reset; No initial guess: a method "
+             "that takes none.")
 
-def short_name(method: str) -> str:
-    """The name in Table III's rows, e.g. "(With Seed)DICP"'s "DICP"."""
-    return _NAMES.get(method, (method, method))[0]
+
+def display_name(method: str) -> str:
+    """The method's name in every table and figure, e.g. "Generalized-ICP"."""
+    return _NAMES.get(method, method)
 
 
-def long_name(method: str) -> str:
-    """The name in Tables IV/V's rows, e.g. "Generalized-ICP"."""
-    return _NAMES.get(method, (method, method))[1]
+def seed_tag(method: str, seed: bool | None) -> str:
+    """Which motion prior a run used: "With Seed" (the harness's constant-velocity guess),
+    "With Seed, own model" (the method's own prior), "No Seed" or "No initial guess"."""
+    if seed is None:
+        return "No initial guess"
+    if not seed:
+        return "No Seed"
+    from methods.base import CONSTANT_VELOCITY
+    from methods.registry import METHODS
+
+    cls = METHODS.get(method)
+    own = cls is not None and cls.motion_prior not in (None, CONSTANT_VELOCITY)
+    return "With Seed, own model" if own else "With Seed"
+
+
+def run_label(method: str, seed: bool | None, label: str | None = None) -> str:
+    """A run's row / legend name, e.g. "(With Seed) DICP"; a labelled variant shows its label
+    after the tag."""
+    return f"({seed_tag(method, seed)}) {label or display_name(method)}"
 
 
 def order_key(method: str) -> int:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.report.cells import md_mark, ranks, save_formats, tex_escape, tex_mark
-from bench.report.names import order_key, short_name
+from bench.report.names import SEED_NOTE, order_key, run_label
 from bench.runs.folders import load_runs
 from loaders.sensor_classes import class_rank
 
@@ -30,15 +30,15 @@ class Row:
     trans: dict[str, float]   # length -> mean translation error [m]
     time_ms: float
     diverged: bool
+    threads: int = 1  # a run on several threads is timed by the wall clock (methods.timing)
 
 
-def method_label(method: str, seed: bool | None, label: str | None = None) -> str:
-    """The row name as in the paper's Table III, e.g. "(With Seed) DICP"; a labelled variant
-    shows its label."""
-    name = label or short_name(method)
-    if seed is None:
-        return f"{name} (no initial guess)"
-    return f"({'With' if seed else 'No'} Seed) {name}"
+#: what the Time column holds (methods/base.py, methods/timing.py)
+TIME_NOTE = ("Time: mean per-frame time [ms] of all per-frame work from a scan in memory to its "
+             "pose (downsampling, normals, kd-trees, maps, registration, map update; not file "
+             "I/O), after the same untimed warm-up for every method; the CPU time of a "
+             "one-thread run, which other jobs running beside it do not inflate (a run marked "
+             "[N thr.] used N threads and is timed by the wall clock).")
 
 
 def _value(x) -> float:
@@ -58,11 +58,12 @@ def collect_rows(results_dir: Path, only: set[Path] | None = None
         rows.append(Row(
             sensor_class=run.sensor_class, sequence=run.display_name,
             method=run.method, seed=run.seed,
-            label=method_label(run.method, run.seed, run.label),
+            label=run_label(run.method, run.seed, run.label),
             rot={k: _value(v["rot_deg_mean"]) if v["n"] else math.nan for k, v in rel.items()},
             trans={k: _value(v["trans_m_mean"]) if v["n"] else math.nan for k, v in rel.items()},
             time_ms=_value(run.time_ms.get("mean")),
             diverged=bool(run.diverged),
+            threads=int(run.metrics.get("threads") or 1),
         ))
     return sorted(rows, key=_row_order), sorted(lengths, key=float)
 
@@ -92,8 +93,9 @@ def _fmt(x: float, digits: int = 3) -> str:
     return "-" if not math.isfinite(x) else f"{x:.{digits}f}"
 
 
-def _fmt_time(x: float) -> str:
-    return "-" if not math.isfinite(x) else (f"{x:.2f}" if x < 10 else f"{x:.1f}")
+def _fmt_time(x: float, threads: int = 1) -> str:
+    text = "-" if not math.isfinite(x) else (f"{x:.2f}" if x < 10 else f"{x:.1f}")
+    return text if threads == 1 else f"{text} [{threads} thr.]"
 
 
 def _cells(rows: list[Row], lengths: list[str], mark) -> list[list[str]]:
@@ -119,8 +121,8 @@ def _cells(rows: list[Row], lengths: list[str], mark) -> list[list[str]]:
         times = ranks([rows[i].time_ms for i in ranked])
         trank = dict(zip(ranked, times, strict=True))
         for i in idx:  # a diverged run's time is still real: shown, not ranked
-            out[i].append(_fmt_time(rows[i].time_ms) if rows[i].diverged
-                          else mark(_fmt_time(rows[i].time_ms), trank[i]))
+            text = _fmt_time(rows[i].time_ms, rows[i].threads)
+            out[i].append(text if rows[i].diverged else mark(text, trank[i]))
     return out
 
 
@@ -136,8 +138,8 @@ def to_markdown(rows: list[Row], lengths: list[str]) -> str:
         prev = (r.sensor_class, r.sequence)
         lines.append("| " + " | ".join([klass, seq, r.label, *cells]) + " |")
     caption = ("Each cell: mean rotation [deg] / translation [m] relative error per segment "
-               "length; Time: mean registration time per frame [ms]. Best per sequence in "
-               "bold, second underlined; Div. = diverged.")
+               "length. " + TIME_NOTE + " Best per sequence in bold, second underlined; Div. = "
+               "diverged. " + SEED_NOTE)
     return "\n".join(lines) + "\n\n" + caption + "\n"
 
 
@@ -184,7 +186,7 @@ FORMATS = {"md": to_markdown, "tex": to_latex, "csv": to_csv}
 
 def is_variant(row: Row) -> bool:
     """A labelled variant of a method (an experiment entry with its own ``label:``)."""
-    return row.label != method_label(row.method, row.seed)
+    return row.label != run_label(row.method, row.seed)
 
 
 def select_rows(results_dir: Path | list[Path], only: set[Path] | None = None,

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.report.cells import md_mark, save_formats, tex_escape, tex_mark
-from bench.report.names import long_name, order_key
+from bench.report.names import SEED_NOTE, order_key, run_label
 from bench.runs.folders import load_runs
 
 
@@ -31,13 +31,6 @@ class ApeTable:
     rows: list[tuple[str, dict[str, ApeCell]]]  # (row label, sequence -> cell)
 
 
-def _row_label(method: str, seed: bool | None, label: str | None, tag_seed: bool) -> str:
-    name = label or long_name(method)
-    if tag_seed and seed is not None:
-        name += " (With Seed)" if seed else " (No Seed)"
-    return name
-
-
 def collect_ape(results_dir: Path, sequences: list[str] | None = None,
                 only: set[Path] | None = None) -> ApeTable:
     """The APE table of every finished run with ground truth under ``results_dir``.
@@ -45,16 +38,13 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
     ``sequences``: the columns (display names or sequence names) in order; default: every
     sequence found, in name order."""
     runs = [r for r in load_runs(results_dir, only) if r.diverged is not None and r.ape]
-    seeds_of: dict[str, set] = {}
-    for r in runs:
-        seeds_of.setdefault(r.method, set()).add(r.seed)
     cells: dict[tuple, dict[str, ApeCell]] = {}
     names: dict[str, str] = {}
     for r in runs:
         title = r.display_name
         names[r.sequence] = title
         key = (order_key(r.method), r.method, r.label or "", r.seed is False,
-               _row_label(r.method, r.seed, r.label, len(seeds_of[r.method]) > 1))
+               run_label(r.method, r.seed, r.label))
         ape_m = r.ape.get("trans_rmse_m")
         cells.setdefault(key, {})[title] = ApeCell(
             math.nan if ape_m is None else float(ape_m), bool(r.diverged))
@@ -98,8 +88,9 @@ def to_markdown(table: ApeTable, caption: str = "") -> str:
     for i, (label, _) in enumerate(table.rows):
         lines.append(f"| {label} | " + " | ".join(
             _cell_text(table, ranks, i, col, mark) for col in table.sequences) + " |")
-    caption = caption or ("Absolute pose error [m] (translation RMSE after SE(3) alignment, as "
-                          "evo). Best per sequence in bold, second underlined; Div. = diverged.")
+    caption = (caption or "Absolute pose error [m] (translation RMSE after SE(3) alignment, as "
+               "evo). Best per sequence in bold, second underlined; Div. = diverged.")
+    caption += " " + SEED_NOTE
     return "\n".join(lines) + "\n\n" + caption + "\n"
 
 

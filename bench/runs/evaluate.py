@@ -10,7 +10,10 @@ the frames that have ground truth are scored.
 - Relative errors pair scored frames only; APE is computed over the scored frames (SE(3)
   alignment, with the orientation fallback of ``metrics.ape`` for an estimate that never
   moves); divergence looks at every estimated pose (a non-finite pose anywhere diverges).
-- Timing (``time_ms``) covers every registered frame, with or without ground truth.
+- Timing covers every registered frame, with or without ground truth: ``time_ms`` (all
+  per-frame work) and ``register_ms`` (the registration call alone) by the method's clock, and
+  ``wall_ms`` (the elapsed time of the frame's work); see ``methods.base`` and
+  ``methods.timing``.
 """
 
 from __future__ import annotations
@@ -39,7 +42,7 @@ def timing_part(times_ms: np.ndarray) -> dict:
 
 def score(gt_poses: np.ndarray, est_poses: np.ndarray, times_ms: np.ndarray,
           lengths_m=DEFAULT_LENGTHS_M, scored: np.ndarray | None = None,
-          name: str = "ground truth") -> dict:
+          name: str = "ground truth", timings: dict | None = None) -> dict:
     """The metric part of ``metrics.json``: diverged, relative_error, ape, time_ms,
     frames_scored. ``scored`` (bool per frame, default all) selects the frames with ground
     truth; relative errors and APE use only them."""
@@ -73,7 +76,7 @@ def score(gt_poses: np.ndarray, est_poses: np.ndarray, times_ms: np.ndarray,
         "diverged": diverged,
         "relative_error": relative,
         "ape": ape_dict,
-        "time_ms": timing_part(times_ms),
+        **(timings if timings is not None else {"time_ms": timing_part(times_ms)}),
         "frames_scored": int(len(idx)),
     }
 
@@ -93,10 +96,13 @@ def evaluate_run(ground_truth: Trajectory | None, result: OdometryResult,
     """Score an odometry result against a sequence's ground truth (the one entry point the
     job runner uses). Without ground truth only the timing is filled in."""
     times = np.array([f.time_ms for f in result.frames], dtype=np.float64)
+    timings = {key: timing_part(np.array([getattr(f, key) for f in result.frames],
+                                         dtype=np.float64))
+               for key in ("time_ms", "register_ms", "wall_ms")}
     if ground_truth is None:
         return Evaluation(None, {"diverged": None, "relative_error": {}, "ape": None,
-                                 "time_ms": timing_part(times), "frames_scored": 0})
+                                 **timings, "frames_scored": 0})
     stamps = np.asarray(result.stamps, dtype=np.float64)
     gt_poses, scored = gt_for_frames(ground_truth, stamps, name=name)
-    metrics = score(gt_poses, result.poses, times, lengths_m, scored, name)
+    metrics = score(gt_poses, result.poses, times, lengths_m, scored, name, timings)
     return Evaluation(Trajectory(stamps[scored], gt_poses[scored]), metrics)

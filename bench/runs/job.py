@@ -27,7 +27,7 @@ from bench.runs.identity import code_identity, run_key, store_identity
 from loaders.errors import DataError
 from loaders.sensor_classes import sensor_class
 from loaders.store import StoreSequence
-from methods.base import Odometry
+from methods.base import Odometry, run_timed
 from methods.registry import get_method, make_method
 from metrics.relative import DEFAULT_LENGTHS_M
 
@@ -156,11 +156,12 @@ def run_job(job: Job, force: bool = False,
             return JobOutcome(job, "skipped", str(run_dir), run_dir=run_dir)
         clear_run(run_dir)
         total = len(seq)
-        result = prep.method.run(seq, seed=bool(job.seed),
-                                 on_frame=(lambda i: on_frame(i + 1, total)) if on_frame else None)
+        result = run_timed(prep.method, seq, bool(job.seed),
+                           (lambda i: on_frame(i + 1, total)) if on_frame else None)
         evaluation = evaluate_run(seq.ground_truth, result, job.lengths_m, name=str(job.store))
         metrics = {"sequence": prep.config["sequence"]["name"], "method": job.method,
-                   "seed": job.seed, "frames": len(seq), **evaluation.metrics}
+                   "seed": job.seed, "frames": len(seq), **evaluation.metrics,
+                   "clock": prep.method.clock, "threads": prep.method.threads}
         write_run(run_dir, result, evaluation.gt, prep.config, metrics)
         return JobOutcome(job, "done", str(run_dir), len(seq), time.perf_counter() - t0,
                           run_dir=run_dir)

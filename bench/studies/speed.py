@@ -1,4 +1,5 @@
-"""``bench speed``: every method timed on the same synthetic scans at the same input size.
+"""``bench speed``: every method timed on the same synthetic scans at the same input size, with
+the harness's timing protocol (``methods.base``).
 
 Two scenarios, each generated once so that every method sees exactly the same points:
 - ``lidar``: a short dense FMCW-LiDAR sequence (campus scene); for each size N every scan is
@@ -6,15 +7,17 @@ Two scenarios, each generated once so that every method sees exactly the same po
 - ``radar``: a semi-dense 4D-radar sequence (loop scene) at its own density (about 4k
   points, the paper's Loop sequences).
 
-N is always the number of points handed to the method (its input); each method then prepares
-the scans as in a run (its own downsampling, normals, layout: untimed, stated in the table's
-``prep`` column) and only its registration call is timed. A pairwise method is timed on one
-consecutive pair: one warm-up call, then ``repeats`` calls (at least 51 for sub-5 ms calls, at
-most 3 for calls over a second). A stateful method (its own map, e.g. KISS-ICP) runs over the
-short sequence and its per-frame registration times after the first two frames are used.
-Methods are configured for the scenario's sensor kind (radar or LiDAR parameter sets). With
-``memory``, the peak resident memory of a whole ``bench run`` on a 120k-point LiDAR sequence
-is measured in a child process.
+N is always the number of points handed to the method (its input). Two figures per method:
+``time_ms``, the total per-frame work (a pairwise method: preparing the new scan, i.e. its own
+downsampling, normals, kd-tree or voxel map, plus the registration call), and ``register_ms``,
+the registration call alone. A pairwise method is timed on one consecutive pair: the same
+warm-up as in a run, then ``repeats`` timed frames (at least 51 for sub-5 ms frames, at most 3
+for frames over a second). A stateful method (its own map: KISS-ICP, doppler-ego) runs over the
+short sequence after the warm-up and its frames after the second are used. Methods are
+configured for the scenario's sensor kind (radar or LiDAR parameter sets) and ``threads``
+threads where they take a thread count; the clock is the harness's (CPU time on one thread,
+wall time on several). With ``memory``, the peak resident memory of a whole ``bench run`` of
+each method on a 64k-point LiDAR store is measured in a child process.
 """
 
 from __future__ import annotations
@@ -32,8 +35,9 @@ from rich.table import Table
 
 from loaders.fileio import atomic_path, atomic_write_text
 from loaders.scan import MemorySequence, Scan, SensorInfo
-from methods.base import Registration
+from methods.base import Registration, run_timed
 from methods.registry import METHODS, make_method
+from methods.timing import stopwatch
 
 LIDAR_SCENE, RADAR_SCENE = "campus", "loop"
 SEQUENCE_FRAMES = 8  # frames of the short sequence a stateful method runs over
@@ -65,10 +69,11 @@ def subsample(scan: Scan, n: int, seed: int) -> Scan:
     return scan.select(idx)
 
 
-def _stats(times_ms: list[float]) -> dict:
-    t = np.asarray(times_ms)
+def _stats(total_ms: list[float], register_ms: list[float]) -> dict:
+    t, r = np.asarray(total_ms), np.asarray(register_ms)
     return {"median_ms": float(np.median(t)), "mean_ms": float(t.mean()),
             "p5_ms": float(np.percentile(t, 5)), "p95_ms": float(np.percentile(t, 95)),
+            "register_median_ms": float(np.nanmedian(r)) if np.isfinite(r).any() else np.nan,
             "repeats": len(t)}
 
 
@@ -83,60 +88,81 @@ def _prep_note(method) -> str:
 
 
 def time_pair(method: Registration, source: Scan, target: Scan, repeats: int) -> dict:
-    src, tgt = method.preprocess(source), method.preprocess(target)
+    """Frame times of registering ``target`` to ``source``: preparing the target (the new scan)
+    plus the registration call, and the call alone; by the method's clock."""
+    src = method.preprocess(source)
     init = np.eye(4)
     t0 = time.perf_counter()
-    result = method.register(src, tgt, init)  # warm-up (compilation, caches)
+    result = method.register(src, method.preprocess(target), init)  # the warm-up
     warm_s = time.perf_counter() - t0
     n = max(repeats, 51) if warm_s < 0.005 else repeats if warm_s < 1.0 else min(repeats, 3)
-    times = []
+    total, register = [], []
     for _ in range(n):
-        t0 = time.perf_counter_ns()
-        method.register(src, tgt, init)
-        times.append((time.perf_counter_ns() - t0) / 1e6)
-    return {**_stats(times), "correspondences": result.correspondences,
+        with stopwatch() as frame:
+            tgt = method.preprocess(target)
+            with stopwatch() as reg:
+                method.register(src, tgt, init)
+        total.append(frame.ms(method.clock))
+        register.append(reg.ms(method.clock))
+    return {**_stats(total, register), "correspondences": result.correspondences,
             "iterations": result.iterations}
 
 
 def time_sequence(method, sequence: MemorySequence) -> dict:
-    result = method.run(sequence, seed=True)
+    result = run_timed(method, sequence, seed=True)
     frames = result.frames[2:] or result.frames[1:]
-    return {**_stats([f.time_ms for f in frames]),
+    return {**_stats([f.time_ms for f in frames], [f.register_ms for f in frames]),
             "correspondences": int(np.median([f.correspondences for f in frames])),
             "iterations": int(np.median([f.iterations for f in frames]))}
 
 
-def time_method(name: str, sequence: MemorySequence, repeats: int) -> dict:
+def method_params(name: str, threads: int) -> dict:
+    """The parameters that set ``threads`` threads for ``name`` (none when it has no thread
+    count: it computes on one)."""
+    fields = getattr(METHODS[name], "Params", None)
+    has = fields is not None and "num_threads" in getattr(fields, "model_fields", {})
+    return {"num_threads": threads} if has else {}
+
+
+def time_method(name: str, sequence: MemorySequence, repeats: int, threads: int = 1) -> dict:
     """Timing figures of method ``name`` on ``sequence`` (pair 0 -> 1, or the sequence)."""
-    method = make_method(name, {}, sequence.sensor)
+    method = make_method(name, method_params(name, threads), sequence.sensor)
     if isinstance(method, Registration):
         r = time_pair(method, sequence[0], sequence[1], repeats)
     else:
         r = time_sequence(method, sequence)
-    return {**r, "prep": _prep_note(method)}
+    return {**r, "prep": _prep_note(method), "threads": method.threads, "clock": method.clock}
 
 
-def peak_memory_of_run(points: int = 120_000, frames: int = 20) -> tuple[float, str]:
-    """Peak RSS [MB] of ``bench run --method doppler`` on a LiDAR store of ``points`` rays."""
-    from loaders.store import write_store
-    from loaders.synthetic import SyntheticSequence
-
+def peak_memory_of_run(method: str, store: Path, threads: int = 1) -> float:
+    """Peak RSS [MB] of ``bench run --method METHOD`` on ``store``, in a child process."""
+    params = [f"-p=num_threads={v}" for v in method_params(method, threads).values()]
     with tempfile.TemporaryDirectory() as tmp:
-        store = Path(tmp) / "lidar.h5"
-        seq = SyntheticSequence("tunnel", "lidar-dense", frames=frames, seed=1, points=points)
-        write_store(seq, store)
-        median_points = int(np.median([len(s) for s in seq]))
-        code = ("import resource, sys; from bench.cli import main; sys.argv=['bench','run',"
-                f"'--method','doppler','--data',{str(store)!r},'--out',{tmp + '/run'!r}]\n"
+        # VmHWM: the peak RSS of this process image (ru_maxrss would carry the parent's peak
+        # over the fork and exec that start the child)
+        code = ("import sys; from bench.cli import main; sys.argv=['bench','run',"
+                f"'--method',{method!r},'--data',{str(store)!r},'--out',{tmp + '/run'!r},"
+                f"'--executor','local',*{params!r}]\n"
                 "try:\n    main()\nexcept SystemExit:\n    pass\n"
-                "print('PEAK_KB', resource.getrusage(resource.RUSAGE_SELF).ru_maxrss)")
+                "hwm = [ln for ln in open('/proc/self/status') if ln.startswith('VmHWM')]\n"
+                "print('PEAK_KB', hwm[0].split()[1])")
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                             timeout=900)
-        peak_kb = next((int(line.split()[1]) for line in out.stdout.splitlines()
-                        if line.startswith("PEAK_KB")), -1)
-        if peak_kb < 0:
-            raise RuntimeError(f"memory probe failed:\n{out.stderr[-2000:]}")
-    return peak_kb / 1024, f"{frames} frames, median {median_points} points/frame"
+                             timeout=1800)
+    peak_kb = next((int(line.split()[1]) for line in out.stdout.splitlines()
+                    if line.startswith("PEAK_KB")), -1)
+    if peak_kb < 0:
+        raise RuntimeError(f"memory probe of {method} failed:\n{out.stderr[-2000:]}")
+    return peak_kb / 1024
+
+
+def memory_store(path: Path, points: int = 64_000, frames: int = 20) -> tuple[Path, str]:
+    """A LiDAR store of ``frames`` scans of ``points`` points each (tunnel scene)."""
+    from loaders.store import write_store
+
+    seq = make_sequence("tunnel", "lidar-dense", frames, points, seed=1)
+    scans = [subsample(s, points, k) for k, s in enumerate(seq)]
+    write_store(MemorySequence(seq.name, seq.sensor, scans, seq.ground_truth), path)
+    return path, f"{frames} frames of {int(np.median([len(s) for s in scans]))} points"
 
 
 def _scenarios(sizes: list[int], radar: bool):
@@ -153,7 +179,8 @@ def _scenarios(sizes: list[int], radar: bool):
 
 
 def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Path,
-              console: Console, memory: bool = True, radar: bool = True) -> list[dict]:
+              console: Console, memory: bool = True, radar: bool = True,
+              threads: int = 1) -> list[dict]:
     names = methods or list(METHODS)
     if "doppler" not in names:
         names = ["doppler", *names]
@@ -162,13 +189,14 @@ def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Pa
     for scenario, n, seq in _scenarios(sizes, radar):
         base = None
         for name in names:
-            r = time_method(name, seq, repeats)
+            r = time_method(name, seq, repeats, threads)
             base = r["median_ms"] if name == "doppler" else base
             rows.append({"scenario": scenario, "points": n, "method": name, **r,
                          "ratio_to_doppler": r["median_ms"] / base})
             console.print(f"  {scenario:<5} N={n:>7} {name:<12} {r['median_ms']:10.3f} ms "
-                          f"({r['repeats']} repeats, {r['iterations']} it, {r['prep']})",
-                          highlight=False, markup=False)
+                          f"(registration {r['register_median_ms']:.3f} ms; {r['repeats']} "
+                          f"repeats, {r['iterations']} it, {r['prep']}, {r['threads']} thr., "
+                          f"{r['clock']} time)", highlight=False, markup=False)
     _print_table(rows, names, console)
     out.mkdir(parents=True, exist_ok=True)
     header = list(rows[0])
@@ -177,11 +205,24 @@ def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Pa
     _plot(rows, names, out / "speed.png")
     console.print(f"wrote {out}/speed.csv and speed.png")
     if memory:
-        peak_mb, what = peak_memory_of_run()
-        console.print(f"peak memory of `bench run --method doppler` on a LiDAR store "
-                      f"({what}): {peak_mb:.0f} MB", markup=False)
-        atomic_write_text(out / "memory.csv", f"what,peak_rss_mb\n\"{what}\",{peak_mb:.1f}\n")
+        _memory(names, out, console, threads)
     return rows
+
+
+def _memory(names: list[str], out: Path, console: Console, threads: int) -> None:
+    """Peak RSS of a `bench run` of every method on the same 64k-point LiDAR store."""
+    with tempfile.TemporaryDirectory() as tmp:
+        store, what = memory_store(Path(tmp) / "lidar64k.h5")
+        lines = ["method,peak_rss_mb,store"]
+        table = Table(title=escape(f"Peak memory of `bench run` [MB], LiDAR store ({what})"))
+        table.add_column("method")
+        table.add_column("peak RSS [MB]", justify="right")
+        for name in names:
+            peak_mb = peak_memory_of_run(name, store, threads)
+            lines.append(f"{name},{peak_mb:.1f},\"{what}\"")
+            table.add_row(name, f"{peak_mb:.0f}")
+    console.print(table)
+    atomic_write_text(out / "memory.csv", "\n".join(lines) + "\n")
 
 
 def _csv_value(v) -> str:
@@ -192,19 +233,22 @@ def _csv_value(v) -> str:
 
 
 def _print_table(rows: list[dict], names: list[str], console: Console) -> None:
-    table = Table(title=escape("Registration time per frame, median [ms] (x doppler); input "
-                               "points per scan, before each method's own downsampling"))
+    table = Table(title=escape("Time per frame, median [ms]: total (all per-frame work) / "
+                               "registration call, and total x doppler; input points per "
+                               "scan, before each method's own downsampling"))
     table.add_column("scan")
     table.add_column("input points", justify="right")
     for name in names:
         table.add_column(name, justify="right")
     keys = list(dict.fromkeys((r["scenario"], r["points"]) for r in rows))
     for scenario, n in keys:
-        cells = {r["method"]: f"{r['median_ms']:.2f} ({r['ratio_to_doppler']:.1f}x)"
+        cells = {r["method"]: f"{r['median_ms']:.2f} / {r['register_median_ms']:.2f} "
+                              f"({r['ratio_to_doppler']:.1f}x)"
                  for r in rows if (r["scenario"], r["points"]) == (scenario, n)}
         table.add_row(scenario, f"{n}", *[cells.get(name, "-") for name in names])
-    preps = {r["method"]: r["prep"] for r in rows}
-    table.caption = escape("prep (untimed): "
+    preps = {r["method"]: f"{r['prep']}, {r['threads']} thr." for r in rows}
+    table.caption = escape("clock: CPU time on 1 thread, wall time on more; preparation "
+                           "(timed in the total): "
                            + "; ".join(f"{k}: {v}" for k, v in preps.items()))
     console.print(table)
 
@@ -215,7 +259,7 @@ def _plot(rows: list[dict], names: list[str], path: Path) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bench.report.names import long_name
+    from bench.report.names import display_name
 
     fig, ax = plt.subplots(figsize=(6, 4))
     for name in names:
@@ -224,10 +268,10 @@ def _plot(rows: list[dict], names: list[str], path: Path) -> None:
         if not pts:
             continue
         n, med, lo, hi = (np.array(v) for v in zip(*pts, strict=True))
-        (line,) = ax.loglog(n, med, marker="o", label=long_name(name))
+        (line,) = ax.loglog(n, med, marker="o", label=display_name(name))
         ax.fill_between(n, lo, hi, color=line.get_color(), alpha=0.2, linewidth=0)
     ax.set_xlabel("input points per scan")
-    ax.set_ylabel("registration time per frame [ms]")
+    ax.set_ylabel("time per frame, all per-frame work [ms]")
     ax.set_title("median with p5-p95 band (synthetic FMCW LiDAR)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
