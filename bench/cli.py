@@ -93,16 +93,23 @@ def inspect(
 @app.command()
 def calibrate(
     store: Annotated[Path, typer.Argument(help="store (.h5) with Doppler and ground truth")],
+    start: Annotated[int, typer.Option(min=0, help="first frame to estimate on")] = 0,
+    frames: Annotated[int | None, typer.Option(
+        min=5, help="frames to estimate on (default: the first half of the store)")] = None,
     write: Annotated[Path | None, typer.Option(
-        "--write", help="write a store with the corrected GT and extrinsic to this path")] = None,
+        "--write", help="write a store with the corrected GT and extrinsic to this path; runs "
+        "on it score only the frames not used here")] = None,
+    apply: Annotated[str, typer.Option(
+        help="the estimate --write applies: doppler or hand-eye")] = "doppler",
     min_speed: Annotated[float, typer.Option(help="use frames faster than this [m/s]")] = 2.0,
     bootstrap: Annotated[int, typer.Option(min=10, help="bootstrap resamples")] = 200,
 ) -> None:
-    """Estimate the rotation between the sensor frame and the ground truth's body frame from
-    the Doppler ego velocity (roll / pitch / yaw with uncertainty, road-plane check)."""
+    """Estimate the rotation between the sensor frame and the ground truth's body frame on a
+    range of frames, twice: from the Doppler ego velocity (and road plane), and without Doppler
+    by hand-eye alignment of KISS-ICP's trajectory; print both and their difference."""
     from bench.data.calibrate import calibrate_store
 
-    calibrate_store(store, write, console, min_speed, bootstrap)
+    calibrate_store(store, write, console, min_speed, bootstrap, start, frames, apply)
 
 
 @app.command()

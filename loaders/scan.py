@@ -161,6 +161,9 @@ class Sequence(ABC):
         for i in range(len(self)):
             yield self.scan(i)
 
+    def close(self) -> None:  # noqa: B027 - a hook: most sequences hold no open file
+        """Release open files (a store-backed sequence); nothing to do by default."""
+
     def __repr__(self) -> str:
         gt = "with GT" if self.ground_truth is not None else "no GT"
         return (
@@ -240,6 +243,9 @@ class FrameRange(Sequence):
 
     def scan(self, index: int) -> Scan:
         return self.base.scan(int(self.indices[index]))
+
+    def close(self) -> None:
+        self.base.close()
 
     @property
     def stamps(self) -> np.ndarray:

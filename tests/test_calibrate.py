@@ -59,13 +59,13 @@ def test_inspect_check_and_corrected_store(loop, tmp_path):
     assert warning is not None and "pitch" in warning
     assert rotation_check(short)[1] is None  # a correct GT frame raises no warning
     src = write_store(rotated_gt(short), tmp_path / "rot.h5")
-    cal = calibrate_store(src, tmp_path / "fixed.h5", bootstrap=10)
+    cal = calibrate_store(src, tmp_path / "fixed.h5", bootstrap=10, frames=25, hand_eye=False)
     fixed = StoreSequence(tmp_path / "fixed.h5")
     # the corrected GT is the sensor's own: calibrating it again finds (almost) nothing
     again = calibrate_sequence(fixed, bootstrap=10)
     assert again.total_deg < 0.1 < cal.total_deg
     np.testing.assert_allclose(fixed[3].points, short[3].points)  # points untouched
-    assert "calibration" in fixed.provenance
+    assert fixed.provenance["calibration"]["frames"] == [0, 25]
 
 
 def test_bench_inspect_warns_and_plots_the_doppler_speed(loop, tmp_path):
@@ -84,3 +84,43 @@ def test_bench_inspect_warns_and_plots_the_doppler_speed(loop, tmp_path):
     ok = write_store(short, tmp_path / "ok.h5")
     res = CliRunner().invoke(app, ["inspect", str(ok), "--plot", "-"])
     assert res.exit_code == 0 and "consistent within 0.5 deg" in res.output
+
+
+def test_hand_eye_alignment_recovers_the_rotation_without_doppler(loop):
+    """KISS-ICP's trajectory (no Doppler) against the GT over the same frames: the same
+    rotation as the Doppler estimate, within a tenth of a degree on this drive."""
+    from bench.data.hand_eye import hand_eye_on
+
+    seq = MemorySequence("loop", loop.sensor, list(loop), loop.ground_truth)
+    he = hand_eye_on(rotated_gt(seq), bootstrap=30)
+    assert all(he.observable.values())  # displacements fix pitch and yaw, the turns roll
+    for ax, truth in (("roll", ROLL), ("pitch", PITCH), ("yaw", YAW)):
+        assert he.angles_deg[ax] == pytest.approx(truth, abs=0.15), (ax, he.angles_deg)
+    assert all(0 < s < 0.15 for s in he.std_deg.values())
+
+
+def test_calibrated_store_scores_only_the_frames_not_used(loop, tmp_path):
+    """bench calibrate on a declared range writes it into the store; a run on the corrected
+    store registers every frame, scores only the others and its table names the store so."""
+    from typer.testing import CliRunner
+
+    from bench.api import run_method
+    from bench.cli import app
+
+    src = write_store(rotated_gt(loop), tmp_path / "rot.h5")
+    res = CliRunner().invoke(app, ["calibrate", str(src), "--start", "0", "--frames", "75",
+                                   "--bootstrap", "20", "--write", str(tmp_path / "fixed.h5")])
+    assert res.exit_code == 0, res.output
+    assert "frames 0-74 of 150" in res.output
+    # both estimates, and their difference, are printed
+    assert "Doppler ego velocity" in res.output and "hand-eye alignment of kiss-icp" in res.output
+    assert "difference to Doppler" in res.output
+    fixed = StoreSequence(tmp_path / "fixed.h5")
+    assert fixed.provenance["calibration"]["frames"] == [0, 75]
+    assert len(fixed.provenance["calibration"]["hand_eye_rpy_deg"]) == 3
+    metrics = run_method("doppler", tmp_path / "fixed.h5", out=tmp_path / "run")
+    assert metrics["frames"] == 150 and metrics["frames_scored"] == 75
+    import yaml
+
+    config = yaml.safe_load((tmp_path / "run" / "config.yaml").read_text())
+    assert "GT calibrated on frames 0-74, not scored" in config["sequence"]["display_name"]

@@ -1,15 +1,38 @@
-"""``bench calibrate STORE``: print the sensor-to-GT rotation (``bench.data.calibration``) and
-optionally write a store with the ground truth corrected."""
+"""``bench calibrate STORE``: the rotation between the sensor frame and the ground truth's frame,
+estimated twice on a declared range of frames - from the Doppler ego velocity and road plane
+(``bench.data.calibration``) and, independently of Doppler, by hand-eye alignment of a geometric
+odometry (``bench.data.hand_eye``, KISS-ICP) - printed side by side with their difference, and
+optionally a store with the ground truth corrected by one of them.
+
+The frames used are written into the corrected store (``provenance.calibration.frames``); runs
+on that store score only the other frames (``bench.runs.job``), and tables name the store
+"GT calibrated on frames a-b, not scored": such results are a labelled analysis, never the
+headline (the rotation was fitted to the data a method also measures).
+"""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from bench.data.calibration import ANGLES, CalibrationResult, CorrectedSequence, calibrate_sequence
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from bench.data.calibration import (
+    ANGLES,
+    CalibrationResult,
+    CorrectedSequence,
+    calibrate_sequence,
+)
+from bench.data.hand_eye import HandEyeResult, hand_eye_on
+from loaders.errors import DataError
+from loaders.scan import FrameRange
+
+ESTIMATES = ("doppler", "hand-eye")
 
 
 def format_result(cal: CalibrationResult) -> list[str]:
-    lines = [f"R_gt_sensor from {cal.frames_used} frames (rotation {cal.total_deg:.3f} deg):"]
+    lines = [f"Doppler ego velocity + road plane: R_gt_sensor from {cal.frames_used} frames "
+             f"(rotation {cal.total_deg:.3f} deg):"]
     for ax in ANGLES:
         lines.append(f"  {ax:<5} {cal.angles_deg[ax]:+8.3f} deg  +- {cal.std_deg[ax]:.3f}  "
                      f"({cal.source[ax]})")
@@ -27,20 +50,71 @@ def format_result(cal: CalibrationResult) -> list[str]:
     return lines
 
 
+def format_hand_eye(he: HandEyeResult, cal: CalibrationResult) -> list[str]:
+    lines = [f"hand-eye alignment of {he.odometry} (no Doppler): R_gt_sensor from "
+             f"{he.segments} segments:"]
+    for ax in ANGLES:
+        seen = "" if he.observable[ax] else "  (not observable)"
+        lines.append(f"  {ax:<5} {he.angles_deg[ax]:+8.3f} deg  +- {he.std_deg[ax]:.3f}"
+                     f"   difference to Doppler {he.angles_deg[ax] - cal.angles_deg[ax]:+.3f} "
+                     f"deg{seen}")
+    between = Rotation.from_matrix(he.R_gt_sensor @ cal.R_gt_sensor.T).magnitude()
+    lines.append(f"  the two rotations differ by {np.degrees(between):.3f} deg in all")
+    return lines
+
+
+def calibration_frames(n: int, start: int, frames: int | None) -> tuple[int, int]:
+    """[first, stop) of the frames to estimate on: ``frames`` from ``start``, by default the
+    first half of the store (the rest stays for scoring)."""
+    count = frames if frames is not None else (n - start) // 2
+    if start < 0 or count < 5 or start + count > n:
+        raise DataError(f"calibration frames start={start}, frames={count}: expected at least "
+                        f"5 frames within the store's {n}")
+    return start, start + count
+
+
 def calibrate_store(path: str | Path, write_to: Path | None = None, console=None,
-                    min_speed_mps: float = 2.0, bootstrap: int = 200) -> CalibrationResult:
-    """Calibrate the store at ``path``; print the result to ``console`` (a rich Console) and,
-    given ``write_to``, write a corrected store there (ground truth corrected, see above)."""
+                    min_speed_mps: float = 2.0, bootstrap: int = 200, start: int = 0,
+                    frames: int | None = None, apply: str = "doppler",
+                    hand_eye: bool = True) -> CalibrationResult:
+    """Estimate on the store's frames ``start`` .. (default: its first half), print both
+    estimates to ``console`` and, given ``write_to``, write the store with its ground truth
+    corrected by the ``apply`` estimate and the frames used recorded."""
     from loaders.store import StoreSequence, write_store
 
+    if apply not in ESTIMATES:
+        raise DataError(f"--apply {apply!r}: choose from {', '.join(ESTIMATES)}")
     seq = StoreSequence(path)
-    cal = calibrate_sequence(seq, min_speed_mps=min_speed_mps, bootstrap=bootstrap)
-    if console is not None:
+    try:
+        first, stop = calibration_frames(len(seq), start, frames)
+        part = FrameRange(seq, first, stop - first)
+        say = (lambda line: console.print(line, highlight=False)) if console else (lambda _: 0)
+        say(f"{path}: estimating on frames {first}-{stop - 1} of {len(seq)} (runs on a "
+            "corrected store score only the others)")
+        if stop - first == len(seq):
+            say("note: every frame is used, so runs on a corrected store have none to score")
+        cal = calibrate_sequence(part, min_speed_mps=min_speed_mps, bootstrap=bootstrap)
         for line in format_result(cal):
-            console.print(line, highlight=False)
-    if write_to is not None:
-        write_store(CorrectedSequence(seq, cal.R_gt_sensor), write_to)
-        if console is not None:
-            console.print(f"wrote {write_to} (ground truth and extrinsic corrected, points "
-                          "unchanged)", highlight=False)
+            say(line)
+        he = None
+        if hand_eye or apply == "hand-eye":
+            try:
+                he = hand_eye_on(part, bootstrap=bootstrap)
+            except DataError as err:
+                if apply == "hand-eye":
+                    raise
+                say(f"hand-eye alignment (no Doppler): not possible here: {err}")
+            if he is not None:
+                for line in format_hand_eye(he, cal):
+                    say(line)
+        if write_to is not None:
+            R = cal.R_gt_sensor if apply == "doppler" else he.R_gt_sensor
+            details = {"applied_estimate": apply, "doppler_rpy_deg": list(cal.angles_deg.values())}
+            if he is not None:
+                details["hand_eye_rpy_deg"] = list(he.angles_deg.values())
+            write_store(CorrectedSequence(seq, R, (first, stop), details), write_to)
+            say(f"wrote {write_to} (ground truth and extrinsic corrected by the {apply} "
+                f"estimate, points unchanged; frames {first}-{stop - 1} are not scored)")
+    finally:
+        seq.close()
     return cal

@@ -109,7 +109,7 @@ def road_normal(scan: Scan, seed: int = 0, threshold_m: float = 0.15
     return normal, float(-(normal @ c))
 
 
-def _fit_rotation(a: np.ndarray, b: np.ndarray, free: np.ndarray) -> np.ndarray:
+def fit_rotation(a: np.ndarray, b: np.ndarray, free: np.ndarray) -> np.ndarray:
     """Rotation R minimising sum |b - R a|^2 over unit-vector pairs, updating only the rotation
     axes (columns of AXES) flagged in ``free`` (Gauss-Newton on a rotation vector)."""
     R = np.eye(3)
@@ -129,17 +129,17 @@ def _fit_rotation(a: np.ndarray, b: np.ndarray, free: np.ndarray) -> np.ndarray:
     return R
 
 
-def _angles(R: np.ndarray) -> np.ndarray:
+def rotation_angles(R: np.ndarray) -> np.ndarray:
     yaw, pitch, roll = Rotation.from_matrix(R).as_euler("ZYX", degrees=True)
     return np.array([roll, pitch, yaw])
 
 
 def _estimate(a, b, normals, ups, free_vel, use_road):
-    R = _fit_rotation(a, b, free_vel)
+    R = fit_rotation(a, b, free_vel)
     if use_road.any() and len(normals):
         # the road fixes what velocity cannot: a rotation about the remaining axes, applied
         # after the velocity fit (velocity axes untouched)
-        R_road = _fit_rotation(normals @ R.T, ups, use_road)
+        R_road = fit_rotation(normals @ R.T, ups, use_road)
         R = R_road @ R
     return R
 
@@ -153,7 +153,8 @@ def _bootstrap(a, b, normals, ups, free_vel, use_road, n: int, seed: int) -> np.
     for _ in range(n):
         i = rng.integers(0, len(a), len(a))
         j = rng.integers(0, len(normals), len(normals)) if len(normals) else np.arange(0)
-        samples.append(_angles(_estimate(a[i], b[i], normals[j], ups[j], free_vel, use_road)))
+        R = _estimate(a[i], b[i], normals[j], ups[j], free_vel, use_road)
+        samples.append(rotation_angles(R))
     return np.std(samples, axis=0)
 
 
@@ -191,7 +192,7 @@ def calibrate_sequence(sequence: Sequence, min_speed_mps: float = 2.0,
     a, b = np.array(a), np.array(b)
     normals, ups = np.array(normals).reshape(-1, 3), np.array(ups).reshape(-1, 3)
     # outlier frames: refit without directions more than 3 robust sigmas off
-    R0 = _fit_rotation(a, b, np.ones(3, bool))
+    R0 = fit_rotation(a, b, np.ones(3, bool))
     err = np.degrees(np.arccos(np.clip(np.einsum("ni,ni->n", a @ R0.T, b), -1, 1)))
     keep = err <= max(3 * 1.4826 * np.median(err), 0.05)
     a, b = a[keep], b[keep]
@@ -211,7 +212,7 @@ def calibrate_sequence(sequence: Sequence, min_speed_mps: float = 2.0,
         use_road = np.array([road_ok, False, False]) & ~free_vel
         R = _estimate(a, b, normals, ups, free_vel, use_road)
         std = _bootstrap(a, b, normals, ups, free_vel, use_road, bootstrap, seed)
-    angles = _angles(R)
+    angles = rotation_angles(R)
     source = {ax: ("velocity" if free_vel[k] else "road plane" if use_road[k]
                    else "not observable") for k, ax in enumerate(ANGLES)}
     road = {}
@@ -232,9 +233,12 @@ def calibrate_sequence(sequence: Sequence, min_speed_mps: float = 2.0,
 
 class CorrectedSequence(Sequence):
     """``base`` with its ground truth moved to the sensor frame by ``R_gt_sensor``: points,
-    Doppler and stamps unchanged; GT ``T_world_gt @ R_gt_sensor``; extrinsic likewise."""
+    Doppler and stamps unchanged; GT ``T_world_gt @ R_gt_sensor``; extrinsic likewise. The
+    provenance records the rotation, the frames it was estimated on (``frames``: [first,
+    stop), which runs on the corrected store do not score) and ``details`` (both estimates)."""
 
-    def __init__(self, base: Sequence, R_gt_sensor: np.ndarray) -> None:
+    def __init__(self, base: Sequence, R_gt_sensor: np.ndarray,
+                 frames: tuple[int, int] | None = None, details: dict | None = None) -> None:
         self.base = base
         T_fix = np.eye(4)
         T_fix[:3, :3] = R_gt_sensor
@@ -243,11 +247,13 @@ class CorrectedSequence(Sequence):
         self.sensor = SensorInfo(s.kind, s.period_s, s.T_body_sensor @ T_fix, s.model)
         gt = base.ground_truth
         self.ground_truth = None if gt is None else gt.transformed(T_right=T_fix)
-        angles = _angles(R_gt_sensor)
+        angles = rotation_angles(R_gt_sensor)
         self.provenance = {**base.provenance, "calibration": {
             "R_gt_sensor": R_gt_sensor.tolist(),
             "roll_pitch_yaw_deg": [float(x) for x in angles],
-            "applied_to": "ground truth and T_body_sensor (points unchanged)"}}
+            "applied_to": "ground truth and T_body_sensor (points unchanged)",
+            "frames": None if frames is None else [int(frames[0]), int(frames[1])],
+            **(details or {})}}
 
     def __len__(self) -> int:
         return len(self.base)

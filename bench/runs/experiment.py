@@ -6,6 +6,8 @@
       - path: data/real/Loop1_0.h5
         display_name: Loop1_0
         sensor_class: Semi-Dense 4D Radar
+        start: 0                    # optional: run frames start .. start + frames - 1 only
+        frames: 500
     methods:
       - name: doppler
       - name: icp-p2p
@@ -42,6 +44,13 @@ class SequenceEntry(_Strict):
     name: str | None = None
     display_name: str | None = None
     sensor_class: str | None = None
+    start: int = Field(0, ge=0)              # first frame of the store to run (0-based)
+    frames: int | None = Field(None, ge=2)   # frames from ``start`` (default: to the end)
+
+    @property
+    def frame_range(self) -> tuple[int, int | None] | None:
+        """(start, frames) when only part of the store runs, else None."""
+        return None if self.start == 0 and self.frames is None else (self.start, self.frames)
 
 
 class MethodEntry(_Strict):

@@ -19,14 +19,17 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
 from pydantic import ValidationError
 
 from bench.runs.evaluate import evaluate_run
 from bench.runs.folders import clear_run, is_finished, run_dir_name, write_failure, write_run
 from bench.runs.identity import code_identity, run_key, store_identity
 from loaders.errors import DataError
+from loaders.scan import FrameRange, Sequence
 from loaders.sensor_classes import sensor_class
 from loaders.store import StoreSequence
+from loaders.trajectory import Trajectory
 from methods.base import Odometry, run_timed
 from methods.registry import get_method, make_method
 from metrics.relative import DEFAULT_LENGTHS_M
@@ -45,6 +48,7 @@ class Job:
     sensor_class: str | None = None
     run_dir_override: Path | None = None
     label: str | None = None
+    frame_range: tuple[int, int | None] | None = None  # (start, frames) of the store, or all
     run_key: str | None = None  # set by ``plan``
     store_sha256: str | None = None  # set by ``plan``, so workers do not hash the store again
 
@@ -74,21 +78,39 @@ class Prepared:
     """A job resolved against its store: the open sequence, the configured method, the folder,
     the run key and the configuration to record."""
 
-    sequence: StoreSequence
+    sequence: Sequence
     method: Odometry
     run_dir: Path
     key: str
     config: dict
 
 
-def sequence_labels(seq: StoreSequence, job: Job) -> tuple[str, str, str]:
-    """(name, display name, sensor class) from the job, else the store's provenance."""
+def sequence_labels(seq: Sequence, job: Job) -> tuple[str, str, str]:
+    """(name, display name, sensor class) from the job, else the store's provenance. A store
+    whose ground truth ``bench calibrate`` corrected says so in its display name."""
     prov = seq.provenance
     name = job.name or seq.name
     display = job.display_name or prov.get("display_name") or name
+    frames = (prov.get("calibration") or {}).get("frames")
+    if frames:
+        display += f" (GT calibrated on frames {frames[0]}-{frames[1] - 1}, not scored)"
     klass = (job.sensor_class or prov.get("sensor_class") or prov.get("class")
              or sensor_class(seq.sensor))
     return name, display, klass
+
+
+def scored_ground_truth(seq: Sequence) -> Trajectory | None:
+    """The sequence's ground truth without the poses of the frames ``bench calibrate``
+    estimated the GT correction on (store frames [first, stop) in its provenance): those frames
+    are registered but not scored."""
+    gt = seq.ground_truth
+    frames = (seq.provenance.get("calibration") or {}).get("frames")
+    if gt is None or not frames:
+        return gt
+    store = seq.base if isinstance(seq, FrameRange) else seq
+    used = store.stamps[frames[0]:frames[1]]
+    keep = ~np.any(np.abs(gt.stamps[:, None] - used[None, :]) < 1e-6, axis=1)
+    return Trajectory(gt.stamps[keep], gt.poses[keep])
 
 
 def _method_error(job: Job, err: Exception) -> DataError:
@@ -101,7 +123,8 @@ def _method_error(job: Job, err: Exception) -> DataError:
 def prepare(job: Job) -> Prepared:
     """Open the store and configure the method; DataError on bad input (store or parameters).
     A method configuration error names the run folder it belongs to (``err.run_dir``)."""
-    seq = StoreSequence(job.store)
+    store = StoreSequence(job.store)
+    seq = store if job.frame_range is None else FrameRange(store, *job.frame_range)
     try:
         name, display, klass = sequence_labels(seq, job)
         run_dir = job.run_dir(name)
@@ -109,6 +132,7 @@ def prepare(job: Job) -> Prepared:
         config = {
             "sequence": {"name": name, "display_name": display, "sensor_class": klass,
                          "store": str(job.store), "frames": len(seq),
+                         "frame_range": list(job.frame_range) if job.frame_range else None,
                          "sensor_kind": seq.sensor.kind, "sensor_model": seq.sensor.model,
                          "period_s": seq.sensor.period_s},
             "method": {"name": job.method, "description": cls.description,
@@ -126,7 +150,7 @@ def prepare(job: Job) -> Prepared:
         params = getattr(method, "params", None)
         config["method"]["params"] = params.model_dump(mode="json") if params is not None else {}
         identity = {"store_sha256": job.store_sha256 or store_identity(job.store),
-                    "method": job.method,
+                    "method": job.method, "frame_range": job.frame_range,
                     "params": config["method"]["params"], "seed": job.seed,
                     "lengths_m": [float(x) for x in job.lengths_m],
                     "code_sha256": code_identity()}
@@ -134,7 +158,7 @@ def prepare(job: Job) -> Prepared:
         config["identity"] = identity
         return Prepared(seq, method, run_dir, config["run_key"], config)
     except BaseException:
-        seq.close()
+        store.close()
         raise
 
 
@@ -158,7 +182,8 @@ def run_job(job: Job, force: bool = False,
         total = len(seq)
         result = run_timed(prep.method, seq, bool(job.seed),
                            (lambda i: on_frame(i + 1, total)) if on_frame else None)
-        evaluation = evaluate_run(seq.ground_truth, result, job.lengths_m, name=str(job.store))
+        evaluation = evaluate_run(scored_ground_truth(seq), result, job.lengths_m,
+                                  name=str(job.store))
         metrics = {"sequence": prep.config["sequence"]["name"], "method": job.method,
                    "seed": job.seed, "frames": len(seq), **evaluation.metrics,
                    "clock": prep.method.clock, "threads": prep.method.threads}
