@@ -122,3 +122,68 @@ def test_store_hashes_are_cached_by_path_size_mtime_and_inode(store, tmp_path, m
     write_store(constant_twist_sequence(n_frames=12, seed=7), copy)
     monkeypatch.setattr(results, "_store_hashes", {})
     assert results.store_identity(copy) == hashlib.sha256(copy.read_bytes()).hexdigest()
+
+
+def test_part_of_a_store_runs_as_its_own_keyed_run(store, tmp_path):
+    """An experiment may run frames start .. start + frames - 1 of a store (e.g. a validation
+    split); the range is part of the run's identity and recorded in its config."""
+    exp = tmp_path / "exp.yaml"
+    exp.write_text(yaml.safe_dump({
+        "name": "part", "out": str(tmp_path / "out"), "lengths_m": [2.0],
+        "sequences": [{"path": str(store), "name": "tail", "start": 10, "frames": 25}],
+        "methods": [{"name": "doppler"}]}))
+    (job,) = plan(jobs_for_experiment(load_experiment(exp)))
+    outcome = run_job(job)
+    assert outcome.status == "done", outcome.message
+    metrics = json.loads((outcome.run_dir / "metrics.json").read_text())
+    config = yaml.safe_load((outcome.run_dir / "config.yaml").read_text())
+    assert metrics["frames"] == 25 and config["sequence"]["frame_range"] == [10, 25]
+    exp.write_text(exp.read_text().replace("start: 10", "start: 12"))
+    (moved,) = plan(jobs_for_experiment(load_experiment(exp)))
+    assert moved.run_key != job.run_key
+    assert run_job(moved).status == "done"
+
+
+_RUN_IN_COPY = """
+import sys
+from pathlib import Path
+from bench.runs.job import Job, run_job
+from bench.runs.plan import plan
+job = plan([Job(store=Path(sys.argv[1]), method="doppler", seed=None,
+                out_root=Path(sys.argv[2]))])[0]
+print(run_job(job).status)
+"""
+
+
+def test_editing_a_loader_helper_re_runs_the_run(store, tmp_path):
+    """The run key covers the content of every module that can change a result: a copy of the
+    code runs a job, the job is reused, then a helper in loaders/se3.py is edited (a new
+    docstring line, results unchanged) and the same job runs again."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    copy = tmp_path / "repo"
+    for part in ("bench", "loaders", "methods", "metrics", "configs"):
+        shutil.copytree(root / part, copy / part,
+                        ignore=shutil.ignore_patterns("__pycache__"))
+
+    def run() -> str:
+        out = subprocess.run([sys.executable, "-c", _RUN_IN_COPY, str(store),
+                              str(tmp_path / "results")], cwd=copy, capture_output=True,
+                             text=True, timeout=300,
+                             env={**os.environ, "PYTHONPATH": str(copy)})
+        assert out.returncode == 0, out.stderr[-2000:]
+        return out.stdout.split()[-1]
+
+    assert run() == "done"
+    assert run() == "skipped"
+    se3 = copy / "loaders" / "se3.py"
+    text = se3.read_text()
+    assert '    """Inverse of (..., 4, 4) rigid transforms' in text
+    se3.write_text(text.replace('    """Inverse of (..., 4, 4) rigid transforms',
+                                '    """(edited) Inverse of (..., 4, 4) rigid transforms', 1))
+    assert run() == "done"
