@@ -94,6 +94,13 @@ class NpyFramesSequence(Sequence):
     def _associate(self, traj: Trajectory, path: Path, associate: str) -> Trajectory:
         n = len(self.files)
         if associate == "order":
+            back = np.flatnonzero(np.diff(traj.stamps) < 0)
+            if len(back):  # rows out of time order: the poses would be given to wrong frames
+                i = int(back[0]) + 1
+                raise DataError(
+                    f"{path}, pose row {i}: stamp {traj.stamps[i]:.6f} s goes backwards from "
+                    f"{traj.stamps[i - 1]:.6f} s ({len(back)} such rows); association by order "
+                    "needs the rows in time order (a garbled or concatenated file?)")
             if len(traj) != n:
                 raise DataError(
                     f"{path}: {len(traj)} GT rows but {n} frames in {self.frame_dir}; "

@@ -162,6 +162,10 @@ def build_cases(tmp: Path) -> dict[str, Case]:
     back[[5, 6]] = back[[6, 5]]
     frame_case("gt-backwards", gt_text(tum_rows(back, t)),
                ["gt.txt", "pose row 6", "goes backwards"], extra=["--associate", "time"])
+    # associated by row order (the default) the stamps are not used, but rows out of time
+    # order would give the poses to the wrong frames
+    frame_case("gt-backwards-by-order", gt_text(tum_rows(back, t)),
+               ["gt.txt", "pose row 6", "goes backwards"])
     dup = np.r_[t[:5], t[4], t[5:]]
     frame_case("gt-duplicate-stamp", gt_text(tum_rows(dup, np.arange(len(dup)))),
                ["gt.txt", "pose row 5", "repeats the stamp"], extra=["--associate", "time"])
@@ -190,9 +194,10 @@ def build_cases(tmp: Path) -> dict[str, Case]:
         cases[f"{cmd}-short-doppler-store"] = Case(args, 2, ["short_doppler.h5",
                                                              "points/doppler"], [out / "rsd"])
     cases["inspect-single-point-store"] = Case(["inspect", str(st["single"])], 0, [])
+    # a frame with one point: the run finishes, with a named warning about that frame
     cases["run-single-point-store"] = Case(
         ["run", "--method", "doppler", "--data", str(st["single"]), "--out", str(out / "r1")],
-        0, [])
+        0, ["warning", "single.h5", "frame 4", "1 point(s) to register"])
     cases["run-no-doppler-store"] = Case(
         ["run", "--method", "doppler", "--data", str(st["no_doppler"]), "--out",
          str(out / "rnd")], 1, ["no_doppler.h5", "Doppler"], [out / "rnd" / "metrics.json"],
@@ -266,6 +271,7 @@ CASE_NAMES = [
     "convert-empty-frame", "convert-nan-frame", "convert-single-point-frame",
     "convert-doppler-length", "convert-doppler-missing", "convert-gt-short",
     "convert-gt-short-by-time", "convert-gt-garbled", "convert-gt-backwards",
+    "convert-gt-backwards-by-order",
     "convert-gt-duplicate-stamp", "convert-gt-duplicate-row", "convert-gt-no-overlap",
     "inspect-zero-store", "run-zero-store", "inspect-random-store", "run-random-store",
     "inspect-truncated-store", "run-truncated-store", "inspect-nan-store", "run-nan-store",

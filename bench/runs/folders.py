@@ -81,7 +81,7 @@ def frames_csv(result: OdometryResult) -> str:
 
 
 def write_run(run_dir: Path, result: OdometryResult, gt: Trajectory | None,
-              config: dict, metrics: dict) -> None:
+              config: dict, metrics: dict, warnings: list[str] | None = None) -> None:
     """Write every file of a finished run; ``metrics.json`` last."""
     run_dir.mkdir(parents=True, exist_ok=True)
     est = Trajectory(result.stamps, result.poses)
@@ -91,7 +91,8 @@ def write_run(run_dir: Path, result: OdometryResult, gt: Trajectory | None,
         write_trajectory(run_dir / "gt_tum.txt", gt, "tum")
     atomic_write_text(run_dir / "frames.csv", frames_csv(result))
     atomic_write_text(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
-    atomic_write_text(run_dir / "meta.json", json.dumps(run_meta(), indent=2))
+    atomic_write_text(run_dir / "meta.json",
+                      json.dumps({**run_meta(), "warnings": list(warnings or [])}, indent=2))
     (run_dir / "failed.json").unlink(missing_ok=True)
     atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
 

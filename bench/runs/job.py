@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import time
 import traceback
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -71,6 +72,7 @@ class JobOutcome:
     frames: int = 0
     wall_s: float = 0.0
     run_dir: Path | None = None
+    warnings: list[str] = field(default_factory=list)  # said while the job ran
 
 
 @dataclass
@@ -180,16 +182,20 @@ def run_job(job: Job, force: bool = False,
             return JobOutcome(job, "skipped", str(run_dir), run_dir=run_dir)
         clear_run(run_dir)
         total = len(seq)
-        result = run_timed(prep.method, seq, bool(job.seed),
-                           (lambda i: on_frame(i + 1, total)) if on_frame else None)
-        evaluation = evaluate_run(scored_ground_truth(seq), result, job.lengths_m,
-                                  name=str(job.store))
+        with warnings.catch_warnings(record=True) as said:
+            warnings.simplefilter("always")
+            result = run_timed(prep.method, seq, bool(job.seed),
+                               (lambda i: on_frame(i + 1, total)) if on_frame else None)
+            warn_few_points(result, job)
+            evaluation = evaluate_run(scored_ground_truth(seq), result, job.lengths_m,
+                                      name=str(job.store))
+        notes = list(dict.fromkeys(str(w.message) for w in said))
         metrics = {"sequence": prep.config["sequence"]["name"], "method": job.method,
                    "seed": job.seed, "frames": len(seq), **evaluation.metrics,
                    "clock": prep.method.clock, "threads": prep.method.threads}
-        write_run(run_dir, result, evaluation.gt, prep.config, metrics)
+        write_run(run_dir, result, evaluation.gt, prep.config, metrics, notes)
         return JobOutcome(job, "done", str(run_dir), len(seq), time.perf_counter() - t0,
-                          run_dir=run_dir)
+                          run_dir=run_dir, warnings=notes)
     except Exception as err:  # noqa: BLE001 - record any failure and carry on
         message = f"{type(err).__name__}: {err}" if not isinstance(err, DataError) else str(err)
         _record_failure(run_dir, prep.config, message, traceback.format_exc())
@@ -197,6 +203,25 @@ def run_job(job: Job, force: bool = False,
                           run_dir=run_dir)
     finally:
         seq.close()
+
+
+#: fewer points than this after a method's own preparation leave nothing to register
+MIN_POINTS = 3
+
+
+class FewPointsWarning(UserWarning):
+    """A frame had too few points to register: its step kept the motion prior."""
+
+
+def warn_few_points(result, job: Job) -> None:
+    """A named warning when frames had fewer than ``MIN_POINTS`` points to register (after the
+    method's own downsampling): their pose is the motion prior, not a measurement."""
+    few = [f for f in result.frames if f.points < MIN_POINTS]
+    if few:
+        warnings.warn(f"{job.store}, frame {few[0].index}: {few[0].points} point(s) to register "
+                      f"after {job.method}'s preparation (at least {MIN_POINTS} needed); "
+                      f"{len(few)} such frame(s) kept their motion prior", FewPointsWarning,
+                      stacklevel=2)
 
 
 def _record_failure(run_dir: Path, config: dict | None, message: str, trace: str,

@@ -57,6 +57,8 @@ def run_jobs(jobs: list[Job], console: Console | None = None, workers: int = 1,
                          if outcome.status == "done" and outcome.wall_s > 0 else outcome.message)
                 progress.console.print(f"[{style}]{outcome.status:>11}[/] "
                                        f"{escape(outcome.job.title)}  {escape(extra)}")
+                for note in outcome.warnings:
+                    progress.console.print(f"[yellow]{'warning':>11}[/] {escape(note)}")
 
             return execute(jobs, executor, workers, force, report, finish, job_timeout_s,
                            scheduler)
