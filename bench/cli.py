@@ -32,7 +32,7 @@ console = make_console()
 status = make_console(stderr=True)  # status lines beside data written to stdout
 
 
-@app.command("list")
+@app.command("list", short_help="methods, loaders, scenes and sensors")
 def list_cmd() -> None:
     """List the registered methods, loaders, synthetic scenes and sensors."""
     from bench.report.listing import print_registries
@@ -40,7 +40,7 @@ def list_cmd() -> None:
     print_registries(console)
 
 
-@app.command()
+@app.command(short_help="generate synthetic sequences (or check the suite)")
 def synth(
     scene: Annotated[str | None, typer.Argument(help="scene name (see --list)")] = None,
     sensor: Annotated[str, typer.Option(help="sensor model")] = "radar-semidense",
@@ -73,7 +73,7 @@ def synth(
         options=_parse_params(option), list_=list_, suite=suite))
 
 
-@app.command()
+@app.command(short_help="what is in a store or frame folder")
 def inspect(
     path: Annotated[Path, typer.Argument(help="a store (.h5) or a NumPy frame folder")],
     period: Annotated[float | None, typer.Option(help="scan period [s] for frame folders")] = None,
@@ -90,7 +90,7 @@ def inspect(
     inspect_path(path, period, console, None if str(plot) == "-" else plot)
 
 
-@app.command()
+@app.command(short_help="sensor-to-GT rotation of a store")
 def calibrate(
     store: Annotated[Path, typer.Argument(help="store (.h5) with Doppler and ground truth")],
     start: Annotated[int, typer.Option(min=0, help="first frame to estimate on")] = 0,
@@ -112,15 +112,16 @@ def calibrate(
     calibrate_store(store, write, console, min_speed, bootstrap, start, frames, apply)
 
 
-@app.command()
+@app.command(short_help="one run, or every run of an experiment")
 def run(
     experiment: Annotated[Path | None, typer.Argument(help="experiment YAML")] = None,
     method: Annotated[str | None, typer.Option(help="method name (see bench list)")] = None,
     data: Annotated[Path | None, typer.Option(help="store (.h5) for a single run")] = None,
     out: Annotated[Path | None, typer.Option(help="run folder (single run) or results root")]
     = None,
-    seed: Annotated[bool, typer.Option("--seed/--no-seed",
-                                       help="constant-velocity initial guess or identity")] = True,
+    seed: Annotated[bool | None, typer.Option(
+        "--seed/--no-seed", help="single run: start from a motion prior (default) or from the "
+        "identity")] = None,
     param: Annotated[list[str] | None, typer.Option("--param", "-p",
                                                     help="method parameter key=value")] = None,
     jobs: Annotated[int | None, typer.Option(min=1, help="parallel workers")] = None,
@@ -153,7 +154,7 @@ def _parse_params(items: list[str] | None) -> dict:
     return params
 
 
-@app.command()
+@app.command(short_help="the paper's Table III from results")
 def table(
     results_dirs: Annotated[list[Path], typer.Argument(
         help="results folder(s), searched recursively; several: rows labelled by folder")],
@@ -176,7 +177,7 @@ def table(
                                    pivot, methods, variants))
 
 
-@app.command()
+@app.command(short_help="two result folders side by side")
 def compare(
     a: Annotated[Path, typer.Argument(help="results folder or run folder A (the baseline)")],
     b: Annotated[Path, typer.Argument(help="results folder or run folder B")],
@@ -191,7 +192,7 @@ def compare(
     raise typer.Exit(compare_command(console, a, b, threshold, fail_on_regression))
 
 
-@app.command()
+@app.command(short_help="CI regression against the baseline")
 def regress(
     update: Annotated[bool, typer.Option(help="accept the current results as the new baseline "
                                               "and print what changed")] = False,
@@ -206,7 +207,7 @@ def regress(
     raise typer.Exit(regress_command(console, update, tolerance, jobs))
 
 
-@app.command()
+@app.command(short_help="paper figures from results")
 def figures(
     results_dir: Annotated[Path | None, typer.Argument(
         help="results folder (searched recursively)")] = None,
@@ -226,7 +227,7 @@ def figures(
     raise typer.Exit(figures_command(console, results_dir, out, speed_csv, pair))
 
 
-@app.command()
+@app.command(short_help="a rerun recording of a store and a run")
 def view(
     store: Annotated[Path, typer.Argument(help="store (.h5)")],
     run: Annotated[Path | None, typer.Option(help="a run folder: its estimated trajectory")]
@@ -246,7 +247,7 @@ def view(
     console.print(f"wrote {path}; open it with: rerun {path}", markup=False)
 
 
-@app.command()
+@app.command(short_help="time and memory of every method")
 def speed(
     sizes: Annotated[str, typer.Option(help="point counts, comma separated")]
     = "1000,4000,16000,64000,128000",
@@ -267,7 +268,7 @@ def speed(
               repeats, out, console, memory, threads=threads)
 
 
-@app.command()
+@app.command(short_help="the paper's Tables III-V")
 def reproduce(
     out: Annotated[Path, typer.Option(help="results folder")] = Path("results/paper-synthetic"),
     data_dir: Annotated[Path, typer.Option(help="data folder (synthetic cache, real stores)")]
@@ -276,13 +277,59 @@ def reproduce(
     force: Annotated[bool, typer.Option(help="rerun finished runs")] = False,
     synthetic_only: Annotated[bool, typer.Option(help="ignore real stores")] = False,
     executor: Annotated[str, typer.Option(help="local, process or dask")] = "process",
+    scheduler: Annotated[str | None, typer.Option(
+        help="dask scheduler address (default: a LocalCluster)")] = None,
+    job_timeout: Annotated[float | None, typer.Option(
+        help="end a job that runs longer than this [s]")] = None,
 ) -> None:
     """Reproduce the paper's Tables III, IV and V (configs/experiments/table3-5.yaml) on the
     paper's sequences: real stores under DATA_DIR/real when present, else the synthetic suite."""
     from bench.studies.reproduce import reproduce_table
 
-    if reproduce_table(out, data_dir, jobs, force, synthetic_only, console, executor):
+    if reproduce_table(out, data_dir, jobs, force, synthetic_only, console, executor,
+                       scheduler, job_timeout):
         raise typer.Exit(1)
+
+
+#: metavars where the option's name in capitals does not say enough
+METAVARS = {"param": "KEY=VALUE", "option": "KEY=VALUE", "experiment": "EXPERIMENT.yaml",
+            "data": "STORE.h5", "store": "STORE.h5", "write": "STORE.h5", "pair": "STORE FRAME",
+            "path": "STORE_OR_FOLDER", "results_dirs": "RESULTS_DIR", "jobs": "N",
+            "frames": "N", "start": "FRAME", "repeats": "N", "threads": "N", "stride": "K",
+            "bootstrap": "N", "seed": "N", "period": "SECONDS", "job_timeout": "SECONDS",
+            "lengths": "8,48,...", "methods": "METHOD,...", "sizes": "N,...",
+            "format": "md|tex|csv", "executor": "local|process|dask", "apply": "doppler|hand-eye",
+            "min_speed": "M_PER_S", "threshold": "FRACTION", "tolerance": "FRACTION",
+            "run": "RUN_DIR", "a": "A", "b": "B"}
+
+
+def tidy_help(command) -> None:
+    """Usage lines that read like a Unix tool's: a metavar in capitals for every value (not
+    Python types such as <list[str]>), recursively through the command groups."""
+    for sub in getattr(command, "commands", {}).values():
+        tidy_help(sub)
+    for param in command.params:
+        if getattr(param, "is_flag", False) or param.name == "help":
+            continue
+        if param.metavar is None:
+            param.metavar = METAVARS.get(param.name, param.name.upper())
+        if param.param_type_name == "argument":
+            param.display_type_rich = lambda ctx: None  # the metavar says it
+
+
+def _version(value: bool) -> None:
+    if value:
+        from importlib.metadata import version
+
+        console.print(f"doppler-bench {version('doppler-bench')}", markup=False)
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _options(version: Annotated[bool, typer.Option(
+        "--version", callback=_version, is_eager=True, help="print the version and exit")]
+        = False) -> None:
+    """Benchmark harness for Doppler-based scan matching (4D radar, FMCW LiDAR)."""
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -295,7 +342,9 @@ def main() -> None:
 
     warnings.showwarning = _show_warning
     try:
-        code = app(standalone_mode=False)
+        command = typer.main.get_command(app)
+        tidy_help(command)
+        code = command.main(prog_name="bench", standalone_mode=False)
     except DataError as err:  # errors and warnings on stderr: stdout may be data (a CSV)
         status.print(f"[bold red]error:[/] {escape(str(err))}")
         sys.exit(2)

@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 from rich.console import Console
@@ -11,13 +12,15 @@ from rich.console import Console
 from bench.runs.executors import EXECUTORS
 from bench.runs.folders import read_run
 from loaders.errors import DataError
+from methods.registry import seed_option
 
 
 def run_command(console: Console, experiment: Path | None, method: str | None,
-                data: Path | None, out: Path | None, seed: bool, params: dict,
+                data: Path | None, out: Path | None, seed: bool | None, params: dict,
                 jobs: int | None, force: bool, executor: str, scheduler: str | None,
                 job_timeout: float | None) -> int:
-    """Plan and run; returns the exit code (0 all done, 1 when any run failed)."""
+    """Plan and run; returns the exit code (0 all done, 1 when any run failed). ``seed`` None:
+    not given (a single run is seeded by default)."""
     from bench.runs.experiment import load_experiment
     from bench.runs.job import summarize
     from bench.runs.plan import jobs_for_experiment, plan, single_job
@@ -26,6 +29,14 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
     if executor not in EXECUTORS:
         raise DataError(f"unknown executor {executor!r}; choose from {', '.join(EXECUTORS)}")
     if experiment is not None:
+        single = [name for name, value in (("--method", method), ("--data", data),
+                                           ("-p/--param", params or None),
+                                           ("--seed/--no-seed", seed)) if value is not None]
+        if single:
+            raise DataError(f"{', '.join(single)} set a single run and would be ignored beside "
+                            f"{experiment}, which lists its own methods, stores, parameters and "
+                            "seed options: edit the YAML, or run `bench run --method M --data "
+                            "STORE.h5` without it")
         exp = load_experiment(experiment)
         if out is not None:
             exp.out = out
@@ -34,7 +45,10 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
     else:
         if method is None or data is None:
             raise DataError("give an EXPERIMENT.yaml, or --method M --data PATH.h5 [--out DIR]")
-        job_list = plan([single_job(method, data, seed, out, params)])
+        if seed is False and seed_option(method, False) is None:
+            warnings.warn(f"{method} takes no initial guess: --no-seed changes nothing (it runs "
+                          "once, as in the paper)", stacklevel=2)
+        job_list = plan([single_job(method, data, seed is not False, out, params)])
         workers, results_dir = 1, None
     outcomes = run_jobs(job_list, console, workers, force, executor, job_timeout, scheduler)
     console.print(summarize(outcomes), markup=False)

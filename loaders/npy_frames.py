@@ -51,6 +51,7 @@ class NpyFramesSequence(Sequence):
         kind: str = "radar",
         name: str | None = None,
         associate: str = "order",
+        stamps_from_gt: bool = False,
     ) -> None:
         folder = Path(folder)
         if not folder.is_dir():
@@ -64,8 +65,17 @@ class NpyFramesSequence(Sequence):
         gt_path = Path(gt) if gt is not None else find_tum(folder)
         trajectory = read_tum(gt_path) if gt_path is not None else None
         n = len(self.files)
+        if period_s is not None and stamps_from_gt:
+            raise DataError(f"{folder}: give either the scan period or stamps from the GT "
+                            "file, not both")
         if period_s is not None:
             self._stamps = np.arange(n) * float(period_s)
+        elif not stamps_from_gt:
+            # the reference format's TUM stamps are often not the sensor clock (NTU4DRadLM's
+            # sample: 0.1 s steps for a 12 Hz radar): taking them silently skews every speed
+            raise DataError(
+                f"{folder}: give the scan period (--period SECONDS, e.g. 0.0833333 for a 12 Hz "
+                "radar), or --stamps-from-gt when the TUM file's stamps are the sensor clock")
         elif trajectory is not None and len(trajectory) == n:
             self._stamps = trajectory.stamps.copy()
             back = np.flatnonzero(np.diff(self._stamps) <= 0)
@@ -75,10 +85,10 @@ class NpyFramesSequence(Sequence):
                     f"frames ({len(back)} rows repeat or go backwards); give --period instead"
                 )
             period_s = float(np.median(np.diff(self._stamps))) if n > 1 else 0.1
-            warnings.warn(f"{folder}: no period given; scan stamps taken from {gt_path.name} "
-                          "rows (these may not be the sensor clock)", stacklevel=2)
         else:
-            raise DataError(f"{folder}: give the scan period (--period) to stamp the frames")
+            raise DataError(f"{folder}: stamps from the GT file need one TUM row per frame "
+                            f"({n} frames, {0 if trajectory is None else len(trajectory)} rows); "
+                            "give the scan period (--period SECONDS) instead")
         self.ground_truth = None
         self.repeated_gt_poses = 0
         if trajectory is not None:

@@ -29,8 +29,9 @@ LOADERS: dict[str, LoaderEntry] = {e.name: e for e in (
                 "file", "loaders.npy_frames", "NpyFramesSequence"),
     LoaderEntry("ntu4dradlm", "NTU4DRadLM ROS1 bags (sensor_msgs/PointCloud or PointCloud2) + "
                 "gt_odom.txt", "loaders.ntu4dradlm", "NtuSequence"),
-    LoaderEntry("campus", "Campus (Li, Zhang, Chen, RA-L 2023; ZF FRGen21) ROS1 bags with "
-                "msgs_radar/RadarScanExtended + Odometry GT", "loaders.campus", "CampusSequence"),
+    LoaderEntry("campus", "Campus (Li, Zhang, Chen, RA-L 2023; ZF FRGen21 sparse 4D radar) ROS1 "
+                "bags with msgs_radar/RadarScanExtended + Odometry GT", "loaders.campus",
+                "CampusSequence"),
     LoaderEntry("aeva", "Aeva / CARLA per-frame folders (Doppler-ICP, Open3D demo, steam_icp "
                 "layouts)", "loaders.aeva", "AevaSequence"),
 )}

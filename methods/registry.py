@@ -12,7 +12,7 @@ from __future__ import annotations
 import importlib
 import os
 
-from loaders.errors import DataError
+from loaders.errors import DataError, did_you_mean
 from loaders.scan import SensorInfo
 from methods.base import Odometry
 from methods.dicp import Dicp
@@ -60,7 +60,8 @@ def get_method(name: str) -> type[Odometry]:
     try:
         return METHODS[name]
     except KeyError:
-        raise DataError(f"unknown method {name!r}; registered: {', '.join(METHODS)}") from None
+        raise DataError(f"unknown method {name!r}{did_you_mean(name, METHODS)}; registered: "
+                        f"{', '.join(METHODS)}") from None
 
 
 def make_method(name: str, params: dict | None = None,

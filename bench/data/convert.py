@@ -48,7 +48,7 @@ def write_with_progress(sequence: Sequence, out: Path) -> Path:
 
 
 
-@convert_app.command("npy-frames")
+@convert_app.command("npy-frames", short_help="NumPy frame folders (frame_XXX.npy)")
 def npy_frames(
     folder: Annotated[Path, typer.Argument(help="folder with frame_XXX.npy (or its frames/)")],
     out: Out,
@@ -59,13 +59,16 @@ def npy_frames(
     kind: Annotated[str, typer.Option(help="radar or lidar")] = "radar",
     name: Annotated[str | None, typer.Option(help="sequence name")] = None,
     associate: Annotated[str, typer.Option(help="GT association: order or time")] = "order",
+    stamps_from_gt: Annotated[bool, typer.Option(
+        help="stamp the frames with the TUM file's stamps (only when they are the sensor "
+             "clock; else give --period)")] = False,
     start: Start = 0, frames: Frames = None, stride: Stride = 1,
 ) -> None:
     """NumPy frame folders (the reference code's example format)."""
     from loaders.npy_frames import NpyFramesSequence
 
     seq = NpyFramesSequence(folder, gt=gt, period_s=period, kind=kind, name=name,
-                            associate=associate)
+                            associate=associate, stamps_from_gt=stamps_from_gt)
     write_with_progress(select_frames(seq, start, frames, stride), out)
 
 

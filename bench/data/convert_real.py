@@ -33,7 +33,7 @@ Stamp = Annotated[str, typer.Option(
 def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]) -> None:
     """Add the ``ntu4dradlm``, ``campus`` and ``aeva`` commands to ``convert_app``."""
 
-    @convert_app.command("dataset")
+    @convert_app.command("dataset", short_help="a paper sequence from its dataset config")
     def dataset(
         config: Annotated[str, typer.Argument(help="paper sequence name (e.g. Loop1_0) or a "
                                               "configs/datasets/*.yaml path")],
@@ -48,7 +48,7 @@ def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]
         cfg = read_dataset_config(config)
         write(cfg.open(raw_dir), out or data_dir / "real" / cfg.store)
 
-    @convert_app.command("ntu4dradlm")
+    @convert_app.command("ntu4dradlm", short_help="NTU4DRadLM ROS1 bags (+ gt_odom.txt)")
     def ntu4dradlm(
         bags: Annotated[list[Path], typer.Argument(help="ROS1 bag(s) of one route, merged in "
                                                    "time order")],
@@ -79,7 +79,7 @@ def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]
                           doppler_sign=doppler_sign, stamp=stamp, name=name, **kw)
         write(select_frames(seq, start, frames, stride), out)
 
-    @convert_app.command("campus")
+    @convert_app.command("campus", short_help="Campus ROS1 bags (ZF FRGen21 radar)")
     def campus(
         bags: Annotated[list[Path], typer.Argument(help="ROS1 bag(s) with RadarScanExtended")],
         out: Out,
@@ -101,7 +101,7 @@ def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]
         name: Name = None,
         start: Start = 0, frames: Frames = None, stride: Stride = 1,
     ) -> None:
-        """Campus (ZF FRGen21) ROS1 bags -> store."""
+        """Campus (Li, Zhang, Chen, RA-L 2023; ZF FRGen21 sparse 4D radar) ROS1 bags -> store."""
         from loaders.campus import CampusSequence
 
         kw = {} if max_gap is None else {"max_gap_s": max_gap}
@@ -112,7 +112,7 @@ def register(convert_app: typer.Typer, write: Callable[[Sequence, Path], object]
                              name=name, **kw)
         write(select_frames(seq, start, frames, stride), out)
 
-    @convert_app.command("aeva")
+    @convert_app.command("aeva", short_help="Aeva / CARLA per-frame folders")
     def aeva(
         folder: Annotated[Path, typer.Argument(help="sequence folder (point_clouds/, "
                                                "xyzd_sequence/ or frames/)")],

@@ -11,7 +11,7 @@ import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
 
 from bench.paths import DATASET_CONFIGS
-from loaders.errors import DataError
+from loaders.errors import DataError, validation_problems
 from loaders.registry import LOADERS, get_loader
 from loaders.scan import Sequence, select_frames
 
@@ -76,8 +76,13 @@ def read_dataset_config(name_or_path: str | Path) -> DatasetConfig:
         raise DataError(f"{path}: dataset config not found; known: {', '.join(have)}")
     try:
         return DatasetConfig.model_validate(yaml.safe_load(path.read_text()) or {})
-    except (yaml.YAMLError, ValidationError) as err:
-        raise DataError(f"{path}: invalid dataset config:\n{err}") from None
+    except yaml.YAMLError as err:
+        raise DataError(f"{path}: not valid YAML: {err}") from None
+    except ValidationError as err:
+        keys = {(): list(DatasetConfig.model_fields),
+                ("frame_range",): list(FrameSelection.model_fields)}
+        problems = validation_problems(err, lambda loc: keys.get(tuple(loc)))
+        raise DataError(f"{path}: invalid dataset config:\n  " + "\n  ".join(problems)) from None
 
 
 def dataset_configs() -> list[DatasetConfig]:

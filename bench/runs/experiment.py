@@ -30,7 +30,7 @@ from pathlib import Path
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from loaders.errors import DataError
+from loaders.errors import DataError, did_you_mean, validation_problems
 from methods.registry import METHODS, get_method, seed_options
 from metrics.relative import DEFAULT_LENGTHS_M
 
@@ -63,10 +63,16 @@ class MethodEntry(_Strict):
     @model_validator(mode="after")
     def _check(self) -> MethodEntry:
         if self.name not in METHODS:
-            raise ValueError(f"unknown method {self.name!r}; registered: {', '.join(METHODS)}")
+            raise ValueError(f"unknown method {self.name!r}{did_you_mean(self.name, METHODS)}; "
+                             f"registered: {', '.join(METHODS)}")
         Params = getattr(get_method(self.name), "Params", None)
         if Params is not None:
-            Params.model_validate(self.params)
+            try:
+                Params.model_validate(self.params)
+            except ValidationError as err:
+                keys = list(Params.model_fields)
+                raise ValueError(f"{self.name} params: " + "; ".join(
+                    validation_problems(err, lambda loc: keys, "parameter"))) from None
         return self
 
     def seed_options(self) -> list[bool | None]:
@@ -125,5 +131,15 @@ def load_experiment(path: str | Path) -> Experiment:
         return Experiment.model_validate(data).resolved(path.resolve().parent)
     except FileNotFoundError:
         raise DataError(f"{path}: experiment file not found") from None
-    except (yaml.YAMLError, ValidationError) as err:
-        raise DataError(f"{path}: invalid experiment:\n{err}") from err
+    except yaml.YAMLError as err:
+        raise DataError(f"{path}: not valid YAML: {err}") from None
+    except ValidationError as err:
+        problems = validation_problems(err, _known_keys)
+        raise DataError(f"{path}: invalid experiment:\n  " + "\n  ".join(problems)) from None
+
+
+def _known_keys(loc: tuple) -> list[str] | None:
+    """The keys of the experiment model at ``loc`` (for "did you mean")."""
+    model = {(): Experiment, ("sequences",): SequenceEntry, ("methods",): MethodEntry}.get(
+        tuple(x for x in loc if not isinstance(x, int)))
+    return list(model.model_fields) if model else None

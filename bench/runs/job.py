@@ -26,7 +26,7 @@ from pydantic import ValidationError
 from bench.runs.evaluate import evaluate_run
 from bench.runs.folders import clear_run, is_finished, run_dir_name, write_failure, write_run
 from bench.runs.identity import code_identity, run_key, store_identity
-from loaders.errors import DataError
+from loaders.errors import DataError, validation_problems
 from loaders.scan import FrameRange, Sequence
 from loaders.sensor_classes import sensor_class
 from loaders.store import StoreSequence
@@ -117,7 +117,8 @@ def scored_ground_truth(seq: Sequence) -> Trajectory | None:
 
 def _method_error(job: Job, err: Exception) -> DataError:
     if isinstance(err, ValidationError):
-        problems = "; ".join(f"{'.'.join(map(str, e['loc']))}: {e['msg']}" for e in err.errors())
+        params = list(get_method(job.method).Params.model_fields)
+        problems = "; ".join(validation_problems(err, lambda loc: params, "parameter"))
         return DataError(f"method {job.method!r}: invalid parameters {job.params}: {problems}")
     return DataError(f"method {job.method!r}: {err}")
 

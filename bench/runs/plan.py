@@ -4,6 +4,7 @@ against its store before anything runs (``plan``), so bad input is one clear err
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import replace
 from pathlib import Path
 
@@ -12,7 +13,7 @@ from rich.console import Console
 from bench.data.synth import ensure_suite_with_progress
 from bench.runs.experiment import Experiment, SequenceEntry
 from bench.runs.folders import RunRecord, read_run
-from bench.runs.job import Job, prepare, run_job
+from bench.runs.job import Job, prepare, run_job, scored_ground_truth
 from loaders.errors import DataError
 from methods.registry import seed_option
 
@@ -67,14 +68,18 @@ def plan(jobs: list[Job]) -> list[Job]:
     """Resolve every job before any runs: the stores open, the parameters are valid, the
     output folders are writable and no two jobs share a folder. Raises one DataError listing
     every problem; returns the jobs with their folders fixed."""
-    problems, planned, owners = [], [], {}
+    problems, planned, owners, paths, warned = [], [], {}, {}, set()
     for job in jobs:
         try:
             prep = prepare(job)
         except DataError as err:
             problems.append(str(err))
             continue
+        key = (job.store, job.frame_range)
+        if key not in paths:
+            paths[key] = _gt_path_length(prep)
         prep.sequence.close()
+        problems += _lengths_problems(job, paths[key], warned)
         other = owners.get(prep.run_dir)
         if other is not None and other[1] != prep.key:
             problems.append(
@@ -90,6 +95,38 @@ def plan(jobs: list[Job]) -> list[Job]:
         raise DataError("\n".join(dict.fromkeys(problems)))
     # the same run asked for twice (e.g. by two tables) runs once
     return list({j.run_dir_override: j for j in planned}.values())
+
+
+#: a segment of length L is accepted when its path length is within this fraction of L
+#: (metrics.relative's tolerance)
+SEGMENT_TOLERANCE = 0.2
+
+
+def _gt_path_length(prep) -> float | None:
+    """Length [m] of the scored ground truth's path (None without ground truth)."""
+    gt = scored_ground_truth(prep.sequence)
+    return None if gt is None or len(gt) < 2 else gt.path_length_m()
+
+
+def _lengths_problems(job: Job, path_m: float | None, warned: set[str]) -> list[str]:
+    """An error when no requested segment length fits into the ground truth's path (the run
+    would be unscorable); a warning, once per sequence (``warned``), for lengths that do not
+    fit."""
+    if path_m is None:
+        return []
+    fits = [L for L in job.lengths_m if (1 - SEGMENT_TOLERANCE) * L <= path_m]
+    name = job.name or job.store.stem
+    if not fits:
+        return [f"{job.store}: the ground truth's path is {path_m:.1f} m long, too short for the "
+                f"shortest segment length {min(job.lengths_m):g} m; choose lengths_m up to "
+                f"{path_m / (1 - SEGMENT_TOLERANCE):.0f} m"]
+    too_long = sorted(set(job.lengths_m) - set(fits))
+    if too_long and name not in warned:
+        warned.add(name)
+        warnings.warn(f"{name}: the ground truth's path is {path_m:.1f} m long: no segments of "
+                      f"{', '.join(f'{L:g}' for L in too_long)} m (their cells stay empty)",
+                      stacklevel=3)
+    return []
 
 
 def _check_writable(run_dir: Path) -> None:

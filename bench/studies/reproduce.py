@@ -67,7 +67,8 @@ def _columns(exp: Experiment) -> list[str]:
 
 
 def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic_only: bool,
-                    console: Console, executor: str = "process") -> list[str]:
+                    console: Console, executor: str = "process", scheduler: str | None = None,
+                    job_timeout_s: float | None = None) -> list[str]:
     """Run and write the three tables; returns the failed runs' messages (empty on success)."""
     t0 = time.perf_counter()
     real = [] if synthetic_only else real_sequences(data_dir)
@@ -85,7 +86,7 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
     per_table: dict[str, list[Job]] = {
         name: plan(jobs_for_experiment(exp, console)) for name, exp in experiments.items()}
     all_jobs = plan([j for js in per_table.values() for j in js])
-    outcomes = run_jobs(all_jobs, console, jobs, force, executor)
+    outcomes = run_jobs(all_jobs, console, jobs, force, executor, job_timeout_s, scheduler)
     for name, exp in experiments.items():
         kind, stem, caption = TABLES[name]
         only = {j.run_dir_override for j in per_table[name]}

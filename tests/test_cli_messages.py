@@ -1,0 +1,115 @@
+"""What a new user trips over on the command line: conflicting options, silent no-ops,
+misspellings and an unscorable segment length are each answered with one clear line (and the
+right exit code) before any job runs."""
+
+import numpy as np
+import pytest
+import yaml
+from typer.testing import CliRunner
+
+from bench.cli import app, main
+from conftest import constant_twist_sequence
+from loaders.store import write_store
+
+
+@pytest.fixture(scope="module")
+def store(tmp_path_factory):
+    seq = constant_twist_sequence(n_frames=30, n_points=800, max_range_m=60)
+    return write_store(seq, tmp_path_factory.mktemp("data") / "twist.h5")
+
+
+def _bench(args, capsys, monkeypatch) -> tuple[int, str]:
+    """The `bench` entry point itself (exit codes and message formatting of main())."""
+    monkeypatch.setattr("sys.argv", ["bench", *args])
+    with pytest.raises(SystemExit) as exit_:
+        main()
+    out = capsys.readouterr()
+    return exit_.value.code, out.out + out.err
+
+
+def _experiment(tmp_path, store, **extra):
+    path = tmp_path / "e.yaml"
+    path.write_text(yaml.safe_dump({"name": "e", "out": str(tmp_path / "out"),
+                                    "sequences": [{"path": str(store), "name": "twist"}],
+                                    "methods": [{"name": "doppler"}], **extra}))
+    return path
+
+
+def test_single_run_options_beside_an_experiment_are_refused(store, tmp_path, capsys,
+                                                             monkeypatch):
+    exp = _experiment(tmp_path, store)
+    for extra in (["--method", "icp-p2p"], ["--no-seed"], ["-p", "tau_doppler=3"]):
+        code, out = _bench(["run", str(exp), *extra], capsys, monkeypatch)
+        assert code == 2 and "would be ignored" in out and "e.yaml" in out, out
+    assert not (tmp_path / "out").exists()  # nothing ran
+
+
+def test_no_seed_on_a_method_without_a_guess_says_so(store, tmp_path, capsys, monkeypatch):
+    code, out = _bench(["run", "--method", "doppler", "--data", str(store), "--no-seed",
+                        "--out", str(tmp_path / "r")], capsys, monkeypatch)
+    assert code == 0 and "doppler takes no initial guess: --no-seed changes nothing" in out
+
+
+def test_a_segment_length_longer_than_the_path_is_an_error_before_any_job(
+        store, tmp_path, capsys, monkeypatch):
+    exp = _experiment(tmp_path, store, lengths_m=[100])  # the path is ~24 m
+    code, out = _bench(["run", str(exp)], capsys, monkeypatch)
+    assert code == 2 and out.count("too short for the shortest segment length 100 m") == 1
+    assert not (tmp_path / "out").exists()
+    # some lengths too long: a warning, the run goes on and those cells stay empty
+    exp = _experiment(tmp_path, store, lengths_m=[8, 100])
+    code, out = _bench(["run", str(exp)], capsys, monkeypatch)
+    assert code == 0 and "no segments of 100 m" in out
+
+
+def test_misspellings_get_did_you_mean(store, tmp_path, capsys, monkeypatch):
+    code, out = _bench(["run", "--method", "dopler", "--data", str(store)], capsys, monkeypatch)
+    assert code == 2 and "did you mean 'doppler'?" in out
+    code, out = _bench(["run", "--method", "doppler", "--data", str(store), "-p",
+                        "tau_spatail_m=2"], capsys, monkeypatch)
+    assert code == 2 and "unknown parameter 'tau_spatail_m'" in out
+    assert "did you mean 'tau_spatial_m'?" in out and "known parameters: tau_spatial_m" in out
+    bad = tmp_path / "bad.yaml"
+    bad.write_text(yaml.safe_dump({"name": "b", "sequences": [{"path": str(store), "nmae": "x"}],
+                                   "methods": [{"name": "icpp2p"}]}))
+    code, out = _bench(["run", str(bad)], capsys, monkeypatch)
+    assert code == 2
+    assert "sequences[0]: unknown key 'nmae' (did you mean 'name'?)" in out
+    assert "unknown method 'icpp2p' (did you mean 'icp-p2p'?)" in out
+    assert "pydantic" not in out and "Extra inputs" not in out  # no library internals
+
+
+def test_npy_frames_needs_the_period_or_an_explicit_choice(tmp_path, capsys, monkeypatch):
+    folder = tmp_path / "f"
+    folder.mkdir()
+    rng = np.random.default_rng(0)
+    for i in range(5):
+        np.save(folder / f"frame_{i:03d}.npy", rng.uniform(-9, 9, (30, 3)))
+        np.save(folder / f"frame_{i:03d}_dop.npy", rng.normal(0, 1, 30))
+    rows = "".join(f"{0.1 * i:.1f} {i} 0 0 0 0 0 1\n" for i in range(5))
+    (folder / "gt.txt").write_text(rows)
+    code, out = _bench(["convert", "npy-frames", str(folder), "--out", str(tmp_path / "a.h5")],
+                       capsys, monkeypatch)
+    assert code == 2 and "--period SECONDS" in out and "--stamps-from-gt" in out
+    assert not (tmp_path / "a.h5").exists()
+    code, out = _bench(["convert", "npy-frames", str(folder), "--stamps-from-gt", "--out",
+                        str(tmp_path / "b.h5")], capsys, monkeypatch)
+    assert code == 0 and (tmp_path / "b.h5").exists()
+
+
+def test_version_and_help_without_python_types(capsys, monkeypatch):
+    code, out = _bench(["--version"], capsys, monkeypatch)
+    assert code == 0 and out.startswith("doppler-bench ")
+    code, out = _bench(["run", "--help"], capsys, monkeypatch)
+    assert code == 0 and "--param KEY=VALUE" in out and "<" not in out, out
+    code, out = _bench(["--help"], capsys, monkeypatch)
+    commands = out.split("Commands:")[1]
+    assert code == 0 and "..." not in commands  # command summaries are whole
+    code, out = _bench(["convert", "--help"], capsys, monkeypatch)
+    assert code == 0 and "..." not in out.split("Commands:")[1]
+
+
+def test_cli_runner_still_runs_the_app(store, tmp_path):
+    res = CliRunner().invoke(app, ["run", "--method", "doppler", "--data", str(store),
+                                   "--out", str(tmp_path / "r")])
+    assert res.exit_code == 0, res.output
