@@ -55,7 +55,8 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
     if results_dir is not None and any(o.status in ("done", "skipped") for o in outcomes):
         from bench.report.tables import write_tables
 
-        console.print(write_tables(results_dir)["md"], markup=False)
+        # tables are never wrapped mid-row (a terminal narrower than a row scrolls instead)
+        console.print(write_tables(results_dir)["md"], markup=False, soft_wrap=True)
     elif results_dir is None and outcomes and outcomes[0].run_dir is not None:
         print_run_summary(outcomes[0].run_dir, console)
     return 1 if any(o.status not in ("done", "skipped") for o in outcomes) else 0

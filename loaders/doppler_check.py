@@ -62,6 +62,10 @@ def gt_velocities(stamps: np.ndarray, poses: np.ndarray, half_window: int | None
     return np.einsum("nji,nj->ni", poses[:, :3, :3], v_world)  # R^T v
 
 
+#: a Doppler / GT speed ratio further from 1 than this questions the stamps (the period)
+SPEED_RATIO_TOLERANCE = 0.10
+
+
 @dataclass
 class SignCheck:
     frames_used: int
@@ -102,9 +106,14 @@ def doppler_sign_check(seq: Sequence, gt_poses: np.ndarray | None, max_frames: i
         ratios.append(float(np.linalg.norm(v) / speed))
     if not cosines:
         return SignCheck(0, np.nan, np.nan, "inconclusive (no moving frames)")
-    cos = float(np.median(cosines))
+    cos, ratio = float(np.median(cosines)), float(np.median(ratios))
     verdict = "confirmed" if cos > 0.5 else "appears FLIPPED" if cos < -0.5 else "inconclusive"
-    return SignCheck(len(cosines), cos, float(np.median(ratios)), verdict)
+    if verdict == "confirmed" and abs(ratio - 1.0) > SPEED_RATIO_TOLERANCE:
+        # the direction agrees but the speed does not: a wrong scan period or GT clock (e.g.
+        # 0.1 s GT rows taken as the stamps of a 12 Hz radar) scales every speed
+        verdict = (f"confirmed in direction, but the Doppler speed is {ratio:.2f} x the GT "
+                   "speed: check the scan period (--period) and the GT clock")
+    return SignCheck(len(cosines), cos, ratio, verdict)
 
 
 def low_points_median_z(sequence: Sequence, frames: int = 50, quantile: float = 0.1) -> dict:

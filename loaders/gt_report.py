@@ -48,7 +48,7 @@ def gt_sanity_report(
             f"(largest {max(g['gap_s'] for g in gaps):.3f} s at t={gaps[0]['t']:.3f} s first)"
         )
     if out["repeated_poses"]:
-        findings.append(f"{out['repeated_poses']} consecutive repeated poses (GT stalled?)")
+        findings.append(_repeats_finding(same_pose))
     if out["repeated_stamps"]:
         findings.append(f"{out['repeated_stamps']} repeated stamps")
     if out["non_monotonic"]:
@@ -80,3 +80,18 @@ def _sorted_unique(gt: Trajectory) -> Trajectory:
     keep = np.ones(len(s), dtype=bool)
     keep[1:] = np.diff(s) > 0
     return Trajectory(s[keep], gt.poses[order[keep]])
+
+
+def _repeats_finding(same_pose: np.ndarray) -> str:
+    """Say what repeated poses look like: scattered single repeats at a steady share (ground
+    truth at a lower rate resampled onto the scans, e.g. 10 Hz onto 12 Hz: 1 step in 6) or
+    runs of repeats (the ground truth stalled)."""
+    n, steps = int(same_pose.sum()), len(same_pose)
+    edges = np.diff(np.r_[0, same_pose.astype(np.int8), 0])
+    runs = np.flatnonzero(edges == -1) - np.flatnonzero(edges == 1)
+    longest = int(runs.max())
+    if longest <= 2:
+        return (f"{n} of {steps} steps repeat the previous pose, scattered (1 step in "
+                f"{steps / n:.0f}): ground truth at a lower rate resampled onto the scans; "
+                "frame-to-frame errors are meaningless, segments of metres are fine")
+    return (f"{n} repeated poses, up to {longest} in a row (the ground truth stalled there?)")

@@ -141,6 +141,13 @@ def test_cli_run_table_inspect(store, tmp_path):
     res = runner.invoke(app, ["table", str(tmp_path), "-f", "csv", "--methods", "icp-p2p",
                               "--no-variants", "--out", str(tmp_path / "short")])
     assert res.exit_code == 0 and "icp-p2p" in res.output
+    # the folder's own table.* is its whole table: a filtered or merged view never replaces it
+    whole = (tmp_path / "table.md").read_text()
+    for view in (["--lengths", "8"], ["--methods", "icp-p2p"], ["--pivot"],
+                 [str(out_dir)]):  # a second folder: a merged view
+        res = runner.invoke(app, ["table", str(tmp_path), *view])
+        assert res.exit_code == 0 and "not written" in res.output, res.output
+        assert (tmp_path / "table.md").read_text() == whole
     res = runner.invoke(app, ["inspect", str(store)])
     assert res.exit_code == 0, res.output
     assert "points per frame" in res.output and "confirmed" in res.output

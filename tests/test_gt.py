@@ -164,6 +164,22 @@ def test_remove_origin_and_world_fix():
     np.testing.assert_allclose(local.poses[:, :3, :3], gt.poses[:, :3, :3])
 
 
+def test_repeated_poses_are_told_apart_from_a_stall():
+    """10 Hz GT nearest-matched onto 12 Hz scans repeats one step in six, scattered; a stalled
+    GT repeats in a row: the report says which."""
+    t = np.arange(0, 6.0, 1 / 12)
+    x = np.round(t * 10) / 10 * 5.0  # positions sampled at 10 Hz, given to 12 Hz stamps
+    resampled = gt_sanity_report(Trajectory(t, np.stack([make_T(np.eye(3), [v, 0, 0])
+                                                         for v in x])))
+    (finding,) = [f for f in resampled["findings"] if "repeat" in f]
+    assert "scattered (1 step in 6)" in finding and "lower rate" in finding
+    x[20:30] = x[20]
+    stalled = gt_sanity_report(Trajectory(t, np.stack([make_T(np.eye(3), [v, 0, 0])
+                                                       for v in x])))
+    (finding,) = [f for f in stalled["findings"] if "repeat" in f]
+    assert "in a row" in finding and "stalled" in finding
+
+
 def test_sanity_report_findings():
     t = np.concatenate([np.arange(0, 1.0, 0.1), [2.0, 2.1, 2.1, 2.05, 2.3]])
     poses = np.stack([make_T(np.eye(3), [s, 0, 0]) for s in t])

@@ -35,6 +35,16 @@ def test_real_sample_doppler_convention_is_confirmed(sample_dir):
     assert 0.8 < check.median_speed_ratio < 1.3
 
 
+def test_a_wrong_period_is_not_confirmed(sample_dir):
+    """The sample's TUM rows are 0.1 s apart but the radar runs at 12 Hz: stamped with 0.1 s
+    the GT speed comes out 1/1.2 of the truth (Doppler / GT speed 1.19), and the check says to
+    look at the period."""
+    seq, _ = _load(sample_dir, period_s=0.1)
+    check = doppler_sign_check(seq, seq.ground_truth.poses)
+    assert check.median_speed_ratio == pytest.approx(1.19, abs=0.05)
+    assert check.verdict.startswith("confirmed in direction") and "--period" in check.verdict
+
+
 def _write_folder(tmp_path, n=4, gt_rows=None):
     rng = np.random.default_rng(0)
     for i in range(1, n + 1):

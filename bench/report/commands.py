@@ -13,9 +13,11 @@ from loaders.errors import DataError
 def table_command(console: Console, status: Console, results_dirs: list[Path], format: str,
                   out: Path | None, lengths: str | None, pivot: bool, methods: str | None,
                   variants: bool) -> int:
-    """Print the paper-shaped table (or the pivot) and write its files; returns 0."""
+    """Print the paper-shaped table (or the pivot) and write its files; returns 0. The results
+    folder's own ``table.*`` is the whole table of that one folder: a filtered view (lengths,
+    methods, variants, pivot) or a merged one (several folders) is written only to ``out``."""
     from bench.report.cells import save_formats
-    from bench.report.tables import FORMATS, is_variant, select_rows, write_tables
+    from bench.report.tables import FORMATS, is_variant, select_rows
     from bench.report.tables_pivot import to_pivot_markdown
 
     wanted = None if methods is None else {m.strip() for m in methods.split(",")}
@@ -33,17 +35,20 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
         rows, chosen = select_rows(list(results_dirs), lengths_m=lengths_m, keep=keep)
     except ValueError as e:
         raise DataError(str(e)) from None
-    texts = write_tables(list(results_dirs), out, rows_lengths=(rows, chosen))
-    where = out or results_dirs[0]
+    view = pivot or len(results_dirs) > 1 or lengths is not None or methods is not None \
+        or not variants
+    where = out if out is not None else (None if view else results_dirs[0])
+    texts = {fmt: fn(rows, chosen) for fmt, fn in FORMATS.items()}
     if pivot:
-        text = "\n".join(to_pivot_markdown(rows, x) for x in chosen)
-        save_formats(where, "pivot", {"md": text})
-        sys.stdout.write(text)
-        status.print(f"wrote {where}/pivot.md and table.{{md,tex,csv}}", style="dim",
-                     markup=False)
+        texts = {"md": "\n".join(to_pivot_markdown(rows, x) for x in chosen)}
+    sys.stdout.write(texts["md" if pivot else format])  # unwrapped (a pipe gets valid CSV)
+    if where is None:
+        status.print("a filtered or merged view: not written (--out DIR writes it)",
+                     style="dim", markup=False)
         return 0
-    sys.stdout.write(texts[format])  # plain text, unwrapped (a pipe gets valid CSV)
-    status.print(f"wrote {where}/table.{{md,tex,csv}}", style="dim", markup=False)
+    stem = "pivot" if pivot else "table"
+    save_formats(where, stem, texts)
+    status.print(f"wrote {where}/{stem}.{{{','.join(texts)}}}", style="dim", markup=False)
     return 0
 
 

@@ -27,6 +27,11 @@ def _progress(console: Console) -> Progress:
                     console=console, transient=False)
 
 
+def _rate(frames: int, seconds: float) -> str:
+    """Frames per second, once there is a second of it to go by ("-" before)."""
+    return f"{frames / seconds:6.1f}" if seconds >= 1.0 and frames > 0 else "-"
+
+
 def run_jobs(jobs: list[Job], console: Console | None = None, workers: int = 1,
              force: bool = False, executor: str = "process", job_timeout_s: float | None = None,
              scheduler: str | None = None) -> list[JobOutcome]:
@@ -37,15 +42,20 @@ def run_jobs(jobs: list[Job], console: Console | None = None, workers: int = 1,
     try:
         with _progress(console) as progress:
             overall = progress.add_task(f"{len(jobs)} runs", total=len(jobs), fps="-")
-            tasks: dict[str, tuple[int, float]] = {}
+            tasks: dict[str, tuple[int, float, int]] = {}  # title -> (task, first report, done)
+            frames_done: dict[str, int] = {}
+            t0 = time.monotonic()
 
             def report(job: Job, done: int, total: int) -> None:
+                now = time.monotonic()
                 if job.title not in tasks:
                     tasks[job.title] = (progress.add_task(escape(job.title), total=total,
-                                                          fps="-"), time.monotonic())
-                task, start = tasks[job.title]
-                fps = done / max(time.monotonic() - start, 1e-9)
-                progress.update(task, completed=done, fps=f"{fps:6.1f}")
+                                                          fps="-"), now, done)
+                task, first, done_first = tasks[job.title]
+                # the rate since the first report (the frames before it took an unknown time)
+                progress.update(task, completed=done, fps=_rate(done - done_first, now - first))
+                frames_done[job.title] = done
+                progress.update(overall, fps=_rate(sum(frames_done.values()), now - t0))
 
             def finish(outcome: JobOutcome) -> None:
                 finished.append(outcome)

@@ -99,7 +99,7 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
             console.print(f"{stem}: no finished runs", style="red")
             continue
         console.print(f"\n{stem}", style="bold")
-        console.print(texts["md"], markup=False, highlight=False)
+        console.print(texts["md"], markup=False, highlight=False, soft_wrap=True)
     figures = make_figures(out)
     if figures:
         console.print(f"figures: {out / 'figures'}/ ({len(figures)} files)", markup=False)
