@@ -198,13 +198,17 @@ def regress(
                                               "and print what changed")] = False,
     tolerance: Annotated[float, typer.Option(help="relative growth that fails")] = 0.10,
     jobs: Annotated[int, typer.Option(min=1, help="parallel workers")] = 2,
+    data_dir: Annotated[Path | None, typer.Option(
+        help="where the CI suite is generated (default: the experiment's, data/)")] = None,
+    out: Annotated[Path | None, typer.Option(
+        help="where its runs go (default: the experiment's, results/ci)")] = None,
 ) -> None:
     """CI regression: run configs/experiments/ci.yaml (unchanged runs are reused) and compare
     with configs/ci/baseline.json; exit 1 when a method's error grows by more than the
     tolerance or it newly diverges."""
     from bench.studies.regress import regress_command
 
-    raise typer.Exit(regress_command(console, update, tolerance, jobs))
+    raise typer.Exit(regress_command(console, update, tolerance, jobs, data_dir, out))
 
 
 @app.command(short_help="paper figures from results")

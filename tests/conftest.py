@@ -48,6 +48,29 @@ def constant_twist_sequence(n_frames: int = 20, n_points: int = 3000, v=(8.0, 0.
     return MemorySequence("twist", SensorInfo("lidar", dt, model="test"), scans, gt, {"test": 1})
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _outputs_in_a_temporary_folder(tmp_path_factory):
+    """Commands that write to default places relative to the working folder (results/...,
+    data/...) write into a temporary folder, never into the checkout."""
+    import os
+
+    old = os.getcwd()
+    os.chdir(tmp_path_factory.mktemp("cwd"))
+    yield
+    os.chdir(old)
+
+
+@pytest.fixture(scope="session")
+def ci_data_dir(tmp_path_factory) -> Path:
+    """The CI suite (configs/experiments/ci.yaml), generated once per test session into a
+    temporary folder (about 8 s)."""
+    from loaders.synthetic import ensure_suite
+
+    folder = tmp_path_factory.mktemp("ci-data")
+    ensure_suite("synthetic-ci", folder)
+    return folder
+
+
 @pytest.fixture
 def twist_sequence() -> MemorySequence:
     return constant_twist_sequence()

@@ -253,8 +253,9 @@ def build_cases(tmp: Path) -> dict[str, Case]:
 
 def run_bench(args: list[str]) -> subprocess.CompletedProcess:
     env = {**os.environ, "COLUMNS": "200", "OMP_NUM_THREADS": "1"}
-    return subprocess.run([BENCH, *args], capture_output=True, text=True, cwd=ROOT, env=env,
-                          timeout=120)
+    # in the session's temporary working folder: default outputs (results/inspect/...) go there
+    return subprocess.run([BENCH, *args], capture_output=True, text=True, cwd=Path.cwd(),
+                          env=env, timeout=120)
 
 
 @pytest.fixture(scope="module")

@@ -15,8 +15,9 @@ from bench.studies import regress as rg
 
 
 @pytest.fixture(scope="module")
-def current(tmp_path_factory):
+def current(tmp_path_factory, ci_data_dir):
     exp = load_experiment(rg.CI_EXPERIMENT)
+    exp.data_dir = ci_data_dir
     exp.out = tmp_path_factory.mktemp("ci")
     outcomes = run_jobs(plan(jobs_for_experiment(exp)), workers=2)
     assert all(o.status == "done" for o in outcomes), [o.message for o in outcomes]
@@ -29,11 +30,10 @@ def test_no_method_regressed_against_the_committed_baseline(current):
     assert not bad, "\n".join(bad) + "\n(deliberate? accept it with `bench regress --update`)"
 
 
-def test_a_deliberately_degraded_method_is_caught(current, tmp_path):
+def test_a_deliberately_degraded_method_is_caught(current, tmp_path, ci_data_dir):
     baseline = rg.read_baseline()
     # doppler with a feature gate 100x too tight: fewer, worse correspondences
-    exp = load_experiment(rg.CI_EXPERIMENT)
-    store = exp.data_dir / "synthetic-ci" / "ci-semidense.h5"
+    store = ci_data_dir / "synthetic-ci" / "ci-semidense.h5"
     run_method("doppler", store, params={"tau_doppler": 0.05},
                out=tmp_path / "ci-semidense" / "doppler")
     degraded = copy.deepcopy(current)
@@ -48,7 +48,8 @@ def test_a_deliberately_degraded_method_is_caught(current, tmp_path):
     assert any(f.regression and f.what == "run" for f in rg.check(baseline, gone))
 
 
-def test_regress_update_rewrites_the_baseline_and_prints_the_diff(tmp_path, monkeypatch):
+def test_regress_update_rewrites_the_baseline_and_prints_the_diff(tmp_path, monkeypatch,
+                                                                   ci_data_dir):
     from bench.cli import app
 
     old = rg.read_baseline()
@@ -57,9 +58,10 @@ def test_regress_update_rewrites_the_baseline_and_prints_the_diff(tmp_path, monk
     path = tmp_path / "baseline.json"
     rg.write_baseline(stale, path)
     monkeypatch.setattr(rg, "BASELINE", path)
-    res = CliRunner().invoke(app, ["regress"])
+    where = ["--data-dir", str(ci_data_dir), "--out", str(tmp_path / "ci")]
+    res = CliRunner().invoke(app, ["regress", *where])
     assert res.exit_code == 1 and "REGRESSION  ci-sparse/doppler/-  trans_m at 8 m" in res.output
-    res = CliRunner().invoke(app, ["regress", "--update"])
+    res = CliRunner().invoke(app, ["regress", "--update", *where])
     assert res.exit_code == 0 and "ci-sparse/doppler/-  trans_m at 8 m" in res.output
     _assert_same_run(rg.read_baseline(path)["ci-sparse/doppler/-"], old["ci-sparse/doppler/-"])
 

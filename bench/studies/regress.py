@@ -101,15 +101,21 @@ def write_baseline(current: dict, path: Path | None = None) -> None:
         "runs": current}, indent=1) + "\n")
 
 
-def regress_command(console, update: bool, tolerance: float, jobs: int) -> int:
-    """Run the CI experiment (finished runs reused) and compare with the baseline (or, with
-    ``update``, rewrite it and print what changed); returns the exit code."""
+def regress_command(console, update: bool, tolerance: float, jobs: int,
+                    data_dir: Path | None = None, out: Path | None = None) -> int:
+    """Run the CI experiment (finished runs reused; its suite under ``data_dir``, its runs under
+    ``out``, default the experiment's) and compare with the baseline (or, with ``update``,
+    rewrite it and print what changed); returns the exit code."""
     from bench.runs.experiment import load_experiment
     from bench.runs.job import summarize
     from bench.runs.plan import jobs_for_experiment, plan
     from bench.runs.progress import run_jobs
 
     exp = load_experiment(CI_EXPERIMENT)
+    if data_dir is not None:
+        exp.data_dir = Path(data_dir)
+    if out is not None:
+        exp.out = Path(out)
     outcomes = run_jobs(plan(jobs_for_experiment(exp, console)), console, jobs)
     if any(o.status not in ("done", "skipped") for o in outcomes):
         console.print(summarize(outcomes), markup=False)
