@@ -16,7 +16,7 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
     """Print the paper-shaped table (or the pivot) and write its files; returns 0."""
     from bench.report.cells import save_formats
     from bench.report.tables import FORMATS, is_variant, select_rows, write_tables
-    from bench.report.tables_pivot import to_pivot_markdown
+    from bench.report.tables_pivot import pivot_markdown
 
     wanted = None if methods is None else {m.strip() for m in methods.split(",")}
 
@@ -36,7 +36,7 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
     texts = write_tables(list(results_dirs), out, rows_lengths=(rows, chosen))
     where = out or results_dirs[0]
     if pivot:
-        text = "\n".join(to_pivot_markdown(rows, x) for x in chosen)
+        text = pivot_markdown(rows, chosen)
         save_formats(where, "pivot", {"md": text})
         sys.stdout.write(text)
         status.print(f"wrote {where}/pivot.md and table.{{md,tex,csv}}", style="dim",
