@@ -49,14 +49,14 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
 
 def compare_command(console: Console, a: Path, b: Path, threshold: float,
                     fail_on_regression: bool) -> int:
-    """Print A -> B per cell; returns 1 when asked to fail and B regresses."""
-    from bench.report.compare import compare, to_text
+    """Print A, B and the change per cell and the times per run as markdown; returns 1 when
+    asked to fail and B regresses."""
+    from bench.report.compare import compare, compare_times, to_markdown
 
-    df = compare(a, b, threshold)
-    console.print(to_text(df), markup=False, highlight=False)
-    n = int(df["regression"].sum())
-    console.print(f"{len(df)} cells, {n} regressions (> {threshold:.0%} growth or newly "
-                  "diverged)", markup=False)
+    cells, times = compare(a, b, threshold), compare_times(a, b)
+    # written as is (not wrapped): `bench compare A B > diff.md` is a valid markdown file
+    sys.stdout.write(to_markdown(cells, times, a, b, threshold))
+    n = int(cells["regression"].sum()) if len(cells) else 0
     return 1 if fail_on_regression and n else 0
 
 
