@@ -37,7 +37,8 @@ def _seed(x) -> bool | None:
 def _frame(path: Path) -> pd.DataFrame:
     df = load_results(path)
     if df.empty:
-        raise FileNotFoundError(f"{path}: no finished runs (no metrics.json found)")
+        raise FileNotFoundError(f"{path}: no finished runs with relative errors (no "
+                                "metrics.json of a run with ground truth found)")
     df["label"] = df["label"].fillna("")
     seeds = [_seed(s) for s in df["seed"]]
     df["run"] = [run_label(m, s, lab or None)
