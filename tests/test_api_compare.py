@@ -1,5 +1,6 @@
 """The notebook API (and the README's example) and `bench compare`."""
 
+import json
 import re
 from pathlib import Path
 
@@ -42,20 +43,144 @@ def test_run_method_returns_the_metrics_and_load_results_one_row_per_length(stor
     assert row["seed"] is None and row["ape_trans_m"] == m["ape"]["trans_rmse_m"]
 
 
+def _tables(text: str) -> list[tuple[list[str], list[list[str]]]]:
+    """The pipe tables of a markdown text as (header, rows); asserts each is a valid table:
+    a header separator row and as many cells in every row as in the header."""
+    tables, block = [], []
+    for line in [*text.splitlines(), ""]:
+        if line.startswith("|"):
+            block.append(line)
+            continue
+        if block:
+            def cells(row):
+                assert row.startswith("| ") and row.endswith(" |"), row
+                return [c.strip() for c in re.split(r"(?<!\\)\|", row)[1:-1]]
+
+            header = cells(block[0])
+            assert re.fullmatch(r"\|( :?-+:? \|)+", block[1]), block[1]
+            assert len(cells(block[1])) == len(header)
+            rows = [cells(r) for r in block[2:]]
+            assert all(len(r) == len(header) for r in rows), block
+            tables.append((header, rows))
+            block = []
+    return tables
+
+
+def _fake_run(root: Path, sequence: str, method: str, seed, errors: dict, time_ms: float,
+              diverged: bool = False) -> None:
+    """A finished run folder as `bench run` leaves it (the files compare reads); ``errors``:
+    length -> (rotation [deg], translation [m], segments)."""
+    name = method if seed is None else f"{method}_{'seed' if seed else 'noseed'}"
+    d = root / sequence / name
+    d.mkdir(parents=True)
+    rel = {L: {"rot_deg_mean": r if n else None, "trans_m_mean": t if n else None,
+               "rot_deg_median": r if n else None, "trans_m_median": t if n else None, "n": n}
+           for L, (r, t, n) in errors.items()}
+    (d / "metrics.json").write_text(json.dumps({
+        "sequence": sequence, "method": method, "seed": seed, "frames": 50,
+        "diverged": diverged, "relative_error": rel, "ape": {"trans_rmse_m": 1.0},
+        "time_ms": {"mean": time_ms, "median": time_ms}}))
+
+
+def _fake_results(root: Path, scale: float = 1.0, time_scale: float = 1.0,
+                  drop: str | None = None, diverge: str | None = None) -> Path:
+    """Three runs (with seed, no seed, no initial guess) with segments at 8 and 16 m only."""
+    for method, seed, t in (("icp-p2p", True, 5.0), ("icp-p2p", False, 6.0),
+                            ("doppler", None, 0.5)):
+        if drop == f"{method}{seed}":
+            continue
+        _fake_run(root, "seqA", method, seed,
+                  {"8": (1.0 * scale, 0.5 * scale, 10), "16": (2.0 * scale, 1.0 * scale, 4),
+                   "48": (0, 0, 0)}, t * time_scale, diverged=diverge == f"{method}{seed}")
+    return root
+
+
 def test_compare_shows_the_changed_cell(store, tmp_path):
     run_method("doppler", store, out=tmp_path / "a" / "twist" / "doppler")
     run_method("doppler", store, params={"tau_spatial_m": 0.5},
                out=tmp_path / "b" / "twist" / "doppler")
     res = CliRunner().invoke(app, ["compare", str(tmp_path / "a"), str(tmp_path / "b")])
     assert res.exit_code == 0, res.output
-    line = next(x for x in res.output.splitlines() if x.startswith("twist | doppler") and
-                "| 8 |" in x)
-    a, b, delta = re.search(r"\| ([\d.]+) -> ([\d.]+) \(([-+][\d.]+)\) \|$",
-                            line.split(" | ", 5)[5].rsplit(" | ", 1)[0] + " |").groups()
-    assert float(a) != float(b) and float(delta) == pytest.approx(float(b) - float(a), abs=2e-3)
+    (header, rows), _ = _tables(res.output)
+    row = dict(zip(header, next(r for r in rows if r[0] == "twist" and r[2] == "8"),
+                   strict=True))
+    assert row["Run"] == "(No initial guess) Doppler Correspondence (Ours)"
+    a, b = float(row["Trans. A"]), float(row["Trans. B"])
+    delta = float(row["Trans. change"].split()[0])
+    assert a != b and delta == pytest.approx(b - a, abs=2e-3)
     same = CliRunner().invoke(app, ["compare", str(tmp_path / "a"), str(tmp_path / "a"),
                                     "--fail-on-regression"])
     assert same.exit_code == 0 and "0 regressions" in same.output
+
+
+def test_compare_is_valid_markdown_with_seed_tags_times_and_no_empty_cells(tmp_path):
+    a = _fake_results(tmp_path / "a")
+    b = _fake_results(tmp_path / "b", scale=1.05, time_scale=2.0)
+    res = CliRunner().invoke(app, ["compare", str(a), str(b)])
+    assert res.exit_code == 0, res.output
+    assert "nan" not in res.output.lower() and "None" not in res.output
+    (header, rows), (theader, trows) = _tables(res.output)
+    assert header[:3] == ["Sequence", "Run", "Length [m]"]
+    # 3 runs x the 2 lengths with segments; 48 m has none on either side: no cell
+    assert sorted((r[1], r[2]) for r in rows) == sorted(
+        (run, L) for run in ("(With Seed) ICP point-to-point", "(No Seed) ICP point-to-point",
+                             "(No initial guess) Doppler Correspondence (Ours)")
+        for L in ("8", "16"))
+    assert [r[1] for r in rows[::2]] == ["(With Seed) ICP point-to-point",
+                                         "(No Seed) ICP point-to-point",
+                                         "(No initial guess) Doppler Correspondence (Ours)"]
+    assert "6 cells (0 only in A, 0 only in B), 0 regressions" in res.output
+    # one time row per run: A, B and the change B - A
+    assert theader == ["Sequence", "Run", "Time A", "Time B", "Change", "Note"]
+    times = {r[1]: r[2:5] for r in trows}
+    assert times == {"(With Seed) ICP point-to-point": ["5.00", "10.00", "+5.00 (+100.0%)"],
+                     "(No Seed) ICP point-to-point": ["6.00", "12.00", "+6.00 (+100.0%)"],
+                     "(No initial guess) Doppler Correspondence (Ours)":
+                         ["0.50", "1.00", "+0.50 (+100.0%)"]}
+
+
+def test_compare_marks_regressions_and_runs_on_one_side_only(tmp_path):
+    a = _fake_results(tmp_path / "a", drop="icp-p2pFalse")
+    b = _fake_results(tmp_path / "b", scale=1.2, drop="doppler" + "None",
+                      diverge="icp-p2pTrue")
+    runner = CliRunner()
+    res = runner.invoke(app, ["compare", str(a), str(b)])
+    assert res.exit_code == 0, res.output  # without --fail-on-regression
+    (header, rows), (_, trows) = _tables(res.output)
+    notes = {(r[1], r[2]): r[-1] for r in rows}
+    assert notes[("(With Seed) ICP point-to-point", "8")] == "! regression; ! newly diverged"
+    assert notes[("(No Seed) ICP point-to-point", "8")] == "only in B"
+    assert notes[("(No initial guess) Doppler Correspondence (Ours)", "16")] == "only in A"
+    only_b = next(r for r in rows if r[1] == "(No Seed) ICP point-to-point")
+    assert only_b[3] == "-" and only_b[5] == "-"  # nothing in A, no change
+    assert {r[1]: r[-1] for r in trows}["(No Seed) ICP point-to-point"] == "only in B"
+    assert "6 cells (2 only in A, 2 only in B), 2 regressions" in res.output
+    res = runner.invoke(app, ["compare", str(a), str(b), "--fail-on-regression"])
+    assert res.exit_code == 1
+    res = runner.invoke(app, ["compare", str(a), str(b), "--fail-on-regression",
+                              "--threshold", "0.5"])
+    assert res.exit_code == 1  # growth within 50 %, but a run newly diverged
+    b2 = _fake_results(tmp_path / "b2", scale=1.2)
+    res = runner.invoke(app, ["compare", str(a), str(b2), "--fail-on-regression",
+                              "--threshold", "0.5"])
+    assert res.exit_code == 0 and "0 regressions" in res.output
+
+
+def test_compare_of_an_empty_folder_is_a_clear_error(tmp_path):
+    a = _fake_results(tmp_path / "a")
+    (tmp_path / "empty").mkdir()
+    res = CliRunner().invoke(app, ["compare", str(a), str(tmp_path / "empty")])
+    assert isinstance(res.exception, FileNotFoundError) and "no finished runs" in str(
+        res.exception)
+
+
+def test_markdown_table_escapes_pipes_and_pads_columns():
+    from bench.report.compare import markdown_table
+
+    lines = markdown_table(["a", "bb"], [["x|y", "1.5"], ["z", "10.25"]], right={1})
+    assert lines == ["| a    |    bb |", "| ---- | ----: |", "| x\\|y |   1.5 |",
+                     "| z    | 10.25 |"]
+    assert len({len(line) for line in lines}) == 1  # aligned in a terminal
 
 
 def test_table_over_several_experiments_labels_each(store, tmp_path):

@@ -185,18 +185,42 @@ def test_labelled_variants_are_told_apart_from_plain_methods():
 
 def test_pivot_table_ranks_methods_per_sequence():
     from bench.report.tables import Row
-    from bench.report.tables_pivot import to_pivot_markdown
+    from bench.report.tables_pivot import to_pivot_markdown, to_pivot_time_markdown
 
-    def row(seq, label, rot, trans, diverged=False):
+    def row(seq, label, rot, trans, diverged=False, time_ms=1.0):
         return Row("Semi-Dense 4D Radar", seq, label, True, label, {"48": rot}, {"48": trans},
-                   1.0, diverged)
+                   time_ms, diverged)
 
-    rows = [row("A", "m1", 0.5, 2.0), row("A", "m2", 0.2, 3.0), row("A", "m3", 9.0, 0.001),
-            row("B", "m1", 1.5, 0.1), row("B", "m2", 0.0, 0.0, diverged=True)]
+    rows = [row("A", "m1", 0.5, 2.0, time_ms=12.345), row("A", "m2", 0.2, 3.0, time_ms=3.21),
+            row("A", "m3", 9.0, 0.001, time_ms=0.5), row("B", "m1", 1.5, 0.1),
+            row("B", "m2", 0.0, 0.0, diverged=True, time_ms=7.0)]
     lines = to_pivot_markdown(rows, "48").splitlines()
     assert lines[0] == "| 48 m | A | B |"
     cells = {ln.split("|")[1].strip(): [c.strip() for c in ln.split("|")[2:4]]
              for ln in lines[2:5]}
-    assert cells["m1"] == ["<u>0.500</u> / <u>2.00</u>", "**1.50** / **0.100**"]
-    assert cells["m2"] == ["**0.200** / 3.00", "Div."]  # diverged: not ranked
-    assert cells["m3"] == ["9.00 / **0.001**", ""]     # not run on B
+    # the main table's format: three decimals whatever the size
+    assert cells["m1"] == ["<u>0.500</u> / <u>2.000</u>", "**1.500** / **0.100**"]
+    assert cells["m2"] == ["**0.200** / 3.000", "Div."]  # diverged: not ranked
+    assert cells["m3"] == ["9.000 / **0.001**", ""]      # not run on B
+    times = to_pivot_time_markdown(rows).splitlines()
+    assert times[0] == "| Time (ms) | A | B |"
+    tcells = {ln.split("|")[1].strip(): [c.strip() for c in ln.split("|")[2:4]]
+              for ln in times[2:5]}
+    # the Time column's format (2 decimals below 10 ms, 1 above); a diverged run's time is
+    # shown but not ranked
+    assert tcells == {"m1": ["12.3", "**1.00**"], "m2": ["<u>3.21</u>", "7.00"],
+                      "m3": ["**0.50**", ""]}
+
+
+def test_pivot_cells_read_as_the_main_table():
+    from bench.report.tables import Row, to_markdown
+    from bench.report.tables_pivot import to_pivot_markdown
+
+    rows = [Row("Dense 4D LiDAR", "Straight Wall", "dicp", True, "(With Seed) DICP",
+                {"8": 0.05}, {"8": 12.3456}, 29.1, False),
+            Row("Dense 4D LiDAR", "Straight Wall", "doppler", None, "Ours",
+                {"8": 0.486}, {"8": 0.068}, 7.8, False)]
+    main = [ln for ln in to_markdown(rows, ["8"]).splitlines() if "DICP" in ln][0]
+    pivot = [ln for ln in to_pivot_markdown(rows, "8").splitlines() if "DICP" in ln][0]
+    assert main.split(" | ")[3] == pivot.split(" | ")[1].rstrip(" |") == \
+        "**0.050** / <u>12.346</u>"

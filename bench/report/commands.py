@@ -18,7 +18,7 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
     methods, variants, pivot) or a merged one (several folders) is written only to ``out``."""
     from bench.report.cells import save_formats
     from bench.report.tables import FORMATS, is_variant, select_rows
-    from bench.report.tables_pivot import to_pivot_markdown
+    from bench.report.tables_pivot import pivot_markdown
 
     wanted = None if methods is None else {m.strip() for m in methods.split(",")}
 
@@ -40,7 +40,7 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
     where = out if out is not None else (None if view else results_dirs[0])
     texts = {fmt: fn(rows, chosen) for fmt, fn in FORMATS.items()}
     if pivot:
-        texts = {"md": "\n".join(to_pivot_markdown(rows, x) for x in chosen)}
+        texts = {"md": pivot_markdown(rows, chosen)}
     sys.stdout.write(texts["md" if pivot else format])  # unwrapped (a pipe gets valid CSV)
     if where is None:
         status.print("a filtered or merged view: not written (--out DIR writes it)",
@@ -54,14 +54,14 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
 
 def compare_command(console: Console, a: Path, b: Path, threshold: float,
                     fail_on_regression: bool) -> int:
-    """Print A -> B per cell; returns 1 when asked to fail and B regresses."""
-    from bench.report.compare import compare, to_text
+    """Print A, B and the change per cell and the times per run as markdown; returns 1 when
+    asked to fail and B regresses."""
+    from bench.report.compare import compare, compare_times, to_markdown
 
-    df = compare(a, b, threshold)
-    console.print(to_text(df), markup=False, highlight=False)
-    n = int(df["regression"].sum())
-    console.print(f"{len(df)} cells, {n} regressions (> {threshold:.0%} growth or newly "
-                  "diverged)", markup=False)
+    cells, times = compare(a, b, threshold), compare_times(a, b)
+    # written as is (not wrapped): `bench compare A B > diff.md` is a valid markdown file
+    sys.stdout.write(to_markdown(cells, times, a, b, threshold))
+    n = int(cells["regression"].sum()) if len(cells) else 0
     return 1 if fail_on_regression and n else 0
 
 

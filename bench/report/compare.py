@@ -1,10 +1,16 @@
 """``bench compare A B``: two result folders (or two run folders) side by side.
 
-Runs are matched by sequence, method, label, seed option and segment length; each cell shows
-A, B and the change B - A of the mean rotation [deg] and translation [m] relative error. A
-cell whose error grew by more than ``threshold`` (relative) is marked as a regression, and so
-is a run that diverges in B but not in A. Two run folders (each with a metrics.json) are
+Runs are matched by sequence, method, label and seed tag (which motion prior a run used: "With
+Seed", "No Seed", ...). For every segment length at which A or B has segments, one row (a cell)
+shows the mean rotation [deg] and translation [m] relative error of A and B and the change
+B - A; a length at which neither has segments is no cell. A cell whose error grew by more than
+``threshold`` (relative) is a regression, and so is every cell of a run that diverges in B but
+not in A. A second table gives each run's mean time per frame ``time_ms`` (all per-frame work,
+``methods.timing``) in A and B and its change. Two run folders (each with a metrics.json) are
 compared by sequence and length whatever their methods.
+
+``to_markdown`` writes both tables as one markdown document: pipe tables with a header
+separator row, columns padded to equal width so that it also reads in a terminal.
 """
 
 from __future__ import annotations
@@ -12,69 +18,216 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from bench.report.dataframe import load_results
+from bench.report.names import order_key, run_label, seed_tag, sequence_key
 
-KEYS = ["sequence", "method", "label", "seed", "length_m"]
+RUN_KEYS = ["sequence", "method", "label", "seed"]
+QUANTITIES = ("rot_deg_mean", "trans_m_mean")
+_SEED_ORDER = ["With Seed", "With Seed, own model", "No Seed", "No initial guess"]
+
+
+def _seed(x) -> bool | None:
+    """A seed option read back through pandas (None and NaN: the method takes no guess)."""
+    return None if x is None or (isinstance(x, float) and math.isnan(x)) else bool(x)
 
 
 def _frame(path: Path) -> pd.DataFrame:
     df = load_results(path)
     if df.empty:
-        raise FileNotFoundError(f"{path}: no finished runs (no metrics.json found)")
+        raise FileNotFoundError(f"{path}: no finished runs with relative errors (no "
+                                "metrics.json of a run with ground truth found)")
+    df["label"] = df["label"].fillna("")
+    seeds = [_seed(s) for s in df["seed"]]
+    df["run"] = [run_label(m, s, lab or None)
+                 for m, s, lab in zip(df["method"], seeds, df["label"], strict=True)]
+    df["seed"] = [seed_tag(m, s) for m, s in zip(df["method"], seeds, strict=True)]
     return df
 
 
-def compare(a: Path, b: Path, threshold: float = 0.10) -> pd.DataFrame:
-    """One row per matched cell: A and B values, deltas, ``regression`` flag."""
-    da, db = _frame(a), _frame(b)
+def _pair(a: Path, b: Path) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
+    """Both sides and the keys that match a run of A with a run of B."""
     single = (Path(a) / "metrics.json").exists() and (Path(b) / "metrics.json").exists()
-    keys = ["sequence", "length_m"] if single else KEYS
-    for df in (da, db):
-        df["label"] = df["label"].fillna("")
-        df["seed"] = df["seed"].astype(str)
+    return _frame(a), _frame(b), ["sequence"] if single else RUN_KEYS
+
+
+def _finite(x) -> bool:
+    return isinstance(x, float | int | np.number) and not isinstance(x, bool) and \
+        math.isfinite(x)
+
+
+def _true(x) -> bool:
+    return isinstance(x, bool | np.bool_) and bool(x)
+
+
+def _run_name(r) -> str:
+    """The run's name; two run folders of different runs show "A's -> B's"."""
+    names = [x for x in (r.get("run_a"), r.get("run_b")) if isinstance(x, str)]
+    return names[0] if len(set(names)) == 1 else " -> ".join(names)
+
+
+def compare(a: Path, b: Path, threshold: float = 0.10) -> pd.DataFrame:
+    """One row per cell (run x segment length where A or B has segments): the run's keys,
+    ``run`` (its display label), A and B values, ``*_delta`` = B - A, ``only_in`` ("A", "B" or
+    ""), ``regression`` and ``note``."""
+    da, db, run_keys = _pair(a, b)
+    keys = [*run_keys, "length_m"]
     merged = da.merge(db, on=keys, suffixes=("_a", "_b"), how="outer", indicator=True)
     rows = []
     for _, r in merged.iterrows():
         row = {k: r[k] for k in keys}
-        if single:
-            row["method"] = f"{r['method_a']} -> {r['method_b']}"
+        row["run"] = _run_name(r)
         row["only_in"] = {"left_only": "A", "right_only": "B"}.get(r["_merge"], "")
-        regression = bool(r.get("diverged_b") is True and r.get("diverged_a") is not True)
-        for q in ("rot_deg_mean", "trans_m_mean"):
+        newly_diverged = _true(r.get("diverged_b")) and not _true(r.get("diverged_a"))
+        grew = False
+        for q in QUANTITIES:
             va, vb = r.get(f"{q}_a"), r.get(f"{q}_b")
             row[f"{q}_a"], row[f"{q}_b"] = va, vb
             delta = vb - va if _finite(va) and _finite(vb) else math.nan
             row[f"{q}_delta"] = delta
-            if _finite(delta) and va > 0 and delta / va > threshold:
-                regression = True
-        row["regression"] = regression
+            grew |= _finite(delta) and va > 0 and delta / va > threshold
+        row["regression"] = newly_diverged or grew
+        row["has_data"] = any(_finite(row[f"{q}_{s}"]) for q in QUANTITIES for s in "ab")
+        row["note"] = _note(row, grew, newly_diverged, r)
         rows.append(row)
-    return pd.DataFrame(rows)
+    df = pd.DataFrame(rows)
+    if df.empty:
+        return df
+    # a length without segments on either side is no cell; a newly diverged run keeps one row
+    # even then, so that its regression is never dropped
+    empty = ~df["has_data"]
+    df["_first"] = ~df.duplicated(subset=run_keys)
+    keep = ~empty | (df["regression"] & df["_first"] & ~_any_data(df, run_keys))
+    df.loc[keep & empty, "length_m"] = math.nan
+    return _in_table_order(df[keep].drop(columns=["has_data", "_first"]), run_keys)
 
 
-def _finite(x) -> bool:
-    return x is not None and isinstance(x, float | int) and math.isfinite(x)
+def _in_table_order(df: pd.DataFrame, run_keys: list[str]) -> pd.DataFrame:
+    """Rows in the main table's order: the paper's sequences, methods and seed options (with
+    seed first), then by length."""
+    def key(r) -> tuple:
+        k = (sequence_key(r["sequence"]),)
+        if "method" in run_keys:
+            tag = r["seed"]
+            k += (order_key(r["method"]), r["method"],
+                  _SEED_ORDER.index(tag) if tag in _SEED_ORDER else len(_SEED_ORDER),
+                  r["label"])
+        length = r.get("length_m", 0.0)
+        return (*k, length if _finite(length) else -1.0)
+
+    order = sorted(range(len(df)), key=lambda i: key(df.iloc[i]))
+    return df.iloc[order].reset_index(drop=True)
 
 
-def to_text(df: pd.DataFrame) -> str:
-    """A plain table: "A -> B (delta)" per quantity, regressions marked with '!'."""
-    lines = ["sequence | method | label | seed | length [m] | rotation [deg] A -> B (delta) | "
-             "translation [m] A -> B (delta) | "]
-    for _, r in df.iterrows():
-        cells = []
-        for q in ("rot_deg_mean", "trans_m_mean"):
-            a, b, d = r[f"{q}_a"], r[f"{q}_b"], r[f"{q}_delta"]
-            cells.append(f"{_fmt(a)} -> {_fmt(b)} ({'+' if _finite(d) and d >= 0 else ''}"
-                         f"{_fmt(d)})")
-        mark = "! regression" if r["regression"] else (f"only in {r['only_in']}"
-                                                        if r.get("only_in") else "")
-        lines.append(f"{r['sequence']} | {r.get('method', '')} | {r.get('label', '')} | "
-                     f"{r.get('seed', '')} | {r['length_m']:g} | {cells[0]} | {cells[1]} | "
-                     f"{mark}")
-    return "\n".join(lines) + "\n"
+def _any_data(df: pd.DataFrame, run_keys: list[str]) -> pd.Series:
+    """Per row: does its run have a cell with data at any length?"""
+    return df.groupby(run_keys, dropna=False)["has_data"].transform("any")
 
 
-def _fmt(x) -> str:
-    return f"{x:.3f}" if _finite(x) else "-"
+def _note(row: dict, grew: bool, newly_diverged: bool, r) -> str:
+    notes = []
+    if grew:
+        notes.append("! regression")
+    if newly_diverged:
+        notes.append("! newly diverged")
+    elif _true(r.get("diverged_a")) and _true(r.get("diverged_b")):
+        notes.append("diverged in A and B")
+    elif _true(r.get("diverged_a")) and row["only_in"] == "":
+        notes.append("diverged in A only")
+    if row["only_in"]:
+        notes.append(f"only in {row['only_in']}")
+    else:
+        for side in "ab":
+            if not any(_finite(row[f"{q}_{side}"]) for q in QUANTITIES):
+                notes.append(f"no segments in {side.upper()}")
+    return "; ".join(notes)
+
+
+def compare_times(a: Path, b: Path) -> pd.DataFrame:
+    """One row per run: the mean time per frame [ms] of A and B (``time_ms_a``, ``time_ms_b``),
+    ``time_ms_delta`` = B - A and ``only_in``."""
+    da, db, run_keys = _pair(a, b)
+    cols = [*run_keys, "run", "time_ms_mean"]
+    runs_a, runs_b = (d.drop_duplicates(subset=run_keys)[cols] for d in (da, db))
+    merged = runs_a.merge(runs_b, on=run_keys, suffixes=("_a", "_b"), how="outer",
+                          indicator=True)
+    rows = []
+    for _, r in merged.iterrows():
+        ta, tb = r.get("time_ms_mean_a"), r.get("time_ms_mean_b")
+        rows.append({**{k: r[k] for k in run_keys}, "run": _run_name(r),
+                     "time_ms_a": ta, "time_ms_b": tb,
+                     "time_ms_delta": tb - ta if _finite(ta) and _finite(tb) else math.nan,
+                     "only_in": {"left_only": "A", "right_only": "B"}.get(r["_merge"], "")})
+    return _in_table_order(pd.DataFrame(rows), run_keys) if rows else pd.DataFrame(rows)
+
+
+# ---- output ----------------------------------------------------------------------------------
+
+def _fmt(x, digits: int = 3) -> str:
+    return f"{x:.{digits}f}" if _finite(x) else "-"
+
+
+def _change(a, b, digits: int = 3) -> str:
+    """B - A with its sign, and the relative change when A is not zero: "+0.012 (+4.1%)"."""
+    if not (_finite(a) and _finite(b)):
+        return "-"
+    text = f"{b - a:+.{digits}f}"
+    return text + (f" ({(b - a) / a:+.1%})" if a != 0 else "")
+
+
+def _length(x) -> str:
+    return f"{x:g}" if _finite(x) else "-"
+
+
+def markdown_table(header: list[str], rows: list[list[str]], right: set[int]) -> list[str]:
+    """A pipe table, every column padded to its widest cell (``right``: right-aligned column
+    indices); cells escape '|'."""
+    cells = [[str(c).replace("|", r"\|") for c in row] for row in [header, *rows]]
+    widths = [max(3, *(len(row[i]) for row in cells)) for i in range(len(header))]
+
+    def line(row):
+        return "| " + " | ".join(c.rjust(w) if i in right else c.ljust(w)
+                                 for i, (c, w) in enumerate(zip(row, widths, strict=True))) + " |"
+
+    sep = "| " + " | ".join("-" * (w - 1) + ":" if i in right else "-" * w
+                            for i, w in enumerate(widths)) + " |"
+    return [line(cells[0]), sep, *(line(row) for row in cells[1:])]
+
+
+def to_markdown(cells: pd.DataFrame, times: pd.DataFrame, a: Path, b: Path,
+                threshold: float) -> str:
+    """The relative-error table (one row per cell), the time table (one row per run) and a
+    one-line summary, as markdown."""
+    out = [f"A = `{a}`, B = `{b}`", "",
+           "Mean relative error over the segments of each length: rotation [deg], translation "
+           "[m]; change = B - A:", ""]
+    rows = []
+    for _, r in cells.iterrows():
+        row = [r["sequence"], r["run"], _length(r["length_m"])]
+        for q in QUANTITIES:
+            row += [_fmt(r[f"{q}_a"]), _fmt(r[f"{q}_b"]), _change(r[f"{q}_a"], r[f"{q}_b"])]
+        rows.append([*row, r["note"]])
+    out += markdown_table(["Sequence", "Run", "Length [m]", "Rot. A", "Rot. B", "Rot. change",
+                           "Trans. A", "Trans. B", "Trans. change", "Note"], rows,
+                          right=set(range(2, 9)))
+    out += ["", "Mean time per frame [ms] (all per-frame work, `time_ms`):", ""]
+    rows = [[r["sequence"], r["run"], _fmt(r["time_ms_a"], 2), _fmt(r["time_ms_b"], 2),
+             _change(r["time_ms_a"], r["time_ms_b"], 2),
+             f"only in {r['only_in']}" if r["only_in"] else ""] for _, r in times.iterrows()]
+    out += markdown_table(["Sequence", "Run", "Time A", "Time B", "Change", "Note"],
+                          rows, right={2, 3, 4})
+    out += ["", summary(cells, threshold)]
+    return "\n".join(out) + "\n"
+
+
+def summary(cells: pd.DataFrame, threshold: float) -> str:
+    """"12 cells (2 only in A, 0 only in B), 1 regression (...)"."""
+    n = len(cells)
+    only = cells["only_in"].value_counts() if n else pd.Series(dtype=int)
+    regressions = int(cells["regression"].sum()) if n else 0
+    return (f"{n} {'cell' if n == 1 else 'cells'} ({only.get('A', 0)} only in A, "
+            f"{only.get('B', 0)} only in B), {regressions} "
+            f"{'regression' if regressions == 1 else 'regressions'} (> {threshold:.0%} growth "
+            "or newly diverged)")

@@ -1,22 +1,57 @@
-"""Shared style of the paper figures: one colour per method across every figure, paper-column
-sizes and display names as in the tables. Runs come from ``bench.runs.folders.load_runs``."""
+"""Shared style of the paper figures: one paper column wide (3.5 in, fonts 6-7 pt), one colour
+per method in every figure, the motion prior told apart by line style and marker (and in box
+plots by hatching), legends below the axes, display names as in the tables and file names made
+of readable slugs. Runs come from ``bench.runs.folders.load_runs``."""
 
 from __future__ import annotations
 
+import math
+import re
 from pathlib import Path
 
-from bench.report.names import PAPER_ORDER, run_label
+from bench.report.names import order_key, run_label, seed_tag
 from loaders.fileio import atomic_path
 
 COLUMN_IN = 3.5  # one paper column [inch]
-PALETTE = ["#1f77b4", "#ff7f0e", "#2ca02c", "#d62728", "#9467bd", "#8c564b", "#e377c2",
-           "#17becf", "#bcbd22", "#7f7f7f"]
+DPI = 300
+FONT_PT = 7
+SMALL_PT = 6
+
+#: one colour per method (tab10 hues; the paper's own methods in red and orange)
+_COLORS = {"icp-p2p": "#1f77b4", "icp-p2plane": "#17becf", "gicp": "#2ca02c",
+           "vgicp": "#bcbd22", "dicp": "#9467bd", "kiss-icp": "#8c564b",
+           "doppler": "#d62728", "doppler-icp": "#ff7f0e", "doppler-ego": "#e377c2"}
+_OTHER_COLOR = "#7f7f7f"
+
+#: seed tag -> (line style, marker, box hatch): with and without a seed differ in all three
+_PRIOR_STYLE = {"With Seed": ("-", "o", ""), "With Seed, own model": ("-", "D", ""),
+                "No Seed": ("--", "x", "//////"), "No initial guess": ("-", "s", "")}
 
 
 def color(method: str) -> str:
     """The method's colour, the same in every figure."""
-    i = PAPER_ORDER.index(method) if method in PAPER_ORDER else len(PAPER_ORDER)
-    return PALETTE[i % len(PALETTE)]
+    return _COLORS.get(method, _OTHER_COLOR)
+
+
+def prior_style(run) -> tuple[str, str, str]:
+    """(line style, marker, hatch) of a run's motion prior (``names.seed_tag``)."""
+    return _PRIOR_STYLE.get(seed_tag(run.method, run.seed), ("-", "o", ""))
+
+
+def line_kwargs(run, k: int = 0, n: int = 1, points: int | None = None) -> dict:
+    """Plot keywords of a run's line: its method's colour, its prior's line style and about
+    ten markers along the line (run ``k`` of ``n`` starts its markers at its own offset, so
+    lines on top of each other still show every marker kind). Markers are spaced by distance
+    on the axes, or, given the line's number of ``points`` (a noisy series), by index."""
+    ls, marker, _ = prior_style(run)
+    if points is None:
+        every = (0.1 * k / max(n, 1), 0.1)
+    else:
+        step = max(1, points // 10)
+        every = (step * k // max(n, 1), step)
+    return {"color": color(run.method), "ls": ls, "marker": marker, "ms": 3.2,
+            "markevery": every, "mfc": "none" if marker != "x" else None, "mew": 0.8,
+            "lw": 1.0}
 
 
 def use_paper_style() -> None:
@@ -25,26 +60,100 @@ def use_paper_style() -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    plt.rcParams.update({"font.size": 7, "axes.titlesize": 7, "axes.labelsize": 7,
-                         "legend.fontsize": 6, "xtick.labelsize": 6, "ytick.labelsize": 6,
-                         "lines.linewidth": 1.0, "axes.grid": True, "grid.alpha": 0.3})
+    plt.rcParams.update({"font.size": FONT_PT, "axes.titlesize": FONT_PT,
+                         "axes.labelsize": FONT_PT, "legend.fontsize": SMALL_PT,
+                         "xtick.labelsize": SMALL_PT, "ytick.labelsize": SMALL_PT,
+                         "lines.linewidth": 1.0, "axes.linewidth": 0.6, "axes.grid": True,
+                         "grid.alpha": 0.3, "grid.linewidth": 0.4, "hatch.linewidth": 0.6,
+                         "pdf.fonttype": 42, "ps.fonttype": 42, "figure.dpi": 100,
+                         "legend.handlelength": 2.6, "legend.columnspacing": 1.2})
+
+
+def figure(height_in: float, nrows: int = 1, ncols: int = 1, width_in: float = COLUMN_IN,
+           **kwargs):
+    """A figure one column wide laid out by matplotlib's constrained layout (legends placed
+    "outside" get their own room, nothing is cut off and the width stays exact)."""
+    import matplotlib.pyplot as plt
+
+    return plt.subplots(nrows, ncols, figsize=(width_in, height_in), layout="constrained",
+                        **kwargs)
+
+
+def legend_below(fig, handles, labels, max_ncol: int = 2, note: str = "") -> None:
+    """The legend below the axes (never over the data), as many columns as fit the figure's
+    width; ``note`` (e.g. which runs are not shown) is written above its entries."""
+    import textwrap
+
+    if not handles and not note:
+        return
+    fig_w = fig.get_figwidth() * fig.dpi
+    # about 3.2 pt per character at 6 pt: a line of the note fits the column
+    title = "\n".join(textwrap.wrap(note, int(fig.get_figwidth() * 72 / 3.3))) or None
+    for ncol in range(min(max_ncol, max(len(handles), 1)), 0, -1):
+        legend = fig.legend(handles, labels, loc="outside lower center", ncol=ncol,
+                            frameon=False, title=title, title_fontsize=SMALL_PT - 0.5)
+        width = legend.get_window_extent(fig.canvas.get_renderer()).width
+        if width <= 0.98 * fig_w or ncol == 1:
+            if title:
+                legend.get_title().set_color("0.3")
+            return
+        legend.remove()
+
+
+def fit_height(fig, axes_in: float) -> None:
+    """Make the figure tall enough for ``axes_in`` of axes (with their titles and labels) plus
+    its legend, so that the axes keep their size."""
+    renderer = fig.canvas.get_renderer()
+    extra = sum(a.get_window_extent(renderer).height for a in fig.legends)
+    fig.set_figheight(axes_in + 0.75 + extra / fig.dpi)
+
+
+def log_y(ax, axis: str = "y") -> None:
+    """A log axis (``axis`` "y" or "x") labelled with plain numbers (0.2, 0.5, 1, 2 ...; 1,
+    10, 100 ... over more than two decades). Call it after the limits are final."""
+    import matplotlib.ticker as mticker
+
+    getattr(ax, f"set_{axis}scale")("log")
+    lo, hi = getattr(ax, f"get_{axis}lim")()
+    subs = (1.0, 2.0, 5.0) if math.log10(hi / lo) <= 2.5 else (1.0,)
+    target = ax.yaxis if axis == "y" else ax.xaxis
+    target.set_major_locator(mticker.LogLocator(base=10, subs=subs))
+    target.set_major_formatter(mticker.FuncFormatter(lambda v, _: f"{v:g}"))
+    target.set_minor_formatter(mticker.NullFormatter())
+
+
+def set_title(ax, text: str) -> None:
+    """An axes title, wrapped to fit a column (long sequence names get a second line)."""
+    import textwrap
+
+    ax.set_title("\n".join(textwrap.wrap(text, 58)))
+
+
+def slug(name: str) -> str:
+    """A safe, readable file name: "Baker-Barry Tunnel (Empty)" -> "baker-barry-tunnel-empty"."""
+    return re.sub(r"[^a-z0-9]+", "-", name.lower()).strip("-") or "unnamed"
 
 
 def save(fig, path_stem: Path) -> list[Path]:
-    """Write ``path_stem``.pdf and .png atomically; returns both paths."""
+    """Write ``path_stem``.pdf and .png atomically at the figure's exact size; returns both."""
     import matplotlib.pyplot as plt
 
     path_stem.parent.mkdir(parents=True, exist_ok=True)
     paths = []
     for fmt in ("pdf", "png"):
-        path = path_stem.with_suffix(f".{fmt}")
+        path = path_stem.with_name(path_stem.name + f".{fmt}")
         with atomic_path(path) as tmp:
-            fig.savefig(tmp, format=fmt, dpi=200, bbox_inches="tight")
+            fig.savefig(tmp, format=fmt, dpi=DPI)
         paths.append(path)
     plt.close(fig)
     return paths
 
 
 def run_name(run) -> str:
-    """A run's legend name (a ``bench.runs.folders.RunRecord``)."""
+    """A run's legend name (a ``bench.runs.folders.RunRecord``), as its table row."""
     return run_label(run.method, run.seed, run.label)
+
+
+def run_order(run) -> tuple:
+    """Runs in the tables' row order: the paper's methods, with seed before without."""
+    return (order_key(run.method), run.method, run.seed is False, run.label or "")

@@ -1,13 +1,15 @@
 """Paper figures from run folders (``bench figures RESULTS_DIR``, ``make figures``).
 
-- ``trajectories/<sequence>``: every method over the ground truth, top view (paper Fig. 5).
-  Estimates are aligned at their first pose; start and end are marked; with-seed runs are
-  solid and no-seed runs dashed so neither hides the other; the axes follow the ground truth
-  (equal scale unless the path is very elongated), and a diverged run is clipped to them and
-  labelled "Div.".
-- the error figures of ``bench.report.figures_errors`` (box plots per length, error along the path,
-  per-frame time and correspondences) and, given a ``bench speed`` CSV, its scaling curves.
-Every figure is written as PDF and PNG, one paper column wide, one colour per method.
+- ``trajectories/<sequence-slug>``: every method over the ground truth, top view (paper Fig. 5),
+  always at equal scale in x and y (a long straight path gives a wide, short figure). Estimates
+  are aligned at their first pose; the ground truth's start and end are marked; each method has
+  its colour and each motion prior its line style and marker (with seed solid with circles, no
+  seed dashed with crosses). The axes hold the ground truth and every run that did not
+  diverge; a diverged run is drawn up to where it leaves them and labelled "Div.".
+- the error figures of ``bench.report.figures_errors`` (box plots per length, error along the
+  path, per-frame time and correspondences) and, given a ``bench speed`` CSV, its scaling curves.
+Every figure is written as PDF and PNG, one paper column (3.5 in) wide, legends below the axes,
+file names made of readable slugs (``figstyle.slug``).
 """
 
 from __future__ import annotations
@@ -16,9 +18,28 @@ from pathlib import Path
 
 import numpy as np
 
-from bench.report.figstyle import COLUMN_IN, color, run_name, save, use_paper_style
+from bench.report.figstyle import (
+    COLUMN_IN,
+    SMALL_PT,
+    color,
+    figure,
+    legend_below,
+    line_kwargs,
+    run_name,
+    run_order,
+    save,
+    set_title,
+    slug,
+    use_paper_style,
+)
+from bench.report.names import sequence_key
 from bench.runs.folders import RunRecord, load_runs
 from loaders.se3 import inv_T
+
+#: height of the trajectory axes [in]: at least this (a straight path), at most that
+_MIN_AXES_IN, _MAX_AXES_IN = 0.8, 3.0
+#: room for tick labels and the y label beside the axes, and for the title and x label [in]
+_SIDE_IN, _TOP_BOTTOM_IN = 0.5, 0.55
 
 
 def _runs_with_gt(results_dir: Path) -> list[RunRecord]:
@@ -30,54 +51,65 @@ def _aligned_xy(run: RunRecord) -> np.ndarray:
     return T[:, :2, 3]
 
 
+def _limits(kept: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """x and y limits [m] around the kept paths with the same margin on both axes."""
+    lo = np.min([k.min(axis=0) for k in kept], axis=0)
+    hi = np.max([k.max(axis=0) for k in kept], axis=0)
+    pad = max(0.05 * float(np.max(hi - lo)), 1.0)
+    return lo - pad, hi + pad
+
+
+def _axes_shape(lo: np.ndarray, hi: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """Limits widened to the axes' shape and the axes height [in]: the axes fill one column's
+    width at equal scale, their height clamped (a straight path gets the minimum height and
+    wider y limits, a tall path the maximum and wider x limits)."""
+    span = hi - lo
+    width_in = COLUMN_IN - _SIDE_IN
+    height_in = float(np.clip(width_in * span[1] / span[0], _MIN_AXES_IN, _MAX_AXES_IN))
+    want = np.array([span[0], span[0] * height_in / width_in])
+    if want[1] < span[1]:
+        want = np.array([span[1] * width_in / height_in, span[1]])
+    mid = (lo + hi) / 2
+    return mid - want / 2, mid + want / 2, height_in
+
+
 def plot_sequence(sequence: str, runs: list[RunRecord], out_dir: Path) -> list[Path]:
     import matplotlib.pyplot as plt
 
     gt = runs[0].gt[:, :2, 3]
-    # the axes hold the ground truth and every run that did not diverge; per-axis margins,
-    # so lateral errors stay visible on a long straight path
-    kept = [gt] + [_aligned_xy(r) for r in runs
-                   if not r.diverged and np.all(np.isfinite(r.est))]
-    lo, hi = np.min([k.min(axis=0) for k in kept], 0), np.max([k.max(axis=0) for k in kept], 0)
-    span = np.maximum(hi - lo, 1.0)
-    pad = np.maximum(0.08 * span, 2.0)
-    elongated = span.max() / span.min() > 4
-    width = COLUMN_IN
-    height = COLUMN_IN * (0.55 if elongated else min(1.0, max(0.5, span[1] / span[0])))
-    fig, ax = plt.subplots(figsize=(width, height + 0.5))
-    ax.plot(gt[:, 0], gt[:, 1], color="black", lw=1.6, label="ground truth", zorder=1)
-    ax.plot(*gt[0], "o", color="black", ms=4, zorder=5)
+    finite = [r for r in sorted(runs, key=run_order) if np.all(np.isfinite(r.est))]
+    kept = [gt] + [_aligned_xy(r) for r in finite if not r.diverged]
+    lo, hi = _limits(kept)
+    lo_ax, hi_ax, axes_in = _axes_shape(lo, hi)
+    # a first guess of the figure's height; the legend's real height is added below
+    fig, ax = figure(axes_in + _TOP_BOTTOM_IN)
+    ax.plot(gt[:, 0], gt[:, 1], color="black", lw=1.4, label="ground truth", zorder=1)
+    ax.plot(*gt[0], "o", color="black", ms=4, mfc="white", zorder=5)
     ax.plot(*gt[-1], "s", color="black", ms=4, zorder=5)
-    xlim = (lo[0] - pad[0], hi[0] + pad[0])
-    ylim = (lo[1] - pad[1], hi[1] + pad[1])
-    for run in sorted(runs, key=lambda r: (r.method, r.seed is False)):
-        if not np.all(np.isfinite(run.est)):
-            continue
+    for k, run in enumerate(finite):
         xy = _aligned_xy(run)
-        inside = ((xy[:, 0] >= xlim[0]) & (xy[:, 0] <= xlim[1]) & (xy[:, 1] >= ylim[0])
-                  & (xy[:, 1] <= ylim[1]))
-        # a run that leaves the axes is drawn up to where it leaves them (clipped, labelled)
+        inside = ((xy >= lo) & (xy <= hi)).all(axis=1)
+        # a run that leaves the axes is drawn up to where it first leaves them
         shown = xy if inside.all() else xy[: max(1, int(np.argmin(inside)))]
         name = run_name(run) + (" - Div." if run.diverged else "")
-        ax.plot(shown[:, 0], shown[:, 1], color=color(run.method),
-                ls="--" if run.seed is False else "-", alpha=0.9, label=name, zorder=2)
-        if inside.all():
-            ax.plot(*xy[-1], "s", color=color(run.method), ms=3, zorder=4)
-        else:
-            ax.annotate("Div.", shown[-1], fontsize=6, color=color(run.method))
-    ax.set_xlim(*xlim)
-    ax.set_ylim(*ylim)
-    if not elongated:
-        ax.set_aspect("equal", adjustable="box")
+        ax.plot(shown[:, 0], shown[:, 1], alpha=0.9, label=name, zorder=2,
+                **line_kwargs(run, k, len(finite)))
+        if not inside.all():
+            ax.annotate("Div.", shown[-1], xytext=(2, 2), textcoords="offset points",
+                        fontsize=SMALL_PT, color=color(run.method))
+    ax.set_xlim(lo_ax[0], hi_ax[0])
+    ax.set_ylim(lo_ax[1], hi_ax[1])
+    ax.set_aspect("equal", adjustable="box")  # one metre is as long in x as in y
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
-    ax.set_title(f"{sequence} (o start, \u25a0 end)")
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2, frameon=False)
-    return save(fig, out_dir / "trajectories" / _safe(sequence))
-
-
-def _safe(name: str) -> str:
-    return "".join(c if c.isalnum() or c in "-_." else "_" for c in name)
+    set_title(ax, f"{sequence} (\u25cb start, \u25a0 end)")
+    handles, labels = ax.get_legend_handles_labels()
+    legend_below(fig, handles, labels)
+    legend_in = fig.legends[0].get_window_extent(fig.canvas.get_renderer()).height / fig.dpi
+    fig.set_figheight(axes_in + _TOP_BOTTOM_IN + legend_in + 0.1)
+    paths = save(fig, out_dir / "trajectories" / slug(sequence))
+    plt.close(fig)
+    return paths
 
 
 def plot_trajectories(results_dir: Path, out_dir: Path | None = None) -> list[Path]:
@@ -89,8 +121,8 @@ def plot_trajectories(results_dir: Path, out_dir: Path | None = None) -> list[Pa
         if len(run.gt) >= 2:
             groups.setdefault(run.display_name, []).append(run)
     written = []
-    for sequence, runs in sorted(groups.items()):
-        written += plot_sequence(sequence, runs, out_dir)
+    for sequence in sorted(groups, key=sequence_key):
+        written += plot_sequence(sequence, groups[sequence], out_dir)
     return written
 
 

@@ -1,10 +1,13 @@
 """One scan pair, closest-point versus Doppler correspondences (the paper's Figs. 1 and 8):
-``bench figures --pair STORE FRAME`` draws frame FRAME (source) and FRAME+1 (target) from
-above with the pairs as lines: left, the closest target point of each source point within
-3 m (point-to-point ICP's first correspondences, from the identity); right, Doppler
-Correspondence's pairs (Algorithm 2's matching and masks). With ground truth, a pair is green
-when the true motion brings the source point within 0.5 m of its partner, else red, and the
-share of good pairs is in each title."""
+``bench figures --pair STORE FRAME`` draws frame FRAME (source, light grey) and FRAME+1
+(target, dark grey) from above with the pairs as lines: top, the closest target point of each
+source point within 3 m (point-to-point ICP's first correspondences, from the identity); bottom,
+Doppler Correspondence's pairs (Algorithm 2's matching and masks). Pairs between consecutive
+scans are a few metres long, so both panels show the same zoomed window (30 m wide, where the
+pairs are densest) and at most 300 of its pairs. With ground truth, a pair is blue when the
+true motion brings the source point within 0.5 m of its partner, else vermillion, and the share
+of consistent pairs is in each title. One column wide, written as
+``pairs/<store-slug>-frame-<FRAME>.{pdf,png}``."""
 
 from __future__ import annotations
 
@@ -13,13 +16,26 @@ from pathlib import Path
 import numpy as np
 import small_gicp
 
-from bench.report.figstyle import COLUMN_IN, save, use_paper_style
+from bench.report.figstyle import (
+    COLUMN_IN,
+    FONT_PT,
+    SMALL_PT,
+    figure,
+    fit_height,
+    legend_below,
+    save,
+    slug,
+    use_paper_style,
+)
 from loaders.errors import DataError
 from loaders.se3 import inv_T, transform_points
 from loaders.store import StoreSequence
 from methods.doppler import DopplerCorrespondence, doppler_pairs
 
-MAX_LINES = 400
+MAX_LINES = 300   # pairs drawn per panel (a random subset of those in view)
+WINDOW_M = 30.0   # width of the zoomed window [m]
+GOOD_M = 0.5      # a pair is consistent when the true motion brings it within this [m]
+_GOOD, _BAD = "#0072B2", "#D55E00"  # blue / vermillion: told apart with any colour vision
 
 
 def pair_correspondences(store: Path, frame: int) -> dict:
@@ -51,41 +67,83 @@ def pair_correspondences(store: Path, frame: int) -> dict:
         seq.close()
 
 
-def plot_pair(store: Path, frame: int, out_dir: Path) -> list[Path]:
-    import matplotlib.pyplot as plt
+def _window(points_xy: np.ndarray, width_m: float, height_m: float,
+            cell_m: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """The width x height window [m] (lower and upper corner) holding the most of the points:
+    pairs between consecutive scans are a few metres long, so only a zoom shows them."""
+    if not len(points_xy):
+        return np.array([-width_m / 2, -height_m / 2]), np.array([width_m / 2, height_m / 2])
+    lo = points_xy.min(axis=0)
+    cells = np.floor((points_xy - lo) / cell_m).astype(int)
+    grid = np.zeros(cells.max(axis=0) + 1)
+    np.add.at(grid, (cells[:, 0], cells[:, 1]), 1)
+    w, h = max(1, int(width_m / cell_m)), max(1, int(height_m / cell_m))
+    padded = np.zeros((grid.shape[0] + w, grid.shape[1] + h))
+    padded[:grid.shape[0], :grid.shape[1]] = grid
+    c = np.pad(padded.cumsum(0).cumsum(1), ((1, 0), (1, 0)))
+    sums = c[w:, h:] - c[:-w, h:] - c[w:, :-h] + c[:-w, :-h]  # points in the window at (i, j)
+    i, j = np.unravel_index(int(np.argmax(sums[:grid.shape[0], :grid.shape[1]])),
+                            grid[:, :].shape)
+    corner = lo + np.array([i, j]) * cell_m
+    size = np.array([width_m, height_m])
+    inside = points_xy[((points_xy >= corner) & (points_xy <= corner + size)).all(axis=1)]
+    mid = (inside.min(axis=0) + inside.max(axis=0)) / 2  # centred on what it holds
+    return mid - size / 2, mid + size / 2
+
+
+def plot_pair(store: Path, frame: int, out_dir: Path, window_m: float = WINDOW_M) -> list[Path]:
+    """The pair figure of ``store``'s frames ``frame`` -> ``frame + 1``, one column wide: both
+    kinds of correspondences in the same ``window_m`` wide window (the one with the most
+    pairs), at most ``MAX_LINES`` pairs drawn per panel."""
     from matplotlib.collections import LineCollection
+    from matplotlib.lines import Line2D
 
     use_paper_style()
     data = pair_correspondences(store, frame)
     src, tgt = data["source"], data["target"]
-    span = np.ptp(src[:, :2], axis=0) + 1e-9
-    elongated = span.max() / span.min() > 3
-    fig, axes = (plt.subplots(2, 1, figsize=(COLUMN_IN * 2, COLUMN_IN * 1.3)) if elongated
-                 else plt.subplots(1, 2, figsize=(COLUMN_IN * 2, COLUMN_IN * 1.1)))
+    height_m = window_m * 0.6
+    paired = np.concatenate([src[data[k][0], :2] for k in ("closest", "doppler")])
+    lo, hi = _window(paired, window_m, height_m)
+    pad = 0.5
+    fig, axes = figure(2 * 0.6 * (COLUMN_IN - 0.5) + 1.2, 2, 1, sharex=True, sharey=True)
     rng = np.random.default_rng(0)
+    has_gt = data["T_true"] is not None
     for ax, key, title in zip(axes, ("closest", "doppler"),
-                              ("closest point (ICP)", "Doppler Correspondence"), strict=True):
+                              ("Closest point (ICP)", "Doppler Correspondence"),
+                              strict=True):
         s_idx, t_idx = data[key]
         good = np.ones(len(s_idx), bool)
-        if data["T_true"] is not None and len(s_idx):
+        if has_gt and len(s_idx):
             moved = transform_points(data["T_true"], src[s_idx])
-            good = np.linalg.norm(moved - tgt[t_idx], axis=1) < 0.5
-        pick = rng.permutation(len(s_idx))[:MAX_LINES]
-        segs = np.stack([src[s_idx[pick], :2], tgt[t_idx[pick], :2]], axis=1)
-        ax.scatter(src[:, 0], src[:, 1], s=0.15, color="#1f77b4", alpha=0.4, zorder=1,
-                   label="source (frame k)")
-        ax.scatter(tgt[:, 0], tgt[:, 1], s=0.15, color="#ff7f0e", alpha=0.4, zorder=1,
-                   label="target (frame k+1)")
-        ax.add_collection(LineCollection(segs, colors=np.where(good[pick, None],
-                                                               [[0.1, 0.6, 0.1, 0.7]],
-                                                               [[0.85, 0.1, 0.1, 0.7]]),
-                                         linewidths=0.7, zorder=3))
-        share = f" ({good.mean():.0%} consistent with the true motion)" if len(s_idx) else ""
-        ax.set_title(f"{title}\n{len(s_idx)} pairs{share}")
-        ax.set_xlabel("x [m]")
+            good = np.linalg.norm(moved - tgt[t_idx], axis=1) < GOOD_M
+        ends = np.stack([src[s_idx, :2], tgt[t_idx, :2]], axis=1)
+        in_view = np.flatnonzero(((ends >= lo - pad) & (ends <= hi + pad)).all(axis=(1, 2)))
+        pick = rng.permutation(in_view)[:MAX_LINES]
+        for pts, shade, mk in ((src, "0.65", "o"), (tgt, "0.2", "o")):
+            ax.scatter(pts[:, 0], pts[:, 1], s=0.6, color=shade, lw=0, zorder=1, marker=mk,
+                       rasterized=True)
+        colors = [_GOOD if g else _BAD for g in good[pick]]
+        ax.add_collection(LineCollection(ends[pick], colors=colors, linewidths=0.8,
+                                         alpha=0.9, zorder=3))
+        share = f", {good.mean():.0%} consistent" if has_gt and len(s_idx) else ""
+        ax.set_title(f"{title}: {len(s_idx)} pairs{share}\n({len(pick)} of the "
+                     f"{len(in_view)} in view drawn)", fontsize=SMALL_PT)
         ax.set_ylabel("y [m]")
-        if not elongated:
-            ax.set_aspect("equal", adjustable="datalim")
-    axes[0].legend(loc="upper right", markerscale=8, frameon=False)
-    fig.suptitle(data["name"] + " (lines: a random subset of the pairs)", fontsize=7)
-    return save(fig, out_dir / "pairs" / f"{Path(store).stem}_frame{frame}")
+        ax.set_xlim(lo[0], hi[0])
+        ax.set_ylim(lo[1], hi[1])
+        ax.set_aspect("equal", adjustable="box")
+    axes[-1].set_xlabel("x [m] (sensor frame of frame k)")
+    handles = [Line2D([], [], ls="", marker="o", ms=3, color="0.65", label="frame k (source)"),
+               Line2D([], [], ls="", marker="o", ms=3, color="0.2", label="frame k+1 (target)")]
+    if has_gt:
+        handles += [Line2D([], [], color=_GOOD, lw=1.2,
+                           label=f"pair consistent with the true motion (< {GOOD_M:g} m)"),
+                    Line2D([], [], color=_BAD, lw=1.2, label="pair inconsistent with it")]
+    else:
+        handles += [Line2D([], [], color=_GOOD, lw=1.2, label="pair (no ground truth)")]
+    fig.suptitle(data["name"], fontsize=FONT_PT)
+    legend_below(fig, handles, [h.get_label() for h in handles],
+                 note=f"Zoom: the {window_m:g} m x {height_m:g} m window with the most pairs; "
+                 "closest points from the identity within 3 m.")
+    fit_height(fig, 2 * 0.6 * (COLUMN_IN - 0.5) + 0.3)
+    return save(fig, out_dir / "pairs" / f"{slug(Path(store).stem)}-frame-{frame}")

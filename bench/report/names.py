@@ -6,6 +6,8 @@ A method that is not listed shows its registry name.
 
 from __future__ import annotations
 
+import re
+
 #: registry name -> display name (the paper's Tables IV/V names)
 _NAMES: dict[str, str] = {
     "icp-p2p": "ICP point-to-point",
@@ -19,9 +21,20 @@ _NAMES: dict[str, str] = {
     "doppler-ego": "Doppler-Ego (this harness)",
 }
 
-# the paper lists the baselines first and its own methods last; methods beyond the paper follow
-PAPER_ORDER = ["icp-p2p", "icp-p2plane", "gicp", "vgicp", "dicp", "kiss-icp", "doppler",
-               "doppler-icp", "doppler-ego"]
+# the paper lists the baselines first and its own methods last (Tables III-V); methods beyond
+# the paper follow (a baseline, then this harness's own)
+PAPER_ORDER = ["icp-p2p", "icp-p2plane", "gicp", "vgicp", "dicp", "doppler", "doppler-icp",
+               "kiss-icp", "doppler-ego"]
+
+#: the paper's sequences in the order of its tables (Table III: sparse radar, semi-dense radar,
+#: then LiDAR: the two CARLA walls before the Baker-Barry tunnels; Loop1_1 is only in Table IV),
+#: each as (sequence name, display name)
+PAPER_SEQUENCES = [("Campus1", "Campus1"), ("Campus2", "Campus2"),
+                   ("Loop1_0", "Loop1_0"), ("Loop1_1", "Loop1_1"), ("Loop1_2", "Loop1_2"),
+                   ("Loop1_3", "Loop1_3"), ("Loop1_4", "Loop1_4"),
+                   ("StraightWall", "Straight Wall"), ("CurvedWall", "Curved Wall"),
+                   ("Tunnel_Empty", "Baker-Barry Tunnel (Empty)"),
+                   ("Tunnel_Vehicles", "Baker-Barry Tunnel (Vehicles)")]
 
 #: what the seed tags mean (table captions and figure notes)
 SEED_NOTE = ("With Seed: each step starts from the previous step's motion (constant velocity); "
@@ -59,3 +72,18 @@ def run_label(method: str, seed: bool | None, label: str | None = None) -> str:
 def order_key(method: str) -> int:
     """Position of a method in the paper's row order (unknown methods after the known ones)."""
     return PAPER_ORDER.index(method) if method in PAPER_ORDER else len(PAPER_ORDER)
+
+
+def sequence_key(name: str) -> tuple:
+    """Sort key of a sequence (its name or display name): the paper's sequences in the order
+    of its tables, then every other sequence in natural order ("run2" before "run10"). A display
+    name that extends a paper name ("Loop1_0 (GT calibrated ...)") sorts with that name."""
+    for i, names in enumerate(PAPER_SEQUENCES):
+        if any(name == n or name.startswith(n + " ") for n in names):
+            return (i, _natural(name))
+    return (len(PAPER_SEQUENCES), _natural(name))
+
+
+def _natural(text: str) -> tuple:
+    return tuple(int(part) if part.isdigit() else part.lower()
+                 for part in re.split(r"(\d+)", text))

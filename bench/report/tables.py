@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.report.cells import md_mark, ranks, save_formats, tex_escape, tex_mark
-from bench.report.names import SEED_NOTE, order_key, run_label
+from bench.report.names import SEED_NOTE, order_key, run_label, sequence_key
 from bench.runs.folders import load_runs
 from loaders.sensor_classes import class_rank
 
@@ -69,9 +69,10 @@ def collect_rows(results_dir: Path, only: set[Path] | None = None
 
 
 def _row_order(r: Row):
-    # the paper lists the baselines first and its own methods last
-    return (class_rank(r.sensor_class), r.sensor_class, r.sequence, order_key(r.method), r.method,
-            r.seed is False, r.label)
+    # Table III's order: sensor classes, the paper's sequences, the baselines before the
+    # paper's own methods, and with seed before without
+    return (class_rank(r.sensor_class), r.sensor_class, sequence_key(r.sequence),
+            order_key(r.method), r.method, r.seed is False, r.label)
 
 
 def collect_rows_of(results_dirs: list[Path]) -> tuple[list[Row], list[str]]:

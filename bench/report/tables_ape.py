@@ -15,7 +15,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.report.cells import md_mark, save_formats, tex_escape, tex_mark
-from bench.report.names import SEED_NOTE, order_key, run_label
+from bench.report.names import SEED_NOTE, order_key, run_label, sequence_key
 from bench.runs.folders import load_runs
 
 
@@ -36,7 +36,7 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
     """The APE table of every finished run with ground truth under ``results_dir``.
 
     ``sequences``: the columns (display names or sequence names) in order; default: every
-    sequence found, in name order."""
+    sequence found, in the paper's order (``names.sequence_key``)."""
     runs = [r for r in load_runs(results_dir, only) if r.diverged is not None and r.ape]
     cells: dict[tuple, dict[str, ApeCell]] = {}
     names: dict[str, str] = {}
@@ -49,7 +49,7 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
         cells.setdefault(key, {})[title] = ApeCell(
             math.nan if ape_m is None else float(ape_m), bool(r.diverged))
     if sequences is None:
-        columns = sorted(set(names.values()))
+        columns = sorted(set(names.values()), key=sequence_key)
     else:
         columns = [names.get(s, s) for s in sequences]
     rows = [(key[-1], cells[key]) for key in sorted(cells)]
