@@ -26,7 +26,8 @@ def test_readme_notebook_example_runs(store, tmp_path, monkeypatch):
                       re.S).group(1)
     monkeypatch.chdir(tmp_path)
     namespace = {"STORE": str(store)}
-    exec(compile(block.replace('"data/synthetic-paper/Loop1_0.h5"', "STORE"), "README", "exec"),
+    assert block.count('"samples/ntu4dradlm-loop1.h5"') == 2  # the vendored sample
+    exec(compile(block.replace('"samples/ntu4dradlm-loop1.h5"', "STORE"), "README", "exec"),
          namespace)
     df = namespace["df"]
     assert list(df.columns) == COLUMNS
