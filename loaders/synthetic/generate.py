@@ -31,7 +31,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from loaders.scan import Scan, SensorInfo, Sequence, Trajectory
+from loaders.scan import Scan, SensorInfo, Sequence
+from loaders.synthetic.codehash import current_code_hash
+from loaders.synthetic.groundtruth import ground_truth, pipeline_params
 from loaders.synthetic.motion import Motion, make_profile
 from loaders.synthetic.raycast import GROUND_ID, cast
 from loaders.synthetic.scatterers import OCCLUSION_TOL, build_scatterers, candidates, finish
@@ -47,14 +49,13 @@ from loaders.synthetic.sensors import (
     with_rays,
 )
 
-GENERATOR_VERSION = "doppler-bench-synthetic 1.4"
 OPTIONS = {
     "points": "target points per frame (LiDAR: the ray count; radar: the diffuse rays and the "
               "scatterer SNR gain; calibrated on probe frames)",
     "uturn": "loop: insert a ~0.55 rad/s U-turn",
     "speed": "(low, high) speed range [m/s]",
     "road_radius": "curved-wall: road radius [m]",
-    "rib_spacing": "tunnel: rib spacing [m]",
+    "rib_spacing": "tunnel: rib spacing [m] (default 3-5 m; 0 = a smooth lining without ribs)",
     "one_lane": "tunnel-vehicles: traffic only ahead in the ego's lane, none oncoming "
                 "(a one-lane tunnel with alternating signals, like Baker-Barry); default False",
     "attitude_deg": "pitch/roll oscillation amplitude [deg] (0 = flat, default 0.6)",
@@ -62,6 +63,7 @@ OPTIONS = {
     "t0": "first stamp [s] (default 0)",
     "sweep": "LiDAR: scan the field of view during the period (per-point time_offset_s, "
              "motion distortion, Doppler at each point's own time); default False",
+    "gt": "ground-truth pipeline (groundtruth.py): exact (default), ntu4dradlm or campus",
 }
 
 
@@ -88,7 +90,8 @@ def doppler_of(points_s: np.ndarray, v_sensor: np.ndarray,
 
 
 def params_hash(params: dict) -> str:
-    text = json.dumps({**params, "generator_version": GENERATOR_VERSION}, sort_keys=True,
+    """Hash of a sequence's parameters and of the generator's code."""
+    text = json.dumps({**params, "generator_code": current_code_hash()}, sort_keys=True,
                       default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
@@ -144,13 +147,16 @@ class SyntheticSequence(Sequence):
             self.spec = spec = self._calibrated(spec, int(options["points"]))
         self.sensor = SensorInfo(kind=spec.kind, period_s=period,
                                  T_body_sensor=spec.T_body_sensor, model=sensor)
-        self.ground_truth = Trajectory(self._stamps, self._poses)
+        self.gt_pipeline = str(options.get("gt", "exact"))
+        self.ground_truth = ground_truth(self.gt_pipeline, self.motion.sensor_pose, self._rel,
+                                         self._stamps, np.random.default_rng([self.seed, 6]))
         params = {"scene": scene, "sensor": sensor, "frames": int(frames), "seed": self.seed,
                   "noise": self.noise, "options": self.options}
         self.provenance = {
-            "source": "synthetic", "generator_version": GENERATOR_VERSION, **params,
+            "source": "synthetic", "generator_code_hash": current_code_hash(), **params,
             "params_hash": params_hash(params), "motion_profile": profile.as_dict(),
             "scene_summary": self.scene_model.summary(), "sensor_spec": spec.as_dict(),
+            "gt_pipeline": {"name": self.gt_pipeline, **pipeline_params(self.gt_pipeline)},
             **(meta or {}),
         }
 
