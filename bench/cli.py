@@ -67,12 +67,12 @@ def synth(
     suite: Annotated[str | None, typer.Option(help="generate a named suite instead")] = None,
     data_dir: Annotated[Path, typer.Option(help="cache folder of suites")] = Path("data"),
     fidelity: Annotated[bool, typer.Option(
-        "--fidelity", help="synthetic-paper vs the paper's Table III: every method the paper "
-        "reports on each sequence, values side by side with ratios, and the paper's orderings "
-        "(runs under --fidelity-out)")] = False,
-    fidelity_out: Annotated[Path, typer.Option(help="run folder of --fidelity")] = Path(
-        "results/fidelity"),
-    doppler_only: Annotated[bool, typer.Option(help="--fidelity: only the doppler rows")] = False,
+        "--fidelity", help="the fidelity report: synthetic-paper's runs of the paper's tables "
+        "(run when missing, as `bench reproduce --synthetic-only`) next to the paper's Table "
+        "III with ratios, and the paper's findings checked; writes fidelity.md / .csv into "
+        "--fidelity-out")] = False,
+    fidelity_out: Annotated[Path, typer.Option(help="results folder of --fidelity")] = Path(
+        "results/paper-synthetic"),
     realism: Annotated[bool, typer.Option(
         "--realism", help="the real NTU4DRadLM sample's statistics next to the synthetic "
         "semi-dense radar, with ratios (exit 1 while one is off by more than 20 %)")] = False,
@@ -82,9 +82,10 @@ def synth(
     from loaders import synthetic
 
     if fidelity:
-        from bench.studies.fidelity import fidelity_table
+        from bench.reproduce import reproduce_table
 
-        fidelity_table(data_dir, console, fidelity_out, doppler_only)
+        if reproduce_table(fidelity_out, data_dir, 2, False, True, console):
+            raise typer.Exit(1)
         return
     if realism:
         from bench.studies.realism import main as realism_main
