@@ -2,14 +2,16 @@
 
 Deterministic from (scene, sensor, frames, seed, noise, options): the plan, the motion and the
 scene each use their own RNG stream derived from the seed, and frame i uses an RNG seeded from
-(seed, i), so ``scan(i)`` gives the same scan in any order. Ground truth is the exact
-``T_world_sensor`` at the scan stamps. By default every point of a scan is taken at the scan
-stamp (no motion distortion). LiDAR option ``sweep=True`` (an FMCW LiDAR that scans its field
-of view during the frame, like the Aeva Aeries I): the azimuth columns of the grid are fired in
-``SWEEP_STEPS`` groups, left to right, at offsets ``k * period / SWEEP_STEPS`` after the stamp
-(the sweep starts at the stamp and spans one period); each group is cast from the sensor pose at
-its own time, so a point is reported in the sensor frame of its own time (motion distortion),
-its Doppler is the radial velocity at that time, and the per-point field ``time_offset_s`` [s]
+(seed, i), so ``scan(i)`` gives the same scan in any order. Ground truth: option ``gt``
+(groundtruth.py) - the exact ``T_world_sensor`` at the scan stamps (default), or the pipeline
+of an imitated dataset (``ntu4dradlm``, ``campus``); the scans do not depend on it. By default
+every point of a scan is taken at the scan stamp (no motion distortion). LiDAR option
+``sweep=True`` (an FMCW LiDAR that scans its field of view during the frame, like the Aeva
+Aeries I): the rays fire at the scan pattern's times after the stamp (patterns.py: the grid's
+columns in ``GRID_SWEEP_STEPS`` groups; the Aeva pattern line by line), the sweep starting at
+the stamp and spanning one period; each group of rays is cast from the sensor pose at its own
+time, so a point is reported in the sensor frame of its own time (motion distortion), its
+Doppler is the radial velocity at that time, and the per-point field ``time_offset_s`` [s]
 holds the offset.
 
 Doppler (sensor frame, positive = receding) is the exact radial velocity of each point relative
