@@ -83,14 +83,14 @@ def print_run_summary(run_dir: Path, console: Console) -> None:
     console.print(f"run folder: {run_dir}", markup=False)
 
 
-def synth_dispatch(console: Console, fidelity: bool, fidelity_out: Path, doppler_only: bool,
-                   realism: bool, data_dir: Path, **synth_options) -> int:
-    """``bench synth --fidelity`` / ``--realism`` (studies), else ``synth_command``."""
+def synth_dispatch(console: Console, fidelity: bool, fidelity_out: Path, realism: bool,
+                   data_dir: Path, **synth_options) -> int:
+    """``bench synth --fidelity`` (the paper's tables on the synthetic suite, run when missing,
+    then the fidelity report) / ``--realism`` (studies), else ``synth_command``."""
     if fidelity:
-        from bench.studies.fidelity import fidelity_table
+        from bench.studies.reproduce import reproduce_table
 
-        fidelity_table(data_dir, console, fidelity_out, doppler_only)
-        return 0
+        return 1 if reproduce_table(fidelity_out, data_dir, 2, False, True, console) else 0
     if realism:
         from bench.studies.realism import main as realism_main
 

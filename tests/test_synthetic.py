@@ -263,7 +263,8 @@ def test_ensure_suite_regenerates_only_stale(tmp_path, monkeypatch):
 def test_listings_and_bad_input():
     assert set(list_scenes()) == {"straight-wall", "curved-wall", "tunnel", "tunnel-vehicles",
                                   "campus", "loop"}
-    assert set(list_sensors()) == {"radar-sparse", "radar-semidense", "lidar-dense"}
+    assert set(list_sensors()) == {"radar-sparse", "radar-semidense", "lidar-dense",
+                                   "radar-frgen21", "radar-eagle", "lidar-aeva"}
     with pytest.raises(ValueError, match="unknown synthetic option"):
         SyntheticSequence("loop", "radar-semidense", 5, uturm=True)
     with pytest.raises(ValueError, match="unknown scene"):

@@ -5,7 +5,9 @@ The tables are the experiments ``configs/experiments/table3.yaml`` (relative err
 stores listed in ``configs/datasets/*.yaml`` and present under ``DATA_DIR/real/`` are used when
 there are any; otherwise the synthetic suite ``synthetic-paper`` is generated (or reused) and
 used. The union of the three tables' runs is planned once (a run two tables share runs once),
-executed, and each table is written from its own runs.
+executed, and each table is written from its own runs. On the synthetic suite the fidelity
+report (bench/studies/fidelity.py: every Table III cell next to the paper's, the paper's
+findings checked) is written beside the tables and its path printed.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from bench.runs.experiment import Experiment, SequenceEntry, load_experiment
 from bench.runs.job import Job, summarize
 from bench.runs.plan import jobs_for_experiment, plan, suite_sequences
 from bench.runs.progress import run_jobs
+from bench.studies.fidelity import write_report
 
 TABLES = {  # experiment -> (kind, output stem, caption)
     "table3": ("relative", "table3", ""),
@@ -105,4 +108,7 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
         console.print(f"figures: {out / 'figures'}/ ({len(figures)} files)", markup=False)
     console.print(f"{summarize(outcomes)} in {time.perf_counter() - t0:.0f} s; wrote "
                   f"{out}/table{{3,4,5}}.{{md,tex,csv}}", markup=False)
+    if not real:
+        report = write_report(out)
+        console.print(f"fidelity report (synthetic suite vs the paper): {report}", markup=False)
     return [o.message for o in outcomes if o.status not in ("done", "skipped")]

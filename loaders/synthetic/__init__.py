@@ -9,11 +9,11 @@ Public API::
     OPTIONS: dict[str, str]               # generator options -> description
     doppler_of(points_s, v_sensor, point_velocity_s=None) -> (N,) radial velocity
     SUITES, SuiteEntry, suite_entries(name), ensure_suite(name, data_dir, progress=None)
-    GENERATOR_VERSION
+    generator_code_hash(directory=loaders/synthetic) -> str  # identity of the generator
 """
 
+from loaders.synthetic.codehash import generator_code_hash
 from loaders.synthetic.generate import (
-    GENERATOR_VERSION,
     OPTIONS,
     SyntheticSequence,
     doppler_of,
@@ -23,13 +23,13 @@ from loaders.synthetic.generate import (
 from loaders.synthetic.suite import SUITES, SuiteEntry, ensure_suite, suite_entries
 
 __all__ = [
-    "GENERATOR_VERSION",
     "OPTIONS",
     "SUITES",
     "SuiteEntry",
     "SyntheticSequence",
     "doppler_of",
     "ensure_suite",
+    "generator_code_hash",
     "list_scenes",
     "list_sensors",
     "suite_entries",

@@ -2,14 +2,16 @@
 
 Deterministic from (scene, sensor, frames, seed, noise, options): the plan, the motion and the
 scene each use their own RNG stream derived from the seed, and frame i uses an RNG seeded from
-(seed, i), so ``scan(i)`` gives the same scan in any order. Ground truth is the exact
-``T_world_sensor`` at the scan stamps. By default every point of a scan is taken at the scan
-stamp (no motion distortion). LiDAR option ``sweep=True`` (an FMCW LiDAR that scans its field
-of view during the frame, like the Aeva Aeries I): the azimuth columns of the grid are fired in
-``SWEEP_STEPS`` groups, left to right, at offsets ``k * period / SWEEP_STEPS`` after the stamp
-(the sweep starts at the stamp and spans one period); each group is cast from the sensor pose at
-its own time, so a point is reported in the sensor frame of its own time (motion distortion),
-its Doppler is the radial velocity at that time, and the per-point field ``time_offset_s`` [s]
+(seed, i), so ``scan(i)`` gives the same scan in any order. Ground truth: option ``gt``
+(groundtruth.py) - the exact ``T_world_sensor`` at the scan stamps (default), or the pipeline
+of an imitated dataset (``ntu4dradlm``, ``campus``); the scans do not depend on it. By default
+every point of a scan is taken at the scan stamp (no motion distortion). LiDAR option
+``sweep=True`` (an FMCW LiDAR that scans its field of view during the frame, like the Aeva
+Aeries I): the rays fire at the scan pattern's times after the stamp (patterns.py: the grid's
+columns in ``GRID_SWEEP_STEPS`` groups; the Aeva pattern line by line), the sweep starting at
+the stamp and spanning one period; each group of rays is cast from the sensor pose at its own
+time, so a point is reported in the sensor frame of its own time (motion distortion), its
+Doppler is the radial velocity at that time, and the per-point field ``time_offset_s`` [s]
 holds the offset.
 
 Doppler (sensor frame, positive = receding) is the exact radial velocity of each point relative
@@ -32,6 +34,8 @@ from dataclasses import replace
 import numpy as np
 
 from loaders.scan import Scan, SensorInfo, Sequence
+from loaders.synthetic.codehash import current_code_hash
+from loaders.synthetic.groundtruth import ground_truth, pipeline_params
 from loaders.synthetic.motion import Motion, make_profile
 from loaders.synthetic.raycast import GROUND_ID, cast
 from loaders.synthetic.scatterers import OCCLUSION_TOL, build_scatterers, candidates, finish
@@ -46,16 +50,14 @@ from loaders.synthetic.sensors import (
     sweep_offsets,
     with_rays,
 )
-from loaders.trajectory import Trajectory
 
-GENERATOR_VERSION = "doppler-bench-synthetic 1.4"
 OPTIONS = {
     "points": "target points per frame (LiDAR: the ray count; radar: the diffuse rays and the "
               "scatterer SNR gain; calibrated on probe frames)",
     "uturn": "loop: insert a ~0.55 rad/s U-turn",
     "speed": "(low, high) speed range [m/s]",
     "road_radius": "curved-wall: road radius [m]",
-    "rib_spacing": "tunnel: rib spacing [m]",
+    "rib_spacing": "tunnel: rib spacing [m] (default 3-5 m; 0 = a smooth lining without ribs)",
     "one_lane": "tunnel-vehicles: traffic only ahead in the ego's lane, none oncoming "
                 "(a one-lane tunnel with alternating signals, like Baker-Barry); default False",
     "attitude_deg": "pitch/roll oscillation amplitude [deg] (0 = flat, default 0.6)",
@@ -63,6 +65,7 @@ OPTIONS = {
     "t0": "first stamp [s] (default 0)",
     "sweep": "LiDAR: scan the field of view during the period (per-point time_offset_s, "
              "motion distortion, Doppler at each point's own time); default False",
+    "gt": "ground-truth pipeline (groundtruth.py): exact (default), ntu4dradlm or campus",
 }
 
 
@@ -89,7 +92,8 @@ def doppler_of(points_s: np.ndarray, v_sensor: np.ndarray,
 
 
 def params_hash(params: dict) -> str:
-    text = json.dumps({**params, "generator_version": GENERATOR_VERSION}, sort_keys=True,
+    """Hash of a sequence's parameters and of the generator's code."""
+    text = json.dumps({**params, "generator_code": current_code_hash()}, sort_keys=True,
                       default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
@@ -145,13 +149,16 @@ class SyntheticSequence(Sequence):
             self.spec = spec = self._calibrated(spec, int(options["points"]))
         self.sensor = SensorInfo(kind=spec.kind, period_s=period,
                                  T_body_sensor=spec.T_body_sensor, model=sensor)
-        self.ground_truth = Trajectory(self._stamps, self._poses)
+        self.gt_pipeline = str(options.get("gt", "exact"))
+        self.ground_truth = ground_truth(self.gt_pipeline, self.motion.sensor_pose, self._rel,
+                                         self._stamps, np.random.default_rng([self.seed, 6]))
         params = {"scene": scene, "sensor": sensor, "frames": int(frames), "seed": self.seed,
                   "noise": self.noise, "options": self.options}
         self.provenance = {
-            "source": "synthetic", "generator_version": GENERATOR_VERSION, **params,
+            "source": "synthetic", "generator_code_hash": current_code_hash(), **params,
             "params_hash": params_hash(params), "motion_profile": profile.as_dict(),
             "scene_summary": self.scene_model.summary(), "sensor_spec": spec.as_dict(),
+            "gt_pipeline": {"name": self.gt_pipeline, **pipeline_params(self.gt_pipeline)},
             **(meta or {}),
         }
 

@@ -8,7 +8,7 @@ came from).
 
 Primitives: horizontal ground plane, yaw-oriented finite boxes, vertical cylinders (solid from
 outside, or a wall seen from inside), spheres, and a straight tunnel (inner tube surface around
-an axis parallel to world x, with periodic ring ribs).
+an axis parallel to world x, with periodic ring ribs or smooth).
 """
 
 from __future__ import annotations
@@ -114,8 +114,15 @@ def _tube_far_root(o, D, ya, za, r):
 
 
 def hit_tunnel(o, D, tun: Tunnel) -> tuple[np.ndarray, np.ndarray]:
-    """Inner surface of the tube and its ribs, seen from inside (the origin must be inside)."""
+    """Inner surface of the tube and its ribs, seen from inside (the origin must be inside);
+    ``rib_spacing <= 0``: a smooth tube without ribs."""
     t_wall = _tube_far_root(o, D, tun.axis_y, tun.axis_z, tun.radius)
+    if tun.rib_spacing <= 0:
+        n = np.zeros_like(D)
+        n[:, 1] = tun.axis_y - (o[1] + t_wall * D[:, 1])
+        n[:, 2] = tun.axis_z - (o[2] + t_wall * D[:, 2])
+        n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-12)
+        return t_wall, n
     r_rib = tun.radius - tun.rib_depth
     t_rib = _tube_far_root(o, D, tun.axis_y, tun.axis_z, r_rib)
     with np.errstate(invalid="ignore"):

@@ -346,7 +346,7 @@ def _tunnel(b: _Builder, tun) -> None:
     r_rib = tun.radius - tun.rib_depth
     ang = np.linspace(0, 2 * np.pi, int(2 * np.pi * r_rib / 0.6), endpoint=False)
     ang = ang[tun.axis_z + r_rib * np.sin(ang) > 0.1]  # above the road
-    for x in np.arange(tun.x0, tun.x1, tun.rib_spacing):
+    for x in (np.arange(tun.x0, tun.x1, tun.rib_spacing) if tun.rib_spacing > 0 else ()):
         a = ang[rng.uniform(size=len(ang)) < 0.6]
         pos = np.column_stack([np.full(len(a), x + 0.5 * tun.rib_width),
                                tun.axis_y + r_rib * np.cos(a), tun.axis_z + r_rib * np.sin(a)])

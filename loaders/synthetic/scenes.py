@@ -26,7 +26,8 @@ MATERIAL_NAMES = ("ground", "building", "wall", "tunnel", "rib", "car", "truck",
 SCENES = {
     "straight-wall": "two long featureless parallel walls and a flat road (CARLA Town04-like)",
     "curved-wall": "concentric curved walls around a road of radius 150-250 m (Town05-like)",
-    "tunnel": "long tube (radius 6-7 m) with periodic ribs every few metres, no traffic",
+    "tunnel": "long tube (radius 6-7 m) with periodic ribs every few metres (option "
+              "rib_spacing=0: smooth), no traffic",
     "tunnel-vehicles": "the tunnel with moving vehicles in both directions (10-30 % dynamic); "
                        "option one_lane=True: only a queue ahead in the ego's lane",
     "campus": "buildings, trees, poles, parked cars, walking pedestrians, some traffic",
