@@ -20,6 +20,15 @@ def sensor_class(sensor: SensorInfo) -> str:
     return BY_MODEL.get(sensor.model) or (DENSE_LIDAR if sensor.kind == "lidar" else "4D Radar")
 
 
+#: the mark every name shown from a synthetic store carries (tables, figures, file names)
+SYNTHETIC_MARK = "(synthetic)"
+
+
+def is_synthetic(provenance: dict) -> bool:
+    """A store made by the synthetic generator (its provenance says so)."""
+    return provenance.get("source") == "synthetic" or bool(provenance.get("notice"))
+
+
 def class_rank(klass: str) -> int:
     """Position of a class in the paper's order (unknown classes last)."""
     return CLASS_ORDER.index(klass) if klass in CLASS_ORDER else len(CLASS_ORDER)

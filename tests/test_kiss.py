@@ -3,6 +3,7 @@
 import subprocess
 import sys
 import textwrap
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +15,8 @@ from loaders.trajectory import Trajectory
 from methods.kiss import KissIcp
 from methods.registry import make_method
 from test_gicp import _planar_world
+
+ROOT = Path(__file__).resolve().parents[1]  # the child imports tests/ and the code from here
 
 
 def _world() -> np.ndarray:
@@ -80,7 +83,7 @@ def test_constant_point_times_are_refused_not_aborted():
         except DataError as err:
             print("REFUSED", err)
     """)
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
                          timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     assert "REFUSED" in out.stdout and "frame 0" in out.stdout and "deskew" in out.stdout
@@ -130,7 +133,7 @@ def test_a_later_scan_without_times_is_refused_when_deskewing():
         except DataError as err:
             print("REFUSED", err)
     """)
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, cwd=ROOT,
                          timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     assert "REFUSED frame 2" in out.stdout and "lacks" in out.stdout

@@ -35,7 +35,7 @@ from bench.report.figstyle import (
 from bench.report.names import display_name, order_key, sequence_key
 from bench.runs.folders import RunRecord
 from loaders.se3 import inv_T, rotation_angle_deg
-from loaders.sensor_classes import class_rank
+from loaders.sensor_classes import SYNTHETIC_MARK, class_rank
 from metrics.relative import MetricError, path_distances, segment_errors
 
 #: the top of an error axis is this factor above the largest error of a run that did not diverge
@@ -112,7 +112,8 @@ def plot_boxplots(runs: list[RunRecord], out_dir: Path) -> list[Path]:
         axes[1].set_xticks(range(len(lengths)), [f"{L:g}" for L in lengths])
         axes[1].set_xlim(-0.5, len(lengths) - 0.5)
         axes[1].set_xlabel("segment length [m]")
-        set_title(axes[0], f"{klass}: relative error")
+        synthetic = any(SYNTHETIC_MARK in r.display_name for r in runs if r.sensor_class == klass)
+        set_title(axes[0], f"{klass}{' (synthetic)' if synthetic else ''}: relative error")
         legend_below(fig, handles, [h.get_label() for h in handles],
                      note="Boxes: quartiles and median; whiskers: 5-95 %; the class's "
                      f"sequences pooled.{_diverged_note(here)}")

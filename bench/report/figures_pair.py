@@ -29,6 +29,7 @@ from bench.report.figstyle import (
 )
 from loaders.errors import DataError
 from loaders.se3 import inv_T, transform_points
+from loaders.sensor_classes import is_synthetic
 from loaders.store import StoreSequence
 from methods.doppler import DopplerCorrespondence, doppler_pairs
 
@@ -62,7 +63,8 @@ def pair_correspondences(store: Path, frame: int) -> dict:
                 T_true = inv_T(gt.poses[b]) @ gt.poses[a]  # T_target_source
         return {"source": src.points, "target": tgt.points, "T_true": T_true,
                 "closest": (np.flatnonzero(near), idx[near]), "doppler": (s_idx, t_idx),
-                "name": f"{seq.name}, frames {frame} -> {frame + 1}"}
+                "name": f"{seq.name}{' (synthetic)' if is_synthetic(seq.provenance) else ''}, "
+                        f"frames {frame} -> {frame + 1}"}
     finally:
         seq.close()
 

@@ -43,6 +43,17 @@ SEED_NOTE = ("With Seed: each step starts from the previous step's motion (const
              "that takes none.")
 
 
+def synthetic_note(sequence_names) -> str:
+    """A caption's first words when any sequence shown is synthetic (its display name carries
+    loaders.sensor_classes.SYNTHETIC_MARK), else ""."""
+    from loaders.sensor_classes import SYNTHETIC_MARK
+
+    if any(SYNTHETIC_MARK in name for name in sequence_names):
+        return ("SYNTHETIC DATA: sequences marked (synthetic) are made by this repository's "
+                "generator to imitate the paper's sequences; they are not the paper's data. ")
+    return ""
+
+
 def display_name(method: str) -> str:
     """The method's name in every table and figure, e.g. "Generalized-ICP"."""
     return _NAMES.get(method, method)

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.report.cells import md_mark, ranks, save_formats, tex_escape, tex_mark
-from bench.report.names import SEED_NOTE, order_key, run_label, sequence_key
+from bench.report.names import SEED_NOTE, order_key, run_label, sequence_key, synthetic_note
 from bench.runs.folders import load_runs
 from loaders.sensor_classes import class_rank
 
@@ -138,7 +138,8 @@ def to_markdown(rows: list[Row], lengths: list[str]) -> str:
         seq = r.sequence if (r.sensor_class, r.sequence) != prev else ""
         prev = (r.sensor_class, r.sequence)
         lines.append("| " + " | ".join([klass, seq, r.label, *cells]) + " |")
-    caption = ("Each cell: mean rotation [deg] / translation [m] relative error per segment "
+    caption = (synthetic_note(r.sequence for r in rows) +
+               "Each cell: mean rotation [deg] / translation [m] relative error per segment "
                "length. " + TIME_NOTE + " Best per sequence in bold, second underlined; Div. = "
                "diverged. " + SEED_NOTE)
     return "\n".join(lines) + "\n\n" + caption + "\n"

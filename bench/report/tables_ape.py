@@ -15,7 +15,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.report.cells import md_mark, save_formats, tex_escape, tex_mark
-from bench.report.names import SEED_NOTE, order_key, run_label, sequence_key
+from bench.report.names import (
+    SEED_NOTE,
+    order_key,
+    run_label,
+    sequence_key,
+    synthetic_note,
+)
 from bench.runs.folders import load_runs
 
 
@@ -90,7 +96,7 @@ def to_markdown(table: ApeTable, caption: str = "") -> str:
             _cell_text(table, ranks, i, col, mark) for col in table.sequences) + " |")
     caption = (caption or "Absolute pose error [m] (translation RMSE after SE(3) alignment, as "
                "evo). Best per sequence in bold, second underlined; Div. = diverged.")
-    caption += " " + SEED_NOTE
+    caption = synthetic_note(table.sequences) + caption + " " + SEED_NOTE
     return "\n".join(lines) + "\n\n" + caption + "\n"
 
 

@@ -28,7 +28,7 @@ from bench.runs.folders import clear_run, is_finished, run_dir_name, write_failu
 from bench.runs.identity import code_identity, run_key, store_identity
 from loaders.errors import DataError, validation_problems
 from loaders.scan import FrameRange, Sequence
-from loaders.sensor_classes import sensor_class
+from loaders.sensor_classes import SYNTHETIC_MARK, is_synthetic, sensor_class
 from loaders.store import StoreSequence
 from loaders.trajectory import Trajectory
 from methods.base import Odometry, run_timed
@@ -96,6 +96,8 @@ def sequence_labels(seq: Sequence, job: Job) -> tuple[str, str, str]:
     frames = (prov.get("calibration") or {}).get("frames")
     if frames:
         display += f" (GT calibrated on frames {frames[0]}-{frames[1] - 1}, not scored)"
+    if is_synthetic(prov) and SYNTHETIC_MARK not in display:
+        display += f" {SYNTHETIC_MARK}"  # never mistaken for the real sequence it imitates
     klass = (job.sensor_class or prov.get("sensor_class") or prov.get("class")
              or sensor_class(seq.sensor))
     return name, display, klass
