@@ -39,10 +39,15 @@ the truth or from identity (0.1 mm on a straight motion, 0.8 m per scan, from id
 issue 7 quotes about 1.2 cm measured with Open3D on another scene (the size depends on the
 geometry, which holds the translation against the biased Doppler term).
 Timing (``methods.base``): ``time_ms`` = preparation of the new scan (downsampling, vehicle
-frame, directions, target normals) + ``register``; ``register_ms`` = ``register`` alone: the
-target's kd-tree (small_gicp, built per call as Open3D builds its index inside ``icp``) and the
-iterations. ``backend=open3d`` runs Open3D's implementation itself (normals then from Open3D's
-``estimate_normals``, in ``preprocess``).
+frame, directions, target normals and the kd-tree they are searched in) + ``register``;
+``register_ms`` = ``register`` alone: the iterations, whose nearest-point searches reuse the
+target's kd-tree from its preparation (``methods.kdtree``, compiled; each point's search
+bounded by its last pair, so exact and fast). With ``num_threads`` > 1 the searches are
+small_gicp's parallel kd-tree's (built per call as Open3D builds its index inside ``icp``).
+Normals come from a compiled closed-form 3x3 eigensolver (LAPACK's ``eigh`` where that is
+ill-conditioned); the pairs and iterations are the same as before this change and the
+transforms agree to 1e-15. ``backend=open3d`` runs Open3D's implementation itself (normals
+then from Open3D's ``estimate_normals``, in ``preprocess``).
 """
 
 from __future__ import annotations
@@ -59,7 +64,14 @@ from loaders.errors import DataError
 from loaders.scan import Scan, SensorInfo
 from loaders.se3 import inv_T, transform_points
 from methods.base import MethodParams, Registration, RegistrationResult, uniform_downsample
-from methods.dicp_kernel import normal_equations, normals_from_neighbours, transform
+from methods.dicp_kernel import (
+    neighbourhood_normals,
+    normal_equations,
+    normals_from_neighbours,
+    pair_bounds,
+    transform,
+)
+from methods.kdtree import KdTree
 
 
 class DicpParams(MethodParams):
@@ -80,7 +92,8 @@ class DicpParams(MethodParams):
     T_vehicle_sensor: list[list[float]] | None = Field(
         None, description="4x4 extrinsic (None: the sequence's T_body_sensor, else identity)")
     backend: Literal["numba", "open3d"] = Field("numba", description="this or Open3D's")
-    num_threads: int = Field(1, ge=1, description="kd-tree threads")
+    num_threads: int = Field(1, ge=1, description="threads of the neighbour searches (1: the "
+                             "compiled kd-tree; more: small_gicp's parallel kd-tree)")
 
 
 @dataclass(frozen=True)
@@ -93,6 +106,7 @@ class DicpScan:
     doppler: np.ndarray
     directions: np.ndarray
     normals: np.ndarray
+    tree: KdTree | None = None  # of ``points`` (one-thread numba backend: normals and pairs)
 
     def __len__(self) -> int:
         return len(self.points)
@@ -112,13 +126,18 @@ def pose_to_T(x: np.ndarray) -> np.ndarray:
 
 
 def estimate_normals(points: np.ndarray, radius_m: float, max_neighbours: int,
-                     num_threads: int = 1) -> np.ndarray:
-    """Normals from at most ``max_neighbours`` neighbours within ``radius_m``."""
-    k = min(max_neighbours, len(points))
-    tree = small_gicp.KdTree(points, num_threads=num_threads)
-    idx, sq = tree.batch_knn_search(points, k, num_threads=num_threads)
-    return normals_from_neighbours(points, np.asarray(idx).astype(np.int64),
-                                   np.asarray(sq), radius_m**2)
+                     num_threads: int = 1, tree: KdTree | None = None) -> np.ndarray:
+    """Normals from at most ``max_neighbours`` neighbours within ``radius_m``: on one thread
+    by searching ``tree`` (a ``methods.kdtree.KdTree`` of ``points``; built when not given),
+    on several by small_gicp's parallel kd-tree search (the same neighbours)."""
+    if num_threads > 1:
+        k = min(max_neighbours, len(points))
+        sg_tree = small_gicp.KdTree(points, num_threads=num_threads)
+        idx, sq = sg_tree.batch_knn_search(points, k, num_threads=num_threads)
+        return normals_from_neighbours(points, np.asarray(idx).astype(np.int64),
+                                       np.asarray(sq), radius_m**2)
+    tree = tree if tree is not None else KdTree(points)
+    return neighbourhood_normals(*tree.arrays, max_neighbours, radius_m**2)
 
 
 class Dicp(Registration):
@@ -149,6 +168,7 @@ class Dicp(Registration):
         T_vs = self.T_vehicle_sensor
         directions = np.nan_to_num(directions) @ T_vs[:3, :3].T
         points = transform_points(T_vs, scan.points)
+        tree = None
         if len(points) < 3:
             normals = np.zeros((len(points), 3))
         elif p.backend == "open3d":
@@ -156,9 +176,11 @@ class Dicp(Registration):
 
             normals = estimate_normals_open3d(points, p.normal_radius_m, p.normal_neighbours)
         else:
+            tree = KdTree(points) if p.num_threads == 1 else None
             normals = estimate_normals(points, p.normal_radius_m, p.normal_neighbours,
-                                       p.num_threads)
-        return DicpScan(scan.stamp, points, scan.doppler.astype(np.float64), directions, normals)
+                                       p.num_threads, tree)
+        return DicpScan(scan.stamp, points, scan.doppler.astype(np.float64), directions, normals,
+                        tree)
 
     def register(self, source: DicpScan, target: DicpScan,
                  init_T_target_source: np.ndarray) -> RegistrationResult:
@@ -181,16 +203,27 @@ class Dicp(Registration):
     def _iterate(self, source: DicpScan, target: DicpScan, T: np.ndarray, period_s: float,
                  T_vs: np.ndarray) -> tuple[np.ndarray, int, int, bool]:
         p = self.params
-        tree = small_gicp.KdTree(target.points, num_threads=p.num_threads)
+        gate_sq = p.max_correspondence_m**2
+        tree = target.tree
+        if tree is None:  # several threads: small_gicp's parallel search
+            sg_tree = small_gicp.KdTree(target.points, num_threads=p.num_threads)
         R_sv, lever_arm = T_vs[:3, :3].T.copy(), T_vs[:3, 3].copy()
         moved = transform(T, source.points)
         prev = (0.0, 0.0)
         n = 0
+        idx = None
         for iteration in range(p.max_iterations):
-            idx, sq = tree.batch_knn_search(moved, 1, num_threads=p.num_threads)
-            idx = np.asarray(idx).astype(np.int64).ravel()
-            sq = np.asarray(sq).ravel()
-            idx[~(sq <= p.max_correspondence_m**2)] = -1
+            if tree is not None:
+                # the nearest target point within the gate (inclusive); a point's last pair,
+                # moved by the last step, bounds its search (exact: only closer ones count)
+                bounds = pair_bounds(moved, target.points, idx, gate_sq)
+                idx, sq = tree.knn(moved, 1, bounds_sq=bounds)
+                idx, sq = idx.ravel(), sq.ravel()
+            else:
+                idx, sq = sg_tree.batch_knn_search(moved, 1, num_threads=p.num_threads)
+                idx = np.asarray(idx).astype(np.int64).ravel()
+                sq = np.asarray(sq).ravel()
+                idx[~(sq <= gate_sq)] = -1
             n = int((idx >= 0).sum())
             if n == 0:
                 return T, 0, iteration, False

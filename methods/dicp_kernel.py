@@ -16,6 +16,8 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from methods.kdtree import _STACK, _search
+
 
 @nb.njit(cache=True)
 def _tukey(r: float, k: float) -> float:  # pragma: no cover - compiled
@@ -88,29 +90,147 @@ def transform(T, points):  # pragma: no cover - compiled
     return out
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
+def _smallest_eigenvector(c00, c01, c02, c11, c12, c22, out):  # pragma: no cover - compiled
+    """The unit eigenvector of the smallest eigenvalue of the symmetric 3x3 matrix C, into
+    ``out``: in closed form (the eigenvalue from the trigonometric solution of the
+    characteristic polynomial, the vector as the longest cross product of two rows of
+    C - lambda I), or by LAPACK's ``eigh`` when the closed form is ill-conditioned (the two
+    smallest eigenvalues nearly equal, or C nearly a multiple of I)."""
+    scale = max(abs(c00), abs(c01), abs(c02), abs(c11), abs(c12), abs(c22))
+    if scale > 0.0:
+        a00, a01, a02 = c00 / scale, c01 / scale, c02 / scale
+        a11, a12, a22 = c11 / scale, c12 / scale, c22 / scale
+        q = (a00 + a11 + a22) / 3.0
+        b00, b11, b22 = a00 - q, a11 - q, a22 - q
+        p2 = b00 * b00 + b11 * b11 + b22 * b22 + 2.0 * (a01 * a01 + a02 * a02 + a12 * a12)
+        if p2 > 1e-12:
+            p = np.sqrt(p2 / 6.0)
+            det = (b00 * (b11 * b22 - a12 * a12) - a01 * (a01 * b22 - a12 * a02)
+                   + a02 * (a01 * a12 - b11 * a02))
+            r = det / (2.0 * p * p * p)
+            r = min(max(r, -1.0), 1.0)
+            lam = q + 2.0 * p * np.cos(np.arccos(r) / 3.0 + 2.0 * np.pi / 3.0)
+            r0x, r0y, r0z = a00 - lam, a01, a02
+            r1x, r1y, r1z = a01, a11 - lam, a12
+            r2x, r2y, r2z = a02, a12, a22 - lam
+            ax, ay, az = r0y * r1z - r0z * r1y, r0z * r1x - r0x * r1z, r0x * r1y - r0y * r1x
+            bx, by, bz = r0y * r2z - r0z * r2y, r0z * r2x - r0x * r2z, r0x * r2y - r0y * r2x
+            cx, cy, cz = r1y * r2z - r1z * r2y, r1z * r2x - r1x * r2z, r1x * r2y - r1y * r2x
+            na = ax * ax + ay * ay + az * az
+            nb_ = bx * bx + by * by + bz * bz
+            nc = cx * cx + cy * cy + cz * cz
+            if nb_ > na and nb_ >= nc:
+                ax, ay, az, na = bx, by, bz, nb_
+            elif nc > na:
+                ax, ay, az, na = cx, cy, cz, nc
+            # |cross|^2 is the product of the other two eigenvalues' gaps squared (scaled C):
+            # well above rounding, the closed form is accurate to ~1e-12
+            if na > 1e-10:
+                inv = 1.0 / np.sqrt(na)
+                out[0], out[1], out[2] = ax * inv, ay * inv, az * inv
+                return
+    C = np.empty((3, 3))
+    C[0, 0], C[0, 1], C[0, 2] = c00, c01, c02
+    C[1, 0], C[1, 1], C[1, 2] = c01, c11, c12
+    C[2, 0], C[2, 1], C[2, 2] = c02, c12, c22
+    _, vectors = np.linalg.eigh(C)
+    out[0], out[1], out[2] = vectors[0, 0], vectors[1, 0], vectors[2, 0]
+
+
+@nb.njit(cache=True, nogil=True)
+def _normal(points, neighbours, sq_dists, count, radius_sq, out):  # pragma: no cover
+    """The normal of one neighbourhood: ``neighbours[:count]`` (indices into points, -1 for
+    none) with ``sq_dists``; those within the radius count (zero normal when fewer than 3)."""
+    m = 0
+    mx = my = mz = 0.0
+    for k in range(count):
+        j = neighbours[k]
+        if j >= 0 and sq_dists[k] <= radius_sq:
+            mx += points[j, 0]
+            my += points[j, 1]
+            mz += points[j, 2]
+            m += 1
+    out[0] = out[1] = out[2] = 0.0
+    if m < 3:
+        return
+    mx /= m
+    my /= m
+    mz /= m
+    c00 = c01 = c02 = c11 = c12 = c22 = 0.0
+    for k in range(count):
+        j = neighbours[k]
+        if j >= 0 and sq_dists[k] <= radius_sq:
+            dx, dy, dz = points[j, 0] - mx, points[j, 1] - my, points[j, 2] - mz
+            c00 += dx * dx
+            c01 += dx * dy
+            c02 += dx * dz
+            c11 += dy * dy
+            c12 += dy * dz
+            c22 += dz * dz
+    _smallest_eigenvector(c00 / m, c01 / m, c02 / m, c11 / m, c12 / m, c22 / m, out)
+
+
+@nb.njit(cache=True, nogil=True)
 def normals_from_neighbours(points, neighbours, sq_dists, radius_sq):  # pragma: no cover
     """Unit normals: the smallest-eigenvalue eigenvector of the covariance of each point's
-    neighbours within the radius (zero when fewer than 3)."""
+    neighbours within the radius (zero when fewer than 3); neighbours (N, k), -1 for none."""
     n = points.shape[0]
     normals = np.zeros((n, 3))
     for i in range(n):
-        m = 0
-        mean = np.zeros(3)
-        for k in range(neighbours.shape[1]):
-            j = neighbours[i, k]
-            if j >= 0 and sq_dists[i, k] <= radius_sq:
-                mean += points[j]
-                m += 1
-        if m < 3:
-            continue
-        mean /= m
-        C = np.zeros((3, 3))
-        for k in range(neighbours.shape[1]):
-            j = neighbours[i, k]
-            if j >= 0 and sq_dists[i, k] <= radius_sq:
-                d = points[j] - mean
-                C += np.outer(d, d)
-        _, vectors = np.linalg.eigh(C / m)
-        normals[i] = vectors[:, 0]
+        _normal(points, neighbours[i], sq_dists[i], neighbours.shape[1], radius_sq,
+                normals[i])
     return normals
+
+
+@nb.njit(cache=True, nogil=True)
+def neighbourhood_normals(pts, perm, lo, hi, dim, split, left, right, k, radius_sq
+                          ):  # pragma: no cover - compiled
+    """``normals_from_neighbours`` of a kd-tree's own points (``methods.kdtree`` arrays) with
+    their k nearest neighbours within the radius, searched here: points are visited in tree
+    order (consecutive searches touch the same leaves) and each search starts bounded by its
+    predecessor's k neighbours (k distinct points: the k-th nearest is no farther than the
+    farthest of them), which prunes most of the tree. Normals in the original point order."""
+    n = pts.shape[0]
+    normals = np.zeros((n, 3))
+    st_node = np.empty(_STACK, dtype=np.int64)
+    st_lb = np.empty(_STACK)
+    st_off = np.empty((_STACK, 3))
+    out_sq = np.empty(k)
+    out_pos = np.empty(k, dtype=np.int64)
+    bound_all = np.nextafter(radius_sq, np.inf)  # within the radius, inclusive
+    count = 0
+    for p in range(n):
+        qx, qy, qz = pts[p, 0], pts[p, 1], pts[p, 2]
+        bound = bound_all
+        if count == k:  # the last search's k neighbours bound this one
+            far = 0.0
+            for j in range(k):
+                o = out_pos[j]
+                dx, dy, dz = pts[o, 0] - qx, pts[o, 1] - qy, pts[o, 2] - qz
+                far = max(far, dx * dx + dy * dy + dz * dz)
+            bound = min(bound_all, np.nextafter(far, np.inf))
+        count = _search(pts, lo, hi, dim, split, left, right, qx, qy, qz, k, bound, out_sq,
+                        out_pos, st_node, st_lb, st_off)
+        _normal(pts, out_pos, out_sq, count, radius_sq, normals[perm[p]])
+    return normals
+
+
+@nb.njit(cache=True, nogil=True)
+def pair_bounds(moved, target, idx, gate_sq):  # pragma: no cover - compiled
+    """Per moved point, a bound (squared, exclusive) on its nearest target point within the
+    gate (inclusive): just above its distance to its last pair ``idx`` (None or -1: the gate),
+    never above the gate."""
+    n = moved.shape[0]
+    gate = np.nextafter(gate_sq, np.inf)
+    bounds = np.full(n, gate)
+    if idx is None:
+        return bounds
+    for i in range(n):
+        j = idx[i]
+        if j >= 0:
+            d2 = 0.0
+            for a in range(3):
+                d2 += (moved[i, a] - target[j, a]) ** 2
+            bounds[i] = min(gate, np.nextafter(d2, np.inf))
+    return bounds

@@ -1,7 +1,8 @@
 """Compiled inner loop of Doppler Correspondence (numba), same answer as the NumPy reference.
 
-Algorithm 2 is: features f, g; nearest g for every f; two masks; one rigid fit. Here NumPy's
-SIMD integer sort orders both feature arrays (float32 order key + index packed in a uint64),
+Algorithm 2 is: features f, g; nearest g for every f; two masks; one rigid fit. Here a radix
+sort orders both feature arrays (float32 order key + index packed in a uint64: the order of
+NumPy's sort of the same keys),
 and one compiled pass walks the two sorted arrays together (a merge: the nearest g of each f is
 one of the two g's around it), applies both masks and accumulates the sums the rigid fit needs,
 so no intermediate array is made. Ties follow ``methods.doppler.nearest_1d``.
@@ -13,19 +14,23 @@ import numba as nb
 import numpy as np
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
 def features(points_t, doppler, dt_s, sign):
     """|p|^2 + sign |p| v dT (float32) for (3, N) float32 points."""
-    n = points_t.shape[1]
-    out = np.empty(n, dtype=np.float32)
-    for i in range(n):
-        x, y, z = points_t[0, i], points_t[1, i], points_t[2, i]
-        r2 = x * x + y * y + z * z
-        out[i] = r2 + sign * np.sqrt(r2) * doppler[i] * dt_s
+    out = np.empty(points_t.shape[1], dtype=np.float32)
+    features_into(points_t, doppler, dt_s, sign, out)
     return out
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
+def features_into(points_t, doppler, dt_s, sign, out):
+    for i in range(points_t.shape[1]):
+        x, y, z = points_t[0, i], points_t[1, i], points_t[2, i]
+        r2 = x * x + y * y + z * z
+        out[i] = r2 + sign * np.sqrt(r2) * doppler[i] * dt_s
+
+
+@nb.njit(cache=True, nogil=True)
 def sort_keys(values):
     """uint64 keys whose order is the float32 order of ``values`` (ties by index): the float's
     order-preserving bits in the high half, the index in the low half. Sort them with NumPy."""
@@ -38,13 +43,49 @@ def sort_keys(values):
     return keys
 
 
-def sorted_keys(values: np.ndarray) -> np.ndarray:
-    keys = sort_keys(values)
-    keys.sort()  # NumPy's SIMD sort of unsigned integers
-    return keys
+@nb.njit(cache=True, nogil=True)
+def radix_sort_high32(keys):
+    """``keys`` sorted by their high 32 bits, stably (equal high halves keep their input
+    order): an LSD radix sort in three passes of 11, 11 and 10 bits, one counting pass for all
+    three; a pass whose digit is the same for every key is skipped. For the keys of
+    ``sort_keys`` (index in the low half, so every key is distinct and the input is in index
+    order) the result is exactly ``np.sort(keys)``, 6-8x faster at 64k keys."""
+    n = len(keys)
+    counts = np.zeros((3, 2048), dtype=np.int64)
+    for i in range(n):
+        h = keys[i] >> np.uint64(32)
+        counts[0, h & np.uint64(0x7FF)] += 1
+        counts[1, (h >> np.uint64(11)) & np.uint64(0x7FF)] += 1
+        counts[2, h >> np.uint64(22)] += 1
+    src = keys.copy()
+    dst = np.empty_like(keys)
+    for p in range(3):
+        c = counts[p]
+        if n == 0 or c.max() == n:
+            continue  # one digit value: the pass would not move anything
+        start = 0
+        for b in range(2048):
+            count = c[b]
+            c[b] = start
+            start += count
+        shift = np.uint64(32 + 11 * p)
+        for i in range(n):
+            k = src[i]
+            b = (k >> shift) & np.uint64(0x7FF)
+            dst[c[b]] = k
+            c[b] += 1
+        src, dst = dst, src
+    return src
 
 
-@nb.njit(cache=True)
+@nb.njit(cache=True, nogil=True)
+def sorted_keys(values):
+    """``sort_keys(values)`` in ascending order (the float32 order of ``values``, ties by
+    index)."""
+    return radix_sort_high32(sort_keys(values))
+
+
+@nb.njit(cache=True, nogil=True)
 def _gather_sorted(points_t, values, keys):
     """Points and values in key order, as contiguous arrays (simple loops: misses overlap)."""
     n = len(keys)
@@ -62,46 +103,149 @@ def _gather_sorted(points_t, values, keys):
     return pts, vals
 
 
-@nb.njit(cache=True)
-def match_and_accumulate(p_t, f, f_keys, q_t, g, g_keys, tau_spatial2, tau_doppler):
-    """Nearest g for every f (a merge of the two sorted orders), masks, and the fit's sums.
+@nb.njit(cache=True, nogil=True)
+def sorted_scan(points_t, doppler, dt_s, sign):
+    """One scan's half of the step: its features (as ``features``) and its points, both in the
+    features' float32 order with ties by index (the order of ``sorted_keys``): (pts (3, N),
+    vals (N,)), float32. Releases the GIL: the source's and the target's halves can run on two
+    threads."""
+    n = points_t.shape[1]
+    pts = np.empty((3, n), dtype=np.float32)
+    vals = np.empty(n, dtype=np.float32)
+    sorted_scan_into(points_t, doppler, dt_s, sign, np.empty(n, dtype=np.float32),
+                     np.empty(n, dtype=np.uint64), np.empty(n, dtype=np.uint64), pts, vals)
+    return pts, vals
 
-    ``f_keys`` / ``g_keys``: sorted keys from ``sorted_keys``. Returns (n, sum_p (3,),
-    sum_q (3,), sum_pq (3, 3)) in float64 over the kept pairs.
-    """
-    ps, fs = _gather_sorted(p_t, f, f_keys)
-    qs, gs = _gather_sorted(q_t, g, g_keys)
+
+@nb.njit(cache=True, nogil=True)
+def sorted_scan_into(points_t, doppler, dt_s, sign, values, keys, spare, pts, vals):
+    """``sorted_scan`` into caller-owned arrays of N elements (scratch: ``values`` float32,
+    ``keys`` and ``spare`` uint64; out: ``pts`` (3, N) and ``vals`` float32), so that repeated
+    calls touch no fresh memory (page faults cost as much as the sort). The radix sort of
+    ``radix_sort_high32`` with its last pass fused with the gather of the points: the scan's
+    data is read and written as few times as possible (the step is memory-bound)."""
+    n = points_t.shape[1]
+    features_into(points_t, doppler, dt_s, sign, values)
+    bits = values.view(np.uint32)
+    counts = np.zeros((3, 2048), dtype=np.int64)
+    for i in range(n):  # the keys of ``sort_keys`` and the three passes' digit counts
+        b = bits[i]
+        h = ~b if b >> np.uint32(31) else b | np.uint32(0x80000000)
+        keys[i] = (np.uint64(h) << np.uint64(32)) | np.uint64(i)
+        counts[0, h & np.uint32(0x7FF)] += 1
+        counts[1, (h >> np.uint32(11)) & np.uint32(0x7FF)] += 1
+        counts[2, h >> np.uint32(22)] += 1
+    passes = [p for p in range(3) if n and counts[p].max() != n]
+    for p in passes:
+        start = 0
+        for b in range(2048):
+            count = counts[p, b]
+            counts[p, b] = start
+            start += count
+    if not passes:  # every key has the same high half: index order is the order
+        for i in range(n):
+            vals[i] = values[i]
+            for a in range(3):
+                pts[a, i] = points_t[a, i]
+        return
+    src = keys
+    dst = spare
+    for p in passes[:-1]:
+        c = counts[p]
+        shift = np.uint64(32 + 11 * p)
+        for i in range(n):
+            k = src[i]
+            b = (k >> shift) & np.uint64(0x7FF)
+            dst[c[b]] = k
+            c[b] += 1
+        src, dst = dst, src
+    last = passes[-1]
+    c = counts[last]
+    shift = np.uint64(32 + 11 * last)
+    for i in range(n):  # the last pass writes the points and values in place of the keys
+        k = src[i]
+        b = (k >> shift) & np.uint64(0x7FF)
+        pos = c[b]
+        c[b] += 1
+        j = np.int64(k & np.uint64(0xFFFFFFFF))
+        vals[pos] = values[j]
+        pts[0, pos] = points_t[0, j]
+        pts[1, pos] = points_t[1, j]
+        pts[2, pos] = points_t[2, j]
+
+
+@nb.njit(cache=True, nogil=True)
+def match_sorted(ps, fs, qs, gs, tau_spatial2, tau_doppler):
+    """Nearest g for every f (a merge of the two sorted orders), masks, and the fit's sums,
+    from the halves of ``sorted_scan`` (source: ps, fs; target: qs, gs). Returns (n,
+    sum_p (3,), sum_q (3,), sum_pq (3, 3)) in float64 over the kept pairs.
+
+    Branch-free masks: a dropped pair adds products with a zero weight (x + 0.0 == x, so the
+    sums are those of adding the kept pairs alone; finite points assumed, as everywhere)."""
     m = len(gs)
-    sum_p = np.zeros(3)
-    sum_q = np.zeros(3)
-    sum_pq = np.zeros((3, 3))
+    sp0 = sp1 = sp2 = sq0 = sq1 = sq2 = 0.0
+    s00 = s01 = s02 = s10 = s11 = s12 = s20 = s21 = s22 = 0.0
     n = 0
     j = 0  # number of g values <= the current f
     for i in range(len(fs)):
         fi = fs[i]
         while j < m and gs[j] <= fi:
             j += 1
-        if j == 0:
-            k = 0
-        elif j == m:
-            k = m - 1
-        else:
-            k = j if gs[j] - fi < fi - gs[j - 1] else j - 1
-        if abs(fi - gs[k]) > tau_doppler:
-            continue
-        dx = ps[0, i] - qs[0, k]
-        dy = ps[1, i] - qs[1, k]
-        dz = ps[2, i] - qs[2, k]
-        if dx * dx + dy * dy + dz * dz > tau_spatial2:
-            continue
-        n += 1
-        for a in range(3):
-            pa = np.float64(ps[a, i])
-            sum_p[a] += pa
-            sum_q[a] += qs[a, k]
-            for b in range(3):
-                sum_pq[a, b] += pa * qs[b, k]
-    return n, sum_p, sum_q, sum_pq
+        lo = j - 1 if j > 0 else 0
+        hi = j if j < m else m - 1
+        k = hi if gs[hi] - fi < fi - gs[lo] else lo  # the nearer; the lower one on a tie
+        px, py, pz = ps[0, i], ps[1, i], ps[2, i]
+        qx, qy, qz = qs[0, k], qs[1, k], qs[2, k]
+        dx, dy, dz = px - qx, py - qy, pz - qz
+        keep = (abs(fi - gs[k]) <= tau_doppler) & (dx * dx + dy * dy + dz * dz <= tau_spatial2)
+        w = 1.0 if keep else 0.0
+        n += 1 if keep else 0
+        a0, a1, a2 = w * np.float64(px), w * np.float64(py), w * np.float64(pz)
+        b0, b1, b2 = np.float64(qx), np.float64(qy), np.float64(qz)
+        sp0 += a0
+        sp1 += a1
+        sp2 += a2
+        sq0 += w * b0
+        sq1 += w * b1
+        sq2 += w * b2
+        s00 += a0 * b0
+        s01 += a0 * b1
+        s02 += a0 * b2
+        s10 += a1 * b0
+        s11 += a1 * b1
+        s12 += a1 * b2
+        s20 += a2 * b0
+        s21 += a2 * b1
+        s22 += a2 * b2
+    sum_pq = np.array([[s00, s01, s02], [s10, s11, s12], [s20, s21, s22]])
+    return n, np.array([sp0, sp1, sp2]), np.array([sq0, sq1, sq2]), sum_pq
+
+
+@nb.njit(cache=True, nogil=True)
+def match_and_accumulate(p_t, f, f_keys, q_t, g, g_keys, tau_spatial2, tau_doppler):
+    """``match_sorted`` from features and their sorted keys (``sorted_keys``)."""
+    ps, fs = _gather_sorted(p_t, f, f_keys)
+    qs, gs = _gather_sorted(q_t, g, g_keys)
+    return match_sorted(ps, fs, qs, gs, tau_spatial2, tau_doppler)
+
+
+class SortWorkspace:
+    """Arrays reused by ``sorted_scan_into`` from call to call (grown when a scan is larger);
+    one per scan role, used by one thread at a time."""
+
+    def __init__(self) -> None:
+        self._capacity = -1
+
+    def arrays(self, n: int) -> tuple[np.ndarray, ...]:
+        """(values, keys, spare, pts (3, n), vals) views of n elements."""
+        if n > self._capacity:
+            self._capacity = max(n, int(self._capacity * 1.25))
+            c = self._capacity
+            self._f32 = np.empty(5 * c, dtype=np.float32)
+            self._u64 = np.empty(2 * c, dtype=np.uint64)
+        c = self._capacity
+        f, u = self._f32, self._u64
+        return (f[:n], u[:n], u[c:c + n], f[c:c + 3 * n].reshape(3, n), f[4 * c:4 * c + n])
 
 
 def warm_up() -> None:
@@ -111,3 +255,8 @@ def warm_up() -> None:
     f = features(pts, dop, 0.1, 1.0)
     keys = sorted_keys(f)
     match_and_accumulate(pts, f, keys, pts, f, keys, 9.0, 5.0)
+    ps, fs = sorted_scan(pts, dop, 0.1, 1.0)
+    match_sorted(ps, fs, ps, fs, 9.0, 5.0)
+    arrays = SortWorkspace().arrays(4)
+    sorted_scan_into(pts, dop, 0.1, 1.0, *arrays)
+    match_sorted(arrays[3], arrays[4], ps, fs, 9.0, 5.0)

@@ -1,0 +1,102 @@
+"""The compiled kd-tree against scipy's cKDTree and brute force, and DICP's compiled normals
+against NumPy's eigh on the same neighbourhoods."""
+
+import numpy as np
+import pytest
+from scipy.spatial import cKDTree
+
+from methods.dicp_kernel import (
+    _smallest_eigenvector,
+    neighbourhood_normals,
+    normals_from_neighbours,
+    pair_bounds,
+)
+from methods.kdtree import KdTree
+
+
+def _cloud(n, seed):
+    """A LiDAR-like mix: a dense ground plane, a wall, scattered points, duplicates."""
+    rng = np.random.default_rng(seed)
+    ground = np.column_stack([rng.uniform(-20, 20, n // 2), rng.uniform(-20, 20, n // 2),
+                              rng.normal(0, 0.01, n // 2)])
+    wall = np.column_stack([rng.uniform(-20, 20, n // 4), np.full(n // 4, 7.0),
+                            rng.uniform(0, 3, n // 4)])
+    rest = rng.uniform(-30, 30, (n - n // 2 - n // 4 - 10, 3))
+    pts = np.vstack([ground, wall, rest])
+    return np.vstack([pts, pts[:10]])  # exact duplicates
+
+
+@pytest.mark.parametrize("k, max_dist", [(1, np.inf), (2, np.inf), (1, 0.3), (30, 10.0),
+                                         (30, 0.5)])
+def test_knn_equals_scipy(k, max_dist):
+    pts = _cloud(6000, 0)
+    queries = np.vstack([pts[::7] + np.random.default_rng(1).normal(0, 0.2, (len(pts[::7]), 3)),
+                         pts[:50], [[500.0, 0, 0]]])
+    tree = KdTree(pts, leaf_size=5)
+    idx, sq = tree.knn(queries, k, max_dist)
+    ref_d, ref_i = cKDTree(pts).query(queries, k, distance_upper_bound=max_dist)
+    ref_d, ref_i = ref_d.reshape(len(queries), k), ref_i.reshape(len(queries), k)
+    found = np.isfinite(ref_d) & (ref_d < max_dist)
+    np.testing.assert_array_equal(idx >= 0, found)
+    np.testing.assert_allclose(np.sqrt(sq[found]), ref_d[found], rtol=1e-12, atol=1e-12)
+    # the indices are scipy's up to ties (duplicates): the distances they give are the same
+    got = np.sqrt(((pts[idx[found]] - np.repeat(queries, k, 0).reshape(-1, k, 3)[found]) ** 2)
+                  .sum(-1))
+    np.testing.assert_allclose(got, ref_d[found], rtol=1e-12, atol=1e-12)
+    assert all(len(set(row[row >= 0])) == (row >= 0).sum() for row in idx)  # distinct
+
+
+def test_per_query_bounds_against_brute_force():
+    pts = _cloud(3000, 2)
+    rng = np.random.default_rng(3)
+    queries = pts[rng.choice(len(pts), 400)] + rng.normal(0, 0.3, (400, 3))
+    bounds = rng.uniform(0, 1.0, 400)
+    idx, sq = KdTree(pts).knn(queries, 3, bounds_sq=bounds)
+    d2 = ((queries[:, None, :] - pts[None, :, :]) ** 2).sum(-1)
+    for i in range(len(queries)):
+        inside = np.sort(d2[i][d2[i] < bounds[i]])[:3]
+        np.testing.assert_allclose(sq[i][: len(inside)], inside, rtol=1e-12)
+        assert np.all(idx[i][len(inside):] == -1)
+
+
+def test_pair_bounds_are_the_last_pairs_distances_capped_by_the_gate():
+    moved = np.array([[0.0, 0, 0], [1.0, 0, 0], [5.0, 0, 0]])
+    target = np.array([[0.1, 0, 0], [1.0, 0.2, 0]])
+    b = pair_bounds(moved, target, np.array([0, 1, 0]), 0.09)
+    d2 = ((moved - target[[0, 1, 0]]) ** 2).sum(1)
+    assert b[0] == np.nextafter(d2[0], np.inf) and b[1] == np.nextafter(d2[1], np.inf)
+    assert b[2] == np.nextafter(0.09, np.inf)  # farther from its last pair than the gate
+    assert np.all(pair_bounds(moved, target, None, 0.09) == np.nextafter(0.09, np.inf))
+    assert np.all(pair_bounds(moved, target, np.array([-1, -1, -1]), 0.09)
+                  == np.nextafter(0.09, np.inf))
+
+
+def test_closed_form_normals_equal_eigh():
+    rng = np.random.default_rng(4)
+    out = np.empty(3)
+    cases = [rng.normal(size=(30, 3)) * [5.0, 2.0, 0.01] for _ in range(200)]
+    cases += [rng.normal(size=(30, 3)) * [1.0, 1.0, 1.0]]  # nearly isotropic
+    cases += [np.outer(rng.normal(size=30), [1.0, 2.0, 3.0])]  # a line: two zero eigenvalues
+    cases += [rng.normal(size=(30, 3)) * [3.0, 1e-7, 1e-7]]  # nearly a line
+    for P in cases:
+        R = np.linalg.qr(rng.normal(size=(3, 3)))[0]
+        Q = P @ R.T + rng.uniform(-50, 50, 3)
+        C = np.cov(Q.T, bias=True)
+        w, v = np.linalg.eigh(C)
+        _smallest_eigenvector(C[0, 0], C[0, 1], C[0, 2], C[1, 1], C[1, 2], C[2, 2], out)
+        assert abs(np.linalg.norm(out) - 1) < 1e-12
+        # an eigenvector of the smallest eigenvalue: |C n - w0 n| tiny against the gap
+        np.testing.assert_allclose(C @ out, w[0] * out, atol=1e-9 * w[2])
+        if w[1] - w[0] > 1e-6 * w[2]:  # a unique normal: the same as eigh's up to its sign
+            assert abs(abs(out @ v[:, 0]) - 1) < 1e-9
+
+
+@pytest.mark.parametrize("leaf_size", [1, 4, 12])
+def test_tree_normals_equal_normals_from_scipys_neighbours(leaf_size):
+    pts = _cloud(4000, 5)
+    ref_d, ref_i = cKDTree(pts).query(pts, 30)
+    ref = normals_from_neighbours(pts, ref_i.astype(np.int64), ref_d**2, 4.0)
+    got = neighbourhood_normals(*KdTree(pts, leaf_size).arrays, 30, 4.0)
+    assert np.all((np.abs(ref).sum(1) == 0) == (np.abs(got).sum(1) == 0))
+    dots = np.abs((ref * got).sum(1))[np.abs(ref).sum(1) > 0]
+    assert np.all(dots > 1 - 1e-9)
