@@ -25,8 +25,9 @@ Two interchangeable backends compute the same step: ``numpy`` (the reference bel
 array code) and ``numba`` (``methods.doppler_kernel``: the same order by a compiled radix sort,
 then one compiled merge pass; the default, about 10x faster). Both use float32 features and the
 same tie rules, so they find the same correspondences. ``num_threads`` 2 (numba backend) sorts
-the source's and the target's features on two threads; the default is 1. ``preprocess`` only puts the points in the (3, N) float32
-layout both work on; ranges, features, matching, masks and the fit are all inside ``register``.
+the source's and the target's features on two threads; the default is 1. ``preprocess`` only
+puts the points in the (3, N) float32 layout both work on; ranges, features, matching, masks
+and the fit are all inside ``register``.
 Timing (``methods.base``): ``time_ms`` = that layout + ``register``; ``register_ms`` =
 ``register`` alone.
 """
