@@ -233,7 +233,7 @@ class PointToPlaneIcp(_SmallGicp):
         for iteration in range(1, p.max_iterations + 1):
             moved = src @ T[:3, :3].T + T[:3, 3]
             idx, sq = target.tree.batch_knn_search(moved, 1, num_threads=p.num_threads)
-            idx, sq = idx.ravel(), sq.ravel()
+            idx, sq = idx.ravel().view(np.int64), sq.ravel()  # uint64, -1 for none
             keep = (idx >= 0) & (sq <= max_sq)
             pairs = int(keep.sum())
             if pairs < 6:
