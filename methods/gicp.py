@@ -38,8 +38,9 @@ small_gicp's recommendations (0.25 m downsampling, 1 m gate, 1 m VGICP voxels) a
 automotive LiDAR (its KITTI examples). Tuning data (configs/splits.yaml): real NTU4DRadLM
 frames 0-124 (relative errors at 8-40 m, translation against the GT with its 1.65 deg pitch
 tilt removed, each setting averaged over five positions of the voxel grids relative to the
-scene, which move a single run's translation error by up to +-25 %) and the synthetic
-sequences with seeds 1000-1003 (8-48 m). Figures: mean rotation [deg] / translation [m].
+scene, which move a single run's translation error by up to +-10 % (point-to-plane, GICP)
+and +-40 % (VGICP)) and the synthetic sequences with seeds 1000-1003 (8-48 m). Figures:
+mean rotation [deg] / translation [m].
 
 - Radar voxel downsampling 1.0 m: real, 5 m gate, point-to-plane 0.5 / 0.75 / 1.0 / 1.25 m:
   1.25/0.85, 1.33/0.72, 1.33/0.70, 1.40/1.92; GICP 1.18/1.09, 1.22/1.01, 1.27/0.95,
@@ -48,8 +49,8 @@ sequences with seeds 1000-1003 (8-48 m). Figures: mean rotation [deg] / translat
   shrink towards zero motion (at 1.25 m point-to-plane travelled 8 % short, GICP 4 %).
 - Radar gate 3.0 m: real, point-to-plane at 2 / 3 / 5 / 8 m: 1.31/0.78, 1.33/0.72,
   1.33/0.70, 1.31/0.67 (GICP and VGICP flat from 2 to 5 m); synthetic semi-dense radar (loop)
-  the other way, point-to-plane rotation 1.42 / 1.90 / 2.49 deg at 2 / 3 / 5 m. 3 m costs the
-  real data 3 % and the synthetic 24 % less than 5 m would.
+  the other way, point-to-plane rotation 1.42 / 1.90 / 2.49 deg at 2 / 3 / 5 m. Against 5 m,
+  3 m costs the real translation 3 % and saves the synthetic rotation 24 %.
 - Radar VGICP voxel 2.0 m: real, 1 / 2 / 3 m voxels: 1.28/0.90, 1.28/0.85, 1.26/0.91.
 - LiDAR gate 0.5 m: synthetic campus LiDAR, 0.5 / 1.0 m: point-to-plane 0.10/0.055,
   0.25/0.19; GICP 0.036/0.012, 0.17/0.11 (tunnel and straight wall: GICP rotation 0.16 vs
@@ -71,8 +72,9 @@ voxel it falls in, so its cost is piecewise; at a voxel border a point can switc
 every step. On the 4k-point LiDAR pair of ``bench speed`` (every 2nd point, no voxel grid,
 1 m voxels: 2000 points in 710 voxels) the updates settled into a two-step cycle of 45 um /
 0.0003 deg, never below the old 1e-5 m / 1e-5 rad criteria, so it ran into the 100-iteration
-limit (19 ms). With the voxel grid and small_gicp's 1 mm / 0.1 deg it converges in 5
-iterations at 4k and 64k points (6 with the voxel grid and the old 1e-5 criteria).
+limit (19 ms in ``bench speed``). With the voxel grid and small_gicp's 1 mm / 0.1 deg it
+converges in 5 iterations at 4k and 64k points (6 with the voxel grid and the old 1e-5
+criteria).
 
 Threads: ``num_threads`` 1 by default, like every method here (fair beside the
 single-threaded methods; 2 threads measured slower on the shared 2-core machine).
