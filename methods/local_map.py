@@ -17,8 +17,8 @@ Doppler cannot observe.
 from __future__ import annotations
 
 from collections import deque
-from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import numba
 import numpy as np
@@ -125,18 +125,31 @@ class LocalMap:
 
 @dataclass
 class MapFit:
+    """T_world_sensor: the solved pose; correspondences: pairs of the last iteration."""
+
     T_world_sensor: np.ndarray
     correspondences: int
     iterations: int
     converged: bool
 
 
+class TiedTranslation(Protocol):
+    """A translation measured apart from the geometry (the Doppler ego translation) as a
+    function of the rotation: ``__call__(R_world_sensor) -> t_world_sensor`` [m], and
+    ``lever`` (3,) [m, sensor frame], how it turns with the rotation:
+    ``t(exp(d) R) = t(R) + d x (R lever)`` to first order."""
+
+    lever: np.ndarray
+
+    def __call__(self, R_world_sensor: np.ndarray) -> np.ndarray: ...
+
+
 @numba.njit(cache=True)
-def _normal_equations(Rp, moved, covs, R, map_points, map_covs, idx, keep, c2, dof):
-    """H (dof x dof) and g (dof) of the weighted GICP cost over the kept pairs: residual
+def _normal_equations(Rp, moved, covs, R, map_points, map_covs, idx, keep, c2):
+    """H (6 x 6) and g (6) of the weighted GICP cost over the kept pairs: residual
     e = R p + t - q, weight W = (C_q + R C_p R^T)^-1 scaled by the Cauchy IRLS factor,
-    Jacobian [-(R p)^, I] (rotation, then translation when dof == 6). Scalar code: small
-    matrix products in numba would allocate per pair."""
+    Jacobian [-(R p)^, I] for the perturbation R <- exp(dtheta) R, t <- t + dt. Scalar code:
+    small matrix products in numba would allocate per pair."""
     H = np.zeros((6, 6))
     g = np.zeros(6)
     J = np.zeros((3, 6))
@@ -183,15 +196,18 @@ def _normal_equations(Rp, moved, covs, R, map_points, map_covs, idx, keep, c2, d
         J[0, 1], J[0, 2] = z, -y  # J[:, :3] = -skew(R p)
         J[1, 0], J[1, 2] = -z, x
         J[2, 0], J[2, 1] = y, -x
-        for a in range(dof):
+        for a in range(6):
             # (J^T W)[a, :] then its products with J and e
             t0 = J[0, a] * W[0, 0] + J[1, a] * W[1, 0] + J[2, a] * W[2, 0]
             t1 = J[0, a] * W[0, 1] + J[1, a] * W[1, 1] + J[2, a] * W[2, 1]
             t2 = J[0, a] * W[0, 2] + J[1, a] * W[1, 2] + J[2, a] * W[2, 2]
             g[a] += w * (t0 * e0 + t1 * e1 + t2 * e2)
-            for b in range(dof):
+            for b in range(a, 6):
                 H[a, b] += w * (t0 * J[0, b] + t1 * J[1, b] + t2 * J[2, b])
-    return H[:dof, :dof].copy(), g[:dof].copy()
+    for a in range(6):
+        for b in range(a):
+            H[a, b] = H[b, a]
+    return H, g
 
 
 def register_to_map(
@@ -199,27 +215,41 @@ def register_to_map(
     points: np.ndarray,
     covs: np.ndarray,
     init_T_world_sensor: np.ndarray,
-    translation_of: Callable[[np.ndarray], np.ndarray] | None,
+    tied: TiedTranslation | None,
     max_correspondence_m: float,
     kernel_scale: float = 3.0,
     max_iterations: int = 15,
     min_correspondences: int = 10,
     tolerance_rad: float = 1e-4,
+    free_axes_sensor: np.ndarray | None = None,
 ) -> MapFit:
     """Align ``points`` (N, 3) [m, sensor frame] with covariances ``covs`` (N, 3, 3) to the map.
 
-    ``translation_of(R_world_sensor) -> t_world_sensor`` fixes the translation (rotation-only
-    solve); ``None`` solves all 6 degrees of freedom. ``kernel_scale`` is the Cauchy scale on
-    the Mahalanobis distance [-]. Returns the pose T_world_sensor and the last pair count."""
+    Unknowns. ``tied`` None: all 6 degrees of freedom, from ``init_T_world_sensor``. Otherwise
+    the translation is ``tied(R) + U s``: the measured translation plus a free offset ``s``
+    along the unit vectors ``free_axes_sensor`` (k, 3) [sensor frame, turned into the world by
+    the initial rotation: the columns of U]; k = 0 (None) solves the 3 rotation unknowns alone,
+    k = 1 with the sensor's z axis leaves the vertical to the geometry. The perturbation is
+    ``R <- exp(dtheta) R``, ``s <- s + ds``; as ``tied(R)`` turns with R about the sensor, the
+    translation moves by ``-(R lever)^ dtheta + U ds``, and the Gauss-Newton step uses exactly
+    that (the full derivative of the constrained cost, so the iteration converges to its own
+    optimum). ``kernel_scale`` is the Cauchy scale on the Mahalanobis distance [-]. Returns the
+    pose T_world_sensor and the last pair count."""
     R = init_T_world_sensor[:3, :3].copy()
-    t = init_T_world_sensor[:3, 3].copy() if translation_of is None else translation_of(R)
+    if tied is None:
+        U = np.zeros((3, 0))
+        t = init_T_world_sensor[:3, 3].copy()
+    else:
+        axes = np.zeros((0, 3)) if free_axes_sensor is None else np.atleast_2d(free_axes_sensor)
+        U = R @ np.asarray(axes, dtype=np.float64).T  # (3, k) world frame
+        s = np.zeros(U.shape[1])
+        t = tied(R)
     n_pairs, converged, it = 0, False, 0
     if local_map.index is None:
         return MapFit(_pose(R, t), 0, 0, False)
     if max_correspondence_m > local_map.search_radius_m:
         raise ValueError(f"pair gate {max_correspondence_m} m exceeds the map's search radius "
                          f"{local_map.search_radius_m} m")
-    dof = 6 if translation_of is None else 3
     c2 = kernel_scale**2
     for step in range(1, max_iterations + 1):
         it = step
@@ -231,18 +261,31 @@ def register_to_map(
         if n_pairs < min_correspondences:
             break
         H, g = _normal_equations(Rp, moved, covs, R, local_map.points, local_map.covs,
-                                 idx, keep, c2, dof)
+                                 idx, keep, c2)
+        if tied is not None:  # the 6-DoF step as a function of (dtheta, ds)
+            B = np.zeros((6, 3 + U.shape[1]))
+            B[:3, :3] = np.eye(3)
+            B[3:, :3] = -_skew(R @ tied.lever)
+            B[3:, 3:] = U
+            H, g = B.T @ H @ B, B.T @ g
         try:
             delta = -np.linalg.solve(H, g)
         except np.linalg.LinAlgError:
             break
         R = Rotation.from_rotvec(delta[:3]).as_matrix() @ R
-        t = t + delta[3:] if dof == 6 else translation_of(R)
-        if np.linalg.norm(delta[:3]) < tolerance_rad and (
-                dof == 3 or np.linalg.norm(delta[3:]) < 1e-4):
+        if tied is None:
+            t = t + delta[3:]
+        else:
+            s = s + delta[3:]
+            t = tied(R) + U @ s
+        if np.linalg.norm(delta[:3]) < tolerance_rad and np.linalg.norm(delta[3:]) < 1e-4:
             converged = True
             break
     return MapFit(_pose(R, t), n_pairs, it, converged)
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])
 
 
 def _pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
