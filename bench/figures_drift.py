@@ -42,15 +42,17 @@ def plot_drift(runs: list[Run], out_dir: Path) -> list[Path]:
             for ax in axes[k]:
                 ax.axhline(0.0, color="black", lw=0.4)
         for ax in axes[-1]:
-            ax.set_xlabel("distance [m]")
+            ax.set_xlabel("distance travelled [m]")
         fig.suptitle(f"{sequence}: drift from the first frame (estimate - GT, GT body axes)",
                      fontsize=7)
         handles, labels = axes[0, 0].get_legend_handles_labels()
-        fig.legend(handles, labels, loc="lower center", bbox_to_anchor=(0.5, -0.02 - 0.025
-                                                                         * np.ceil(len(labels)
-                                                                                   / 2)),
-                   ncol=2, frameon=False)
-        fig.tight_layout(pad=0.3, h_pad=0.2, w_pad=0.6)
+        rows = int(np.ceil(len(labels) / 2))
+        legend_in = 0.12 * rows + 0.05  # inches kept below the panels for the legend
+        fig.set_size_inches(COLUMN_IN, 3.6 + legend_in)
+        fig.tight_layout(pad=0.3, h_pad=0.2, w_pad=0.6,
+                         rect=(0, legend_in / (3.6 + legend_in), 1, 0.97))
+        fig.legend(handles, labels, loc="lower center", bbox_to_anchor=(0.5, 0.0), ncol=2,
+                   frameon=False)
         written += save(fig, out_dir / "drift" / _safe(sequence))
     return written
 

@@ -64,6 +64,7 @@ from pydantic import Field
 from loaders.errors import DataError
 from loaders.scan import SensorInfo, Sequence
 from loaders.se3 import inv_T
+from methods.angular_noise import AngularNoise
 from methods.base import FrameRecord, MethodParams, Odometry, OdometryResult, scale_motion
 from methods.ego_velocity import estimate_ego_velocity
 from methods.local_map import LocalMap, register_to_map, scan_covariances
@@ -71,19 +72,22 @@ from methods.timing import timed_section
 
 _SENSOR_Z = np.array([[0.0, 0.0, 1.0]])
 
-# sensor-dependent defaults: (radar, lidar), each with its physical reason
+# sensor-dependent defaults (radar, lidar); each value's source is in
+# configs/methods/doppler-ego.yaml ("tuning: real" = real store frames 0-124 only)
 DEFAULTS = {
-    # ~3 sigma of radar Doppler noise (~0.06-0.1 m/s); FMCW LiDAR ~0.03 m/s
-    "threshold_mps": (0.25, 0.1),
-    # radar: about the cross-range noise at 30 m (1 deg); dense LiDAR: ~1 m cells
+    # RANSAC hypothesis gate and upper bound of the inlier gate [m/s]. Radar: 99.4 % of the
+    # Doppler residuals of the tuning frames lie within 0.25 m/s (robust sigma 0.031 m/s);
+    # LiDAR: the Doppler scale of DICP's Tukey kernel on Aeva data (0.2 m/s, REFERENCE.md)
+    "threshold_mps": (0.25, 0.2),
+    # about the cross-range noise at the median range: radar 0.4 deg at 70 m (tuning: real)
+    # = 0.49 m; LiDAR: kiss-icp's voxel rule max_range / 100 for a 100 m sensor
     "voxel_m": (0.5, 1.0),
+    # noise in every direction [m]: radar tuning: real (48 m errors flat over 0.05-0.3 m);
+    # LiDAR: a few cm of FMCW range precision (Aeva's CARLA script adds 0.05 m, REFERENCE.md;
+    # the synthetic LiDAR prefers ever smaller floors, which would only fit its own noise)
     "covariance_floor_m": (0.15, 0.03),
-    # angular noise across the ray (azimuth, elevation) [deg]: the real Eagle sample's Doppler
-    # residual grows with the azimuth sensitivity as 0.45 deg of azimuth noise (top 1 % of
-    # residuals trimmed; 0.9 untrimmed, `bench synth --realism`), so 0.5; 4D radar elevation is
-    # resolved about half as finely (synthetic sensors: 1 / 2 deg cells); FMCW LiDAR ~0.02 deg
-    "angle_noise_deg": ((0.5, 1.0), (0.02, 0.02)),
-    # ~1 s of radar scans for enough structure; LiDAR scans are dense on their own
+    # radar: 1 s (tuning: real; 0.5 s worse, 2 s no better); LiDAR: dense scans carry their
+    # own structure, 5 scans
     "map_seconds": (1.0, 0.5),
 }
 
@@ -92,25 +96,30 @@ class DopplerEgoParams(MethodParams):
     ego_translation: bool = Field(True, description="translation from the Doppler ego velocity")
     static_filter: bool = Field(True, description="register only the ego-velocity inliers")
     use_map: bool = Field(True, description="scan-to-map (else scan-to-scan)")
-    threshold_mps: float | None = Field(None, gt=0, description="RANSAC Doppler inlier gate "
-                                        "[m/s] (radar 0.25, LiDAR 0.1)")
+    free_vertical: bool | None = Field(
+        None, description="leave the vertical translation (sensor z) to the geometry in the "
+        "rotation solve (None: when the sensor re-publishes its earlier detections)")
+    threshold_mps: float | None = Field(None, gt=0, description="RANSAC Doppler gate [m/s] "
+                                        "(radar 0.25, LiDAR 0.2)")
+    gate_sigmas: float = Field(3.0, gt=0, description="inlier gate in robust sigmas of the "
+                               "scan's own Doppler residual (at most threshold_mps)")
     voxel_m: float | None = Field(None, gt=0, description="source voxel size [m]")
-    # The translation is fixed by Doppler (to mm) and the rotation predicted from the last
+    # The translation is tied to Doppler (to mm) and the rotation predicted from the last
     # step, so a correctly associated point lies within about a voxel diagonal (0.87 m for the
-    # radar's 0.5 m) of its nearest map point; farther pairs are wrong associations. (2 m, the
-    # radar's angular noise at 100 m, let wrong pairs in: 48 m rotation error 2.3x in a U-turn.)
+    # radar's 0.5 m) of its nearest map point; farther pairs are wrong associations.
     max_correspondence_m: float = Field(1.0, gt=0, description="pair gate [m]")
     covariance_floor_m: float | None = Field(None, gt=0, description="covariance floor [m]")
     angle_noise_deg: tuple[float, float] | None = Field(
         None, description="angular noise across the ray (azimuth, elevation) [deg]: point "
-        "covariances grow as range x angle across the ray (radar 0.5, 1.0; LiDAR 0.02, 0.02)")
+        "covariances grow as range x angle across the ray; None: estimated from the sensor's "
+        "own Doppler residuals (methods/angular_noise.py)")
     map_seconds: float | None = Field(None, gt=0, description="local map span [s]")
-    free_vertical: bool | None = Field(
-        None, description="leave the vertical translation (sensor z) to the geometry in the "
-        "rotation solve: None = when the sensor re-publishes its earlier detections")
+    replace_within_m: float = Field(
+        0.05, ge=0, description="on a sensor that re-publishes its detections, a scan's point "
+        "replaces older map points within this distance [m] (each detection kept once)")
     neighbours: int = Field(10, ge=3, description="points per covariance")
     kernel_scale: float = Field(3.0, gt=0, description="Cauchy scale, Mahalanobis [-]")
-    max_iterations: int = Field(15, ge=1)
+    max_iterations: int = Field(15, ge=1, description="Gauss-Newton iterations at most")
     max_source_points: int = Field(1500, ge=10, description="registration uses at most this "
                                    "many (strided) source points; the map gets all of them")
 
@@ -145,6 +154,7 @@ class DopplerEgo(Odometry):
         stamps = np.empty(n)
         records: list[FrameRecord] = []
         v_prev, first_static = None, None
+        noise = AngularNoise()
         free_vertical = p.free_vertical  # None: decided on the first pair of scans
         last_motion, last_dt = np.eye(4), None  # T_prev_curr of the previous step (seed only)
         for i, scan in enumerate(sequence):
@@ -154,12 +164,19 @@ class DopplerEgo(Odometry):
             register_ms = float("nan")
             with timed_section() as watch:
                 ego = estimate_ego_velocity(scan.points, scan.doppler,
-                                            threshold_mps=p.threshold_mps)
+                                            threshold_mps=p.threshold_mps,
+                                            gate_sigmas=p.gate_sigmas)
                 static_only = p.static_filter and ego.observable
                 pts = scan.points[ego.inliers] if static_only else scan.points
+                angles = p.angle_noise_deg
+                if angles is None:  # the sensor's own, from its Doppler residuals so far
+                    if ego.observable:
+                        noise.add(scan.points[ego.inliers], scan.doppler[ego.inliers],
+                                  ego.velocity)
+                    est = noise.estimate()
+                    angles = (0.0, 0.0) if est is None else est[1:]
                 src = _voxel(pts, p.voxel_m)
-                covs = scan_covariances(src, p.neighbours, p.covariance_floor_m,
-                                        p.angle_noise_deg)
+                covs = scan_covariances(src, p.neighbours, p.covariance_floor_m, angles)
                 v_curr = ego.velocity if ego.observable else None
                 pairs, iterations, converged = 0, 0, True
                 if i == 0 and free_vertical is None:
@@ -193,7 +210,8 @@ class DopplerEgo(Odometry):
                     pairs, iterations = fit.correspondences, fit.iterations
                     converged = fit.converged
                     last_motion, last_dt = inv_T(T_wp) @ poses[i], dt
-                local_map.add(src, covs, poses[i])
+                local_map.add(src, covs, poses[i],
+                              replace_within_m=p.replace_within_m if free_vertical else 0.0)
             time_ms = watch.time_ms
             records.append(FrameRecord(i, scan.stamp, time_ms if i else float("nan"),
                                        len(scan), pairs, iterations, converged,

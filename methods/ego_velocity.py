@@ -23,6 +23,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numba
 import numpy as np
 
 from loaders.doppler_check import gt_velocities
@@ -69,6 +70,7 @@ def estimate_ego_velocity(
     refinements: int = 3,
     max_score_points: int = 1500,
     seed: int = 0,
+    gate_sigmas: float | None = None,
 ) -> EgoVelocity:
     """Ego velocity of the sensor from one scan: points (N, 3) [m, sensor frame], doppler (N,)
     [m/s, receding positive]. See the module docstring for the method and its outputs."""
@@ -94,19 +96,20 @@ def estimate_ego_velocity(
     if not good.any():
         return _not_observable(n, "directions too flat: every 3-point sample is (nearly) planar")
     V = np.linalg.solve(A[good], -r[samples[good]][..., None])[..., 0]  # (K', 3)
-    resid = np.abs(r[score_idx][None, :] + V @ D[score_idx].T)  # (K', S)
-    best = V[int(np.argmax((resid < threshold_mps).sum(axis=1)))]
+    counts = _count_agreeing(V, np.ascontiguousarray(D[score_idx]), r[score_idx],
+                             threshold_mps)
+    best = V[int(np.argmax(counts))]
 
-    inl = np.abs(r + D @ best) < threshold_mps
-    v = best
-    for _ in range(refinements):
-        if inl.sum() < 3:
-            break
-        v = np.linalg.lstsq(D[inl], -r[inl], rcond=None)[0]
-        new = np.abs(r + D @ v) < threshold_mps
-        if np.array_equal(new, inl):
-            break
-        inl = new
+    v, inl = _refine(D, r, best, threshold_mps, refinements)
+    if gate_sigmas is not None and inl.sum() >= 3:
+        # the scan's own Doppler noise: robust sigma (MAD) of every point's residual (movers
+        # and clutter are a minority, which the median ignores); then the gate is re-drawn
+        sigma = 1.4826 * float(np.median(np.abs(r + D @ v)))
+        # never below 1 mm/s, far under any sensor's Doppler resolution: exact data has no
+        # noise to scale a gate with
+        gate = min(threshold_mps, max(gate_sigmas * sigma, 1e-3))
+        if gate < threshold_mps:
+            v, inl = _refine(D, r, v, gate, refinements)
 
     mask = np.zeros(n, dtype=bool)
     mask[idx_all[inl]] = True
@@ -114,15 +117,65 @@ def estimate_ego_velocity(
     if k < max(min_inliers, 4) or k < min_inlier_ratio * m:
         return _not_observable(n, f"only {k} of {m} points agree on one velocity", mask)
     Di = D[inl]
-    s_min = float(np.linalg.svd(Di, compute_uv=False)[-1] / np.sqrt(k))
+    gram = Di.T @ Di
+    # smallest singular value of Di, from the 3x3 Gram matrix
+    s_min = float(np.sqrt(max(np.linalg.eigvalsh(gram)[0], 0.0) / k))
     if s_min < min_spread:
         return _not_observable(
             n, f"inlier directions too flat, nearly planar (spread {s_min:.3f} < "
             f"{min_spread})", mask, s_min)
     res = r[inl] + Di @ v
     sigma2 = float(res @ res) / max(k - 3, 1)
-    cov = sigma2 * np.linalg.inv(Di.T @ Di)
+    cov = sigma2 * np.linalg.inv(gram)
     return EgoVelocity(v, mask, cov, float(np.sqrt(sigma2)), s_min, True)
+
+
+@numba.njit(cache=True)
+def _count_agreeing(V, D, r, gate):
+    """Per hypothesis velocity V[h], how many points have |r + D v| < gate."""
+    counts = np.zeros(len(V), dtype=np.int64)
+    for h in range(len(V)):
+        vx, vy, vz = V[h, 0], V[h, 1], V[h, 2]
+        c = 0
+        for i in range(len(r)):
+            if abs(r[i] + D[i, 0] * vx + D[i, 1] * vy + D[i, 2] * vz) < gate:
+                c += 1
+        counts[h] = c
+    return counts
+
+
+@numba.njit(cache=True)
+def _refine(D, r, v, gate, refinements):
+    """Least squares on the points within ``gate`` of ``v`` (normal equations), inliers
+    re-selected, repeated up to ``refinements`` times or until they stop changing."""
+    m = len(r)
+    inl = np.empty(m, dtype=np.bool_)
+    for i in range(m):
+        inl[i] = abs(r[i] + D[i, 0] * v[0] + D[i, 1] * v[1] + D[i, 2] * v[2]) < gate
+    v = v.copy()
+    for _ in range(refinements):
+        G = np.zeros((3, 3))
+        b = np.zeros(3)
+        k = 0
+        for i in range(m):
+            if inl[i]:
+                k += 1
+                for a in range(3):
+                    b[a] -= D[i, a] * r[i]
+                    for c in range(3):
+                        G[a, c] += D[i, a] * D[i, c]
+        if k < 3 or abs(np.linalg.det(G)) < 1e-12:
+            break
+        v = np.linalg.solve(G, b)
+        changed = False
+        for i in range(m):
+            new = abs(r[i] + D[i, 0] * v[0] + D[i, 1] * v[1] + D[i, 2] * v[2]) < gate
+            if new != inl[i]:
+                changed = True
+                inl[i] = new
+        if not changed:
+            break
+    return v, inl
 
 
 def speed_from_doppler(sequence, threshold_mps: float | None = None

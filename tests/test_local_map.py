@@ -100,3 +100,41 @@ def test_free_six_dof_recovers_an_exact_pose():
     np.testing.assert_allclose(result.T_world_sensor[:3, :3], R_true, atol=1e-9)
     np.testing.assert_allclose(result.T_world_sensor[:3, 3], t_true, atol=1e-8)
     assert result.converged
+
+
+def test_the_map_holds_exactly_the_last_scans():
+    """Scans of different sizes (the ring grows), more than the window: the map's points are
+    exactly the last max_frames scans', and nearest() agrees with brute force over them."""
+    rng = np.random.default_rng(5)
+    m = LocalMap(3, 1.0)
+    scans = [rng.uniform(-20, 20, (n, 3)) for n in (50, 80, 30, 200, 60)]
+    for k, pts in enumerate(scans):
+        T = make_T(np.eye(3), [k * 0.5, 0.0, 0.0])
+        m.add(pts, np.repeat(np.eye(3)[None], len(pts), 0), T)
+    expected = np.vstack([pts + [k * 0.5, 0.0, 0.0] for k, pts in enumerate(scans)][-3:])
+    held = m.points[m.alive]
+    assert len(m) == len(expected) == len(held)
+    np.testing.assert_allclose(np.sort(held, axis=0), np.sort(expected, axis=0))
+    queries = rng.uniform(-20, 20, (300, 3))
+    idx, sq = m.nearest(queries)
+    d = np.linalg.norm(queries[:, None] - held[None], axis=2)
+    within = d.min(axis=1) < 1.0
+    np.testing.assert_array_equal(idx >= 0, within)
+    np.testing.assert_allclose(np.sqrt(sq[within]), d.min(axis=1)[within], atol=1e-12)
+    assert np.all(m.alive[idx[within]])
+
+
+def test_a_re_published_detection_replaces_its_older_copy():
+    rng = np.random.default_rng(6)
+    pts = rng.uniform(-20, 20, (100, 3))
+    covs = np.repeat(np.eye(3)[None], 100, 0)
+    m = LocalMap(5, 1.0)
+    m.add(pts, covs, np.eye(4))
+    copies = pts[:60] + rng.normal(0, 0.005, (60, 3))  # within 5 cm: the same detection
+    moved = pts[60:] + [0.3, 0.0, 0.0]  # 30 cm away: another one
+    m.add(np.vstack([copies, moved]), covs, np.eye(4), replace_within_m=0.05)
+    assert len(m) == 100 + 40
+    held = m.points[m.alive]
+    assert not np.any(np.all(np.isclose(held[:, None], pts[None, :60]), axis=2))
+    m.add(pts, covs, np.eye(4))  # without replacement every copy stays
+    assert len(m) == 240
