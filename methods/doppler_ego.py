@@ -101,8 +101,11 @@ class DopplerEgoParams(MethodParams):
         "rotation solve (None: when the sensor re-publishes its earlier detections)")
     threshold_mps: float | None = Field(None, gt=0, description="RANSAC Doppler gate [m/s] "
                                         "(radar 0.25, LiDAR 0.2)")
-    gate_sigmas: float = Field(3.0, gt=0, description="inlier gate in robust sigmas of the "
-                               "scan's own Doppler residual (at most threshold_mps)")
+    gate_sigmas: float = Field(3.0, gt=0, description="static points: within this many robust "
+                               "sigmas of the scan's own Doppler residual (at most "
+                               "threshold_mps)")
+    cauchy_sigmas: float = Field(1.5, gt=0, description="ego velocity: Cauchy-weighted least "
+                                 "squares with this scale in robust sigmas")
     voxel_m: float | None = Field(None, gt=0, description="source voxel size [m]")
     # The translation is tied to Doppler (to mm) and the rotation predicted from the last
     # step, so a correctly associated point lies within about a voxel diagonal (0.87 m for the
@@ -165,7 +168,8 @@ class DopplerEgo(Odometry):
             with timed_section() as watch:
                 ego = estimate_ego_velocity(scan.points, scan.doppler,
                                             threshold_mps=p.threshold_mps,
-                                            gate_sigmas=p.gate_sigmas)
+                                            gate_sigmas=p.gate_sigmas,
+                                            cauchy_sigmas=p.cauchy_sigmas)
                 static_only = p.static_filter and ego.observable
                 pts = scan.points[ego.inliers] if static_only else scan.points
                 angles = p.angle_noise_deg
