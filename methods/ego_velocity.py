@@ -116,7 +116,8 @@ def estimate_ego_velocity(
         sigma = max(1.4826 * float(np.median(np.abs(r + D @ v))), 1e-3)
         # the velocity: Cauchy-weighted least squares of the points within threshold_mps, so
         # the tail neither tilts it (as plain least squares does) nor is cut off from it
-        v = _cauchy_irls(D[inl], r[inl], v, cauchy_sigmas * sigma, irls_iterations)
+        v = _cauchy_irls(np.ascontiguousarray(D[inl]), r[inl], v, cauchy_sigmas * sigma,
+                         irls_iterations)
         # the static points: within gate_sigmas robust sigmas of it
         inl = np.abs(r + D @ v) < min(threshold_mps, gate_sigmas * sigma)
 
@@ -139,21 +140,27 @@ def estimate_ego_velocity(
     return EgoVelocity(v, mask, cov, float(np.sqrt(sigma2)), s_min, True)
 
 
-def _cauchy_irls(D: np.ndarray, r: np.ndarray, v: np.ndarray, scale: float,
-                 iterations: int) -> np.ndarray:
+@numba.njit(cache=True)
+def _cauchy_irls(D, r, v, scale, iterations):
     """v minimising sum log(1 + ((r + D v) / scale)^2) by iteratively reweighted least
-    squares from ``v`` (weights 1 / (1 + (e / scale)^2))."""
+    squares from ``v`` (weights 1 / (1 + (e / scale)^2)), until it moves less than 1 um/s."""
+    v = v.copy()
     for _ in range(iterations):
-        e = r + D @ v
-        w = 1.0 / (1.0 + (e / scale) ** 2)
-        Dw = D * w[:, None]
-        G = Dw.T @ D
+        G = np.zeros((3, 3))
+        b = np.zeros(3)
+        for i in range(len(r)):
+            e = (r[i] + D[i, 0] * v[0] + D[i, 1] * v[1] + D[i, 2] * v[2]) / scale
+            w = 1.0 / (1.0 + e * e)
+            for a in range(3):
+                b[a] -= w * D[i, a] * r[i]
+                for c in range(3):
+                    G[a, c] += w * D[i, a] * D[i, c]
         if abs(np.linalg.det(G)) < 1e-12:
             break
-        v_new = np.linalg.solve(G, -(Dw.T @ r))
-        done = np.linalg.norm(v_new - v) < 1e-6
+        v_new = np.linalg.solve(G, b)
+        step = np.sqrt(((v_new - v) ** 2).sum())
         v = v_new
-        if done:
+        if step < 1e-6:
             break
     return v
 
