@@ -8,6 +8,7 @@ road that a relative-error table only hints at is visible at a glance.
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -43,8 +44,8 @@ def plot_drift(runs: list[Run], out_dir: Path) -> list[Path]:
                 ax.axhline(0.0, color="black", lw=0.4)
         for ax in axes[-1]:
             ax.set_xlabel("distance travelled [m]")
-        fig.suptitle(f"{sequence}: drift from the first frame (estimate - GT, GT body axes)",
-                     fontsize=7)
+        fig.suptitle(textwrap.fill(f"{sequence}: drift from the first frame (estimate - GT, "
+                                   "GT body axes)", 60), fontsize=7)
         handles, labels = axes[0, 0].get_legend_handles_labels()
         rows = int(np.ceil(len(labels) / 2))
         legend_in = 0.12 * rows + 0.05  # inches kept below the panels for the legend
