@@ -37,7 +37,7 @@ def test_doppler_ego_is_best_or_second_on_every_radar_sequence_and_never_diverge
     assert not any(v["diverged"] for k, v in current.items() if "/doppler-ego/" in k)
     for seq in ("ci-sparse", "ci-semidense", "ci-uturn"):
         runs = {k: v for k, v in current.items() if k.startswith(seq + "/")}
-        ours = runs[f"{seq}/doppler-ego/-"]
+        ours = runs[f"{seq}/doppler-ego/seed"]
         for kind in ("rot_deg", "trans_m"):
             for length, value in ours[kind].items():
                 better = [k for k, v in runs.items()
