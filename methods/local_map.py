@@ -16,9 +16,8 @@ Doppler cannot observe.
 
 from __future__ import annotations
 
-from collections import deque
-from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Protocol
 
 import numba
 import numpy as np
@@ -49,22 +48,28 @@ def scan_covariances(points: np.ndarray, neighbours: int, floor_m: float,
 
 @numba.njit(cache=True)
 def _point_covariances(points, idx, floor2, az2, el2):
-    """Sample covariance (divisor k - 1) of the points idx[n, :] (none when k < 3), plus
-    floor2 on the diagonal and the ray-transverse angular noise (variances az2, el2 [rad^2])."""
+    """Sample covariance (divisor m - 1) of the m points idx[n, :] that are not -1 (none
+    when m < 3), plus floor2 on the diagonal and the ray-transverse angular noise (variances
+    az2, el2 [rad^2])."""
     n, k = idx.shape
     cov = np.zeros((n, 3, 3))
     for i in range(n):
-        if k >= 3:
-            m0 = m1 = m2 = 0.0
-            for j in range(k):
-                p = idx[i, j]
+        m = 0
+        m0 = m1 = m2 = 0.0
+        for j in range(k):
+            p = idx[i, j]
+            if p >= 0:
+                m += 1
                 m0 += points[p, 0]
                 m1 += points[p, 1]
                 m2 += points[p, 2]
-            m0, m1, m2 = m0 / k, m1 / k, m2 / k
+        if m >= 3:
+            m0, m1, m2 = m0 / m, m1 / m, m2 / m
             s00 = s01 = s02 = s11 = s12 = s22 = 0.0
             for j in range(k):
                 p = idx[i, j]
+                if p < 0:
+                    continue
                 a, b, c = points[p, 0] - m0, points[p, 1] - m1, points[p, 2] - m2
                 s00 += a * a
                 s01 += a * b
@@ -72,7 +77,7 @@ def _point_covariances(points, idx, floor2, az2, el2):
                 s11 += b * b
                 s12 += b * c
                 s22 += c * c
-            f = 1.0 / (k - 1)
+            f = 1.0 / (m - 1)
             cov[i, 0, 0], cov[i, 1, 1], cov[i, 2, 2] = s00 * f, s11 * f, s22 * f
             cov[i, 0, 1] = cov[i, 1, 0] = s01 * f
             cov[i, 0, 2] = cov[i, 2, 0] = s02 * f
@@ -97,55 +102,106 @@ def _point_covariances(points, idx, floor2, az2, el2):
 
 class LocalMap:
     """World-frame points (with covariances) of the last ``max_frames`` scans, searchable for
-    the nearest point within ``search_radius_m``."""
+    the nearest point within ``search_radius_m``.
+
+    Storage is a ring of ``max_frames`` slots of equal capacity (grown when a scan is larger):
+    a new scan overwrites the oldest slot, so nothing is concatenated per frame, and
+    ``points`` / ``covs`` hold every slot with ``alive`` marking the map's points (the index
+    searches only those; ``nearest`` returns indices into these arrays).
+
+    ``add(..., replace_within_m=r)`` lets a scan's point replace every older map point within
+    ``r`` of it: for a sensor that re-publishes its earlier detections, a detection then stays
+    in the map once (its newest copy) instead of once per scan of the window."""
 
     def __init__(self, max_frames: int, search_radius_m: float) -> None:
-        self.frames: deque[tuple[np.ndarray, np.ndarray]] = deque(maxlen=max_frames)
+        self.max_frames = int(max_frames)
+        self.search_radius_m = float(search_radius_m)
+        self.capacity = 0  # points per slot
         self.points = np.empty((0, 3))
         self.covs = np.empty((0, 3, 3))
-        self.search_radius_m = float(search_radius_m)
+        self.alive = np.zeros(0, dtype=bool)
+        self.next_slot = 0
         self.index: SpatialHash | None = None
 
+    def _grow(self, capacity: int) -> None:
+        old_cap, new = self.capacity, max(capacity, 2 * self.capacity)
+        points = np.zeros((self.max_frames * new, 3))
+        covs = np.zeros((self.max_frames * new, 3, 3))
+        alive = np.zeros(self.max_frames * new, dtype=bool)
+        for slot in range(self.max_frames if old_cap else 0):
+            src, dst = slot * old_cap, slot * new
+            points[dst:dst + old_cap] = self.points[src:src + old_cap]
+            covs[dst:dst + old_cap] = self.covs[src:src + old_cap]
+            alive[dst:dst + old_cap] = self.alive[src:src + old_cap]
+        self.points, self.covs, self.alive, self.capacity = points, covs, alive, new
+
     def add(self, points_sensor: np.ndarray, covs_sensor: np.ndarray,
-            T_world_sensor: np.ndarray) -> None:
+            T_world_sensor: np.ndarray, replace_within_m: float = 0.0) -> None:
         R, t = T_world_sensor[:3, :3], T_world_sensor[:3, 3]
-        self.frames.append((points_sensor @ R.T + t, R @ covs_sensor @ R.T))
-        self.points = np.concatenate([f[0] for f in self.frames])
-        self.covs = np.concatenate([f[1] for f in self.frames])
-        self.index = SpatialHash(self.points, self.search_radius_m) if len(self.points) else None
+        n = len(points_sensor)
+        world = points_sensor @ R.T + t
+        if replace_within_m > 0 and self.index is not None and n:
+            idx, sq = self.index.nearest(world, min(replace_within_m, self.search_radius_m))
+            self.alive[idx[sq < replace_within_m**2]] = False
+        if n > self.capacity:
+            self._grow(n)
+        base = self.next_slot * self.capacity
+        self.alive[base:base + self.capacity] = False
+        self.points[base:base + n] = world
+        self.covs[base:base + n] = R @ covs_sensor @ R.T
+        self.alive[base:base + n] = True
+        self.next_slot = (self.next_slot + 1) % self.max_frames
+        self.index = (SpatialHash(self.points, self.search_radius_m, self.alive)
+                      if self.alive.any() else None)
 
     def nearest(self, points_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Nearest map point of each point within the search radius: index (-1: none) and
-        squared distance [m^2] (inf: none)."""
+        """Nearest map point of each point within the search radius: index into ``points``
+        (-1: none) and squared distance [m^2] (inf: none)."""
         return self.index.nearest(points_world, self.search_radius_m)
 
     def __len__(self) -> int:
-        return len(self.points)
+        return int(np.count_nonzero(self.alive))
 
 
 @dataclass
 class MapFit:
+    """T_world_sensor: the solved pose; correspondences: pairs of the last iteration."""
+
     T_world_sensor: np.ndarray
     correspondences: int
     iterations: int
     converged: bool
 
 
+class TiedTranslation(Protocol):
+    """A translation measured apart from the geometry (the Doppler ego translation) as a
+    function of the rotation: ``__call__(R_world_sensor) -> t_world_sensor`` [m], and
+    ``lever`` (3,) [m, sensor frame], how it turns with the rotation:
+    ``t(exp(d) R) = t(R) + d x (R lever)`` to first order."""
+
+    lever: np.ndarray
+
+    def __call__(self, R_world_sensor: np.ndarray) -> np.ndarray: ...
+
+
 @numba.njit(cache=True)
-def _normal_equations(Rp, moved, covs, R, map_points, map_covs, idx, keep, c2, dof):
+def _normal_equations(Rl, moved, covs, R, map_points, map_covs, idx, keep, c2, Tcols):
     """H (dof x dof) and g (dof) of the weighted GICP cost over the kept pairs: residual
     e = R p + t - q, weight W = (C_q + R C_p R^T)^-1 scaled by the Cauchy IRLS factor,
-    Jacobian [-(R p)^, I] (rotation, then translation when dof == 6). Scalar code: small
-    matrix products in numba would allocate per pair."""
-    H = np.zeros((6, 6))
-    g = np.zeros(6)
-    J = np.zeros((3, 6))
+    Jacobian [-(Rl)^, Tcols]: rotation columns from ``Rl`` (R p, or R (p + lever) when the
+    translation turns with R), then the translation's free directions ``Tcols`` (3 x k;
+    dof = 3 + k). Scalar code: small matrix products in numba would allocate per pair."""
+    dof = 3 + Tcols.shape[1]
+    H = np.zeros((dof, dof))
+    g = np.zeros(dof)
+    J = np.zeros((3, dof))
     RC = np.zeros((3, 3))
     C = np.zeros((3, 3))
     W = np.zeros((3, 3))
     for a in range(3):
-        J[a, 3 + a] = 1.0
-    for n in range(len(Rp)):
+        for b in range(dof - 3):
+            J[a, 3 + b] = Tcols[a, b]
+    for n in range(len(Rl)):
         if not keep[n]:
             continue
         j = idx[n]
@@ -179,8 +235,8 @@ def _normal_equations(Rp, moved, covs, R, map_points, map_covs, idx, keep, c2, d
         We1 = W[1, 0] * e0 + W[1, 1] * e1 + W[1, 2] * e2
         We2 = W[2, 0] * e0 + W[2, 1] * e1 + W[2, 2] * e2
         w = 1.0 / (1.0 + (e0 * We0 + e1 * We1 + e2 * We2) / c2)
-        x, y, z = Rp[n, 0], Rp[n, 1], Rp[n, 2]
-        J[0, 1], J[0, 2] = z, -y  # J[:, :3] = -skew(R p)
+        x, y, z = Rl[n, 0], Rl[n, 1], Rl[n, 2]
+        J[0, 1], J[0, 2] = z, -y  # J[:, :3] = -skew(Rl)
         J[1, 0], J[1, 2] = -z, x
         J[2, 0], J[2, 1] = y, -x
         for a in range(dof):
@@ -189,9 +245,12 @@ def _normal_equations(Rp, moved, covs, R, map_points, map_covs, idx, keep, c2, d
             t1 = J[0, a] * W[0, 1] + J[1, a] * W[1, 1] + J[2, a] * W[2, 1]
             t2 = J[0, a] * W[0, 2] + J[1, a] * W[1, 2] + J[2, a] * W[2, 2]
             g[a] += w * (t0 * e0 + t1 * e1 + t2 * e2)
-            for b in range(dof):
+            for b in range(a, dof):
                 H[a, b] += w * (t0 * J[0, b] + t1 * J[1, b] + t2 * J[2, b])
-    return H[:dof, :dof].copy(), g[:dof].copy()
+    for a in range(dof):
+        for b in range(a):
+            H[a, b] = H[b, a]
+    return H, g
 
 
 def register_to_map(
@@ -199,27 +258,41 @@ def register_to_map(
     points: np.ndarray,
     covs: np.ndarray,
     init_T_world_sensor: np.ndarray,
-    translation_of: Callable[[np.ndarray], np.ndarray] | None,
+    tied: TiedTranslation | None,
     max_correspondence_m: float,
     kernel_scale: float = 3.0,
     max_iterations: int = 15,
     min_correspondences: int = 10,
     tolerance_rad: float = 1e-4,
+    free_axes_sensor: np.ndarray | None = None,
 ) -> MapFit:
     """Align ``points`` (N, 3) [m, sensor frame] with covariances ``covs`` (N, 3, 3) to the map.
 
-    ``translation_of(R_world_sensor) -> t_world_sensor`` fixes the translation (rotation-only
-    solve); ``None`` solves all 6 degrees of freedom. ``kernel_scale`` is the Cauchy scale on
-    the Mahalanobis distance [-]. Returns the pose T_world_sensor and the last pair count."""
+    Unknowns. ``tied`` None: all 6 degrees of freedom, from ``init_T_world_sensor``. Otherwise
+    the translation is ``tied(R) + U s``: the measured translation plus a free offset ``s``
+    along the unit vectors ``free_axes_sensor`` (k, 3) [sensor frame, turned into the world by
+    the initial rotation: the columns of U]; k = 0 (None) solves the 3 rotation unknowns alone,
+    k = 1 with the sensor's z axis leaves the vertical to the geometry. The perturbation is
+    ``R <- exp(dtheta) R``, ``s <- s + ds``; as ``tied(R)`` turns with R about the sensor, the
+    translation moves by ``-(R lever)^ dtheta + U ds``, and the Gauss-Newton step uses exactly
+    that (the full derivative of the constrained cost, so the iteration converges to its own
+    optimum). ``kernel_scale`` is the Cauchy scale on the Mahalanobis distance [-]. Returns the
+    pose T_world_sensor and the last pair count."""
     R = init_T_world_sensor[:3, :3].copy()
-    t = init_T_world_sensor[:3, 3].copy() if translation_of is None else translation_of(R)
+    if tied is None:
+        U = np.eye(3)  # the translation is free
+        t = init_T_world_sensor[:3, 3].copy()
+    else:
+        axes = np.zeros((0, 3)) if free_axes_sensor is None else np.atleast_2d(free_axes_sensor)
+        U = R @ np.asarray(axes, dtype=np.float64).T  # (3, k) world frame
+        s = np.zeros(U.shape[1])
+        t = tied(R)
     n_pairs, converged, it = 0, False, 0
     if local_map.index is None:
         return MapFit(_pose(R, t), 0, 0, False)
     if max_correspondence_m > local_map.search_radius_m:
         raise ValueError(f"pair gate {max_correspondence_m} m exceeds the map's search radius "
                          f"{local_map.search_radius_m} m")
-    dof = 6 if translation_of is None else 3
     c2 = kernel_scale**2
     for step in range(1, max_iterations + 1):
         it = step
@@ -230,16 +303,21 @@ def register_to_map(
         n_pairs = int(keep.sum())
         if n_pairs < min_correspondences:
             break
-        H, g = _normal_equations(Rp, moved, covs, R, local_map.points, local_map.covs,
-                                 idx, keep, c2, dof)
+        # the point moves by -(R p)^ dtheta + dt; tied: dt = -(R lever)^ dtheta + U ds
+        Rl = Rp if tied is None else Rp + R @ tied.lever
+        H, g = _normal_equations(Rl, moved, covs, R, local_map.points, local_map.covs,
+                                 idx, keep, c2, U)
         try:
             delta = -np.linalg.solve(H, g)
         except np.linalg.LinAlgError:
             break
         R = Rotation.from_rotvec(delta[:3]).as_matrix() @ R
-        t = t + delta[3:] if dof == 6 else translation_of(R)
-        if np.linalg.norm(delta[:3]) < tolerance_rad and (
-                dof == 3 or np.linalg.norm(delta[3:]) < 1e-4):
+        if tied is None:
+            t = t + delta[3:]
+        else:
+            s = s + delta[3:]
+            t = tied(R) + U @ s
+        if np.linalg.norm(delta[:3]) < tolerance_rad and np.linalg.norm(delta[3:]) < 1e-4:
             converged = True
             break
     return MapFit(_pose(R, t), n_pairs, it, converged)

@@ -23,11 +23,13 @@ def _bucket(i: int, j: int, k: int, mask: int) -> int:
 
 
 @numba.njit(cache=True)
-def _build(points: np.ndarray, inv_cell: float, table_size: int):
+def _build(points: np.ndarray, inv_cell: float, table_size: int, valid=None):
     head = np.full(table_size, -1, dtype=np.int64)
-    nxt = np.empty(len(points), dtype=np.int64)
+    nxt = np.full(len(points), -1, dtype=np.int64)
     mask = table_size - 1
     for n in range(len(points)):
+        if valid is not None and not valid[n]:
+            continue
         b = _bucket(int(np.floor(points[n, 0] * inv_cell)),
                     int(np.floor(points[n, 1] * inv_cell)),
                     int(np.floor(points[n, 2] * inv_cell)), mask)
@@ -77,13 +79,17 @@ def _nearest(points, head, nxt, inv_cell, queries, max_sq):
 class SpatialHash:
     """Points (N, 3) [m] binned for exact radius-limited nearest-neighbour queries."""
 
-    def __init__(self, points: np.ndarray, cell_m: float) -> None:
+    def __init__(self, points: np.ndarray, cell_m: float, valid: np.ndarray | None = None
+                 ) -> None:
+        """``valid`` (N,) bool: only those points are searched (indices stay those of
+        ``points``); None: all."""
         if not cell_m > 0:
             raise ValueError(f"cell size must be positive, got {cell_m}")
         self.points = np.ascontiguousarray(points, dtype=np.float64)
         self.cell_m = float(cell_m)
-        table = 1 << max(4, int(2 * max(len(points), 1) - 1).bit_length())  # >= 2 N, power of 2
-        self._head, self._next = _build(self.points, 1.0 / self.cell_m, table)
+        n = len(points) if valid is None else int(np.count_nonzero(valid))
+        table = 1 << max(4, int(2 * max(n, 1) - 1).bit_length())  # >= 2 N, power of 2
+        self._head, self._next = _build(self.points, 1.0 / self.cell_m, table, valid)
 
     def nearest(self, queries: np.ndarray, radius_m: float) -> tuple[np.ndarray, np.ndarray]:
         """Index of each query's nearest point and its squared distance [m^2], among the points

@@ -1,14 +1,17 @@
-"""doppler-ego: exact on a noise-free known motion, sensor defaults, ablation switches."""
+"""doppler-ego: exact on a noise-free known motion (with and without seed), what each seed
+option starts from, sensor defaults, ablation switches, the repeated-detection test."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
+import methods.doppler_ego as doppler_ego
 from conftest import constant_twist_sequence
 from loaders.scan import SensorInfo
-from loaders.se3 import inv_T, rotation_angle_deg
-from methods.doppler_ego import DopplerEgo
+from loaders.se3 import inv_T, make_T, rotation_angle_deg, transform_points
+from methods.doppler_ego import DopplerEgo, repeats_detections
 from methods.registry import make_method, seed_options
 
 
@@ -24,15 +27,41 @@ def step_errors(seq, result):
     return np.array(trans), np.array(rot)
 
 
-def test_recovers_a_noise_free_known_motion():
+@pytest.mark.parametrize("seed", [True, False])
+def test_recovers_a_noise_free_known_motion(seed):
     seq = constant_twist_sequence(n_frames=12, n_points=4000, v=(8.0, 0.3, 0.1),
                                   w=(0.0, 0.01, 0.08))
     method = DopplerEgo().configured_for(seq.sensor)
-    result = method.run(seq, seed=True)
+    result = method.run(seq, seed=seed)
     trans, rot = step_errors(seq, result)
     assert trans.max() < 1e-3 and rot.max() < 0.05
     assert np.array_equal(result.poses[0], np.eye(4))
-    assert all(np.isfinite(f.time_ms) for f in result.frames[1:])
+    for f in result.frames[1:]:  # the registration alone is part of the frame's work
+        assert np.isfinite(f.time_ms) and 0 < f.register_ms <= f.time_ms
+
+
+@pytest.mark.parametrize("seed", [True, False])
+def test_seed_option_sets_where_the_rotation_starts(seed, monkeypatch):
+    """With seed: the previous step's rotation rate carried on. No seed: each frame's rotation
+    starts at the previous pose's (the identity step); the Doppler translation is used in
+    both (a measurement, not a prior)."""
+    starts = []
+    real = doppler_ego.register_to_map
+
+    def spy(local_map, points, covs, init, *args, **kwargs):
+        starts.append(init.copy())
+        return real(local_map, points, covs, init, *args, **kwargs)
+
+    monkeypatch.setattr(doppler_ego, "register_to_map", spy)
+    seq = constant_twist_sequence(n_frames=6, n_points=2000, w=(0.0, 0.0, 0.2))
+    result = DopplerEgo(free_vertical=False).configured_for(seq.sensor).run(seq, seed=seed)
+    for i, init in enumerate(starts[1:], start=2):  # frames with a previous step
+        step = inv_T(result.poses[i - 1]) @ init
+        angle = float(rotation_angle_deg(step[:3, :3]))
+        if seed:  # 0.2 rad/s for 0.1 s
+            assert angle == pytest.approx(np.degrees(0.02), abs=0.01)
+        else:
+            assert angle == pytest.approx(0.0, abs=1e-9)
 
 
 @pytest.mark.parametrize("switch", ["ego_translation", "static_filter", "use_map"])
@@ -75,4 +104,20 @@ def test_sensor_defaults_and_registry():
     assert radar.params.threshold_mps > lidar.params.threshold_mps
     assert radar.params.map_seconds > lidar.params.map_seconds
     assert lidar.params.voxel_m == 0.7  # an explicit value is kept
-    assert seed_options("doppler-ego") == [None]  # its own motion prior: runs once
+    assert seed_options("doppler-ego") == [True, False]  # own motion prior, or none
+
+
+def test_repeated_detections_are_told_from_independent_ones():
+    """A scan made of the previous scan's points carried by the motion (plus a few fresh
+    ones), as an accumulating sensor publishes them, against independent re-detections of
+    the same points with 5 cm of noise."""
+    rng = np.random.default_rng(7)
+    prev = np.column_stack([rng.uniform(5, 60, 3000), rng.uniform(-20, 20, 3000),
+                            rng.uniform(-1, 5, 3000)])
+    T_prev_curr = make_T(Rotation.from_rotvec([0, 0, 0.01]).as_matrix(), [0.5, 0.0, 0.0])
+    carried = transform_points(inv_T(T_prev_curr), prev)
+    fresh = carried[:300] + rng.normal(0, 0.3, (300, 3))
+    p = DopplerEgo().configured_for(SensorInfo("radar", 1 / 12)).params
+    assert repeats_detections(prev, np.vstack([carried[300:], fresh]), np.eye(4), p)
+    redetected = carried + rng.normal(0, 0.05, carried.shape)
+    assert not repeats_detections(prev, redetected, np.eye(4), p)

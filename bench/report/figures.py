@@ -129,6 +129,7 @@ def plot_trajectories(results_dir: Path, out_dir: Path | None = None) -> list[Pa
 def make_figures(results_dir: Path, out_dir: Path | None = None,
                  speed_csv: Path | None = None) -> list[Path]:
     """Every figure of a results folder (and of a ``bench speed`` CSV when given)."""
+    from bench.report.figures_drift import plot_drift
     from bench.report.figures_errors import (
         plot_boxplots,
         plot_error_along_path,
@@ -142,6 +143,7 @@ def make_figures(results_dir: Path, out_dir: Path | None = None,
     written += plot_boxplots(runs, out_dir)
     written += plot_error_along_path(runs, out_dir)
     written += plot_frames(runs, out_dir)
+    written += plot_drift(runs, out_dir)
     if speed_csv is not None and Path(speed_csv).exists():
         written += plot_speed_csv(Path(speed_csv), out_dir)
     return written
