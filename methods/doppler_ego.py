@@ -124,6 +124,8 @@ class DopplerEgoParams(MethodParams):
     max_iterations: int = Field(15, ge=1, description="Gauss-Newton iterations at most")
     max_source_points: int = Field(1500, ge=10, description="registration uses at most this "
                                    "many (strided) source points; the map gets all of them")
+    num_threads: int = Field(1, ge=1, description="threads of the voxel grid and the "
+                             "covariances' neighbour search (small_gicp); the rest is serial")
 
 
 class DopplerEgo(Odometry):
@@ -178,8 +180,9 @@ class DopplerEgo(Odometry):
                                   ego.velocity)
                     est = noise.estimate()
                     angles = (0.0, 0.0) if est is None else est[1:]
-                src = _voxel(pts, p.voxel_m)
-                covs = scan_covariances(src, p.neighbours, p.covariance_floor_m, angles)
+                src = _voxel(pts, p.voxel_m, p.num_threads)
+                covs = scan_covariances(src, p.neighbours, p.covariance_floor_m, angles,
+                                        p.num_threads)
                 v_curr = ego.velocity if ego.observable else None
                 pairs, iterations, converged = 0, 0, True
                 if i == 0 and free_vertical is None:
@@ -278,10 +281,10 @@ def _with_t(T: np.ndarray, translation_of: EgoTranslation) -> np.ndarray:
     return out
 
 
-def _voxel(points: np.ndarray, voxel_m: float) -> np.ndarray:
+def _voxel(points: np.ndarray, voxel_m: float, num_threads: int = 1) -> np.ndarray:
     """Voxel-grid centroids (small_gicp) as an (M, 3) array."""
     if len(points) == 0:
         return np.empty((0, 3))
-    pc = small_gicp.voxelgrid_sampling(points, voxel_m)
+    pc = small_gicp.voxelgrid_sampling(points, voxel_m, num_threads=num_threads)
     return np.asarray(pc.points())[:, :3].copy()
 

@@ -28,7 +28,8 @@ from methods.spatial_hash import SpatialHash
 
 
 def scan_covariances(points: np.ndarray, neighbours: int, floor_m: float,
-                     angle_noise_deg: tuple[float, float] = (0.0, 0.0)) -> np.ndarray:
+                     angle_noise_deg: tuple[float, float] = (0.0, 0.0),
+                     num_threads: int = 1) -> np.ndarray:
     """(N, 3, 3) covariance of each point [m^2, sensor frame]: the spread of its
     ``neighbours`` nearest points in the same scan (the local surface), plus the measurement
     noise: ``floor_m``^2 in every direction (range noise; radar neighbourhoods are sparse) and
@@ -41,7 +42,9 @@ def scan_covariances(points: np.ndarray, neighbours: int, floor_m: float,
     if k < 3:
         idx = np.zeros((n, 0), dtype=np.int64)
     else:
-        idx = np.asarray(small_gicp.KdTree(pts).batch_knn_search(pts, k)[0], dtype=np.int64)
+        tree = small_gicp.KdTree(pts, num_threads=num_threads)
+        idx = np.asarray(tree.batch_knn_search(pts, k, num_threads=num_threads)[0],
+                         dtype=np.int64)
     az, el = np.radians(angle_noise_deg)
     return _point_covariances(pts, idx, float(floor_m) ** 2, float(az) ** 2, float(el) ** 2)
 
