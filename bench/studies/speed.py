@@ -78,12 +78,15 @@ def _stats(total_ms: list[float], register_ms: list[float]) -> dict:
 
 
 def _prep_note(method) -> str:
+    """How the method thins its input (its own stride, voxel grid, VGICP voxels)."""
     params = getattr(method, "params", None)
     factor = getattr(params, "downsample", None)
-    notes = [f"1 in {factor} points" if factor and factor > 1 else "all points"]
+    grid = getattr(params, "voxel_downsample_m", None) or getattr(params, "voxel_m", None)
+    notes = [f"1 in {factor} points" if factor and factor > 1 else
+             f"voxel grid {grid:g} m" if grid else "all points"]
     voxel = getattr(params, "voxel_size_m", None)
     if voxel and "vgicp" in getattr(method, "name", ""):
-        notes.append(f"voxel {voxel:g} m")
+        notes.append(f"VGICP voxels {voxel:g} m")
     return ", ".join(notes)
 
 
