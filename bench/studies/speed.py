@@ -17,11 +17,15 @@ short sequence after the warm-up and its frames after the second are used. Metho
 configured for the scenario's sensor kind (radar or LiDAR parameter sets) and ``threads``
 threads where they take a thread count; the clock is the harness's (CPU time on one thread,
 wall time on several). With ``memory``, the peak resident memory of a whole ``bench run`` of
-each method on a 64k-point LiDAR store is measured in a child process.
+each method on a 64k-point LiDAR store is measured in a child process, beside the memory its
+imports alone take (``RUN_IMPORTS``, about 156 MB, the same for every method); a run that fails
+is an error (the probe once passed ``-p=num_threads=1``, which every run rejected, and reported
+the imports' footprint as every method's peak).
 """
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 import tempfile
@@ -137,25 +141,43 @@ def time_method(name: str, sequence: MemorySequence, repeats: int, threads: int 
     return {**r, "prep": _prep_note(method), "threads": method.threads, "clock": method.clock}
 
 
-def peak_memory_of_run(method: str, store: Path, threads: int = 1) -> float:
-    """Peak RSS [MB] of ``bench run --method METHOD`` on ``store``, in a child process."""
-    params = [f"-p=num_threads={v}" for v in method_params(method, threads).values()]
+#: what every `bench run` imports before it reads a scan (the CLI, every method's module and
+#: library, the job runner, the store reader): the baseline of the memory figures
+RUN_IMPORTS = ("bench.cli", "methods.registry", "bench.commands", "bench.runs.job",
+               "loaders.store")
+
+
+def peak_memory_of_run(method: str, store: Path, threads: int = 1) -> tuple[float, float]:
+    """(peak RSS, RSS after the imports alone) [MB] of ``bench run --method METHOD`` on
+    ``store``, in a child process; a failed run is an error, not a figure."""
+    params = [arg for v in method_params(method, threads).values()
+              for arg in ("-p", f"num_threads={v}")]
     with tempfile.TemporaryDirectory() as tmp:
         # VmHWM: the peak RSS of this process image (ru_maxrss would carry the parent's peak
-        # over the fork and exec that start the child)
-        code = ("import sys; from bench.cli import main; sys.argv=['bench','run',"
+        # over the fork and exec that start the child); read once after the imports (the
+        # baseline) and once after the run
+        code = (f"import sys, {', '.join(RUN_IMPORTS)}\n"
+                "def hwm():\n"
+                "    return next(ln.split()[1] for ln in open('/proc/self/status')\n"
+                "                if ln.startswith('VmHWM'))\n"
+                "print('BASE_KB', hwm())\n"
+                "sys.argv=['bench','run',"
                 f"'--method',{method!r},'--data',{str(store)!r},'--out',{tmp + '/run'!r},"
                 f"'--executor','local',*{params!r}]\n"
-                "try:\n    main()\nexcept SystemExit:\n    pass\n"
-                "hwm = [ln for ln in open('/proc/self/status') if ln.startswith('VmHWM')]\n"
-                "print('PEAK_KB', hwm[0].split()[1])")
+                "try:\n    bench.cli.main()\nexcept SystemExit as e:\n"
+                "    print('EXIT', e.code or 0)\n"
+                "print('PEAK_KB', hwm())")
+        # the child imports this checkout's code (not another install of the package)
+        root = str(Path(__file__).resolve().parents[2])
+        path = os.pathsep.join(filter(None, (root, os.environ.get("PYTHONPATH"))))
         out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
-                             timeout=1800)
-    peak_kb = next((int(line.split()[1]) for line in out.stdout.splitlines()
-                    if line.startswith("PEAK_KB")), -1)
-    if peak_kb < 0:
-        raise RuntimeError(f"memory probe of {method} failed:\n{out.stderr[-2000:]}")
-    return peak_kb / 1024
+                             timeout=1800, env={**os.environ, "PYTHONPATH": path})
+    found = dict(line.split()[:2] for line in out.stdout.splitlines()
+                 if line.startswith(("BASE_KB", "PEAK_KB", "EXIT")))
+    if out.returncode or found.get("EXIT", "0") != "0" or "PEAK_KB" not in found:
+        raise RuntimeError(f"memory probe of {method}: `bench run` failed (exit "
+                           f"{found.get('EXIT', out.returncode)}):\n{out.stderr[-2000:]}")
+    return int(found["PEAK_KB"]) / 1024, int(found["BASE_KB"]) / 1024
 
 
 def memory_store(path: Path, points: int = 64_000, frames: int = 20) -> tuple[Path, str]:
@@ -213,17 +235,25 @@ def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Pa
 
 
 def _memory(names: list[str], out: Path, console: Console, threads: int) -> None:
-    """Peak RSS of a `bench run` of every method on the same 64k-point LiDAR store."""
+    """Peak RSS of a `bench run` of every method on the same 64k-point LiDAR store, and how
+    much of it the run added to the imports every run makes."""
     with tempfile.TemporaryDirectory() as tmp:
         store, what = memory_store(Path(tmp) / "lidar64k.h5")
-        lines = ["method,peak_rss_mb,store"]
+        lines = ["method,peak_rss_mb,imports_rss_mb,run_mb,store"]
         table = Table(title=escape(f"Peak memory of `bench run` [MB], LiDAR store ({what})"))
         table.add_column("method")
-        table.add_column("peak RSS [MB]", justify="right")
+        table.add_column("peak RSS", justify="right")
+        table.add_column("above the imports", justify="right")
+        bases = []
         for name in names:
-            peak_mb = peak_memory_of_run(name, store, threads)
-            lines.append(f"{name},{peak_mb:.1f},\"{what}\"")
-            table.add_row(name, f"{peak_mb:.0f}")
+            peak_mb, base_mb = peak_memory_of_run(name, store, threads)
+            bases.append(base_mb)
+            lines.append(f"{name},{peak_mb:.1f},{base_mb:.1f},{peak_mb - base_mb:.1f},"
+                         f"\"{what}\"")
+            table.add_row(name, f"{peak_mb:.0f}", f"{peak_mb - base_mb:.0f}")
+    table.caption = escape(f"the imports of every run ({', '.join(RUN_IMPORTS)}: Python, "
+                           "NumPy, SciPy, numba, small_gicp, kiss-icp, ...) take "
+                           f"{min(bases):.0f}-{max(bases):.0f} MB before a scan is read")
     console.print(table)
     atomic_write_text(out / "memory.csv", "\n".join(lines) + "\n")
 
