@@ -263,13 +263,16 @@ def speed(
                                               "64k-point LiDAR run")] = True,
     threads: Annotated[int, typer.Option(min=1, help="threads for the methods that take a "
                                                     "thread count")] = 1,
+    reference: Annotated[bool, typer.Option(
+        "--reference", help="also time Open3D's and small_gicp's own pipelines doing the same "
+        "work on the same pairs (speed_reference.csv)")] = False,
 ) -> None:
     """Time every method on the same synthetic scan pairs (total per-frame work and the
     registration call); print ratios to `doppler` and each method's peak memory."""
     from bench.studies.speed import run_speed
 
     run_speed([int(s) for s in sizes.split(",")], methods.split(",") if methods else None,
-              repeats, out, console, memory, threads=threads)
+              repeats, out, console, memory, threads=threads, reference=reference)
 
 
 @app.command(short_help="the paper's Tables III-V")

@@ -20,7 +20,9 @@ wall time on several). With ``memory``, the peak resident memory of a whole ``be
 each method on a 64k-point LiDAR store is measured in a child process, beside the memory its
 imports alone take (``RUN_IMPORTS``, about 156 MB, the same for every method); a run that fails
 is an error (the probe once passed ``-p=num_threads=1``, which every run rejected, and reported
-the imports' footprint as every method's peak).
+the imports' footprint as every method's peak). With ``reference``, Open3D's and small_gicp's
+own pipelines doing the same work are timed on each pair right after the methods
+(``bench.studies.speed_reference``).
 """
 
 from __future__ import annotations
@@ -205,12 +207,17 @@ def _scenarios(sizes: list[int], radar: bool):
 
 def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Path,
               console: Console, memory: bool = True, radar: bool = True,
-              threads: int = 1) -> list[dict]:
-    names = methods or list(METHODS)
-    if "doppler" not in names:
-        names = ["doppler", *names]
+              threads: int = 1, reference: bool = False) -> list[dict]:
+    """Time the methods; with ``reference``, also the libraries' own pipelines beside them
+    on each pair (``bench.studies.speed_reference``, written to speed_reference.csv)."""
+    # doppler first: the base of every ratio
+    names = ["doppler", *[name for name in methods or list(METHODS) if name != "doppler"]]
+    if reference:
+        from bench.studies import speed_reference
+
+        libraries = speed_reference.available_libraries(console)
     console.print(f"generating synthetic radar and LiDAR sequences (up to {max(sizes)} points)")
-    rows = []
+    rows, reference_rows = [], []
     for scenario, n, seq in _scenarios(sizes, radar):
         base = None
         for name in names:
@@ -222,16 +229,32 @@ def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Pa
                           f"(registration {r['register_median_ms']:.3f} ms; {r['repeats']} "
                           f"repeats, {r['iterations']} it, {r['prep']}, {r['threads']} thr., "
                           f"{r['clock']} time)", highlight=False, markup=False)
+        if reference:  # the same pair, right after ours
+            reference_rows += speed_reference.reference_rows(
+                scenario, n, seq, [r for r in rows if r["points"] == n
+                                   and r["scenario"] == scenario], repeats, threads, libraries)
     _print_table(rows, names, console)
     out.mkdir(parents=True, exist_ok=True)
-    header = list(rows[0])
-    lines = [",".join(header)] + [",".join(_csv_value(r[k]) for k in header) for r in rows]
-    atomic_write_text(out / "speed.csv", "\n".join(lines) + "\n")
+    write_csv(rows, out / "speed.csv")
     _plot(rows, names, out / "speed.png")
     console.print(f"wrote {out}/speed.csv and speed.png")
+    if reference_rows:
+        speed_reference.print_reference_table(reference_rows, libraries, console)
+        write_csv(reference_rows, out / "speed_reference.csv")
+        console.print(f"wrote {out}/speed_reference.csv")
+    elif reference:
+        console.print("--reference: none of these methods has a library counterpart ("
+                      f"{', '.join(speed_reference.COUNTERPARTS)})", markup=False)
     if memory:
         _memory(names, out, console, threads)
     return rows
+
+
+def write_csv(rows: list[dict], path: Path) -> None:
+    """``rows`` (the same keys each) as CSV, written atomically."""
+    header = list(rows[0])
+    lines = [",".join(header)] + [",".join(_csv_value(r[k]) for k in header) for r in rows]
+    atomic_write_text(path, "\n".join(lines) + "\n")
 
 
 def _memory(names: list[str], out: Path, console: Console, threads: int) -> None:
@@ -252,7 +275,7 @@ def _memory(names: list[str], out: Path, console: Console, threads: int) -> None
                          f"\"{what}\"")
             table.add_row(name, f"{peak_mb:.0f}", f"{peak_mb - base_mb:.0f}")
     table.caption = escape(f"the imports of every run ({', '.join(RUN_IMPORTS)}: Python, "
-                           "NumPy, SciPy, numba, small_gicp, kiss-icp, ...) take "
+                           "NumPy, SciPy, numba, small_gicp, h5py, ...) take "
                            f"{min(bases):.0f}-{max(bases):.0f} MB before a scan is read")
     console.print(table)
     atomic_write_text(out / "memory.csv", "\n".join(lines) + "\n")
