@@ -8,8 +8,8 @@ A ``Registration`` aligns a source scan (previous) to a target scan (current) an
 
 Seed options: **with seed** a step starts from a motion prior: for a ``Registration`` the
 previous step's estimate (constant-velocity model, scaled to the current time step); a method
-with its own prior (``motion_prior`` names it: KISS-ICP's constant-velocity prediction,
-doppler-ego's rotation rate) uses that. **No seed**: every step starts from the identity and
+with its own prior (``motion_prior`` names it: KISS-ICP's constant-velocity prediction)
+uses that. **No seed**: every step starts from the identity and
 every internal prior is reset. A method that takes no prior at all (``uses_initial_guess`` is
 False: ``doppler``) runs once. Methods that keep their own state (a map) subclass ``Odometry``.
 
