@@ -16,7 +16,7 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
-from methods.kdtree import _STACK, _search
+from methods.kdtree import _STACK, _search_sorted
 
 
 @nb.njit(cache=True)
@@ -210,8 +210,8 @@ def neighbourhood_normals(pts, perm, lo, hi, dim, split, left, right, k, radius_
                 dx, dy, dz = pts[o, 0] - qx, pts[o, 1] - qy, pts[o, 2] - qz
                 far = max(far, dx * dx + dy * dy + dz * dz)
             bound = min(bound_all, np.nextafter(far, np.inf))
-        count = _search(pts, lo, hi, dim, split, left, right, qx, qy, qz, k, bound, out_sq,
-                        out_pos, st_node, st_lb, st_off)
+        count = _search_sorted(pts, lo, hi, dim, split, left, right, qx, qy, qz, k, bound,
+                               out_sq, out_pos, st_node, st_lb, st_off)
         _normal(pts, out_pos, out_sq, count, radius_sq, normals[perm[p]])
     return normals
 

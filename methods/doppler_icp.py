@@ -10,8 +10,8 @@ Facts of the paper (Section "Practical Use") and its public reference code
    point's nearest g in 1-D with the same tie rules, kept when |f - g| <= tau_doppler and
    |p - q| <= tau_spatial on the untransformed points), computed once before the loop and kept
    fixed, then moved by the initial guess with the source.
-2. Every iteration: closest points of the moved source in the target (small_gicp's compiled
-   kd-tree, built once per call; pairs closer than 2.0 m, strict as the reference), then one
+2. Every iteration: closest points of the moved source in the target (exact; pairs closer
+   than 2.0 m, strict as the reference), then one
    Gauss-Newton step of point-to-point residuals r = q - p' with Jacobian [I, -[p']x] on the
    weighted sum (1 - alpha) * Huber over the spatial pairs + alpha * Huber over the Doppler
    pairs (Huber weight 1 or 0.5 / |r| on the residual norm; not normalised by pair counts),
@@ -23,14 +23,23 @@ chosen by the sequence's sensor kind (``configured_for``) unless set; without a 
 radar set is used. The reference code's radar config uses tau_doppler 8 (not 10) and a fixed
 period of 1/12 s; here dT comes from the scans' stamps. Downsampling as the reference code:
 a uniform stride on both scans before the Doppler pairs, default 1 ("radar point clouds are
-already sparse"), in ``preprocess``. The target kd-tree is built inside ``register``, as the
-reference code builds its tree per registration. Timing (``methods.base``): ``time_ms`` =
-``preprocess`` (stride, layouts) + ``register``; ``register_ms`` = ``register`` alone (Doppler
-pairs, kd-tree, iterations). The reference's 1-D search is a
+already sparse"), in ``preprocess``. The reference code builds the target's kd-tree per
+registration; here (one thread) ``preprocess`` builds each scan's kd-tree once
+(``methods.kdtree``, compiled): the new scan's is searched in its step (as the target), and
+orders the searches of the next (as the source). The closest-point searches keep each point's
+pair while it moves less than the gap to its second nearest point
+(``methods.kdtree.NearestTracker``: exact, the same pairs). With
+``num_threads`` > 1 they are small_gicp's parallel kd-tree's, built per call. The Doppler
+pairs come from ``methods.doppler_kernel.pairs``, the compiled twin of
+``methods.doppler.doppler_pairs`` (the same pairs, bit for bit). Timing (``methods.base``):
+``time_ms`` = ``preprocess`` (stride, layouts, kd-tree) + ``register``; ``register_ms`` =
+``register`` alone (Doppler pairs, iterations). The reference's 1-D search is a
 PCL kd-tree on float32 casts of double features: the same pairs up to ties and rounding.
 """
 
 from __future__ import annotations
+
+from dataclasses import dataclass
 
 import numba as nb
 import numpy as np
@@ -40,9 +49,18 @@ from pydantic import Field
 from loaders.errors import DataError
 from loaders.scan import Scan, SensorInfo
 from loaders.se3 import exp_se3
+from methods import doppler_kernel
 from methods.base import MethodParams, Registration, RegistrationResult, uniform_downsample
 from methods.dicp_kernel import transform as _transform
-from methods.doppler import DopplerScan, doppler_pairs
+from methods.doppler import DopplerScan
+from methods.kdtree import FAR, KdTree, NearestTracker
+from methods.kdtree import warm_up as _warm_up_tree
+
+#: the closest-point searches keep a point's pair while it moves less than the gap to its
+#: second nearest when its pair was at least this far [m] (``methods.kdtree.NearestTracker``;
+#: nearer ones are searched again every iteration, which is cheaper there); the answers do not
+#: depend on it
+TRACK_M = 0.1
 
 PARAMETER_SETS = {  # sensor kind -> (tau_spatial [m], tau_doppler [m^2], alpha): the paper
     "radar": (3.0, 10.0, 0.7),
@@ -145,6 +163,15 @@ def warm_up() -> None:
     p = np.ones((2, 3))
     _accumulate(p, p, np.zeros(2, dtype=np.int64), 1.0, 0.5, np.zeros((6, 6)), np.zeros(6))
     _transform(np.eye(4), p)
+    _warm_up_tree()
+    doppler_kernel.warm_up()
+
+
+@dataclass(frozen=True)
+class DopplerIcpScan(DopplerScan):
+    """A ``DopplerScan`` with its kd-tree (one thread; None on several)."""
+
+    tree: KdTree | None = None
 
 
 class DopplerIcp(Registration):
@@ -169,32 +196,52 @@ class DopplerIcp(Registration):
         return (p.tau_spatial_m or tau_s, p.tau_doppler or tau_d,
                 p.alpha if p.alpha is not None else alpha)
 
-    def preprocess(self, scan: Scan) -> DopplerScan:
+    def preprocess(self, scan: Scan) -> DopplerIcpScan:
         if scan.doppler is None:
             raise DataError(f"{scan.source or 'scan'}: the doppler-icp method needs Doppler "
                             "values")
         scan = uniform_downsample(scan, self.params.downsample)
-        return DopplerScan(scan.stamp, np.ascontiguousarray(scan.points.T, dtype=np.float32),
-                           scan.doppler.astype(np.float32),
-                           np.ascontiguousarray(scan.points, dtype=np.float64))
+        points = np.ascontiguousarray(scan.points, dtype=np.float64)
+        # one thread: the compiled kd-tree of the scan, built once here (the scan is the
+        # target of one step, then the source of the next)
+        tree = KdTree(points) if self.params.num_threads == 1 and len(points) else None
+        return DopplerIcpScan(scan.stamp, np.ascontiguousarray(scan.points.T, dtype=np.float32),
+                              scan.doppler.astype(np.float32), points, tree)
 
-    def register(self, source: DopplerScan, target: DopplerScan,
+    def register(self, source: DopplerScan, target: DopplerIcpScan,
                  init_T_target_source: np.ndarray) -> RegistrationResult:
         p = self.params
         tau_s, tau_d, alpha = self._resolved()
         if len(source) < 3 or len(target) < 3:
             return RegistrationResult(init_T_target_source, 0, 0, False)
         # Doppler pairs: once, on the untransformed points, then kept (moved with the source)
-        src_idx, tgt_idx = doppler_pairs(source, target, tau_s, tau_d)
-        tree = small_gicp.KdTree(target.points, num_threads=p.num_threads)
+        src_idx, tgt_idx = doppler_kernel.pairs(source.points_t, source.doppler,
+                                                target.points_t, target.doppler,
+                                                target.stamp - source.stamp, tau_s**2, tau_d)
+        tree = getattr(target, "tree", None)
+        searched = tree is not None
+        if not searched:  # several threads: small_gicp's parallel search
+            tree = small_gicp.KdTree(target.points, num_threads=p.num_threads)
+        else:
+            # the source's points visited in its own kd-tree's order (``NearestTracker``)
+            tree_s = getattr(source, "tree", None)
+            order = tree_s.arrays[1] if tree_s is not None else None
+            nearest = NearestTracker(tree, len(source), p.max_correspondence_m**2,
+                                     (FAR * p.max_correspondence_m)**2, TRACK_M, order)
         T = init_T_target_source.copy()
         doppler_src = _transform(T, source.points[src_idx])
         moved = _transform(T, source.points)
         max_sq = p.max_correspondence_m**2
         prev_error, n = np.inf, 0
         for iteration in range(1, p.max_iterations + 1):
-            idx, sq = self._nearest(tree, moved, p.num_threads)
-            idx[~(sq < max_sq)] = -1  # strict, as the reference code's gate
+            if searched:
+                # strictly within the gate, as the reference code's; a point that moved less
+                # than the gap to its second nearest keeps its pair (exact, see
+                # ``methods.kdtree.nearest_tracked``); others are searched again
+                idx, sq = nearest(moved)
+            else:
+                idx, sq = self._nearest(tree, moved, p.num_threads)
+                idx[~(sq < max_sq)] = -1  # strict, as the reference code's gate
             A, b, n, error = normal_equations((moved, target.points, idx),
                                               (doppler_src, target.points, tgt_idx),
                                               alpha, p.huber_m)

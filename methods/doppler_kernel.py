@@ -229,6 +229,75 @@ def match_and_accumulate(p_t, f, f_keys, q_t, g, g_keys, tau_spatial2, tau_doppl
     return match_sorted(ps, fs, qs, gs, tau_spatial2, tau_doppler)
 
 
+@nb.njit(cache=True, nogil=True)
+def features_f32(points_t, doppler, scale):  # pragma: no cover - compiled
+    """``methods.doppler._feature`` operation for operation in float32 (``scale``: the
+    float32 of sign * dT): the same values bit for bit."""
+    n = points_t.shape[1]
+    out = np.empty(n, dtype=np.float32)
+    for i in range(n):
+        x, y, z = points_t[0, i], points_t[1, i], points_t[2, i]
+        r2 = x * x
+        r2 += y * y
+        r2 += z * z
+        r = np.sqrt(r2)
+        r *= doppler[i]
+        r *= scale
+        out[i] = r2 + r
+    return out
+
+
+@nb.njit(cache=True, nogil=True)
+def pairs(p_t, p_doppler, q_t, q_doppler, dt_s, tau_spatial2, tau_doppler
+          ):  # pragma: no cover - compiled
+    """``methods.doppler.doppler_pairs`` compiled: the same features (``features_f32``), the
+    same nearest g per f and tie rules (the merge of ``match_sorted`` over both scans' sorted
+    keys: ``nearest_1d``'s order) and the same float32 masks; (source indices ascending, their
+    target indices)."""
+    f = features_f32(p_t, p_doppler, np.float32(dt_s))
+    g = features_f32(q_t, q_doppler, np.float32(-dt_s))
+    f_keys = sorted_keys(f)
+    g_keys = sorted_keys(g)
+    n, m = len(f), len(g)
+    low = np.uint64(0xFFFFFFFF)
+    gs = np.empty(m, dtype=np.float32)
+    for j in range(m):
+        gs[j] = g[np.int64(g_keys[j] & low)]
+    match = np.empty(n, dtype=np.int64)
+    j = 0  # number of g values <= the current f
+    for t in range(n):
+        i = np.int64(f_keys[t] & low)
+        fi = f[i]
+        while j < m and gs[j] <= fi:
+            j += 1
+        lo = j - 1 if j > 0 else 0
+        hi = j if j < m else m - 1
+        k = hi if gs[hi] - fi < fi - gs[lo] else lo  # the nearer; the lower one on a tie
+        match[i] = np.int64(g_keys[k] & low)
+    ts = np.float32(tau_spatial2)
+    td = np.float32(tau_doppler)
+    keep = np.empty(n, dtype=np.bool_)
+    count = 0
+    for i in range(n):
+        k = match[i]
+        d0 = p_t[0, i] - q_t[0, k]
+        d1 = p_t[1, i] - q_t[1, k]
+        d2 = p_t[2, i] - q_t[2, k]
+        dist2 = d0 * d0 + d1 * d1
+        dist2 += d2 * d2
+        keep[i] = dist2 <= ts and abs(f[i] - g[k]) <= td
+        count += keep[i]
+    src = np.empty(count, dtype=np.int64)
+    tgt = np.empty(count, dtype=np.int64)
+    c = 0
+    for i in range(n):
+        if keep[i]:
+            src[c] = i
+            tgt[c] = match[i]
+            c += 1
+    return src, tgt
+
+
 class SortWorkspace:
     """Arrays reused by ``sorted_scan_into`` from call to call (grown when a scan is larger);
     one per scan role, used by one thread at a time."""
@@ -260,3 +329,4 @@ def warm_up() -> None:
     arrays = SortWorkspace().arrays(4)
     sorted_scan_into(pts, dop, 0.1, 1.0, *arrays)
     match_sorted(arrays[3], arrays[4], ps, fs, 9.0, 5.0)
+    pairs(pts, dop, pts, dop, 0.1, 9.0, 5.0)

@@ -7,7 +7,7 @@ import pytest
 
 from conftest import constant_twist_sequence
 from methods import doppler_kernel as kernel
-from methods.doppler import DopplerCorrespondence, doppler_pairs
+from methods.doppler import DopplerCorrespondence, DopplerScan, doppler_pairs
 
 
 @pytest.mark.parametrize("n", [0, 1, 7, 5000, 70000])
@@ -75,3 +75,26 @@ def test_the_step_equals_the_numpy_reference(threads):
     np.testing.assert_allclose(sum_p, P.sum(axis=1))
     np.testing.assert_allclose(sum_q, Q.sum(axis=1))
     np.testing.assert_allclose(sum_pq, P @ Q.T)
+
+
+@pytest.mark.parametrize("tau_spatial, tau_doppler", [(3.0, 5.0), (2.0, 5.0), (0.5, 0.2)])
+def test_compiled_pairs_equal_doppler_pairs(tau_spatial, tau_doppler):
+    seq = constant_twist_sequence(n_frames=3, n_points=6000, noise_m=0.02)
+    m = DopplerCorrespondence()
+    for k in range(2):
+        src, tgt = m.preprocess(seq[k]), m.preprocess(seq[k + 1])
+        ref = doppler_pairs(src, tgt, tau_spatial, tau_doppler)
+        got = kernel.pairs(src.points_t, src.doppler, tgt.points_t, tgt.doppler,
+                           tgt.stamp - src.stamp, tau_spatial**2, tau_doppler)
+        np.testing.assert_array_equal(got[0], ref[0])
+        np.testing.assert_array_equal(got[1], ref[1])
+    # ties: repeated features and points
+    src = DopplerScan(0.0, np.repeat(src.points_t[:, :50], 3, axis=1),
+                      np.repeat(src.doppler[:50], 3))
+    tgt = DopplerScan(0.1, np.repeat(tgt.points_t[:, :60], 2, axis=1),
+                      np.repeat(tgt.doppler[:60], 2))
+    ref = doppler_pairs(src, tgt, tau_spatial, tau_doppler)
+    got = kernel.pairs(src.points_t, src.doppler, tgt.points_t, tgt.doppler, 0.1,
+                       tau_spatial**2, tau_doppler)
+    np.testing.assert_array_equal(got[0], ref[0])
+    np.testing.assert_array_equal(got[1], ref[1])

@@ -11,7 +11,7 @@ from methods.dicp_kernel import (
     normals_from_neighbours,
     pair_bounds,
 )
-from methods.kdtree import KdTree
+from methods.kdtree import KdTree, NearestTracker
 
 
 def _cloud(n, seed):
@@ -100,3 +100,39 @@ def test_tree_normals_equal_normals_from_scipys_neighbours(leaf_size):
     assert np.all((np.abs(ref).sum(1) == 0) == (np.abs(got).sum(1) == 0))
     dots = np.abs((ref * got).sum(1))[np.abs(ref).sum(1) > 0]
     assert np.all(dots > 1 - 1e-9)
+
+
+@pytest.mark.parametrize("bound", [np.inf, 0.3, 2.0])
+def test_nearest_from_hints_equals_knn(bound):
+    pts = _cloud(6000, 4)
+    rng = np.random.default_rng(5)
+    queries = np.vstack([pts[::5] + rng.normal(0, 0.2, (len(pts[::5]), 3)), pts[:30],
+                         [[500.0, 0, 0]]])
+    tree = KdTree(pts, leaf_size=6)
+    ref_idx, ref_sq = tree.knn(queries, 1, bound)
+    for hints in (None, rng.integers(-1, len(pts), len(queries)), ref_idx.ravel()):
+        idx, sq = tree.nearest(queries, hints, bound**2)
+        np.testing.assert_array_equal(sq, ref_sq.ravel())
+        # the same point up to ties (duplicates)
+        same = idx == ref_idx.ravel()
+        np.testing.assert_array_equal(pts[idx[~same]], pts[ref_idx.ravel()[~same]])
+
+
+@pytest.mark.parametrize("track_m", [0.0, 0.1, np.inf])
+@pytest.mark.parametrize("gate", [0.3, 2.0])
+def test_tracked_nearest_equals_a_fresh_search_as_the_queries_move(track_m, gate):
+    pts = _cloud(6000, 6)
+    rng = np.random.default_rng(7)
+    queries = pts[rng.choice(len(pts), 1500)] + rng.normal(0, 0.3, (1500, 3))
+    tree = KdTree(pts, leaf_size=8)
+    order = rng.permutation(len(queries)) if track_m else None
+    tracker = NearestTracker(tree, len(queries), gate**2, (1.25 * gate)**2, track_m, order)
+    for step in (0.5, 0.05, 0.01, 1e-3, 1e-4, 0.0, 1e-6, 0.2):  # moves, large and small
+        idx, sq = tracker(queries)
+        ref_idx, ref_sq = tree.nearest(queries, None, gate**2)
+        np.testing.assert_array_equal(sq, ref_sq)
+        same = idx == ref_idx
+        np.testing.assert_array_equal(pts[idx[~same]], pts[ref_idx[~same]])
+        # a small rigid motion (rotation about z and a shift), as an ICP step
+        c, s = np.cos(step / 20), np.sin(step / 20)
+        queries = queries @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]).T + step
