@@ -123,13 +123,17 @@ def sorted_scan_into(points_t, doppler, dt_s, sign, values, keys, spare, pts, va
     """``sorted_scan`` into caller-owned arrays of N elements (scratch: ``values`` float32,
     ``keys`` and ``spare`` uint64; out: ``pts`` (3, N) and ``vals`` float32), so that repeated
     calls touch no fresh memory (page faults cost as much as the sort). The radix sort of
-    ``radix_sort_high32`` with its last pass fused with the gather of the points: the scan's
-    data is read and written as few times as possible (the step is memory-bound)."""
+    ``radix_sort_high32``, then one sequential pass that writes the values (decoded from the
+    sorted keys' high halves) and gathers the points. The step is memory-bound: scattering
+    the points themselves in the last radix pass (4 arrays x 2048 buckets of scattered
+    writes) measured 15 % slower in the whole step than this in-order gather."""
     n = points_t.shape[1]
-    features_into(points_t, doppler, dt_s, sign, values)
     bits = values.view(np.uint32)
     counts = np.zeros((3, 2048), dtype=np.int64)
-    for i in range(n):  # the keys of ``sort_keys`` and the three passes' digit counts
+    for i in range(n):  # features, the keys of ``sort_keys`` and the passes' digit counts
+        x, y, z = points_t[0, i], points_t[1, i], points_t[2, i]
+        r2 = x * x + y * y + z * z
+        values[i] = r2 + sign * np.sqrt(r2) * doppler[i] * dt_s  # as ``features_into``
         b = bits[i]
         h = ~b if b >> np.uint32(31) else b | np.uint32(0x80000000)
         keys[i] = (np.uint64(h) << np.uint64(32)) | np.uint64(i)
@@ -143,15 +147,9 @@ def sorted_scan_into(points_t, doppler, dt_s, sign, values, keys, spare, pts, va
             count = counts[p, b]
             counts[p, b] = start
             start += count
-    if not passes:  # every key has the same high half: index order is the order
-        for i in range(n):
-            vals[i] = values[i]
-            for a in range(3):
-                pts[a, i] = points_t[a, i]
-        return
     src = keys
     dst = spare
-    for p in passes[:-1]:
+    for p in passes:  # none when every key has the same high half: index order is the order
         c = counts[p]
         shift = np.uint64(32 + 11 * p)
         for i in range(n):
@@ -160,19 +158,15 @@ def sorted_scan_into(points_t, doppler, dt_s, sign, values, keys, spare, pts, va
             dst[c[b]] = k
             c[b] += 1
         src, dst = dst, src
-    last = passes[-1]
-    c = counts[last]
-    shift = np.uint64(32 + 11 * last)
-    for i in range(n):  # the last pass writes the points and values in place of the keys
+    out_bits = vals.view(np.uint32)
+    for i in range(n):  # in sorted order: the value from the key, the point by its index
         k = src[i]
-        b = (k >> shift) & np.uint64(0x7FF)
-        pos = c[b]
-        c[b] += 1
+        h = np.uint32(k >> np.uint64(32))
+        out_bits[i] = h ^ np.uint32(0x80000000) if h >> np.uint32(31) else ~h
         j = np.int64(k & np.uint64(0xFFFFFFFF))
-        vals[pos] = values[j]
-        pts[0, pos] = points_t[0, j]
-        pts[1, pos] = points_t[1, j]
-        pts[2, pos] = points_t[2, j]
+        pts[0, i] = points_t[0, j]
+        pts[1, i] = points_t[1, j]
+        pts[2, i] = points_t[2, j]
 
 
 @nb.njit(cache=True, nogil=True)
