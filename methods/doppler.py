@@ -203,8 +203,10 @@ def register_numba(kernel, source: DopplerScan, target: DopplerScan, tau_spatial
     kernel.sorted_scan_into(target.points_t, target.doppler, dt_s, -1.0, *tgt_arrays)
     if pool is not None:
         pending.result()
-    n, sum_p, sum_q, sum_pq = kernel.match_sorted(*src_arrays[3:], *tgt_arrays[3:],
-                                                  tau_spatial_m**2, tau_doppler)
+    # the source's feature scratch (read by its sort only) holds the pairs of the match
+    n, sum_p, sum_q, sum_pq = kernel.match_sorted_into(*src_arrays[3:], *tgt_arrays[3:],
+                                                       tau_spatial_m**2, tau_doppler,
+                                                       src_arrays[0].view(np.int32))
     return (rigid_from_sums(n, sum_p, sum_q, sum_pq) if n >= 3 else None), n
 
 

