@@ -261,8 +261,8 @@ def speed(
     out: Annotated[Path, typer.Option(help="output folder")] = Path("results/speed"),
     memory: Annotated[bool, typer.Option(help="also measure each method's peak memory on a "
                                               "64k-point LiDAR run")] = True,
-    threads: Annotated[int, typer.Option(min=1, help="threads for the methods that take a "
-                                                    "thread count")] = 1,
+    threads: Annotated[int, typer.Option(min=1, help="also time the methods that take a "
+                                                    "thread count on N threads (beside 1)")] = 1,
     reference: Annotated[bool, typer.Option(
         "--reference", help="also time Open3D's and small_gicp's own pipelines doing the same "
         "work on the same pairs (speed_reference.csv)")] = False,

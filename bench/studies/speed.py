@@ -10,20 +10,20 @@ Two scenarios, each generated once so that every method sees exactly the same po
 N is always the number of points handed to the method (its input). Two figures per method:
 ``time_ms``, the total per-frame work (a pairwise method: preparing the new scan, i.e. its own
 downsampling, normals, kd-tree or voxel map, plus the registration call), and ``register_ms``,
-the registration call alone. A pairwise method is timed on one consecutive pair: the same
-warm-up as in a run, then ``repeats`` timed frames (at least 51 for sub-5 ms frames, at most 3
-for frames over a second). A stateful method (its own map: KISS-ICP, doppler-ego) runs over the
+the registration call alone. A pairwise method is timed on one consecutive pair: the same warm-
+up as in a run, then ``repeats`` timed frames (at least 51 for sub-5 ms frames, at most 3 for
+frames over a second). A stateful method (its own map: KISS-ICP, doppler-ego) runs over the
 short sequence after the warm-up and its frames after the second are used. Methods are
-configured for the scenario's sensor kind (radar or LiDAR parameter sets) and ``threads``
-threads where they take a thread count; the clock is the harness's (CPU time on one thread,
-wall time on several). With ``memory``, the peak resident memory of a whole ``bench run`` of
-each method on a 64k-point LiDAR store is measured in a child process, beside the memory its
-imports alone take (``RUN_IMPORTS``, about 156 MB, the same for every method); a run that fails
-is an error (the probe once passed ``-p=num_threads=1``, which every run rejected, and reported
-the imports' footprint as every method's peak). With ``reference``, Open3D's and small_gicp's
-own pipelines doing the same work are timed on each pair right after the methods
-(``bench.studies.speed_reference``).
-"""
+configured for the scenario's sensor kind (radar or LiDAR parameter sets); every method runs on
+1 thread and, with ``threads`` > 1, again on ``threads`` where it takes a thread count (both
+figures side by side, the ``threads_setting`` column of speed.csv); the clock is the harness's
+(CPU time on one thread, wall time on several). With ``memory``, the peak resident memory of a
+whole ``bench run`` of each method on a 64k-point LiDAR store is measured in a child process,
+beside the memory its imports alone take (``RUN_IMPORTS``, about 156 MB, the same for every
+method); a run that fails is an error (the probe once passed ``-p=num_threads=1``, which every
+run rejected, and reported the imports' footprint as every method's peak). With ``reference``,
+Open3D's and small_gicp's own pipelines doing the same work are timed on each pair right after
+the methods (``bench.studies.speed_reference``)."""
 
 from __future__ import annotations
 
@@ -217,22 +217,31 @@ def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Pa
 
         libraries = speed_reference.available_libraries(console)
     console.print(f"generating synthetic radar and LiDAR sequences (up to {max(sizes)} points)")
+    # with --threads N, every method is timed on 1 thread and on N (a method without a thread
+    # count only on 1: its figure stands for both)
+    settings = [1, threads] if threads > 1 else [1]
     rows, reference_rows = [], []
     for scenario, n, seq in _scenarios(sizes, radar):
-        base = None
-        for name in names:
-            r = time_method(name, seq, repeats, threads)
-            base = r["median_ms"] if name == "doppler" else base
-            rows.append({"scenario": scenario, "points": n, "method": name, **r,
-                         "ratio_to_doppler": r["median_ms"] / base})
-            console.print(f"  {scenario:<5} N={n:>7} {name:<12} {r['median_ms']:10.3f} ms "
-                          f"(registration {r['register_median_ms']:.3f} ms; {r['repeats']} "
-                          f"repeats, {r['iterations']} it, {r['prep']}, {r['threads']} thr., "
-                          f"{r['clock']} time)", highlight=False, markup=False)
-        if reference:  # the same pair, right after ours
+        for setting in settings:
+            base = None
+            for name in names:
+                if setting > 1 and not method_params(name, setting):
+                    continue
+                r = time_method(name, seq, repeats, setting)
+                base = r["median_ms"] if name == "doppler" else base
+                rows.append({"scenario": scenario, "points": n, "method": name,
+                             "threads_setting": setting, **r,
+                             "ratio_to_doppler": r["median_ms"] / base})
+                console.print(f"  {scenario:<5} N={n:>7} {name:<12} {r['median_ms']:10.3f} ms "
+                              f"(registration {r['register_median_ms']:.3f} ms; {r['repeats']} "
+                              f"repeats, {r['iterations']} it, {r['prep']}, {r['threads']} "
+                              f"thr., {r['clock']} time)", highlight=False, markup=False)
+        if reference:  # the same pair, right after ours, at the requested thread count
             reference_rows += speed_reference.reference_rows(
                 scenario, n, seq, [r for r in rows if r["points"] == n
-                                   and r["scenario"] == scenario], repeats, threads, libraries)
+                                   and r["scenario"] == scenario
+                                   and r["threads_setting"] == threads],
+                repeats, threads, libraries)
     _print_table(rows, names, console)
     out.mkdir(parents=True, exist_ok=True)
     write_csv(rows, out / "speed.csv")
@@ -294,16 +303,21 @@ def _print_table(rows: list[dict], names: list[str], console: Console) -> None:
                                "scan, before each method's own downsampling"))
     table.add_column("scan")
     table.add_column("input points", justify="right")
+    table.add_column("threads", justify="right")
     for name in names:
         table.add_column(name, justify="right")
-    keys = list(dict.fromkeys((r["scenario"], r["points"]) for r in rows))
-    for scenario, n in keys:
+    keys = list(dict.fromkeys((r["scenario"], r["points"], r["threads_setting"]) for r in rows))
+    for scenario, n, setting in keys:
         cells = {r["method"]: f"{r['median_ms']:.2f} / {r['register_median_ms']:.2f} "
                               f"({r['ratio_to_doppler']:.1f}x)"
-                 for r in rows if (r["scenario"], r["points"]) == (scenario, n)}
-        table.add_row(scenario, f"{n}", *[cells.get(name, "-") for name in names])
-    preps = {r["method"]: f"{r['prep']}, {r['threads']} thr." for r in rows}
-    table.caption = escape("clock: CPU time on 1 thread, wall time on more; preparation "
+                 for r in rows if (r["scenario"], r["points"], r["threads_setting"])
+                 == (scenario, n, setting)}
+        # "-": a method without a thread count (its 1-thread figure above stands)
+        table.add_row(scenario, f"{n}", f"{setting}", *[cells.get(name, "-") for name in names])
+    preps = {r["method"]: r["prep"] for r in rows}
+    table.caption = escape("clock: CPU time on 1 thread, wall time on more (threads: the "
+                           "count asked for; a method without a thread count runs on 1); "
+                           "preparation "
                            "(timed in the total): "
                            + "; ".join(f"{k}: {v}" for k, v in preps.items()))
     console.print(table)
@@ -320,7 +334,8 @@ def _plot(rows: list[dict], names: list[str], path: Path) -> None:
     fig, ax = plt.subplots(figsize=(6, 4))
     for name in names:
         pts = sorted((r["points"], r["median_ms"], r["p5_ms"], r["p95_ms"]) for r in rows
-                     if r["method"] == name and r["scenario"] == "lidar")
+                     if r["method"] == name and r["scenario"] == "lidar"
+                     and r["threads_setting"] == 1)
         if not pts:
             continue
         n, med, lo, hi = (np.array(v) for v in zip(*pts, strict=True))
@@ -328,7 +343,7 @@ def _plot(rows: list[dict], names: list[str], path: Path) -> None:
         ax.fill_between(n, lo, hi, color=line.get_color(), alpha=0.2, linewidth=0)
     ax.set_xlabel("input points per scan")
     ax.set_ylabel("time per frame, all per-frame work [ms]")
-    ax.set_title("median with p5-p95 band (synthetic FMCW LiDAR)", fontsize=9)
+    ax.set_title("median with p5-p95 band, 1 thread (synthetic FMCW LiDAR)", fontsize=9)
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()

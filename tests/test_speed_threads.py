@@ -1,0 +1,27 @@
+"""`bench speed --threads N`: every method on 1 thread and, where it takes a thread count, on N
+too, both in the table and in speed.csv. No timed assertions."""
+
+from __future__ import annotations
+
+import csv
+
+from rich.console import Console
+
+from bench.studies import speed
+
+
+def test_threads_n_reports_one_and_n_threads(tmp_path):
+    console = Console(record=True, width=300)
+    speed.run_speed([1000], ["doppler", "kiss-icp", "icp-p2p"], 1, tmp_path, console,
+                    memory=False, radar=False, threads=2)
+    with open(tmp_path / "speed.csv", newline="") as f:
+        rows = list(csv.DictReader(f))
+    got = {(r["method"], r["threads_setting"], r["threads"], r["clock"]) for r in rows}
+    with_count = {name for name in ("doppler", "kiss-icp", "icp-p2p")
+                  if speed.method_params(name, 2)}
+    assert "doppler" in with_count  # the base of the ratios runs at both settings
+    expected = {(name, "1", "1", "cpu") for name in ("doppler", "kiss-icp", "icp-p2p")}
+    expected |= {(name, "2", "2", "wall") for name in with_count}
+    assert got == expected
+    text = console.export_text()
+    assert "threads" in text and text.count("lidar") >= 2  # one table row per setting
