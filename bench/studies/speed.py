@@ -10,9 +10,9 @@ Two scenarios, each generated once so that every method sees exactly the same po
 N is always the number of points handed to the method (its input). Two figures per method:
 ``time_ms``, the total per-frame work (a pairwise method: preparing the new scan, i.e. its own
 downsampling, normals, kd-tree or voxel map, plus the registration call), and ``register_ms``,
-the registration call alone. A pairwise method is timed on one consecutive pair: the same warm-
-up as in a run, then ``repeats`` timed frames (at least 51 for sub-5 ms frames, at most 3 for
-frames over a second). A stateful method (its own map: KISS-ICP, doppler-ego) runs over the
+the registration call alone. A pairwise method is timed on one consecutive pair: the same
+warm-up as in a run, then ``repeats`` timed frames (at least 51 for sub-5 ms frames, at most 3
+for frames over a second). A stateful method (its own map: KISS-ICP, doppler-ego) runs over the
 short sequence after the warm-up and its frames after the second are used. Methods are
 configured for the scenario's sensor kind (radar or LiDAR parameter sets); every method runs on
 1 thread and, with ``threads`` > 1, again on ``threads`` where it takes a thread count (both
