@@ -207,3 +207,20 @@ def test_a_method_has_one_colour_everywhere():
 def test_pair_of_the_last_frame_is_a_clear_error(results):
     res = CliRunner().invoke(app, ["figures", "--pair", str(results / "twist.h5"), "39"])
     assert res.exit_code != 0 and "has no next frame" in str(res.exception)
+
+
+def test_labelled_variants_of_one_method_are_told_apart():
+    from types import SimpleNamespace
+
+    from bench.report.figstyle import prior_style
+
+    def run(label, seed=True):
+        return SimpleNamespace(method="doppler-ego", seed=seed, label=label)
+
+    default, no_seed = prior_style(run(None)), prior_style(run(None, seed=False))
+    variants = [prior_style(run(f"ablation {k}")) for k in range(4)]
+    styles = [default, no_seed, *variants]
+    assert len({s[0] if isinstance(s[0], str) else repr(s[0]) for s in styles}) == len(styles)
+    assert len({s[1] for s in styles}) == len(styles)  # markers
+    assert len({s[2] for s in variants}) == len(variants) and all(s[2] for s in variants)
+    assert prior_style(run("ablation 2")) == variants[2]  # the same in every figure

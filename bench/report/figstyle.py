@@ -33,8 +33,21 @@ def color(method: str) -> str:
     return _COLORS.get(method, _OTHER_COLOR)
 
 
+#: (line style, marker, box hatch) of a labelled variant (an ablation), by order of first sight
+_VARIANT_STYLE = [((0, (1, 1)), "^", "...."), ((0, (4, 1, 1, 1)), "v", "xxxx"),
+                  ((0, (6, 2)), "<", "\\\\\\"), ((0, (2, 1, 2, 3)), ">", "++++"),
+                  ((0, (1, 2)), "p", "oo"), ((0, (3, 1, 1, 1, 1, 1)), "h", "--")]
+_variant_index: dict[str, int] = {}
+
+
 def prior_style(run) -> tuple[str, str, str]:
-    """(line style, marker, hatch) of a run's motion prior (``names.seed_tag``)."""
+    """(line style, marker, hatch) of a run's motion prior (``names.seed_tag``); a labelled
+    variant of a method (an ablation, same colour) gets a style of its own instead, the same
+    in every figure of a command (its label names the prior)."""
+    label = getattr(run, "label", None)
+    if label:
+        k = _variant_index.setdefault(label, len(_variant_index))
+        return _VARIANT_STYLE[k % len(_VARIANT_STYLE)]
     return _PRIOR_STYLE.get(seed_tag(run.method, run.seed), ("-", "o", ""))
 
 

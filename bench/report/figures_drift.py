@@ -9,6 +9,7 @@ at is visible at a glance. Written by ``bench figures`` as ``drift/<sequence>.{p
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -53,13 +54,14 @@ def plot_drift(runs, out_dir: Path) -> list[Path]:
             handles.append(line)
             labels.append(run_name(run) + (" - Div." if run.diverged else ""))
         for a in range(3):
-            axes[a, 0].set_ylabel(f"{AXES_ROT[a]} [deg]")
-            axes[a, 1].set_ylabel(f"{AXES_TRANS[a]} [m]")
+            axes[a, 0].set_ylabel(f"{AXES_ROT[a]}\n[deg]")  # two lines: the rows are short
+            axes[a, 1].set_ylabel(f"{AXES_TRANS[a]}\n[m]")
             for ax in axes[a]:
                 ax.axhline(0.0, color="black", lw=0.4)
         for ax in axes[-1]:
             ax.set_xlabel("distance travelled [m]")
-        fig.suptitle(f"{sequence}: drift from the first frame\n(estimate - GT, GT body axes)")
+        fig.suptitle("\n".join(textwrap.wrap(f"{sequence}: drift from the first frame (estimate "
+                                              "- GT, GT body axes)", 56)))
         legend_below(fig, handles, labels)
         written += save(fig, out_dir / "drift" / slug(sequence))
     return written
