@@ -89,8 +89,10 @@ def test_same_transform_as_open3d(scene, sensor, points, seeded, rotated):
         init = inv_T(seq.ground_truth.poses[2]) @ seq.ground_truth.poses[1]
         init[:3, 3] += [0.05, -0.03, 0.01]
     ours, upstream = (_register(b, [seq[1], seq[2]], info, init) for b in ("numba", "open3d"))
-    trans, rot = _error(ours.T_target_source, upstream.T_target_source)
-    assert trans < 1e-3 and rot < 0.05, (trans, rot)
+    # the same algorithm on the same normals: equal up to rounding (1e-14 measured; 1e-9 leaves
+    # room for other CPUs' BLAS and still fails on any difference in pairs, weights or steps)
+    diff = np.abs(ours.T_target_source - upstream.T_target_source).max()
+    assert diff < 1e-9, diff
     assert ours.correspondences == upstream.correspondences > 100
     assert ours.iterations == upstream.iterations
     assert ours.converged and upstream.converged
