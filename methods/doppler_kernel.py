@@ -44,6 +44,28 @@ def sort_keys(values):
     return keys
 
 
+@nb.njit(cache=True, nogil=True, inline="always")
+def _bucket_starts(c):  # pragma: no cover - compiled
+    """The 2048 digit counts ``c`` turned, in place, into each bucket's first position."""
+    start = 0
+    for b in range(2048):
+        count = c[b]
+        c[b] = start
+        start += count
+
+
+@nb.njit(cache=True, nogil=True, inline="always")
+def _radix_pass(src, dst, c, p):  # pragma: no cover - compiled
+    """One stable pass on digit ``p`` (11 bits of the high half, from bit 32 + 11 p): each key
+    of ``src`` to its bucket's next position in ``dst`` (``c``: the buckets' starts)."""
+    shift = np.uint64(32 + 11 * p)
+    for i in range(len(src)):
+        k = src[i]
+        b = (k >> shift) & np.uint64(0x7FF)
+        dst[c[b]] = k
+        c[b] += 1
+
+
 @nb.njit(cache=True, nogil=True)
 def radix_sort_high32(keys):
     """``keys`` sorted by their high 32 bits, stably (equal high halves keep their input
@@ -64,17 +86,8 @@ def radix_sort_high32(keys):
         c = counts[p]
         if n == 0 or c.max() == n:
             continue  # one digit value: the pass would not move anything
-        start = 0
-        for b in range(2048):
-            count = c[b]
-            c[b] = start
-            start += count
-        shift = np.uint64(32 + 11 * p)
-        for i in range(n):
-            k = src[i]
-            b = (k >> shift) & np.uint64(0x7FF)
-            dst[c[b]] = k
-            c[b] += 1
+        _bucket_starts(c)
+        _radix_pass(src, dst, c, p)
         src, dst = dst, src
     return src
 
@@ -141,22 +154,11 @@ def sorted_scan_into(points_t, doppler, dt_s, sign, values, keys, spare, pts, va
         counts[1, (h >> np.uint32(11)) & np.uint32(0x7FF)] += 1
         counts[2, h >> np.uint32(22)] += 1
     passes = [p for p in range(3) if n and counts[p].max() != n]
-    for p in passes:
-        start = 0
-        for b in range(2048):
-            count = counts[p, b]
-            counts[p, b] = start
-            start += count
     src = keys
     dst = spare
     for p in passes:  # none when every key has the same high half: index order is the order
-        c = counts[p]
-        shift = np.uint64(32 + 11 * p)
-        for i in range(n):
-            k = src[i]
-            b = (k >> shift) & np.uint64(0x7FF)
-            dst[c[b]] = k
-            c[b] += 1
+        _bucket_starts(counts[p])
+        _radix_pass(src, dst, counts[p], p)
         src, dst = dst, src
     out_bits = vals.view(np.uint32)
     for i in range(n):  # in sorted order: the value from the key, the point by its index
