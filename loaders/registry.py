@@ -15,10 +15,23 @@ from loaders.scan import Sequence
 
 @dataclass(frozen=True)
 class LoaderEntry:
+    """One loader and its catalogue facts (``bench datasets`` and the README's real-data table
+    are made from these)."""
+
     name: str
     description: str
     module: str
     cls: str
+    #: catalogue: dataset name, sensor, sensor class, Doppler kind (see ``loaders.scan``),
+    #: licence, where its owners publish it, the layout the loader expects, an exact command
+    dataset: str = ""
+    sensor: str = ""
+    sensor_class: str = ""
+    doppler_kind: str = "radial"
+    licence: str = ""
+    published_at: str = ""
+    layout: str = ""
+    example: str = ""
 
     def load_class(self) -> type[Sequence]:
         return getattr(importlib.import_module(self.module), self.cls)

@@ -23,6 +23,13 @@ from loaders.errors import DataError
 from loaders.trajectory import Trajectory
 
 SensorKind = Literal["radar", "lidar"]
+#: what a sequence's Doppler values are: ``radial`` = the raw range rate of each point relative
+#: to the moving sensor (what Doppler methods need); ``ego-compensated`` = the sensor's own motion
+#: already removed by the dataset (static points read about 0 m/s: unusable as radial velocity);
+#: ``gt-reconstructed`` = radial velocity rebuilt from a compensated value and the GT's ego motion
+#: (an explicit opt-in: every result made from it is GT-assisted).
+DopplerKind = Literal["radial", "ego-compensated", "gt-reconstructed"]
+DOPPLER_KINDS: tuple[str, ...] = ("radial", "ego-compensated", "gt-reconstructed")
 
 
 def _check_finite(name: str, values: np.ndarray, prefix: str) -> None:
@@ -108,16 +115,22 @@ class SensorInfo:
     kind: "radar" or "lidar". period_s: nominal scan period [s] (methods use the actual stamps).
     T_body_sensor: extrinsic of the sensor in the vehicle/GT body frame (documentation of how
     ground truth was brought into the sensor frame). model: e.g. "radar-semidense".
+    doppler_kind: what the Doppler values are (``DopplerKind``; "radial" unless a loader says
+    otherwise; meaningless for a sequence without Doppler).
     """
 
     kind: SensorKind
     period_s: float
     T_body_sensor: np.ndarray = field(default_factory=lambda: np.eye(4))
     model: str = ""
+    doppler_kind: DopplerKind = "radial"
 
     def __post_init__(self) -> None:
         if self.kind not in ("radar", "lidar"):
             raise DataError(f"sensor kind must be 'radar' or 'lidar', got {self.kind!r}")
+        if self.doppler_kind not in DOPPLER_KINDS:
+            raise DataError(f"doppler kind must be one of {', '.join(DOPPLER_KINDS)}, "
+                            f"got {self.doppler_kind!r}")
         if not (self.period_s > 0):
             raise DataError(f"sensor period must be > 0 s, got {self.period_s}")
         T = np.asarray(self.T_body_sensor, dtype=np.float64)
@@ -223,7 +236,8 @@ class FrameRange(Sequence):
         self.indices = indices
         self.name = base.name
         s = base.sensor
-        self.sensor = SensorInfo(s.kind, s.period_s * stride, s.T_body_sensor, s.model)
+        self.sensor = SensorInfo(s.kind, s.period_s * stride, s.T_body_sensor, s.model,
+                                 s.doppler_kind)
         self._stamps = base.stamps[indices]
         gt = base.ground_truth
         if gt is not None:

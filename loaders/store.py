@@ -3,6 +3,8 @@
 Layout (format ``doppler-bench-store``, version 1)::
 
     /                      attrs: format, format_version, name, sensor_kind, sensor_model,
+                                  doppler_kind (radial | ego-compensated | gt-reconstructed;
+                                  absent in older stores = radial),
                                   period_s, n_frames, n_points, fields (JSON list),
                                   provenance (JSON object)
     /frames/stamp          (F,)    float64  scan stamps [s, sensor clock]
@@ -152,6 +154,7 @@ def write_store(
                 "name": sequence.name,
                 "sensor_kind": sequence.sensor.kind,
                 "sensor_model": sequence.sensor.model,
+                "doppler_kind": sequence.sensor.doppler_kind,
                 "period_s": float(sequence.sensor.period_s),
                 "n_frames": len(writer.stamps),
                 "n_points": int(writer.offsets[-1]),
@@ -197,6 +200,7 @@ class StoreSequence(Sequence):
                 period_s=float(attrs["period_s"]),
                 T_body_sensor=h5["extrinsic/T_body_sensor"][:],
                 model=str(attrs.get("sensor_model", "")),
+                doppler_kind=str(attrs.get("doppler_kind", "radial")),
             )
             self.ground_truth = (
                 Trajectory(h5["ground_truth/stamps"][:], h5["ground_truth/poses"][:])

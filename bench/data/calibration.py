@@ -244,7 +244,8 @@ class CorrectedSequence(Sequence):
         T_fix[:3, :3] = R_gt_sensor
         self.name = base.name
         s = base.sensor
-        self.sensor = SensorInfo(s.kind, s.period_s, s.T_body_sensor @ T_fix, s.model)
+        self.sensor = SensorInfo(s.kind, s.period_s, s.T_body_sensor @ T_fix, s.model,
+                                 s.doppler_kind)
         gt = base.ground_truth
         self.ground_truth = None if gt is None else gt.transformed(T_right=T_fix)
         angles = rotation_angles(R_gt_sensor)
