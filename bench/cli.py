@@ -1,4 +1,4 @@
-"""The ``bench`` command line: list, synth, convert, inspect, calibrate, run, table, figures,
+"""The ``bench`` command line: list, datasets, synth, convert, inspect, calibrate, run, table, figures,
 speed, reproduce.
 
 Exit codes: 0 when everything asked for succeeded, 1 when any run failed (the summary lists
@@ -18,6 +18,7 @@ pin_threads()
 from pathlib import Path  # noqa: E402
 from typing import Annotated  # noqa: E402
 
+import click  # noqa: E402
 import typer  # noqa: E402
 from rich.markup import escape  # noqa: E402
 
@@ -27,7 +28,7 @@ from loaders.errors import DataError  # noqa: E402
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
                   help="Benchmark harness for Doppler-based scan matching (4D radar, FMCW LiDAR).")
-app.add_typer(convert_app, name="convert")
+app.add_typer(convert_app, name="convert", short_help="a dataset to an HDF5 store")
 console = make_console()
 status = make_console(stderr=True)  # status lines beside data written to stdout
 
@@ -38,6 +39,18 @@ def list_cmd() -> None:
     from bench.report.listing import print_registries
 
     print_registries(console)
+
+
+@app.command(short_help="the public datasets and how to convert each")
+def datasets(
+    markdown: Annotated[bool, typer.Option(
+        "--markdown", help="print the README's markdown table instead")] = False,
+) -> None:
+    """Every supported dataset: sensor, sensor class, Doppler kind, licence, where its owners
+    publish it, the layout the loader expects and the exact `bench convert` command."""
+    from bench.data.catalogue import print_catalogue
+
+    print_catalogue(console, markdown)
 
 
 @app.command(short_help="generate synthetic sequences (or check the suite)")
@@ -358,7 +371,7 @@ def main() -> None:
     except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as err:
         status.print(f"[bold red]error:[/] {escape(str(err))}")
         sys.exit(2)
-    except typer.Exit as e:
+    except (typer.Exit, click.exceptions.Exit) as e:  # click's own: --help of built commands
         sys.exit(e.exit_code)
     except (typer.Abort, KeyboardInterrupt):
         status.print("[red]aborted (Ctrl-C)[/]")

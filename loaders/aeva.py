@@ -23,13 +23,17 @@ from __future__ import annotations
 
 import json
 import re
+import warnings
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
 from loaders.assemble import finish_scan, median_period
 from loaders.errors import DataError
 from loaders.gt import associate
+from loaders.options import GroundTruthTimeOptions, OpensFromOptions
 from loaders.posefile import detect_pose_format, parse_extrinsic, read_gt_file
 from loaders.scan import Scan, SensorInfo, Sequence
 from loaders.trajectory import Trajectory
@@ -37,6 +41,10 @@ from loaders.trajectory import Trajectory
 #: steam_icp's sensor -> vehicle translation for the Aeva real data (identity rotation).
 STEAM_T_VEHICLE_SENSOR = "1.42 0.24 1.37 0 0 0 1"
 DEFAULT_PERIOD_S = 0.1
+DEFAULT_MAX_GAP_S = 0.25
+#: a dense FMCW LiDAR frame holds tens of thousands of points (CARLA 40k-120k); radar frames
+#: hold a few hundred to a few thousand: below this median the data look like radar
+RADAR_LIKE_MEDIAN_POINTS = 10_000
 
 LAYOUTS = {
     "dicp": ("point_clouds", ".bin"),
@@ -120,7 +128,34 @@ def _calibration_open3d(path: Path) -> tuple[np.ndarray, float | None]:
     return parse_extrinsic(T.ravel()), (float(period) if period is not None else None)
 
 
-class AevaSequence(Sequence):
+class Options(GroundTruthTimeOptions):
+    """``bench convert aeva`` / a dataset config's ``options``."""
+
+    layout: Literal["auto", "dicp", "open3d", "steam"] = Field(
+        "auto", description="folder layout: auto, dicp, open3d or steam")
+    kind: Literal["lidar", "radar"] = Field(
+        "lidar", description="sensor kind of the frames: lidar (Aeva, CARLA) or radar (radar "
+        "bins written in this layout; give --period too)")
+    period_s: float | None = Field(None, gt=0, description="frame period [s] when there are "
+                                   "no stamps (default: calibration period, else 0.1)")
+    T_vehicle_sensor: str | None = Field(
+        None, json_schema_extra={"cli": "extrinsic"},
+        description='sensor -> vehicle "x y z qx qy qz qw" or 16 numbers (default: the '
+        "layout's)")
+    invert_calibration: bool = Field(False, description="use the inverse of "
+                                     "calibration.json's matrix")
+    gt: Path | None = Field(None, description="GT file (default: the layout's)")
+    no_gt: bool = Field(False, description="ignore ground truth")
+    gt_association: Literal["auto", "index", "time"] = Field(
+        "auto", description="auto (one GT row per frame: by index, else by time), index or "
+        "time")
+    point_time_scale: float = Field(1e-9, description="steam layout: per-point t -> seconds")
+    timestamp_unit: Literal["auto", "s", "ms", "us", "ns"] = Field(
+        "auto", description="steam layout: unit of timestamps.txt")
+    doppler_sign: Literal[1.0, -1.0] = Field(1.0, description="+1 or -1")
+
+
+class AevaSequence(OpensFromOptions, Sequence):
     """Dense FMCW LiDAR frames from a folder (layouts: see the module docstring).
 
     root: the sequence folder. layout: "auto" | "dicp" | "open3d" | "steam".
@@ -132,7 +167,26 @@ class AevaSequence(Sequence):
     "index" or "time". time_offset_s / max_gap_s: for time association.
     point_time_scale: steam layout per-point t -> seconds (1e-9: ns). timestamp_unit: steam
     ``timestamps.txt`` unit (auto). doppler_sign: +1 (positive = receding) or -1.
+    kind: "lidar" (default) or "radar": radar bins written in one of these layouts are stored
+    as radar; a LiDAR whose frames look like radar (median points per frame below
+    ``RADAR_LIKE_MEDIAN_POINTS``) gets a warning.
     """
+
+    Options = Options
+    inputs = "sequence folder (point_clouds/, xyzd_sequence/ or frames/)"
+
+    @classmethod
+    def open(cls, paths: list[Path], options: Options) -> AevaSequence:
+        o = options
+        return cls(paths[0], layout=o.layout, period_s=o.period_s,
+                   T_vehicle_sensor=o.T_vehicle_sensor,
+                   invert_calibration=o.invert_calibration,
+                   gt=False if o.no_gt else o.gt, gt_association=o.gt_association,
+                   time_offset_s=o.time_offset_s,
+                   max_gap_s=DEFAULT_MAX_GAP_S if o.max_gap_s is None else o.max_gap_s,
+                   point_time_scale=o.point_time_scale, timestamp_unit=o.timestamp_unit,
+                   doppler_sign=o.doppler_sign, uncovered=o.uncovered, name=o.name,
+                   kind=o.kind)
 
     def __init__(
         self,
@@ -144,12 +198,13 @@ class AevaSequence(Sequence):
         gt: Path | str | bool | None = None,
         gt_association: str = "auto",
         time_offset_s: float = 0.0,
-        max_gap_s: float = 0.25,
+        max_gap_s: float = DEFAULT_MAX_GAP_S,
         point_time_scale: float = 1e-9,
         timestamp_unit: str = "auto",
         doppler_sign: float = 1.0,
         uncovered: str = "keep",
         name: str | None = None,
+        kind: str = "lidar",
     ) -> None:
         self.root = Path(root)
         if not self.root.is_dir():
@@ -268,9 +323,37 @@ class AevaSequence(Sequence):
                 self.provenance["gt_association"] = assoc.report
         self._keep = keep
         self._stamps = stamps[keep]
-        kind_model = ("lidar-fmcw (CARLA)" if self.layout != "steam"
-                      else "lidar-fmcw (Aeva Aeries I)")
-        self.sensor = SensorInfo("lidar", median_period(self._stamps, period), T, kind_model)
+        if kind not in ("lidar", "radar"):
+            raise DataError(f"sensor kind must be lidar or radar, got {kind!r}")
+        if kind == "radar":
+            model = f"radar ({self.layout} layout)"
+        else:
+            model = ("lidar-fmcw (CARLA)" if self.layout != "steam"
+                     else "lidar-fmcw (Aeva Aeries I)")
+            self._warn_if_radar_like(stamp_source, period)
+        self.provenance["sensor_kind"] = kind
+        self.sensor = SensorInfo(kind, median_period(self._stamps, period), T, model)
+
+    def _warn_if_radar_like(self, stamp_source: str, period: float) -> None:
+        """Warn when LiDAR frames hold as few points as radar frames (radar bins written in an
+        Aeva layout were silently stored as LiDAR with 0.1 s). Point counts come from the file
+        sizes (binary layouts) or the line count of the middle frame (ASCII)."""
+        if self.layout == "open3d":
+            middle = self._files[len(self._files) // 2]
+            with open(middle, "rb") as f:
+                median = sum(1 for line in f if line.strip())
+        else:
+            width = 16 if self.layout == "dicp" else 20
+            median = int(np.median([p.stat().st_size for p in self._files])) // width
+        self.provenance["median_points_per_frame"] = median
+        if median < RADAR_LIKE_MEDIAN_POINTS:
+            timing = (f"; the frames are stamped index x {period:g} s" if
+                      stamp_source == "index x period" else "")
+            warnings.warn(
+                f"{self.root}: frames hold a median of {median} points, as radar frames do (a "
+                f"dense FMCW LiDAR frame has tens of thousands); they are stored as LiDAR"
+                f"{timing}. If this is radar data, pass --kind radar (kind: radar) and the "
+                "scan period (--period SECONDS)", stacklevel=3)
 
     def __len__(self) -> int:
         return len(self._keep)

@@ -20,14 +20,18 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
 from loaders.assemble import finish_scan
 from loaders.bag_sequence import BagRadarSequence
 from loaders.doppler_check import low_points_median_z  # noqa: F401 (re-exported)
 from loaders.errors import DataError
 from loaders.gt import remove_origin
+from loaders.layout import require_files
+from loaders.options import GroundTruthTimeOptions, OpensFromOptions
 from loaders.posefile import parse_extrinsic, read_gt_file
 from loaders.ros1 import iter_topic_messages, make_typestore, register_bag_definition
 from loaders.ros1_msgs import Cursor
@@ -72,6 +76,28 @@ float32 umabiguos_int_elevation
 """
 
 DEFAULT_PERIOD_S = 0.06
+DEFAULT_MAX_GAP_S = 0.2
+
+
+class Options(GroundTruthTimeOptions):
+    """``bench convert campus`` / a dataset config's ``options``."""
+
+    topic: str = Field("/radar_scan", description="radar topic (msgs_radar/RadarScanExtended)")
+    gt_topic: str | None = Field("/ground_truth", description="nav_msgs/Odometry GT topic "
+                                 "in the bags ('' for none)")
+    gt: Path | None = Field(None, description="TUM GT file instead of the topic")
+    elevation_sign: Literal[1.0, -1.0] = Field(
+        1.0, description="z = sign * r sin(el); check with `bench inspect` (road below the "
+        "sensor)")
+    doppler_sign: Literal[1.0, -1.0] = Field(1.0, description="doppler = sign * velocity")
+    T_body_radar: str | None = Field(
+        None, json_schema_extra={"cli": "extrinsic"},
+        description='radar -> GT body "x y z qx qy qz qw" (default identity: unknown)')
+    remove_gt_origin: bool = Field(
+        True, json_schema_extra={"cli": "remove-gt-origin/keep-utm"},
+        description="subtract the first GT position (--keep-utm keeps the UTM origin)")
+    stamp: Literal["header", "record"] = Field(
+        "header", description="scan stamps: header (header.stamp) or record (bag record time)")
 
 
 def campus_typestore():
@@ -89,7 +115,7 @@ def spherical_to_xyz(r, az, el, elevation_sign: float = 1.0) -> np.ndarray:
                             elevation_sign * r * np.sin(el)])
 
 
-class CampusSequence(BagRadarSequence):
+class CampusSequence(OpensFromOptions, BagRadarSequence):
     """Campus radar scans streamed from ROS1 bags.
 
     bags: bag files (merged in time order). topic: radar topic. gt_topic: nav_msgs/Odometry
@@ -102,6 +128,22 @@ class CampusSequence(BagRadarSequence):
     stamp: "header" (header.stamp, default) or "record" (bag record time).
     """
 
+    Options = Options
+    inputs = "ROS1 bag(s) with RadarScanExtended, merged in time order"
+    many_inputs = True
+
+    @classmethod
+    def open(cls, paths: list[Path], options: Options) -> CampusSequence:
+        o = options
+        paths = require_files(paths, "Campus bag(s)")
+        gt = require_files([o.gt], "ground truth")[0] if o.gt is not None else None
+        return cls(paths, topic=o.topic, gt_topic=o.gt_topic or None, gt=gt,
+                   elevation_sign=o.elevation_sign, doppler_sign=o.doppler_sign,
+                   T_body_radar=o.T_body_radar, remove_gt_origin=o.remove_gt_origin,
+                   time_offset_s=o.time_offset_s, uncovered=o.uncovered, stamp=o.stamp,
+                   max_gap_s=DEFAULT_MAX_GAP_S if o.max_gap_s is None else o.max_gap_s,
+                   name=o.name)
+
     def __init__(
         self,
         bags: list[Path] | list[str] | Path | str,
@@ -113,7 +155,7 @@ class CampusSequence(BagRadarSequence):
         T_body_radar: str | np.ndarray | None = None,
         remove_gt_origin: bool = True,
         time_offset_s: float = 0.0,
-        max_gap_s: float = 0.2,
+        max_gap_s: float = DEFAULT_MAX_GAP_S,
         uncovered: str = "keep",
         stamp: str = "header",
         name: str | None = None,

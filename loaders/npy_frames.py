@@ -13,11 +13,14 @@ from __future__ import annotations
 import re
 import warnings
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
 from loaders.assemble import finish_scan
 from loaders.errors import DataError
+from loaders.options import LoaderOptions, OpensFromOptions
 from loaders.posefile import read_tum
 from loaders.scan import Scan, SensorInfo, Sequence
 from loaders.trajectory import Trajectory
@@ -40,8 +43,32 @@ def find_tum(folder: Path) -> Path | None:
     return candidates[0] if len(candidates) == 1 else None
 
 
-class NpyFramesSequence(Sequence):
+class Options(LoaderOptions):
+    """``bench convert npy-frames`` / a dataset config's ``options``."""
+
+    gt: Path | None = Field(None, description="TUM ground truth (default: the one .txt in "
+                            "FOLDER)")
+    period_s: float | None = Field(None, gt=0, description="scan period [s]: stamps = index x "
+                                   "period")
+    kind: Literal["radar", "lidar"] = Field("radar", description="radar or lidar")
+    associate: Literal["order", "time"] = Field("order", description="GT association: order "
+                                                "(one row per frame) or time")
+    stamps_from_gt: bool = Field(False, description="stamp the frames with the TUM file's "
+                                 "stamps (only when they are the sensor clock; else give "
+                                 "--period)")
+
+
+class NpyFramesSequence(OpensFromOptions, Sequence):
     """A folder of .npy frames read lazily, one frame at a time."""
+
+    Options = Options
+    inputs = "folder with frame_XXX.npy (or its frames/)"
+
+    @classmethod
+    def open(cls, paths: list[Path], options: Options) -> NpyFramesSequence:
+        o = options
+        return cls(paths[0], gt=o.gt, period_s=o.period_s, kind=o.kind, name=o.name,
+                   associate=o.associate, stamps_from_gt=o.stamps_from_gt)
 
     def __init__(
         self,

@@ -17,12 +17,16 @@
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
+from pydantic import Field
 
 from loaders.assemble import finish_scan
 from loaders.bag_sequence import BagRadarSequence
 from loaders.errors import DataError
+from loaders.layout import require_files
+from loaders.options import GroundTruthTimeOptions, OpensFromOptions
 from loaders.posefile import parse_extrinsic, read_gt_file
 from loaders.ros1_msgs import parse_pointcloud, parse_pointcloud2
 from loaders.scan import Scan
@@ -35,9 +39,26 @@ POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
 #: identity. UNCONFIRMED: the GT body frame itself is not documented by the dataset.
 DEFAULT_T_GTBODY_RADAR = "0.296 -0.130 -0.005 0 0 0 1"
 DEFAULT_PERIOD_S = 1.0 / 12.0
+DEFAULT_MAX_GAP_S = 0.5
 
 
-class NtuSequence(BagRadarSequence):
+class Options(GroundTruthTimeOptions):
+    """``bench convert ntu4dradlm`` / a dataset config's ``options``."""
+
+    gt: Path | None = Field(None, description="gt_odom.txt (TUM, R2LIVE)")
+    topic: str = Field("/radar_enhanced_pcl", description="radar topic (PointCloud or "
+                       "PointCloud2); /radar_pcl is the sparser cloud")
+    doppler_field: str = Field("Doppler", description="Doppler channel / PointField name")
+    T_gtbody_radar: str = Field(
+        DEFAULT_T_GTBODY_RADAR, json_schema_extra={"cli": "extrinsic"},
+        description='radar -> GT body "x y z qx qy qz qw" or 16 numbers (default: '
+        "0.296 -0.130 -0.005, identity rotation; unconfirmed)")
+    doppler_sign: Literal[1.0, -1.0] = Field(1.0, description="+1 or -1")
+    stamp: Literal["header", "record"] = Field(
+        "header", description="scan stamps: header (header.stamp) or record (bag record time)")
+
+
+class NtuSequence(OpensFromOptions, BagRadarSequence):
     """NTU4DRadLM radar scans streamed from ROS1 bags.
 
     bags: one or more bags of one route (e.g. ``ntu-car-day-loop1_2022-06-03_{0..4}.bag``),
@@ -51,6 +72,21 @@ class NtuSequence(BagRadarSequence):
     leave header.stamp unset). name: sequence name (default: first bag's stem).
     """
 
+    Options = Options
+    inputs = "ROS1 bag(s) of one route, merged in time order"
+    many_inputs = True
+
+    @classmethod
+    def open(cls, paths: list[Path], options: Options) -> NtuSequence:
+        o = options
+        paths = require_files(paths, "NTU4DRadLM bag(s)")
+        gt = require_files([o.gt], "ground truth")[0] if o.gt is not None else None
+        return cls(paths, gt=gt, topic=o.topic, doppler_field=o.doppler_field,
+                   T_gtbody_radar=o.T_gtbody_radar, doppler_sign=o.doppler_sign,
+                   stamp=o.stamp, name=o.name, time_offset_s=o.time_offset_s,
+                   max_gap_s=DEFAULT_MAX_GAP_S if o.max_gap_s is None else o.max_gap_s,
+                   uncovered=o.uncovered)
+
     def __init__(
         self,
         bags: list[Path] | list[str] | Path | str,
@@ -59,7 +95,7 @@ class NtuSequence(BagRadarSequence):
         doppler_field: str = "Doppler",
         T_gtbody_radar: str | np.ndarray | None = DEFAULT_T_GTBODY_RADAR,
         time_offset_s: float = 0.0,
-        max_gap_s: float = 0.5,
+        max_gap_s: float = DEFAULT_MAX_GAP_S,
         uncovered: str = "keep",
         doppler_sign: float = 1.0,
         stamp: str = "header",

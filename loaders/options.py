@@ -5,14 +5,23 @@ default, ``Field(description=...)``: the description is the command-line help) a
 ``Sequence`` subclass sets ``Options = Options``, ``inputs`` (help text of the positional paths)
 and implements ``open(paths, options)``. ``bench convert LOADER`` is built from the model, so a
 new loader needs no command of its own; unknown keys are errors (``extra="forbid"``).
+
+Command-line names (``cli_flag``): the field name with ``_`` -> ``-`` and a trailing ``_s``
+(seconds) dropped, so ``period_s`` is ``--period`` and ``time_offset_s`` ``--time-offset``; a
+field may set its own with ``Field(..., json_schema_extra={"cli": "extrinsic"})`` (for a bool
+that defaults to true, ``"on/off"`` names both flags, e.g. ``"remove-gt-origin/keep-utm"``), or
+``{"cli": False}`` to be a dataset-config-only key. A bool that defaults to false is a plain flag
+(``--no-gt``); one that defaults to true is ``--x/--no-x``. Fields typed ``Path`` (or
+``Path | None``) are file options: a dataset config gives them relative to its ``raw_dir``.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import ClassVar
+from typing import Any, ClassVar, Literal
 
 from pydantic import BaseModel, ConfigDict, Field
+from pydantic.fields import FieldInfo
 
 
 class LoaderOptions(BaseModel):
@@ -22,6 +31,24 @@ class LoaderOptions(BaseModel):
 
     name: str | None = Field(None, description="sequence name stored in the file "
                              "(default: from the input's name)")
+
+
+class GroundTruthTimeOptions(LoaderOptions):
+    """The ground-truth association options shared by loaders whose GT has its own clock and
+    rate (``loaders.gt.associate``)."""
+
+    time_offset_s: float = Field(0.0, description="GT clock offset [s]: gt_stamp + offset = "
+                                 "sensor clock")
+    max_gap_s: float | None = Field(None, description="largest GT gap interpolated across [s] "
+                                    "(default: the loader's)")
+    uncovered: Literal["keep", "trim", "error", "drop"] = Field(
+        "keep", description="scans without GT: keep (run, unscored), trim (cut the ends) or "
+        "error ('drop' is read as keep)")
+
+    def association(self, default_max_gap_s: float) -> dict[str, Any]:
+        """The keyword arguments of ``loaders.gt.associate`` these options set."""
+        return {"offset_s": self.time_offset_s, "uncovered": self.uncovered,
+                "max_gap_s": default_max_gap_s if self.max_gap_s is None else self.max_gap_s}
 
 
 class OpensFromOptions:
@@ -37,3 +64,19 @@ class OpensFromOptions:
     def open(cls, paths: list[Path], options: LoaderOptions):  # -> Sequence
         """The sequence read from ``paths`` with ``options`` (validated by ``Options``)."""
         raise NotImplementedError
+
+
+def cli_flag(name: str, field: FieldInfo) -> str | None:
+    """The option's command-line name without dashes (``time-offset``), or None when the field
+    is a dataset-config-only key."""
+    extra = field.json_schema_extra if isinstance(field.json_schema_extra, dict) else {}
+    if "cli" in extra:
+        return extra["cli"] or None
+    return name.removesuffix("_s").replace("_", "-") if name.endswith("_s") and len(name) > 2 \
+        else name.replace("_", "-")
+
+
+def is_path_field(field: FieldInfo) -> bool:
+    """A field that holds a file or folder path (``Path`` or ``Path | None``)."""
+    ann = field.annotation
+    return ann is Path or Path in getattr(ann, "__args__", ())

@@ -114,35 +114,35 @@ def test_store_round_trip(tmp_path):
 
 
 def test_convert_commands(tmp_path):
-    import typer
+    """The generated `bench convert LOADER` commands (built from each loader's Options model)
+    keep the options of the hand-written commands they replaced."""
     from typer.testing import CliRunner
 
-    from bench.data.convert_real import register
+    from bench.cli import app
     from helpers_bags import write_campus_bag, write_gt_tum, write_ntu_bag
 
-    app = typer.Typer()
-    written = {}
-
-    def write(seq, out):
-        written[out.name] = seq
-        return write_store(seq, out)
-
-    register(app, write)
     runner = CliRunner()
     truth = truth_for("dicp", frames=6, points=20)
     root = write_aeva_folder(tmp_path / "d", truth, "dicp")
-    r = runner.invoke(app, ["aeva", str(root), "--out", str(tmp_path / "a.h5"), "--start", "1",
-                            "--stride", "2"])
+    r = runner.invoke(app, ["convert", "aeva", str(root), "--out", str(tmp_path / "a.h5"),
+                            "--start", "1", "--stride", "2"])
     assert r.exit_code == 0, r.output
     st = StoreSequence(tmp_path / "a.h5")
     assert len(st) == 3 and st.sensor.period_s == pytest.approx(0.2)
     np.testing.assert_array_equal(st.scan(1).points, truth.points[3])
     st.close()
+    r = runner.invoke(app, ["convert", "aeva", str(root), "--no-gt", "--out",
+                            str(tmp_path / "nogt.h5")])
+    assert r.exit_code == 0, r.output
+    st = StoreSequence(tmp_path / "nogt.h5")
+    assert st.ground_truth is None and len(st) == 6
+    st.close()
     bag = write_ntu_bag(tmp_path / "n.bag", truth)
     gt = tmp_path / "gt.txt"
     write_gt_tum(gt, truth.motion, truth.stamps[0] - 0.2, truth.stamps[-1] + 0.2)
-    r = runner.invoke(app, ["ntu4dradlm", str(bag), "--gt", str(gt), "--extrinsic",
+    r = runner.invoke(app, ["convert", "ntu4dradlm", str(bag), "--gt", str(gt), "--extrinsic",
                             "1 0.2 1.8 0 0 0.7071067811865476 0.7071067811865476",
+                            "--time-offset", "0", "--max-gap", "0.5",
                             "--frames", "4", "--out", str(tmp_path / "n.h5")])
     assert r.exit_code == 0, r.output
     st = StoreSequence(tmp_path / "n.h5")
@@ -150,10 +150,18 @@ def test_convert_commands(tmp_path):
     np.testing.assert_allclose(st.ground_truth.poses, truth.sensor_poses()[:4], atol=1e-5)
     st.close()
     cbag, _ = write_campus_bag(tmp_path / "c.bag", truth)
-    r = runner.invoke(app, ["campus", str(cbag), "--elevation-sign", "-1",
-                            "--out", str(tmp_path / "c.h5")])
+    r = runner.invoke(app, ["convert", "campus", str(cbag), "--elevation-sign", "-1",
+                            "--keep-utm", "--out", str(tmp_path / "c.h5")])
     assert r.exit_code == 0, r.output
-    assert written["c.h5"].provenance["elevation_sign"] == -1.0
-    r = runner.invoke(app, ["campus", str(cbag), "--gt-topic", "/nope", "--out",
+    st = StoreSequence(tmp_path / "c.h5")
+    assert st.provenance["elevation_sign"] == -1.0
+    assert "gt_origin_removed" not in st.provenance  # --keep-utm
+    st.close()
+    r = runner.invoke(app, ["convert", "campus", str(cbag), "--gt-topic", "/nope", "--out",
                             str(tmp_path / "x.h5")])
     assert isinstance(r.exception, DataError) and "/ground_truth" in str(r.exception)
+    # a value the Options model refuses: one message naming the flag
+    r = runner.invoke(app, ["convert", "campus", str(cbag), "--doppler-sign", "2", "--out",
+                            str(tmp_path / "y.h5")])
+    assert isinstance(r.exception, DataError) and "--doppler-sign" in str(r.exception)
+    assert not (tmp_path / "y.h5").exists()

@@ -1,10 +1,24 @@
-"""The paper's real sequences (``configs/datasets/<Name>.yaml``), read and validated in one
-place: which raw files, which loader with which options, which frames, and the store they become
-under ``DATA_DIR/real/``. Used by ``bench convert dataset`` and by ``bench reproduce`` (which
-uses the stores that exist)."""
+"""The real sequences (``configs/datasets/<Name>.yaml``), read and validated in one place: which
+raw files, which loader with which options, which frames, and the store they become under
+``DATA_DIR/real/``. Used by ``bench convert dataset`` and by ``bench reproduce`` (which uses the
+stores that exist).
+
+    loader: ntu4dradlm
+    raw_dir: data/raw/ntu4dradlm/loop2
+    raw_files: [loop2_2022-06-03_0.bag, gt_odom.txt]   # what must be there (globs allowed)
+    inputs: [loop2_2022-06-03_*.bag]                   # the loader's positional inputs
+    options: {gt: gt_odom.txt, topic: /radar_enhanced_pcl}
+
+``inputs`` default to the raw folder itself (folder loaders). ``options`` are validated by the
+loader's own ``Options`` model (the same that builds ``bench convert LOADER``); path options
+and inputs are relative to ``raw_dir``. Input globs expand in natural order (``_2`` before
+``_10``)."""
 
 from __future__ import annotations
 
+import hashlib
+import json
+import re
 from pathlib import Path
 
 import yaml
@@ -13,7 +27,6 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from bench.paths import DATASET_CONFIGS
 from loaders.errors import DataError, validation_problems
 from loaders.registry import LOADERS, get_loader
-from loaders.scan import Sequence, select_frames
 
 
 class FrameSelection(BaseModel):
@@ -24,22 +37,42 @@ class FrameSelection(BaseModel):
     stride: int = Field(1, ge=1)
 
 
+def _natural(path: Path) -> list:
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", path.name)]
+
+
+def expand(root: Path, entries: list[str]) -> list[Path]:
+    """``entries`` relative to ``root``, glob patterns expanded in natural order."""
+    paths: list[Path] = []
+    for entry in entries:
+        entry = entry.rstrip("/") or "."
+        if any(c in entry for c in "*?["):
+            paths += sorted(root.glob(entry), key=_natural)
+        else:
+            paths.append(root / entry)
+    return paths
+
+
 class DatasetConfig(BaseModel):
-    """One paper sequence. ``options`` are the loader's keyword arguments."""
+    """One real sequence. ``options`` are validated by the loader's ``Options`` model."""
 
     model_config = ConfigDict(extra="forbid")
 
     name: str
     display_name: str
     sensor_class: str
+    #: the dataset it belongs to (groups rows in `bench datasets` and public.yaml)
+    dataset: str = ""
     in_main_table: bool = True
     loader: str
     raw_dir: Path
     raw_files: list[str]
+    inputs: list[str] = Field(default_factory=lambda: ["."])
     options: dict = Field(default_factory=dict)
     frame_range: FrameSelection = Field(default_factory=FrameSelection)
     store: str
     convert: str = ""  # the equivalent `bench convert` command line (documentation)
+    length_m: float | None = None  # the route length its owners state (documentation)
 
     @field_validator("loader")
     @classmethod
@@ -48,22 +81,67 @@ class DatasetConfig(BaseModel):
             raise ValueError(f"unknown loader {v!r}; expected one of {', '.join(LOADERS)}")
         return v
 
-    def open(self, raw_dir: Path | None = None) -> Sequence:
+    def raw_root(self, raw_dir: Path | None = None) -> Path:
+        return Path(raw_dir or self.raw_dir)
+
+    def loader_options(self, raw_dir: Path | None = None):
+        """The options validated by the loader's model, path options made relative to the raw
+        folder and ``name`` set to this sequence's name."""
+        from bench.data.convert import validate_options
+        from loaders.options import is_path_field
+
+        Options = get_loader(self.loader).load_class().Options
+        values = {"name": self.name, **self.options}
+        root = self.raw_root(raw_dir)
+        for key, field in Options.model_fields.items():
+            if is_path_field(field) and values.get(key) not in (None, ""):
+                p = Path(values[key])
+                values[key] = p if p.is_absolute() else root / p
+        return validate_options(Options, values, where=f"{self.name}: options")
+
+    def input_paths(self, raw_dir: Path | None = None) -> list[Path]:
+        return expand(self.raw_root(raw_dir), self.inputs)
+
+    def check_raw(self, raw_dir: Path | None = None) -> Path:
+        """The raw folder when it holds every ``raw_files`` entry, else one DataError naming
+        what is missing (``loaders.layout.require_paths``)."""
+        from loaders.layout import require_paths
+
+        entry = get_loader(self.loader)
+        return require_paths(self.raw_root(raw_dir), self.raw_files,
+                             entry.dataset or self.loader, entry.layout)
+
+    def open(self, raw_dir: Path | None = None):
         """The raw data opened with its loader and options, frame range applied."""
-        raw = Path(raw_dir or self.raw_dir)
-        files = [f.rstrip("/") for f in self.raw_files]
+        from loaders.scan import select_frames
+
+        self.check_raw(raw_dir)
         Loader = get_loader(self.loader).load_class()
-        opts = dict(self.options)
-        if self.loader == "ntu4dradlm":
-            gts = [raw / f for f in files if not f.endswith(".bag")]
-            seq = Loader([raw / f for f in files if f.endswith(".bag")],
-                         gt=gts[0] if gts else None, name=self.name, **opts)
-        elif self.loader == "campus":
-            seq = Loader([raw / f for f in files if f.endswith(".bag")], name=self.name, **opts)
-        else:
-            seq = Loader(raw, name=self.name, **opts)
+        options = self.loader_options(raw_dir)
+        paths = self.input_paths(raw_dir)
+        if not getattr(Loader, "many_inputs", False) and len(paths) != 1:
+            raise DataError(f"{self.name}: loader {self.loader} takes one input, the config's "
+                            f"inputs give {len(paths)}: {', '.join(map(str, paths))}")
+        seq = Loader.open(paths, options)
         fr = self.frame_range
         return select_frames(seq, fr.start, fr.frames, fr.stride)
+
+    def conversion_key(self, raw_dir: Path | None = None) -> str:
+        """A hash of what determines the store: loader, validated options, frame range and
+        every input file's path, size and modification time (folders: every file inside).
+        A store carrying the same key is up to date."""
+        root = self.raw_root(raw_dir)
+        files: list[Path] = []
+        for p in [*self.input_paths(raw_dir), *expand(root, self.raw_files)]:
+            files += sorted(f for f in p.rglob("*") if f.is_file()) if p.is_dir() else [p]
+        options = self.loader_options(raw_dir).model_dump(mode="json")
+        stats = []
+        for f in dict.fromkeys(files):
+            st = f.stat()
+            stats.append([str(f.resolve()), st.st_size, st.st_mtime_ns])
+        blob = json.dumps({"loader": self.loader, "options": options, "files": stats,
+                           "frame_range": self.frame_range.model_dump()}, sort_keys=True)
+        return hashlib.sha256(blob.encode()).hexdigest()
 
 
 def read_dataset_config(name_or_path: str | Path) -> DatasetConfig:
@@ -72,8 +150,11 @@ def read_dataset_config(name_or_path: str | Path) -> DatasetConfig:
     if not path.suffix:
         path = DATASET_CONFIGS / f"{name_or_path}.yaml"
     if not path.exists():
+        from loaders.errors import did_you_mean
+
         have = sorted(p.stem for p in DATASET_CONFIGS.glob("*.yaml"))
-        raise DataError(f"{path}: dataset config not found; known: {', '.join(have)}")
+        raise DataError(f"{path}: dataset config not found{did_you_mean(path.stem, have)}; "
+                        f"known: {', '.join(have)}")
     try:
         return DatasetConfig.model_validate(yaml.safe_load(path.read_text()) or {})
     except yaml.YAMLError as err:
@@ -88,3 +169,23 @@ def read_dataset_config(name_or_path: str | Path) -> DatasetConfig:
 def dataset_configs() -> list[DatasetConfig]:
     """Every config under configs/datasets/, in file name order."""
     return [read_dataset_config(p) for p in sorted(DATASET_CONFIGS.glob("*.yaml"))]
+
+
+def select_configs(names: list[str]) -> list[DatasetConfig]:
+    """Configs by name, path or glob over the names (``'NTU4DRadLM_*'``), in the order given,
+    each once; DataError for a name or pattern that matches nothing."""
+    import fnmatch
+
+    have = sorted(p.stem for p in DATASET_CONFIGS.glob("*.yaml"))
+    chosen: dict[str, DatasetConfig] = {}
+    for name in names:
+        if any(c in name for c in "*?[") and not Path(name).suffix:
+            matched = [n for n in have if fnmatch.fnmatchcase(n, name)]
+            if not matched:
+                raise DataError(f"no dataset config matches {name!r}; known: {', '.join(have)}")
+            for n in matched:
+                chosen.setdefault(n, read_dataset_config(n))
+        else:
+            cfg = read_dataset_config(name)
+            chosen.setdefault(cfg.name, cfg)
+    return list(chosen.values())
