@@ -18,7 +18,6 @@ pin_threads()
 from pathlib import Path  # noqa: E402
 from typing import Annotated  # noqa: E402
 
-import click  # noqa: E402
 import typer  # noqa: E402
 from rich.markup import escape  # noqa: E402
 
@@ -371,7 +370,7 @@ def main() -> None:
     except (FileNotFoundError, IsADirectoryError, NotADirectoryError, PermissionError) as err:
         status.print(f"[bold red]error:[/] {escape(str(err))}")
         sys.exit(2)
-    except (typer.Exit, click.exceptions.Exit) as e:  # click's own: --help of built commands
+    except typer.Exit as e:
         sys.exit(e.exit_code)
     except (typer.Abort, KeyboardInterrupt):
         status.print("[red]aborted (Ctrl-C)[/]")

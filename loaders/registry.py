@@ -79,9 +79,8 @@ LOADERS: dict[str, LoaderEntry] = {e.name: e for e in (
         published_at="github.com/junzhang2016/NTU4DRadLM (download link in its README)",
         layout="SEQ/*.bag (ROS1, /radar_enhanced_pcl sensor_msgs/PointCloud, channels Doppler, "
                "Power) + SEQ/gt_odom.txt (TUM, R2LIVE)",
-        example="bench convert dataset NTU4DRadLM_loop2   # or: bench convert ntu4dradlm "
-                "loop2/loop2_2022-06-03_*.bag --gt loop2/gt_odom.txt --out "
-                "data/real/NTU4DRadLM_loop2.h5"),
+        example="bench convert ntu4dradlm data/raw/ntu4dradlm/loop2/loop2_2022-06-03_*.bag "
+                "--gt data/raw/ntu4dradlm/loop2/gt_odom.txt --out data/real/NTU4DRadLM_loop2.h5"),
     LoaderEntry(
         "snail-radar", "Snail-Radar ROS1 bags or extracted folders (Oculii Eagle G7 or "
         "Continental ARS548)", "loaders.snail_radar", "SnailRadarSequence",
@@ -142,8 +141,8 @@ LOADERS: dict[str, LoaderEntry] = {e.name: e for e in (
         published_at="github.com/aevainc/Doppler-ICP (dataset zip linked in its README)",
         layout="SEQ/point_clouds/*.bin (float32 N x 4: x y z doppler) + calibration.json + "
                "ref_poses.txt (TUM); the Open3D demo copy (xyzd_sequence/) loads too",
-        example="bench convert dataset StraightWall   # or: bench convert aeva "
-                "data/raw/carla/carla-town04-straight-walls --out data/real/StraightWall.h5",
+        example="bench convert aeva data/raw/carla/carla-town04-straight-walls --out "
+                "data/real/StraightWall.h5",
         more_rows=({"dataset": "Aeva Aeries I tunnels (Baker-Barry Empty / Vehicles)",
                     "sensor": "Aeva Aeries I FMCW LiDAR, 10 Hz",
                     "licence": "never released by Aeva (Doppler-ICP issue #4)",

@@ -102,8 +102,8 @@ def print_catalogue(console: Console, markdown: bool = False) -> None:
             console.print(f"  {label + ':':<14}{escape(value)}", highlight=False)
         configs = by_loader.pop(row.name, None)
         if configs:
-            console.print(f"  {'configs:':<14}{', '.join(configs)} (bench convert dataset "
-                          "NAME...)", highlight=False)
+            console.print(f"  {'or:':<14}bench convert dataset NAME..., NAME one of "
+                          f"{', '.join(configs)}", highlight=False)
         console.print()
     console.print(escape(PAPER_SEQUENCES.replace("**", "")), highlight=False)
 

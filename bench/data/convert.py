@@ -12,13 +12,13 @@ says so (exit 2). ``bench convert dataset NAME...`` converts from ``configs/data
 
 from __future__ import annotations
 
+import inspect
 import time
 import types
 import typing
 from pathlib import Path
 from typing import Annotated, Any
 
-import click
 import typer
 import typer.core
 from rich.console import Console
@@ -34,16 +34,16 @@ class ConvertGroup(typer.core.TyperGroup):
     built when asked for; the command list is written from the table without importing any
     loader."""
 
-    def list_commands(self, ctx: click.Context) -> list[str]:
+    def list_commands(self, ctx) -> list[str]:
         return [*super().list_commands(ctx), *LOADERS]
 
-    def get_command(self, ctx: click.Context, name: str) -> click.Command | None:
+    def get_command(self, ctx, name: str):
         command = super().get_command(ctx, name)
         if command is None and name in LOADERS:
             command = loader_command(LOADERS[name])
         return command
 
-    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+    def format_commands(self, ctx, formatter) -> None:
         rows = [(name, cmd.get_short_help_str(limit=200))
                 for name, cmd in self.commands.items() if not cmd.hidden]
         rows += [(name, e.description + ("" if e.available else " [unavailable]"))
@@ -93,6 +93,8 @@ def write_with_progress(sequence, out: Path, quiet: bool = False) -> Path:
 
 
 # ---- the command of one loader, from its Options model -------------------------------------
+# The command is made the public Typer way: a function whose signature (``__signature__``) has
+# one annotated parameter per option, registered on a throwaway Typer app.
 
 def _unwrap(annotation) -> tuple[Any, bool]:
     """(the type without ``None``, whether ``None`` was allowed)."""
@@ -103,26 +105,25 @@ def _unwrap(annotation) -> tuple[Any, bool]:
     return annotation, False
 
 
-def _click_type(tp) -> tuple[Any, bool] | None:
-    """(click type, multiple) for a field type, or None when it has no command-line form."""
+def _cli_type(tp) -> Any | None:
+    """The command-line type of a field type (numbers for numeric Literals: the model checks
+    the value), or None when it has no command-line form (a mapping: config only)."""
     origin = typing.get_origin(tp)
     if origin is typing.Literal:
         values = typing.get_args(tp)
         if all(isinstance(v, str) for v in values):
-            return click.Choice(list(values)), False
-        return (click.FLOAT if any(isinstance(v, float) for v in values) else click.INT), False
-    if origin in (list, tuple):
-        inner = _click_type(typing.get_args(tp)[0])
-        return (inner[0], True) if inner and not inner[1] else None
-    if tp is Path:
-        return click.Path(path_type=Path), False
-    return {str: (click.STRING, False), int: (click.INT, False),
-            float: (click.FLOAT, False)}.get(tp)
+            return tp
+        return float if any(isinstance(v, float) for v in values) else int
+    if origin is list:
+        inner = _cli_type(typing.get_args(tp)[0])
+        return list[inner] if inner is not None and typing.get_origin(inner) is None else None
+    return tp if tp in (str, int, float, Path, bool) else None
 
 
-def _metavar(name: str, flag: str, tp, ctype) -> str:
-    if isinstance(ctype, click.Choice):
-        return "|".join(ctype.choices)
+def _metavar(name: str, flag: str, tp) -> str:
+    if typing.get_origin(tp) is typing.Literal and all(
+            isinstance(v, str) for v in typing.get_args(tp)):
+        return "|".join(typing.get_args(tp))
     if tp is Path:
         return "PATH"
     if name.endswith("_s"):
@@ -130,41 +131,34 @@ def _metavar(name: str, flag: str, tp, ctype) -> str:
     return flag.upper().replace("-", "_")
 
 
-def option_params(Options) -> tuple[list[click.Parameter], dict[str, str]]:
-    """The click options of an Options model and {field name: flag shown} (for messages)."""
-    from loaders.options import cli_flag
-    from loaders.options import GroundTruthTimeOptions
+def option_parameters(Options) -> tuple[list[inspect.Parameter], dict[str, str]]:
+    """One keyword parameter per command-line field of an Options model (the loader's own
+    options first, the shared ground-truth ones last) and {field name: flag} for messages."""
+    from loaders.options import GroundTruthTimeOptions, cli_flag
 
-    params, flags = [], {}
-    shared = set(GroundTruthTimeOptions.model_fields)  # the loader's own options come first
+    shared = set(GroundTruthTimeOptions.model_fields)
     fields = sorted(Options.model_fields.items(), key=lambda kv: kv[0] in shared)
+    params, flags = [], {}
     for name, field in fields:
         flag = cli_flag(name, field)
-        if flag is None:
+        tp = _cli_type(_unwrap(field.annotation)[0])
+        if flag is None or tp is None:
             continue
-        tp, _ = _unwrap(field.annotation)
         help_ = field.description or ""
         if tp is bool:
             on, _, off = flag.partition("/")
+            decl = f"--{on}/--{off or 'no-' + on}" if field.default is True else f"--{on}"
             if field.default is True:
-                decl = f"--{on}/--{off or 'no-' + on}"
                 help_ += " [default: on]"
-            else:
-                decl = f"--{on}"
-            params.append(click.Option([decl, name], is_flag=True, default=None, help=help_))
-            flags[name] = f"--{on}"
-            continue
-        converted = _click_type(tp)
-        if converted is None:
-            continue  # a dataset-config-only value (a mapping, ...)
-        ctype, multiple = converted
-        default = field.default
-        if default is not None and not multiple and str(default) != "":
-            help_ += f" [default: {default}]"
-        params.append(click.Option([f"--{flag}", name], type=ctype, multiple=multiple,
-                                   default=None, help=help_,
-                                   metavar=_metavar(name, flag, tp, ctype)))
-        flags[name] = f"--{flag}"
+            option = typer.Option(decl, help=help_, show_default=False)
+        else:
+            if field.default is not None and str(field.default) != "":
+                help_ += f" [default: {field.default}]"
+            option = typer.Option(f"--{flag}", help=help_, show_default=False,
+                                  metavar=_metavar(name, flag, tp))
+        flags[name] = f"--{flag.partition('/')[0]}"
+        params.append(inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=None,
+                                        annotation=Annotated[tp | None, option]))
     return params, flags
 
 
@@ -180,48 +174,62 @@ def validate_options(Options, values: dict, flags: dict[str, str] | None = None,
         return Options.model_validate(values)
     except ValidationError as err:
         problems = validation_problems(err, lambda loc: list(Options.model_fields), "option")
-        if flags:
-            for key, flag in flags.items():
-                problems = [p.replace(f"{key}: ", f"{flag}: ", 1) if p.startswith(f"{key}: ")
-                            else p for p in problems]
+        for key, flag in (flags or {}).items():
+            problems = [flag + p[len(key):] if p.startswith(f"{key}: ") else p
+                        for p in problems]
         raise DataError(f"{where}:\n  " + "\n  ".join(problems)) from None
 
 
-def _frame_params() -> list[click.Parameter]:
+def _frame_parameters() -> list[inspect.Parameter]:
+    kw = inspect.Parameter.KEYWORD_ONLY
     return [
-        click.Option(["--out"], type=click.Path(path_type=Path), required=True,
-                     metavar="STORE.h5", help="store to write, e.g. data/real/NAME.h5"),
-        click.Option(["--start"], type=click.IntRange(min=0), default=0, metavar="FRAME",
-                     help="first frame [default: 0]"),
-        click.Option(["--frames"], type=click.IntRange(min=1), default=None, metavar="N",
-                     help="number of frames (default: all)"),
-        click.Option(["--stride"], type=click.IntRange(min=1), default=1, metavar="K",
-                     help="keep every k-th frame (period scaled by k) [default: 1]"),
+        inspect.Parameter("out", kw, annotation=Annotated[Path, typer.Option(
+            "--out", metavar="STORE.h5", help="store to write, e.g. data/real/NAME.h5")]),
+        inspect.Parameter("start", kw, default=0, annotation=Annotated[int, typer.Option(
+            "--start", min=0, metavar="FRAME", help="first frame")]),
+        inspect.Parameter("frames", kw, default=None, annotation=Annotated[int | None, typer.Option(
+            "--frames", min=1, metavar="N", help="number of frames (default: all)")]),
+        inspect.Parameter("stride", kw, default=1, annotation=Annotated[int, typer.Option(
+            "--stride", min=1, metavar="K", help="keep every k-th frame (period scaled by k)")]),
     ]
 
 
-def loader_command(entry: LoaderEntry) -> click.Command:
+def _command_from(name: str, run, params: list[inspect.Parameter], help_: str,
+                  short_help: str, **settings):
+    run.__signature__ = inspect.Signature(params)
+    holder = typer.Typer(add_completion=False, rich_markup_mode=None)
+    holder.command(name, help=help_, short_help=short_help, **settings)(run)
+    command = typer.main.get_command(holder)
+    for param in command.params:  # as bench's tidy_help: the metavar says it, no Python types
+        if param.param_type_name == "argument":
+            param.display_type_rich = lambda ctx: None
+    return command
+
+
+def loader_command(entry: LoaderEntry):
     """``bench convert <entry.name>`` built from the loader's Options model."""
     if not entry.available:
-        def unavailable(**_):
+        def unavailable(args=None) -> None:
             raise DataError(f"loader {entry.name!r} ({entry.dataset or entry.description}) is "
                             f"listed but unavailable in this installation: module "
                             f"{entry.module} not found")
-        return click.Command(entry.name, callback=unavailable, help=entry.description,
-                             short_help=entry.description, context_settings={
-                                 "ignore_unknown_options": True, "allow_extra_args": True},
-                             params=[click.Argument(["args"], nargs=-1)])
+        arg = inspect.Parameter("args", inspect.Parameter.POSITIONAL_OR_KEYWORD, default=None,
+                                annotation=Annotated[list[str] | None, typer.Argument()])
+        return _command_from(entry.name, unavailable, [arg], entry.description,
+                             entry.description, context_settings={
+                                 "ignore_unknown_options": True, "allow_extra_args": True})
     Loader = entry.load_class()
-    params, flags = option_params(Loader.Options)
+    params, flags = option_parameters(Loader.Options)
     many = getattr(Loader, "many_inputs", False)
-    inputs = click.Argument(["inputs"], nargs=-1 if many else 1, required=True,
-                            type=click.Path(path_type=Path),
-                            metavar="INPUT..." if many else "INPUT")
+    inputs = inspect.Parameter(
+        "inputs", inspect.Parameter.POSITIONAL_OR_KEYWORD,
+        annotation=Annotated[list[Path] if many else Path, typer.Argument(
+            metavar="INPUT..." if many else "INPUT", show_default=False)])
 
     def run(inputs, out: Path, start: int, frames: int | None, stride: int, **values) -> None:
         from loaders.scan import select_frames
 
-        given = {k: v for k, v in values.items() if v is not None and v != ()}
+        given = {k: v for k, v in values.items() if v is not None}
         options = validate_options(Loader.Options, given, flags, f"bench convert {entry.name}")
         paths = list(inputs) if many else [inputs]
         sequence = Loader.open(paths, options)
@@ -229,8 +237,8 @@ def loader_command(entry: LoaderEntry) -> click.Command:
 
     doc = (f"{entry.description}.\n\nINPUT: {Loader.inputs}."
            + (f"\n\nLayout: {entry.layout}." if entry.layout else ""))
-    return click.Command(entry.name, callback=run, params=[inputs, *params, *_frame_params()],
-                         help=doc, short_help=entry.description)
+    return _command_from(entry.name, run, [inputs, *params, *_frame_parameters()], doc,
+                         entry.description)
 
 
 # ---- bench convert dataset NAME... ---------------------------------------------------------

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from rich.console import Console
+from rich.markup import escape
 
 from bench.data.datasets import DatasetConfig, select_configs
 from loaders.errors import DataError
@@ -94,17 +95,22 @@ def plan_conversions(configs: list[DatasetConfig], data_dir: Path, raw_dir: Path
     jobs, current = [], 0
     for cfg in configs:
         dest = out or data_dir / "real" / cfg.store
-        try:
-            cfg.check_raw(raw_dir)
-            key = cfg.conversion_key(raw_dir)
-        except DataError as err:
-            if len(configs) == 1:
-                raise
-            console.print(f"skipped {cfg.name}: {err}", markup=False)
-            continue
+        if len(configs) > 1:
+            from loaders.layout import missing_paths
+
+            root = cfg.raw_root(raw_dir)
+            missing = missing_paths(root, cfg.raw_files)
+            if missing:
+                what = ("not found" if not root.is_dir()
+                        else f"incomplete (missing {', '.join(missing)})")
+                console.print(f"skipped {cfg.name}: raw data {root} {what}", markup=False,
+                              soft_wrap=True)
+                continue
+        cfg.check_raw(raw_dir)
+        key = cfg.conversion_key(raw_dir)
         if not force and stored_key(dest) == key:
             console.print(f"{cfg.name}: {dest} is up to date (inputs and options unchanged; "
-                          "--force converts again)", markup=False)
+                          "--force converts again)", markup=False, soft_wrap=True)
             current += 1
             continue
         jobs.append(ConvertJob(cfg.model_dump(mode="json"), raw_dir, dest, key))
@@ -125,8 +131,8 @@ def convert_datasets(names: list[str], data_dir: Path, raw_dir: Path | None, out
     jobs, current = plan_conversions(configs, data_dir, raw_dir, out, force, console)
     if not jobs:
         if not current:
-            console.print("nothing converted: no raw data found for "
-                          f"{', '.join(c.name for c in configs)}", markup=False)
+            raise DataError("nothing to convert: no raw data found for "
+                            f"{', '.join(c.name for c in configs)} (see `bench datasets`)")
         return 0
     if len(jobs) == 1 and executor != "dask":
         executor = "local"  # one sequence: no worker process needed
@@ -137,7 +143,8 @@ def convert_datasets(names: list[str], data_dir: Path, raw_dir: Path | None, out
             console.print(f"[green]wrote[/] {message}: {frames} frames in {wall:.1f} s "
                           f"({frames / max(wall, 1e-9):.0f} frames/s)")
         else:
-            console.print(f"[red]failed[/] {name}: {message}", markup=True, highlight=False)
+            console.print(f"[red]failed[/] {escape(name)}: {escape(message)}", highlight=False,
+                          soft_wrap=True)
     console.print(f"{len(results) - len(failed)} converted, {current} up to date, "
                   f"{len(failed)} failed", markup=False)
     return 1 if failed else 0

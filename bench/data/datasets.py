@@ -109,7 +109,7 @@ class DatasetConfig(BaseModel):
 
         entry = get_loader(self.loader)
         return require_paths(self.raw_root(raw_dir), self.raw_files,
-                             entry.dataset or self.loader, entry.layout)
+                             self.dataset or entry.dataset or self.loader, entry.layout)
 
     def open(self, raw_dir: Path | None = None):
         """The raw data opened with its loader and options, frame range applied."""

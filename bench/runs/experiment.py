@@ -20,11 +20,19 @@
 Unknown keys, unknown methods and unknown method parameters are errors. Relative paths
 (``data_dir``, ``out``, sequence ``path``s) are relative to the YAML file. A method entry may
 carry a ``label`` (variants of one method: each its own folder and table row) and a
-``sequences`` list (run it only on those sequences).
+``sequences`` list (run it only on those sequences; glob patterns such as ``VoD*`` allowed).
+
+A sequence ``path`` may be a glob (``data/real/NTU4DRadLM_*.h5``): every matching store is one
+sequence, named by its file stem, in natural order. With ``optional: true`` a path that matches
+nothing is skipped with one line (naming its ``dataset``) instead of being an error: an
+experiment over whichever converted stores exist (``configs/experiments/public.yaml``).
 """
 
 from __future__ import annotations
 
+import glob
+import os
+import re
 from pathlib import Path
 
 import yaml
@@ -46,6 +54,12 @@ class SequenceEntry(_Strict):
     sensor_class: str | None = None
     start: int = Field(0, ge=0)              # first frame of the store to run (0-based)
     frames: int | None = Field(None, ge=2)   # frames from ``start`` (default: to the end)
+    optional: bool = False                   # absent store(s): skipped with one line
+    dataset: str | None = None               # what the store(s) hold (for that line)
+
+    @property
+    def is_glob(self) -> bool:
+        return any(c in str(self.path) for c in "*?[")
 
     @property
     def frame_range(self) -> tuple[int, int | None] | None:
@@ -143,3 +157,46 @@ def _known_keys(loc: tuple) -> list[str] | None:
     model = {(): Experiment, ("sequences",): SequenceEntry, ("methods",): MethodEntry}.get(
         tuple(x for x in loc if not isinstance(x, int)))
     return list(model.model_fields) if model else None
+
+
+def _natural(path: Path) -> list:
+    return [int(t) if t.isdigit() else t for t in re.split(r"(\d+)", path.name)]
+
+
+def _shown(path: Path) -> str:
+    """``path`` normalised, relative to the working folder when inside it."""
+    norm = os.path.normpath(path)
+    rel = os.path.relpath(norm)
+    return norm if rel.startswith("..") else rel
+
+
+def expand_sequences(sequences: list[SequenceEntry], say=None) -> list[SequenceEntry]:
+    """Glob paths expanded (one entry per store, named by its stem unless a single match and
+    a name is given), optional absent stores dropped with one line through ``say`` (a
+    callable taking a string; default: a warning). Non-optional absent stores are kept (the
+    planner reports them)."""
+    if say is None:
+        import warnings
+
+        def say(text: str) -> None:
+            warnings.warn(text, stacklevel=3)
+    out: list[SequenceEntry] = []
+    for s in sequences:
+        if s.is_glob:
+            matches = sorted((Path(p) for p in glob.glob(str(s.path))), key=_natural)
+            if not matches:
+                if s.optional:
+                    say(f"skipped {s.dataset or s.path}: no store matches {_shown(s.path)}")
+                    continue
+                out.append(s)  # the planner names it as not found
+                continue
+            for m in matches:
+                named = len(matches) == 1 and s.name
+                out.append(s.model_copy(update={
+                    "path": m, "name": s.name if named else m.stem,
+                    "display_name": s.display_name if named else None}))
+        elif s.optional and not Path(s.path).exists():
+            say(f"skipped {s.dataset or s.name or s.path}: store {_shown(s.path)} not found")
+        else:
+            out.append(s)
+    return out

@@ -3,6 +3,7 @@ against its store before anything runs (``plan``), so bad input is one clear err
 
 from __future__ import annotations
 
+import fnmatch
 import os
 import warnings
 from dataclasses import replace
@@ -11,7 +12,7 @@ from pathlib import Path
 from rich.console import Console
 
 from bench.data.synth import ensure_suite_with_progress
-from bench.runs.experiment import Experiment, SequenceEntry
+from bench.runs.experiment import Experiment, SequenceEntry, expand_sequences
 from bench.runs.folders import RunRecord, read_run
 from bench.runs.job import Job, prepare, run_job, scored_ground_truth
 from loaders.errors import DataError
@@ -33,16 +34,39 @@ def _names(entry: SequenceEntry) -> set[str]:
     return {n for n in (entry.name, Path(entry.path).stem, entry.display_name) if n}
 
 
+def _is_pattern(name: str) -> bool:
+    return any(c in name for c in "*?[")
+
+
+def _wanted(entry: SequenceEntry, patterns: list[str] | None) -> bool:
+    """A method's ``sequences`` (names or glob patterns) select this sequence."""
+    if patterns is None:
+        return True
+    names = _names(entry)
+    return any(fnmatch.fnmatchcase(n, p) for p in patterns for n in names)
+
+
 def jobs_for_experiment(exp: Experiment, console: Console | None = None) -> list[Job]:
-    sequences = list(exp.sequences)
+    def say(text: str) -> None:
+        if console is not None:
+            console.print(f"{exp.name}: {text}", markup=False, soft_wrap=True)
+        else:
+            warnings.warn(f"{exp.name}: {text}", stacklevel=3)
+
+    sequences = expand_sequences(list(exp.sequences), say)
     if exp.suite is not None:
         sequences += suite_sequences(exp.suite, exp.data_dir, console)
+    if not sequences:
+        raise DataError(f"experiment {exp.name!r}: none of its stores exist (convert them "
+                        "first: `bench datasets` lists the commands)")
     missing = [str(s.path) for s in sequences if not Path(s.path).exists()]
     if missing:
         raise DataError(f"experiment {exp.name!r}: stores not found: {', '.join(missing)}")
     known = set().union(*(_names(s) for s in sequences)) if sequences else set()
+    optional = any(s.optional for s in exp.sequences)
     for m in exp.methods:
-        unknown = sorted(set(m.sequences or ()) - known)
+        unknown = sorted(n for n in set(m.sequences or ()) - known
+                         if not _is_pattern(n) and not optional)
         if unknown:
             raise DataError(f"experiment {exp.name!r}: method {m.name!r} names unknown "
                             f"sequences {', '.join(unknown)}")
@@ -53,7 +77,7 @@ def jobs_for_experiment(exp: Experiment, console: Console | None = None) -> list
             frame_range=s.frame_range)
         for s in sequences
         for m in exp.methods
-        if m.sequences is None or _names(s) & set(m.sequences)
+        if _wanted(s, m.sequences)
         for seed in m.seed_options()
     ]
 
