@@ -165,3 +165,36 @@ def test_convert_commands(tmp_path):
                             str(tmp_path / "y.h5")])
     assert isinstance(r.exception, DataError) and "--doppler-sign" in str(r.exception)
     assert not (tmp_path / "y.h5").exists()
+
+@pytest.mark.parametrize("layout", ["dicp", "open3d", "steam"])
+def test_radar_bins_in_an_aeva_layout(tmp_path, layout):
+    """Radar frames written in an Aeva layout were silently stored as LiDAR with 0.1 s: a
+    LiDAR with radar-sized frames is warned about (naming --kind and --period); kind='radar'
+    stores radar with the period given."""
+    truth = truth_for(layout, frames=4, points=300)
+    root = write_aeva_folder(tmp_path / layout, truth, layout)
+    with pytest.warns(UserWarning, match=r"median of 300 points.*--kind radar.*--period"):
+        seq = AevaSequence(root)
+    assert seq.sensor.kind == "lidar" and seq.provenance["median_points_per_frame"] == 300
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no radar-like warning when the kind is said
+        radar = AevaSequence(root, kind="radar", period_s=0.0833)
+    assert radar.sensor.kind == "radar" and radar.provenance["sensor_kind"] == "radar"
+    np.testing.assert_allclose(radar.scan(1).points, truth.points[1], atol=2e-6)
+    if layout != "steam":  # without stamps of their own, the frames take the period given
+        no_gt = AevaSequence(root, kind="radar", period_s=0.0833, gt=False)
+        assert no_gt.sensor.period_s == pytest.approx(0.0833)
+        np.testing.assert_allclose(no_gt.stamps, np.arange(4) * 0.0833)
+
+
+def test_dense_lidar_frames_are_not_warned_about(tmp_path):
+    truth = truth_for("dicp", frames=2, points=12_000)
+    root = write_aeva_folder(tmp_path / "d", truth, "dicp")
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        seq = AevaSequence(root)
+    assert seq.sensor.kind == "lidar"
