@@ -1,5 +1,5 @@
-"""The ``bench`` command line: list, datasets, synth, convert, inspect, calibrate, run, table, figures,
-speed, reproduce.
+"""The ``bench`` command line: list, datasets, synth, convert, inspect, calibrate, run, table,
+figures, speed, reproduce.
 
 Exit codes: 0 when everything asked for succeeded, 1 when any run failed (the summary lists
 them), 2 for a user error (bad input, option or YAML; one message, no traceback), 130 after

@@ -64,6 +64,8 @@ class DatasetConfig(BaseModel):
     #: the dataset it belongs to (groups rows in `bench datasets` and public.yaml)
     dataset: str = ""
     in_main_table: bool = True
+    #: one of the paper's sequences (`bench reproduce` uses its store when present)
+    paper: bool = True
     loader: str
     raw_dir: Path
     raw_files: list[str]

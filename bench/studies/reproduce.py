@@ -38,10 +38,12 @@ TABLES = {  # experiment -> (kind, output stem, caption)
 
 
 def real_sequences(data_dir: Path) -> list[SequenceEntry]:
-    """Paper sequences whose converted store exists under ``data_dir/real``."""
+    """Paper sequences whose converted store exists under ``data_dir/real`` (configs with
+    ``paper: false``, e.g. NTU4DRadLM's whole routes, belong to public.yaml instead)."""
     return [SequenceEntry(path=data_dir / "real" / cfg.store, name=cfg.name,
                           display_name=cfg.display_name, sensor_class=cfg.sensor_class)
-            for cfg in dataset_configs() if (data_dir / "real" / cfg.store).exists()]
+            for cfg in dataset_configs()
+            if cfg.paper and (data_dir / "real" / cfg.store).exists()]
 
 
 def table_experiments(out: Path, data_dir: Path, real: list[SequenceEntry]) -> dict:
