@@ -117,6 +117,11 @@ def _cli_type(tp) -> Any | None:
     if origin is list:
         inner = _cli_type(typing.get_args(tp)[0])
         return list[inner] if inner is not None and typing.get_origin(inner) is None else None
+    if origin in (typing.Union, types.UnionType):  # e.g. str | Path: given as text
+        members = typing.get_args(tp)
+        if all(m in (str, Path, int, float) for m in members):
+            return Path if set(members) <= {str, Path} and Path in members else str
+        return None
     return tp if tp in (str, int, float, Path, bool) else None
 
 
