@@ -11,6 +11,8 @@ input converts again. A sequence whose raw data are absent is skipped with one l
 
 from __future__ import annotations
 
+import os
+import signal
 import time
 import traceback
 from dataclasses import dataclass
@@ -180,7 +182,9 @@ def _run_processes(jobs: list[ConvertJob], workers: int, update) -> list[tuple]:
     ctx = get_context("spawn")
     with ctx.Manager() as manager:
         q = manager.Queue()
-        with ProcessPoolExecutor(max_workers=max(1, workers), mp_context=ctx) as pool:
+        pool = ProcessPoolExecutor(max_workers=max(1, workers), mp_context=ctx,
+                                   initializer=_worker_init, initargs=(os.getpid(),))
+        try:
             futures = {pool.submit(convert_one, j, q): j for j in jobs}
             pending, results = set(futures), {}
             while pending:
@@ -196,7 +200,28 @@ def _run_processes(jobs: list[ConvertJob], workers: int, update) -> list[tuple]:
                         results[job.name] = f.result()
                     except Exception as err:  # noqa: BLE001 - a worker that died
                         results[job.name] = (job.name, "failed", f"worker died: {err}", 0, 0.0)
+        except KeyboardInterrupt:
+            # stores are written atomically: ending the workers leaves no partial store, and
+            # the next run resumes from the stores that were finished
+            for proc in list(getattr(pool, "_processes", {}).values()):
+                proc.kill()
+            pool.shutdown(wait=False, cancel_futures=True)
+            raise
+        pool.shutdown()
     return [results[j.name] for j in jobs]
+
+
+def _worker_init(parent_pid: int) -> None:
+    """Conversion workers ignore Ctrl-C (the main process ends them) and die with it (Linux:
+    PR_SET_PDEATHSIG, as the run executors' workers)."""
+    import contextlib
+    import ctypes
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    with contextlib.suppress(OSError, AttributeError):
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(1, signal.SIGKILL)
+    if os.getppid() != parent_pid:  # the parent died before the guard was set
+        os._exit(1)
 
 
 def _run_dask(jobs: list[ConvertJob], workers: int, scheduler: str | None, update) -> list:

@@ -129,9 +129,9 @@ class DatasetConfig(BaseModel):
         return select_frames(seq, fr.start, fr.frames, fr.stride)
 
     def conversion_key(self, raw_dir: Path | None = None) -> str:
-        """A hash of what determines the store: loader, validated options, frame range and
-        every input file's path, size and modification time (folders: every file inside).
-        A store carrying the same key is up to date."""
+        """A hash of what determines the store: loader (and its code, ``loader_code_hash``),
+        validated options, frame range and every input file's path, size and modification time
+        (folders: every file inside). A store carrying the same key is up to date."""
         root = self.raw_root(raw_dir)
         files: list[Path] = []
         for p in [*self.input_paths(raw_dir), *expand(root, self.raw_files)]:
@@ -142,8 +142,26 @@ class DatasetConfig(BaseModel):
             st = f.stat()
             stats.append([str(f.resolve()), st.st_size, st.st_mtime_ns])
         blob = json.dumps({"loader": self.loader, "options": options, "files": stats,
-                           "frame_range": self.frame_range.model_dump()}, sort_keys=True)
+                           "frame_range": self.frame_range.model_dump(),
+                           "code": loader_code_hash(self.loader)}, sort_keys=True)
         return hashlib.sha256(blob.encode()).hexdigest()
+
+
+def loader_code_hash(loader: str) -> str:
+    """A hash of the code that reads ``loader``'s data: its module and the shared loader core
+    (``loaders/*.py`` except the other loaders' own modules), so a fixed loader converts its
+    stores again while a change to another dataset's loader leaves them alone."""
+    import importlib.util
+
+    own = get_loader(loader).module
+    others = {e.module for e in LOADERS.values()} - {own}
+    spec = importlib.util.find_spec("loaders.registry")
+    folder = Path(spec.origin).parent
+    digest = hashlib.sha256()
+    for path in sorted(folder.glob("*.py")):
+        if f"loaders.{path.stem}" not in others:
+            digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    return digest.hexdigest()
 
 
 def read_dataset_config(name_or_path: str | Path) -> DatasetConfig:
