@@ -29,7 +29,9 @@ def print_registries(console: Console) -> None:
         methods.add_row(f"[bold]{name}[/]", cls.description, _prior(cls))
     console.print(methods)
     for title, items in (
-        ("Loaders (bench convert LOADER)", {k: e.description for k, e in LOADERS.items()}),
+        ("Loaders (bench convert LOADER; bench datasets for the datasets they read)",
+         {k: e.description + ("" if e.available else " (not installed)")
+          for k, e in LOADERS.items()}),
         ("Synthetic scenes (bench synth SCENE)", list_scenes()),
         ("Synthetic sensors (--sensor)", list_sensors()),
     ):
