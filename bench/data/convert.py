@@ -58,7 +58,7 @@ convert_app = typer.Typer(cls=ConvertGroup, no_args_is_help=True, rich_markup_mo
                                "(see `bench datasets`).")
 
 
-def write_with_progress(sequence, out: Path, quiet: bool = False) -> Path:
+def write_with_progress(sequence, out: Path) -> Path:
     """Write ``sequence`` to the store ``out`` with a progress bar, then print the throughput."""
     from rich.progress import (
         BarColumn,
@@ -75,7 +75,7 @@ def write_with_progress(sequence, out: Path, quiet: bool = False) -> Path:
     t0 = time.perf_counter()
     with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
                   TextColumn("{task.fields[fps]} frames/s"), TimeElapsedColumn(),
-                  TimeRemainingColumn(), console=console, disable=quiet) as progress:
+                  TimeRemainingColumn(), console=console) as progress:
         task = progress.add_task(f"{sequence.name} -> {Path(out).name}", total=n, fps="-")
 
         def report(i: int) -> None:
@@ -86,9 +86,8 @@ def write_with_progress(sequence, out: Path, quiet: bool = False) -> Path:
         write_store(sequence, out, progress=report)
     wall = time.perf_counter() - t0
     size_mb = Path(out).stat().st_size / 1e6
-    if not quiet:
-        console.print(f"[green]wrote[/] {out}: {n} frames in {wall:.1f} s "
-                      f"({n / max(wall, 1e-9):.0f} frames/s), {size_mb:.1f} MB")
+    console.print(f"[green]wrote[/] {out}: {n} frames in {wall:.1f} s "
+                  f"({n / max(wall, 1e-9):.0f} frames/s), {size_mb:.1f} MB")
     return Path(out)
 
 
