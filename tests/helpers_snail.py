@@ -145,7 +145,7 @@ def write_ros2_bag(path: Path, items: list[tuple[float, np.ndarray]], storage: s
                         stamp=T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec),
                         frame_id="radar"),
                     points=[P32(x=float(r["x"]), y=float(r["y"]), z=float(r["z"])) for r in arr],
-                    channels=[CH(name=n, values=np.asarray(arr[n], dtype=np.float32))
+                    channels=[CH(name=n, values=np.ascontiguousarray(arr[n], dtype=np.float32))
                               for n in arr.dtype.names if n not in ("x", "y", "z")])
             w.write(conn, int(round((t + latency_s) * 1e9)), store.serialize_cdr(msg, msgtype))
         if gt is not None:
