@@ -47,6 +47,30 @@ LOADERS: dict[str, LoaderEntry] = {e.name: e for e in (
                 "CampusSequence"),
     LoaderEntry("aeva", "Aeva / CARLA per-frame folders (Doppler-ICP, Open3D demo, steam_icp "
                 "layouts)", "loaders.aeva", "AevaSequence"),
+    LoaderEntry("snail-radar", "Snail-Radar (Oculii Eagle G7 or Continental ARS548) from a "
+                "sequence's ROS1 bag or extracted PCD folders + a TUM file of T_world_xt32",
+                "loaders.snail_radar", "SnailRadarSequence",
+                dataset="Snail-Radar", sensor="Oculii Eagle G7 / Continental ARS548 (--sensor)",
+                sensor_class="Semi-Dense 4D Radar (Eagle) / Sparse 4D Radar (ARS548)",
+                doppler_kind="radial", licence="ODbL 1.0 + DbCL 1.0",
+                published_at="https://snail-radar.github.io (tools: "
+                "github.com/snail-radar/dataset_tools)",
+                layout="<day>/dataN.bag (/radar_enhanced_pcl2, /radar_pcl2, /ars548) or "
+                "<day>/dataN/{eagleg7/enhanced,eagleg7/pcl,ars548/points}/<sec.nsec>.pcd + "
+                "times.txt; GT: TUM rows of the XT32 lidar pose",
+                example="bench convert snail-radar data/raw/snail-radar/20240123/data3 "
+                "--gt data/raw/snail-radar/20240123/data3/utm50r_T_xt32.txt --sensor eagle"),
+    LoaderEntry("rosbag", "Your own recording: ROS1 bag(s) or a ROS2 bag (sqlite3 / mcap) with "
+                "a PointCloud2 / PointCloud topic, a named Doppler field and GT from a topic "
+                "or a TUM / KITTI file", "loaders.rosbag", "RosbagSequence",
+                dataset="your own ROS recording", sensor="any Doppler radar / FMCW LiDAR",
+                sensor_class="set --model (radar-sparse, radar-semidense, lidar-dense)",
+                doppler_kind="radial (or --doppler-kind ego-compensated)", licence="yours",
+                published_at="-",
+                layout="rec.bag [rec_1.bag ...] or rec/ (metadata.yaml + .db3 / .mcap) or "
+                "rec.mcap / rec.db3",
+                example="bench convert rosbag rec.mcap --topic /radar/points --doppler-field "
+                "doppler --gt-topic /odom --T-body-sensor '1.2 0 1.5 0 0 0 1'"),
 )}
 
 
