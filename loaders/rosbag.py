@@ -32,7 +32,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from loaders.assemble import finish_scan, median_period
 from loaders.errors import DataError
@@ -58,8 +58,8 @@ class Options(LoaderOptions):
                               "(default: the bag's only such topic)")
     doppler_field: str = Field("doppler", description="name of the Doppler field (PointCloud2) "
                                "or channel (PointCloud) [m/s]")
-    doppler_sign: Literal[1, -1] = Field(
-        1, description="+1 when the field is positive for a receding point, -1 when positive "
+    doppler_sign: float = Field(
+        1.0, description="+1 when the field is positive for a receding point, -1 when positive "
         "means approaching")
     doppler_kind: Literal["radial", "ego-compensated"] = Field(
         "radial", description="what the Doppler values are: radial (raw, relative to the moving "
@@ -82,6 +82,13 @@ class Options(LoaderOptions):
         "error")
     stamp: Literal["header", "record"] = Field(
         "header", description="scan stamp: header.stamp or the bag's record time")
+
+    @field_validator("doppler_sign")
+    @classmethod
+    def _unit_sign(cls, v: float) -> float:
+        if v not in (1.0, -1.0):
+            raise ValueError(f"doppler_sign must be +1 or -1, got {v}")
+        return v
 
 
 # -- bag access ------------------------------------------------------------------------------
@@ -277,6 +284,16 @@ def read_gt_topic(paths: list[Path], topic: str) -> Trajectory:
 
 # -- the sequence ------------------------------------------------------------------------------
 
+def _options(options: Options | None, overrides: dict) -> Options:
+    from pydantic import ValidationError
+
+    try:
+        o = options or Options()
+        return Options.model_validate({**o.model_dump(), **overrides}) if overrides else o
+    except ValidationError as err:
+        raise DataError(f"rosbag options: {err}") from None
+
+
 class RosbagSequence(Sequence, OpensFromOptions):
     """Doppler scans of one topic of a ROS1 / ROS2 bag, read one message at a time, with
     optional ground truth in the sensor frame (see the module docstring)."""
@@ -291,9 +308,7 @@ class RosbagSequence(Sequence, OpensFromOptions):
         return cls(paths, Options.model_validate(options.model_dump()))
 
     def __init__(self, bags, options: Options | None = None, **overrides) -> None:
-        o = options or Options()
-        if overrides:
-            o = Options.model_validate({**o.model_dump(), **overrides})
+        o = _options(options, overrides)
         self.options = o
         paths = [Path(b) for b in ([bags] if isinstance(bags, str | Path) else bags)]
         if not paths:
@@ -320,12 +335,11 @@ class RosbagSequence(Sequence, OpensFromOptions):
             raise DataError(f"{paths[0]}: topic {topic} has no messages")
         self.msgtype = self._index.msgtype
         label = ", ".join(map(str, paths))
-        if self.ros1:
-            stamps = topic_stamps(self._index, o.stamp, label)
-        elif o.stamp == "record":
-            stamps = self._index.record_time_ns.astype(np.float64) * 1e-9
-        else:
-            stamps = self._index.header_stamps()
+        stamps = topic_stamps(self._index, o.stamp, label)
+        if not np.all(np.isfinite(stamps)):
+            bad = int(np.flatnonzero(~np.isfinite(stamps))[0])
+            raise DataError(f"{self._index.where(bad)}: message too short for a std_msgs/Header "
+                            f"stamp; is {topic} a point cloud?")
         order, dropped = sort_unique_stamps(stamps, label)
         self.name = o.name or paths[0].stem
         T = parse_extrinsic(o.T_body_sensor)

@@ -53,7 +53,7 @@ from pathlib import Path
 from typing import Literal
 
 import numpy as np
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from loaders.assemble import finish_scan, median_period
 from loaders.errors import DataError
@@ -187,10 +187,17 @@ class Options(LoaderOptions):
     uncovered: Literal["keep", "trim", "error"] = Field(
         "keep", description="scans without GT: keep (unscored), trim (cut the leading / "
         "trailing ones) or error")
-    doppler_sign: Literal[1, -1] = Field(
-        1, description="multiply the Doppler field by this (+1: positive = receding)")
+    doppler_sign: float = Field(
+        1.0, description="multiply the Doppler field by this: +1 (positive = receding) or -1")
     stamp: Literal["header", "record"] = Field(
         "header", description="bags: scan stamp from header.stamp or the bag's record time")
+
+    @field_validator("doppler_sign")
+    @classmethod
+    def _unit_sign(cls, v: float) -> float:
+        if v not in (1.0, -1.0):
+            raise ValueError(f"doppler_sign must be +1 or -1, got {v}")
+        return v
 
 
 class _BagFrames:
@@ -271,9 +278,14 @@ class SnailRadarSequence(Sequence, OpensFromOptions):
         return cls(paths[0], Options.model_validate(options.model_dump()))
 
     def __init__(self, path: str | Path, options: Options | None = None, **overrides) -> None:
-        o = options or Options()
-        if overrides:
-            o = Options.model_validate({**o.model_dump(), **overrides})
+        from pydantic import ValidationError
+
+        try:
+            o = options or Options()
+            if overrides:
+                o = Options.model_validate({**o.model_dump(), **overrides})
+        except ValidationError as err:
+            raise DataError(f"snail-radar options: {err}") from None
         self.options = o
         path = Path(path)
         cloud = "points" if o.sensor == "ars548" else o.cloud

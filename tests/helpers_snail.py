@@ -118,11 +118,13 @@ def write_snail_folder(folder: Path, items: list[tuple[float, np.ndarray]],
 
 def write_ros2_bag(path: Path, items: list[tuple[float, np.ndarray]], storage: str,
                    topic: str = "/radar/points", gt: tuple[str, np.ndarray, np.ndarray] | None
-                   = None, kind: str = "PointCloud2", latency_s: float = 0.003) -> Path:
+                   = None, kind: str = "PointCloud2", latency_s: float = 0.003,
+                   unset_header: bool = False) -> Path:
     """A ROS2 bag (``storage`` "sqlite3" or "mcap") with the clouds of ``items`` on ``topic``
     (PointCloud2 with the arrays' fields packed at 4-byte steps, or PointCloud with the
     non-xyz fields as channels) and optionally ``gt = (topic, stamps, T_world_body poses)`` as
-    nav_msgs/Odometry."""
+    nav_msgs/Odometry. ``unset_header``: every cloud's header.stamp is 0 (a driver that leaves
+    it unset)."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -135,8 +137,9 @@ def write_ros2_bag(path: Path, items: list[tuple[float, np.ndarray]], storage: s
         for t, arr in items:
             if kind == "PointCloud2":
                 names = list(arr.dtype.names)
-                msg = cloud2_msg(store, t, arr, [4 * i for i in range(len(names))],
-                                 4 * len(names), seq=None, frame="radar")
+                msg = cloud2_msg(store, 0.0 if unset_header else t, arr,
+                                 [4 * i for i in range(len(names))], 4 * len(names), seq=None,
+                                 frame="radar")
             else:
                 sec, nsec = sec_nsec(t)
                 P32, CH = T["geometry_msgs/msg/Point32"], T["sensor_msgs/msg/ChannelFloat32"]
@@ -201,3 +204,49 @@ def write_ros1_odometry_bag(path: Path, items: list[tuple[float, np.ndarray]], t
             w.write(gconn, int(round(t * 1e9)), store.serialize_ros1(
                 odometry_msg(store, t, j, pose), "nav_msgs/msg/Odometry"))
     return path
+
+
+def main() -> None:
+    """Write a large bag for streaming / throughput checks of the rosbag loader::
+
+        .venv/bin/python -m tests.helpers_snail OUT --storage mcap --frames 1500 --points 1500
+    """
+    import argparse
+
+    from helpers_bags import T0
+
+    ap = argparse.ArgumentParser(description=main.__doc__)
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--storage", choices=["ros1", "sqlite3", "mcap"], default="mcap")
+    ap.add_argument("--frames", type=int, default=1500)
+    ap.add_argument("--points", type=int, default=1500)
+    args = ap.parse_args()
+    rng = np.random.default_rng(0)
+
+    def clouds():
+        for i in range(args.frames):
+            arr = np.zeros(args.points, dtype=[(n, "<f4") for n in ("x", "y", "z", "doppler",
+                                                                     "power")])
+            for n in arr.dtype.names:
+                arr[n] = rng.uniform(-50, 50, args.points)
+            yield T0 + 0.1 * i, arr
+
+    if args.storage == "ros1":
+        from rosbags.rosbag1 import Writer
+        from rosbags.typesys import Stores, get_typestore
+
+        store = get_typestore(Stores.ROS1_NOETIC)
+        with Writer(args.out) as w:
+            conn = w.add_connection("/radar/points", "sensor_msgs/msg/PointCloud2",
+                                    typestore=store)
+            for i, (t, arr) in enumerate(clouds()):
+                msg = cloud2_msg(store, t, arr, [0, 4, 8, 12, 16], 20, seq=i)
+                w.write(conn, int(t * 1e9), store.serialize_ros1(
+                    msg, "sensor_msgs/msg/PointCloud2"))
+    else:
+        write_ros2_bag(args.out, clouds(), args.storage)
+    print(args.out)
+
+
+if __name__ == "__main__":
+    main()

@@ -191,3 +191,22 @@ def test_store_round_trip_and_doppler_run_match_memory(tmp_path):
 
     np.testing.assert_allclose(steps(stored), steps(mem), rtol=0.02)
     stored.close()
+
+
+def test_unset_header_stamps_need_record_time(tmp_path, truth):
+    path = write_ros2_bag(tmp_path / "zero", items(truth), "sqlite3", unset_header=True)
+    with pytest.raises(DataError, match="distinct header stamps .* stamp='record'") as err:
+        RosbagSequence(path, **OPTS)
+    assert str(path) in str(err.value)
+    seq = RosbagSequence(path, stamp="record", **OPTS)
+    np.testing.assert_allclose(seq.stamps, truth.stamps + 0.003, atol=1e-6)
+    check_points = seq.scan(3).points.astype(np.float32)
+    np.testing.assert_array_equal(check_points, truth.points[3])
+
+
+def test_options_from_strings_and_bad_values(bag):
+    _, path = bag
+    o = Options(doppler_field="velocity", doppler_sign="-1")
+    assert o.doppler_sign == -1.0
+    with pytest.raises(DataError, match="doppler_sign must be \\+1 or -1"):
+        RosbagSequence(path, doppler_sign=0.5)
