@@ -35,6 +35,9 @@ Facts from the dataset's own tools (github.com/snail-radar/dataset_tools) and si
   GT rows at most ``max_gap_s`` apart (``loaders.gt.associate``); scans inside a longer gap
   keep no pose (never interpolated across: a scored segment never uses an invented pose) and
   are only excluded from scoring. ``gt_frame="body"`` takes rows of ``T_world_body`` instead.
+  Without ``gt`` those two file names are looked for in the sequence folder (the names the
+  authors' scripts use; gaussian-rio reads ``full_trajs/<day>/dataN/utm50r_T_xt32.txt``), and
+  the first GT position is subtracted (``remove_gt_origin``: UTM -> metres from the start).
   ``T_world_radar = T_world_xt32 @ inv(T_body_xt32) @ T_body_radar``.
 - Doppler: both radars publish the raw relative radial velocity of each detection (not
   ego-motion compensated; the dataset's extrinsic rotations were themselves estimated from
@@ -145,6 +148,23 @@ def body_T_ars548(date: float, where: str = "") -> np.ndarray:
     return make_T(_rotation(R_BODY_X36D @ np.asarray(R)), P_BODY_ARS548)
 
 
+#: the reference-trajectory file names of the authors' tools (TLS-map localisation of the
+#: XT32 and the full trajectory in UTM zone 50R), looked for in the sequence folder
+GT_NAMES = ("tls_T_xt32.txt", "utm50r_T_xt32.txt")
+
+
+def find_gt_file(path: Path) -> Path | None:
+    """The reference trajectory in the sequence folder (``path`` itself, or for a bag
+    ``dataN.bag`` the folder ``dataN`` beside it); None when there is none; a ``DataError`` when
+    both names are there (say which with ``gt``)."""
+    folder = path if path.is_dir() else path.with_suffix("")
+    found = [folder / n for n in GT_NAMES if (folder / n).is_file()]
+    if len(found) > 1:
+        raise DataError(f"{folder}: both {' and '.join(GT_NAMES)} are present; choose one with "
+                        "gt")
+    return found[0] if found else None
+
+
 _GROUP = re.compile(r"^(\d{8})(_aft|_eve)?$")
 
 
@@ -168,7 +188,8 @@ class Options(LoaderOptions):
         "enhanced", description="Eagle stream: enhanced (/radar_enhanced_pcl2, "
         "eagleg7/enhanced) or pcl (/radar_pcl2, eagleg7/pcl); ignored for ars548")
     gt: Path | None = Field(None, description="ground-truth TUM file (t x y z qx qy qz qw), "
-                            "e.g. the sequence's utm50r_T_xt32.txt / tls_T_xt32.txt")
+                            "e.g. the sequence's utm50r_T_xt32.txt / tls_T_xt32.txt (default: "
+                            "the one of these found in the sequence folder, if any)")
     gt_frame: Literal["xt32", "body"] = Field(
         "xt32", description="frame whose poses the GT rows give: xt32 (the lidar, as the "
         "dataset's reference trajectories) or body")
@@ -181,6 +202,9 @@ class Options(LoaderOptions):
     T_body_radar: str | None = Field(
         None, description="override the radar extrinsic in the body frame: 'x y z qx qy qz qw' "
         "or 16 numbers")
+    remove_gt_origin: bool = Field(
+        True, description="subtract the first GT position (UTM coordinates -> metres from the "
+        "start; relative errors are unchanged)")
     time_offset_s: float = Field(0.0, description="gt_stamp + offset = scan stamp [s]")
     max_gap_s: float = Field(0.35, description="largest GT gap interpolated across [s]; scans "
                              "in a longer gap have no GT (not scored)")
@@ -327,11 +351,19 @@ class SnailRadarSequence(Sequence, OpensFromOptions):
             "nan_points_dropped": 0,
         }
         self.ground_truth = None
-        if o.gt is not None:
-            assoc = associate(read_gt_file(o.gt, "tum"), self._src.stamps[order],
+        gt_path = o.gt if o.gt is not None else find_gt_file(path)
+        if gt_path is not None:
+            self.provenance["gt_file"] = str(gt_path) + ("" if o.gt is not None else
+                                                         " (found in the sequence folder)")
+            gt = read_gt_file(gt_path, "tum")
+            fix = None
+            if o.remove_gt_origin:
+                fix = make_T(np.eye(3), -gt.poses[0, :3, 3])
+                self.provenance["gt_origin_removed"] = gt.poses[0, :3, 3].tolist()
+            assoc = associate(gt, self._src.stamps[order],
                               offset_s=o.time_offset_s, max_gap_s=o.max_gap_s,
                               uncovered=o.uncovered, T_body_sensor=T_gtbody_radar,
-                              gt_file=o.gt, scan_file=self._src.label)
+                              T_world_fix=fix, gt_file=gt_path, scan_file=self._src.label)
             order = order[assoc.keep]
             self.ground_truth = assoc.ground_truth
             self.provenance["gt_association"] = assoc.report

@@ -122,6 +122,34 @@ def test_eagle_pcl_stream(data, source):
     assert seq.ground_truth is None
 
 
+def test_utm_gt_found_in_the_folder_and_origin_removed(tmp_path, data):
+    """A reference trajectory in UTM (``utm50r_T_xt32.txt`` in the sequence folder) is found by
+    name, and its first position is subtracted (relative motion unchanged)."""
+    import shutil
+
+    truth = data["eagle"]
+    seq_dir = tmp_path / "20240123" / "data3"
+    shutil.copytree(data["folder"] / "eagleg7", seq_dir / "eagleg7")
+    utm = np.array([245821.138870949, 3380553.013607463, 20.123183885])
+    t = truth.stamps[0] - 0.2 + 0.05 * np.arange(20)
+    poses = truth.motion.body_pose(t)
+    poses[:, :3, 3] += utm
+    write_tum(seq_dir / "utm50r_T_xt32.txt", t, poses)
+    seq = SnailRadarSequence(seq_dir)
+    assert "found in the sequence folder" in seq.provenance["gt_file"]
+    origin = poses[0, :3, 3]
+    np.testing.assert_allclose(seq.provenance["gt_origin_removed"], origin)
+    expected = truth.sensor_poses()
+    expected[:, :3, 3] += utm - origin
+    np.testing.assert_allclose(seq.ground_truth.poses, expected, atol=1e-6)
+    kept = SnailRadarSequence(seq_dir, remove_gt_origin=False)
+    np.testing.assert_allclose(kept.ground_truth.poses[:, :3, 3] - seq.ground_truth.poses[:, :3, 3],
+                               np.broadcast_to(origin, (len(truth.stamps), 3)), atol=1e-6)
+    write_tum(seq_dir / "tls_T_xt32.txt", t, poses)
+    with pytest.raises(DataError, match="both tls_T_xt32.txt and utm50r_T_xt32.txt"):
+        SnailRadarSequence(seq_dir)
+
+
 def test_published_extrinsics():
     """The refined Eagle extrinsic (Body_T_Oculii.m default), not the hand-measured one; the
     ARS548 mounting changes with the date (Body_T_Ars548.m)."""
@@ -168,7 +196,7 @@ def test_gt_gap_is_never_interpolated(tmp_path, data):
     gt = tmp_path / "tls_T_xt32.txt"
     write_tum(gt, t, m.body_pose(t))
     with pytest.warns(GroundTruthWarning, match="excluded from scoring"):
-        seq = SnailRadarSequence(data["bag"], gt=gt)
+        seq = SnailRadarSequence(data["bag"], gt=gt, remove_gt_origin=False)
     assert len(seq) == len(truth.stamps)
     np.testing.assert_allclose(seq.ground_truth.stamps, truth.stamps[[0, 1, 2, 7]], atol=1e-6)
     np.testing.assert_allclose(seq.ground_truth.poses, truth.sensor_poses()[[0, 1, 2, 7]],
@@ -323,7 +351,7 @@ def test_store_round_trip_and_doppler_run_match_memory(tmp_path):
     write_tum(gt, stamps, T_world_xt32)
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        loaded = SnailRadarSequence(seq_dir, gt=gt)
+        loaded = SnailRadarSequence(seq_dir, gt=gt, remove_gt_origin=False)
     store = write_store(loaded, tmp_path / "snail.h5")
     stored = StoreSequence(store)
     assert len(stored) == len(mem)
