@@ -361,15 +361,15 @@ def test_store_round_trip_and_doppler_run_match_memory(tmp_path):
     np.testing.assert_allclose(stored.ground_truth.poses, mem.ground_truth.poses, atol=1e-6)
     assert stored.sensor.doppler_kind == "radial"
 
-    def steps(seq):
-        res = make_method("doppler", {}, seq.sensor).run(seq, seed=True)
+    def steps(method, seq):
+        res = make_method(method, {}, seq.sensor).run(seq, seed=True)
         rel = inv_T(res.poses[:-1]) @ res.poses[1:]
-        return np.linalg.norm(rel[:, :3, 3], axis=1), res.poses
+        return np.linalg.norm(rel[:, :3, 3], axis=1)
 
-    d_store, p_store = steps(stored)
-    d_mem, p_mem = steps(mem)
-    np.testing.assert_allclose(d_store, d_mem, rtol=0.02)
     gt_steps = np.linalg.norm((inv_T(mem.ground_truth.poses[:-1])
                                @ mem.ground_truth.poses[1:])[:, :3, 3], axis=1)
-    np.testing.assert_allclose(d_mem, gt_steps, rtol=0.2)  # the run itself is sensible
+    for method in ("doppler", "icp-p2plane"):
+        d_mem = steps(method, mem)
+        np.testing.assert_allclose(steps(method, stored), d_mem, rtol=0.02, err_msg=method)
+        np.testing.assert_allclose(d_mem, gt_steps, rtol=0.2, err_msg=method)  # sensible runs
     stored.close()
