@@ -38,7 +38,9 @@ Facts from the dataset's own tools (github.com/snail-radar/dataset_tools) and si
   Without ``gt`` those two file names are looked for in the sequence folder (the names the
   authors' scripts use; gaussian-rio reads ``full_trajs/<day>/dataN/utm50r_T_xt32.txt``), and
   the first GT position is subtracted (``remove_gt_origin``: UTM -> metres from the start).
-  ``T_world_radar = T_world_xt32 @ inv(T_body_xt32) @ T_body_radar``.
+  ``T_world_radar = T_world_xt32 @ inv(T_body_xt32) @ T_body_radar`` (``provenance
+  ["T_gtbody_radar"]``); ``sensor.T_body_sensor`` is ``T_body_radar``, the radar in the
+  dataset's forward-left-up body frame (the vehicle frame for methods that use one).
 - Doppler: both radars publish the raw relative radial velocity of each detection (not
   ego-motion compensated; the dataset's extrinsic rotations were themselves estimated from
   these values against the INS velocity, ``Body_T_Oculii.m`` / ``Body_T_Ars548.m``). The tools
@@ -369,8 +371,10 @@ class SnailRadarSequence(Sequence, OpensFromOptions):
             self.provenance["gt_association"] = assoc.report
         self._order = order
         self._stamps = self._src.stamps[order]
+        # the vehicle frame the methods may use (DICP's T_vehicle_sensor) is the dataset's body
+        # frame (forward-left-up at the XT32); the GT transform is in the provenance
         self.sensor = SensorInfo("radar", median_period(self._stamps, DEFAULT_PERIOD_S[o.sensor]),
-                                 T_gtbody_radar, MODELS[o.sensor], "radial")
+                                 T_body_radar, MODELS[o.sensor], "radial")
 
     def _extrinsic(self, path: Path) -> np.ndarray:
         o = self.options

@@ -82,7 +82,8 @@ def test_eagle_enhanced_points_doppler_and_gt_in_radar_frame(data, source):
     assert set(seq.scan(0).fields) >= {"power", "range", "alpha", "beta", "doppleraccu"}
     np.testing.assert_allclose(seq.ground_truth.stamps, seq.stamps)
     np.testing.assert_allclose(seq.ground_truth.poses, truth.sensor_poses(), atol=1e-6)
-    np.testing.assert_allclose(seq.sensor.T_body_sensor, T_XT32_EAGLE, atol=1e-12)
+    np.testing.assert_allclose(seq.sensor.T_body_sensor, body_T_oculii(), atol=1e-12)
+    np.testing.assert_allclose(seq.provenance["T_gtbody_radar"], T_XT32_EAGLE, atol=1e-12)
     assert seq.sensor.doppler_kind == "radial" and seq.sensor.model == "radar-semidense"
     assert seq.sensor.period_s == pytest.approx(0.1, abs=1e-6)
     assert doppler_sign_cosine(seq) > 0.99
@@ -96,7 +97,8 @@ def test_ars548_padded_layout_and_date_extrinsic(data, source):
     check_scans(seq, truth, data["frames"]["/ars548"])
     assert seq.date == DATE  # from the group folder 20240123
     np.testing.assert_allclose(seq.ground_truth.poses, truth.sensor_poses(), atol=1e-6)
-    np.testing.assert_allclose(seq.sensor.T_body_sensor, T_XT32_ARS, atol=1e-12)
+    np.testing.assert_allclose(seq.sensor.T_body_sensor, body_T_ars548(DATE), atol=1e-12)
+    np.testing.assert_allclose(seq.provenance["T_gtbody_radar"], T_XT32_ARS, atol=1e-12)
     assert doppler_sign_cosine(seq) > 0.99
     flipped = SnailRadarSequence(data[source], sensor="ars548", gt=data["gt"], doppler_sign=-1)
     assert doppler_sign_cosine(flipped) < -0.99
@@ -176,7 +178,7 @@ def test_ars548_without_date_needs_the_option(tmp_path, data):
         SnailRadarSequence(bag, sensor="ars548")
     assert str(bag) in str(err.value)
     seq = SnailRadarSequence(bag, sensor="ars548", date=DATE)
-    np.testing.assert_allclose(seq.sensor.T_body_sensor, T_XT32_ARS, atol=1e-12)
+    np.testing.assert_allclose(seq.sensor.T_body_sensor, body_T_ars548(DATE), atol=1e-12)
 
 
 def test_options_model_and_open(data):
