@@ -129,8 +129,13 @@ class _Ros2Topic:
         from rosbags.rosbag2 import Reader
 
         self.path, self.topic = path, topic
-        reader = Reader(path)
-        reader.open()
+        try:
+            reader = Reader(path)
+            reader.open()
+        except Exception as err:  # rosbags raises its own error types per storage
+            raise DataError(f"{path}: cannot open the ROS2 bag ({type(err).__name__}: {err}); "
+                            "expected a folder with metadata.yaml, a .db3 or a .mcap file"
+                            ) from None
         try:
             conns = [c for c in reader.connections if c.topic == topic]
             if not conns:

@@ -154,11 +154,13 @@ def test_bad_topic_and_gt_topic(bag):
         RosbagSequence(path, gt_topic="/odom", gt=path, **OPTS)
 
 
-def test_not_a_bag(tmp_path):
-    junk = tmp_path / "junk.bag"
+@pytest.mark.parametrize("name", ["junk.bag", "junk.mcap", "junk.db3"])
+@pytest.mark.parametrize("topic", [None, "/radar/points"])
+def test_not_a_bag(tmp_path, name, topic):
+    junk = tmp_path / name
     junk.write_bytes(b"not a bag at all")
     with pytest.raises(DataError) as err:
-        RosbagSequence(junk, **OPTS)
+        RosbagSequence(junk, topic=topic, **OPTS)
     assert str(junk) in str(err.value)
 
 
