@@ -127,7 +127,11 @@ def test_ros2_pointcloud_channels(tmp_path, truth):
 def test_bare_mcap_file_and_topic_autodetect(tmp_path, truth):
     folder = write_bag(tmp_path, truth, "mcap")
     mcap = next(folder.glob("*.mcap"))
-    seq = RosbagSequence.open([mcap], Options(doppler_field="velocity", doppler_sign=-1,
+    from loaders.registry import get_loader
+
+    cls = get_loader("rosbag").load_class()
+    assert cls is RosbagSequence and cls.Options is Options and cls.many_inputs
+    seq = cls.open([mcap], Options(doppler_field="velocity", doppler_sign=-1,
                                               name="mine"))
     assert seq.topic == "/radar/points" and seq.name == "mine"
     check(seq, truth)

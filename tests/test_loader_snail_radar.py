@@ -2,6 +2,7 @@
 the Eagle and ARS548 PointCloud2 layouts, extracted folders of binary / ascii PCD + times.txt,
 a TUM file of T_world_xt32), written from frames whose truth is known."""
 
+import pickle
 import warnings
 
 import numpy as np
@@ -122,6 +123,9 @@ def test_eagle_pcl_stream(data, source):
     seq = SnailRadarSequence(data[source], cloud="pcl")
     check_scans(seq, data["pcl"], data["frames"]["/radar_pcl2"])
     assert seq.ground_truth is None
+    clone = pickle.loads(pickle.dumps(seq))  # sequences go to worker processes
+    np.testing.assert_array_equal(clone.scan(3).doppler.astype(np.float32),
+                                  data["pcl"].doppler[3])
 
 
 def test_utm_gt_found_in_the_folder_and_origin_removed(tmp_path, data):
@@ -182,7 +186,11 @@ def test_ars548_without_date_needs_the_option(tmp_path, data):
 
 
 def test_options_model_and_open(data):
-    seq = SnailRadarSequence.open([data["folder"]], Options(sensor="ars548", name="x"))
+    from loaders.registry import get_loader
+
+    cls = get_loader("snail-radar").load_class()
+    assert cls is SnailRadarSequence and cls.Options is Options and not cls.many_inputs
+    seq = cls.open([data["folder"]], Options(sensor="ars548", name="x"))
     assert seq.name == "x" and len(seq) == len(data["ars"].stamps)
     with pytest.raises(Exception, match="extra"):
         Options(sensr="eagle")
