@@ -92,7 +92,7 @@ LOADERS: dict[str, LoaderEntry] = {e.name: e for e in (
                "eagleg7/enhanced/<sec.nsec>.pcd + times.txt; GT from the TLS-localised LIO "
                "(only where the scan map covers)",
         example="bench convert snail-radar data/raw/snail-radar/20231213/data1.bag "
-                "--sensor eagleg7 --out data/real/SnailRadar_Eagle_20231213_1.h5",
+                "--sensor eagle --out data/real/SnailRadar_Eagle_20231213_1.h5",
         more_rows=({"sensor": "Continental ARS548 4D radar", "sensor_class": SPARSE,
                     "layout": "DATE/dataN.bag (ROS1, /ars548 PointCloud2: x y z doppler "
                               "intensity ...) or the extracted ars548/points/<sec.nsec>.pcd + "

@@ -103,6 +103,18 @@ def parse_pointcloud2(data: bytes, where: str) -> tuple[float, np.ndarray, list[
     nbytes = c.u32()
     c.need(nbytes)
     blob = c.buf[c.pos:c.pos + nbytes]
+    arr, names = cloud2_array(fields, big, height, width, point_step, row_step, blob, where)
+    return stamp, arr, names
+
+
+def cloud2_array(fields: list[tuple[str, int, int, int]], big: bool, height: int, width: int,
+                 point_step: int, row_step: int, blob, where: str
+                 ) -> tuple[np.ndarray, list[str]]:
+    """The points of a PointCloud2 layout (``fields``: (name, offset, datatype, count); the
+    data bytes ``blob``) as a structured array with one field per PointField of count 1, and
+    those field names in message order. Shared by the ROS1 parser above and the ROS2 (CDR)
+    route of ``loaders.rosbag``."""
+    nbytes = len(blob)
     endian = ">" if big else "<"
     names, formats, offsets = [], [], []
     for name, offset, datatype, count in fields:
@@ -131,4 +143,4 @@ def parse_pointcloud2(data: bytes, where: str) -> tuple[float, np.ndarray, list[
         rows = np.frombuffer(blob, dtype=np.uint8, count=height * row_step).reshape(height, -1)
         packed = np.ascontiguousarray(rows[:, :width * point_step]).tobytes()
         arr = np.frombuffer(packed, dtype=dtype, count=n)
-    return stamp, arr, names
+    return arr, names
