@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
+from typing import Literal
 
 import numpy as np
 from pydantic import Field
@@ -71,7 +72,7 @@ class Options(LoaderOptions):
                                "sensor clock")
     max_gap: float | None = Field(None, gt=0, description=(
         "largest GT gap interpolated across (s) (default: 3 median GT steps)"))
-    uncovered: str = Field("keep", description=(
+    uncovered: Literal["keep", "trim", "error"] = Field("keep", description=(
         "scans without GT: keep (run, unscored), trim (cut the ends) or error"))
 
 
@@ -125,7 +126,9 @@ def read_transform(path: Path) -> np.ndarray:
     """``T_base_sensor`` from a ColoRadar transform file (translation line, quaternion line)."""
     if not path.exists():
         raise DataError(f"{path}: extrinsic not found; expected 'x y z' and 'qx qy qz qw' lines "
-                        "(or give the extrinsic option)")
+                        "(ColoRadar ships calib/ beside the run folders: give --calib DIR, or "
+                        "--extrinsic 'x y z qx qy qz qw' (radar -> base; '0 0 0 0 0 0 1' when "
+                        "the GT is the radar's own pose))")
     lines = [ln.split() for ln in path.read_text().splitlines() if ln.strip()]
     if len(lines) < 2 or len(lines[0]) != 3 or len(lines[1]) != 4:
         raise DataError(f"{path}: expected a line 'x y z' and a line 'qx qy qz qw'")

@@ -22,8 +22,9 @@ Format facts (minwoo0611/HeLiPR-File-Player ``src/ROSThread.cpp`` ``AevaThread``
   method cannot use them as radial velocity.
 - Opt-in ``reconstruct_doppler_from_gt``: rebuild the raw radial velocity from the GT's ego
   motion, ``v_radial = v_compensated - d . v_sensor`` (receding positive; ``d`` the point's unit
-  direction, ``v_sensor`` the sensor origin's velocity in its own frame from a central
-  difference of the GT over one GT step each side; rotation adds nothing along ``d``). The
+  direction, ``v_sensor`` the sensor origin's velocity in its own frame at the point's time:
+  central differences of the GT over one GT step each side at the scan stamp and one period
+  later, interpolated linearly by ``time_offset_ns``; rotation adds nothing along ``d``). The
   store is then ``doppler_kind = "gt-reconstructed"``, and every result made from it is labelled
   GT-assisted: the Doppler carries the ground truth's motion. Scans outside the GT (or inside a
   GT gap) cannot be reconstructed: the ends are trimmed and a gap inside is a ``DataError``.
@@ -79,7 +80,7 @@ class Options(LoaderOptions):
                                "sensor clock")
     max_gap: float | None = Field(None, gt=0, description=(
         "largest GT gap interpolated across (s) (default: 3 median GT steps, at least 0.3 s)"))
-    uncovered: str = Field("keep", description=(
+    uncovered: Literal["keep", "trim", "error"] = Field("keep", description=(
         "scans without GT: keep (run, unscored), trim (cut the ends) or error"))
 
 
@@ -106,12 +107,15 @@ def read_gt(path: Path) -> Trajectory:
 
 def sensor_velocity(gt: Trajectory, t: np.ndarray, h: float) -> np.ndarray:
     """Velocity of the sensor origin in its own frame at stamps ``t`` (N, 3): a central
-    difference of the GT positions over ``t +- h`` (clipped to the GT span)."""
-    lo = np.clip(t - h, gt.stamps[0], gt.stamps[-1])
-    hi = np.clip(t + h, gt.stamps[0], gt.stamps[-1])
+    difference of the GT positions over ``t +- h``; near the ends of the GT the window moves
+    inside its span (the velocity there is held)."""
+    s0, s1 = gt.stamps[0], gt.stamps[-1]
+    h = min(h, (s1 - s0) / 2)
+    centre = np.clip(t, s0 + h, s1 - h)
+    lo, hi = centre - h, centre + h
     p_lo = gt.interpolate(lo).positions
     p_hi = gt.interpolate(hi).positions
-    R = gt.interpolate(np.clip(t, gt.stamps[0], gt.stamps[-1])).poses[:, :3, :3]
+    R = gt.interpolate(centre).poses[:, :3, :3]
     v_world = (p_hi - p_lo) / (hi - lo)[:, None]
     return np.einsum("nji,nj->ni", R, v_world)
 
@@ -204,7 +208,13 @@ class HeliprSequence(OpensFromOptions, Sequence):
                         f"{max_gap} s ({assoc.uncovered_inside} scans): their radial velocity "
                         "cannot be reconstructed from the GT; cut the sequence before the gap")
                 gt_sensor = Trajectory(gt_raw.stamps + opts.time_offset, gt_raw.poses @ T)
-                self._v_sensor = sensor_velocity(gt_sensor, stamps[keep], max(step, 1e-3))
+                h = max(step, 1e-3)
+                self._v_period = median_period(stamps[keep], NOMINAL_PERIOD_S)
+                # the sensor velocity at each scan's stamp and one period later: points take
+                # it at their own time (a scan lasts a period; the car accelerates meanwhile)
+                self._v_sensor = np.stack([
+                    sensor_velocity(gt_sensor, stamps[keep], h),
+                    sensor_velocity(gt_sensor, stamps[keep] + self._v_period, h)], axis=1)
                 self.provenance["doppler_reconstruction"] = (
                     f"v_radial = v_compensated - d . v_sensor, v_sensor from {gt_path} (central "
                     f"difference over +-{step:.4f} s): GT-assisted")
@@ -239,7 +249,9 @@ class HeliprSequence(OpensFromOptions, Sequence):
         if self._v_sensor is not None:
             r = np.linalg.norm(points, axis=1)
             d = points / np.where(r > 0, r, 1.0)[:, None]
-            doppler = doppler - d @ self._v_sensor[index]
+            v0, v1 = self._v_sensor[index]
+            w = np.clip(rec["time_offset_ns"] * 1e-9 / self._v_period, 0.0, 1.0)[:, None]
+            doppler = doppler - np.einsum("ij,ij->i", d, v0 + w * (v1 - v0))
         fields = {"reflectivity": rec["reflectivity"].copy(),
                   "time_offset_s": (rec["time_offset_ns"].astype(np.float64)
                                     * 1e-9).astype(np.float32),

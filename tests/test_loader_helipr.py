@@ -31,7 +31,13 @@ def write_sequence(root, t0=BEFORE_S, frames=6, points=60, gt_step=0.02, gt_name
         if moving:
             c[:moving] = rng.uniform(-5, 5, moving)
         comp.append(c)
-    raw = [c.astype(np.float64) + d for c, d in zip(comp, t.doppler, strict=True)]
+    # raw radial velocity at each point's own time (write_helipr's offsets: 0 .. 99 ms)
+    raw = []
+    for ts, p, c in zip(t.stamps, t.points, comp, strict=True):
+        offsets = np.linspace(0, 99_000_000, len(p)).astype(np.int32) * 1e-9
+        d = p / np.linalg.norm(p, axis=1, keepdims=True)
+        v = np.array([motion.sensor_velocity(ts + o) for o in offsets])
+        raw.append(c - np.einsum("ij,ij->i", d, v))
     stamps_ns = np.round(t.stamps * 1e9).astype(np.int64)
     gt_t = t0 + gt_step * np.arange(int((t.stamps[-1] - t0) / gt_step) + 3)
     write_helipr(root, stamps_ns, t.points, comp, np.round(gt_t * 1e9).astype(np.int64),
@@ -137,3 +143,28 @@ def test_gt_shorter_than_the_scans_and_gaps(tmp_path):
     assert HeliprSequence(root).ground_truth is None
     with pytest.raises(DataError, match="needs the ground truth"):
         HeliprSequence(root, reconstruct_doppler_from_gt=True)
+
+
+def test_reconstruction_takes_each_point_at_its_own_time(tmp_path):
+    """Accelerating at 3 m/s^2 the speed changes 0.3 m/s over a 0.1 s scan: each point's
+    radial velocity uses the sensor velocity at its own time (time_offset_ns)."""
+    from loaders.se3 import make_T
+
+    t0, v0, a = BEFORE_S, 5.0, 3.0
+    gt_t = t0 + 0.01 * np.arange(200)
+    gt_poses = np.stack([make_T(np.eye(3), [v0 * (s - t0) + 0.5 * a * (s - t0) ** 2, 0, 0])
+                         for s in gt_t])
+    stamps = t0 + 0.3 + 0.1 * np.arange(5)
+    rng = np.random.default_rng(2)
+    points = [rng.uniform([5, -20, -2], [40, 20, 2], (80, 3)).astype(np.float32)
+              for _ in stamps]
+    offsets = [np.sort(rng.integers(0, 100_000_000, 80)).astype(np.int32) for _ in stamps]
+    root = write_helipr(tmp_path / "accel", np.round(stamps * 1e9).astype(np.int64), points,
+                        [np.zeros(80, np.float32)] * 5, np.round(gt_t * 1e9).astype(np.int64),
+                        gt_poses, time_offset_ns=offsets)
+    seq = HeliprSequence(root, reconstruct_doppler_from_gt=True)
+    for i in range(len(seq)):
+        p = points[i].astype(np.float64)
+        d = p / np.linalg.norm(p, axis=1, keepdims=True)
+        speed = v0 + a * (stamps[i] - t0 + offsets[i] * 1e-9)
+        np.testing.assert_allclose(seq[i].doppler, -d[:, 0] * speed, atol=1e-3)
