@@ -197,6 +197,9 @@ class KindCheck:
                      "velocity")
         if self.disagrees:
             text += f" - this DISAGREES with the declared kind ({self.declared})"
+        if self.declared == "gt-reconstructed":
+            text += (" (rebuilt from the GT's ego motion: every result from this store is "
+                     "GT-assisted)")
         return text
 
 

@@ -84,7 +84,7 @@ def test_helipr_velocities_are_measured_compensated_and_the_reconstruction_radia
     rebuilt = HeliprSequence(root, reconstruct_doppler_from_gt=True)
     kind = doppler_kind_check(rebuilt, gt_at_scans(rebuilt))
     assert kind.declared == "gt-reconstructed" and kind.measured == "radial"
-    assert not kind.disagrees
+    assert not kind.disagrees and "GT-assisted" in kind.describe()
 
 
 def test_runs_on_a_gt_reconstructed_store_are_labelled_gt_assisted(tmp_path):
