@@ -168,3 +168,20 @@ def test_reconstruction_takes_each_point_at_its_own_time(tmp_path):
         d = p / np.linalg.norm(p, axis=1, keepdims=True)
         speed = v0 + a * (stamps[i] - t0 + offsets[i] * 1e-9)
         np.testing.assert_allclose(seq[i].doppler, -d[:, 0] * speed, atol=1e-3)
+
+
+def test_store_icp_run_agrees_with_the_npy_frame_route(tmp_path):
+    from helpers_public import runs_agree, synthetic_frames, write_npy_frames
+    from loaders.npy_frames import NpyFramesSequence
+
+    stamps, points, doppler, poses = synthetic_frames("tunnel", "lidar-aeva", frames=8, seed=2)
+    stamps = stamps + AFTER_S
+    ns = np.round(stamps * 1e9).astype(np.int64)
+    # the synthetic frames are instantaneous: per-point times 0 (icp deskews with them)
+    root = write_helipr(tmp_path / "Tunnel", ns, points, doppler, ns, poses,
+                        time_offset_ns=[np.zeros(len(p), np.int32) for p in points])
+    store = write_store(HeliprSequence(root), tmp_path / "helipr.h5")
+    npy = write_npy_frames(tmp_path / "npy", points, doppler, ns * 1e-9, poses)
+    ref = write_store(NpyFramesSequence(npy, stamps_from_gt=True, kind="lidar"),
+                      tmp_path / "npy.h5")
+    runs_agree(store, ref, tmp_path / "runs", methods=("icp-p2plane",))
