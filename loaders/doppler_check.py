@@ -1,4 +1,5 @@
-"""Sanity checks of a sequence's conventions: the Doppler sign, and (radar) the elevation sign.
+"""Sanity checks of a sequence's conventions: the Doppler sign, the Doppler kind (raw radial or
+ego-compensated) and (radar) the elevation sign.
 
 Doppler sign check: fit the ego velocity from Doppler and compare it with ground truth.
 
@@ -7,6 +8,11 @@ point i, v_sensor the sensor's velocity in its own frame). A per-frame least-squ
 v_sensor (with a robust second pass that drops moving points) is compared with the velocity of
 the ground-truth sensor poses: a cosine near +1 confirms the convention, near -1 means it is
 flipped; the speed ratio |v_doppler| / |v_gt| near 1 also confirms the time base (period).
+
+Doppler kind check (``doppler_kind_check``): with GT motion, static points of raw radial Doppler
+read ``-d . v_gt``; ego-compensated Doppler (the dataset removed the sensor's motion, e.g.
+HeLiPR's Aeva velocities) reads about 0 m/s for them while the sensor moves. The share of points
+fitting each says which the data are, whatever the loader declared.
 """
 
 from __future__ import annotations
@@ -146,3 +152,92 @@ def low_points_median_z(sequence: Sequence, frames: int = 50, quantile: float = 
         "verdict": ("road below the sensor (sign looks right)" if layer < 0 else
                     "densest layer above the sensor: check elevation_sign"),
     }
+
+
+#: a point fits a hypothesis when its Doppler is within this of the predicted value: the larger
+#: of an absolute floor and a share of the sensor speed [m/s]
+KIND_TOLERANCE_MPS = 0.15
+KIND_TOLERANCE_SHARE = 0.1
+
+
+@dataclass
+class KindCheck:
+    """What a sequence's Doppler values are, measured against the GT motion.
+
+    Over moving frames, each point whose predicted static-world radial velocity ``-d . v_gt``
+    is clearly non-zero is tested against two hypotheses: raw radial velocity of a static point
+    (``doppler = -d . v_gt``, either sign: the sign check is separate) and ego-compensated
+    (``doppler`` about 0). Most of a scene is static, so the larger share says which it is."""
+
+    declared: str
+    frames_used: int
+    share_radial: float
+    share_compensated: float
+    measured: str  # "radial", "ego-compensated", "inconclusive", "not checked (...)"
+
+    @property
+    def disagrees(self) -> bool:
+        """The measurement contradicts the declared kind (a gt-reconstructed store is radial)."""
+        if self.measured not in ("radial", "ego-compensated"):
+            return False
+        declared = "radial" if self.declared == "gt-reconstructed" else self.declared
+        return declared != self.measured
+
+    def describe(self) -> str:
+        head = f"Doppler kind: declared {self.declared}"
+        if self.frames_used == 0:
+            return f"{head}; measured: {self.measured}"
+        text = (f"{head}; measured over {self.frames_used} moving frames: "
+                f"{100 * self.share_radial:.0f} % of the points fit the raw radial velocity of "
+                f"a static world, {100 * self.share_compensated:.0f} % read about 0 m/s -> "
+                f"{self.measured}")
+        if self.measured == "ego-compensated":
+            text += (": the sensor's own motion is already removed (static points near 0 m/s "
+                     "while the sensor moves); a Doppler method cannot use it as radial "
+                     "velocity")
+        if self.disagrees:
+            text += f" - this DISAGREES with the declared kind ({self.declared})"
+        if self.declared == "gt-reconstructed":
+            text += (" (rebuilt from the GT's ego motion: every result from this store is "
+                     "GT-assisted)")
+        return text
+
+
+def doppler_kind_check(seq: Sequence, gt_poses: np.ndarray | None, max_frames: int = 100,
+                       min_speed_mps: float = 1.0) -> KindCheck:
+    """Measure whether the Doppler is raw radial or ego-compensated (``KindCheck``) on up to
+    ``max_frames`` frames moving faster than ``min_speed_mps``. ``gt_poses``: T_world_sensor at
+    the scan stamps (NaN where a frame has none; None: no ground truth)."""
+    declared = seq.sensor.doppler_kind
+    if gt_poses is None:
+        return KindCheck(declared, 0, np.nan, np.nan, "not checked (no ground truth)")
+    v_gt = gt_velocities(seq.stamps, gt_poses)
+    idx = np.unique(np.linspace(0, len(seq) - 1, min(max_frames, len(seq))).astype(int))
+    fits_radial = fits_zero = total = frames = 0
+    for i in idx:
+        v = v_gt[i]
+        speed = float(np.linalg.norm(v))
+        if not np.isfinite(speed) or speed < min_speed_mps:
+            continue
+        scan: Scan = seq[int(i)]
+        if scan.doppler is None:
+            return KindCheck(declared, 0, np.nan, np.nan, "not checked (no Doppler)")
+        r = np.linalg.norm(scan.points, axis=1)
+        ok = r > 0.5
+        predicted = -(scan.points[ok] / r[ok, None]) @ v
+        tol = max(KIND_TOLERANCE_MPS, KIND_TOLERANCE_SHARE * speed)
+        telling = np.abs(predicted) > 3 * tol  # the two hypotheses differ clearly here
+        if telling.sum() < 10:
+            continue
+        d = scan.doppler[ok][telling]
+        p = predicted[telling]
+        fits_radial += int(((np.abs(d - p) <= tol) | (np.abs(d + p) <= tol)).sum())
+        fits_zero += int((np.abs(d) <= tol).sum())
+        total += len(d)
+        frames += 1
+    if total == 0:
+        return KindCheck(declared, 0, np.nan, np.nan, "inconclusive (no moving frames)")
+    radial, zero = fits_radial / total, fits_zero / total
+    measured = ("ego-compensated" if zero >= 0.5 and zero > 2 * radial else
+                "radial" if radial >= 0.5 and radial > 2 * zero else "inconclusive")
+    return KindCheck(declared, frames, radial, zero, measured)

@@ -10,7 +10,12 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from loaders.doppler_check import doppler_sign_check, low_points_median_z
+from loaders.doppler_check import (
+    SignCheck,
+    doppler_kind_check,
+    doppler_sign_check,
+    low_points_median_z,
+)
 from loaders.errors import DataError
 from loaders.fileio import atomic_path
 from loaders.gt import gt_for_frames
@@ -47,9 +52,16 @@ def inspect_path(path: Path, period_s: float | None, console: Console,
     console.print(table)
     for finding in report["gt_findings"]:
         console.print(f"  [yellow]GT:[/] {finding}", highlight=False)
+    kind = report["kind"]
+    if kind is not None:
+        bad = kind.measured == "ego-compensated" or kind.disagrees
+        style = "yellow" if bad or kind.measured != "radial" else "green"
+        console.print(f"[{style}]{escape(kind.describe())}[/]", highlight=False)
     style = "green" if report["sign"].verdict == "confirmed" else "yellow"
     console.print(f"[{style}]{report['sign'].describe()}[/]", highlight=False)
-    if seq.ground_truth is not None and len(seq) and seq[0].doppler is not None:
+    compensated = kind is not None and kind.measured == "ego-compensated"
+    if seq.ground_truth is not None and len(seq) and seq[0].doppler is not None \
+            and not compensated:  # compensated Doppler carries no ego velocity to compare
         from bench.data.calibration import rotation_check
 
         cal, warning = rotation_check(seq)
@@ -102,8 +114,17 @@ def inspect_sequence(seq: Sequence) -> dict:
         z = low_points_median_z(seq)
         rows.append(("height check", f"densest layer at z = {z['dominant_layer_z_m']:+.2f} m: "
                                      f"{z['verdict']}"))
-    sign = doppler_sign_check(seq, gt_poses)
-    return {"rows": rows, "gt_findings": gt_findings, "sign": sign, "counts": counts}
+    kind = None
+    if len(seq) and seq[0].doppler is not None:
+        rows.append(("Doppler kind", f"{seq.sensor.doppler_kind} (declared by the loader)"))
+        kind = doppler_kind_check(seq, gt_poses)
+    if kind is not None and kind.measured == "ego-compensated":
+        # the sign and speed of compensated values say nothing about the convention
+        sign = SignCheck(0, np.nan, np.nan, "not checked (the Doppler is ego-compensated)")
+    else:
+        sign = doppler_sign_check(seq, gt_poses)
+    return {"rows": rows, "gt_findings": gt_findings, "sign": sign, "kind": kind,
+            "counts": counts}
 
 
 def plot_speed(sequence: Sequence, path: str | Path) -> Path:

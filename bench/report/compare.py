@@ -41,8 +41,9 @@ def _frame(path: Path) -> pd.DataFrame:
                                 "metrics.json of a run with ground truth found)")
     df["label"] = df["label"].fillna("")
     seeds = [_seed(s) for s in df["seed"]]
-    df["run"] = [run_label(m, s, lab or None)
-                 for m, s, lab in zip(df["method"], seeds, df["label"], strict=True)]
+    df["run"] = [run_label(m, s, lab or None, kind)
+                 for m, s, lab, kind in zip(df["method"], seeds, df["label"], df["doppler_kind"],
+                                            strict=True)]
     df["seed"] = [seed_tag(m, s) for m, s in zip(df["method"], seeds, strict=True)]
     return df
 

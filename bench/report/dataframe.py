@@ -9,7 +9,8 @@ import pandas as pd
 
 from bench.runs.folders import load_runs
 
-COLUMNS = ["sequence", "display_name", "sensor_class", "method", "label", "seed", "length_m",
+COLUMNS = ["sequence", "display_name", "sensor_class", "doppler_kind", "method", "label", "seed",
+           "length_m",
            "rot_deg_mean", "trans_m_mean", "rot_deg_median", "trans_m_median", "segments",
            "ape_trans_m", "ape_rot_deg", "time_ms_mean", "time_ms_median", "diverged",
            "frames", "run_dir"]
@@ -21,7 +22,8 @@ def load_results(results_dir: str | Path) -> pd.DataFrame:
     rows = []
     for run in load_runs(Path(results_dir)):
         base = {"sequence": run.sequence, "display_name": run.display_name,
-                "sensor_class": run.sensor_class, "method": run.method, "label": run.label,
+                "sensor_class": run.sensor_class, "doppler_kind": run.doppler_kind,
+                "method": run.method, "label": run.label,
                 "seed": run.seed, "ape_trans_m": run.ape.get("trans_rmse_m"),
                 "ape_rot_deg": run.ape.get("rot_rmse_deg"),
                 "time_ms_mean": run.time_ms.get("mean"),

@@ -164,7 +164,7 @@ def save(fig, path_stem: Path) -> list[Path]:
 
 def run_name(run) -> str:
     """A run's legend name (a ``bench.runs.folders.RunRecord``), as its table row."""
-    return run_label(run.method, run.seed, run.label)
+    return run_label(run.method, run.seed, run.label, getattr(run, "doppler_kind", None))
 
 
 def run_order(run) -> tuple:

@@ -1,5 +1,6 @@
 """How methods and runs are named in every table and figure: one display name per method, the
-paper's row order, and the seed tag that says which motion prior a run used.
+paper's row order, the seed tag that says which motion prior a run used, and the GT-assisted
+mark of a run whose store's Doppler was rebuilt from the ground truth (``run_label``).
 
 A method that is not listed shows its registry name.
 """
@@ -43,6 +44,25 @@ SEED_NOTE = ("With Seed: each step starts from the previous step's motion (const
              "that takes none.")
 
 
+#: the mark of a run made from a store whose Doppler was reconstructed from the ground truth's
+#: ego motion (``SensorInfo.doppler_kind == "gt-reconstructed"``, recorded in the run's config)
+GT_ASSISTED = "GT-assisted"
+GT_ASSISTED_NOTE = ("GT-ASSISTED: rows marked [GT-assisted] ran on Doppler reconstructed from "
+                    "the ground truth's ego motion (the dataset released ego-compensated "
+                    "velocities); they are not independent of the ground truth they are scored "
+                    "against. ")
+
+
+def is_gt_assisted(doppler_kind: str | None) -> bool:
+    """A store's Doppler kind that makes every result from it GT-assisted."""
+    return doppler_kind == "gt-reconstructed"
+
+
+def gt_assisted_note(labels) -> str:
+    """A caption's first words when any row label shown carries the GT-assisted mark."""
+    return GT_ASSISTED_NOTE if any(f"[{GT_ASSISTED}]" in label for label in labels) else ""
+
+
 def synthetic_note(sequence_names) -> str:
     """A caption's first words when any sequence shown is synthetic (its display name carries
     loaders.sensor_classes.SYNTHETIC_MARK), else ""."""
@@ -74,10 +94,13 @@ def seed_tag(method: str, seed: bool | None) -> str:
     return "With Seed, own model" if own else "With Seed"
 
 
-def run_label(method: str, seed: bool | None, label: str | None = None) -> str:
+def run_label(method: str, seed: bool | None, label: str | None = None,
+              doppler_kind: str | None = None) -> str:
     """A run's row / legend name, e.g. "(With Seed) DICP"; a labelled variant shows its label
-    after the tag."""
-    return f"({seed_tag(method, seed)}) {label or display_name(method)}"
+    after the tag; a run on a store whose Doppler was reconstructed from the ground truth
+    (``doppler_kind`` "gt-reconstructed") ends with "[GT-assisted]"."""
+    text = f"({seed_tag(method, seed)}) {label or display_name(method)}"
+    return f"{text} [{GT_ASSISTED}]" if is_gt_assisted(doppler_kind) else text
 
 
 def order_key(method: str) -> int:

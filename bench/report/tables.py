@@ -14,7 +14,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.report.cells import md_mark, ranks, save_formats, tex_escape, tex_mark
-from bench.report.names import SEED_NOTE, order_key, run_label, sequence_key, synthetic_note
+from bench.report.names import (
+    SEED_NOTE,
+    gt_assisted_note,
+    order_key,
+    run_label,
+    sequence_key,
+    synthetic_note,
+)
 from bench.runs.folders import load_runs
 from loaders.sensor_classes import class_rank
 
@@ -58,7 +65,7 @@ def collect_rows(results_dir: Path, only: set[Path] | None = None
         rows.append(Row(
             sensor_class=run.sensor_class, sequence=run.display_name,
             method=run.method, seed=run.seed,
-            label=run_label(run.method, run.seed, run.label),
+            label=run_label(run.method, run.seed, run.label, run.doppler_kind),
             rot={k: _value(v["rot_deg_mean"]) if v["n"] else math.nan for k, v in rel.items()},
             trans={k: _value(v["trans_m_mean"]) if v["n"] else math.nan for k, v in rel.items()},
             time_ms=_value(run.time_ms.get("mean")),
@@ -138,7 +145,7 @@ def to_markdown(rows: list[Row], lengths: list[str]) -> str:
         seq = r.sequence if (r.sensor_class, r.sequence) != prev else ""
         prev = (r.sensor_class, r.sequence)
         lines.append("| " + " | ".join([klass, seq, r.label, *cells]) + " |")
-    caption = (synthetic_note(r.sequence for r in rows) +
+    caption = (synthetic_note(r.sequence for r in rows) + gt_assisted_note(r.label for r in rows) +
                "Each cell: mean rotation [deg] / translation [m] relative error per segment "
                "length. " + TIME_NOTE + " Best per sequence in bold, second underlined; Div. = "
                "diverged. " + SEED_NOTE)
@@ -188,7 +195,8 @@ FORMATS = {"md": to_markdown, "tex": to_latex, "csv": to_csv}
 
 def is_variant(row: Row) -> bool:
     """A labelled variant of a method (an experiment entry with its own ``label:``)."""
-    return row.label != run_label(row.method, row.seed)
+    return row.label not in (run_label(row.method, row.seed),
+                             run_label(row.method, row.seed, doppler_kind="gt-reconstructed"))
 
 
 def select_rows(results_dir: Path | list[Path], only: set[Path] | None = None,

@@ -17,6 +17,7 @@ from pathlib import Path
 from bench.report.cells import md_mark, save_formats, tex_escape, tex_mark
 from bench.report.names import (
     SEED_NOTE,
+    gt_assisted_note,
     order_key,
     run_label,
     sequence_key,
@@ -50,7 +51,7 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
         title = r.display_name
         names[r.sequence] = title
         key = (order_key(r.method), r.method, r.label or "", r.seed is False,
-               run_label(r.method, r.seed, r.label))
+               run_label(r.method, r.seed, r.label, r.doppler_kind))
         ape_m = r.ape.get("trans_rmse_m")
         cells.setdefault(key, {})[title] = ApeCell(
             math.nan if ape_m is None else float(ape_m), bool(r.diverged))
@@ -96,7 +97,8 @@ def to_markdown(table: ApeTable, caption: str = "") -> str:
             _cell_text(table, ranks, i, col, mark) for col in table.sequences) + " |")
     caption = (caption or "Absolute pose error [m] (translation RMSE after SE(3) alignment, as "
                "evo). Best per sequence in bold, second underlined; Div. = diverged.")
-    caption = synthetic_note(table.sequences) + caption + " " + SEED_NOTE
+    caption = (synthetic_note(table.sequences) + gt_assisted_note(label for label, _ in table.rows)
+               + caption + " " + SEED_NOTE)
     return "\n".join(lines) + "\n\n" + caption + "\n"
 
 

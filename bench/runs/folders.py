@@ -131,6 +131,12 @@ class RunRecord:
         return (self.config.get("sequence") or {}).get("sensor_class") or "4D sensor"
 
     @property
+    def doppler_kind(self) -> str:
+        """The store's Doppler kind when the run was made (runs before it was recorded:
+        radial)."""
+        return (self.config.get("sequence") or {}).get("doppler_kind") or "radial"
+
+    @property
     def method(self) -> str:
         return self.metrics["method"]
 

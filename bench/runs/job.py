@@ -139,7 +139,9 @@ def prepare(job: Job) -> Prepared:
                          "store": str(job.store), "frames": len(seq),
                          "frame_range": list(job.frame_range) if job.frame_range else None,
                          "sensor_kind": seq.sensor.kind, "sensor_model": seq.sensor.model,
-                         "period_s": seq.sensor.period_s},
+                         "period_s": seq.sensor.period_s,
+                         # gt-reconstructed: every table / figure row is marked GT-assisted
+                         "doppler_kind": seq.sensor.doppler_kind},
             "method": {"name": job.method, "description": cls.description,
                        "uses_initial_guess": cls.uses_initial_guess},
             "label": job.label,
