@@ -147,7 +147,7 @@ def prepare(job: Job) -> Prepared:
             "lengths_m": list(job.lengths_m),
         }
         try:
-            method = make_method(job.method, job.params, seq.sensor)
+            method = make_method(job.method, job.params, seq.sensor, job.seed)
         except (ValidationError, ValueError, TypeError) as err:
             error = _method_error(job, err)
             error.run_dir, error.config = run_dir, config  # type: ignore[attr-defined]
