@@ -171,3 +171,22 @@ def test_calibrated_store_scores_only_the_frames_not_used(loop, tmp_path):
 
     config = yaml.safe_load((tmp_path / "run" / "config.yaml").read_text())
     assert "GT calibrated on frames 0-74, not scored" in config["sequence"]["display_name"]
+
+
+def test_calibration_frames_are_excluded_by_index_whatever_the_gt_rate(loop, tmp_path):
+    """GT at its own rate (not at the scan stamps) must not let the calibration frames back
+    into the score: exclusion is by frame index."""
+    from bench.api import run_method
+    from loaders.trajectory import Trajectory
+
+    short = MemorySequence("s", loop.sensor, [loop[i] for i in range(60)], None, {})
+    gt = loop.ground_truth
+    # GT resampled half-way between the scans: no GT stamp equals a scan stamp
+    mid = (gt.stamps[:-1] + gt.stamps[1:]) / 2
+    poses = np.array([gt.poses[i] for i in range(len(mid))])
+    short.ground_truth = Trajectory(mid, poses)
+    fixed = CorrectedSequence(short, np.eye(3), (0, 20), {})
+    store = write_store(fixed, tmp_path / "fixed.h5")
+    metrics = run_method("icp-p2p", store, out=tmp_path / "run")
+    assert metrics["frames"] == 60
+    assert metrics["frames_scored"] <= 40  # frames 0-19 never scored

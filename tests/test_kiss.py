@@ -146,10 +146,9 @@ def test_the_range_comes_from_the_data_and_keeps_whole_scans(monkeypatch):
     100 m: on the real Eagle frames a third of a scan lies beyond 100 m."""
     from kiss_icp.kiss_icp import KissICP
 
+    from conftest import real_sample_store
     from loaders.store import StoreSequence
     from methods.kiss import data_range_m
-
-    from conftest import real_sample_store
 
     seq = StoreSequence(real_sample_store())
     first = seq[0]
