@@ -134,6 +134,13 @@ class Odometry(ABC):
         run; the resolved parameters are what a run records. Default: nothing to resolve."""
         return self
 
+    def for_seed(self, seed: bool | None) -> Odometry:
+        """This method with the defaults that are valid for the seed option: a value that
+        needs the motion prior (e.g. a correspondence gate shorter than a frame's motion) is
+        replaced for a no-seed run. Called before ``configured_for``; parameters set
+        explicitly are kept. Default: nothing depends on the seed."""
+        return self
+
     @abstractmethod
     def run(
         self, sequence: Sequence, seed: bool, on_frame: Callable[[int], None] | None = None

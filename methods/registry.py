@@ -65,12 +65,15 @@ def get_method(name: str) -> type[Odometry]:
 
 
 def make_method(name: str, params: dict | None = None,
-                sensor: SensorInfo | None = None) -> Odometry:
-    """An instance of method ``name`` with ``params`` validated by its pydantic model, and,
-    given the ``sensor``, its sensor-dependent parameters resolved (``configured_for``)."""
+                sensor: SensorInfo | None = None, seed: bool | None = True) -> Odometry:
+    """An instance of method ``name`` with ``params`` validated by its pydantic model, its
+    defaults for the seed option (``for_seed``: a no-seed run gets defaults valid without a
+    motion prior) and, given the ``sensor``, its sensor-dependent parameters resolved
+    (``configured_for``)."""
     cls = get_method(name)
     Params = getattr(cls, "Params", None)
     method = cls() if Params is None else cls(Params.model_validate(params or {}))
+    method = method.for_seed(seed)
     return method.configured_for(sensor) if sensor is not None else method
 
 

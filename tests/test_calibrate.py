@@ -87,16 +87,63 @@ def test_bench_inspect_warns_and_plots_the_doppler_speed(loop, tmp_path):
 
 
 def test_hand_eye_alignment_recovers_the_rotation_without_doppler(loop):
-    """KISS-ICP's trajectory (no Doppler) against the GT over the same frames: the same
-    rotation as the Doppler estimate, within a tenth of a degree on this drive."""
+    """KISS-ICP's trajectory (no Doppler) against the GT over the same frames: roll and pitch
+    from the turn axes, yaw from the displacement directions, each within its stated (block
+    bootstrap) uncertainty of the truth."""
     from bench.data.hand_eye import hand_eye_on
 
     seq = MemorySequence("loop", loop.sensor, list(loop), loop.ground_truth)
     he = hand_eye_on(rotated_gt(seq), bootstrap=30)
-    assert all(he.observable.values())  # displacements fix pitch and yaw, the turns roll
+    assert he.source == {"roll": "turn axes", "pitch": "turn axes",
+                         "yaw": "displacement directions"}
     for ax, truth in (("roll", ROLL), ("pitch", PITCH), ("yaw", YAW)):
-        assert he.angles_deg[ax] == pytest.approx(truth, abs=0.15), (ax, he.angles_deg)
-    assert all(0 < s < 0.15 for s in he.std_deg.values())
+        assert abs(he.angles_deg[ax] - truth) <= 3 * he.std_deg[ax] + 0.05, (ax, he)
+        assert abs(he.angles_deg[ax] - truth) < 0.3, (ax, he.angles_deg)
+    assert all(0 < s < 0.3 for s in he.std_deg.values())
+
+
+def test_hand_eye_ignores_a_drifting_odometry_and_its_spread_covers_it():
+    """An odometry that climbs slowly (a vertical translation drift, as on a near-planar
+    drive) tilts every displacement direction; the turn axes are untouched, so pitch stays
+    right, and the two estimates' disagreement is reported, not hidden."""
+    from bench.data.hand_eye import hand_eye_rotation
+    from loaders.se3 import exp_se3
+
+    rng = np.random.default_rng(0)
+    period, n = 0.1, 600
+    twists = [np.array([10.0, 0, 0, 0, 0, 0.3 * np.sin(k / 40)]) for k in range(n)]
+    gt = [np.eye(4)]
+    for xi in twists[1:]:
+        gt.append(gt[-1] @ exp_se3(xi * period))
+    gt = np.array(gt)
+    R = Rotation.from_euler("ZYX", [YAW, PITCH, ROLL], degrees=True).as_matrix()
+    T = np.eye(4)
+    T[:3, :3] = R
+    est = np.linalg.inv(T) @ gt @ T  # the odometry in the sensor frame: exact, then ...
+    drift = np.eye(4)
+    for k in range(n):  # ... climbing 3 cm a metre and a little noise in rotation
+        drift = drift @ exp_se3(np.r_[0, 0, 0.03, rng.normal(0, 2e-4, 3)])
+        est[k] = est[k] @ drift if k else est[k]
+    he = hand_eye_rotation(gt, est, period, bootstrap=50)
+    assert he.source["pitch"] == "turn axes" and he.source["roll"] == "turn axes"
+    assert he.angles_deg["pitch"] == pytest.approx(PITCH, abs=0.3)
+    assert abs(he.angles_deg["pitch"] - PITCH) <= 3 * he.std_deg["pitch"] + 0.05
+
+
+def test_calibrate_says_when_the_estimates_disagree():
+    from types import SimpleNamespace
+
+    from bench.data.calibrate import disagreements
+    from bench.data.hand_eye import HandEyeResult
+
+    angles = {"roll": 0.0, "pitch": -1.7, "yaw": 0.0}
+    cal = SimpleNamespace(angles_deg=angles, std_deg=dict.fromkeys(angles, 0.1),
+                          not_observable=[])
+    he = HandEyeResult(np.eye(3), {**angles, "pitch": -4.05}, dict.fromkeys(angles, 0.05),
+                       dict.fromkeys(angles, True), 40, "kiss-icp")
+    assert [d.split()[0] for d in disagreements(he, cal)] == ["pitch"]
+    he.std_deg["pitch"] = 1.0  # an uncertainty that covers the gap: no disagreement
+    assert disagreements(he, cal) == []
 
 
 def test_calibrated_store_scores_only_the_frames_not_used(loop, tmp_path):
@@ -124,3 +171,22 @@ def test_calibrated_store_scores_only_the_frames_not_used(loop, tmp_path):
 
     config = yaml.safe_load((tmp_path / "run" / "config.yaml").read_text())
     assert "GT calibrated on frames 0-74, not scored" in config["sequence"]["display_name"]
+
+
+def test_calibration_frames_are_excluded_by_index_whatever_the_gt_rate(loop, tmp_path):
+    """GT at its own rate (not at the scan stamps) must not let the calibration frames back
+    into the score: exclusion is by frame index."""
+    from bench.api import run_method
+    from loaders.trajectory import Trajectory
+
+    short = MemorySequence("s", loop.sensor, [loop[i] for i in range(60)], None, {})
+    gt = loop.ground_truth
+    # GT resampled half-way between the scans: no GT stamp equals a scan stamp
+    mid = (gt.stamps[:-1] + gt.stamps[1:]) / 2
+    poses = np.array([gt.poses[i] for i in range(len(mid))])
+    short.ground_truth = Trajectory(mid, poses)
+    fixed = CorrectedSequence(short, np.eye(3), (0, 20), {})
+    store = write_store(fixed, tmp_path / "fixed.h5")
+    metrics = run_method("icp-p2p", store, out=tmp_path / "run")
+    assert metrics["frames"] == 60
+    assert metrics["frames_scored"] <= 40  # frames 0-19 never scored

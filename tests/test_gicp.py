@@ -197,3 +197,40 @@ def test_vgicp_converges_on_a_sparse_lidar_pair_in_a_few_iterations():
 
 def subset(scan: Scan, n: int, seed: int) -> Scan:
     return scan.select(np.sort(np.random.default_rng(seed).choice(len(scan), n, replace=False)))
+
+
+def test_compiled_plane_step_equals_the_numpy_system():
+    """The compiled normal equations (the iterations' inner step) against the NumPy system on
+    random pairs, unpaired rows skipped."""
+    from methods import plane_kernel
+    from methods.gicp import point_to_plane_system
+
+    rng = np.random.default_rng(3)
+    moved, target = rng.normal(size=(500, 3)) * 10, rng.normal(size=(400, 3)) * 10
+    normals = rng.normal(size=(400, 3))
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    idx = rng.integers(-1, 400, 500)
+    H, b, pairs = plane_kernel.normal_equations(moved, idx, target, normals)
+    keep = idx >= 0
+    H_np, b_np = point_to_plane_system(moved[keep], target[idx[keep]], normals[idx[keep]])
+    assert pairs == keep.sum()
+    np.testing.assert_allclose(H, H_np, rtol=1e-10, atol=1e-8)
+    np.testing.assert_allclose(b, b_np, rtol=1e-10, atol=1e-8)
+    T = exp_se3(np.array([0.3, -0.2, 0.1, 0.02, -0.01, 0.03]))
+    np.testing.assert_allclose(plane_kernel.transform(T, moved), transform_points(T, moved),
+                               atol=1e-12)
+
+
+@pytest.mark.parametrize("method", ["icp-p2plane", "gicp"])
+def test_no_seed_runs_get_a_gate_valid_without_the_motion_prior(method):
+    """The 0.5 m LiDAR gate needs the seed (a frame's motion is often longer): a no-seed run
+    takes 1.0 m (point-to-plane) or 2.0 m (GICP); an explicit gate is kept either way; radar
+    and VGICP do not change."""
+    seeded = make_method(method, {}, LIDAR, seed=True)
+    unseeded = make_method(method, {}, LIDAR, seed=False)
+    assert seeded.params.max_correspondence_m == 0.5
+    assert unseeded.params.max_correspondence_m == {"icp-p2plane": 1.0, "gicp": 2.0}[method]
+    assert make_method(method, {"max_correspondence_m": 0.7}, LIDAR, seed=False) \
+        .params.max_correspondence_m == 0.7
+    assert make_method(method, {}, RADAR, seed=False).params.max_correspondence_m == 3.0
+    assert make_method("vgicp", {}, LIDAR, seed=False).params.max_correspondence_m == 1.0

@@ -43,7 +43,7 @@ def _sequence(n_frames=12, twist=(8.0, 0.0, 0.0, 0.0, 0.0, 0.05), dt=0.1, times=
 def test_noise_free_sequence_is_recovered():
     seq = _sequence()
     method = make_method("kiss-icp", {}, seq.sensor)
-    assert method.params.voxel_size_m == 1.0  # max_range / 100, set explicitly
+    assert method.params.voxel_size_m == 1.0  # kiss-icp's rule at its default 100 m range
     result = method.run(seq, seed=True)
     E = inv_T(seq.ground_truth.poses[-1]) @ result.poses[-1]
     assert np.linalg.norm(E[:3, 3]) < 1e-3 and rotation_angle_deg(E[:3, :3]) < 0.05, E
@@ -102,7 +102,9 @@ def test_poses_are_kiss_icps_own_and_only_registration_is_timed():
     seq = _sequence(n_frames=4)
     method = KissIcp().configured_for(seq.sensor)
     result = method.run(seq, seed=True)
-    plain = KissICP(config=method._kiss(False).config)
+    from methods.kiss import data_range_m
+
+    plain = KissICP(config=method._kiss(False, data_range_m(seq[0])).config)
     for i, scan in enumerate(seq):
         plain.register_frame(np.ascontiguousarray(scan.points), np.empty(0))
         np.testing.assert_array_equal(result.poses[i], plain.last_pose)
@@ -137,3 +139,35 @@ def test_a_later_scan_without_times_is_refused_when_deskewing():
                          timeout=120)
     assert out.returncode == 0, out.stderr[-2000:]
     assert "REFUSED frame 2" in out.stdout and "lacks" in out.stdout
+
+
+def test_the_range_comes_from_the_data_and_keeps_whole_scans(monkeypatch):
+    """kiss-icp's crop takes the first scan's farthest point (rounded up to 10 m), not a fixed
+    100 m: on the real Eagle frames a third of a scan lies beyond 100 m."""
+    from kiss_icp.kiss_icp import KissICP
+
+    from conftest import real_sample_store
+    from loaders.store import StoreSequence
+    from methods.kiss import data_range_m
+
+    seq = StoreSequence(real_sample_store())
+    first = seq[0]
+    far = np.linalg.norm(first.points, axis=1).max()
+    assert (np.linalg.norm(first.points, axis=1) > 100).mean() > 0.2  # what 100 m dropped
+    assert far < data_range_m(first) <= far + 10 and data_range_m(first) % 10 == 0
+    seen = []
+    original = KissICP.__init__
+
+    def spy(self, config):
+        seen.append(config.data.max_range)
+        original(self, config)
+
+    monkeypatch.setattr(KissICP, "__init__", spy)
+    from loaders.scan import MemorySequence
+
+    pair = MemorySequence(seq.name, seq.sensor, [seq[0], seq[1]], None)
+    make_method("kiss-icp", {}, seq.sensor).run(pair, seed=True)
+    assert seen == [data_range_m(first)]
+    seen.clear()
+    make_method("kiss-icp", {"max_range_m": 50.0}, seq.sensor).run(pair, seed=True)
+    assert seen == [50.0]  # an explicit range is used as given

@@ -50,16 +50,45 @@ def format_result(cal: CalibrationResult) -> list[str]:
     return lines
 
 
+#: two estimates disagree when they differ by more than this many combined standard deviations
+DISAGREE_SIGMAS = 3.0
+
+
+def disagreements(he: HandEyeResult, cal: CalibrationResult) -> list[str]:
+    """The angles both estimates observe on which they differ by more than
+    ``DISAGREE_SIGMAS`` x their combined bootstrap standard deviation."""
+    out = []
+    for ax in ANGLES:
+        if not he.observable[ax] or ax in cal.not_observable:
+            continue
+        diff = he.angles_deg[ax] - cal.angles_deg[ax]
+        sigma = float(np.hypot(he.std_deg[ax], cal.std_deg[ax]))
+        if abs(diff) > DISAGREE_SIGMAS * sigma:
+            out.append(f"{ax} ({diff:+.2f} deg apart, combined +- {sigma:.2f})")
+    return out
+
+
 def format_hand_eye(he: HandEyeResult, cal: CalibrationResult) -> list[str]:
     lines = [f"hand-eye alignment of {he.odometry} (no Doppler): R_gt_sensor from "
-             f"{he.segments} segments:"]
+             f"{he.segments} segments (turn axes first, then displacement directions; +- is "
+             "a block bootstrap over 10 s of segments):"]
     for ax in ANGLES:
-        seen = "" if he.observable[ax] else "  (not observable)"
+        how = he.source.get(ax, "") if he.observable[ax] else "not observable"
         lines.append(f"  {ax:<5} {he.angles_deg[ax]:+8.3f} deg  +- {he.std_deg[ax]:.3f}"
                      f"   difference to Doppler {he.angles_deg[ax] - cal.angles_deg[ax]:+.3f} "
-                     f"deg{seen}")
+                     f"deg  ({how})")
     between = Rotation.from_matrix(he.R_gt_sensor @ cal.R_gt_sensor.T).magnitude()
     lines.append(f"  the two rotations differ by {np.degrees(between):.3f} deg in all")
+    apart = disagreements(he, cal)
+    if apart:
+        lines.append(
+            f"  DISAGREE beyond their stated uncertainties in {', '.join(apart)}: at least "
+            "one estimate is biased (Doppler: the GT's own velocity and the road plane; "
+            "hand-eye: the odometry's drift and the lever arm), so neither is exact; check "
+            "with `bench inspect` before applying one")
+    else:
+        lines.append(f"  the two agree within {DISAGREE_SIGMAS:g} x their combined "
+                     "uncertainty on every angle both observe")
     return lines
 
 

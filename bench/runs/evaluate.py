@@ -92,9 +92,12 @@ class Evaluation:
 
 
 def evaluate_run(ground_truth: Trajectory | None, result: OdometryResult,
-                 lengths_m=DEFAULT_LENGTHS_M, name: str = "ground truth") -> Evaluation:
+                 lengths_m=DEFAULT_LENGTHS_M, name: str = "ground truth",
+                 excluded: np.ndarray | None = None) -> Evaluation:
     """Score an odometry result against a sequence's ground truth (the one entry point the
-    job runner uses). Without ground truth only the timing is filled in."""
+    job runner uses). Without ground truth only the timing is filled in. ``excluded`` (bool
+    per frame): frames registered but never scored (those ``bench calibrate`` estimated on),
+    chosen by index whatever the GT's rate."""
     times = np.array([f.time_ms for f in result.frames], dtype=np.float64)
     timings = {key: timing_part(np.array([getattr(f, key) for f in result.frames],
                                          dtype=np.float64))
@@ -104,5 +107,7 @@ def evaluate_run(ground_truth: Trajectory | None, result: OdometryResult,
                                  **timings, "frames_scored": 0})
     stamps = np.asarray(result.stamps, dtype=np.float64)
     gt_poses, scored = gt_for_frames(ground_truth, stamps, name=name)
+    if excluded is not None:
+        scored = scored & ~np.asarray(excluded, dtype=bool)
     metrics = score(gt_poses, result.poses, times, lengths_m, scored, name, timings)
     return Evaluation(Trajectory(stamps[scored], gt_poses[scored]), metrics)

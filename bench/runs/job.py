@@ -30,7 +30,6 @@ from loaders.errors import DataError, validation_problems
 from loaders.scan import FrameRange, Sequence
 from loaders.sensor_classes import SYNTHETIC_MARK, is_synthetic, sensor_class
 from loaders.store import StoreSequence
-from loaders.trajectory import Trajectory
 from methods.base import Odometry, run_timed
 from methods.registry import get_method, make_method
 from metrics.relative import DEFAULT_LENGTHS_M
@@ -103,18 +102,15 @@ def sequence_labels(seq: Sequence, job: Job) -> tuple[str, str, str]:
     return name, display, klass
 
 
-def scored_ground_truth(seq: Sequence) -> Trajectory | None:
-    """The sequence's ground truth without the poses of the frames ``bench calibrate``
-    estimated the GT correction on (store frames [first, stop) in its provenance): those frames
-    are registered but not scored."""
-    gt = seq.ground_truth
+def calibration_frames(seq: Sequence) -> np.ndarray | None:
+    """Bool per frame of ``seq``: the store frames [first, stop) ``bench calibrate`` estimated
+    the GT correction on (its provenance), by index (a frame range maps to its store frames);
+    those frames are registered but not scored. None when the store was not calibrated."""
     frames = (seq.provenance.get("calibration") or {}).get("frames")
-    if gt is None or not frames:
-        return gt
-    store = seq.base if isinstance(seq, FrameRange) else seq
-    used = store.stamps[frames[0]:frames[1]]
-    keep = ~np.any(np.abs(gt.stamps[:, None] - used[None, :]) < 1e-6, axis=1)
-    return Trajectory(gt.stamps[keep], gt.poses[keep])
+    if not frames:
+        return None
+    index = seq.indices if isinstance(seq, FrameRange) else np.arange(len(seq))
+    return (index >= frames[0]) & (index < frames[1])
 
 
 def _method_error(job: Job, err: Exception) -> DataError:
@@ -149,7 +145,7 @@ def prepare(job: Job) -> Prepared:
             "lengths_m": list(job.lengths_m),
         }
         try:
-            method = make_method(job.method, job.params, seq.sensor)
+            method = make_method(job.method, job.params, seq.sensor, job.seed)
         except (ValidationError, ValueError, TypeError) as err:
             error = _method_error(job, err)
             error.run_dir, error.config = run_dir, config  # type: ignore[attr-defined]
@@ -192,8 +188,8 @@ def run_job(job: Job, force: bool = False,
             result = run_timed(prep.method, seq, bool(job.seed),
                                (lambda i: on_frame(i + 1, total)) if on_frame else None)
             warn_few_points(result, job)
-            evaluation = evaluate_run(scored_ground_truth(seq), result, job.lengths_m,
-                                      name=str(job.store))
+            evaluation = evaluate_run(seq.ground_truth, result, job.lengths_m,
+                                      name=str(job.store), excluded=calibration_frames(seq))
         notes = list(dict.fromkeys(str(w.message) for w in said))
         metrics = {"sequence": prep.config["sequence"]["name"], "method": job.method,
                    "seed": job.seed, "frames": len(seq), **evaluation.metrics,

@@ -9,13 +9,15 @@ import warnings
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
 from rich.console import Console
 
 from bench.data.synth import ensure_suite_with_progress
 from bench.runs.experiment import Experiment, SequenceEntry, expand_sequences
 from bench.runs.folders import RunRecord, read_run
-from bench.runs.job import Job, prepare, run_job, scored_ground_truth
+from bench.runs.job import Job, calibration_frames, prepare, run_job
 from loaders.errors import DataError
+from loaders.gt import gt_for_frames
 from methods.registry import seed_option
 
 
@@ -128,8 +130,15 @@ SEGMENT_TOLERANCE = 0.2
 
 def _gt_path_length(prep) -> float | None:
     """Length [m] of the scored ground truth's path (None without ground truth)."""
-    gt = scored_ground_truth(prep.sequence)
-    return None if gt is None or len(gt) < 2 else gt.path_length_m()
+    seq = prep.sequence
+    gt, excluded = seq.ground_truth, calibration_frames(seq)
+    if gt is None or len(gt) < 2:
+        return None
+    if excluded is None:
+        return gt.path_length_m()
+    poses, scored = gt_for_frames(gt, seq.stamps)
+    xyz = poses[scored & ~excluded][:, :3, 3]
+    return float(np.linalg.norm(np.diff(xyz, axis=0), axis=1).sum()) if len(xyz) > 1 else None
 
 
 def _lengths_problems(job: Job, path_m: float | None, warned: set[str]) -> list[str]:
