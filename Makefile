@@ -16,15 +16,26 @@ LOCK_VENV := .venv-lock
 
 .PHONY: install install-dev system-deps test lint reproduce-table figures speed lock clean
 
-# Open3D's wheel (a dev extra: the DICP cross-check) needs libusb-1.0 from the system; install
-# it with apt when it is missing and we may (root), else say what to run.
+# System packages the tests need, installed with apt when missing and we may (root), else we
+# say what to run: libusb-1.0 for Open3D's wheel (a dev extra: the DICP cross-check) and
+# Debian's chromium, in which the HTML report test opens `bench report`'s page (that test
+# fails without it).
+APT_INSTALL := apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq
 system-deps:
 	@if ! ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; then \
 	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
 	    echo "installing libusb-1.0-0 (needed by Open3D)"; \
-	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libusb-1.0-0 >/dev/null; \
+	    $(APT_INSTALL) libusb-1.0-0 >/dev/null; \
 	  else \
 	    echo "note: libusb-1.0 is missing; Open3D (DICP cross-check) needs it: sudo apt-get install libusb-1.0-0"; \
+	  fi; \
+	fi
+	@if ! command -v chromium >/dev/null && ! command -v chromium-browser >/dev/null; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo "installing chromium (the HTML report test opens the page in it)"; \
+	    $(APT_INSTALL) chromium >/dev/null; \
+	  else \
+	    echo "note: chromium is missing; the HTML report test needs it: sudo apt-get install chromium"; \
 	  fi; \
 	fi
 
