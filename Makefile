@@ -68,9 +68,15 @@ lint: $(DEV_STAMP)
 reproduce-table: $(RUNTIME_STAMP)
 	$(BENCH) reproduce
 
-# every paper figure of the reproduced tables (and of `make speed` when it has run)
+# every paper figure of the reproduced tables (and of `make speed` when it has run): of the
+# folder `make reproduce-table` wrote last (results/paper-real or results/paper-synthetic, by
+# its reproduction.json), then its results page
 figures: $(RUNTIME_STAMP)
-	$(BENCH) figures results/paper-synthetic
+	@dir=$$(ls -t results/paper-real/reproduction.json results/paper-synthetic/reproduction.json \
+	        2>/dev/null | head -n 1 | xargs -r dirname); \
+	if [ -z "$$dir" ]; then echo "no reproduced tables yet: run make reproduce-table first"; exit 2; fi; \
+	echo "figures of $$dir (the last reproduction)"; \
+	$(BENCH) figures "$$dir" && $(BENCH) report "$$dir"
 
 speed: $(RUNTIME_STAMP)
 	$(BENCH) speed

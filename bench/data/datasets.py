@@ -6,6 +6,7 @@ uses the stores that exist)."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
@@ -24,6 +25,19 @@ class FrameSelection(BaseModel):
     stride: int = Field(1, ge=1)
 
 
+class Expected(BaseModel):
+    """What a store of this sequence should look like (checked by ``bench reproduce``, which
+    warns when a store is far off): the sensor kind, the nominal scan period [s] and, where a
+    public figure gives it, the ground truth's path length [m]; ``source`` says where from."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    sensor_kind: Literal["radar", "lidar"] | None = None
+    period_s: float | None = Field(None, gt=0)
+    path_m: float | None = Field(None, gt=0)
+    source: str = ""
+
+
 class DatasetConfig(BaseModel):
     """One paper sequence. ``options`` are the loader's keyword arguments."""
 
@@ -40,6 +54,7 @@ class DatasetConfig(BaseModel):
     frame_range: FrameSelection = Field(default_factory=FrameSelection)
     store: str
     convert: str = ""  # the equivalent `bench convert` command line (documentation)
+    expected: Expected = Field(default_factory=Expected)
 
     @field_validator("loader")
     @classmethod
@@ -80,7 +95,8 @@ def read_dataset_config(name_or_path: str | Path) -> DatasetConfig:
         raise DataError(f"{path}: not valid YAML: {err}") from None
     except ValidationError as err:
         keys = {(): list(DatasetConfig.model_fields),
-                ("frame_range",): list(FrameSelection.model_fields)}
+                ("frame_range",): list(FrameSelection.model_fields),
+                ("expected",): list(Expected.model_fields)}
         problems = validation_problems(err, lambda loc: keys.get(tuple(loc)))
         raise DataError(f"{path}: invalid dataset config:\n  " + "\n  ".join(problems)) from None
 
