@@ -39,19 +39,30 @@ system-deps:
 	  fi; \
 	fi
 
+# pip install, quiet; its warning "typer ... does not provide the extra 'all'" is left out:
+# it comes from kiss-icp's requirement `typer[all]`, an extra that typer dropped in 0.12 when
+# plain typer came to include what it gave (rich, shellingham), so nothing is missing. Any other
+# output is shown, and a failing install shows everything and stops.
+PIP_LOG := $(VENV)/.pip-install.log
+define pip_install
+	@echo "pip install $(1)"
+	@$(PY) -m pip install --quiet $(1) > $(PIP_LOG) 2>&1 || { cat $(PIP_LOG); exit 1; }
+	@grep -v "does not provide the extra 'all'" $(PIP_LOG) || true
+endef
+
 $(PY):
 	$(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install --quiet --upgrade pip
 
 # the package and its runtime dependencies, pinned
 $(RUNTIME_STAMP): pyproject.toml $(RUNTIME_LOCK) | $(PY)
-	$(PY) -m pip install --quiet -c $(RUNTIME_LOCK) -e .
+	$(call pip_install,-c $(RUNTIME_LOCK) -e .)
 	touch $@
 
 # the package with its dev extras, pinned (dev.txt holds the runtime pins too, so the runtime
 # install is then complete as well)
 $(DEV_STAMP): pyproject.toml $(RUNTIME_LOCK) $(DEV_LOCK) | $(PY)
-	$(PY) -m pip install --quiet -c $(DEV_LOCK) -e ".[dev]"
+	$(call pip_install,-c $(DEV_LOCK) -e ".[dev]")
 	touch $(RUNTIME_STAMP) $@
 
 install: $(RUNTIME_STAMP)

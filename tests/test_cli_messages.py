@@ -156,3 +156,18 @@ def test_an_experiment_with_a_doppler_method_on_compensated_doppler_is_refused(
     code, out = _bench(["run", "--method", "icp-p2p", "--data", str(compensated), "--out",
                         str(tmp_path / "r")], capsys, monkeypatch)
     assert code == 0, out
+
+
+def test_ground_truth_hours_off_suggests_the_time_offset():
+    """GT stamped in UTC+8 against scans in UTC: the error names --time-offset -28800."""
+    from loaders.errors import DataError
+    from loaders.gt import associate
+
+    twist = constant_twist_sequence(n_frames=10, n_points=100)
+    gt = twist.ground_truth
+    late = type(gt)(gt.stamps + 1.7e9 + 8 * 3600 + 2.5, gt.poses)
+    with pytest.raises(DataError, match=r"try --time-offset -28800 \(the ground truth's clock "
+                                        r"is 8 h ahead of the scans'"):
+        associate(late, gt.stamps + 1.7e9)
+    with pytest.raises(DataError, match=r"try --time-offset -1000 \(this lines up"):
+        associate(type(gt)(gt.stamps + 1000, gt.poses), gt.stamps)
