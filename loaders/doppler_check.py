@@ -144,5 +144,5 @@ def low_points_median_z(sequence: Sequence, frames: int = 50, quantile: float = 
         "median_z_m": float(np.median(z)),
         "share_above_sensor": float((z > 0).mean()),
         "verdict": ("road below the sensor (sign looks right)" if layer < 0 else
-                    "densest layer above the sensor: check elevation_sign"),
+                    "densest layer above the sensor (the elevation looks mirrored)"),
     }
