@@ -65,6 +65,6 @@ def test_synthetic_only_with_a_real_store_says_it_ignores_it(data_dir):
     real, notes = _choose_data(data_dir, True, Console(file=buf, width=200))
     said = buf.getvalue()
     assert real == [] and notes == []
-    assert "--synthetic-only: using the synthetic suite 'synthetic-paper'" in said
+    assert "synthetic only (as asked): using the synthetic suite 'synthetic-paper'" in said
     assert "ignoring 1 real store(s)" in said and "Loop1_0" in said
     assert "no real stores" not in said

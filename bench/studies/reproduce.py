@@ -141,8 +141,8 @@ def _choose_data(data_dir: Path, synthetic_only: bool, console: Console
     if synthetic_only:
         extra = (f" (ignoring {len(found)} real store(s) under {real_dir}: "
                  f"{', '.join(s.name for s in found)})" if found else "")
-        console.print(f"--synthetic-only: using the synthetic suite 'synthetic-paper'{extra}",
-                      markup=False)
+        console.print(f"synthetic only (as asked): using the synthetic suite 'synthetic-paper'"
+                      f"{extra}", markup=False)
         return [], []
     if not found:
         console.print(f"no real stores under {real_dir} (the paper's sequences, "
