@@ -127,7 +127,8 @@ def offset_hint(gt_stamps: np.ndarray, scan_stamps: np.ndarray) -> str:
         why = f"the ground truth's clock is {abs(hours)} h {side} the scans'"
     else:
         offset, why = diff, "this lines up the first stamps"
-    return f"try --time-offset {offset:.10g} ({why}; gt_stamp + offset = sensor clock)"
+    return (f"set the time offset: try --time-offset {offset:.10g} ({why}; gt_stamp + offset "
+            "= sensor clock)")
 
 
 def associate(
