@@ -46,6 +46,9 @@ def results(tmp_path_factory):
     assert all(o.status == "done" for o in run_jobs(plan(jobs), executor="local"))
     write_failure(out / sequence_folder(EVIL) / "dicp_seed", None,
                   "DataError: <b>bold</b> problem in evil.h5")
+    meta = out / sequence_folder(EVIL) / "doppler" / "meta.json"
+    meta.write_text(json.dumps({**json.loads(meta.read_text()),
+                                "warnings": ["frame 4: 1 point(s) <to> register"]}))
     write_tables(out)
     make_figures(out)
     return out
@@ -84,6 +87,7 @@ def test_the_page_renders_every_table_and_figure_in_chromium(results, capsys, mo
     assert dom["scripts"] == 0 and dom["links"] == 0
     assert EVIL in dom["text"]  # the store's name shows as text
     assert "<b>bold</b> problem" in dom["text"] and "failed" in dom["text"]
+    assert "frame 4: 1 point(s) <to> register" in dom["text"]  # a run's warning, as text
 
 
 def test_the_page_loads_nothing_and_escapes_every_name(results):

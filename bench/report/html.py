@@ -358,6 +358,15 @@ def _problems_section(runs: list[PageRun], coverage: dict) -> str:
                      f"<tbody>{rows}</tbody></table>")
     else:
         parts.append("<p>Every run finished.</p>")
+    said: dict[str, list[str]] = {}
+    for r in runs:
+        for w in r.meta.get("warnings") or []:
+            said.setdefault(str(w), []).append(r.folder)
+    if said:
+        parts.append(f"<h3>Warnings while the runs ran ({len(said)})</h3><ul>" + "".join(
+            f"<li>{esc(w)} <span class=\"caption\">({len(where)} run(s): "
+            f"{esc(', '.join(where[:3]))}{', ...' if len(where) > 3 else ''})</span></li>"
+            for w, where in said.items()) + "</ul>")
     no_gt = [r for r in runs if r.status == "finished" and not r.has_gt]
     if no_gt:
         parts.append("<h3>Runs without ground truth (in no table)</h3><ul>" + "".join(
