@@ -10,7 +10,8 @@ import pytest
 
 from bench.cli import main
 from bench.report.figures import make_figures
-from bench.report.html import inline, markdown_html, render_page
+from bench.report.html import render_page
+from bench.report.html_markdown import inline, markdown_html
 from bench.report.tables import write_tables
 from bench.runs.folders import write_failure
 from bench.runs.job import Job, sequence_folder

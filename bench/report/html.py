@@ -12,23 +12,19 @@ Content-Security-Policy forbids any load but the embedded ``data:`` images. Ever
 comes from data or configuration (sequence, method and store names, labels, paths, messages) is
 HTML-escaped, so a store named ``<script>alert(1)</script>`` shows as that text.
 
-Run folders are read by one function, ``read_page_runs`` (the documented files of a run folder,
-README "Results layout"); everything else works on its ``PageRun`` records.
+Run folders are read by one function, ``bench.report.html_runs.read_page_runs`` (the documented
+files of a run folder); everything else works on its ``PageRun`` records.
 """
 
 from __future__ import annotations
 
 import base64
-import html
-import json
-import re
 from collections import Counter
-from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 
-import yaml
-
+from bench.report.html_markdown import esc, markdown_html
+from bench.report.html_runs import PageRun, read_json, read_page_runs
 from loaders.fileio import atomic_write_text
 
 #: the page's name inside the results folder
@@ -76,157 +72,6 @@ figure img{max-width:100%;height:auto;border:1px solid #eee}
 nav ul{columns:2}dl{display:grid;grid-template-columns:max-content auto;gap:2px 1em}
 dt{font-weight:600}dd{margin:0}
 """
-
-
-def esc(text) -> str:
-    """HTML-escaped text (quotes included): every string from data or configuration."""
-    return html.escape(str(text), quote=True)
-
-
-@dataclass(frozen=True)
-class PageRun:
-    """What the page shows of one run folder."""
-
-    folder: str                    # relative to the results folder
-    sequence: str                  # display name
-    run: str                       # the run folder's name (method, label, seed option)
-    status: str                    # finished, failed, crashed, timeout, interrupted, unfinished
-    message: str = ""
-    store: str | None = None
-    store_sha256: str | None = None
-    frames: int | None = None
-    has_gt: bool = False
-    diverged: bool | None = None
-    clock: str | None = None
-    threads: int | None = None
-    code_sha256: str | None = None
-    meta: dict = field(default_factory=dict)
-    mtime: float = 0.0
-
-
-def _read_json(path: Path) -> dict:
-    try:
-        return json.loads(path.read_text()) if path.exists() else {}
-    except (OSError, ValueError):
-        return {}
-
-
-def read_page_runs(results_dir: Path) -> list[PageRun]:
-    """Every run folder under ``results_dir`` (a folder holding ``config.yaml`` with a
-    ``run_key``, ``metrics.json`` or ``failed.json``): the page's one reader of run records."""
-    results_dir = Path(results_dir)
-    folders = sorted({p.parent for name in ("metrics.json", "failed.json", "config.yaml")
-                      for p in results_dir.rglob(name)})
-    runs = []
-    for d in folders:
-        config = {}
-        if (d / "config.yaml").exists():
-            try:
-                config = yaml.safe_load((d / "config.yaml").read_text()) or {}
-            except (OSError, yaml.YAMLError):
-                pass
-        config = config if isinstance(config, dict) else {}
-        metrics, failed = _read_json(d / "metrics.json"), _read_json(d / "failed.json")
-        if not (metrics or failed or "run_key" in config):
-            continue  # a config.yaml of something else (an experiment)
-        seq = config.get("sequence") or {}
-        identity = config.get("identity") or {}
-        if metrics:
-            status, message = "finished", ""
-        elif failed:
-            status, message = failed.get("status", "failed"), failed.get("error", "")
-        else:
-            status, message = "unfinished", "no metrics.json and no failed.json"
-        records = [d / n for n in ("metrics.json", "failed.json") if (d / n).exists()]
-        runs.append(PageRun(
-            folder=str(d.relative_to(results_dir)),
-            sequence=str(seq.get("display_name") or seq.get("name") or metrics.get("sequence")
-                         or d.parent.name),
-            run=d.name, status=status, message=str(message), store=seq.get("store"),
-            store_sha256=identity.get("store_sha256"),
-            frames=metrics.get("frames", seq.get("frames")),
-            has_gt=(d / "gt_tum.txt").exists(), diverged=metrics.get("diverged"),
-            clock=metrics.get("clock"), threads=metrics.get("threads"),
-            code_sha256=identity.get("code_sha256"), meta=_read_json(d / "meta.json"),
-            mtime=max((p.stat().st_mtime for p in records), default=0.0)))
-    return runs
-
-
-# ---------------------------------------------------------------- markdown -> HTML (tables)
-
-_BOLD = re.compile(r"\*\*(.+?)\*\*")
-_UNDER = re.compile(r"&lt;u&gt;(.+?)&lt;/u&gt;")
-_CODE = re.compile(r"`([^`]+)`")
-_NUMBER = re.compile(r"^[-+]?[\d.]+(e[-+]?\d+)?( / [-+]?[\d.]+(e[-+]?\d+)?)?( \[\d+ thr\.\])?$")
-
-
-def inline(text: str) -> str:
-    """One markdown cell or line as HTML: escaped first, then the harness's own marks (``**``
-    bold, ``<u>`` underline, backticks) turned into tags around the escaped text."""
-    out = esc(text)
-    out = _CODE.sub(r"<code>\1</code>", out)
-    out = _BOLD.sub(r"<strong>\1</strong>", out)
-    return _UNDER.sub(r"<u>\1</u>", out)
-
-
-def _split_row(line: str) -> list[str]:
-    body = line.strip()
-    body = body[1:] if body.startswith("|") else body
-    body = body[:-1] if body.endswith("|") else body
-    return [c.strip() for c in body.split(" | ")] if " | " in body or body else [""]
-
-
-def _is_rule(line: str) -> bool:
-    return bool(re.fullmatch(r"\|?(\s*:?-{3,}:?\s*\|)+\s*:?(-{3,}:?)?\s*\|?", line.strip()))
-
-
-def _plain(cell: str) -> str:
-    return re.sub(r"\*\*|</?u>", "", cell).strip()
-
-
-def _td(cell: str) -> str:
-    num = ' class="num"' if _NUMBER.match(_plain(cell)) else ""
-    return f"<td{num}>{inline(cell)}</td>"
-
-
-def markdown_html(text: str) -> tuple[str, int]:
-    """A markdown report (the harness's tables, captions, headings and lists) as HTML, and
-    the number of tables in it."""
-    lines, out, i, tables = text.splitlines(), [], 0, 0
-    while i < len(lines):
-        line = lines[i]
-        if line.startswith("|") and i + 1 < len(lines) and _is_rule(lines[i + 1]):
-            header = _split_row(line)
-            rows = []
-            i += 2
-            while i < len(lines) and lines[i].startswith("|"):
-                rows.append(_split_row(lines[i]))
-                i += 1
-            tables += 1
-            head = "".join(f"<th>{inline(c)}</th>" for c in header)
-            body = "".join("<tr>" + "".join(_td(c) for c in row) + "</tr>" for row in rows)
-            out.append(f'<div class="scroll"><table><thead><tr>{head}</tr></thead>'
-                       f"<tbody>{body}</tbody></table></div>")
-            continue
-        if line.startswith("#"):
-            level = min(len(line) - len(line.lstrip("#")) + 2, 5)
-            out.append(f"<h{level}>{inline(line.lstrip('#').strip())}</h{level}>")
-        elif line.lstrip().startswith(("- ", "* ")):
-            items = []
-            while i < len(lines) and lines[i].lstrip().startswith(("- ", "* ")):
-                items.append(f"<li>{inline(lines[i].lstrip()[2:])}</li>")
-                i += 1
-            out.append(f"<ul>{''.join(items)}</ul>")
-            continue
-        elif line.strip():
-            para = [line.strip()]
-            while i + 1 < len(lines) and lines[i + 1].strip() and not lines[i + 1].startswith(
-                    ("|", "#", "- ", "* ")):
-                i += 1
-                para.append(lines[i].strip())
-            out.append(f'<p class="caption">{inline(" ".join(para))}</p>')
-        i += 1
-    return "\n".join(out), tables
 
 
 # ---------------------------------------------------------------- sections
@@ -387,7 +232,7 @@ def render_page(results_dir: Path) -> tuple[str, dict]:
     results_dir = Path(results_dir)
     runs = read_page_runs(results_dir)
     newest = max((r.mtime for r in runs), default=0.0)
-    coverage = _read_json(results_dir / "reproduction.json")
+    coverage = read_json(results_dir / "reproduction.json")
     tables, n_tables = _tables_section(results_dir, newest)
     figures, n_figures = _figures_section(results_dir / "figures", newest)
     failed = sum(r.status != "finished" for r in runs)
