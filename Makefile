@@ -16,17 +16,39 @@ LOCK_VENV := .venv-lock
 
 .PHONY: install install-dev system-deps test lint reproduce-table figures speed lock clean
 
-# Open3D's wheel (a dev extra: the DICP cross-check) needs libusb-1.0 from the system; install
-# it with apt when it is missing and we may (root), else say what to run.
+# System packages the tests need, installed with apt when missing and we may (root), else we
+# say what to run: libusb-1.0 for Open3D's wheel (a dev extra: the DICP cross-check) and
+# Debian's chromium, in which the HTML report test opens `bench report`'s page (that test
+# fails without it).
+APT_INSTALL := apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq
 system-deps:
 	@if ! ldconfig -p 2>/dev/null | grep -q 'libusb-1.0.so.0'; then \
 	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
 	    echo "installing libusb-1.0-0 (needed by Open3D)"; \
-	    apt-get update -qq && DEBIAN_FRONTEND=noninteractive apt-get install -y -qq libusb-1.0-0 >/dev/null; \
+	    $(APT_INSTALL) libusb-1.0-0 >/dev/null; \
 	  else \
 	    echo "note: libusb-1.0 is missing; Open3D (DICP cross-check) needs it: sudo apt-get install libusb-1.0-0"; \
 	  fi; \
 	fi
+	@if ! command -v chromium >/dev/null && ! command -v chromium-browser >/dev/null; then \
+	  if [ "$$(id -u)" = 0 ] && command -v apt-get >/dev/null; then \
+	    echo "installing chromium (the HTML report test opens the page in it)"; \
+	    $(APT_INSTALL) chromium >/dev/null; \
+	  else \
+	    echo "note: chromium is missing; the HTML report test needs it: sudo apt-get install chromium"; \
+	  fi; \
+	fi
+
+# pip install, quiet; its warning "typer ... does not provide the extra 'all'" is left out:
+# it comes from kiss-icp's requirement `typer[all]`, an extra that typer dropped in 0.12 when
+# plain typer came to include what it gave (rich, shellingham), so nothing is missing. Any other
+# output is shown, and a failing install shows everything and stops.
+PIP_LOG := $(VENV)/.pip-install.log
+define pip_install
+	@echo "pip install $(1)"
+	@$(PY) -m pip install --quiet $(1) > $(PIP_LOG) 2>&1 || { cat $(PIP_LOG); exit 1; }
+	@grep -v "does not provide the extra 'all'" $(PIP_LOG) || true
+endef
 
 $(PY):
 	$(PYTHON) -m venv $(VENV)
@@ -34,13 +56,13 @@ $(PY):
 
 # the package and its runtime dependencies, pinned
 $(RUNTIME_STAMP): pyproject.toml $(RUNTIME_LOCK) | $(PY)
-	$(PY) -m pip install --quiet -c $(RUNTIME_LOCK) -e .
+	$(call pip_install,-c $(RUNTIME_LOCK) -e .)
 	touch $@
 
 # the package with its dev extras, pinned (dev.txt holds the runtime pins too, so the runtime
 # install is then complete as well)
 $(DEV_STAMP): pyproject.toml $(RUNTIME_LOCK) $(DEV_LOCK) | $(PY)
-	$(PY) -m pip install --quiet -c $(DEV_LOCK) -e ".[dev]"
+	$(call pip_install,-c $(DEV_LOCK) -e ".[dev]")
 	touch $(RUNTIME_STAMP) $@
 
 install: $(RUNTIME_STAMP)
@@ -57,9 +79,15 @@ lint: $(DEV_STAMP)
 reproduce-table: $(RUNTIME_STAMP)
 	$(BENCH) reproduce
 
-# every paper figure of the reproduced tables (and of `make speed` when it has run)
+# every paper figure of the reproduced tables (and of `make speed` when it has run): of the
+# folder `make reproduce-table` wrote last (results/paper-real or results/paper-synthetic, by
+# its reproduction.json), then its results page
 figures: $(RUNTIME_STAMP)
-	$(BENCH) figures results/paper-synthetic
+	@dir=$$(ls -t results/paper-real/reproduction.json results/paper-synthetic/reproduction.json \
+	        2>/dev/null | head -n 1 | xargs -r dirname); \
+	if [ -z "$$dir" ]; then echo "no reproduced tables yet: run make reproduce-table first"; exit 2; fi; \
+	echo "figures of $$dir (the last reproduction)"; \
+	$(BENCH) figures "$$dir" && $(BENCH) report "$$dir"
 
 speed: $(RUNTIME_STAMP)
 	$(BENCH) speed

@@ -243,6 +243,21 @@ def figures(
     raise typer.Exit(figures_command(console, results_dir, out, speed_csv, pair))
 
 
+@app.command(short_help="one HTML page of a results folder")
+def report(
+    results_dir: Annotated[Path, typer.Argument(help="results folder")],
+    out: Annotated[Path | None, typer.Option(help="page to write (default "
+                                             "RESULTS_DIR/report.html)")] = None,
+) -> None:
+    """One self-contained HTML page of a results folder: its tables (best bold, second
+    underlined), its figures embedded, the failed runs and missing data, and the provenance
+    (code version, store hashes, machine, how times were taken). Readable offline; it loads
+    nothing from the network."""
+    from bench.report.commands import report_command
+
+    raise typer.Exit(report_command(console, results_dir, out))
+
+
 @app.command(short_help="a rerun recording of a store and a run")
 def view(
     store: Annotated[Path, typer.Argument(help="store (.h5)")],
@@ -313,7 +328,8 @@ def reproduce(
 #: metavars where the option's name in capitals does not say enough
 METAVARS = {"param": "KEY=VALUE", "option": "KEY=VALUE", "experiment": "EXPERIMENT.yaml",
             "data": "STORE.h5", "store": "STORE.h5", "write": "STORE.h5", "pair": "STORE FRAME",
-            "path": "STORE_OR_FOLDER", "results_dirs": "RESULTS_DIR", "jobs": "N",
+            "path": "STORE_OR_FOLDER", "results_dirs": "RESULTS_DIR", "results_dir": "RESULTS_DIR",
+            "jobs": "N",
             "frames": "N", "start": "FRAME", "repeats": "N", "threads": "N", "stride": "K",
             "bootstrap": "N", "seed": "N", "period": "SECONDS", "job_timeout": "SECONDS",
             "lengths": "8,48,...", "methods": "METHOD,...", "sizes": "N,...",

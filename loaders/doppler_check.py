@@ -118,7 +118,8 @@ def doppler_sign_check(seq: Sequence, gt_poses: np.ndarray | None, max_frames: i
         # the direction agrees but the speed does not: a wrong scan period or GT clock (e.g.
         # 0.1 s GT rows taken as the stamps of a 12 Hz radar) scales every speed
         verdict = (f"confirmed in direction, but the Doppler speed is {ratio:.2f} x the GT "
-                   "speed: check the scan period (--period) and the GT clock")
+                   "speed: check the scan stamps (their period) and the GT clock, which "
+                   "scale every speed")
     return SignCheck(len(cosines), cos, ratio, verdict)
 
 
@@ -150,7 +151,7 @@ def low_points_median_z(sequence: Sequence, frames: int = 50, quantile: float = 
         "median_z_m": float(np.median(z)),
         "share_above_sensor": float((z > 0).mean()),
         "verdict": ("road below the sensor (sign looks right)" if layer < 0 else
-                    "densest layer above the sensor: check elevation_sign"),
+                    "densest layer above the sensor (the elevation looks mirrored)"),
     }
 
 

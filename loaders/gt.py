@@ -111,6 +111,26 @@ def time_span(values: np.ndarray) -> str:
     return f"[{values.min():.3f}, {values.max():.3f}] s" if len(values) else "[] s"
 
 
+#: a clock difference within this of a whole number of hours is taken for a time zone [s]
+TIME_ZONE_SLACK_S = 600.0
+
+
+def offset_hint(gt_stamps: np.ndarray, scan_stamps: np.ndarray) -> str:
+    """The time offset to try when ground truth and scans do not overlap (gt_stamp + offset =
+    sensor clock): a whole number of hours when the clocks differ by about that (a time zone,
+    e.g. GT in UTC+8: --time-offset -28800), else the offset that lines up the first stamps."""
+    diff = float(scan_stamps[0] - gt_stamps[0])
+    hours = round(diff / 3600.0)
+    if hours and abs(diff - hours * 3600.0) <= TIME_ZONE_SLACK_S:
+        side = "ahead of" if hours < 0 else "behind"
+        offset = hours * 3600.0
+        why = f"the ground truth's clock is {abs(hours)} h {side} the scans'"
+    else:
+        offset, why = diff, "this lines up the first stamps"
+    return (f"set the time offset: try --time-offset {offset:.10g} ({why}; gt_stamp + offset "
+            "= sensor clock)")
+
+
 def associate(
     gt: Trajectory,
     scan_stamps: np.ndarray,
@@ -180,8 +200,7 @@ def associate(
         raise DataError(
             f"ground truth {gt_file} does not overlap the scans of {scan_file}: GT spans "
             f"{time_span(gs)} (offset {offset_s:+.3f} s applied), the {n} scans span "
-            f"{time_span(q)}; "
-            "different clocks? set the time offset (gt_stamp + offset = sensor clock)"
+            f"{time_span(q)}; different clocks? {offset_hint(gs, q)}"
         )
     first, last = (int(i) for i in np.flatnonzero(covered)[[0, -1]])
     before, after = first, n - 1 - last

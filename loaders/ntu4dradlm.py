@@ -138,7 +138,8 @@ class NtuSequence(OpensFromOptions, BagRadarSequence):
             if self.doppler_field not in channels:
                 raise DataError(
                     f"{where}: no Doppler channel {self.doppler_field!r}; the PointCloud has "
-                    f"channels {sorted(channels)} (set doppler_field)"
+                    f"channels {sorted(channels)}; name the Doppler channel with --doppler-field "
+                    "NAME (bench convert ntu4dradlm)"
                 )
             doppler = channels.pop(self.doppler_field).astype(np.float64) * self.doppler_sign
             fields = {}
@@ -157,7 +158,8 @@ class NtuSequence(OpensFromOptions, BagRadarSequence):
             if self.doppler_field not in names:
                 raise DataError(
                     f"{where}: no Doppler field {self.doppler_field!r} in the PointCloud2; "
-                    f"fields are {names} (set doppler_field)"
+                    f"fields are {names}; name the Doppler field with --doppler-field NAME (bench "
+                    "convert ntu4dradlm)"
                 )
             points = np.column_stack([arr["x"], arr["y"], arr["z"]])
             doppler = arr[self.doppler_field].astype(np.float64) * self.doppler_sign

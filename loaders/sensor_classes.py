@@ -10,14 +10,18 @@ SEMI_DENSE_RADAR = "Semi-Dense 4D Radar"
 DENSE_LIDAR = "Dense 4D LiDAR"
 #: the paper's row order (Table III)
 CLASS_ORDER = (SPARSE_RADAR, SEMI_DENSE_RADAR, DENSE_LIDAR)
-#: sensor model -> class (synthetic sensor names)
+#: sensor model -> class: the synthetic sensors' names and the real loaders' models, which
+#: name the device after the class ("radar-semidense (Oculii Eagle)", "lidar-fmcw (CARLA)")
 BY_MODEL = {"radar-sparse": SPARSE_RADAR, "radar-semidense": SEMI_DENSE_RADAR,
-            "lidar-dense": DENSE_LIDAR}
+            "lidar-dense": DENSE_LIDAR, "lidar-fmcw": DENSE_LIDAR}
 
 
 def sensor_class(sensor: SensorInfo) -> str:
-    """The class of ``sensor`` by its model, else by its kind ("4D Radar" when unknown)."""
-    return BY_MODEL.get(sensor.model) or (DENSE_LIDAR if sensor.kind == "lidar" else "4D Radar")
+    """The class of ``sensor`` by its model (the part before a parenthesised device name, so a
+    store of the Oculii Eagle is "Semi-Dense 4D Radar" in a single run as in the paper's
+    tables), else by its kind ("4D Radar" when unknown)."""
+    model = (sensor.model or "").split(" (")[0].strip()
+    return BY_MODEL.get(model) or (DENSE_LIDAR if sensor.kind == "lidar" else "4D Radar")
 
 
 #: the mark every name shown from a synthetic store carries (tables, figures, file names)

@@ -106,6 +106,9 @@ class Odometry(ABC):
     #: what "with seed" starts from: ``CONSTANT_VELOCITY`` (the harness's guess) or the name of
     #: the method's own prior; None when ``uses_initial_guess`` is False
     motion_prior: ClassVar[str | None] = CONSTANT_VELOCITY
+    #: True for a method that needs raw radial Doppler in every scan: the harness refuses it,
+    #: before any job runs, on a store without Doppler or with ego-compensated Doppler
+    needs_doppler: ClassVar[bool] = False
 
     @property
     def threads(self) -> int:

@@ -177,6 +177,7 @@ class DopplerIcpScan(DopplerScan):
 class DopplerIcp(Registration):
     name = "doppler-icp"
     description = "Doppler 4D-ICP: fixed Doppler pairs + closest points (paper Algorithm 1)"
+    needs_doppler = True
     Params = DopplerIcpParams
 
     def __init__(self, params: DopplerIcpParams | None = None, **overrides) -> None:

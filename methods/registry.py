@@ -60,8 +60,12 @@ def get_method(name: str) -> type[Odometry]:
     try:
         return METHODS[name]
     except KeyError:
+        loaded = os.environ.get(PLUGINS_ENV, "").strip()
+        plugins = (f"plugin modules loaded from {PLUGINS_ENV}={loaded}" if loaded else
+                   f"a method of your own: name its module in {PLUGINS_ENV}=my_module (on "
+                   "PYTHONPATH; it lists its classes in METHODS), README 'Adding a method'")
         raise DataError(f"unknown method {name!r}{did_you_mean(name, METHODS)}; registered: "
-                        f"{', '.join(METHODS)}") from None
+                        f"{', '.join(METHODS)}; {plugins}") from None
 
 
 def make_method(name: str, params: dict | None = None,

@@ -224,3 +224,21 @@ def test_pivot_cells_read_as_the_main_table():
     pivot = [ln for ln in to_pivot_markdown(rows, "8").splitlines() if "DICP" in ln][0]
     assert main.split(" | ")[3] == pivot.split(" | ")[1].rstrip(" |") == \
         "**0.050** / <u>12.346</u>"
+
+
+def test_a_single_run_takes_its_sensor_class_from_the_store(tmp_path):
+    """A store of the Oculii Eagle is "Semi-Dense 4D Radar" in a single run, as in the
+    reproduction's tables (one store, one sequence in a merged folder), not "4D Radar"."""
+    from bench.runs.job import prepare
+    from loaders.scan import MemorySequence, SensorInfo
+    from loaders.sensor_classes import DENSE_LIDAR, SEMI_DENSE_RADAR, sensor_class
+
+    twist = constant_twist_sequence(n_frames=12, n_points=400, max_range_m=60)
+    eagle = SensorInfo("radar", 0.0833, model="radar-semidense (Oculii Eagle)")
+    store = write_store(MemorySequence("Loop1_0", eagle, list(twist), twist.ground_truth, {}),
+                        tmp_path / "Loop1_0.h5")
+    prep = prepare(Job(store=store, method="doppler", seed=None, out_root=tmp_path / "r"))
+    prep.sequence.close()
+    assert prep.config["sequence"]["sensor_class"] == SEMI_DENSE_RADAR
+    assert sensor_class(SensorInfo("lidar", 0.1, model="lidar-fmcw (CARLA)")) == DENSE_LIDAR
+    assert sensor_class(SensorInfo("radar", 0.1, model="npy-frames")) == "4D Radar"

@@ -198,10 +198,10 @@ def build_cases(tmp: Path) -> dict[str, Case]:
     cases["run-single-point-store"] = Case(
         ["run", "--method", "doppler", "--data", str(st["single"]), "--out", str(out / "r1")],
         0, ["warning", "single.h5", "frame 4", "1 point(s) to register"])
+    # a Doppler method on a store without Doppler: refused before any job (exit 2)
     cases["run-no-doppler-store"] = Case(
         ["run", "--method", "doppler", "--data", str(st["no_doppler"]), "--out",
-         str(out / "rnd")], 1, ["no_doppler.h5", "Doppler"], [out / "rnd" / "metrics.json"],
-        single_error=False)
+         str(out / "rnd")], 2, ["no_doppler.h5", "doppler needs Doppler"], [out / "rnd"])
 
     # -- bags, through convert ----------------------------------------------------------------
     for name in ("zero", "random", "truncated", "empty_frame"):

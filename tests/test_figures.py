@@ -128,13 +128,12 @@ def test_trajectories_are_equal_scale_with_the_legend_below(results, tmp_path, c
     assert box.width > 2.5 * box.height  # a 31 m path, 7 m wide: a wide, short figure
     _legends_outside(fig)
     lines = {line.get_label(): line for line in ax.get_lines()}
-    seed, noseed = (lines["(With Seed) ICP point-to-point"],
-                    lines["(No Seed) ICP point-to-point"])
+    seed, noseed = (lines["ICP point-to-point"], lines["ICP point-to-point (no seed)"])
     assert seed.get_color() == noseed.get_color() == color("icp-p2p")
     assert seed.get_linestyle() != noseed.get_linestyle()
     assert seed.get_marker() != noseed.get_marker()
     # the diverged run is cut where it leaves the axes and says so
-    assert "(With Seed) Generalized-ICP - Div." in lines
+    assert "Generalized-ICP - Div." in lines
     assert any(t.get_text() == "Div." for t in ax.texts)
 
 
@@ -169,10 +168,9 @@ def test_boxplots_have_slots_only_for_lengths_with_segments(results, tmp_path, c
     legend = fig.legends[0]
     hatches = {t.get_text(): h.get_hatch() for t, h in zip(legend.get_texts(),
                                                           legend.legend_handles, strict=True)}
-    assert hatches["(No Seed) ICP point-to-point"] and not hatches[
-        "(With Seed) ICP point-to-point"]
+    assert hatches["ICP point-to-point (no seed)"] and not hatches["ICP point-to-point"]
     assert "Generalized-ICP" not in hatches  # the diverged run is left out ...
-    assert "Not shown (diverged): (With Seed) Generalized-ICP on twist" in " ".join(
+    assert "Not shown (diverged): Generalized-ICP on twist" in " ".join(
         legend.get_title().get_text().split())  # ... and named
 
 

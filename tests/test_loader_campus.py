@@ -101,7 +101,7 @@ def test_elevation_check_finds_the_road(tmp_path):
     bad = low_points_median_z(CampusSequence(path, gt_topic=None, elevation_sign=-1))
     assert good["dominant_layer_z_m"] == pytest.approx(-0.6, abs=0.01)
     assert bad["dominant_layer_z_m"] == pytest.approx(0.6, abs=0.01)
-    assert "check elevation_sign" in bad["verdict"] and "right" in good["verdict"]
+    assert "looks mirrored" in bad["verdict"] and "right" in good["verdict"]
 
 
 def test_gt_from_tum_file_and_extrinsic(tmp_path, bag, truth):

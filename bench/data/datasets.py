@@ -20,6 +20,7 @@ import hashlib
 import json
 import re
 from pathlib import Path
+from typing import Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator
@@ -53,6 +54,19 @@ def expand(root: Path, entries: list[str]) -> list[Path]:
     return paths
 
 
+class Expected(BaseModel):
+    """What a store of this sequence should look like (checked by ``bench reproduce``, which
+    warns when a store is far off): the sensor kind, the nominal scan period [s] and, where a
+    public figure gives it, the ground truth's path length [m]; ``source`` says where from."""
+
+    model_config = ConfigDict(extra="forbid")
+
+    sensor_kind: Literal["radar", "lidar"] | None = None
+    period_s: float | None = Field(None, gt=0)
+    path_m: float | None = Field(None, gt=0)
+    source: str = ""
+
+
 class DatasetConfig(BaseModel):
     """One real sequence. ``options`` are validated by the loader's ``Options`` model."""
 
@@ -74,7 +88,7 @@ class DatasetConfig(BaseModel):
     frame_range: FrameSelection = Field(default_factory=FrameSelection)
     store: str
     convert: str = ""  # the equivalent `bench convert` command line (documentation)
-    length_m: float | None = None  # the route length its owners state (documentation)
+    expected: Expected = Field(default_factory=Expected)
 
     @field_validator("loader")
     @classmethod
@@ -181,7 +195,8 @@ def read_dataset_config(name_or_path: str | Path) -> DatasetConfig:
         raise DataError(f"{path}: not valid YAML: {err}") from None
     except ValidationError as err:
         keys = {(): list(DatasetConfig.model_fields),
-                ("frame_range",): list(FrameSelection.model_fields)}
+                ("frame_range",): list(FrameSelection.model_fields),
+                ("expected",): list(Expected.model_fields)}
         problems = validation_problems(err, lambda loc: keys.get(tuple(loc)))
         raise DataError(f"{path}: invalid dataset config:\n  " + "\n  ".join(problems)) from None
 

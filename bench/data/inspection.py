@@ -10,6 +10,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from bench.data.inspect_checks import clock_offset_lines, height_advice
 from loaders.doppler_check import (
     SignCheck,
     doppler_kind_check,
@@ -70,6 +71,8 @@ def inspect_path(path: Path, period_s: float | None, console: Console,
         elif cal is not None:
             console.print("sensor-to-GT rotation: consistent within 0.5 deg (Doppler ego "
                           "velocity vs GT velocity)", highlight=False)
+        for style, line in clock_offset_lines(seq, speed_from_doppler(seq)):
+            console.print(f"[{style}]{escape(line)}[/]", highlight=False)
         if plot is not None:
             plot.parent.mkdir(parents=True, exist_ok=True)
             console.print(f"speed from Doppler vs GT: {plot_speed(seq, plot)}", markup=False)
@@ -112,8 +115,7 @@ def inspect_sequence(seq: Sequence) -> dict:
             gt_findings.append(f"cannot associate GT with the scans: {err}")
     if seq.sensor.kind == "radar":  # elevation-sign check: the road should be below the sensor
         z = low_points_median_z(seq)
-        rows.append(("height check", f"densest layer at z = {z['dominant_layer_z_m']:+.2f} m: "
-                                     f"{z['verdict']}"))
+        rows.append(("height check", height_advice(seq, z)))
     kind = None
     if len(seq) and seq[0].doppler is not None:
         rows.append(("Doppler kind", f"{seq.sensor.doppler_kind} (declared by the loader)"))

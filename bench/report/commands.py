@@ -84,3 +84,13 @@ def figures_command(console: Console, results_dir: Path | None, out: Path | None
         if p.suffix == ".png":
             console.print(f"wrote {p} (+ .pdf)", markup=False)
     return 0
+
+
+def report_command(console: Console, results_dir: Path, out: Path | None) -> int:
+    """Write the results folder's HTML page and say what it holds; returns 0."""
+    from bench.report.html import write_page
+
+    path, counts = write_page(results_dir, out)
+    console.print(f"wrote {path}: {counts['tables']} table(s), {counts['figures']} figure(s), "
+                  f"{counts['runs']} run(s), {counts['failed']} not finished", markup=False)
+    return 0

@@ -1,6 +1,7 @@
 """Shared style of the paper figures: one paper column wide (3.5 in, fonts 6-7 pt), one colour
 per method in every figure, the motion prior told apart by line style and marker (and in box
-plots by hatching), legends below the axes, display names as in the tables and file names made
+plots by hatching), legends below the axes in two columns of the tables' method names (only
+"(no seed)" marked: ``run_name``), log axes labelled at two values at least and file names made
 of readable slugs. Runs come from ``bench.runs.folders.load_runs``."""
 
 from __future__ import annotations
@@ -9,7 +10,7 @@ import math
 import re
 from pathlib import Path
 
-from bench.report.names import order_key, run_label, seed_tag
+from bench.report.names import display_name, order_key, seed_tag
 from loaders.fileio import atomic_path
 
 COLUMN_IN = 3.5  # one paper column [inch]
@@ -79,7 +80,8 @@ def use_paper_style() -> None:
                          "lines.linewidth": 1.0, "axes.linewidth": 0.6, "axes.grid": True,
                          "grid.alpha": 0.3, "grid.linewidth": 0.4, "hatch.linewidth": 0.6,
                          "pdf.fonttype": 42, "ps.fonttype": 42, "figure.dpi": 100,
-                         "legend.handlelength": 2.6, "legend.columnspacing": 1.2})
+                         "legend.handlelength": 2.2, "legend.columnspacing": 1.0,
+                         "legend.handletextpad": 0.5, "legend.labelspacing": 0.35})
 
 
 def figure(height_in: float, nrows: int = 1, ncols: int = 1, width_in: float = COLUMN_IN,
@@ -128,9 +130,19 @@ def log_y(ax, axis: str = "y") -> None:
 
     getattr(ax, f"set_{axis}scale")("log")
     lo, hi = getattr(ax, f"get_{axis}lim")()
-    subs = (1.0, 2.0, 5.0) if math.log10(hi / lo) <= 2.5 else (1.0,)
     target = ax.yaxis if axis == "y" else ax.xaxis
-    target.set_major_locator(mticker.LogLocator(base=10, subs=subs))
+    # the fewest ticks that still label at least two values inside the limits: 1-2-5 per
+    # decade, every digit on a narrow range (1000-4000 has only 2000 among 1-2-5), plain
+    # evenly spaced values on a range inside one digit step
+    locator = None
+    for subs in ((1.0,), (1.0, 2.0, 5.0), tuple(float(d) for d in range(1, 10))):
+        if subs == (1.0,) and math.log10(hi / lo) <= 2.5:
+            continue
+        candidate = mticker.LogLocator(base=10, subs=subs)
+        if sum(lo <= v <= hi for v in candidate.tick_values(lo, hi)) >= 2:
+            locator = candidate
+            break
+    target.set_major_locator(locator or mticker.MaxNLocator(nbins=3))
     target.set_major_formatter(mticker.FuncFormatter(lambda v, _: f"{v:g}"))
     target.set_minor_formatter(mticker.NullFormatter())
 
@@ -162,9 +174,21 @@ def save(fig, path_stem: Path) -> list[Path]:
     return paths
 
 
+#: the legends' note on the motion prior (``run_name`` marks only "no seed")
+PRIOR_NOTE = ("With seed (each step starts from the previous motion, or the method's own "
+              "model) unless marked (no seed).")
+
+
 def run_name(run) -> str:
-    """A run's legend name (a ``bench.runs.folders.RunRecord``), as its table row."""
-    return run_label(run.method, run.seed, run.label, getattr(run, "doppler_kind", None))
+    """A run's legend name (a ``bench.runs.folders.RunRecord``): its table row's method name
+    (or variant label) without the seed tag, "(no seed)" added when it ran without one. The
+    tag is left out because a method's other priors are fixed by the method (no initial guess,
+    own model) and with seed is the default (``PRIOR_NOTE``): a legend of short names fits two
+    columns and takes a third of the height it took with the tables' full row names."""
+    name = run.label or display_name(run.method)
+    if getattr(run, "doppler_kind", None) == "gt-reconstructed":
+        name += " [GT-assisted]"
+    return f"{name} (no seed)" if run.seed is False else name
 
 
 def run_order(run) -> tuple:

@@ -20,6 +20,7 @@ import numpy as np
 
 from bench.report.figstyle import (
     COLUMN_IN,
+    PRIOR_NOTE,
     SMALL_PT,
     color,
     figure,
@@ -86,6 +87,8 @@ def plot_sequence(sequence: str, runs: list[RunRecord], out_dir: Path) -> list[P
     ax.plot(gt[:, 0], gt[:, 1], color="black", lw=1.4, label="ground truth", zorder=1)
     ax.plot(*gt[0], "o", color="black", ms=4, mfc="white", zorder=5)
     ax.plot(*gt[-1], "s", color="black", ms=4, zorder=5)
+    labels: list[list] = []  # [x, y, colour, count] of each "Div." label
+    near = 0.06 * float(np.max(hi_ax - lo_ax))
     for k, run in enumerate(finite):
         xy = _aligned_xy(run)
         inside = ((xy >= lo) & (xy <= hi)).all(axis=1)
@@ -94,9 +97,18 @@ def plot_sequence(sequence: str, runs: list[RunRecord], out_dir: Path) -> list[P
         name = run_name(run) + (" - Div." if run.diverged else "")
         ax.plot(shown[:, 0], shown[:, 1], alpha=0.9, label=name, zorder=2,
                 **line_kwargs(run, k, len(finite)))
-        if not inside.all():
-            ax.annotate("Div.", shown[-1], xytext=(2, 2), textcoords="offset points",
-                        fontsize=SMALL_PT, color=color(run.method))
+        if not inside.all():  # one label for runs that leave at about the same place
+            x, y = shown[-1]
+            for lab in labels:
+                if np.hypot(lab[0] - x, lab[1] - y) <= near:
+                    lab[3] += 1
+                    break
+            else:
+                labels.append([x, y, color(run.method), 1])
+    for x, y, c, count in labels:
+        ax.annotate("Div." if count == 1 else f"Div. ({count})", (x, y), xytext=(2, 2),
+                    textcoords="offset points", fontsize=SMALL_PT,
+                    color=c if count == 1 else "0.25")
     ax.set_xlim(lo_ax[0], hi_ax[0])
     ax.set_ylim(lo_ax[1], hi_ax[1])
     ax.set_aspect("equal", adjustable="box")  # one metre is as long in x as in y
@@ -104,7 +116,7 @@ def plot_sequence(sequence: str, runs: list[RunRecord], out_dir: Path) -> list[P
     ax.set_ylabel("y [m]")
     set_title(ax, f"{sequence} (\u25cb start, \u25a0 end)")
     handles, labels = ax.get_legend_handles_labels()
-    legend_below(fig, handles, labels)
+    legend_below(fig, handles, labels, note=PRIOR_NOTE)
     legend_in = fig.legends[0].get_window_extent(fig.canvas.get_renderer()).height / fig.dpi
     fig.set_figheight(axes_in + _TOP_BOTTOM_IN + legend_in + 0.1)
     paths = save(fig, out_dir / "trajectories" / slug(sequence))

@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.report.figstyle import (
+    PRIOR_NOTE,
     figure,
     legend_below,
     line_kwargs,
@@ -62,6 +63,6 @@ def plot_drift(runs, out_dir: Path) -> list[Path]:
             ax.set_xlabel("distance travelled [m]")
         fig.suptitle("\n".join(textwrap.wrap(f"{sequence}: drift from the first frame (estimate "
                                               "- GT, GT body axes)", 56)))
-        legend_below(fig, handles, labels)
+        legend_below(fig, handles, labels, note=PRIOR_NOTE)
         written += save(fig, out_dir / "drift" / slug(sequence))
     return written

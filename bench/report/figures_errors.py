@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 
 from bench.report.figstyle import (
+    PRIOR_NOTE,
     SMALL_PT,
     color,
     figure,
@@ -116,7 +117,7 @@ def plot_boxplots(runs: list[RunRecord], out_dir: Path) -> list[Path]:
         set_title(axes[0], f"{klass}{' (synthetic)' if synthetic else ''}: relative error")
         legend_below(fig, handles, [h.get_label() for h in handles],
                      note="Boxes: quartiles and median; whiskers: 5-95 %; the class's "
-                     f"sequences pooled.{_diverged_note(here)}")
+                     f"sequences pooled. {PRIOR_NOTE}{_diverged_note(here)}")
         fit_height(fig, 2.6)
         written += save(fig, out_dir / "boxplots" / slug(klass))
     return written
@@ -132,6 +133,27 @@ def _diverged_note(runs: list[RunRecord]) -> str:
         return ""
     return " Not shown (diverged): " + "; ".join(
         f"{name} on {', '.join(sorted(seqs, key=sequence_key))}" for name, seqs in where.items())
+
+
+#: runs that leave the axes within this fraction of the path of each other share one label
+_DIV_CLUSTER = 0.06
+
+
+def label_divergence(ax, exits: list[tuple[float, str]], top: float, span: float) -> None:
+    """One "Div." label per cluster of runs that leave the axes at about the same distance
+    (the legend names them): in the run's colour when it is alone, dark grey for several, so
+    labels never print over each other (as four ICPs in a tunnel did)."""
+    clusters: list[list[tuple[float, str]]] = []
+    for x, c in sorted(exits):
+        if clusters and x - clusters[-1][0][0] <= _DIV_CLUSTER * span:
+            clusters[-1].append((x, c))
+        else:
+            clusters.append([(x, c)])
+    for cluster in clusters:
+        x = cluster[-1][0]
+        text = "Div." if len(cluster) == 1 else f"Div. ({len(cluster)})"
+        ax.annotate(text, (x, top), xytext=(4, -7), textcoords="offset points",
+                    fontsize=SMALL_PT - 0.5, color=cluster[0][1] if len(cluster) == 1 else "0.25")
 
 
 def _errors_along_path(run: RunRecord) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -167,8 +189,10 @@ def plot_error_along_path(runs: list[RunRecord], out_dir: Path) -> list[Path]:
         curves = {id(r): _errors_along_path(r) for r in group}
         kept = [r for r in group if not r.diverged] or group
         fig, axes = figure(2.6, 2, 1, sharex=True)
+        span = max(float(np.nanmax([curves[id(r)][0].max() for r in group])), 1e-9)
         for part, ax in zip((1, 2), axes, strict=True):
             lo, hi = _log_limits([curves[id(r)][part] for r in kept])
+            exits = []
             for k, run in enumerate(group):
                 dist, err = curves[id(run)][0], curves[id(run)][part]
                 err = np.where(err > 0, err, np.nan)
@@ -180,12 +204,11 @@ def plot_error_along_path(runs: list[RunRecord], out_dir: Path) -> list[Path]:
                             **line_kwargs(run, k, len(group), points=len(dist)))
                     ax.plot(dist[cut], hi, marker="^", color=color(run.method), ms=4,
                             clip_on=False, zorder=5)
-                    ax.annotate("Div.", (dist[cut], hi), xytext=(3, -7),
-                                textcoords="offset points", fontsize=SMALL_PT - 0.5,
-                                color=color(run.method))
+                    exits.append((float(dist[cut]), color(run.method)))
                 else:
                     ax.plot(dist, err, label=name,
                             **line_kwargs(run, k, len(group), points=len(dist)))
+            label_divergence(ax, exits, hi, span)
             ax.set_yscale("log")
             ax.set_ylim(lo, hi)
             log_y(ax)
@@ -194,7 +217,7 @@ def plot_error_along_path(runs: list[RunRecord], out_dir: Path) -> list[Path]:
         axes[1].set_xlabel("distance travelled [m]")
         set_title(axes[0], f"{sequence}: error along the path")
         handles, labels = axes[0].get_legend_handles_labels()
-        legend_below(fig, handles, labels)
+        legend_below(fig, handles, labels, note=PRIOR_NOTE)
         fit_height(fig, 2.3)
         written += save(fig, out_dir / "error-along-path" / slug(sequence))
     return written
@@ -238,7 +261,7 @@ def plot_frames(runs: list[RunRecord], out_dir: Path) -> list[Path]:
         set_title(axes[0], sequence)
         handles, labels = axes[0].get_legend_handles_labels()
         legend_below(fig, handles, labels, note="Time: all per-frame work from a scan in memory "
-                     "to its pose (time_ms); the first frame is not registered.")
+                     f"to its pose (time_ms); the first frame is not registered. {PRIOR_NOTE}")
         fit_height(fig, 2.3)
         written += save(fig, out_dir / "frames" / slug(sequence))
     return written

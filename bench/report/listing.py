@@ -4,6 +4,7 @@ loaders, synthetic scenes and sensors."""
 from __future__ import annotations
 
 from rich.console import Console
+from rich.markup import escape
 from rich.table import Table
 
 
@@ -23,10 +24,11 @@ def print_registries(console: Console) -> None:
     from methods.registry import METHODS
 
     methods = Table(title="Methods", title_justify="left")
-    for column in ("name", "what it is", "motion prior"):
+    for column in ("name", "what it is", "motion prior", "Doppler"):
         methods.add_column(column)
     for name, cls in METHODS.items():
-        methods.add_row(f"[bold]{name}[/]", cls.description, _prior(cls))
+        methods.add_row(f"[bold]{name}[/]", escape(cls.description), _prior(cls),
+                        "needed" if getattr(cls, "needs_doppler", False) else "-")
     console.print(methods)
     for title, items in (
         ("Loaders (bench convert LOADER; bench datasets for the datasets they read)",

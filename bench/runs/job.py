@@ -60,7 +60,15 @@ class Job:
     def run_dir(self, sequence_name: str) -> Path:
         if self.run_dir_override is not None:
             return self.run_dir_override
-        return self.out_root / sequence_name / run_dir_name(self.method, self.seed, self.label)
+        return (self.out_root / sequence_folder(sequence_name)
+                / run_dir_name(self.method, self.seed, self.label))
+
+
+def sequence_folder(name: str) -> str:
+    """A sequence name as one folder name: path separators replaced, and a name of dots only
+    ("..") prefixed, so no name leaves the results folder or nests folders."""
+    folder = name.replace("/", "_").replace("\\", "_")
+    return folder if folder.strip(".") else f"_{folder}"
 
 
 @dataclass

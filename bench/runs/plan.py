@@ -12,13 +12,15 @@ from pathlib import Path
 import numpy as np
 from rich.console import Console
 
+from bench.data.advice import loader_name, option_flag
 from bench.data.synth import ensure_suite_with_progress
 from bench.runs.experiment import Experiment, SequenceEntry, expand_sequences
 from bench.runs.folders import RunRecord, read_run
 from bench.runs.job import Job, calibration_frames, prepare, run_job
 from loaders.errors import DataError
 from loaders.gt import gt_for_frames
-from methods.registry import seed_option
+from loaders.scan import FrameRange
+from methods.registry import get_method, seed_option
 
 
 def suite_sequences(suite: str, data_dir: Path, console: Console | None = None
@@ -101,6 +103,11 @@ def plan(jobs: list[Job]) -> list[Job]:
         except DataError as err:
             problems.append(str(err))
             continue
+        doppler = _doppler_problem(job, prep.sequence)
+        if doppler:
+            prep.sequence.close()
+            problems.append(doppler)
+            continue
         key = (job.store, job.frame_range)
         if key not in paths:
             paths[key] = _gt_path_length(prep)
@@ -121,6 +128,33 @@ def plan(jobs: list[Job]) -> list[Job]:
         raise DataError("\n".join(dict.fromkeys(problems)))
     # the same run asked for twice (e.g. by two tables) runs once
     return list({j.run_dir_override: j for j in planned}.values())
+
+
+def _doppler_problem(job: Job, seq) -> str | None:
+    """Why ``job``'s method cannot run on its store's Doppler (None when it can): a method that
+    declares ``needs_doppler`` on a store without Doppler, or with ego-compensated Doppler
+    (``SensorInfo.doppler_kind``: static points read about 0 m/s, not the radial velocity)."""
+    cls = get_method(job.method)
+    if not getattr(cls, "needs_doppler", False):
+        return None
+    has = getattr(seq.base if isinstance(seq, FrameRange) else seq, "has_doppler", None)
+    if has is None:
+        has = len(seq) > 0 and seq[0].doppler is not None
+    if not has:
+        prov = seq.provenance
+        flag = option_flag(prov, "doppler_field")
+        again = (f"convert it again naming the Doppler field (bench convert "
+                 f"{loader_name(prov)} ... {flag} NAME)" if flag else
+                 "convert it from data with Doppler")
+        return (f"{job.store}: {job.method} needs Doppler, but the store has no Doppler values; "
+                f"{again}, or run a method that needs none (icp-p2p, gicp, kiss-icp, ...)")
+    if seq.sensor.doppler_kind == "ego-compensated":
+        return (f"{job.store}: {job.method} needs the raw radial Doppler velocity, but the "
+                "store's Doppler is ego-compensated (sensor doppler_kind 'ego-compensated': "
+                "static points read about 0 m/s); reconstructing the radial velocity from the "
+                "ground truth's ego motion is an explicit opt-in of the loader (doppler_kind "
+                "'gt-reconstructed'), or run a method that needs no Doppler")
+    return None
 
 
 #: a segment of length L is accepted when its path length is within this fraction of L

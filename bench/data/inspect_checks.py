@@ -1,0 +1,193 @@
+"""Checks of ``bench inspect`` that take nothing on trust: the ground truth's clock against the
+sensor's (from the Doppler speed), and advice that names only options the store's loader has.
+
+**GT clock offset.** The Doppler ego speed of every scan is a measurement on the sensor's clock;
+the ground truth's speed (central differences of its positions) is on the GT's clock as the
+store associated it. Speeding up and slowing down show in both, so the lag that best lines up
+the two speed curves (the peak of their normalised cross-correlation, refined by a parabola
+through its neighbours) is the GT's clock error: a positive lag means the GT shows each motion
+that much later than the sensor. A lag above one scan period is warned about, with the
+``--time-offset`` value that removes it (``gt_stamp + offset = sensor clock``, on top of the
+offset the store was converted with). A sequence whose speed hardly changes has no such
+information: the estimate then says it is inconclusive.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from bench.data.advice import loader_name, option_flag
+from loaders.scan import Sequence
+
+#: the GT speed must vary by at least this much [m/s, standard deviation] to time the GT
+MIN_SPEED_STD_MPS = 0.3
+#: lags searched [s] (either way) and the step of the search
+MAX_LAG_S, LAG_STEP_S = 2.0, 0.01
+#: a peak correlation below this is no estimate
+MIN_CORRELATION = 0.5
+
+
+@dataclass(frozen=True)
+class ClockOffset:
+    """The GT's lag behind the sensor clock [s] (positive: GT late), its spread (half the
+    difference of the two halves' estimates; NaN when a half gives none), the peak
+    correlation, the scans used and the ``--time-offset`` that removes the lag (None:
+    inconclusive, ``reason`` says why)."""
+
+    lag_s: float | None
+    spread_s: float
+    correlation: float
+    scans: int
+    time_offset_s: float | None
+    reason: str = ""
+
+
+#: both speeds are averaged over +-this window [s] (the same filter on both: no lag between
+#: them from the filtering, and less noise than a frame-to-frame difference)
+WINDOW_S = 0.5
+
+
+def _full_window(t: np.ndarray, q: float) -> bool:
+    """The window around ``q`` lies inside ``t``'s span (a cut window would shift its centre)."""
+    return t[0] <= q - WINDOW_S + 1e-9 and q + WINDOW_S - 1e-9 <= t[-1]
+
+
+def _window_mean(t: np.ndarray, values: np.ndarray, ok: np.ndarray) -> np.ndarray:
+    out = np.full(len(t), np.nan)
+    for i in range(len(t)):
+        if not _full_window(t, t[i]):
+            continue
+        k = ok & (np.abs(t - t[i]) <= WINDOW_S)
+        if k.any():
+            out[i] = values[k].mean()
+    return out
+
+
+def gt_speed(gt, stamps: np.ndarray) -> np.ndarray:
+    """GT speed [m/s] at ``stamps``: the slope of a line fitted to the GT positions within
+    +-``WINDOW_S`` (NaN where fewer than 3 poses, or where the window is cut by the GT's
+    ends)."""
+    t, p = gt.stamps, gt.poses[:, :3, 3]
+    out = np.full(len(stamps), np.nan)
+    for i, q in enumerate(stamps):
+        k = np.abs(t - q) <= WINDOW_S
+        if k.sum() >= 3 and _full_window(t, q):
+            dt = t[k] - t[k].mean()
+            slope = (dt[:, None] * (p[k] - p[k].mean(axis=0))).sum(axis=0) / (dt * dt).sum()
+            out[i] = float(np.linalg.norm(slope))
+    return out
+
+
+def _correlation(t: np.ndarray, v_doppler: np.ndarray, t_gt: np.ndarray, v_gt: np.ndarray,
+                 lag: float) -> float:
+    """Pearson correlation of the Doppler speed at ``t`` with the GT speed at ``t + lag``, over
+    the scans whose shifted time lies inside the GT's span."""
+    q = t + lag
+    inside = (q >= t_gt[0]) & (q <= t_gt[-1])
+    if inside.sum() < 10:
+        return np.nan
+    a = v_doppler[inside] - v_doppler[inside].mean()
+    b = np.interp(q[inside], t_gt, v_gt)
+    b = b - b.mean()
+    den = np.sqrt((a * a).sum() * (b * b).sum())
+    return float((a * b).sum() / den) if den > 0 else np.nan
+
+
+def _best_lag(t, v_d, v_g) -> tuple[float | None, float, str]:
+    """(lag, peak correlation, why not) of the Doppler speed against the GT speed."""
+    use, has_gt = np.isfinite(v_d), np.isfinite(v_g)
+    if use.sum() < 10 or has_gt.sum() < 10:
+        return None, np.nan, "too few scans with both a Doppler speed and ground truth"
+    if np.std(v_g[has_gt]) < MIN_SPEED_STD_MPS:
+        return None, np.nan, (f"the speed hardly changes (GT speed std "
+                              f"{np.std(v_g[has_gt]):.2f} m/s): nothing to line up")
+    lags = np.arange(-MAX_LAG_S, MAX_LAG_S + LAG_STEP_S / 2, LAG_STEP_S)
+    corr = np.array([_correlation(t[use], v_d[use], t[has_gt], v_g[has_gt], lag)
+                     for lag in lags])
+    if not np.isfinite(corr).any():
+        return None, np.nan, "the speeds do not overlap"
+    k = int(np.nanargmax(corr))
+    if corr[k] < MIN_CORRELATION:
+        return None, float(corr[k]), f"the speeds agree poorly (correlation {corr[k]:.2f})"
+    if k in (0, len(lags) - 1):
+        return None, float(corr[k]), (f"the best lag is at the edge of the search "
+                                      f"(+-{MAX_LAG_S:g} s)")
+    lag = float(lags[k])
+    den = corr[k - 1] - 2 * corr[k] + corr[k + 1]
+    if np.isfinite(den) and den < 0:  # the parabola's vertex through the peak's neighbours
+        lag += float(0.5 * (corr[k - 1] - corr[k + 1]) / den) * LAG_STEP_S
+    return lag, float(corr[k]), ""
+
+
+def gt_clock_offset(stamps: np.ndarray, speed_doppler: np.ndarray, observable: np.ndarray,
+                    gt, converted_offset_s: float = 0.0) -> ClockOffset:
+    """The GT's clock lag: Doppler speeds at the scan ``stamps`` (``observable`` marks the
+    frames where the ego velocity was observable) against the speed of the ground truth
+    ``gt`` (a ``Trajectory`` of T_world_sensor), on the whole sequence and on each half;
+    ``converted_offset_s``: the time offset the store was converted with (the suggested
+    ``--time-offset`` adds to it)."""
+    t = np.asarray(stamps, float)
+    ok = np.isfinite(speed_doppler) & np.asarray(observable, bool)
+    v_d = _window_mean(t, np.nan_to_num(np.asarray(speed_doppler, float)), ok)
+    v_g = gt_speed(gt, t) if gt is not None and len(gt) >= 3 else np.full(len(t), np.nan)
+    lag, corr, why = _best_lag(t, v_d, v_g)
+    scans = int(ok.sum())
+    if lag is None:
+        return ClockOffset(None, np.nan, corr, scans, None, why)
+    half = len(t) // 2
+    halves = [_best_lag(t[sl], v_d[sl], v_g[sl])[0] for sl in (slice(0, half), slice(half, None))]
+    spread = (abs(halves[0] - halves[1]) / 2 if None not in halves else np.nan)
+    return ClockOffset(lag, spread, corr, scans, converted_offset_s - lag)
+
+
+def converted_offset(provenance: dict) -> float:
+    """The GT time offset a store was converted with (0 when not recorded)."""
+    gt = provenance.get("gt_association")
+    value = gt.get("offset_s") if isinstance(gt, dict) else provenance.get("time_offset_s")
+    try:
+        return float(value or 0.0)
+    except (TypeError, ValueError):
+        return 0.0
+
+
+def clock_offset_lines(seq: Sequence, speeds: dict) -> list[tuple[str, str]]:
+    """(style, line) to print: the estimated GT clock lag (``speeds``: the output of
+    ``methods.ego_velocity.speed_from_doppler``), and a warning with the ``--time-offset`` to
+    use when it exceeds one scan period and the spread of the two halves' estimates."""
+    est = gt_clock_offset(speeds["stamps"], speeds["speed_doppler"], speeds["observable"],
+                          seq.ground_truth, converted_offset(seq.provenance))
+    if est.lag_s is None:
+        return [("dim", f"GT clock vs Doppler speed: not estimated ({est.reason})")]
+    period = float(np.median(np.diff(seq.stamps))) if len(seq) > 1 else seq.sensor.period_s
+    spread = (f" +- {est.spread_s:.3f} s (the two halves' estimates)"
+              if np.isfinite(est.spread_s) else " (the halves give no estimate)")
+    text = (f"GT clock vs Doppler speed: the ground truth lags the sensor by {est.lag_s:+.3f} s"
+            f"{spread}; cross-correlation of the speeds {est.correlation:.2f} over {est.scans} "
+            f"scans, one scan period {period:.3f} s")
+    if abs(est.lag_s) <= period:
+        return [("green", text + ": within one scan period")]
+    flag = option_flag(seq.provenance, "time_offset_s")
+    how = (f"convert again with --time-offset {est.time_offset_s:.3f}" if flag else
+           f"shift the GT stamps by {-est.lag_s:+.3f} s (gt_stamp + offset = sensor clock; "
+           f"{loader_name(seq.provenance)} takes no time-offset option)")
+    if np.isfinite(est.spread_s) and abs(est.lag_s) <= est.spread_s:
+        return [("yellow", f"{text}: more than a period, but not beyond the halves' spread: "
+                           f"inconclusive on this sequence (if confirmed: {how})")]
+    return [("yellow", f"warning: {text}: more than one scan period, so every scored pose is "
+                       f"compared with the wrong moment; {how}")]
+
+
+def height_advice(seq: Sequence, z: dict) -> str:
+    """The height check's line (``loaders.doppler_check.low_points_median_z``), its advice
+    naming only an option the store's loader has."""
+    line = f"densest layer at z = {z['dominant_layer_z_m']:+.2f} m: {z['verdict']}"
+    if z["dominant_layer_z_m"] < 0:
+        return line
+    flag = option_flag(seq.provenance, "elevation_sign")
+    if flag:
+        return (f"{line}; if the road is below the sensor, convert again with {flag} -1 "
+                f"(bench convert {loader_name(seq.provenance)})")
+    return (f"{line}; {loader_name(seq.provenance)} takes no elevation-sign option (its points' "
+            "z is as the sensor recorded it): check the sensor's mounting and the extrinsic")

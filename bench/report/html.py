@@ -1,0 +1,292 @@
+"""``bench report RESULTS_DIR``: one self-contained HTML page of a results folder.
+
+The page holds every table the harness wrote into the folder (``table*.md``, ``pivot.md``,
+``fidelity.md``; the Table III of the folder's runs, made in memory, when none was written),
+with the paper's marking (best bold, second underlined, as in the markdown), every figure under
+``figures/`` embedded as a base64 PNG with its caption, the provenance of the runs (code
+version, store hashes, machine, how times were taken), the failed runs and the missing data
+(runs without ground truth, paper sequences a reproduction did not find: ``reproduction.json``).
+
+It is readable offline and loads nothing: no script, no external style, font or image; its
+Content-Security-Policy forbids any load but the embedded ``data:`` images. Every string that
+comes from data or configuration (sequence, method and store names, labels, paths, messages) is
+HTML-escaped, so a store named ``<script>alert(1)</script>`` shows as that text.
+
+Run folders are read by one function, ``bench.report.html_runs.read_page_runs`` (the documented
+files of a run folder); everything else works on its ``PageRun`` records.
+"""
+
+from __future__ import annotations
+
+import base64
+from collections import Counter
+from datetime import UTC, datetime
+from pathlib import Path
+
+from bench.report.html_markdown import esc, markdown_html
+from bench.report.html_runs import PageRun, read_json, read_page_runs
+from loaders.fileio import atomic_write_text
+
+#: the page's name inside the results folder
+PAGE_NAME = "report.html"
+#: the markdown reports the harness writes into a results folder, in the page's order
+TABLE_FILES = ("table3.md", "table4.md", "table5.md", "table.md", "table_ape.md", "pivot.md",
+               "fidelity.md")
+#: figure kinds (subfolders of ``figures/``), in the page's order, with their captions
+FIGURE_KINDS = {
+    "trajectories": "Top view of every method's trajectory over the ground truth (equal scale "
+                    "in x and y; estimates aligned at their first pose; o start, square end); "
+                    "a diverged run is drawn until it leaves the axes and marked Div.",
+    "error-along-path": "Relative error of 8 m segments along the path (log axis); a diverged "
+                        "run is drawn to the top and marked Div.",
+    "boxplots": "Relative error per segment length for each sensor class (log axis); "
+                "diverged runs are named, not drawn.",
+    "frames": "Time per frame and the number of correspondences per frame.",
+    "drift": "Drift per axis (roll / pitch / yaw, along / across / vertical) against distance.",
+    "speed": "Scaling of the per-frame time with the number of points (bench speed).",
+    "pairs": "Closest-point against Doppler correspondences of one scan pair.",
+}
+#: how the Time columns were measured (README "Metrics" / Timing)
+TIMING_NOTE = ("Time per frame covers all per-frame work from a scan in memory to its pose "
+               "(downsampling, normals, kd-trees, maps, registration, map update; not file I/O), "
+               "after the same untimed warm-up for every method. A one-thread run is timed by "
+               "its thread's CPU time (waiting for a core is not counted, so runs side by side "
+               "do not inflate it); a run on several threads by the wall clock, its timed "
+               "sections holding a machine-wide lock.")
+
+_CSP = ("default-src 'none'; img-src data:; style-src 'unsafe-inline'; base-uri 'none'; "
+        "form-action 'none'")
+_CSS = """
+body{font:14px/1.45 system-ui,-apple-system,"Segoe UI",Roboto,sans-serif;margin:0 auto;
+max-width:1200px;padding:1em 1.5em;color:#222}
+h1{font-size:1.5em}h2{font-size:1.25em;border-bottom:1px solid #ccc;margin-top:2em}
+h3{font-size:1.05em}
+table{border-collapse:collapse;margin:.6em 0;font-size:12px}
+th,td{border:1px solid #ccc;padding:2px 6px;text-align:left;vertical-align:top}
+th{background:#f3f3f3}td.num{text-align:right;white-space:nowrap}
+.scroll{overflow-x:auto}.caption,figcaption{color:#444;font-size:12.5px;max-width:1000px}
+.banner{background:#fff3cd;border:1px solid #e0c36a;padding:.6em 1em;margin:1em 0}
+.stale{color:#a4420b}.failed{color:#b00020}code{background:#f4f4f4;padding:0 2px}
+figure{display:inline-block;margin:.5em 1em 1em 0;vertical-align:top;max-width:520px}
+figure img{max-width:100%;height:auto;border:1px solid #eee}
+nav ul{columns:2}dl{display:grid;grid-template-columns:max-content auto;gap:2px 1em}
+dt{font-weight:600}dd{margin:0}
+"""
+
+
+# ---------------------------------------------------------------- sections
+
+
+def _stale_note(path: Path, newest_run: float) -> str:
+    if newest_run and path.stat().st_mtime < newest_run - 1e-3:
+        return ('<p class="stale">Written before the latest run record of this folder: it may '
+                "not show every run (<code>bench table</code> / <code>bench figures</code> "
+                "rewrite it).</p>")
+    return ""
+
+
+def _tables_section(results_dir: Path, newest_run: float) -> tuple[str, int]:
+    parts, count = [], 0
+    files = [results_dir / n for n in TABLE_FILES if (results_dir / n).exists()]
+    for path in files:
+        body, n = markdown_html(path.read_text(errors="replace"))
+        count += n
+        parts.append(f'<h3 id="{esc(path.stem)}">{esc(path.name)}</h3>'
+                     f"{_stale_note(path, newest_run)}{body}")
+    if not files:
+        text = _table_in_memory(results_dir)
+        if text:
+            body, n = markdown_html(text)
+            count += n
+            parts.append("<p>No table was written into this folder; Table III of its finished "
+                         "runs, made for this page:</p>" + body)
+        else:
+            parts.append("<p>No table: no finished run with ground truth.</p>")
+    return "\n".join(parts), count
+
+
+def _table_in_memory(results_dir: Path) -> str:
+    """Table III of the folder's runs as markdown (empty when there are none)."""
+    from bench.report.tables import FORMATS, select_rows
+
+    try:
+        rows, lengths = select_rows(results_dir)
+    except (FileNotFoundError, ValueError):
+        return ""
+    return FORMATS["md"](rows, lengths)
+
+
+def _figures_section(figures_dir: Path, newest_run: float) -> tuple[str, int]:
+    pngs = sorted(figures_dir.rglob("*.png")) if figures_dir.is_dir() else []
+    if not pngs:
+        return ("<p>No figures in this folder (<code>bench figures RESULTS_DIR</code> draws "
+                "them).</p>", 0)
+
+    def kind(p: Path) -> str:
+        rel = p.relative_to(figures_dir)
+        return rel.parts[0] if len(rel.parts) > 1 else p.stem
+
+    order = list(FIGURE_KINDS)
+    groups: dict[str, list[Path]] = {}
+    for p in sorted(pngs, key=lambda p: (order.index(kind(p)) if kind(p) in order
+                                         else len(order), str(p))):
+        groups.setdefault(kind(p), []).append(p)
+    parts = []
+    for k, paths in groups.items():
+        parts.append(f"<h3>{esc(k)}</h3>")
+        if k in FIGURE_KINDS:
+            parts.append(f'<p class="caption">{esc(FIGURE_KINDS[k])}</p>')
+        for p in paths:
+            data = base64.b64encode(p.read_bytes()).decode("ascii")
+            rel = p.relative_to(figures_dir.parent)
+            parts.append(f'<figure><img src="data:image/png;base64,{data}" alt="{esc(rel)}">'
+                         f"<figcaption><code>{esc(rel)}</code>"
+                         f"{_stale_note(p, newest_run)}</figcaption></figure>")
+    return "\n".join(parts), len(pngs)
+
+
+def _counts(values) -> str:
+    c = Counter(v for v in values if v not in (None, ""))
+    if not c:
+        return "not recorded"
+    return "; ".join(f"{esc(v)} ({n} run{'s' if n > 1 else ''})" for v, n in c.most_common())
+
+
+def _provenance_section(runs: list[PageRun]) -> str:
+    if not runs:
+        return "<p>No run records.</p>"
+    metas = [r.meta for r in runs]
+    commits = [(m.get("git") or {}) for m in metas]
+    code = [f"{g.get('commit', '')[:12]}{' (uncommitted changes)' if g.get('dirty') else ''}"
+            if g.get("commit") else None for g in commits]
+    version = [(m.get("packages") or {}).get("doppler-bench") for m in metas]
+    dates = sorted(m["date"] for m in metas if m.get("date"))
+    items = [
+        ("code (git commit)", _counts(code)),
+        ("doppler-bench version", _counts(version)),
+        ("code hash (loaders, methods, metrics, scoring)", _counts(
+            r.code_sha256[:16] if r.code_sha256 else None for r in runs)),
+        ("machine", _counts(f"{m.get('cpu', '?')}, {m.get('cpu_count', '?')} cores, "
+                            f"host {m.get('host', '?')}, Python {m.get('python', '?')}"
+                            if m else None for m in metas)),
+        ("clock", _counts(f"{r.clock} time, {r.threads or 1} thread(s)" if r.clock else None
+                          for r in runs)),
+        ("timing lock", _counts(m.get("timing_lock") or "default" for m in metas if m)),
+        ("run dates", esc(f"{dates[0]} to {dates[-1]}") if dates else "not recorded"),
+    ]
+    dl = "".join(f"<dt>{esc(k)}</dt><dd>{v}</dd>" for k, v in items)
+    stores: dict[str, tuple[str | None, set]] = {}
+    for r in runs:
+        if r.store:
+            sha, seqs = stores.get(r.store, (r.store_sha256, set()))
+            seqs.add(r.sequence)
+            stores[r.store] = (sha or r.store_sha256, seqs)
+    rows = "".join(f"<tr><td><code>{esc(s)}</code></td><td>{esc(', '.join(sorted(seqs)))}</td>"
+                   f"<td><code>{esc(sha or 'not recorded')}</code></td></tr>"
+                   for s, (sha, seqs) in sorted(stores.items()))
+    data = ("<table><thead><tr><th>store</th><th>sequence</th><th>SHA-256 of the store</th>"
+            f"</tr></thead><tbody>{rows}</tbody></table>") if rows else ""
+    return (f"<dl>{dl}</dl><h3>Data</h3>{data}<h3>How times were taken</h3>"
+            f'<p class="caption">{esc(TIMING_NOTE)}</p>')
+
+
+def _problems_section(runs: list[PageRun], coverage: dict) -> str:
+    parts = []
+    bad = [r for r in runs if r.status != "finished"]
+    if bad:
+        rows = "".join(
+            f'<tr><td><code>{esc(r.folder)}</code></td><td class="failed">{esc(r.status)}</td>'
+            f"<td>{esc((r.message or '').splitlines()[0] if r.message else '')}</td></tr>"
+            for r in bad)
+        parts.append(f"<h3>Runs that did not finish ({len(bad)})</h3><table><thead><tr>"
+                     f"<th>run folder</th><th>status</th><th>error</th></tr></thead>"
+                     f"<tbody>{rows}</tbody></table>")
+    else:
+        parts.append("<p>Every run finished.</p>")
+    said: dict[str, list[str]] = {}
+    for r in runs:
+        for w in r.meta.get("warnings") or []:
+            said.setdefault(str(w), []).append(r.folder)
+    if said:
+        parts.append(f"<h3>Warnings while the runs ran ({len(said)})</h3><ul>" + "".join(
+            f"<li>{esc(w)} <span class=\"caption\">({len(where)} run(s): "
+            f"{esc(', '.join(where[:3]))}{', ...' if len(where) > 3 else ''})</span></li>"
+            for w, where in said.items()) + "</ul>")
+    no_gt = [r for r in runs if r.status == "finished" and not r.has_gt]
+    if no_gt:
+        parts.append("<h3>Runs without ground truth (in no table)</h3><ul>" + "".join(
+            f"<li><code>{esc(r.folder)}</code></li>" for r in no_gt) + "</ul>")
+    if coverage:
+        found, missing = coverage.get("found") or [], coverage.get("missing") or []
+        parts.append(f"<h3>The paper's sequences ({esc(coverage.get('data', ''))})</h3>"
+                     f"<p>Found ({len(found)}): {esc(', '.join(found) or 'none')}</p>"
+                     f'<p class="failed">Missing ({len(missing)}): '
+                     f"{esc(', '.join(missing) or 'none')}</p>")
+        for note in coverage.get("notes") or []:
+            parts.append(f'<p class="caption">{esc(note)}</p>')
+    return "\n".join(parts)
+
+
+def render_page(results_dir: Path) -> tuple[str, dict]:
+    """The page of ``results_dir`` and what it holds ({tables, figures, runs, failed})."""
+    results_dir = Path(results_dir)
+    runs = read_page_runs(results_dir)
+    newest = max((r.mtime for r in runs), default=0.0)
+    coverage = read_json(results_dir / "reproduction.json")
+    tables, n_tables = _tables_section(results_dir, newest)
+    figures, n_figures = _figures_section(results_dir / "figures", newest)
+    failed = sum(r.status != "finished" for r in runs)
+    synthetic = any("(synthetic)" in r.sequence for r in runs)
+    banner = ('<p class="banner"><strong>Synthetic data.</strong> Sequences marked (synthetic) '
+              "were made by this repository's generator to imitate the paper's sequences; they "
+              "are not the paper's data.</p>") if synthetic else ""
+    if coverage.get("missing"):
+        banner += (f'<p class="banner">{len(coverage["missing"])} of the paper\'s sequences are '
+                   "missing from this reproduction (listed under Failed runs and missing "
+                   "data).</p>")
+    title = f"doppler-bench results: {results_dir.name or results_dir.resolve().name}"
+    now = datetime.now(UTC).isoformat(timespec="seconds")
+    summary = (f"{len(runs)} run folder(s): {len(runs) - failed} finished, {failed} not; "
+               f"{n_tables} table(s), {n_figures} figure(s)")
+    page = f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<meta http-equiv="Content-Security-Policy" content="{_CSP}">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>{esc(title)}</title><style>{_CSS}</style></head>
+<body>
+<h1>{esc(title)}</h1>
+<p>Folder <code>{esc(results_dir)}</code>; page written {esc(now)} by <code>bench report</code>.
+{esc(summary)}.</p>
+{banner}
+<nav><ul><li><a href="#tables">Tables</a></li><li><a href="#figures">Figures</a></li>
+<li><a href="#problems">Failed runs and missing data</a></li>
+<li><a href="#provenance">Provenance</a></li></ul></nav>
+<section id="tables"><h2>Tables</h2>
+{tables}
+</section>
+<section id="figures"><h2>Figures</h2>
+{figures}
+</section>
+<section id="problems"><h2>Failed runs and missing data</h2>
+{_problems_section(runs, coverage)}
+</section>
+<section id="provenance"><h2>Provenance</h2>
+{_provenance_section(runs)}
+</section>
+</body></html>
+"""
+    return page, {"tables": n_tables, "figures": n_figures, "runs": len(runs), "failed": failed}
+
+
+def write_page(results_dir: Path, out: Path | None = None) -> tuple[Path, dict]:
+    """Write the page (default ``RESULTS_DIR/report.html``) atomically; returns its path and
+    what it holds."""
+    results_dir = Path(results_dir)
+    if not results_dir.is_dir():
+        from loaders.errors import DataError
+
+        raise DataError(f"{results_dir}: no such results folder")
+    page, counts = render_page(results_dir)
+    path = Path(out) if out is not None else results_dir / PAGE_NAME
+    atomic_write_text(path, page)
+    return path, counts

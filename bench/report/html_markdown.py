@@ -1,0 +1,89 @@
+"""Markdown to HTML for ``bench report``: the harness's own markdown (tables, their captions,
+headings, lists, inline code) as HTML, every character of the text escaped first and only the
+harness's marks (``**`` bold best, ``<u>`` underlined second, backticks) turned into tags around
+the escaped text, so a name from data can never become markup."""
+
+from __future__ import annotations
+
+import html
+import re
+
+
+def esc(text) -> str:
+    """HTML-escaped text (quotes included): every string from data or configuration."""
+    return html.escape(str(text), quote=True)
+
+
+_BOLD = re.compile(r"\*\*(.+?)\*\*")
+_UNDER = re.compile(r"&lt;u&gt;(.+?)&lt;/u&gt;")
+_CODE = re.compile(r"`([^`]+)`")
+_NUMBER = re.compile(r"^[-+]?[\d.]+(e[-+]?\d+)?( / [-+]?[\d.]+(e[-+]?\d+)?)?( \[\d+ thr\.\])?$")
+
+
+def inline(text: str) -> str:
+    """One markdown cell or line as HTML: escaped first, then the harness's own marks (``**``
+    bold, ``<u>`` underline, backticks) turned into tags around the escaped text."""
+    out = esc(text)
+    out = _CODE.sub(r"<code>\1</code>", out)
+    out = _BOLD.sub(r"<strong>\1</strong>", out)
+    return _UNDER.sub(r"<u>\1</u>", out)
+
+
+def _split_row(line: str) -> list[str]:
+    body = line.strip()
+    body = body[1:] if body.startswith("|") else body
+    body = body[:-1] if body.endswith("|") else body
+    return [c.strip() for c in body.split(" | ")] if " | " in body or body else [""]
+
+
+def _is_rule(line: str) -> bool:
+    return bool(re.fullmatch(r"\|?(\s*:?-{3,}:?\s*\|)+\s*:?(-{3,}:?)?\s*\|?", line.strip()))
+
+
+def _plain(cell: str) -> str:
+    return re.sub(r"\*\*|</?u>", "", cell).strip()
+
+
+def _td(cell: str) -> str:
+    num = ' class="num"' if _NUMBER.match(_plain(cell)) else ""
+    return f"<td{num}>{inline(cell)}</td>"
+
+
+def markdown_html(text: str) -> tuple[str, int]:
+    """A markdown report (the harness's tables, captions, headings and lists) as HTML, and
+    the number of tables in it."""
+    lines, out, i, tables = text.splitlines(), [], 0, 0
+    while i < len(lines):
+        line = lines[i]
+        if line.startswith("|") and i + 1 < len(lines) and _is_rule(lines[i + 1]):
+            header = _split_row(line)
+            rows = []
+            i += 2
+            while i < len(lines) and lines[i].startswith("|"):
+                rows.append(_split_row(lines[i]))
+                i += 1
+            tables += 1
+            head = "".join(f"<th>{inline(c)}</th>" for c in header)
+            body = "".join("<tr>" + "".join(_td(c) for c in row) + "</tr>" for row in rows)
+            out.append(f'<div class="scroll"><table><thead><tr>{head}</tr></thead>'
+                       f"<tbody>{body}</tbody></table></div>")
+            continue
+        if line.startswith("#"):
+            level = min(len(line) - len(line.lstrip("#")) + 2, 5)
+            out.append(f"<h{level}>{inline(line.lstrip('#').strip())}</h{level}>")
+        elif line.lstrip().startswith(("- ", "* ")):
+            items = []
+            while i < len(lines) and lines[i].lstrip().startswith(("- ", "* ")):
+                items.append(f"<li>{inline(lines[i].lstrip()[2:])}</li>")
+                i += 1
+            out.append(f"<ul>{''.join(items)}</ul>")
+            continue
+        elif line.strip():
+            para = [line.strip()]
+            while i + 1 < len(lines) and lines[i + 1].strip() and not lines[i + 1].startswith(
+                    ("|", "#", "- ", "* ")):
+                i += 1
+                para.append(lines[i].strip())
+            out.append(f'<p class="caption">{inline(" ".join(para))}</p>')
+        i += 1
+    return "\n".join(out), tables

@@ -1,0 +1,81 @@
+"""What ``bench report``'s page reads of run folders: ``read_page_runs``, the page's one reader
+of run records (the documented files of a run folder, README "Results layout": config.yaml,
+metrics.json, failed.json, meta.json, gt_tum.txt), into plain ``PageRun`` records. When the run
+folders' reader changes (a typed result), only this module follows."""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import yaml
+
+
+@dataclass(frozen=True)
+class PageRun:
+    """What the page shows of one run folder."""
+
+    folder: str                    # relative to the results folder
+    sequence: str                  # display name
+    run: str                       # the run folder's name (method, label, seed option)
+    status: str                    # finished, failed, crashed, timeout, interrupted, unfinished
+    message: str = ""
+    store: str | None = None
+    store_sha256: str | None = None
+    frames: int | None = None
+    has_gt: bool = False
+    diverged: bool | None = None
+    clock: str | None = None
+    threads: int | None = None
+    code_sha256: str | None = None
+    meta: dict = field(default_factory=dict)
+    mtime: float = 0.0
+
+
+def read_json(path: Path) -> dict:
+    try:
+        return json.loads(path.read_text()) if path.exists() else {}
+    except (OSError, ValueError):
+        return {}
+
+
+def read_page_runs(results_dir: Path) -> list[PageRun]:
+    """Every run folder under ``results_dir`` (a folder holding ``config.yaml`` with a
+    ``run_key``, ``metrics.json`` or ``failed.json``): the page's one reader of run records."""
+    results_dir = Path(results_dir)
+    folders = sorted({p.parent for name in ("metrics.json", "failed.json", "config.yaml")
+                      for p in results_dir.rglob(name)})
+    runs = []
+    for d in folders:
+        config = {}
+        if (d / "config.yaml").exists():
+            try:
+                config = yaml.safe_load((d / "config.yaml").read_text()) or {}
+            except (OSError, yaml.YAMLError):
+                pass
+        config = config if isinstance(config, dict) else {}
+        metrics, failed = read_json(d / "metrics.json"), read_json(d / "failed.json")
+        if not (metrics or failed or "run_key" in config):
+            continue  # a config.yaml of something else (an experiment)
+        seq = config.get("sequence") or {}
+        identity = config.get("identity") or {}
+        if metrics:
+            status, message = "finished", ""
+        elif failed:
+            status, message = failed.get("status", "failed"), failed.get("error", "")
+        else:
+            status, message = "unfinished", "no metrics.json and no failed.json"
+        records = [d / n for n in ("metrics.json", "failed.json") if (d / n).exists()]
+        runs.append(PageRun(
+            folder=str(d.relative_to(results_dir)),
+            sequence=str(seq.get("display_name") or seq.get("name") or metrics.get("sequence")
+                         or d.parent.name),
+            run=d.name, status=status, message=str(message), store=seq.get("store"),
+            store_sha256=identity.get("store_sha256"),
+            frames=metrics.get("frames", seq.get("frames")),
+            has_gt=(d / "gt_tum.txt").exists(), diverged=metrics.get("diverged"),
+            clock=metrics.get("clock"), threads=metrics.get("threads"),
+            code_sha256=identity.get("code_sha256"), meta=read_json(d / "meta.json"),
+            mtime=max((p.stat().st_mtime for p in records), default=0.0)))
+    return runs
