@@ -10,10 +10,8 @@ from __future__ import annotations
 
 import sys
 
-from bench.threads import pin_threads
-
-# library thread counts are pinned before numpy & co. load, the same in every executor mode
-pin_threads()
+# importing ``bench`` pins the library thread counts before numpy & co. load (bench.threads)
+from bench.threads import pin_threads  # noqa: F401
 
 from pathlib import Path  # noqa: E402
 from typing import Annotated  # noqa: E402
