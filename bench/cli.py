@@ -9,19 +9,17 @@ Ctrl-C.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
+from typing import Annotated
 
-# importing ``bench`` pins the library thread counts before numpy & co. load (bench.threads)
-from bench.threads import pin_threads  # noqa: F401
+import typer
+from rich.markup import escape
 
-from pathlib import Path  # noqa: E402
-from typing import Annotated  # noqa: E402
-
-import typer  # noqa: E402
-from rich.markup import escape  # noqa: E402
-
-from bench.console import make_console  # noqa: E402
-from bench.data.convert import convert_app  # noqa: E402
-from loaders.errors import DataError  # noqa: E402
+# importing the ``bench`` package pinned the library thread counts before numpy & co. loaded
+# (bench/__init__.py, bench.threads), the same in every executor mode
+from bench.console import make_console
+from bench.data.convert import convert_app
+from loaders.errors import DataError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
                   help="Benchmark harness for Doppler-based scan matching (4D radar, FMCW LiDAR).")

@@ -23,8 +23,13 @@ from collections.abc import Callable
 
 from bench.threads import leak_hint, limit_threads
 from methods.base import Odometry, OdometryResult, run_timed
-from methods.timing import (CPU_LEAK_LIMIT, DEFAULT_TIMING_LOCK, TIMING_LOCK_ENV, cpu_leak,
-                            timing_outliers)
+from methods.timing import (
+    CPU_LEAK_LIMIT,
+    DEFAULT_TIMING_LOCK,
+    TIMING_LOCK_ENV,
+    cpu_leak,
+    timing_outliers,
+)
 
 
 class CpuLeakWarning(UserWarning):
