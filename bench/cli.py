@@ -253,7 +253,8 @@ def speed(
     = "1000,4000,16000,64000,128000",
     methods: Annotated[str | None, typer.Option(help="methods (default: all registered)")]
     = None,
-    repeats: Annotated[int, typer.Option(min=1, help="timed repeats per size")] = 7,
+    repeats: Annotated[int, typer.Option(min=1, help="timed frames per size (distinct "
+                                                    "consecutive pairs)")] = 7,
     out: Annotated[Path, typer.Option(help="output folder")] = Path("results/speed"),
     memory: Annotated[bool, typer.Option(help="also measure each method's peak memory on a "
                                               "64k-point LiDAR run")] = True,
@@ -262,13 +263,17 @@ def speed(
     reference: Annotated[bool, typer.Option(
         "--reference", help="also time Open3D's and small_gicp's own pipelines doing the same "
         "work on the same pairs (speed_reference.csv)")] = False,
+    vs_run: Annotated[bool, typer.Option(
+        "--vs-run", help="also run each method with `bench run` on the first scenario's scans "
+        "and print both median times (the two protocols agree)")] = False,
 ) -> None:
     """Time every method on the same synthetic scan pairs (total per-frame work and the
     registration call); print ratios to `doppler` and each method's peak memory."""
     from bench.studies.speed import run_speed
 
     run_speed([int(s) for s in sizes.split(",")], methods.split(",") if methods else None,
-              repeats, out, console, memory, threads=threads, reference=reference)
+              repeats, out, console, memory, threads=threads, reference=reference,
+              vs_run=vs_run)
 
 
 @app.command(short_help="the paper's Tables III-V")
