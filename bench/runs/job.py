@@ -25,7 +25,7 @@ from pydantic import ValidationError
 
 from bench.runs.evaluate import evaluate_run
 from bench.runs.folders import clear_run, is_finished, run_dir_name, write_failure, write_run
-from bench.runs.identity import code_identity, run_key, store_identity
+from bench.runs.identity import code_identity, host_identity, run_key, store_identity
 from bench.runs.timed import timed_run
 from loaders.errors import DataError, validation_problems
 from loaders.scan import FrameRange, Sequence
@@ -159,7 +159,7 @@ def prepare(job: Job) -> Prepared:
                     "method": job.method, "frame_range": job.frame_range,
                     "params": config["method"]["params"], "seed": job.seed,
                     "lengths_m": [float(x) for x in job.lengths_m],
-                    "code_sha256": code_identity()}
+                    "code_sha256": code_identity(), "host": host_identity()}
         config["run_key"] = run_key(identity)
         config["identity"] = identity
         return Prepared(seq, method, run_dir, config["run_key"], config)

@@ -21,6 +21,7 @@ import os
 import warnings
 from collections.abc import Callable
 
+from bench.runs.provenance import cpu_model
 from bench.threads import leak_hint, limit_threads
 from methods.base import Odometry, OdometryResult, run_timed
 from methods.timing import (
@@ -43,8 +44,8 @@ class TimingOutlierWarning(UserWarning):
 def timed_run(method: Odometry, sequence, seed: bool,
               on_frame: Callable[[int], None] | None = None) -> tuple[OdometryResult, dict]:
     """The warm-up and the timed run of ``method``, checked; returns the result and the timing
-    record for metrics.json (clock, threads, cpu_process_to_thread, timing_outliers,
-    timing_clean and, after a fall-back, clock_note)."""
+    record for metrics.json (clock, threads, the CPU model, cpu_process_to_thread,
+    timing_outliers, timing_clean and, after a fall-back, clock_note)."""
     limit_threads(1)
     result = run_timed(method, sequence, seed, on_frame)
     ratio = cpu_leak(result.frames)
@@ -71,6 +72,7 @@ def timed_run(method: Odometry, sequence, seed: bool,
                       f"{listed}", TimingOutlierWarning, stacklevel=2)
     compiled = any(f.compiles for f in result.frames)
     return result, {"clock": record.pop("clock", method.clock), "threads": method.threads,
+                    "cpu": cpu_model(),
                     "cpu_process_to_thread": ratio if ratio == ratio else None, **record,
                     "timing_outliers": {str(k): v for k, v in outliers.items()},
                     "timing_clean": not compiled}
