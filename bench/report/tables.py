@@ -14,7 +14,14 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from bench.report.cells import md_mark, ranks, save_formats, tex_escape, tex_mark
-from bench.report.names import SEED_NOTE, order_key, run_label, sequence_key, synthetic_note
+from bench.report.names import (
+    SEED_NOTE,
+    hosts_note,
+    order_key,
+    run_label,
+    sequence_key,
+    synthetic_note,
+)
 from bench.runs.folders import load_runs
 from loaders.sensor_classes import class_rank
 
@@ -31,6 +38,7 @@ class Row:
     time_ms: float
     diverged: bool
     threads: int = 1  # a run on several threads is timed by the wall clock (methods.timing)
+    cpu: str | None = None  # the CPU model the run was timed on (metrics.json)
 
 
 #: what the Time column holds (methods/base.py, methods/timing.py)
@@ -63,7 +71,7 @@ def collect_rows(results_dir: Path, only: set[Path] | None = None
             trans={k: _value(v["trans_m_mean"]) if v["n"] else math.nan for k, v in rel.items()},
             time_ms=_value(run.time_ms.get("mean")),
             diverged=bool(run.diverged),
-            threads=int(run.metrics.get("threads") or 1),
+            threads=int(run.metrics.get("threads") or 1), cpu=run.metrics.get("cpu"),
         ))
     return sorted(rows, key=_row_order), sorted(lengths, key=float)
 
@@ -140,7 +148,8 @@ def to_markdown(rows: list[Row], lengths: list[str]) -> str:
         lines.append("| " + " | ".join([klass, seq, r.label, *cells]) + " |")
     caption = (synthetic_note(r.sequence for r in rows) +
                "Each cell: mean rotation [deg] / translation [m] relative error per segment "
-               "length. " + TIME_NOTE + " Best per sequence in bold, second underlined; Div. = "
+               "length. " + TIME_NOTE + " " + hosts_note(r.cpu for r in rows) +
+               "Best per sequence in bold, second underlined; Div. = "
                "diverged. " + SEED_NOTE)
     return "\n".join(lines) + "\n\n" + caption + "\n"
 
