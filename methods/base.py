@@ -19,7 +19,10 @@ registration, map update), excluding file I/O; ``register_ms`` is the registrati
 The first frame has no registration and is not timed. Before the timed run, ``run_timed`` gives
 every method the same warm-up (``Odometry.warm_up``: one untimed run on a separate pair), so no
 compilation, import or first-call cost lands in a timed frame. Timed sections are exclusive of
-other jobs' timed sections (``methods.timing``).
+other jobs' timed sections (``methods.timing``). Each timed frame also records the process's CPU
+time and the numba compilations inside it (``FrameRecord.process_ms``, ``compiles``): the
+harness (``bench.runs.timed``) checks that the work stayed on the timed thread and that no
+compilation was left for a timed frame.
 """
 
 from __future__ import annotations
