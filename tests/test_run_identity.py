@@ -309,3 +309,19 @@ def test_another_cpu_or_thread_setting_reruns_the_job(store, tmp_path, monkeypat
     assert run_job(job).status == "skipped"
     monkeypatch.setattr(identity, "thread_settings", lambda: {"OMP_NUM_THREADS": "4"})
     assert run_job(job).status == "done"
+
+
+def test_a_table_of_times_from_two_cpus_says_so(store, tmp_path):
+    from bench.report.tables import to_markdown
+
+    for method in ("doppler", "icp-p2p"):
+        assert run_job(Job(store=store, method=method, seed=None if method == "doppler"
+                           else True, out_root=tmp_path)).status == "done"
+    rows, lengths = collect_rows(tmp_path)
+    assert len(rows) == 2 and "MIXED HOSTS" not in to_markdown(rows, lengths)
+    metrics_file = next(tmp_path.rglob("icp-p2p_seed/metrics.json"))
+    metrics = json.loads(metrics_file.read_text())
+    metrics_file.write_text(json.dumps({**metrics, "cpu": "Another CPU 9000"}))
+    rows, lengths = collect_rows(tmp_path)
+    text = to_markdown(rows, lengths)
+    assert "MIXED HOSTS" in text and "Another CPU 9000" in text and metrics["cpu"] in text
