@@ -10,7 +10,7 @@ Two scenarios, each generated once so that every method sees exactly the same po
 N is always the number of points handed to the method (its input). Two figures per method:
 ``time_ms``, the total per-frame work (a pairwise method: preparing the new scan, i.e. its own
 downsampling, normals, kd-tree or voxel map, plus the registration call), and ``register_ms``,
-the registration call alone (what is inside it for each method: README, "Timing protocol").
+the registration call alone (what is inside it for each method: README, Metrics, Timing).
 Every method is timed exactly as a run times it (``bench.runs.timed.timed_run``: the library
 threads limited, the common warm-up ``Odometry.warm_up`` on the sequence's last pair, then one
 seeded run over the sequence's distinct consecutive frames, no pair repeated), and a figure is
@@ -280,7 +280,7 @@ def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Pa
                              "ratio_to_doppler": r["median_ms"] / base})
                 console.print(f"  {scenario:<5} N={n:>7} {name:<12} {r['median_ms']:10.3f} ms "
                               f"(registration {r['register_median_ms']:.3f} ms; {r['repeats']} "
-                              f"repeats, {r['iterations']} it, {r['prep']}, {r['threads']} "
+                              f"frames, {r['iterations']} it, {r['prep']}, {r['threads']} "
                               f"thr., {r['clock']} time)", highlight=False, markup=False)
         if reference:  # the same pair, right after ours, at the requested thread count
             reference_rows += speed_reference.reference_rows(
