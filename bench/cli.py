@@ -9,21 +9,17 @@ Ctrl-C.
 from __future__ import annotations
 
 import sys
+from pathlib import Path
+from typing import Annotated
 
-from bench.threads import pin_threads
+import typer
+from rich.markup import escape
 
-# library thread counts are pinned before numpy & co. load, the same in every executor mode
-pin_threads()
-
-from pathlib import Path  # noqa: E402
-from typing import Annotated  # noqa: E402
-
-import typer  # noqa: E402
-from rich.markup import escape  # noqa: E402
-
-from bench.console import make_console  # noqa: E402
-from bench.data.convert import convert_app  # noqa: E402
-from loaders.errors import DataError  # noqa: E402
+# importing the ``bench`` package pinned the library thread counts before numpy & co. loaded
+# (bench/__init__.py, bench.threads), the same in every executor mode
+from bench.console import make_console
+from bench.data.convert import convert_app
+from loaders.errors import DataError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
                   help="Benchmark harness for Doppler-based scan matching (4D radar, FMCW LiDAR).")
@@ -284,7 +280,8 @@ def speed(
     = "1000,4000,16000,64000,128000",
     methods: Annotated[str | None, typer.Option(help="methods (default: all registered)")]
     = None,
-    repeats: Annotated[int, typer.Option(min=1, help="timed repeats per size")] = 7,
+    repeats: Annotated[int, typer.Option(min=1, help="timed frames per size (distinct "
+                                                    "consecutive pairs)")] = 7,
     out: Annotated[Path, typer.Option(help="output folder")] = Path("results/speed"),
     memory: Annotated[bool, typer.Option(help="also measure each method's peak memory on a "
                                               "64k-point LiDAR run")] = True,
@@ -293,13 +290,17 @@ def speed(
     reference: Annotated[bool, typer.Option(
         "--reference", help="also time Open3D's and small_gicp's own pipelines doing the same "
         "work on the same pairs (speed_reference.csv)")] = False,
+    vs_run: Annotated[bool, typer.Option(
+        "--vs-run", help="also run each method with `bench run` on the first scenario's scans "
+        "and print both median times (the two protocols agree)")] = False,
 ) -> None:
     """Time every method on the same synthetic scan pairs (total per-frame work and the
     registration call); print ratios to `doppler` and each method's peak memory."""
     from bench.studies.speed import run_speed
 
     run_speed([int(s) for s in sizes.split(",")], methods.split(",") if methods else None,
-              repeats, out, console, memory, threads=threads, reference=reference)
+              repeats, out, console, memory, threads=threads, reference=reference,
+              vs_run=vs_run)
 
 
 @app.command(short_help="the paper's Tables III-V")

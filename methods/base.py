@@ -19,7 +19,10 @@ registration, map update), excluding file I/O; ``register_ms`` is the registrati
 The first frame has no registration and is not timed. Before the timed run, ``run_timed`` gives
 every method the same warm-up (``Odometry.warm_up``: one untimed run on a separate pair), so no
 compilation, import or first-call cost lands in a timed frame. Timed sections are exclusive of
-other jobs' timed sections (``methods.timing``).
+other jobs' timed sections (``methods.timing``). Each timed frame also records the process's CPU
+time and the numba compilations inside it (``FrameRecord.process_ms``, ``compiles``): the
+harness (``bench.runs.timed``) checks that the work stayed on the timed thread and that no
+compilation was left for a timed frame.
 """
 
 from __future__ import annotations
@@ -57,7 +60,10 @@ class FrameRecord:
     """One registered frame. ``time_ms``: all per-frame work from the scan in memory to its
     pose; ``register_ms``: the registration call alone; both by the method's clock
     (``Odometry.clock``: CPU time of a one-thread method, else wall time); ``wall_ms``: the
-    elapsed time of the frame's work (beside ``time_ms``, it shows waiting for a core)."""
+    elapsed time of the frame's work (beside ``time_ms``, it shows waiting for a core);
+    ``thread_ms`` / ``process_ms``: the CPU time of the calling thread / the whole process over
+    the frame's work (their ratio shows work that left the thread, ``methods.timing``);
+    ``compiles``: numba compilations inside the frame (0 after a complete warm-up)."""
 
     index: int
     stamp: float
@@ -68,6 +74,9 @@ class FrameRecord:
     converged: bool
     register_ms: float = float("nan")
     wall_ms: float = float("nan")
+    thread_ms: float = float("nan")
+    process_ms: float = float("nan")
+    compiles: int = 0
 
 
 @dataclass
@@ -118,18 +127,23 @@ class Odometry(ABC):
     @property
     def clock(self) -> str:
         """How its frames are timed (``methods.timing``): "cpu" (the thread's CPU time: the
-        same alone or beside other jobs) on one thread, "wall" on several."""
-        return "cpu" if self.threads == 1 else "wall"
+        same alone or beside other jobs) on one thread, "wall" on several, or ``clock_override``
+        when the harness set it (a run whose work left the thread is timed again by wall
+        clock)."""
+        return getattr(self, "clock_override", None) or ("cpu" if self.threads == 1 else "wall")
 
     def frame_record(self, index: int, stamp: float, total, register, points: int,
                      correspondences: int, iterations: int, converged: bool) -> FrameRecord:
         """A frame's record from its ``timed_section`` (``total``; None: not timed, as the
         first frame) and the stopwatch of its registration call (``register``; None: none)."""
         nan = float("nan")
-        return FrameRecord(index, stamp, nan if total is None else total.ms(self.clock),
-                           points, correspondences, iterations, converged,
+        if total is None:
+            return FrameRecord(index, stamp, nan, points, correspondences, iterations,
+                               converged, nan if register is None else register.ms(self.clock))
+        return FrameRecord(index, stamp, total.ms(self.clock), points, correspondences,
+                           iterations, converged,
                            nan if register is None else register.ms(self.clock),
-                           nan if total is None else total.wall_ms)
+                           total.wall_ms, total.cpu_ms, total.process_ms, total.compiles)
 
     def configured_for(self, sensor: SensorInfo) -> Odometry:
         """This method with the parameters that depend on the sensor resolved for ``sensor``

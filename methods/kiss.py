@@ -23,10 +23,13 @@ with constant times the library aborts the whole process (SIGABRT), so every sca
 first and a bad one is refused with a DataError naming the frame. ``deskew`` None (default)
 deskews exactly when the first scan carries per-point times; then every scan must.
 
-Threads: kiss-icp fixes its thread count process-wide with the first instance, and
-multi-threaded runs are not bit-reproducible, so ``num_threads`` defaults to 1 (reproducible)
-and the harness runs every job in its own
-worker process. A second instance in the same process with another count keeps the first one.
+Threads: kiss-icp fixes its thread count process-wide with the first instance (a static
+``tbb::global_control`` in its C++ ``Registration``; a later instance with another count keeps
+the first one), and multi-threaded runs are not bit-reproducible, so ``num_threads`` defaults
+to 1 (reproducible). Each run honours its own count: a run whose count differs from the one
+this process's first instance fixed runs (warm-up and timed run) in a fresh process
+(``_run_in_fresh_process``), so ``bench speed --threads N`` times N threads and a one-thread
+run after an N-thread one (the notebook API, ``--executor local``) times one.
 
 Seed / no seed: with seed, kiss-icp predicts each frame with its constant-velocity model (its
 ``last_delta``, the last relative motion); with no seed ``last_delta`` is reset to the identity
@@ -48,7 +51,7 @@ import numpy as np
 from pydantic import Field
 
 from loaders.errors import DataError
-from loaders.scan import Scan, SensorInfo, Sequence
+from loaders.scan import MemorySequence, Scan, SensorInfo, Sequence
 from methods.base import FrameRecord, MethodParams, Odometry, OdometryResult
 from methods.timing import stopwatch, timed_section
 
@@ -103,6 +106,17 @@ class _TimedRegistration:
         return pose
 
 
+#: kiss-icp's thread count in this process, fixed by its first instance (empty: none yet)
+_process_threads: list[int] = []
+
+
+def _fresh_run(params: dict, sequence: MemorySequence, seed: bool) -> OdometryResult:
+    """The warm-up and the timed run of kiss-icp in this (fresh) process."""
+    method = KissIcp(KissParams.model_validate(params))
+    method.warm_up(sequence)
+    return method.run(sequence, seed)
+
+
 class KissIcp(Odometry):
     name = "kiss-icp"
     description = "KISS-ICP scan-to-map odometry (kiss-icp package; own local map)"
@@ -129,12 +143,39 @@ class KissIcp(Odometry):
         config.mapping.voxel_size = p.voxel_size_m
         config.mapping.max_points_per_voxel = p.max_points_per_voxel
         config.registration.max_num_threads = p.num_threads
+        if not _process_threads:
+            _process_threads.append(p.num_threads)
         kiss = KissICP(config=config)
         kiss.registration = _TimedRegistration(kiss.registration)
         return kiss
 
+    @property
+    def needs_fresh_process(self) -> bool:
+        """This process's kiss-icp runs on another thread count than this run asks for."""
+        return bool(_process_threads) and _process_threads[0] != self.params.num_threads
+
+    def warm_up(self, sequence: Sequence) -> None:
+        if not self.needs_fresh_process:  # else the fresh process warms up itself
+            super().warm_up(sequence)
+
+    def _run_in_fresh_process(self, sequence: Sequence, seed: bool,
+                              on_frame: Callable[[int], None] | None) -> OdometryResult:
+        """Warm-up and timed run in a fresh (spawned) process whose first kiss-icp instance
+        has this run's thread count; the scans are read here (untimed) and sent over."""
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+
+        scans = MemorySequence(sequence.name, sequence.sensor, list(sequence))
+        with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as pool:
+            result = pool.submit(_fresh_run, self.params.model_dump(), scans, seed).result()
+        for i in range(len(result.frames)) if on_frame else ():
+            on_frame(i)
+        return result
+
     def run(self, sequence: Sequence, seed: bool,
             on_frame: Callable[[int], None] | None = None) -> OdometryResult:
+        if self.needs_fresh_process:
+            return self._run_in_fresh_process(sequence, seed, on_frame)
         n = len(sequence)
         poses = np.repeat(np.eye(4)[None], n, axis=0)
         stamps = np.empty(n)

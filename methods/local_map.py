@@ -281,6 +281,11 @@ def register_to_map(
     that (the full derivative of the constrained cost, so the iteration converges to its own
     optimum). ``kernel_scale`` is the Cauchy scale on the Mahalanobis distance [-]. Returns the
     pose T_world_sensor and the last pair count."""
+    # contiguous, whatever the caller passes (a strided subsample ``covs[::step]`` would make
+    # numba compile a second version of ``_normal_equations`` inside a timed frame: the first
+    # frame with more than ``max_source_points`` points after a warm-up pair with fewer)
+    points = np.ascontiguousarray(points, dtype=np.float64)
+    covs = np.ascontiguousarray(covs, dtype=np.float64)
     R = init_T_world_sensor[:3, :3].copy()
     if tied is None:
         U = np.eye(3)  # the translation is free

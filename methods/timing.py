@@ -13,18 +13,43 @@ Every timed section measures two clocks:
 holds an exclusive ``flock`` on the file named by ``DOPPLER_BENCH_TIMING_LOCK`` (set by the
 executors when jobs run in parallel), so no two wall-clock sections on this machine overlap;
 waiting for the lock is not timed.
+
+Two checks keep a reported time honest:
+- ``process_ms``: the CPU time of the whole process over the same section, less that of the
+  threads the harness names as its own (``harness_threads``: the Python threads alive when
+  the run started, e.g. a dask worker's event loop or a progress display, whose work is not
+  the method's). The thread's clock sees only the calling thread, so work handed to other
+  threads (a BLAS or OpenMP pool, TBB, a thread the method starts) would vanish from it;
+  ``cpu_leak`` compares the two over a run's timed sections, and a run whose process CPU
+  exceeds its thread's by more than ``CPU_LEAK_LIMIT`` is not reported as one-thread CPU time
+  (``bench.runs.timed`` times it again by wall clock under the lock).
+- ``compiles``: numba compilations (or loads from its cache) inside the section, counted by a
+  listener on numba's compiler lock. A compiled path the warm-up did not exercise shows there;
+  ``timing_outliers`` lists such frames and frames far above the run's median.
 """
 
 from __future__ import annotations
 
 import fcntl
 import os
+import sys
+import tempfile
 import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
 TIMING_LOCK_ENV = "DOPPLER_BENCH_TIMING_LOCK"
+#: the lock the executors (and a run that falls back to wall time) name by default
+DEFAULT_TIMING_LOCK = os.path.join(tempfile.gettempdir(), "doppler-bench-timing.lock")
+#: process CPU above the thread's by more than this fraction: work left the timed thread
+CPU_LEAK_LIMIT = 0.05
+#: a timed frame above this many times the run's median (and ``OUTLIER_MIN_MS`` above it)
+OUTLIER_FACTOR = 10.0
+OUTLIER_MIN_MS = 10.0
 _lock_files: dict[str, int] = {}
+_compiles = [0]  # numba compilations and cache loads in this process (while listened to)
+_harness_clocks: list[int] = []  # CPU clocks of the threads whose work is not the method's
+_listening: list[bool] = []
 
 
 def _lock_fd(path: str) -> int:
@@ -38,12 +63,53 @@ def _lock_fd(path: str) -> int:
     return fd
 
 
+def _watch_numba() -> None:
+    """Count numba's compilations from now on (once numba is loaded: nothing compiles before)."""
+    if _listening or "numba" not in sys.modules:
+        return
+    from numba.core import event
+
+    class _Count(event.Listener):
+        def on_start(self, ev) -> None:
+            _compiles[0] += 1
+
+        def on_end(self, ev) -> None:
+            pass
+
+    event.register("numba:compiler_lock", _Count())
+    _listening.append(True)
+
+
+def harness_threads(idents) -> None:
+    """Name the threads (``threading`` idents) whose CPU time is the harness's, not the
+    method's: it is left out of ``process_ms`` (an empty list: none)."""
+    clocks = []
+    for ident in idents:
+        try:
+            clocks.append(time.pthread_getcpuclockid(ident))
+        except (OSError, AttributeError):
+            pass
+    _harness_clocks[:] = clocks
+
+
+def _harness_ns() -> int:
+    total = 0
+    for clock in _harness_clocks:
+        try:
+            total += time.clock_gettime_ns(clock)
+        except OSError:  # that thread has ended: its time no longer grows
+            pass
+    return total
+
+
 class Stopwatch:
-    """Milliseconds spent inside a ``timed_section`` or ``stopwatch``, by both clocks (set when
-    it ends)."""
+    """Milliseconds spent inside a ``timed_section`` or ``stopwatch``, by both clocks, the
+    process's CPU time, and the numba compilations in it (set when it ends)."""
 
     wall_ms: float = float("nan")
     cpu_ms: float = float("nan")
+    process_ms: float = float("nan")
+    compiles: int = 0
 
     def ms(self, clock: str) -> float:
         """The time by ``clock`` ("cpu" or "wall")."""
@@ -53,11 +119,17 @@ class Stopwatch:
 @contextmanager
 def stopwatch() -> Iterator[Stopwatch]:
     """Time a block by both clocks (e.g. the registration call inside a frame's work)."""
+    _watch_numba()
     watch = Stopwatch()
-    c0, w0 = time.thread_time_ns(), time.perf_counter_ns()
+    k0, h0 = _compiles[0], _harness_ns() if _harness_clocks else 0
+    p0, c0, w0 = time.process_time_ns(), time.thread_time_ns(), time.perf_counter_ns()
     yield watch
-    watch.wall_ms = (time.perf_counter_ns() - w0) / 1e6
-    watch.cpu_ms = (time.thread_time_ns() - c0) / 1e6
+    w1, c1, p1 = time.perf_counter_ns(), time.thread_time_ns(), time.process_time_ns()
+    h1 = _harness_ns() if _harness_clocks else 0
+    watch.wall_ms = (w1 - w0) / 1e6
+    watch.cpu_ms = (c1 - c0) / 1e6
+    watch.process_ms = (p1 - p0 - (h1 - h0)) / 1e6
+    watch.compiles = _compiles[0] - k0
 
 
 @contextmanager
@@ -74,3 +146,30 @@ def timed_section(exclusive: bool = False) -> Iterator[Stopwatch]:
     finally:
         if fd is not None:
             fcntl.flock(fd, fcntl.LOCK_UN)
+
+
+def cpu_leak(frames) -> float:
+    """Process CPU over thread CPU, summed over the timed frames (``FrameRecord``s with
+    ``process_ms`` and ``thread_ms``): 1.0 when all the work stayed on the calling thread; NaN
+    when nothing was timed."""
+    pairs = [(f.process_ms, f.thread_ms) for f in frames
+             if f.process_ms == f.process_ms and f.thread_ms == f.thread_ms]
+    thread = sum(t for _, t in pairs)
+    return sum(p for p, _ in pairs) / thread if thread > 0 else float("nan")
+
+
+def timing_outliers(frames) -> dict[int, str]:
+    """Timed frames whose time is not the method's steady work: frame index -> why (a numba
+    compilation inside it, or ``time_ms`` over ``OUTLIER_FACTOR`` x the run's median and
+    ``OUTLIER_MIN_MS`` above it)."""
+    timed = [f for f in frames if f.time_ms == f.time_ms]
+    if not timed:
+        return {}
+    median = sorted(f.time_ms for f in timed)[len(timed) // 2]
+    out = {}
+    for f in timed:
+        if getattr(f, "compiles", 0):
+            out[f.index] = f"numba compiled {f.compiles}x inside it ({f.time_ms:.1f} ms)"
+        elif f.time_ms > OUTLIER_FACTOR * median and f.time_ms > median + OUTLIER_MIN_MS:
+            out[f.index] = f"{f.time_ms:.1f} ms, {f.time_ms / median:.0f}x the median"
+    return out

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+# the numerical libraries' thread counts are pinned before NumPy loads, as on every timed path
+# (bench/threads.py: importing bench pins them)
+import bench  # noqa: F401  # isort: skip
+
 from pathlib import Path
 
 import numpy as np

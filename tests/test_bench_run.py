@@ -15,7 +15,7 @@ from loaders.store import write_store
 
 METRIC_KEYS = {"sequence", "method", "seed", "frames", "frames_scored", "diverged",
                "relative_error", "ape", "time_ms", "register_ms", "wall_ms", "clock",
-               "threads"}
+               "threads", "cpu", "cpu_process_to_thread", "timing_outliers", "timing_clean"}
 
 
 @pytest.fixture(scope="module")
@@ -47,6 +47,8 @@ def test_run_folder_has_every_file_and_exact_metric_keys(store, tmp_path):
     assert header == ("index,stamp,time_ms,register_ms,wall_ms,points,correspondences,"
                       "iterations,converged")
     assert metrics["clock"] == "cpu" and metrics["threads"] == 1
+    assert metrics["cpu"] == meta["cpu"] and 0.99 < metrics["cpu_process_to_thread"] <= 1.05
+    assert metrics["timing_clean"] is True
     assert set(metrics["register_ms"]) == {"median", "mean", "p95"}
     assert metrics["register_ms"]["mean"] <= metrics["time_ms"]["mean"]
     est = np.loadtxt(run_dir / "est_tum.txt")

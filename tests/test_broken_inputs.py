@@ -15,6 +15,7 @@ import os
 import re
 import shutil
 import subprocess
+import sys
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -29,7 +30,8 @@ from loaders.scan import MemorySequence, Scan
 from loaders.store import write_store
 
 ROOT = Path(__file__).resolve().parents[1]
-BENCH = str(ROOT / ".venv" / "bin" / "bench")
+# the running interpreter's bench (whichever venv runs the tests: `make test VENV=...`)
+BENCH = [sys.executable, "-m", "bench.cli"]
 FRAMES = 10
 
 
@@ -254,7 +256,7 @@ def build_cases(tmp: Path) -> dict[str, Case]:
 def run_bench(args: list[str]) -> subprocess.CompletedProcess:
     env = {**os.environ, "COLUMNS": "200", "OMP_NUM_THREADS": "1"}
     # in the session's temporary working folder: default outputs (results/inspect/...) go there
-    return subprocess.run([BENCH, *args], capture_output=True, text=True, cwd=Path.cwd(),
+    return subprocess.run([*BENCH, *args], capture_output=True, text=True, cwd=Path.cwd(),
                           env=env, timeout=120)
 
 

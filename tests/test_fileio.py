@@ -89,7 +89,7 @@ def test_sigkill_during_synth_then_next_write_cleans_up(tmp_path):
     """SIGKILL of `bench synth` mid-write leaves its temporary; the next write to the same
     store removes it and nothing stays under the final name in between."""
     out = tmp_path / "wall.h5"
-    cmd = [str(ROOT / ".venv" / "bin" / "bench"), "synth", "straight-wall", "--sensor",
+    cmd = [sys.executable, "-m", "bench.cli", "synth", "straight-wall", "--sensor",
            "radar-sparse", "--out", str(out)]
     proc = subprocess.Popen([*cmd, "--frames", "2000"], stdout=subprocess.DEVNULL,
                             stderr=subprocess.DEVNULL, cwd=ROOT)

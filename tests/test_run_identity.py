@@ -187,3 +187,141 @@ def test_editing_a_loader_helper_re_runs_the_run(store, tmp_path):
     se3.write_text(text.replace('    """Inverse of (..., 4, 4) rigid transforms',
                                 '    """(edited) Inverse of (..., 4, 4) rigid transforms', 1))
     assert run() == "done"
+
+
+# ---- what the run key covers (bench/runs/identity.py) ---------------------------------------
+
+@pytest.fixture(scope="module")
+def code_copy(tmp_path_factory):
+    """A copy of the code whose identity the tests change file by file."""
+    import shutil
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    copy = tmp_path_factory.mktemp("code")
+    for part in ("bench", "loaders", "methods", "metrics"):
+        shutil.copytree(root / part, copy / part, ignore=shutil.ignore_patterns("__pycache__"))
+    return copy
+
+
+def _scoring_files():
+    """Every module of metrics/ and the scoring, listed from the folder (not from the key)."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    return sorted(str(p.relative_to(root)) for p in (root / "metrics").glob("*.py")) + [
+        "bench/runs/evaluate.py", "bench/runs/timed.py", "bench/threads.py", "loaders/gt.py"]
+
+
+@pytest.mark.parametrize("path", _scoring_files())
+def test_editing_any_scoring_module_changes_the_key(code_copy, path, monkeypatch):
+    from bench.runs import identity
+
+    monkeypatch.setattr(identity, "library_versions", lambda external=None: {})
+    before = identity.code_identity(code_copy)
+    file = code_copy / path
+    text = file.read_text()
+    try:
+        file.write_text(text + "\n# edited\n")
+        assert identity.code_identity(code_copy) != before
+    finally:
+        file.write_text(text)
+    assert identity.code_identity(code_copy) == before
+
+
+def test_the_key_covers_the_choice_of_scored_frames_in_job_py(code_copy, monkeypatch):
+    """job.py's ``calibration_frames`` (the frames never scored) is part of the key; the rest
+    of job.py (progress, records) is not."""
+    from bench.runs import identity
+
+    monkeypatch.setattr(identity, "library_versions", lambda external=None: {})
+    before = identity.code_identity(code_copy)
+    file = code_copy / "bench" / "runs" / "job.py"
+    text = file.read_text()
+    marker = "def calibration_frames(seq: Sequence) -> np.ndarray | None:\n"
+    assert marker in text
+    try:
+        file.write_text(text + "\n# elsewhere in job.py\n")
+        assert identity.code_identity(code_copy) == before
+        file.write_text(text.replace(marker, marker + "    # edited\n"))
+        assert identity.code_identity(code_copy) != before
+    finally:
+        file.write_text(text)
+
+
+@pytest.mark.parametrize("library", ["numpy", "scipy", "evo", "numba", "small_gicp", "kiss-icp",
+                                     "pydantic", "python"])
+def test_a_library_version_changes_the_key(code_copy, library, monkeypatch):
+    from bench.runs import identity
+
+    versions = identity.library_versions()
+    assert library in versions  # every library the scoring and the methods use is listed
+    real = identity.installed_versions
+    before = identity.code_identity(code_copy)
+    if library == "python":
+        monkeypatch.setattr(identity.platform, "python_version", lambda: "3.99.0")
+    else:
+        monkeypatch.setattr(identity, "installed_versions", lambda names: {
+            **real(names), library: "0.0.1-other"})
+    assert identity.code_identity(code_copy) != before
+
+
+def test_every_library_the_result_code_imports_is_versioned():
+    """The third-party modules imported by the result code (found by the test, from the
+    import lines of methods/, metrics/, loaders/ and the scoring) all have a version entry."""
+    import re
+    import sys
+    from pathlib import Path
+
+    from bench.runs import identity
+
+    root = Path(__file__).resolve().parents[1]
+    files = [*root.glob("methods/*.py"), *root.glob("metrics/*.py"),
+             *root.glob("loaders/**/*.py"), root / "bench/runs/evaluate.py"]
+    imported = set()
+    for f in files:
+        for a, b in re.findall(r"^[ \t]*(?:import (\w+)|from (\w+)[\w.]* import )",
+                               f.read_text(), re.MULTILINE):
+            imported.add(a or b)
+    local = {p.name for p in root.iterdir()} | {"bench"}
+    external = {m for m in imported if m not in sys.stdlib_module_names and m not in local
+                and m != "__future__"}
+    assert {"numpy", "scipy", "numba", "small_gicp", "h5py"} <= external
+    listed = {name.replace("-", "_").lower() for name in identity.library_versions()}
+    aliases = {"open3d": "open3d_cpu", "kiss_icp": "kiss_icp", "yaml": "pyyaml"}
+    missing = {m for m in external if aliases.get(m, m).lower() not in listed}
+    assert not missing
+
+
+def test_another_cpu_or_thread_setting_reruns_the_job(store, tmp_path, monkeypatch):
+    """The key covers the host: a time measured on another CPU model or with other library
+    thread settings is not reused."""
+    from bench.runs import identity
+
+    job = Job(store=store, method="doppler", seed=None, out_root=tmp_path)
+    assert run_job(job).status == "done"
+    assert run_job(job).status == "skipped"
+    config = yaml.safe_load(next(tmp_path.rglob("config.yaml")).read_text())
+    assert config["identity"]["host"]["cpu"] == identity.cpu_model()
+    assert config["identity"]["host"]["threads"]["OPENBLAS_NUM_THREADS"] == "1"
+    monkeypatch.setattr(identity, "cpu_model", lambda: "Another CPU 9000")
+    assert run_job(job).status == "done"
+    assert run_job(job).status == "skipped"
+    monkeypatch.setattr(identity, "thread_settings", lambda: {"OMP_NUM_THREADS": "4"})
+    assert run_job(job).status == "done"
+
+
+def test_a_table_of_times_from_two_cpus_says_so(store, tmp_path):
+    from bench.report.tables import to_markdown
+
+    for method in ("doppler", "icp-p2p"):
+        assert run_job(Job(store=store, method=method, seed=None if method == "doppler"
+                           else True, out_root=tmp_path)).status == "done"
+    rows, lengths = collect_rows(tmp_path)
+    assert len(rows) == 2 and "MIXED HOSTS" not in to_markdown(rows, lengths)
+    metrics_file = next(tmp_path.rglob("icp-p2p_seed/metrics.json"))
+    metrics = json.loads(metrics_file.read_text())
+    metrics_file.write_text(json.dumps({**metrics, "cpu": "Another CPU 9000"}))
+    rows, lengths = collect_rows(tmp_path)
+    text = to_markdown(rows, lengths)
+    assert "MIXED HOSTS" in text and "Another CPU 9000" in text and metrics["cpu"] in text

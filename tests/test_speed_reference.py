@@ -31,11 +31,13 @@ TOLERANCE = {
 
 
 @pytest.fixture(scope="module")
-def lidar_pair():
+def lidar_pair(tmp_path_factory):
     """`bench speed`'s LiDAR pair at 4000 points and its true motion (T_target_source)."""
-    (_, n, seq), = speed._scenarios([4000], radar=False)
+    scenarios = speed._scenarios([4000], False, 8, tmp_path_factory.mktemp("speed"))
+    _, n, seq = next(scenarios)
     T = inv_T(seq.ground_truth.poses[1]) @ seq.ground_truth.poses[0]
-    return seq, T
+    yield seq, T
+    scenarios.close()
 
 
 def test_reference_pipelines_return_our_transforms(lidar_pair):

@@ -74,6 +74,16 @@ def synthetic_note(sequence_names) -> str:
     return ""
 
 
+def hosts_note(cpus) -> str:
+    """A caption's note when the times shown were measured on different CPU models (each run's
+    metrics.json ``cpu``; a run without the record counts as unknown), else ""."""
+    models = sorted({cpu or "not recorded" for cpu in cpus})
+    if len(models) < 2:
+        return ""
+    return (f"MIXED HOSTS: these times come from runs on different CPUs ({'; '.join(models)}); "
+            "times from different CPUs are not comparable. ")
+
+
 def display_name(method: str) -> str:
     """The method's name in every table and figure, e.g. "Generalized-ICP"."""
     return _NAMES.get(method, method)

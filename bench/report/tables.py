@@ -17,6 +17,7 @@ from bench.report.cells import md_mark, ranks, save_formats, tex_escape, tex_mar
 from bench.report.names import (
     SEED_NOTE,
     gt_assisted_note,
+    hosts_note,
     order_key,
     run_label,
     sequence_key,
@@ -38,6 +39,7 @@ class Row:
     time_ms: float
     diverged: bool
     threads: int = 1  # a run on several threads is timed by the wall clock (methods.timing)
+    cpu: str | None = None  # the CPU model the run was timed on (metrics.json)
 
 
 #: what the Time column holds (methods/base.py, methods/timing.py)
@@ -70,7 +72,7 @@ def collect_rows(results_dir: Path, only: set[Path] | None = None
             trans={k: _value(v["trans_m_mean"]) if v["n"] else math.nan for k, v in rel.items()},
             time_ms=_value(run.time_ms.get("mean")),
             diverged=bool(run.diverged),
-            threads=int(run.metrics.get("threads") or 1),
+            threads=int(run.metrics.get("threads") or 1), cpu=run.metrics.get("cpu"),
         ))
     return sorted(rows, key=_row_order), sorted(lengths, key=float)
 
@@ -147,7 +149,8 @@ def to_markdown(rows: list[Row], lengths: list[str]) -> str:
         lines.append("| " + " | ".join([klass, seq, r.label, *cells]) + " |")
     caption = (synthetic_note(r.sequence for r in rows) + gt_assisted_note(r.label for r in rows) +
                "Each cell: mean rotation [deg] / translation [m] relative error per segment "
-               "length. " + TIME_NOTE + " Best per sequence in bold, second underlined; Div. = "
+               "length. " + TIME_NOTE + " " + hosts_note(r.cpu for r in rows) +
+               "Best per sequence in bold, second underlined; Div. = "
                "diverged. " + SEED_NOTE)
     return "\n".join(lines) + "\n\n" + caption + "\n"
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 
 from bench.report.cells import md_mark, ranks
-from bench.report.names import order_key
+from bench.report.names import hosts_note, order_key
 from bench.report.tables import TIME_NOTE, Row, _fmt, _fmt_time  # the main table's formats
 
 
@@ -71,8 +71,8 @@ def to_pivot_time_markdown(rows: list[Row]) -> str:
     for lab in labels:
         lines.append(f"| {lab} | " + " | ".join(cells.get((lab, s), "") for s in sequences)
                      + " |")
-    lines += ["", TIME_NOTE + " Per sequence the fastest is bold, the second underlined; "
-              "empty = not run."]
+    lines += ["", TIME_NOTE + " " + hosts_note(r.cpu for r in rows) + "Per sequence the "
+              "fastest is bold, the second underlined; empty = not run."]
     return "\n".join(lines) + "\n"
 
 

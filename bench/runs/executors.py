@@ -21,7 +21,6 @@ import contextlib
 import ctypes
 import os
 import signal
-import tempfile
 import threading
 import time
 from collections.abc import Callable
@@ -32,10 +31,10 @@ from bench.runs.folders import is_finished
 from bench.runs.job import Job, JobOutcome, expected_cost, record_unfinished, run_job
 from bench.threads import pin_threads
 from loaders.errors import DataError
-from methods.timing import TIMING_LOCK_ENV
+from methods.timing import DEFAULT_TIMING_LOCK, TIMING_LOCK_ENV
 
 EXECUTORS = ("local", "process", "dask")
-TIMING_LOCK = os.path.join(tempfile.gettempdir(), "doppler-bench-timing.lock")
+TIMING_LOCK = DEFAULT_TIMING_LOCK
 
 Report = Callable[[Job, int, int], None]   # (job, frames done, frames total)
 Finish = Callable[[JobOutcome], None]

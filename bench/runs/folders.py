@@ -44,16 +44,19 @@ def run_dir_name(method: str, seed: bool | None, label: str | None = None) -> st
 
 
 def is_finished(run_dir: Path, key: str | None = None) -> bool:
-    """The run in ``run_dir`` finished (and, given ``key``, was made from the same inputs)."""
+    """The run in ``run_dir`` finished (and, given ``key``, was made from the same inputs and
+    its timing is clean: no compilation inside a timed frame, ``bench.runs.timed``)."""
     if not (run_dir / "metrics.json").exists():
         return False
     if key is None:
         return True
     try:
         config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}
-    except (OSError, yaml.YAMLError):
+        # a run with a compilation inside a timed frame is no clean timing: it runs again
+        clean = json.loads((run_dir / "metrics.json").read_text()).get("timing_clean", True)
+    except (OSError, ValueError, yaml.YAMLError):
         return False
-    return config.get("run_key") == key
+    return config.get("run_key") == key and clean is not False
 
 
 def clear_run(run_dir: Path) -> None:

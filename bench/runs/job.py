@@ -25,12 +25,13 @@ from pydantic import ValidationError
 
 from bench.runs.evaluate import evaluate_run
 from bench.runs.folders import clear_run, is_finished, run_dir_name, write_failure, write_run
-from bench.runs.identity import code_identity, run_key, store_identity
+from bench.runs.identity import code_identity, host_identity, run_key, store_identity
+from bench.runs.timed import timed_run
 from loaders.errors import DataError, validation_problems
 from loaders.scan import FrameRange, Sequence
 from loaders.sensor_classes import SYNTHETIC_MARK, is_synthetic, sensor_class
 from loaders.store import StoreSequence
-from methods.base import Odometry, run_timed
+from methods.base import Odometry
 from methods.registry import get_method, make_method
 from metrics.relative import DEFAULT_LENGTHS_M
 
@@ -164,7 +165,7 @@ def prepare(job: Job) -> Prepared:
                     "method": job.method, "frame_range": job.frame_range,
                     "params": config["method"]["params"], "seed": job.seed,
                     "lengths_m": [float(x) for x in job.lengths_m],
-                    "code_sha256": code_identity()}
+                    "code_sha256": code_identity(), "host": host_identity()}
         config["run_key"] = run_key(identity)
         config["identity"] = identity
         return Prepared(seq, method, run_dir, config["run_key"], config)
@@ -193,15 +194,14 @@ def run_job(job: Job, force: bool = False,
         total = len(seq)
         with warnings.catch_warnings(record=True) as said:
             warnings.simplefilter("always")
-            result = run_timed(prep.method, seq, bool(job.seed),
-                               (lambda i: on_frame(i + 1, total)) if on_frame else None)
+            result, timing = timed_run(prep.method, seq, bool(job.seed),
+                                       (lambda i: on_frame(i + 1, total)) if on_frame else None)
             warn_few_points(result, job)
             evaluation = evaluate_run(seq.ground_truth, result, job.lengths_m,
                                       name=str(job.store), excluded=calibration_frames(seq))
         notes = list(dict.fromkeys(str(w.message) for w in said))
         metrics = {"sequence": prep.config["sequence"]["name"], "method": job.method,
-                   "seed": job.seed, "frames": len(seq), **evaluation.metrics,
-                   "clock": prep.method.clock, "threads": prep.method.threads}
+                   "seed": job.seed, "frames": len(seq), **evaluation.metrics, **timing}
         write_run(run_dir, result, evaluation.gt, prep.config, metrics, notes)
         return JobOutcome(job, "done", str(run_dir), len(seq), time.perf_counter() - t0,
                           run_dir=run_dir, warnings=notes)

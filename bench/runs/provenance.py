@@ -32,7 +32,8 @@ def _git_state() -> dict:
         return {"commit": None, "dirty": None}
 
 
-def _cpu_model() -> str:
+def cpu_model() -> str:
+    """The CPU model name (/proc/cpuinfo), else what platform knows."""
     try:
         for line in Path("/proc/cpuinfo").read_text().splitlines():
             if line.startswith("model name"):
@@ -59,7 +60,7 @@ def run_meta() -> dict:
         "git": _git_state(),
         "python": platform.python_version(),
         "packages": installed_versions(_PACKAGES),
-        "cpu": _cpu_model(),
+        "cpu": cpu_model(),
         "cpu_count": os.cpu_count(),
         "threads": thread_settings(),
         # what numba actually uses (read when it was imported, which may precede the pinning)

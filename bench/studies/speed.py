@@ -10,14 +10,18 @@ Two scenarios, each generated once so that every method sees exactly the same po
 N is always the number of points handed to the method (its input). Two figures per method:
 ``time_ms``, the total per-frame work (a pairwise method: preparing the new scan, i.e. its own
 downsampling, normals, kd-tree or voxel map, plus the registration call), and ``register_ms``,
-the registration call alone. A pairwise method is timed on one consecutive pair: the same
-warm-up as in a run, then ``repeats`` timed frames (at least 51 for sub-5 ms frames, at most 3
-for frames over a second). A stateful method (its own map: KISS-ICP, doppler-ego) runs over the
-short sequence after the warm-up and its frames after the second are used. Methods are
-configured for the scenario's sensor kind (radar or LiDAR parameter sets); every method runs on
-1 thread and, with ``threads`` > 1, again on ``threads`` where it takes a thread count (both
-figures side by side, the ``threads_setting`` column of speed.csv); the clock is the harness's
-(CPU time on one thread, wall time on several). With ``memory``, the peak resident memory of a
+the registration call alone (what is inside it for each method: README, Metrics, Timing).
+Every method is timed exactly as a run times it (``bench.runs.timed.timed_run``: the library
+threads limited, the common warm-up ``Odometry.warm_up`` on the sequence's last pair, then one
+seeded run over the sequence's distinct consecutive frames, no pair repeated), and a figure is
+the median over all its registered frames, so it equals the ``time_ms`` of a ``bench run`` on
+the same scans within noise (``compare_with_run`` / ``--vs-run`` shows both). The sequence has
+``repeats`` + 1 frames (``repeats`` timed frames). Methods are configured for the scenario's
+sensor kind (radar or LiDAR parameter sets); every method runs on 1 thread and, with
+``threads`` > 1, again on ``threads`` where it takes a thread count (both figures side by side,
+the ``threads_setting`` column of speed.csv; kiss-icp's N-thread run is made in a fresh process,
+``methods.kiss``); the clock is the harness's (CPU time on one thread, wall time on several).
+With ``memory``, the peak resident memory of a
 whole ``bench run`` of each method on a 64k-point LiDAR store is measured in a child process,
 beside the memory its imports alone take (``RUN_IMPORTS``, about 156 MB, the same for every
 method); a run that fails is an error (the probe once passed ``-p=num_threads=1``, which every
@@ -31,7 +35,6 @@ import os
 import subprocess
 import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
@@ -39,14 +42,13 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from bench.runs.timed import timed_run
 from loaders.fileio import atomic_path, atomic_write_text
 from loaders.scan import MemorySequence, Scan, SensorInfo
-from methods.base import Registration, run_timed
+from methods.base import MethodParams, Odometry, Registration
 from methods.registry import METHODS, make_method
-from methods.timing import stopwatch
 
 LIDAR_SCENE, RADAR_SCENE = "campus", "loop"
-SEQUENCE_FRAMES = 8  # frames of the short sequence a stateful method runs over
 
 
 def make_sequence(scene: str, sensor: str, frames: int, min_points: int | None = None,
@@ -96,33 +98,50 @@ def _prep_note(method) -> str:
     return ", ".join(notes)
 
 
-def time_pair(method: Registration, source: Scan, target: Scan, repeats: int) -> dict:
-    """Frame times of registering ``target`` to ``source``: preparing the target (the new scan)
-    plus the registration call, and the call alone; by the method's clock."""
-    src = method.preprocess(source)
-    init = np.eye(4)
-    t0 = time.perf_counter()
-    result = method.register(src, method.preprocess(target), init)  # the warm-up
-    warm_s = time.perf_counter() - t0
-    n = max(repeats, 51) if warm_s < 0.005 else repeats if warm_s < 1.0 else min(repeats, 3)
-    total, register = [], []
-    for _ in range(n):
-        with stopwatch() as frame:
-            tgt = method.preprocess(target)
-            with stopwatch() as reg:
-                method.register(src, tgt, init)
-        total.append(frame.ms(method.clock))
-        register.append(reg.ms(method.clock))
-    return {**_stats(total, register), "correspondences": result.correspondences,
-            "iterations": result.iterations}
+class _Prepared:
+    """A library pipeline's prepared scan (any object) with its input point count."""
+
+    def __init__(self, data, points: int) -> None:
+        self.data, self.points = data, points
+
+    def __len__(self) -> int:
+        return self.points
 
 
-def time_sequence(method, sequence: MemorySequence) -> dict:
-    result = run_timed(method, sequence, seed=True)
-    frames = result.frames[2:] or result.frames[1:]
+class PipelineRun(Registration):
+    """A library's own per-frame pipeline (``preprocess`` / ``register`` / ``threads``,
+    ``bench.studies.speed_reference``) driven exactly as a ``Registration`` run, so it is
+    timed with the same protocol as the methods."""
+
+    name = "pipeline"
+    description = "a library's own per-frame pipeline"
+
+    def __init__(self, pipeline) -> None:
+        self.pipeline = pipeline
+        self.params = MethodParams()
+
+    @property
+    def threads(self) -> int:
+        return self.pipeline.threads
+
+    def preprocess(self, scan: Scan) -> _Prepared:
+        return _Prepared(self.pipeline.preprocess(scan), len(scan))
+
+    def register(self, source: _Prepared, target: _Prepared, init: np.ndarray):
+        return self.pipeline.register(source.data, target.data, init)
+
+
+def time_frames(method, sequence) -> dict:
+    """Frame times of ``method`` (an ``Odometry``, or a library pipeline) as a run times them:
+    ``timed_run`` (threads limited, the common warm-up, one seeded run over the sequence's
+    distinct frames); figures over every registered frame, by the method's clock."""
+    odometry = method if isinstance(method, Odometry) else PipelineRun(method)
+    result, timing = timed_run(odometry, sequence, seed=True)
+    frames = result.frames[1:]
     return {**_stats([f.time_ms for f in frames], [f.register_ms for f in frames]),
             "correspondences": int(np.median([f.correspondences for f in frames])),
-            "iterations": int(np.median([f.iterations for f in frames]))}
+            "iterations": int(np.median([f.iterations for f in frames])),
+            "clock": timing["clock"], "cpu_ratio": timing["cpu_process_to_thread"]}
 
 
 def method_params(name: str, threads: int) -> dict:
@@ -133,14 +152,27 @@ def method_params(name: str, threads: int) -> dict:
     return {"num_threads": threads} if has else {}
 
 
-def time_method(name: str, sequence: MemorySequence, repeats: int, threads: int = 1) -> dict:
-    """Timing figures of method ``name`` on ``sequence`` (pair 0 -> 1, or the sequence)."""
+def time_method(name: str, sequence, threads: int = 1) -> dict:
+    """Timing figures of method ``name`` over ``sequence`` (every frame), as a run times them
+    (``time_frames``)."""
     method = make_method(name, method_params(name, threads), sequence.sensor)
-    if isinstance(method, Registration):
-        r = time_pair(method, sequence[0], sequence[1], repeats)
-    else:
-        r = time_sequence(method, sequence)
-    return {**r, "prep": _prep_note(method), "threads": method.threads, "clock": method.clock}
+    r = time_frames(method, sequence)
+    return {**r, "prep": _prep_note(method), "threads": method.threads}
+
+
+def compare_with_run(name: str, sequence, folder: Path) -> tuple[float, float]:
+    """(median ``time_ms`` of ``bench speed``, of a ``bench run`` job) of method ``name`` on
+    the same scans (``sequence`` written as a store into ``folder``): the two protocols agree
+    when these are equal within noise."""
+    from bench.runs.plan import run_single
+    from loaders.store import write_store
+
+    # without ground truth: the run is timed, not scored (the scans are a few metres of path)
+    scans = MemorySequence(sequence.name, sequence.sensor, list(sequence))
+    store = write_store(scans, folder / f"{name}.h5")
+    ours = time_method(name, sequence)["median_ms"]
+    run = run_single(name, store, True, {}, folder / name, force=True).metrics
+    return ours, run["time_ms"]["median"]
 
 
 #: what every `bench run` imports before it reads a scan (the CLI, every method's module and
@@ -192,24 +224,36 @@ def memory_store(path: Path, points: int = 64_000, frames: int = 20) -> tuple[Pa
     return path, f"{frames} frames of {int(np.median([len(s) for s in scans]))} points"
 
 
-def _scenarios(sizes: list[int], radar: bool):
-    """(scenario, input points, sequence) in the order they are timed."""
+def _scenarios(sizes: list[int], radar: bool, frames: int, folder: Path):
+    """(scenario, input points, sequence of ``frames`` scans) in the order they are timed. Each
+    sequence is read from a store written into ``folder``, one scan at a time as a run reads
+    it (float32 per-point values; the read between frames is untimed but, as in a run, it
+    leaves the caches to the next frame)."""
+    from loaders.store import StoreSequence, write_store
+
+    def stored(seq: MemorySequence, name: str) -> StoreSequence:
+        return StoreSequence(write_store(seq, folder / f"{name}.h5"))
+
     if radar:
-        seq = make_sequence(RADAR_SCENE, "radar-semidense", SEQUENCE_FRAMES)
+        seq = stored(make_sequence(RADAR_SCENE, "radar-semidense", frames), "radar")
         yield "radar", int(np.median([len(s) for s in seq])), seq
-    full = make_sequence(LIDAR_SCENE, "lidar-dense", SEQUENCE_FRAMES, max(sizes))
+        seq.close()
+    full = make_sequence(LIDAR_SCENE, "lidar-dense", frames, max(sizes))
     for n in sizes:
         scans = [subsample(s, n, k) for k, s in enumerate(full)]
-        seq = MemorySequence(full.name, SensorInfo("lidar", full.sensor.period_s),
-                             scans, full.ground_truth)
+        seq = stored(MemorySequence(full.name, SensorInfo("lidar", full.sensor.period_s),
+                                    scans, full.ground_truth), f"lidar-{n}")
         yield "lidar", n, seq
+        seq.close()
 
 
 def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Path,
               console: Console, memory: bool = True, radar: bool = True,
-              threads: int = 1, reference: bool = False) -> list[dict]:
+              threads: int = 1, reference: bool = False, vs_run: bool = False) -> list[dict]:
     """Time the methods; with ``reference``, also the libraries' own pipelines beside them
-    on each pair (``bench.studies.speed_reference``, written to speed_reference.csv)."""
+    on each pair (``bench.studies.speed_reference``, written to speed_reference.csv); with
+    ``vs_run``, each method's figure on the first scenario beside a ``bench run`` of the same
+    scans (``compare_with_run``)."""
     # doppler first: the base of every ratio
     names = ["doppler", *[name for name in methods or list(METHODS) if name != "doppler"]]
     if reference:
@@ -221,27 +265,29 @@ def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Pa
     # count only on 1: its figure stands for both)
     settings = [1, threads] if threads > 1 else [1]
     rows, reference_rows = [], []
-    for scenario, n, seq in _scenarios(sizes, radar):
+    # ``repeats`` timed frames: distinct consecutive pairs, no pair timed twice
+    folder = tempfile.TemporaryDirectory()
+    for scenario, n, seq in _scenarios(sizes, radar, max(repeats, 2) + 1, Path(folder.name)):
         for setting in settings:
             base = None
             for name in names:
                 if setting > 1 and not method_params(name, setting):
                     continue
-                r = time_method(name, seq, repeats, setting)
+                r = time_method(name, seq, threads=setting)
                 base = r["median_ms"] if name == "doppler" else base
                 rows.append({"scenario": scenario, "points": n, "method": name,
                              "threads_setting": setting, **r,
                              "ratio_to_doppler": r["median_ms"] / base})
                 console.print(f"  {scenario:<5} N={n:>7} {name:<12} {r['median_ms']:10.3f} ms "
                               f"(registration {r['register_median_ms']:.3f} ms; {r['repeats']} "
-                              f"repeats, {r['iterations']} it, {r['prep']}, {r['threads']} "
+                              f"frames, {r['iterations']} it, {r['prep']}, {r['threads']} "
                               f"thr., {r['clock']} time)", highlight=False, markup=False)
         if reference:  # the same pair, right after ours, at the requested thread count
             reference_rows += speed_reference.reference_rows(
                 scenario, n, seq, [r for r in rows if r["points"] == n
                                    and r["scenario"] == scenario
                                    and r["threads_setting"] == threads],
-                repeats, threads, libraries)
+                threads, libraries)
     _print_table(rows, names, console)
     out.mkdir(parents=True, exist_ok=True)
     write_csv(rows, out / "speed.csv")
@@ -254,9 +300,28 @@ def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Pa
     elif reference:
         console.print("--reference: none of these methods has a library counterpart ("
                       f"{', '.join(speed_reference.COUNTERPARTS)})", markup=False)
+    if vs_run:
+        scenarios = _scenarios(sizes, radar, max(repeats, 2) + 1, Path(folder.name))
+        scenario, n, seq = next(scenarios)
+        _print_vs_run(names, seq, f"{scenario}, {n} points, {len(seq) - 1} frames", console)
+        scenarios.close()
+    folder.cleanup()
     if memory:
         _memory(names, out, console, threads)
     return rows
+
+
+def _print_vs_run(names: list[str], sequence: MemorySequence, what: str,
+                  console: Console) -> None:
+    table = Table(title=escape(f"bench speed against bench run on the same scans ({what}): "
+                               "median time_ms [ms]"))
+    for col in ("method", "bench speed", "bench run", "speed / run"):
+        table.add_column(col, justify="left" if col == "method" else "right")
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in names:
+            ours, run = compare_with_run(name, sequence, Path(tmp))
+            table.add_row(name, f"{ours:.3f}", f"{run:.3f}", f"{ours / run:.2f}")
+    console.print(table)
 
 
 def write_csv(rows: list[dict], path: Path) -> None:

@@ -1,6 +1,7 @@
 """``bench speed --reference``: the libraries' own pipelines timed beside the methods that wrap
 or reimplement them, on the same scan pairs, with the same parameters, threads, clock and
-warm-up (``speed.time_pair`` times both), so a ratio ours / reference is the harness's cost.
+warm-up (``speed.time_frames`` times both, a reference driven as a run, ``speed.PipelineRun``),
+so a ratio ours / reference is the harness's cost.
 
 Each reference is the library's per-frame pipeline as its documentation drives it: the new
 scan's preparation (downsampling, normals / covariances, kd-tree or voxel map) plus its
@@ -57,7 +58,6 @@ from __future__ import annotations
 
 import contextlib
 import io
-import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -67,7 +67,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from bench.studies.speed import method_params, time_pair
+from bench.studies.speed import method_params, time_frames
 from loaders.scan import MemorySequence, Scan
 from loaders.se3 import inv_T, rotation_angle_deg
 from methods.base import RegistrationResult, uniform_downsample
@@ -84,7 +84,7 @@ O3D_CRITERIA = (1e-6, 1e-6)
 
 @dataclass
 class Pipeline:
-    """A library's own per-frame pipeline in the shape ``speed.time_pair`` times:
+    """A library's own per-frame pipeline in the shape ``speed.time_frames`` times:
     ``preprocess`` (the new scan's preparation) and ``register`` (the registration call)."""
 
     describe: str
@@ -258,7 +258,7 @@ def _open3d_debug_log() -> Iterator[list[str]]:
 def registered(pipeline, source: Scan, target: Scan, init: np.ndarray | None = None
                ) -> tuple[np.ndarray, int]:
     """(T_target_source, iterations) of one untimed call from ``init`` (the identity, as
-    ``speed.time_pair``'s)."""
+    ``speed``'s untimed comparison on the first pair)."""
     src, tgt = pipeline.preprocess(source), pipeline.preprocess(target)
     init = np.eye(4) if init is None else init
     if not getattr(pipeline, "iterations_from_log", False):
@@ -276,12 +276,11 @@ def difference(T_ours: np.ndarray, T_ref: np.ndarray) -> tuple[float, float]:
     return float(rotation_angle_deg(D[:3, :3])), float(np.linalg.norm(D[:3, 3]))
 
 
-def timed(pipeline, source: Scan, target: Scan, repeats: int) -> dict:
-    """``speed.time_pair``'s figures, and the process's CPU time over the timing against the
-    calling thread's (1.00: every thread the pipeline used was the timed one)."""
-    c0, p0 = time.thread_time(), time.process_time()
-    r = time_pair(pipeline, source, target, repeats)
-    return {**r, "cpu_ratio": (time.process_time() - p0) / max(time.thread_time() - c0, 1e-9)}
+def timed(pipeline, sequence: MemorySequence) -> dict:
+    """``speed.time_frames``'s figures over ``sequence`` (the same frames, protocol and clock as
+    ours), with the process's CPU time over the timing against the calling thread's
+    (``cpu_ratio``, 1.00: every thread the pipeline used was the timed one)."""
+    return time_frames(pipeline, sequence)
 
 
 def columns(library: str) -> list[str]:
@@ -290,7 +289,7 @@ def columns(library: str) -> list[str]:
 
 
 def reference_rows(scenario: str, n: int, sequence: MemorySequence, ours: list[dict],
-                   repeats: int, threads: int, libraries: list[str]) -> list[dict]:
+                   threads: int, libraries: list[str]) -> list[dict]:
     """One row per method of ``ours`` (``bench speed``'s rows of this scan pair) that has a
     counterpart: ours beside each library's pipeline on the same pair."""
     rows = []
@@ -311,7 +310,7 @@ def reference_rows(scenario: str, n: int, sequence: MemorySequence, ours: list[d
             with thread_limit(lib, threads):
                 pipeline = PIPELINES[lib](name, method, threads)
                 T_ref, iterations = registered(pipeline, source, target)
-                t = timed(pipeline, source, target, repeats)
+                t = timed(pipeline, sequence)
             rot, trans = difference(T_ours, T_ref)
             describe = getattr(pipeline, "describe", "methods.dicp backend=open3d")
             row.update(zip(columns(lib), (
