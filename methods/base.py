@@ -106,6 +106,9 @@ class Odometry(ABC):
     #: what "with seed" starts from: ``CONSTANT_VELOCITY`` (the harness's guess) or the name of
     #: the method's own prior; None when ``uses_initial_guess`` is False
     motion_prior: ClassVar[str | None] = CONSTANT_VELOCITY
+    #: the per-point arrays it reads besides the points: "doppler" and names of ``Scan.fields``
+    #: (the store reads only these); None, the default for a method that does not say: all
+    reads_fields: ClassVar[frozenset[str] | None] = None
 
     @property
     def threads(self) -> int:

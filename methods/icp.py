@@ -146,6 +146,7 @@ def warm_up() -> None:
 
 class PointToPointIcp(Registration):
     name = "icp-p2p"
+    reads_fields = frozenset()
     description = "Point-to-point ICP with kd-tree closest points (paper baseline)"
     Params = IcpParams
 

@@ -94,6 +94,7 @@ class _TimedRegistration:
 
 class KissIcp(Odometry):
     name = "kiss-icp"
+    reads_fields = frozenset({"time_offset_s"})  # deskewing
     description = "KISS-ICP scan-to-map odometry (kiss-icp package; own local map)"
     motion_prior = "own constant-velocity prediction"
     Params = KissParams
