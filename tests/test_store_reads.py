@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import loaders.store as store_module
+from conftest import SAMPLE_STORE as SAMPLE
 from loaders.scan import MemorySequence, Scan, SensorInfo
 from loaders.store import FORMAT_VERSION, StoreSequence, write_store
-from conftest import SAMPLE_STORE as SAMPLE
 from methods.registry import METHODS
 
 
