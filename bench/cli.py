@@ -266,11 +266,23 @@ def speed(
     reference: Annotated[bool, typer.Option(
         "--reference", help="also time Open3D's and small_gicp's own pipelines doing the same "
         "work on the same pairs (speed_reference.csv)")] = False,
+    harness: Annotated[bool, typer.Option(
+        "--harness", help="only the harness's own per-frame cost (reading a scan, the driver, "
+        "evaluating, writing) beside doppler's time (harness.csv)")] = False,
+    store: Annotated[Path | None, typer.Option(
+        help="with --harness: measure on this store, and time a whole `bench run` on it")]
+    = None,
 ) -> None:
     """Time every method on the same synthetic scan pairs (total per-frame work and the
-    registration call); print ratios to `doppler` and each method's peak memory."""
+    registration call); print ratios to `doppler`, each method's peak memory and the harness's
+    own cost per frame."""
     from bench.studies.speed import run_speed
 
+    if harness:
+        from bench.studies.harness import run_harness
+
+        run_harness(out, console, store)
+        return
     run_speed([int(s) for s in sizes.split(",")], methods.split(",") if methods else None,
               repeats, out, console, memory, threads=threads, reference=reference)
 

@@ -29,6 +29,7 @@ from loaders.scan import FrameRange, MemorySequence, Sequence
 from loaders.se3 import make_T
 from loaders.store import StoreSequence, write_store
 from loaders.trajectory import Trajectory
+from methods.base import OdometryResult
 
 #: frames of the short store ``whole_run`` subtracts (its start-up and warm-up)
 SHORT_FRAMES = 50
@@ -66,9 +67,10 @@ def read_cost(store: Path, fields, frames: int | None = None) -> dict:
 
 
 def phases(store: Path, method: str = "doppler", params: dict | None = None) -> dict:
-    """One run of ``method`` on ``store``, as ``run_job`` runs it, phase by phase: start-up
-    (prepare + warm-up) [s], and per frame [ms]: the method (mean ``time_ms``), the scan read,
-    the driver, evaluate, write and their sum (``harness_ms``); CPU time, ``*_wall_ms`` wall."""
+    """One run of ``method`` on ``store``, as ``run_job`` runs it, phase by phase: the fixed
+    cost (``startup_s``: prepare, warm-up and the part of writing the folder that does not grow
+    with the frames) [s], and per frame [ms]: the method (mean ``time_ms``), the scan read, the
+    driver, evaluate, write and their sum (``harness_ms``); CPU time, ``*_wall_ms`` wall."""
     from bench.runs.evaluate import evaluate_run
     from bench.runs.folders import write_run
     from bench.runs.job import prepare, scored_ground_truth
@@ -88,9 +90,14 @@ def phases(store: Path, method: str = "doppler", params: dict | None = None) -> 
                 result = prep.method.run(seq, seed, lambda i: None)
             with _clock() as evaluate:
                 evaluation = evaluate_run(scored_ground_truth(seq), result, job.lengths_m)
+            metrics = {"method": method, **evaluation.metrics}
             with _clock() as write:
-                write_run(prep.run_dir, result, evaluation.gt, prep.config,
-                          {"method": method, **evaluation.metrics}, [])
+                write_run(prep.run_dir, result, evaluation.gt, prep.config, metrics, [])
+            # the part of writing that does not grow with the frames (meta.json's versions
+            # and git state, config.yaml, opening and syncing the files): a 2-frame folder
+            first = OdometryResult(result.stamps[:2], result.poses[:2], result.frames[:2])
+            with _clock() as write_fixed:
+                write_run(Path(tmp) / "fixed", first, None, prep.config, metrics, [])
         finally:
             seq.close()
     n = len(result.frames)
@@ -101,8 +108,12 @@ def phases(store: Path, method: str = "doppler", params: dict | None = None) -> 
     out = {"method": method, "frames": n, "points": read["points"], "method_ms": method_ms,
            "startup_s": start.cpu_s, "startup_wall_s": start.wall_s,
            "read_ms": read["read_ms"], "read_wall_ms": read["read_wall_ms"]}
-    for name, c, unit in (("loop", loop, n), ("evaluate", evaluate, n), ("write", write, n)):
+    for name, c, unit in (("loop", loop, n), ("evaluate", evaluate, n)):
         out[f"{name}_ms"], out[f"{name}_wall_ms"] = 1e3 * c.cpu_s / unit, 1e3 * c.wall_s / unit
+    out["write_ms"] = 1e3 * max(0.0, write.cpu_s - write_fixed.cpu_s) / n
+    out["write_wall_ms"] = 1e3 * max(0.0, write.wall_s - write_fixed.wall_s) / n
+    out["startup_s"] += write_fixed.cpu_s
+    out["startup_wall_s"] += write_fixed.wall_s
     # the loop's time besides the method's timed frames: reading and driving
     for suffix in ("", "_wall"):
         rest = out[f"loop{suffix}_ms"] - method_ms * timed / n
@@ -187,7 +198,7 @@ def print_rows(rows: list[dict], console) -> None:
     table = Table(title=escape("The harness's own cost per frame beside the method's [ms, CPU "
                                "time] (wall time in brackets)"))
     for col in ("scan", "points", "frames", "method", "read", "driver", "evaluate", "write",
-                "harness", "harness / method", "read / method", "start-up [s]"):
+                "harness", "harness / method", "read / method", "fixed [s]"):
         table.add_column(col, justify="left" if col == "scan" else "right")
     for r in rows:
         m = r["method_ms"]
@@ -197,9 +208,11 @@ def print_rows(rows: list[dict], console) -> None:
               for k in ("read", "driver", "evaluate", "write", "harness")],
             f"{r['harness_ms'] / m:.2f}x", f"{r['read_ms'] / m:.2f}x",
             f"{r['startup_s']:.2f} ({r['startup_wall_s']:.2f})")
-    table.caption = escape(f"read: a scan from the store (the arrays the method reads); driver: "
-                           f"the loop around the method; limits (issue 29): harness <= "
-                           f"{OVERHEAD_LIMIT}x and read <= {READ_LIMIT}x the method")
+    table.caption = escape(
+        "read: a scan from the store (the arrays the method reads); driver: the loop around "
+        "the method; fixed: start-up (store, method, warm-up) and the part of writing the run "
+        f"folder that does not grow with the frames; limits (issue 29): harness <= "
+        f"{OVERHEAD_LIMIT}x and read <= {READ_LIMIT}x the method")
     console.print(table)
 
 
@@ -215,3 +228,48 @@ def print_whole_run(r: dict, console) -> None:
         f"({r['issue_cpu_ms'] / m:.2f}x), {r['issue_wall_ms']:.3f} ms wall "
         f"({r['issue_wall_ms'] / m:.2f}x); limit {OVERHEAD_LIMIT}x", highlight=False,
         markup=False)
+
+
+#: LiDAR scan size of the harness figures (issue 29: a 64k-point scan read in at most 2 ms)
+LIDAR_POINTS = 64000
+#: frames of the tiled stores (radar, LiDAR)
+TILED_FRAMES = {"radar": 300, "lidar": 40}
+
+
+def wanted(scenario: str, points: int, sizes: list[int]) -> bool:
+    """The scenarios ``bench speed`` adds harness figures to: the radar scan and the LiDAR
+    scan of ``LIDAR_POINTS`` points (else the largest size asked for)."""
+    lidar = LIDAR_POINTS if LIDAR_POINTS in sizes else max(sizes)
+    return scenario == "radar" or points == lidar
+
+
+def report(rows: list[dict], out: Path, console) -> None:
+    """Print the harness table and write ``harness.csv``."""
+    from bench.studies.speed import write_csv
+
+    print_rows(rows, console)
+    out.mkdir(parents=True, exist_ok=True)
+    write_csv(rows, out / "harness.csv")
+    console.print(f"wrote {out}/harness.csv")
+
+
+def run_harness(out: Path, console, store: Path | None = None, method: str = "doppler",
+                lidar_points: int = LIDAR_POINTS) -> list[dict]:
+    """``bench speed --harness``: the harness's per-frame cost beside ``method``'s on the
+    synthetic radar scan and a ``lidar_points``-point LiDAR scan (tiled stores); with
+    ``store``, on it too, and a whole ``bench run`` on it (``whole_run``)."""
+    from bench.studies.speed import _scenarios
+
+    rows = []
+    if store is not None:
+        rows.append({"scenario": Path(store).name, **phases(Path(store), method)})
+    else:
+        console.print(f"generating synthetic radar and {lidar_points}-point LiDAR scans")
+        for scenario, _, seq in _scenarios([lidar_points], True):
+            rows.append(scenario_row(scenario, seq, TILED_FRAMES[scenario], method))
+    report(rows, out, console)
+    if store is not None:
+        console.print(f"timing `bench run --method {method}` on {store} and on its first "
+                      f"{SHORT_FRAMES} frames (child processes)", markup=False)
+        print_whole_run(whole_run(Path(store), method), console)
+    return rows
