@@ -25,7 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
-from loaders.scan import FrameRange, MemorySequence, Sequence
+from loaders.fileio import atomic_write_text
+from loaders.scan import FrameRange, MemorySequence, Scan, Sequence
 from loaders.se3 import make_T
 from loaders.store import StoreSequence, write_store
 from loaders.trajectory import Trajectory
@@ -174,8 +175,6 @@ def tiled_store(seq: Sequence, frames: int, path: Path) -> Path:
     scans = [seq[i % len(seq)] for i in range(frames)]
     dt = seq.sensor.period_s
     stamps = np.arange(frames) * dt
-    from loaders.scan import Scan
-
     scans = [Scan(t, s.points, s.doppler, s.fields) for t, s in zip(stamps, scans, strict=True)]
     gt = Trajectory(stamps, np.array([make_T(np.eye(3), [10.0 * t, 0, 0]) for t in stamps]))
     write_store(MemorySequence(f"{seq.name}-tiled", seq.sensor, scans, gt), path)
@@ -245,12 +244,29 @@ def wanted(scenario: str, points: int, sizes: list[int]) -> bool:
 
 def report(rows: list[dict], out: Path, console) -> None:
     """Print the harness table and write ``harness.csv``."""
-    from bench.studies.speed import write_csv
-
     print_rows(rows, console)
     out.mkdir(parents=True, exist_ok=True)
-    write_csv(rows, out / "harness.csv")
+    header = list(rows[0])
+    lines = [",".join(header)] + [",".join(f"{r[k]:.6g}" if isinstance(r[k], float)
+                                           else str(r[k]) for k in header) for r in rows]
+    atomic_write_text(out / "harness.csv", "\n".join(lines) + "\n")
     console.print(f"wrote {out}/harness.csv")
+
+
+def synthetic_scenarios(lidar_points: int = LIDAR_POINTS, frames: int = 8):
+    """(scenario, sequence): the scenes ``bench speed`` times the methods on: a semi-dense
+    radar sequence (loop scene) at its own density, and a dense LiDAR sequence (campus scene)
+    subsampled to ``lidar_points`` points a scan."""
+    from loaders.synthetic import SyntheticSequence
+
+    radar = SyntheticSequence("loop", "radar-semidense", frames=frames, seed=0)
+    yield "radar", MemorySequence(radar.name, radar.sensor, list(radar), radar.ground_truth)
+    lidar = SyntheticSequence("campus", "lidar-dense", frames=frames, seed=0,
+                              points=int(lidar_points * 1.6))
+    rng = np.random.default_rng(0)
+    scans = [s if len(s) <= lidar_points else
+             s.select(np.sort(rng.choice(len(s), lidar_points, replace=False))) for s in lidar]
+    yield "lidar", MemorySequence(lidar.name, lidar.sensor, scans, lidar.ground_truth)
 
 
 def run_harness(out: Path, console, store: Path | None = None, method: str = "doppler",
@@ -258,14 +274,12 @@ def run_harness(out: Path, console, store: Path | None = None, method: str = "do
     """``bench speed --harness``: the harness's per-frame cost beside ``method``'s on the
     synthetic radar scan and a ``lidar_points``-point LiDAR scan (tiled stores); with
     ``store``, on it too, and a whole ``bench run`` on it (``whole_run``)."""
-    from bench.studies.speed import _scenarios
-
     rows = []
     if store is not None:
         rows.append({"scenario": Path(store).name, **phases(Path(store), method)})
     else:
         console.print(f"generating synthetic radar and {lidar_points}-point LiDAR scans")
-        for scenario, _, seq in _scenarios([lidar_points], True):
+        for scenario, seq in synthetic_scenarios(lidar_points):
             rows.append(scenario_row(scenario, seq, TILED_FRAMES[scenario], method))
     report(rows, out, console)
     if store is not None:
