@@ -293,11 +293,23 @@ def speed(
     vs_run: Annotated[bool, typer.Option(
         "--vs-run", help="also run each method with `bench run` on the first scenario's scans "
         "and print both median times (the two protocols agree)")] = False,
+    harness: Annotated[bool, typer.Option(
+        "--harness", help="only the harness's own per-frame cost (reading a scan, the driver, "
+        "evaluating, writing) beside doppler's time (harness.csv)")] = False,
+    store: Annotated[Path | None, typer.Option(
+        help="with --harness: measure on this store, and time a whole `bench run` on it")]
+    = None,
 ) -> None:
     """Time every method on the same synthetic scan pairs (total per-frame work and the
-    registration call); print ratios to `doppler` and each method's peak memory."""
+    registration call); print ratios to `doppler`, each method's peak memory and the harness's
+    own cost per frame."""
     from bench.studies.speed import run_speed
 
+    if harness:
+        from bench.studies.harness import run_harness
+
+        run_harness(out, console, store)
+        return
     run_speed([int(s) for s in sizes.split(",")], methods.split(",") if methods else None,
               repeats, out, console, memory, threads=threads, reference=reference,
               vs_run=vs_run)

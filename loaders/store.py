@@ -1,6 +1,6 @@
 """The HDF5 store: one file per sequence, read frame by frame.
 
-Layout (format ``doppler-bench-store``, version 1)::
+Layout (format ``doppler-bench-store``, version 2)::
 
     /                      attrs: format, format_version, name, sensor_kind, sensor_model,
                                   doppler_kind (radial | ego-compensated | gt-reconstructed;
@@ -9,7 +9,7 @@ Layout (format ``doppler-bench-store``, version 1)::
                                   provenance (JSON object)
     /frames/stamp          (F,)    float64  scan stamps [s, sensor clock]
     /frames/offset         (F+1,)  int64    frame i owns points [offset[i], offset[i+1])
-    /points/xyz            (P, 3)  float32  sensor frame [m]; chunked, shuffle + lzf
+    /points/xyz            (P, 3)  float32  sensor frame [m]
     /points/doppler        (P,)    float32  [m/s, positive = receding]; absent without Doppler
     /points/<field>        (P,)    float32  optional per-point arrays (power, rcs, snr,
                                             intensity, time_offset_s, ...)
@@ -20,12 +20,24 @@ Layout (format ``doppler-bench-store``, version 1)::
 Per-point values are stored as float32: a round trip is exact at that precision. Writing goes
 to a temporary file renamed at the end, and dataset timestamps are off, so the same sequence
 always gives a byte-identical file.
+
+Storage and reading (version 2; chosen so that reading a scan costs less than registering it):
+every per-point array is chunked in ``CHUNK_POINTS`` (65,536) points; the arrays methods read
+every frame (``INPUT_ARRAYS``: xyz, doppler, time_offset_s) are stored uncompressed (LZF takes
+about 10x longer to decompress a radar scan than to read it raw and saves little on float
+coordinates), the annotations (power, rcs, snr, synthetic labels, ...) shuffle + LZF: they
+compress well and no method reads them. ``compression="gzip"`` (files kept in the repository)
+or ``"lzf"`` compress every array. A reader asks for the per-point arrays it needs
+(``StoreSequence(path, fields=...)``: a method's ``reads_fields``) and scans are served from
+blocks of whole chunks (at least ``BLOCK_POINTS``) read with one call per array, instead of one
+small slice per array per scan. Version 1 stores (every array shuffle + LZF or gzip in 32,768-
+point chunks) read the same way and give the same values, at the cost of decompressing them.
 """
 
 from __future__ import annotations
 
 import json
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from pathlib import Path
 
 import h5py
@@ -37,33 +49,41 @@ from loaders.scan import Scan, SensorInfo, Sequence
 from loaders.trajectory import Trajectory
 
 FORMAT_NAME = "doppler-bench-store"
-FORMAT_VERSION = 1
-CHUNK_POINTS = 32768
+FORMAT_VERSION = 2
+#: points per chunk of every per-point array (version 1: 32,768)
+CHUNK_POINTS = 65536
+#: scans are read in blocks of whole chunks of at least this many points (one read per array)
+BLOCK_POINTS = 1 << 18
 _FLUSH_POINTS = 1 << 18
-_DS = dict(compression="lzf", shuffle=True, track_times=False)
-#: filters by name: lzf (fast, the default) or gzip (level 9: about 15 % smaller, for files kept
-#: in the repository such as the vendored real sample)
-COMPRESSION = {"lzf": _DS, "gzip": dict(_DS, compression="gzip", compression_opts=9)}
+#: the per-point arrays methods read every frame: stored uncompressed by default
+INPUT_ARRAYS = frozenset({"xyz", "doppler", "time_offset_s"})
+_RAW = dict(track_times=False)
+_LZF = dict(compression="lzf", shuffle=True, track_times=False)
+_GZIP = dict(_LZF, compression="gzip", compression_opts=9)
+#: filters by name, as (inputs, annotations): "fast" (the default: inputs raw, annotations
+#: LZF), "lzf" (every array) or "gzip" (level 9, every array: the smallest files, for files
+#: kept in the repository such as the vendored real sample)
+COMPRESSION = {"fast": (_RAW, _LZF), "lzf": (_LZF, _LZF), "gzip": (_GZIP, _GZIP)}
 
 
 class _Writer:
     """Appends scans to resizable datasets, buffering small frames into large blocks."""
 
     def __init__(self, h5: h5py.File, has_doppler: bool, fields: list[str],
-                 compression: str = "lzf") -> None:
+                 compression: str = "fast") -> None:
         self.h5 = h5
-        filters = COMPRESSION[compression]
+        inputs, annotations = COMPRESSION[compression]
         self.has_doppler = has_doppler
         self.fields = fields
         pts = h5.create_group("points")
         self.ds = {"xyz": pts.create_dataset(
             "xyz", shape=(0, 3), maxshape=(None, 3), dtype="f4", chunks=(CHUNK_POINTS, 3),
-            **filters)}
+            **inputs)}
         names = (["doppler"] if has_doppler else []) + fields
         for name in names:
             self.ds[name] = pts.create_dataset(
-                name, shape=(0,), maxshape=(None,), dtype="f4", chunks=(CHUNK_POINTS,), **filters
-            )
+                name, shape=(0,), maxshape=(None,), dtype="f4", chunks=(CHUNK_POINTS,),
+                **(inputs if name in INPUT_ARRAYS else annotations))
         self.buffer: dict[str, list[np.ndarray]] = {k: [] for k in self.ds}
         self.buffered = 0
         self.stamps: list[float] = []
@@ -111,7 +131,7 @@ def write_store(
     sequence: Sequence,
     path: str | Path,
     progress: Callable[[int], None] | None = None,
-    compression: str = "lzf",
+    compression: str = "fast",
 ) -> Path:
     """Write ``sequence`` to ``path`` (streaming, atomic). ``progress(i)`` is called per frame;
     ``compression``: a key of ``COMPRESSION`` (the reader does not care which)."""
@@ -164,12 +184,28 @@ def write_store(
     return path
 
 
+class _Block:
+    """Consecutive points [lo, hi) of the arrays being read, read together."""
+
+    __slots__ = ("lo", "hi", "arrays")
+
+    def __init__(self, lo: int, hi: int, arrays: dict[str, np.ndarray]) -> None:
+        self.lo, self.hi, self.arrays = lo, hi, arrays
+
+
 class StoreSequence(Sequence):
     """A sequence read from a store, one frame at a time (the file opens lazily, so instances
-    can be sent to worker processes)."""
+    can be sent to worker processes).
 
-    def __init__(self, path: str | Path) -> None:
+    ``fields``: the per-point arrays to read besides the points ("doppler" and names of
+    ``Scan.fields``; what a method declares in ``reads_fields``); a scan carries only those
+    the store has. None (the default): every stored array. Scans are served from a block of
+    whole chunks (``BLOCK_POINTS``) read ahead: memory holds one block of the arrays read."""
+
+    def __init__(self, path: str | Path, fields: Iterable[str] | None = None) -> None:
         self.path = Path(path)
+        self._block: _Block | None = None
+        self._datasets: dict[str, h5py.Dataset] | None = None
         if not self.path.exists():
             raise DataError(f"{self.path}: store not found")
         if not h5py.is_hdf5(self.path):
@@ -222,6 +258,13 @@ class StoreSequence(Sequence):
                     f"{'no dataset' if rows is None else f'{rows} rows'}, points/xyz has "
                     f"{n_points}; expected one value per point"
                 )
+        stored = (["doppler"] if self.has_doppler else []) + self.fields
+        #: the per-point arrays a scan carries besides xyz (stored and asked for)
+        self.reads: tuple[str, ...] = tuple(
+            name for name in stored if fields is None or name in set(fields))
+        chunks = h5["points/xyz"].chunks
+        self._chunk = int(chunks[0]) if chunks else 1
+        self._n_points = int(n_points)
         if (len(self._offsets) != len(self._stamps) + 1 or self._offsets[-1] != n_points
                 or int(attrs["n_frames"]) != len(self._stamps)):
             self.close()
@@ -233,18 +276,19 @@ class StoreSequence(Sequence):
 
     def _file(self) -> h5py.File:
         if self._h5 is None:
-            # a 16 MiB chunk cache keeps the current compressed block while frames stream out
-            self._h5 = h5py.File(self.path, "r", rdcc_nbytes=16 << 20)
+            # blocks are whole chunks, read once: a small chunk cache (per array) is enough
+            self._h5 = h5py.File(self.path, "r", rdcc_nbytes=1 << 20)
         return self._h5
 
     def close(self) -> None:
+        self._block = self._datasets = None
         if self._h5 is not None:
             self._h5.close()
             self._h5 = None
 
     def __getstate__(self) -> dict:
         state = self.__dict__.copy()
-        state["_h5"] = None
+        state["_h5"] = state["_block"] = state["_datasets"] = None
         return state
 
     def __len__(self) -> int:
@@ -262,15 +306,34 @@ class StoreSequence(Sequence):
         if hi <= lo:
             raise DataError(f"{self.path}, frame {index}: empty scan ({hi - lo} points); "
                             "expected at least one point")
-        h5 = self._file()
-        try:
-            pts = h5["points"]
-            return Scan(
-                stamp=self._stamps[index],
-                points=pts["xyz"][lo:hi],
-                doppler=pts["doppler"][lo:hi] if self.has_doppler else None,
-                fields={name: pts[name][lo:hi] for name in self.fields},
-                source=f"{self.path}, frame {index}",
-            )
-        except OSError as err:
-            raise DataError(f"{self.path}, frame {index}: cannot read points ({err})") from err
+        block = self._block
+        if block is None or lo < block.lo or hi > block.hi:
+            try:
+                block = self._block = self._read_block(lo, hi)
+            except OSError as err:
+                raise DataError(f"{self.path}, frame {index}: cannot read points ({err})"
+                                ) from err
+        a, b = lo - block.lo, hi - block.lo
+        arrays = block.arrays
+        doppler = arrays.get("doppler")
+        return Scan(
+            stamp=self._stamps[index],
+            points=arrays["xyz"][a:b],  # Scan copies points and doppler (to float64)
+            doppler=None if doppler is None else doppler[a:b],
+            fields={name: arrays[name][a:b].copy() for name in self.reads if name != "doppler"},
+            source=f"{self.path}, frame {index}",
+        )
+
+    def _read_block(self, lo: int, hi: int) -> _Block:
+        """Points [start, stop) around [lo, hi) of every array read: whole chunks (each
+        decompressed once, none read twice when frames stream in order), at least
+        ``BLOCK_POINTS`` of them, one read per array."""
+        if self._datasets is None:
+            pts = self._file()["points"]
+            self._datasets = {name: pts[name] for name in ("xyz", *self.reads)}
+        chunk = self._chunk
+        start = lo // chunk * chunk
+        stop = min(self._n_points, -(-max(hi, start + BLOCK_POINTS) // chunk) * chunk)
+        self._block = None  # the old block is released before the new one is read
+        return _Block(start, stop, {name: ds[start:stop]
+                                    for name, ds in self._datasets.items()})

@@ -118,6 +118,9 @@ class Odometry(ABC):
     #: True for a method that needs raw radial Doppler in every scan: the harness refuses it,
     #: before any job runs, on a store without Doppler or with ego-compensated Doppler
     needs_doppler: ClassVar[bool] = False
+    #: the per-point arrays it reads besides the points: "doppler" and names of ``Scan.fields``
+    #: (the store reads only these); None, the default for a method that does not say: all
+    reads_fields: ClassVar[frozenset[str] | None] = None
 
     @property
     def threads(self) -> int:

@@ -145,6 +145,7 @@ def estimate_normals(points: np.ndarray, radius_m: float, max_neighbours: int,
 
 class Dicp(Registration):
     name = "dicp"
+    reads_fields = frozenset({"doppler"})
     description = "DICP, Doppler ICP (Hexsel et al. 2022; the authors' Open3D implementation)"
     needs_doppler = True
     Params = DicpParams

@@ -256,6 +256,7 @@ def register_ransac(params: DopplerParams, source: DopplerScan, target: DopplerS
 
 class DopplerCorrespondence(Registration):
     name = "doppler"
+    reads_fields = frozenset({"doppler"})
     description = "Doppler Correspondence, non-iterative (paper Algorithm 2); no initial guess"
     needs_doppler = True
     motion_prior = None

@@ -131,6 +131,7 @@ class DopplerEgoParams(MethodParams):
 class DopplerEgo(Odometry):
     name = "doppler-ego"
     needs_doppler = True
+    reads_fields = frozenset({"doppler"})
     description = ("Doppler ego velocity for translation + rotation-only GICP of the static "
                    "points against a local map (this project's method)")
     uses_initial_guess = True

@@ -176,6 +176,7 @@ class DopplerIcpScan(DopplerScan):
 
 class DopplerIcp(Registration):
     name = "doppler-icp"
+    reads_fields = frozenset({"doppler"})
     description = "Doppler 4D-ICP: fixed Doppler pairs + closest points (paper Algorithm 1)"
     needs_doppler = True
     Params = DopplerIcpParams

@@ -183,6 +183,7 @@ class GicpScan:
 
 class _SmallGicp(Registration):
     Params = GicpParams
+    reads_fields = frozenset()
     registration_type: ClassVar[str]
     sensor_defaults: ClassVar[dict[str, SensorDefaults]] = SENSOR_DEFAULTS
 

@@ -157,6 +157,7 @@ class IcpScan(Scan):
 
 class PointToPointIcp(Registration):
     name = "icp-p2p"
+    reads_fields = frozenset()
     description = "Point-to-point ICP with kd-tree closest points (paper baseline)"
     Params = IcpParams
 

@@ -119,6 +119,7 @@ def _fresh_run(params: dict, sequence: MemorySequence, seed: bool) -> OdometryRe
 
 class KissIcp(Odometry):
     name = "kiss-icp"
+    reads_fields = frozenset({"time_offset_s"})  # deskewing
     description = "KISS-ICP scan-to-map odometry (kiss-icp package; own local map)"
     motion_prior = "own constant-velocity prediction"
     Params = KissParams

@@ -133,7 +133,8 @@ def _method_error(job: Job, err: Exception) -> DataError:
 def prepare(job: Job) -> Prepared:
     """Open the store and configure the method; DataError on bad input (store or parameters).
     A method configuration error names the run folder it belongs to (``err.run_dir``)."""
-    store = StoreSequence(job.store)
+    # the store reads only the per-point arrays the method uses (all for one that does not say)
+    store = StoreSequence(job.store, fields=get_method(job.method).reads_fields)
     seq = store if job.frame_range is None else FrameRange(store, *job.frame_range)
     try:
         name, display, klass = sequence_labels(seq, job)

@@ -19,6 +19,9 @@ from rich.progress import (
 from bench.runs.executors import execute
 from bench.runs.job import Job, JobOutcome
 
+#: a running job's bar is updated at most this often (the local executor reports every frame)
+REPORT_PERIOD_S = 0.1
+
 
 def _progress(console: Console) -> Progress:
     return Progress(TextColumn("{task.description}", style="bold"), BarColumn(),
@@ -44,10 +47,15 @@ def run_jobs(jobs: list[Job], console: Console | None = None, workers: int = 1,
             overall = progress.add_task(f"{len(jobs)} runs", total=len(jobs), fps="-")
             tasks: dict[str, tuple[int, float, int]] = {}  # title -> (task, first report, done)
             frames_done: dict[str, int] = {}
+            reported: dict[str, float] = {}  # title -> when its bar was last updated
             t0 = time.monotonic()
 
             def report(job: Job, done: int, total: int) -> None:
                 now = time.monotonic()
+                if (done < total and job.title in tasks
+                        and now - reported.get(job.title, 0.0) < REPORT_PERIOD_S):
+                    return  # a frame of a fast method must not pay for redrawing the bars
+                reported[job.title] = now
                 if job.title not in tasks:
                     tasks[job.title] = (progress.add_task(escape(job.title), total=total,
                                                           fps="-"), now, done)

@@ -249,11 +249,16 @@ def _scenarios(sizes: list[int], radar: bool, frames: int, folder: Path):
 
 def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Path,
               console: Console, memory: bool = True, radar: bool = True,
-              threads: int = 1, reference: bool = False, vs_run: bool = False) -> list[dict]:
+              threads: int = 1, reference: bool = False, vs_run: bool = False,
+              harness: bool = True) -> list[dict]:
     """Time the methods; with ``reference``, also the libraries' own pipelines beside them
     on each pair (``bench.studies.speed_reference``, written to speed_reference.csv); with
     ``vs_run``, each method's figure on the first scenario beside a ``bench run`` of the same
-    scans (``compare_with_run``)."""
+    scans (``compare_with_run``); with ``harness``, the harness's own per-frame cost beside
+    doppler's (``bench.studies.harness``, harness.csv)."""
+    from bench.studies import harness as harness_study
+
+    harness_rows = []
     # doppler first: the base of every ratio
     names = ["doppler", *[name for name in methods or list(METHODS) if name != "doppler"]]
     if reference:
@@ -282,6 +287,9 @@ def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Pa
                               f"(registration {r['register_median_ms']:.3f} ms; {r['repeats']} "
                               f"frames, {r['iterations']} it, {r['prep']}, {r['threads']} "
                               f"thr., {r['clock']} time)", highlight=False, markup=False)
+        if harness and harness_study.wanted(scenario, n, sizes):  # reading, scoring, writing
+            harness_rows.append(harness_study.scenario_row(
+                scenario, seq, harness_study.TILED_FRAMES[scenario]))
         if reference:  # the same pair, right after ours, at the requested thread count
             reference_rows += speed_reference.reference_rows(
                 scenario, n, seq, [r for r in rows if r["points"] == n
@@ -289,6 +297,8 @@ def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Pa
                                    and r["threads_setting"] == threads],
                 threads, libraries)
     _print_table(rows, names, console)
+    if harness_rows:
+        harness_study.report(harness_rows, out, console)
     out.mkdir(parents=True, exist_ok=True)
     write_csv(rows, out / "speed.csv")
     _plot(rows, names, out / "speed.png")
