@@ -66,17 +66,22 @@ def print_run_summary(run_dir: Path, console: Console) -> None:
     """Key metrics of a finished single run, and its folder."""
     run = read_run(run_dir)
     if run is not None:
-        rel = run.relative_error
-        scored = [k for k, r in rel.items() if r.get("n")]  # lengths with segments
+        res = run.result
+        scored = res.lengths_m  # lengths with segments
         parts = []
         for length in dict.fromkeys(scored[:1] + scored[-1:]):  # the shortest and longest
-            r = rel[length]
-            parts.append(f"{length} m: {r['rot_deg_mean']:.3f} deg / "
-                         f"{r['trans_m_mean']:.3f} m")
-        if run.ape.get("trans_rmse_m") is not None:
-            parts.append(f"APE {run.ape['trans_rmse_m']:.3f} m")
-        if run.time_ms.get("mean") is not None:
-            parts.append(f"time {run.time_ms['mean']:.2f} ms/frame")
+            r = res.relative(length)
+            parts.append(f"{length:g} m: {r.rot_deg_mean:.3f} deg / {r.trans_m_mean:.3f} m")
+        if res.ape is not None and res.ape.trans_rmse_m is not None:
+            parts.append(f"APE {res.ape.trans_rmse_m:.3f} m ({res.ape.alignment})")
+        if res.kitti is not None and res.kitti.n:
+            parts.append(f"KITTI {res.kitti.trans_pct:.2f} % / "
+                         f"{res.kitti.rot_deg_per_100m:.2f} deg/100 m")
+        if res.velocity is not None and res.velocity.norm_mean_mps is not None:
+            parts.append(f"velocity error {res.velocity.norm_mean_mps:.3f} m/s "
+                         f"({res.velocity.window_s:g} s windows)")
+        if res.time_ms.mean is not None:
+            parts.append(f"time {res.time_ms.mean:.2f} ms/frame")
         if run.diverged:
             parts.append("DIVERGED")
         console.print("; ".join(parts) or "no ground truth: no errors", markup=False)

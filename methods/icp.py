@@ -29,7 +29,13 @@ import small_gicp
 from pydantic import Field
 
 from loaders.scan import Scan
-from methods.base import MethodParams, Registration, RegistrationResult, uniform_downsample
+from methods.base import (
+    MethodParams,
+    Presentation,
+    Registration,
+    RegistrationResult,
+    uniform_downsample,
+)
 from methods.rigid import rigid_from_sums
 
 
@@ -146,6 +152,7 @@ def warm_up() -> None:
 
 class PointToPointIcp(Registration):
     name = "icp-p2p"
+    presentation = Presentation("ICP point-to-point", "#1f77b4", 0)
     description = "Point-to-point ICP with kd-tree closest points (paper baseline)"
     Params = IcpParams
 

@@ -46,7 +46,7 @@ from pydantic import Field
 
 from loaders.errors import DataError
 from loaders.scan import Scan, SensorInfo, Sequence
-from methods.base import FrameRecord, MethodParams, Odometry, OdometryResult
+from methods.base import FrameRecord, MethodParams, Odometry, OdometryResult, Presentation
 from methods.timing import stopwatch, timed_section
 
 
@@ -94,6 +94,7 @@ class _TimedRegistration:
 
 class KissIcp(Odometry):
     name = "kiss-icp"
+    presentation = Presentation("KISS-ICP", "#8c564b", 7)
     description = "KISS-ICP scan-to-map odometry (kiss-icp package; own local map)"
     motion_prior = "own constant-velocity prediction"
     Params = KissParams

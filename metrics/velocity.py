@@ -117,12 +117,24 @@ def velocity_errors(gt_poses: np.ndarray, est_poses: np.ndarray, stamps: np.ndar
 def own_velocity_errors(gt_poses: np.ndarray, stamps: np.ndarray, est_mps: np.ndarray,
                         window_s: float = DEFAULT_WINDOW_S) -> VelocityErrorStats:
     """Error of a method's own per-frame velocity estimate ``est_mps`` (N, 3) [m/s, sensor
-    frame] (a Doppler ego velocity) against the GT velocity over the window starting at each
-    frame; frames whose estimate is NaN (not observable) are left out."""
+    frame at the frame] (a Doppler ego velocity, an instantaneous measurement) against the GT
+    velocity over a window centred on the frame: from the last frame at or before
+    ``s_i - window_s / 2`` to the first at or after ``s_i + window_s / 2``, in the sensor frame
+    at i. Frames whose estimate is NaN (not observable) or whose window leaves the sequence are
+    left out."""
     gt, _ = check_pose_pair(gt_poses, gt_poses)
-    i, j = window_pairs(stamps, window_s)
-    est = np.asarray(est_mps, dtype=np.float64)[i]
-    keep = np.all(np.isfinite(est), axis=1)
-    series = VelocitySeries(i[keep], j[keep], np.asarray(stamps, float)[i][keep], est[keep],
-                            body_velocities(gt, stamps, i, j)[keep])
-    return velocity_stats(series, window_s)
+    s = np.asarray(stamps, dtype=np.float64)
+    if len(s) != len(gt):
+        raise MetricError(f"{len(s)} stamps for {len(gt)} poses")
+    k = np.arange(len(s))
+    if window_s == 0:  # the step to the next frame
+        a, b = k, k + 1
+    else:
+        a = np.searchsorted(s, s - window_s / 2 + 1e-9, side="right") - 1
+        b = np.searchsorted(s, s + window_s / 2 - 1e-9, side="left")
+    est = np.asarray(est_mps, dtype=np.float64)
+    keep = (a >= 0) & (b < len(s)) & (b > a) & np.all(np.isfinite(est), axis=1)
+    k, a, b = k[keep], a[keep], b[keep]
+    d = gt[b, :3, 3] - gt[a, :3, 3]
+    gt_v = np.einsum("kji,kj->ki", gt[k, :3, :3], d) / (s[b] - s[a])[:, None]
+    return velocity_stats(VelocitySeries(k, b, s[k], est[k], gt_v), window_s)

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from bench.api import COLUMNS, load_results, run_method
+from bench.api import COLUMNS, load_results, load_runs_frame, run_method
 from bench.cli import app
 from conftest import constant_twist_sequence
 from loaders.store import write_store
@@ -38,10 +38,14 @@ def test_readme_notebook_example_runs(store, tmp_path, monkeypatch):
 def test_run_method_returns_the_metrics_and_load_results_one_row_per_length(store, tmp_path):
     m = run_method("doppler", store, out=tmp_path / "r" / "twist" / "doppler")
     df = load_results(tmp_path / "r")
-    assert len(df) == len(m["relative_error"])
+    assert len(df) == len(m.relative_error)
     row = df[df["length_m"] == 8.0].iloc[0]
-    assert row["trans_m_mean"] == m["relative_error"]["8"]["trans_m_mean"]
-    assert row["seed"] is None and row["ape_trans_m"] == m["ape"]["trans_rmse_m"]
+    assert row["trans_m_mean"] == m.relative(8).trans_m_mean
+    assert row["seed"] is None and row["ape_trans_m"] == m.ape.trans_rmse_m
+    assert row["ape_alignment"] == "se3" and row["velocity_window_s"] == 0.5
+    assert row["velocity_err_mps"] == m.velocity.norm_mean_mps
+    runs = load_runs_frame(tmp_path / "r")
+    assert len(runs) == 1 and runs["kitti_segments"].iloc[0] == m.kitti.n
 
 
 def _tables(text: str) -> list[tuple[list[str], list[list[str]]]]:

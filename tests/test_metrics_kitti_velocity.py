@@ -76,7 +76,8 @@ def test_kitti_drift_known_answers_and_too_short_lengths():
     assert n100 == len(range(0, n - 101, 10))  # starts whose start + 101 m is a pose
     # a yaw error of 0.5 deg per 100 m: 0.505 deg over each 101 m segment of "100 m"
     yawed = gt.copy()
-    yawed[:, :3, :3] = Rotation.from_euler("z", (np.arange(n) * 0.005)[:, None], degrees=True).as_matrix()
+    yaw_deg = (np.arange(n) * 0.005)[:, None]
+    yawed[:, :3, :3] = Rotation.from_euler("z", yaw_deg, degrees=True).as_matrix()
     yawed[:, :3, 3] = gt[:, :3, 3]
     assert kitti_drift(gt, yawed, (100.0,)).rot_deg_per_100m == pytest.approx(0.505, rel=1e-9)
     assert math.isnan(kitti_drift(gt, est, (1000.0,)).trans_pct)

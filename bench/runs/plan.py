@@ -126,6 +126,14 @@ def _lengths_problems(job: Job, path_m: float | None, warned: set[str]) -> list[
         warnings.warn(f"{name}: the ground truth's path is {path_m:.1f} m long: no segments of "
                       f"{', '.join(f'{L:g}' for L in too_long)} m (their cells stay empty)",
                       stacklevel=3)
+    kitti_short = [L for L in job.kitti_lengths_m if path_m <= L]
+    if kitti_short and f"kitti:{name}" not in warned:
+        warned.add(f"kitti:{name}")
+        warnings.warn(f"{name}: the ground truth's path is {path_m:.1f} m long: "
+                      + ("no KITTI drift (its shortest length is "
+                         f"{min(job.kitti_lengths_m):g} m)" if len(kitti_short) ==
+                         len(job.kitti_lengths_m) else "KITTI drift leaves out "
+                         f"{', '.join(f'{L:g}' for L in kitti_short)} m"), stacklevel=3)
     return []
 
 
