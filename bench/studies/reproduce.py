@@ -31,9 +31,9 @@ from bench.studies.fidelity import write_report
 TABLES = {  # experiment -> (kind, output stem, caption)
     "table3": ("relative", "table3", ""),
     "table4": ("ape", "table4", "Table IV: absolute pose error [m] on the semi-dense 4D radar "
-                                "sequences (SE(3)-aligned translation RMSE, as evo)."),
+                                "sequences: translation RMSE"),
     "table5": ("ape", "table5", "Table V: absolute pose error [m] on the dense 4D LiDAR "
-                                "tunnels; Div. = diverged."),
+                                "tunnels: translation RMSE"),
 }
 
 
@@ -71,8 +71,11 @@ def _columns(exp: Experiment) -> list[str]:
 
 def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic_only: bool,
                     console: Console, executor: str = "process", scheduler: str | None = None,
-                    job_timeout_s: float | None = None) -> list[str]:
-    """Run and write the three tables; returns the failed runs' messages (empty on success)."""
+                    job_timeout_s: float | None = None, scoring: dict | None = None
+                    ) -> list[str]:
+    """Run and write the three tables (and the KITTI-drift and velocity tables of Table III's
+    runs); returns the failed runs' messages (empty on success). ``scoring``
+    (``bench.commands.scoring_options``) overrides the lengths, KITTI lengths and alignment."""
     t0 = time.perf_counter()
     real = [] if synthetic_only else real_sequences(data_dir)
     if real:
@@ -82,6 +85,10 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
         console.print(f"no real stores under {data_dir / 'real'}: using the synthetic suite "
                       "'synthetic-paper'")
     experiments = table_experiments(out, data_dir, real)
+    given = {k: list(v) if isinstance(v, tuple) else v for k, v in (scoring or {}).items()
+             if v is not None}
+    if given:
+        experiments = {k: e.model_copy(update=given) for k, e in experiments.items()}
     suites = {e.suite for e in experiments.values() if e.suite is not None}
     resolved = {name: suite_sequences(name, data_dir, console) for name in suites}
     experiments = {k: e if e.suite is None else e.model_copy(update={
@@ -90,24 +97,30 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
         name: plan(jobs_for_experiment(exp, console)) for name, exp in experiments.items()}
     all_jobs = plan([j for js in per_table.values() for j in js])
     outcomes = run_jobs(all_jobs, console, jobs, force, executor, job_timeout_s, scheduler)
+    written = []
     for name, exp in experiments.items():
         kind, stem, caption = TABLES[name]
         only = {j.run_dir_override for j in per_table[name]}
         try:
             if kind == "relative":
                 texts = write_tables(out, out, only=only, stem=stem)
+                for metric in ("kitti", "velocity"):
+                    write_tables(out, out, only=only, stem=f"{stem}_{metric}", metric=metric)
+                    written.append(f"{stem}_{metric}")
             else:
                 texts = write_ape_tables(out, out, _columns(exp), stem, caption, only=only)
         except FileNotFoundError:
             console.print(f"{stem}: no finished runs", style="red")
             continue
+        written.append(stem)
         console.print(f"\n{stem}", style="bold")
         console.print(texts["md"], markup=False, highlight=False, soft_wrap=True)
     figures = make_figures(out)
     if figures:
         console.print(f"figures: {out / 'figures'}/ ({len(figures)} files)", markup=False)
-    console.print(f"{summarize(outcomes)} in {time.perf_counter() - t0:.0f} s; wrote "
-                  f"{out}/table{{3,4,5}}.{{md,tex,csv}}", markup=False)
+    tables = ", ".join(sorted(written)) or "no table"
+    console.print(f"{summarize(outcomes)} in {time.perf_counter() - t0:.0f} s; wrote {out}/"
+                  f"{{{tables}}}.{{md,tex,csv}}", markup=False)
     if not real:
         report = write_report(out)
         console.print(f"fidelity report (synthetic suite vs the paper): {report}", markup=False)
