@@ -5,7 +5,7 @@ import json
 import pytest
 import yaml
 
-from bench.report.tables import collect_rows
+from bench.report.tables import runs
 from bench.runs.experiment import load_experiment
 from bench.runs.job import Job, run_job
 from bench.runs.plan import jobs_for_experiment, plan
@@ -56,7 +56,8 @@ def test_a_failing_forced_rerun_leaves_no_stale_metrics(store, tmp_path):
     assert run_job(broken, force=True).status == "failed"
     assert not (run_dir / "metrics.json").exists()
     assert json.loads((run_dir / "failed.json").read_text())["status"] == "failed"
-    assert collect_rows(tmp_path)[0] == []
+    # the table shows it as a failed row, never with the old metrics
+    assert [(r.failed, r.result.relative_error) for r in runs(tmp_path)] == [(True, [])]
 
 
 def _experiment(tmp_path, store, methods: str):
@@ -74,9 +75,9 @@ def test_labelled_variants_get_two_rows_and_yaml_paths_are_relative(store, tmp_p
     assert exp.out_dir == exp_path.parent / "results"
     outcomes = run_jobs(plan(jobs_for_experiment(exp)), executor="local")
     assert [o.status for o in outcomes] == ["done", "done"]
-    rows, _ = collect_rows(exp.out_dir)
+    rows = runs(exp.out_dir)
     assert sorted(r.label for r in rows) == ["(No initial guess) tau1", "(No initial guess) tau3"]
-    assert rows[0].trans != rows[1].trans
+    assert rows[0].result.relative_error != rows[1].result.relative_error
 
 
 def test_two_unlabelled_variants_and_folder_collisions_are_user_errors(store, tmp_path):
