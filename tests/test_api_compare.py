@@ -46,6 +46,9 @@ def test_run_method_returns_the_metrics_and_load_results_one_row_per_length(stor
     assert row["velocity_err_mps"] == m.velocity.norm_mean_mps
     runs = load_runs_frame(tmp_path / "r")
     assert len(runs) == 1 and runs["kitti_segments"].iloc[0] == m.kitti.n
+    # every statistic of the result is a column, a new metric's too
+    assert runs["velocity.axis_rmse_mps.0"].iloc[0] == m.velocity.axis_rmse_mps[0]
+    assert runs["ape.scale"].iloc[0] == 1.0
 
 
 def _tables(text: str) -> list[tuple[list[str], list[list[str]]]]:

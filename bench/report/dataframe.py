@@ -2,7 +2,9 @@
 
 ``load_results``: one row per sequence x method x seed x segment length (``COLUMNS``), with the
 run's APE, KITTI drift and ego-velocity error repeated on each of its rows. ``load_runs_frame``:
-one row per run. Both read ``bench.runs.result.RunResult`` (nothing is parsed here).
+one row per run: ``RUN_COLUMNS``, then every other statistic of its ``RunResult`` flattened as
+"<field>.<statistic>" (e.g. ``kitti.n``, ``ape.scale``), so a metric added to ``RunResult`` is a
+column without a change here. Both read ``bench.runs.result.RunResult`` (nothing is parsed).
 """
 
 from __future__ import annotations
@@ -43,10 +45,25 @@ def run_row(run: RunRecord) -> dict:
             "diverged": res.diverged, "frames": res.frames, "run_dir": str(run.dir)}
 
 
+def flat(run: RunRecord) -> dict:
+    """Every number of the run's result as "<field>.<statistic>" (lists per index)."""
+    out = {}
+    for key, value in run.result.model_dump(mode="json", by_alias=True).items():
+        if isinstance(value, dict):
+            for stat, x in value.items():
+                if isinstance(x, list) and all(not isinstance(v, dict) for v in x):
+                    out.update({f"{key}.{stat}.{i}": v for i, v in enumerate(x)})
+                elif not isinstance(x, list | dict):
+                    out[f"{key}.{stat}"] = x
+    return out
+
+
 def load_runs_frame(results_dir: str | Path) -> pd.DataFrame:
-    """Every finished run under ``results_dir``, one row each (``RUN_COLUMNS``)."""
-    return pd.DataFrame([run_row(r) for r in load_runs(Path(results_dir))],
-                        columns=RUN_COLUMNS)
+    """Every finished run under ``results_dir``, one row each (``RUN_COLUMNS``, then the
+    flattened statistics of its result)."""
+    rows = [{**run_row(r), **flat(r)} for r in load_runs(Path(results_dir))]
+    extra = list(dict.fromkeys(k for r in rows for k in r if k not in RUN_COLUMNS))
+    return pd.DataFrame(rows, columns=RUN_COLUMNS + extra)
 
 
 def load_results(results_dir: str | Path) -> pd.DataFrame:
