@@ -81,6 +81,12 @@ def test_a_failed_job_is_recorded_and_the_others_carry_on(store, tmp_path):
     failed = json.loads((tmp_path / "r" / "twist" / "doppler" / "failed.json").read_text())
     assert "tau_spatial_m" in failed["error"]
     assert (tmp_path / "r" / "twist" / "icp-p2p_seed" / "metrics.json").exists()
+    # the failed run stays in the table as a "failed" row, its reason in a footnote
+    texts = write_tables(tmp_path / "r")
+    row = next(ln for ln in texts["md"].splitlines() if "Doppler Correspondence" in ln)
+    assert "failed [1]" in row and "failed" in row.split("|")[-2]
+    assert "[1] (No initial guess) Doppler Correspondence (Ours) on twist: failed:" in texts["md"]
+    assert "tau_spatial_m" in texts["md"] and r"failed\textsuperscript{1}" in texts["tex"]
 
 
 def test_tables_mark_best_and_second_and_show_divergence(store, tmp_path):
