@@ -118,10 +118,9 @@ def _shown_keys(table: Table) -> list[list[str]]:
         keys = list(r.keys)
         if prev is not None:
             for i in range(len(keys) - 1):
-                if keys[: i + 1] == prev[: i + 1]:
-                    keys[i] = ""
-                else:
+                if r.keys[: i + 1] != prev[: i + 1]:
                     break
+                keys[i] = ""
         out.append(keys)
         prev = list(r.keys)
     return out
