@@ -132,13 +132,13 @@ def make_figures(results_dir: Path, out_dir: Path | None = None,
                  speed_csv: Path | None = None) -> list[Path]:
     """Every figure of a results folder (and of a ``bench speed`` CSV when given)."""
     from bench.report.figures_drift import plot_drift
-    from bench.report.figures_velocity import plot_velocity_along_path
     from bench.report.figures_errors import (
         plot_boxplots,
         plot_error_along_path,
         plot_frames,
         plot_speed_csv,
     )
+    from bench.report.figures_velocity import plot_velocity_along_path
 
     out_dir = Path(out_dir or Path(results_dir) / "figures")
     written = plot_trajectories(results_dir, out_dir)
