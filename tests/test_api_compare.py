@@ -42,7 +42,7 @@ def test_run_method_returns_the_metrics_and_load_results_one_row_per_length(stor
     row = df[df["length_m"] == 8.0].iloc[0]
     assert row["trans_m_mean"] == m.relative(8).trans_m_mean
     assert row["seed"] is None and row["ape_trans_m"] == m.ape.trans_rmse_m
-    assert row["ape_alignment"] == "se3" and row["velocity_window_s"] == 0.5
+    assert row["ape_alignment"] == "se3" and row["velocity_window_s"] == 1.0
     assert row["velocity_err_mps"] == m.velocity.norm_mean_mps
     runs = load_runs_frame(tmp_path / "r")
     assert len(runs) == 1 and runs["kitti_segments"].iloc[0] == m.kitti.n

@@ -46,7 +46,7 @@ def test_run_folder_has_every_file_and_exact_metric_keys(store, tmp_path):
     assert rel8["trans_m_mean"] < 0.1 and rel8["n"] > 0
     assert metrics["ape"]["requested"] == metrics["ape"]["alignment"] == "se3"
     assert metrics["kitti"]["n"] == 0 and metrics["kitti"]["too_long"][0] == 100.0  # 47 m
-    assert metrics["velocity"]["window_s"] == 0.5 and metrics["velocity"]["n"] > 0
+    assert metrics["velocity"]["window_s"] == 1.0 and metrics["velocity"]["n"] > 0
     assert metrics["velocity"]["norm_mean_mps"] < 1.0  # 8 m/s, a good estimate
     assert set(metrics["time_ms"]) == {"median", "mean", "p95"}
     meta = json.loads((run_dir / "meta.json").read_text())

@@ -26,6 +26,7 @@ from bench.runs.folders import RunRecord, load_runs
 from bench.runs.result import RunResult, nan
 from loaders.sensor_classes import class_rank
 from methods.registry import Seed
+from metrics.velocity import DEFAULT_WINDOW_S
 
 #: the metrics ``bench table --metric`` shows
 METRICS = ("relative", "kitti", "ape", "velocity")
@@ -260,7 +261,7 @@ def velocity_table(rows: list[RunRow]) -> Table:
     for col in range(5):
         rank_column(table.rows, col, 0,
                     lambda r, col=col: nan(next(iter(r.cells[col].values.values()), None)))
-    w = ", ".join(f"{x:g}" for x in sorted(windows)) or "0.5"
+    w = ", ".join(f"{x:g}" for x in sorted(windows)) or f"{DEFAULT_WINDOW_S:g}"
     table.caption = _caption(rows, (
         "Ego-velocity error [m/s] in the sensor frame: mean absolute error per axis (x, y, z) "
         "and the mean and RMS of the error vector's norm. A frame's velocity is its relative "
