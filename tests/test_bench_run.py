@@ -247,3 +247,31 @@ def test_pivot_table_ranks_methods_per_sequence(tmp_path):
     # shown but not ranked
     assert tcells == {p2p: ["12.3", "**1.00**"], gicp: ["<u>3.21</u>", "7.00"],
                       dicp: ["**0.50**", ""]}
+
+
+def test_scoring_options_on_the_command_line_and_in_an_experiment(store, tmp_path):
+    from bench.runs.experiment import load_experiment
+    from loaders.errors import DataError
+
+    runner = CliRunner()
+    out_dir = tmp_path / "one"
+    res = runner.invoke(app, ["run", "--method", "doppler", "--data", str(store), "--out",
+                              str(out_dir), "--lengths", "8,40", "--kitti-lengths", "20,30",
+                              "--alignment", "sim3"])
+    assert res.exit_code == 0, res.output
+    m = json.loads((out_dir / "metrics.json").read_text())
+    assert [r["length_m"] for r in m["relative_error"]] == [8.0, 40.0]
+    assert m["kitti"]["lengths_m"] == [20.0, 30.0] and m["kitti"]["n"] > 0
+    assert m["ape"]["requested"] == "sim3" and "KITTI" in res.output
+    res = runner.invoke(app, ["run", "--method", "doppler", "--data", str(store), "--out",
+                              str(out_dir), "--alignment", "sim5"])
+    assert type(res.exception).__name__ == "DataError" and "--alignment" in str(res.exception)
+    exp = tmp_path / "exp.yaml"
+    exp.write_text(f"name: x\nsequences: [{{path: {store}}}]\nmethods: [{{name: doppler}}]\n"
+                   "alignment: first-10\nkitti_lengths_m: [20]\n")
+    e = load_experiment(exp)
+    assert e.alignment == "se3-first-10" and e.kitti_lengths_m == [20.0]
+    exp.write_text(f"name: x\nsequences: [{{path: {store}}}]\nmethods: [{{name: doppler}}]\n"
+                   "alignment: sideways\n")
+    with pytest.raises(DataError, match="alignment"):
+        load_experiment(exp)
