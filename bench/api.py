@@ -5,17 +5,23 @@
     metrics = run_method("dicp", "data/synthetic-paper/Loop1_0.h5", out="results/nb/dicp")
     df = load_results("results/paper-synthetic")                # pandas, one row per
                                                                 # sequence x method x seed x length
+    runs = load_runs_frame("results/paper-synthetic")           # one row per run (APE, KITTI
+                                                                # drift, velocity error, time)
+    result = read_result("results/nb/dicp")                     # a run's typed RunResult
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 
-from bench.report.dataframe import COLUMNS, load_results
+from bench.report.dataframe import COLUMNS, RUN_COLUMNS, load_results, load_runs_frame
+from bench.runs.folders import read_run
 from bench.runs.plan import run_single
+from bench.runs.result import RunResult
 from loaders.store import StoreSequence
 
-__all__ = ["COLUMNS", "load_results", "load_store", "run_method"]
+__all__ = ["COLUMNS", "RUN_COLUMNS", "RunResult", "load_results", "load_runs_frame", "load_store",
+           "read_result", "run_method"]
 
 
 def load_store(path: str | Path) -> StoreSequence:
@@ -25,7 +31,16 @@ def load_store(path: str | Path) -> StoreSequence:
 
 
 def run_method(method: str, store: str | Path, seed: bool = True, params: dict | None = None,
-               out: str | Path | None = None, force: bool = False) -> dict:
-    """Run ``method`` on ``store`` exactly as ``bench run`` does; returns its metrics.json
-    (the run folder is ``out``, default results/runs/<sequence>/<method_seed>)."""
-    return run_single(method, Path(store), seed, params, out, force).metrics
+               out: str | Path | None = None, force: bool = False) -> RunResult:
+    """Run ``method`` on ``store`` exactly as ``bench run`` does; returns its result (the
+    typed metrics.json; the run folder is ``out``, default
+    results/runs/<sequence>/<method_seed>)."""
+    return run_single(method, Path(store), seed, params, out, force).result
+
+
+def read_result(run_dir: str | Path) -> RunResult:
+    """The result of a finished run folder (its metrics.json, typed)."""
+    run = read_run(Path(run_dir))
+    if run is None:
+        raise FileNotFoundError(f"{run_dir}: no metrics.json (not a finished run)")
+    return run.result

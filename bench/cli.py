@@ -140,13 +140,21 @@ def run(
         help="dask scheduler address (default: a LocalCluster)")] = None,
     job_timeout: Annotated[float | None, typer.Option(
         help="end a job that runs longer than this [s]")] = None,
+    lengths: Annotated[str | None, typer.Option(
+        help="relative-error segment lengths [m], comma separated (default 8,16,...,48; an "
+        "experiment's lengths_m)")] = None,
+    kitti_lengths: Annotated[str | None, typer.Option(
+        help="KITTI drift segment lengths [m] (default 100,200,...,800)")] = None,
+    alignment: Annotated[str | None, typer.Option(
+        help="APE alignment: none, origin, se3 (default), sim3, first-N, sim3-first-N")] = None,
 ) -> None:
     """Run one method on one store, or every run of an experiment YAML."""
-    from bench.commands import run_command
+    from bench.commands import run_command, scoring_options
 
     raise typer.Exit(run_command(console, experiment, method, data, out, seed,
                                  _parse_params(param), jobs, force, executor, scheduler,
-                                 job_timeout))
+                                 job_timeout, scoring_options(lengths, kitti_lengths,
+                                                              alignment)))
 
 
 def _parse_params(items: list[str] | None) -> dict:
@@ -167,6 +175,10 @@ def table(
     results_dirs: Annotated[list[Path], typer.Argument(
         help="results folder(s), searched recursively; several: rows labelled by folder")],
     format: Annotated[str, typer.Option("--format", "-f", help="md, tex or csv")] = "md",
+    metric: Annotated[str, typer.Option(
+        help="relative (Table III: error per segment length), kitti (drift in % and deg/100 m "
+        "over 100-800 m), ape (methods x sequences, Tables IV/V) or velocity (ego-velocity "
+        "error)")] = "relative",
     out: Annotated[Path | None, typer.Option(help="folder for table.{md,tex,csv}")] = None,
     lengths: Annotated[str | None, typer.Option(
         help="only these segment lengths [m], comma separated (e.g. 8,48)")] = None,
@@ -178,11 +190,12 @@ def table(
         help="include labelled variants (e.g. ablations); --no-variants: plain methods only")]
     = True,
 ) -> None:
-    """Print the paper-shaped table (Table III) and write table.md / .tex / .csv."""
+    """Print a table (by default the paper-shaped Table III) and write table.md / .tex / .csv
+    (table_<metric>.* for another metric)."""
     from bench.report.commands import table_command
 
     raise typer.Exit(table_command(console, status, list(results_dirs), format, out, lengths,
-                                   pivot, methods, variants))
+                                   pivot, methods, variants, metric))
 
 
 @app.command(short_help="two result folders side by side")
@@ -328,13 +341,21 @@ def reproduce(
         help="dask scheduler address (default: a LocalCluster)")] = None,
     job_timeout: Annotated[float | None, typer.Option(
         help="end a job that runs longer than this [s]")] = None,
+    lengths: Annotated[str | None, typer.Option(
+        help="Table III's segment lengths [m], comma separated (default 8,16,...,48)")] = None,
+    kitti_lengths: Annotated[str | None, typer.Option(
+        help="KITTI drift segment lengths [m] (default 100,200,...,800)")] = None,
+    alignment: Annotated[str | None, typer.Option(
+        help="APE alignment of Tables IV/V (default se3)")] = None,
 ) -> None:
     """Reproduce the paper's Tables III, IV and V (configs/experiments/table3-5.yaml) on the
     paper's sequences: real stores under DATA_DIR/real when present, else the synthetic suite."""
+    from bench.commands import scoring_options
     from bench.studies.reproduce import reproduce_table
 
     if reproduce_table(out, data_dir, jobs, force, synthetic_only, console, executor,
-                       scheduler, job_timeout):
+                       scheduler, job_timeout,
+                       scoring_options(lengths, kitti_lengths, alignment)):
         raise typer.Exit(1)
 
 

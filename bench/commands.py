@@ -15,12 +15,44 @@ from loaders.errors import DataError
 from methods.registry import seed_option
 
 
+def parse_lengths(text: str | None, option: str = "--lengths") -> tuple[float, ...] | None:
+    """"8,16,48" -> (8.0, 16.0, 48.0) (None for None); a DataError names the option."""
+    if text is None:
+        return None
+    try:
+        values = tuple(float(x) for x in text.split(","))
+    except ValueError:
+        raise DataError(f"{option} {text!r}: expected numbers in metres, e.g. 8,48") from None
+    if not values or min(values) <= 0:
+        raise DataError(f"{option} {text!r}: expected positive lengths in metres")
+    return values
+
+
+def scoring_options(lengths: str | None, kitti_lengths: str | None,
+                    alignment: str | None) -> dict:
+    """The scoring options given on the command line (None: not given), checked."""
+    from metrics.ape import Alignment
+    from metrics.relative import MetricError
+
+    if alignment is not None:
+        try:
+            alignment = Alignment.parse(alignment).name
+        except MetricError as err:
+            raise DataError(f"--alignment: {err}") from None
+    return {"lengths_m": parse_lengths(lengths),
+            "kitti_lengths_m": parse_lengths(kitti_lengths, "--kitti-lengths"),
+            "alignment": alignment}
+
+
 def run_command(console: Console, experiment: Path | None, method: str | None,
                 data: Path | None, out: Path | None, seed: bool | None, params: dict,
                 jobs: int | None, force: bool, executor: str, scheduler: str | None,
-                job_timeout: float | None) -> int:
+                job_timeout: float | None, scoring: dict | None = None) -> int:
     """Plan and run; returns the exit code (0 all done, 1 when any run failed). ``seed`` None:
-    not given (a single run is seeded by default)."""
+    not given (a single run is seeded by default). ``scoring`` (``scoring_options``) overrides
+    the experiment's lengths, KITTI lengths and alignment."""
+    given = {k: list(v) if isinstance(v, tuple) else v for k, v in (scoring or {}).items()
+             if v is not None}
     from bench.runs.experiment import load_experiment
     from bench.runs.job import summarize
     from bench.runs.plan import jobs_for_experiment, plan, single_job
@@ -38,6 +70,8 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
                             "seed options: edit the YAML, or run `bench run --method M --data "
                             "STORE.h5` without it")
         exp = load_experiment(experiment)
+        if given:
+            exp = exp.model_copy(update=given)
         if out is not None:
             exp.out = out
         job_list = plan(jobs_for_experiment(exp, console))
@@ -48,7 +82,9 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
         if seed is False and seed_option(method, False) is None:
             warnings.warn(f"{method} takes no initial guess: --no-seed changes nothing (it runs "
                           "once, as in the paper)", stacklevel=2)
-        job_list = plan([single_job(method, data, seed is not False, out, params)])
+        job_list = plan([single_job(method, data, seed is not False, out, params,
+                                    {k: tuple(v) if isinstance(v, list) else v
+                                     for k, v in given.items()})])
         workers, results_dir = 1, None
     outcomes = run_jobs(job_list, console, workers, force, executor, job_timeout, scheduler)
     console.print(summarize(outcomes), markup=False)
@@ -66,17 +102,22 @@ def print_run_summary(run_dir: Path, console: Console) -> None:
     """Key metrics of a finished single run, and its folder."""
     run = read_run(run_dir)
     if run is not None:
-        rel = run.relative_error
-        scored = [k for k, r in rel.items() if r.get("n")]  # lengths with segments
+        res = run.result
+        scored = res.lengths_m  # lengths with segments
         parts = []
         for length in dict.fromkeys(scored[:1] + scored[-1:]):  # the shortest and longest
-            r = rel[length]
-            parts.append(f"{length} m: {r['rot_deg_mean']:.3f} deg / "
-                         f"{r['trans_m_mean']:.3f} m")
-        if run.ape.get("trans_rmse_m") is not None:
-            parts.append(f"APE {run.ape['trans_rmse_m']:.3f} m")
-        if run.time_ms.get("mean") is not None:
-            parts.append(f"time {run.time_ms['mean']:.2f} ms/frame")
+            r = res.relative(length)
+            parts.append(f"{length:g} m: {r.rot_deg_mean:.3f} deg / {r.trans_m_mean:.3f} m")
+        if res.ape is not None and res.ape.trans_rmse_m is not None:
+            parts.append(f"APE {res.ape.trans_rmse_m:.3f} m ({res.ape.alignment})")
+        if res.kitti is not None and res.kitti.n:
+            parts.append(f"KITTI {res.kitti.trans_pct:.2f} % / "
+                         f"{res.kitti.rot_deg_per_100m:.2f} deg/100 m")
+        if res.velocity is not None and res.velocity.norm_mean_mps is not None:
+            parts.append(f"velocity error {res.velocity.norm_mean_mps:.3f} m/s "
+                         f"({res.velocity.window_s:g} s windows)")
+        if res.time_ms.mean is not None:
+            parts.append(f"time {res.time_ms.mean:.2f} ms/frame")
         if run.diverged:
             parts.append("DIVERGED")
         console.print("; ".join(parts) or "no ground truth: no errors", markup=False)

@@ -81,11 +81,15 @@ class FrameRecord:
 
 @dataclass
 class OdometryResult:
-    """Estimated ``T_world_sensor`` per frame (first frame = identity) and per-frame records."""
+    """Estimated ``T_world_sensor`` per frame (first frame = identity), per-frame records and,
+    for a method that measures it, its own velocity estimate."""
 
     stamps: np.ndarray
     poses: np.ndarray
     frames: list[FrameRecord] = field(default_factory=list)
+    #: a method's own per-frame estimate of the sensor velocity (N, 3) [m/s, sensor frame]
+    #: (a Doppler ego velocity; NaN rows where it had none), scored beside the trajectory's
+    velocity_mps: np.ndarray | None = None
 
 
 def uniform_downsample(scan: Scan, factor: int) -> Scan:
@@ -105,6 +109,19 @@ def scale_motion(T: np.ndarray, ratio: float) -> np.ndarray:
 CONSTANT_VELOCITY = "constant velocity"
 
 
+@dataclass(frozen=True)
+class Presentation:
+    """How a method is shown in every table and figure, declared with its class:
+    ``display_name`` (None: its registry name), ``color`` (a matplotlib colour; None: a colour
+    of its own is assigned, distinct from every other method's, ``methods.registry.color``)
+    and ``order`` (its row position; the paper's baselines first; None: after the known
+    ones)."""
+
+    display_name: str | None = None
+    color: str | None = None
+    order: float | None = None
+
+
 class Odometry(ABC):
     """Anything that turns a sequence into an estimated trajectory."""
 
@@ -121,6 +138,8 @@ class Odometry(ABC):
     #: the per-point arrays it reads besides the points: "doppler" and names of ``Scan.fields``
     #: (the store reads only these); None, the default for a method that does not say: all
     reads_fields: ClassVar[frozenset[str] | None] = None
+    #: display name, colour and row order in tables and figures
+    presentation: ClassVar[Presentation] = Presentation()
 
     @property
     def threads(self) -> int:

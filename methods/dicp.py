@@ -67,7 +67,13 @@ from scipy.spatial.transform import Rotation
 from loaders.errors import DataError
 from loaders.scan import Scan, SensorInfo
 from loaders.se3 import inv_T, transform_points
-from methods.base import MethodParams, Registration, RegistrationResult, uniform_downsample
+from methods.base import (
+    MethodParams,
+    Presentation,
+    Registration,
+    RegistrationResult,
+    uniform_downsample,
+)
 from methods.dicp_kernel import (
     neighbourhood_normals,
     normal_equations,
@@ -146,6 +152,7 @@ def estimate_normals(points: np.ndarray, radius_m: float, max_neighbours: int,
 class Dicp(Registration):
     name = "dicp"
     reads_fields = frozenset({"doppler"})
+    presentation = Presentation("DICP", "#9467bd", 4)
     description = "DICP, Doppler ICP (Hexsel et al. 2022; the authors' Open3D implementation)"
     needs_doppler = True
     Params = DicpParams

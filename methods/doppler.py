@@ -44,7 +44,13 @@ from pydantic import Field
 
 from loaders.errors import DataError
 from loaders.scan import Scan
-from methods.base import MethodParams, Registration, RegistrationResult, uniform_downsample
+from methods.base import (
+    MethodParams,
+    Presentation,
+    Registration,
+    RegistrationResult,
+    uniform_downsample,
+)
 from methods.rigid import fit_rigid_t, rigid_from_sums
 
 
@@ -257,6 +263,7 @@ def register_ransac(params: DopplerParams, source: DopplerScan, target: DopplerS
 class DopplerCorrespondence(Registration):
     name = "doppler"
     reads_fields = frozenset({"doppler"})
+    presentation = Presentation("Doppler Correspondence (Ours)", "#d62728", 5)
     description = "Doppler Correspondence, non-iterative (paper Algorithm 2); no initial guess"
     needs_doppler = True
     motion_prior = None

@@ -64,7 +64,14 @@ from loaders.errors import DataError
 from loaders.scan import SensorInfo, Sequence
 from loaders.se3 import inv_T
 from methods.angular_noise import AngularNoise
-from methods.base import FrameRecord, MethodParams, Odometry, OdometryResult, scale_motion
+from methods.base import (
+    FrameRecord,
+    MethodParams,
+    Odometry,
+    OdometryResult,
+    Presentation,
+    scale_motion,
+)
 from methods.ego_velocity import estimate_ego_velocity
 from methods.local_map import LocalMap, register_to_map, scan_covariances
 from methods.timing import stopwatch, timed_section
@@ -132,6 +139,7 @@ class DopplerEgo(Odometry):
     name = "doppler-ego"
     needs_doppler = True
     reads_fields = frozenset({"doppler"})
+    presentation = Presentation("Doppler-Ego (this harness)", "#e377c2", 8)
     description = ("Doppler ego velocity for translation + rotation-only GICP of the static "
                    "points against a local map (this project's method)")
     uses_initial_guess = True
@@ -158,6 +166,7 @@ class DopplerEgo(Odometry):
         n = len(sequence)
         poses = np.repeat(np.eye(4)[None], n, axis=0)
         stamps = np.empty(n)
+        velocities = np.full((n, 3), np.nan)  # the Doppler ego velocity per frame [m/s]
         records: list[FrameRecord] = []
         v_prev, first_static = None, None
         noise = AngularNoise()
@@ -186,6 +195,8 @@ class DopplerEgo(Odometry):
                 covs = scan_covariances(src, p.neighbours, p.covariance_floor_m, angles,
                                         p.num_threads)
                 v_curr = ego.velocity if ego.observable else None
+                if v_curr is not None:
+                    velocities[i] = v_curr
                 pairs, iterations, converged = 0, 0, True
                 if i == 0 and free_vertical is None:
                     first_static = pts
@@ -224,7 +235,7 @@ class DopplerEgo(Odometry):
             v_prev = v_curr
             if on_frame:
                 on_frame(i)
-        return OdometryResult(stamps, poses, records)
+        return OdometryResult(stamps, poses, records, velocities)
 
 
 def repeats_detections(prev_points: np.ndarray, points: np.ndarray,

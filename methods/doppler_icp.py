@@ -50,7 +50,13 @@ from loaders.errors import DataError
 from loaders.scan import Scan, SensorInfo
 from loaders.se3 import exp_se3
 from methods import doppler_kernel
-from methods.base import MethodParams, Registration, RegistrationResult, uniform_downsample
+from methods.base import (
+    MethodParams,
+    Presentation,
+    Registration,
+    RegistrationResult,
+    uniform_downsample,
+)
 from methods.dicp_kernel import transform as _transform
 from methods.doppler import DopplerScan
 from methods.kdtree import FAR, KdTree, NearestTracker
@@ -177,6 +183,7 @@ class DopplerIcpScan(DopplerScan):
 class DopplerIcp(Registration):
     name = "doppler-icp"
     reads_fields = frozenset({"doppler"})
+    presentation = Presentation("Doppler 4D-ICP (Ours)", "#ff7f0e", 6)
     description = "Doppler 4D-ICP: fixed Doppler pairs + closest points (paper Algorithm 1)"
     needs_doppler = True
     Params = DopplerIcpParams

@@ -107,7 +107,13 @@ from pydantic import Field
 from loaders.scan import Scan, SensorInfo
 from loaders.se3 import exp_se3
 from methods import plane_kernel
-from methods.base import MethodParams, Registration, RegistrationResult, uniform_downsample
+from methods.base import (
+    MethodParams,
+    Presentation,
+    Registration,
+    RegistrationResult,
+    uniform_downsample,
+)
 from methods.kdtree import FAR, KdTree, NearestTracker
 
 
@@ -265,6 +271,7 @@ def point_to_plane_system(moved: np.ndarray, target: np.ndarray,
 
 class PointToPlaneIcp(_SmallGicp):
     name = "icp-p2plane"
+    presentation = Presentation("ICP point-to-plane", "#17becf", 1)
     description = "Point-to-plane ICP (small_gicp preprocessing), paper Tables IV/V baseline"
     registration_type = "PLANE_ICP"
     no_seed_defaults = NO_SEED_P2PLANE
@@ -309,6 +316,7 @@ class PointToPlaneIcp(_SmallGicp):
 
 class GeneralizedIcp(_SmallGicp):
     name = "gicp"
+    presentation = Presentation("Generalized-ICP", "#2ca02c", 2)
     description = "Generalized-ICP (small_gicp), paper Tables IV/V baseline"
     registration_type = "GICP"
     no_seed_defaults = NO_SEED_GICP
@@ -316,6 +324,7 @@ class GeneralizedIcp(_SmallGicp):
 
 class VoxelizedGicp(_SmallGicp):
     name = "vgicp"
+    presentation = Presentation("VGICP", "#bcbd22", 3)
     description = "Voxelized GICP (small_gicp), paper Tables IV/V baseline"
     registration_type = "VGICP"
     sensor_defaults = VGICP_SENSOR_DEFAULTS

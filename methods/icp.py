@@ -32,7 +32,13 @@ import small_gicp
 from pydantic import Field
 
 from loaders.scan import Scan
-from methods.base import MethodParams, Registration, RegistrationResult, uniform_downsample
+from methods.base import (
+    MethodParams,
+    Presentation,
+    Registration,
+    RegistrationResult,
+    uniform_downsample,
+)
 from methods.rigid import rigid_from_sums
 
 
@@ -158,6 +164,7 @@ class IcpScan(Scan):
 class PointToPointIcp(Registration):
     name = "icp-p2p"
     reads_fields = frozenset()
+    presentation = Presentation("ICP point-to-point", "#1f77b4", 0)
     description = "Point-to-point ICP with kd-tree closest points (paper baseline)"
     Params = IcpParams
 

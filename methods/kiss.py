@@ -52,7 +52,7 @@ from pydantic import Field
 
 from loaders.errors import DataError
 from loaders.scan import MemorySequence, Scan, SensorInfo, Sequence
-from methods.base import FrameRecord, MethodParams, Odometry, OdometryResult
+from methods.base import FrameRecord, MethodParams, Odometry, OdometryResult, Presentation
 from methods.timing import stopwatch, timed_section
 
 
@@ -120,6 +120,7 @@ def _fresh_run(params: dict, sequence: MemorySequence, seed: bool) -> OdometryRe
 class KissIcp(Odometry):
     name = "kiss-icp"
     reads_fields = frozenset({"time_offset_s"})  # deskewing
+    presentation = Presentation("KISS-ICP", "#8c564b", 7)
     description = "KISS-ICP scan-to-map odometry (kiss-icp package; own local map)"
     motion_prior = "own constant-velocity prediction"
     Params = KissParams

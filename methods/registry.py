@@ -11,10 +11,11 @@ from __future__ import annotations
 
 import importlib
 import os
+from enum import Enum
 
 from loaders.errors import DataError, did_you_mean
 from loaders.scan import SensorInfo
-from methods.base import Odometry
+from methods.base import CONSTANT_VELOCITY, Odometry
 from methods.dicp import Dicp
 from methods.doppler import DopplerCorrespondence
 from methods.doppler_ego import DopplerEgo
@@ -94,3 +95,105 @@ def seed_option(name: str, seed: bool) -> bool | None:
     """The seed option of a single run asked for with ``seed`` (None when the method takes no
     prior)."""
     return seed_options(name, [seed])[0]
+
+
+class Seed(Enum):
+    """A run's seed option (the one place it is interpreted): ``WITH`` a motion prior (the
+    harness's constant velocity, or the method's own), ``WITHOUT`` (every step from the
+    identity), ``NONE`` (a method that takes no prior; it runs once). In ``metrics.json`` and
+    ``config.yaml`` it is written as true / false / null (``option``)."""
+
+    WITH = "with"
+    WITHOUT = "without"
+    NONE = "none"
+
+    @classmethod
+    def of(cls, option: bool | None | Seed) -> Seed:
+        """From the stored option (true / false / null) or a Seed."""
+        if isinstance(option, Seed):
+            return option
+        return cls.NONE if option is None else (cls.WITH if option else cls.WITHOUT)
+
+    @property
+    def option(self) -> bool | None:
+        return {Seed.WITH: True, Seed.WITHOUT: False, Seed.NONE: None}[self]
+
+    @property
+    def suffix(self) -> str:
+        """The run folder's suffix: "_seed", "_noseed" or "" (``run_dir_name``)."""
+        return {Seed.WITH: "_seed", Seed.WITHOUT: "_noseed", Seed.NONE: ""}[self]
+
+    @property
+    def rank(self) -> int:
+        """Row order: with seed before without."""
+        return {Seed.WITH: 0, Seed.NONE: 0, Seed.WITHOUT: 1}[self]
+
+    def tag(self, method: str) -> str:
+        """Which motion prior a run of ``method`` used: "With Seed" (the harness's
+        constant-velocity guess), "With Seed, own model" (the method's own prior), "No Seed"
+        or "No initial guess"."""
+        if self is Seed.NONE:
+            return "No initial guess"
+        if self is Seed.WITHOUT:
+            return "No Seed"
+        cls = METHODS.get(method)
+        own = cls is not None and cls.motion_prior not in (None, CONSTANT_VELOCITY)
+        return "With Seed, own model" if own else "With Seed"
+
+    def style(self, method: str) -> tuple:
+        """(line style, marker, box hatch) of its runs in figures: with and without a seed
+        differ in all three."""
+        return _SEED_STYLE[self.tag(method)]
+
+
+_SEED_STYLE = {"With Seed": ("-", "o", ""), "With Seed, own model": ("-", "D", ""),
+               "No Seed": ("--", "x", "//////"), "No initial guess": ("-", "s", "")}
+#: what the seed tags mean (table captions and figure notes)
+SEED_NOTE = ("With Seed: each step starts from the previous step's motion (constant velocity); "
+             "With Seed, own model: from the method's own motion prediction instead; No Seed: "
+             "from the identity, with every internal prior reset; No initial guess: a method "
+             "that takes none.")
+
+
+# ---- presentation (declared with each method class: ``Odometry.presentation``) --------------
+
+#: colours for methods that declare none (plugins): none is a built-in method's colour
+_SPARE_COLORS = ("#393b79", "#637939", "#8c6d31", "#843c39", "#7b4173", "#3182bd", "#e6550d",
+                 "#31a354", "#756bb1", "#636363", "#9c9ede", "#cedb9c", "#e7ba52", "#e7969c",
+                 "#de9ed6", "#6baed6", "#fd8d3c", "#74c476")
+_assigned: dict[str, str] = {}
+
+
+def display_name(method: str) -> str:
+    """The method's name in every table and figure (its class's ``presentation``)."""
+    cls = METHODS.get(method)
+    return (cls.presentation.display_name if cls is not None else None) or method
+
+
+def order_key(method: str) -> float:
+    """Its row position (the paper's baselines first, its own methods last, then methods
+    beyond the paper; a method without an order after every one that has one)."""
+    cls = METHODS.get(method)
+    order = cls.presentation.order if cls is not None else None
+    return float("inf") if order is None else float(order)
+
+
+def color(method: str) -> str:
+    """The method's colour, the same in every figure: the one its class declares, else one of
+    its own (registered methods without a colour in registry order, then any other name in
+    order of first use), distinct from every other method's while spare colours last."""
+    cls = METHODS.get(method)
+    if cls is not None and cls.presentation.color:
+        return cls.presentation.color
+    if not _assigned:
+        for name, c in METHODS.items():
+            if not c.presentation.color:
+                _assign(name)
+    return _assigned.get(method) or _assign(method)
+
+
+def _assign(method: str) -> str:
+    taken = {c.presentation.color for c in METHODS.values()} | set(_assigned.values())
+    spare = [c for c in _SPARE_COLORS if c not in taken]
+    _assigned[method] = spare[0] if spare else _SPARE_COLORS[len(_assigned) % len(_SPARE_COLORS)]
+    return _assigned[method]

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 from typer.testing import CliRunner
 
-from bench.api import COLUMNS, load_results, run_method
+from bench.api import COLUMNS, load_results, load_runs_frame, run_method
 from bench.cli import app
 from conftest import constant_twist_sequence
 from loaders.store import write_store
@@ -38,10 +38,17 @@ def test_readme_notebook_example_runs(store, tmp_path, monkeypatch):
 def test_run_method_returns_the_metrics_and_load_results_one_row_per_length(store, tmp_path):
     m = run_method("doppler", store, out=tmp_path / "r" / "twist" / "doppler")
     df = load_results(tmp_path / "r")
-    assert len(df) == len(m["relative_error"])
+    assert len(df) == len(m.relative_error)
     row = df[df["length_m"] == 8.0].iloc[0]
-    assert row["trans_m_mean"] == m["relative_error"]["8"]["trans_m_mean"]
-    assert row["seed"] is None and row["ape_trans_m"] == m["ape"]["trans_rmse_m"]
+    assert row["trans_m_mean"] == m.relative(8).trans_m_mean
+    assert row["seed"] is None and row["ape_trans_m"] == m.ape.trans_rmse_m
+    assert row["ape_alignment"] == "se3" and row["velocity_window_s"] == 1.0
+    assert row["velocity_err_mps"] == m.velocity.norm_mean_mps
+    runs = load_runs_frame(tmp_path / "r")
+    assert len(runs) == 1 and runs["kitti_segments"].iloc[0] == m.kitti.n
+    # every statistic of the result is a column, a new metric's too
+    assert runs["velocity.axis_rmse_mps.0"].iloc[0] == m.velocity.axis_rmse_mps[0]
+    assert runs["ape.scale"].iloc[0] == 1.0
 
 
 def _tables(text: str) -> list[tuple[list[str], list[list[str]]]]:
@@ -102,13 +109,18 @@ def test_compare_shows_the_changed_cell(store, tmp_path):
                out=tmp_path / "b" / "twist" / "doppler")
     res = CliRunner().invoke(app, ["compare", str(tmp_path / "a"), str(tmp_path / "b")])
     assert res.exit_code == 0, res.output
-    (header, rows), _ = _tables(res.output)
+    (header, rows), _, (rheader, rrows) = _tables(res.output)
     row = dict(zip(header, next(r for r in rows if r[0] == "twist" and r[2] == "8"),
                    strict=True))
     assert row["Run"] == "(No initial guess) Doppler Correspondence (Ours)"
     a, b = float(row["Trans. A"]), float(row["Trans. B"])
     delta = float(row["Trans. change"].split()[0])
     assert a != b and delta == pytest.approx(b - a, abs=2e-3)
+    # the per-run metrics: APE (its alignment named), KITTI drift (none on 47 m), velocity
+    assert rheader[2:6] == ["APE [m]", "KITTI trans. [%]", "KITTI rot. [deg/100 m]",
+                            "Velocity err. [m/s]"] and "alignment: se3" in res.output
+    ape_a, ape_b = (float(x) for x in rrows[0][2].split(" -> "))
+    assert ape_a != ape_b and rrows[0][3] == "- -> -"
     same = CliRunner().invoke(app, ["compare", str(tmp_path / "a"), str(tmp_path / "a"),
                                     "--fail-on-regression"])
     assert same.exit_code == 0 and "0 regressions" in same.output
@@ -120,7 +132,7 @@ def test_compare_is_valid_markdown_with_seed_tags_times_and_no_empty_cells(tmp_p
     res = CliRunner().invoke(app, ["compare", str(a), str(b)])
     assert res.exit_code == 0, res.output
     assert "nan" not in res.output.lower() and "None" not in res.output
-    (header, rows), (theader, trows) = _tables(res.output)
+    (header, rows), (theader, trows), _ = _tables(res.output)
     assert header[:3] == ["Sequence", "Run", "Length [m]"]
     # 3 runs x the 2 lengths with segments; 48 m has none on either side: no cell
     assert sorted((r[1], r[2]) for r in rows) == sorted(
@@ -147,7 +159,7 @@ def test_compare_marks_regressions_and_runs_on_one_side_only(tmp_path):
     runner = CliRunner()
     res = runner.invoke(app, ["compare", str(a), str(b)])
     assert res.exit_code == 0, res.output  # without --fail-on-regression
-    (header, rows), (_, trows) = _tables(res.output)
+    (header, rows), (_, trows), _ = _tables(res.output)
     notes = {(r[1], r[2]): r[-1] for r in rows}
     assert notes[("(With Seed) ICP point-to-point", "8")] == "! regression; ! newly diverged"
     assert notes[("(No Seed) ICP point-to-point", "8")] == "only in B"
@@ -191,7 +203,6 @@ def test_table_over_several_experiments_labels_each(store, tmp_path):
     res = CliRunner().invoke(app, ["table", str(tmp_path / "exp-a"), str(tmp_path / "exp-b"),
                                    "-f", "csv", "--out", str(tmp_path)])
     assert res.exit_code == 0, res.output
-    rows = [line for line in res.output.splitlines() if line.startswith("4D")
-            or ",twist," in line]
+    rows = [line for line in res.output.splitlines() if line.startswith("twist,")]
     assert any("exp-a: (No initial guess) Doppler Correspondence (Ours)" in r for r in rows)
     assert any("exp-b: (No initial guess) Doppler Correspondence (Ours)" in r for r in rows)

@@ -7,15 +7,19 @@ import pytest
 from typer.testing import CliRunner
 
 from bench.cli import app
-from bench.report.tables import collect_rows, to_latex, to_markdown, write_tables
+from bench.report.table import to_latex, to_markdown
+from bench.report.tables import relative_table, runs, scored_lengths, write_tables
 from bench.runs.job import Job, run_job
 from bench.runs.progress import run_jobs
 from conftest import constant_twist_sequence
 from loaders.store import write_store
 
-METRIC_KEYS = {"sequence", "method", "seed", "frames", "frames_scored", "diverged",
-               "relative_error", "ape", "time_ms", "register_ms", "wall_ms", "clock",
-               "threads", "cpu", "cpu_process_to_thread", "timing_outliers", "timing_clean"}
+METRIC_KEYS = {"schema", "status", "error", "sequence", "method", "seed", "label",
+               "display_name", "sensor_class", "frames", "frames_scored", "diverged",
+               "relative_error", "ape", "kitti", "velocity", "velocity_own", "time_ms",
+               "register_ms", "wall_ms", "clock", "threads", "notes", "cpu",
+               "cpu_process_to_thread", "cpu_process_to_thread_first", "clock_note",
+               "timing_outliers", "timing_clean"}
 
 
 @pytest.fixture(scope="module")
@@ -30,16 +34,22 @@ def test_run_folder_has_every_file_and_exact_metric_keys(store, tmp_path):
     out = run_job(job)
     assert out.status == "done", out.message
     run_dir = tmp_path / "twist" / "doppler"
-    for name in ("est_tum.txt", "est_kitti.txt", "gt_tum.txt", "frames.csv", "config.yaml",
-                 "meta.json", "metrics.json"):
+    for name in ("est_tum.txt", "est_kitti.txt", "gt_tum.txt", "gt_kitti.txt", "frames.csv",
+                 "config.yaml", "meta.json", "metrics.json"):
         assert (run_dir / name).exists(), name
     metrics = json.loads((run_dir / "metrics.json").read_text())
     assert set(metrics) == METRIC_KEYS
     assert metrics["frames"] == 60 and metrics["diverged"] is False
-    assert set(metrics["relative_error"]["8"]) == {"rot_deg_mean", "trans_m_mean",
-                                                   "rot_deg_median", "trans_m_median", "n"}
-    assert metrics["relative_error"]["8"]["trans_m_mean"] < 0.1
-    assert metrics["relative_error"]["8"]["n"] > 0
+    rel8 = metrics["relative_error"][0]
+    assert [r["length_m"] for r in metrics["relative_error"]] == [8.0, 16.0, 24.0, 32.0, 40.0,
+                                                                   48.0]
+    assert set(rel8) == {"length_m", "rot_deg_mean", "trans_m_mean", "rot_deg_median",
+                         "trans_m_median", "rot_deg_rmse", "trans_m_rmse", "n"}
+    assert rel8["trans_m_mean"] < 0.1 and rel8["n"] > 0
+    assert metrics["ape"]["requested"] == metrics["ape"]["alignment"] == "se3"
+    assert metrics["kitti"]["n"] == 0 and metrics["kitti"]["too_long"][0] == 100.0  # 47 m
+    assert metrics["velocity"]["window_s"] == 1.0 and metrics["velocity"]["n"] > 0
+    assert metrics["velocity"]["norm_mean_mps"] < 1.0  # 8 m/s, a good estimate
     assert set(metrics["time_ms"]) == {"median", "mean", "p95"}
     meta = json.loads((run_dir / "meta.json").read_text())
     assert {"git", "packages", "cpu", "threads", "date"} <= set(meta)
@@ -75,6 +85,12 @@ def test_a_failed_job_is_recorded_and_the_others_carry_on(store, tmp_path):
     failed = json.loads((tmp_path / "r" / "twist" / "doppler" / "failed.json").read_text())
     assert "tau_spatial_m" in failed["error"]
     assert (tmp_path / "r" / "twist" / "icp-p2p_seed" / "metrics.json").exists()
+    # the failed run stays in the table as a "failed" row, its reason in a footnote
+    texts = write_tables(tmp_path / "r")
+    row = next(ln for ln in texts["md"].splitlines() if "Doppler Correspondence" in ln)
+    assert "failed [1]" in row and "failed" in row.split("|")[-2]
+    assert "[1] (No initial guess) Doppler Correspondence (Ours) on twist: failed:" in texts["md"]
+    assert "tau_spatial_m" in texts["md"] and r"failed\textsuperscript{1}" in texts["tex"]
 
 
 def test_tables_mark_best_and_second_and_show_divergence(store, tmp_path):
@@ -86,12 +102,13 @@ def test_tables_mark_best_and_second_and_show_divergence(store, tmp_path):
     m = json.loads(m_path.read_text())
     m["diverged"] = True
     m_path.write_text(json.dumps(m))
-    rows, lengths = collect_rows(tmp_path)
+    rows = runs(tmp_path)
+    lengths = scored_lengths(rows)
     assert [r.label for r in rows] == ["(With Seed) ICP point-to-point",
                                        "(No Seed) ICP point-to-point",
                                        "(No initial guess) Doppler Correspondence (Ours)"]
-    assert lengths == ["8", "16", "24", "32", "40", "48"]
-    md = to_markdown(rows, lengths)
+    assert lengths == [8.0, 16.0, 24.0, 32.0, 40.0, 48.0]
+    md = to_markdown(relative_table(rows, lengths))
     lines = [line for line in md.splitlines() if "point-to-point" in line or "Ours" in line]
     assert "Div." in lines[1] and "**" not in lines[1] and "<u>" not in lines[1]
     assert lines[1].rstrip(" |").split("|")[-1].strip().replace(".", "").isdigit()  # time
@@ -99,11 +116,12 @@ def test_tables_mark_best_and_second_and_show_divergence(store, tmp_path):
     cells8 = [line.split("|")[4] for line in (lines[0], lines[2])]
     assert sum(c.count("**") // 2 for c in cells8) == 2
     assert sum(c.count("<u>") for c in cells8) == 2
-    tex = to_latex(rows, lengths)
+    tex = to_latex(relative_table(rows, lengths))
     assert r"\textbf{" in tex and r"\underline{" in tex and "Div." in tex
+    assert r"\caption{" in tex and r"\toprule" in tex and r"\bottomrule" in tex
     texts = write_tables(tmp_path)
     assert (tmp_path / "table.csv").read_text() == texts["csv"]
-    assert texts["csv"].splitlines()[0].startswith("sensor_class,sequence,method,seed")
+    assert texts["csv"].splitlines()[0].startswith("sequence,sensor_class,method,seed")
 
 
 def test_cli_run_table_inspect(store, tmp_path):
@@ -117,22 +135,26 @@ def test_cli_run_table_inspect(store, tmp_path):
     assert res.exit_code == 0, res.output
     assert "icp-p2p" in res.output and res.output.count("\n") >= 2
 
-    def csv_header(output: str) -> list[str]:
-        return next(ln for ln in output.splitlines() if ln.startswith("sensor_class")).split(",")
+    def columns(output: str) -> list[str]:
+        lines = output[output.index("sequence,sensor_class"):].splitlines()
+        return list(dict.fromkeys(ln.split(",")[-4] for ln in lines[1:] if ln.count(",") > 8))
 
-    header = csv_header(res.output)
+    assert columns(res.output) == ["8 m", "16 m", "24 m", "32 m", "40 m", "48 m", "Time (ms)"]
     res = runner.invoke(app, ["table", str(tmp_path), "-f", "csv", "--lengths", "8,16",
                               "--out", str(tmp_path / "short")])
     assert res.exit_code == 0, res.output
-    short = csv_header(res.output)
-    per_length = [c for c in short if c.endswith("m") and c[0] in "rt"]
-    assert per_length == ["rot_deg_8m", "trans_m_8m", "rot_deg_16m", "trans_m_16m"]
-    assert set(short) < set(header)
+    assert columns(res.output) == ["8 m", "16 m", "Time (ms)"]
     res = runner.invoke(app, ["table", str(tmp_path), "--lengths", "8,1000", "--out",
                               str(tmp_path / "short")])
-    # a DataError: `bench` (main) prints it as one line and exits 2
+    # a DataError: `bench` (main) prints it as one line and exits 2; it says how to get them
     assert type(res.exception).__name__ == "DataError" and "no results at 1000 m" in str(
-        res.exception)
+        res.exception) and "bench run --lengths" in str(res.exception)
+    for metric, title in (("kitti", "Trans. drift (%)"), ("velocity", "Norm mean (m/s)"),
+                          ("ape", "twist")):
+        res = runner.invoke(app, ["table", str(tmp_path), "--metric", metric, "--out",
+                                  str(tmp_path / "short")])
+        assert res.exit_code == 0 and title in res.output, res.output
+        assert (tmp_path / "short" / f"table_{metric}.tex").exists()
     res = runner.invoke(app, ["table", str(tmp_path), "--pivot", "--lengths", "8",
                               "--out", str(tmp_path / "short")])
     assert res.exit_code == 0, res.output
@@ -175,57 +197,88 @@ def test_experiment_yaml_is_validated(tmp_path):
         load_experiment(bad)
 
 
-def test_labelled_variants_are_told_apart_from_plain_methods():
-    from bench.report.names import run_label as method_label
-    from bench.report.tables import Row, is_variant
+def _fake(tmp_path, seq, method, seed, rel, time_ms=1.0, diverged=False, label=None,
+          klass="Semi-Dense 4D Radar"):
+    """A run folder holding a metrics.json (schema 2) and a config.yaml."""
+    import yaml
 
-    plain = Row("c", "s", "doppler-ego", None, method_label("doppler-ego", None), {}, {}, 1, False)
-    ablation = Row("c", "s", "doppler-ego", None, method_label("doppler-ego", None, "w/o map"),
-                   {}, {}, 1, False)
-    assert not is_variant(plain) and is_variant(ablation)
+    from bench.runs.folders import run_dir_name
+    from bench.runs.result import RelativeError, RunResult, TimingStats
+
+    d = tmp_path / seq / run_dir_name(method, seed, label)
+    d.mkdir(parents=True)
+    res = RunResult(sequence=seq, method=method, seed=seed, label=label, display_name=seq,
+                    sensor_class=klass, diverged=diverged, time_ms=TimingStats(mean=time_ms),
+                    relative_error=[RelativeError(length_m=L, rot_deg_mean=r, trans_m_mean=t,
+                                                  n=5) for L, (r, t) in rel.items()])
+    (d / "metrics.json").write_text(res.dump())
+    (d / "config.yaml").write_text(yaml.safe_dump({"label": label}))
+    return d
 
 
-def test_pivot_table_ranks_methods_per_sequence():
-    from bench.report.tables import Row
-    from bench.report.tables_pivot import to_pivot_markdown, to_pivot_time_markdown
+def test_labelled_variants_are_told_apart_from_plain_methods(tmp_path):
+    _fake(tmp_path, "s", "doppler-ego", None, {8.0: (1, 1)})
+    _fake(tmp_path, "s", "doppler-ego", None, {8.0: (1, 1)}, label="w/o map")
+    plain, ablation = runs(tmp_path)
+    assert not plain.is_variant and ablation.is_variant
+    assert ablation.label == "(No initial guess) w/o map"
 
-    def row(seq, label, rot, trans, diverged=False, time_ms=1.0):
-        return Row("Semi-Dense 4D Radar", seq, label, True, label, {"48": rot}, {"48": trans},
-                   time_ms, diverged)
 
-    rows = [row("A", "m1", 0.5, 2.0, time_ms=12.345), row("A", "m2", 0.2, 3.0, time_ms=3.21),
-            row("A", "m3", 9.0, 0.001, time_ms=0.5), row("B", "m1", 1.5, 0.1),
-            row("B", "m2", 0.0, 0.0, diverged=True, time_ms=7.0)]
-    lines = to_pivot_markdown(rows, "48").splitlines()
+def test_pivot_table_ranks_methods_per_sequence(tmp_path):
+    from bench.report.tables_pivot import pivot_tables
+
+    for seq, method, rot, trans, diverged, t in (
+            ("A", "icp-p2p", 0.5, 2.0, False, 12.345), ("A", "gicp", 0.2, 3.0, False, 3.21),
+            ("A", "dicp", 9.0, 0.001, False, 0.5), ("B", "icp-p2p", 1.5, 0.1, False, 1.0),
+            ("B", "gicp", 0.0, 0.0, True, 7.0)):
+        _fake(tmp_path, seq, method, True, {48.0: (rot, trans)}, t, diverged)
+    length, times = (to_markdown(t) for t in pivot_tables(runs(tmp_path), [48.0]))
+    lines = length.splitlines()
     assert lines[0] == "| 48 m | A | B |"
     cells = {ln.split("|")[1].strip(): [c.strip() for c in ln.split("|")[2:4]]
              for ln in lines[2:5]}
+    p2p, gicp, dicp = "(With Seed) ICP point-to-point", "(With Seed) Generalized-ICP", \
+        "(With Seed) DICP"
     # the main table's format: three decimals whatever the size
-    assert cells["m1"] == ["<u>0.500</u> / <u>2.000</u>", "**1.500** / **0.100**"]
-    assert cells["m2"] == ["**0.200** / 3.000", "Div."]  # diverged: not ranked
-    assert cells["m3"] == ["9.000 / **0.001**", ""]      # not run on B
-    times = to_pivot_time_markdown(rows).splitlines()
+    assert cells[p2p] == ["<u>0.500</u> / <u>2.000</u>", "**1.500** / **0.100**"]
+    assert cells[gicp] == ["**0.200** / 3.000", "Div."]  # diverged: not ranked
+    assert cells[dicp] == ["9.000 / **0.001**", ""]      # not run on B
+    times = times.splitlines()
     assert times[0] == "| Time (ms) | A | B |"
     tcells = {ln.split("|")[1].strip(): [c.strip() for c in ln.split("|")[2:4]]
               for ln in times[2:5]}
     # the Time column's format (2 decimals below 10 ms, 1 above); a diverged run's time is
     # shown but not ranked
-    assert tcells == {"m1": ["12.3", "**1.00**"], "m2": ["<u>3.21</u>", "7.00"],
-                      "m3": ["**0.50**", ""]}
+    assert tcells == {p2p: ["12.3", "**1.00**"], gicp: ["<u>3.21</u>", "7.00"],
+                      dicp: ["**0.50**", ""]}
 
 
-def test_pivot_cells_read_as_the_main_table():
-    from bench.report.tables import Row, to_markdown
-    from bench.report.tables_pivot import to_pivot_markdown
+def test_scoring_options_on_the_command_line_and_in_an_experiment(store, tmp_path):
+    from bench.runs.experiment import load_experiment
+    from loaders.errors import DataError
 
-    rows = [Row("Dense 4D LiDAR", "Straight Wall", "dicp", True, "(With Seed) DICP",
-                {"8": 0.05}, {"8": 12.3456}, 29.1, False),
-            Row("Dense 4D LiDAR", "Straight Wall", "doppler", None, "Ours",
-                {"8": 0.486}, {"8": 0.068}, 7.8, False)]
-    main = [ln for ln in to_markdown(rows, ["8"]).splitlines() if "DICP" in ln][0]
-    pivot = [ln for ln in to_pivot_markdown(rows, "8").splitlines() if "DICP" in ln][0]
-    assert main.split(" | ")[3] == pivot.split(" | ")[1].rstrip(" |") == \
-        "**0.050** / <u>12.346</u>"
+    runner = CliRunner()
+    out_dir = tmp_path / "one"
+    res = runner.invoke(app, ["run", "--method", "doppler", "--data", str(store), "--out",
+                              str(out_dir), "--lengths", "8,40", "--kitti-lengths", "20,30",
+                              "--alignment", "sim3"])
+    assert res.exit_code == 0, res.output
+    m = json.loads((out_dir / "metrics.json").read_text())
+    assert [r["length_m"] for r in m["relative_error"]] == [8.0, 40.0]
+    assert m["kitti"]["lengths_m"] == [20.0, 30.0] and m["kitti"]["n"] > 0
+    assert m["ape"]["requested"] == "sim3" and "KITTI" in res.output
+    res = runner.invoke(app, ["run", "--method", "doppler", "--data", str(store), "--out",
+                              str(out_dir), "--alignment", "sim5"])
+    assert type(res.exception).__name__ == "DataError" and "--alignment" in str(res.exception)
+    exp = tmp_path / "exp.yaml"
+    exp.write_text(f"name: x\nsequences: [{{path: {store}}}]\nmethods: [{{name: doppler}}]\n"
+                   "alignment: first-10\nkitti_lengths_m: [20]\n")
+    e = load_experiment(exp)
+    assert e.alignment == "se3-first-10" and e.kitti_lengths_m == [20.0]
+    exp.write_text(f"name: x\nsequences: [{{path: {store}}}]\nmethods: [{{name: doppler}}]\n"
+                   "alignment: sideways\n")
+    with pytest.raises(DataError, match="alignment"):
+        load_experiment(exp)
 
 
 def test_a_single_run_takes_its_sensor_class_from_the_store(tmp_path):

@@ -166,7 +166,7 @@ def test_calibrated_store_scores_only_the_frames_not_used(loop, tmp_path):
     assert fixed.provenance["calibration"]["frames"] == [0, 75]
     assert len(fixed.provenance["calibration"]["hand_eye_rpy_deg"]) == 3
     metrics = run_method("doppler", tmp_path / "fixed.h5", out=tmp_path / "run")
-    assert metrics["frames"] == 150 and metrics["frames_scored"] == 75
+    assert metrics.frames == 150 and metrics.frames_scored == 75
     import yaml
 
     config = yaml.safe_load((tmp_path / "run" / "config.yaml").read_text())

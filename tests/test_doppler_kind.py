@@ -93,9 +93,9 @@ def test_runs_on_a_gt_reconstructed_store_are_labelled_gt_assisted(tmp_path):
     from bench.api import load_results, run_method
     from bench.report.figstyle import run_name
     from bench.report.names import GT_ASSISTED_NOTE
-    from bench.report.tables import collect_rows, is_variant, to_markdown
+    from bench.report.table import to_markdown
+    from bench.report.tables import relative_table, select
     from bench.report.tables_ape import collect_ape
-    from bench.report.tables_ape import to_markdown as ape_markdown
     from bench.runs.folders import load_runs
 
     seq = SyntheticSequence("campus", "radar-sparse", frames=40, seed=4)
@@ -108,15 +108,15 @@ def test_runs_on_a_gt_reconstructed_store_are_labelled_gt_assisted(tmp_path):
             warnings.simplefilter("ignore")
             run_method("icp-p2p", store, out=tmp_path / "results" / name / "icp-p2p_seed")
     results = tmp_path / "results"
-    labels = {r.sequence: r.label for r in collect_rows(results)[0]}
+    labels = {r.sequence: r.label for r in select(results)[0]}
     assert labels == {"plain": "(With Seed) ICP point-to-point",
                       "rebuilt": "(With Seed) ICP point-to-point [GT-assisted]"}
-    rows, lengths = collect_rows(results)
-    assert not any(is_variant(r) for r in rows)  # the mark is not an ablation label
-    assert GT_ASSISTED_NOTE in to_markdown(rows, lengths)
+    rows, lengths = select(results)
+    assert not any(r.is_variant for r in rows)  # the mark is not an ablation label
+    assert GT_ASSISTED_NOTE in to_markdown(relative_table(rows, lengths))
     ape = collect_ape(results)
     assert sorted(label for label, _ in ape.rows) == sorted(labels.values())
-    assert GT_ASSISTED_NOTE in ape_markdown(ape)
+    assert GT_ASSISTED_NOTE in to_markdown(ape.table)
     names = {r.sequence: run_name(r) for r in load_runs(results)}
     assert names["rebuilt"].endswith("[GT-assisted]") and "GT" not in names["plain"]
     df = load_results(results)

@@ -9,6 +9,7 @@ import pytest
 
 from bench.runs.evaluate import evaluate_run
 from bench.runs.job import Job, run_job
+from bench.runs.result import RelativeError
 from conftest import constant_twist_sequence
 from loaders.errors import DataError
 from loaders.gt import gt_for_frames
@@ -17,6 +18,12 @@ from loaders.store import StoreSequence, write_store
 from loaders.trajectory import Trajectory
 from methods.base import FrameRecord, OdometryResult
 from metrics import ape, relative_errors
+
+
+def rel_at(metrics: dict, length_m: float):
+    """The relative error at ``length_m`` of a metrics dict (bench.runs.result)."""
+    return next(RelativeError(**r) for r in metrics["relative_error"]
+                if r["length_m"] == length_m)
 
 
 def result_from(stamps, poses, time_ms=1.0) -> OdometryResult:
@@ -47,8 +54,8 @@ def test_a_gt_gap_excludes_frames_from_scoring_only(twist):
     np.testing.assert_allclose(ev.gt.stamps, gt_gappy.stamps)
     keep = np.setdiff1d(np.arange(80), gap)
     rel = relative_errors(gt.poses[keep], est[keep], (8.0, 16.0))  # the scored subset
-    assert ev.metrics["relative_error"]["8"]["n"] == rel[8.0].n
-    assert ev.metrics["relative_error"]["16"]["trans_m_mean"] == pytest.approx(
+    assert rel_at(ev.metrics, 8).n == rel[8.0].n
+    assert rel_at(ev.metrics, 16).trans_m_mean == pytest.approx(
         rel[16.0].trans_m_mean)
     assert ev.metrics["ape"]["trans_rmse_m"] == pytest.approx(
         ape(gt.poses[keep], est[keep]).trans_rmse_m)
@@ -77,7 +84,7 @@ def test_identity_estimate_is_scored_and_diverged(twist):
     assert m["diverged"] is True and m["frames_scored"] == 80
     assert m["ape"]["alignment"] == "se3-orientation"
     assert m["ape"]["trans_rmse_m"] > 10  # a 63 m drive estimated as standing still
-    assert m["relative_error"]["8"]["trans_m_mean"] == pytest.approx(8.0, rel=0.2)
+    assert rel_at(m, 8).trans_m_mean == pytest.approx(8.0, rel=0.2)
 
 
 def test_no_ground_truth_keeps_the_timing(twist):
@@ -124,6 +131,11 @@ def test_a_store_with_a_gt_gap_runs_every_scan_end_to_end(tmp_path):
     run_dir = tmp_path / "r" / "gap" / "doppler"
     metrics = json.loads((run_dir / "metrics.json").read_text())
     assert metrics["frames"] == 60 and metrics["frames_scored"] == 50
-    assert metrics["diverged"] is False and metrics["relative_error"]["8"]["trans_m_mean"] < 0.2
-    assert len(np.loadtxt(run_dir / "est_tum.txt")) == 60
-    assert len(np.loadtxt(run_dir / "gt_tum.txt")) == 50
+    assert metrics["diverged"] is False and rel_at(metrics, 8).trans_m_mean < 0.2
+    # the exported trajectories: the scored frames, row-aligned (evo / KITTI devkit), and
+    # every frame's pose in est_all_tum.txt
+    assert len(np.loadtxt(run_dir / "est_all_tum.txt")) == 60
+    for name in ("est_tum.txt", "gt_tum.txt", "est_kitti.txt", "gt_kitti.txt"):
+        assert len(np.loadtxt(run_dir / name)) == 50, name
+    np.testing.assert_array_equal(np.loadtxt(run_dir / "est_tum.txt")[:, 0],
+                                  np.loadtxt(run_dir / "gt_tum.txt")[:, 0])

@@ -203,10 +203,12 @@ def test_piped_output_is_plain_and_keeps_units(store, tmp_path):
                             text=True)
     out, err = proc.communicate(timeout=60)
     header = out.splitlines()[0]
-    assert header.startswith("sensor_class,sequence,method") and "\x1b[" not in out
-    assert len(header) > 80  # not wrapped at 80 columns
+    assert header.startswith("sequence,sensor_class,method") and "\x1b[" not in out
+    assert len(out.splitlines()[1]) > 80  # not wrapped at 80 columns
     rows = list(csv.reader(io.StringIO(out)))  # stdout is the CSV alone: status on stderr
-    assert len(rows) == 2 and len(rows[1]) == len(rows[0]) and "wrote" in err
+    # long format: one line per value (rotation, translation, segments per length; the time)
+    assert len(rows) == 1 + 6 * 3 + 1 and {len(r) for r in rows} == {len(header.split(","))}
+    assert "wrote" in err
     proc = _bench(["run", "--help"])
     help_text, _ = proc.communicate(timeout=60)
     assert "[s]" in help_text

@@ -27,7 +27,7 @@ from loaders.store import write_store
 from loaders.trajectory import Trajectory
 
 SLUG = re.compile(r"[a-z0-9]+(-[a-z0-9]+)*")
-KINDS = ("trajectories", "boxplots", "error-along-path", "frames", "pairs")
+KINDS = ("trajectories", "boxplots", "error-along-path", "frames", "pairs", "velocity")
 
 
 @pytest.fixture(scope="module")
@@ -159,7 +159,7 @@ def test_boxplots_have_slots_only_for_lengths_with_segments(results, tmp_path, c
     from bench.runs.folders import load_runs
 
     runs = load_runs(results / "results")
-    assert {L for r in runs for L, v in r.relative_error.items() if not v["n"]} >= {"40", "48"}
+    assert {x.length_m for r in runs for x in r.result.relative_error if not x.n} >= {40.0, 48.0}
     errors_mod.plot_boxplots(runs, tmp_path)
     ((_, fig),) = captured
     assert [t.get_text() for t in fig.axes[1].get_xticklabels()] == ["8", "16", "24", "32"]
@@ -222,3 +222,36 @@ def test_labelled_variants_of_one_method_are_told_apart():
     assert len({s[1] for s in styles}) == len(styles)  # markers
     assert len({s[2] for s in variants}) == len(variants) and all(s[2] for s in variants)
     assert prior_style(run("ablation 2")) == variants[2]  # the same in every figure
+
+
+def test_plugin_methods_get_distinct_colours_and_their_declared_presentation(monkeypatch):
+    """Two plugin methods (tests/plugins, DOPPLER_BENCH_METHODS) without a colour each get
+    their own, none a built-in's; a plugin that declares a presentation is shown with it."""
+    import sys
+    from pathlib import Path
+
+    from methods import registry
+    from methods.base import Presentation
+
+    sys.path.insert(0, str(Path(__file__).parent / "plugins"))
+    try:
+        import bench_test_methods as plugins
+    finally:
+        sys.path.pop(0)
+    builtin = {color(m) for m in registry.METHODS}
+    monkeypatch.setattr(registry, "_assigned", {})
+    for cls in plugins.METHODS:
+        monkeypatch.setitem(registry.METHODS, cls.name, cls)
+    a, b = color("test-abort"), color("test-sleep")
+    assert a != b and not {a, b} & builtin
+    assert color("not-registered") not in {a, b, *builtin}
+
+    class Declared(plugins.SleepingMethod):
+        name = "test-declared"
+        presentation = Presentation("My Method", "#123456", 4.5)
+
+    monkeypatch.setitem(registry.METHODS, Declared.name, Declared)
+    assert color("test-declared") == "#123456"
+    assert registry.display_name("test-declared") == "My Method"
+    assert registry.order_key("dicp") < registry.order_key("test-declared") < \
+        registry.order_key("doppler")

@@ -4,11 +4,24 @@ come in."""
 
 import csv
 import random
+from pathlib import Path
 
 from bench.paths import PAPER_TABLE3
 from bench.report.names import PAPER_SEQUENCES, sequence_key
-from bench.report.tables import Row, collect_rows
-from bench.report.tables import _row_order as row_order
+from bench.report.tables import RunRow, runs
+from bench.runs.folders import RunRecord
+from bench.runs.result import RunResult
+
+
+def Row(klass, seq, method, seed, label, *_):
+    """A table row of a run (only what the order reads)."""
+    return RunRow(RunRecord(Path("."), RunResult(sequence=seq, method=method, seed=seed,
+                                                 display_name=seq, sensor_class=klass), {}),
+                  label)
+
+
+def row_order(row: RunRow) -> tuple:
+    return row.order()
 
 
 def _paper_rows() -> list[tuple[str, str, str, bool | None]]:
@@ -29,7 +42,7 @@ def test_table_rows_sort_in_the_papers_order():
         shuffled = rows[:]
         random.Random(seed).shuffle(shuffled)
         got = sorted(shuffled, key=row_order)
-        assert [(r.sensor_class, r.sequence, r.method, r.seed) for r in got] == paper
+        assert [(r.sensor_class, r.sequence, r.method, r.seed.option) for r in got] == paper
 
 
 def test_methods_follow_the_papers_order_and_extra_methods_come_last():
@@ -38,7 +51,7 @@ def test_methods_follow_the_papers_order_and_extra_methods_come_last():
     rows = [Row("Semi-Dense 4D Radar", "Loop1_0", m, s, f"{m} {s}", {}, {}, 1.0, False)
             for m in methods for s in ((None,) if m.startswith("doppler") and m != "doppler-icp"
                                        else (False, True))]
-    got = [(r.method, r.seed) for r in sorted(rows, key=row_order)]
+    got = [(r.method, r.seed.option) for r in sorted(rows, key=row_order)]
     assert got == [("icp-p2p", True), ("icp-p2p", False), ("icp-p2plane", True),
                    ("icp-p2plane", False), ("gicp", True), ("gicp", False), ("vgicp", True),
                    ("vgicp", False), ("dicp", True), ("dicp", False), ("doppler", None),
@@ -72,7 +85,7 @@ def test_collect_rows_orders_real_run_folders(tmp_path):
                 "time_ms": {"mean": 1.0}}))
             (d / "config.yaml").write_text(yaml.safe_dump({"sequence": {
                 "name": seq, "display_name": disp, "sensor_class": "Dense 4D LiDAR"}}))
-    rows, _ = collect_rows(tmp_path)
-    assert [(r.sequence, r.method, r.seed) for r in rows] == [
+    rows = runs(tmp_path)
+    assert [(r.sequence, r.method, r.seed.option) for r in rows] == [
         (s, m, x) for s in ("Straight Wall", "Curved Wall", "Baker-Barry Tunnel (Empty)")
         for m, x in (("dicp", True), ("dicp", False), ("doppler", None))]

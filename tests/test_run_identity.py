@@ -5,7 +5,7 @@ import json
 import pytest
 import yaml
 
-from bench.report.tables import collect_rows
+from bench.report.tables import runs
 from bench.runs.experiment import load_experiment
 from bench.runs.job import Job, run_job
 from bench.runs.plan import jobs_for_experiment, plan
@@ -56,7 +56,8 @@ def test_a_failing_forced_rerun_leaves_no_stale_metrics(store, tmp_path):
     assert run_job(broken, force=True).status == "failed"
     assert not (run_dir / "metrics.json").exists()
     assert json.loads((run_dir / "failed.json").read_text())["status"] == "failed"
-    assert collect_rows(tmp_path)[0] == []
+    # the table shows it as a failed row, never with the old metrics
+    assert [(r.failed, r.result.relative_error) for r in runs(tmp_path)] == [(True, [])]
 
 
 def _experiment(tmp_path, store, methods: str):
@@ -74,9 +75,9 @@ def test_labelled_variants_get_two_rows_and_yaml_paths_are_relative(store, tmp_p
     assert exp.out_dir == exp_path.parent / "results"
     outcomes = run_jobs(plan(jobs_for_experiment(exp)), executor="local")
     assert [o.status for o in outcomes] == ["done", "done"]
-    rows, _ = collect_rows(exp.out_dir)
+    rows = runs(exp.out_dir)
     assert sorted(r.label for r in rows) == ["(No initial guess) tau1", "(No initial guess) tau3"]
-    assert rows[0].trans != rows[1].trans
+    assert rows[0].result.relative_error != rows[1].result.relative_error
 
 
 def test_two_unlabelled_variants_and_folder_collisions_are_user_errors(store, tmp_path):
@@ -312,16 +313,17 @@ def test_another_cpu_or_thread_setting_reruns_the_job(store, tmp_path, monkeypat
 
 
 def test_a_table_of_times_from_two_cpus_says_so(store, tmp_path):
-    from bench.report.tables import to_markdown
+    from bench.report.table import to_markdown
+    from bench.report.tables import relative_table, select
 
     for method in ("doppler", "icp-p2p"):
         assert run_job(Job(store=store, method=method, seed=None if method == "doppler"
                            else True, out_root=tmp_path)).status == "done"
-    rows, lengths = collect_rows(tmp_path)
-    assert len(rows) == 2 and "MIXED HOSTS" not in to_markdown(rows, lengths)
+    rows, lengths = select(tmp_path)
+    assert len(rows) == 2 and "MIXED HOSTS" not in to_markdown(relative_table(rows, lengths))
     metrics_file = next(tmp_path.rglob("icp-p2p_seed/metrics.json"))
     metrics = json.loads(metrics_file.read_text())
     metrics_file.write_text(json.dumps({**metrics, "cpu": "Another CPU 9000"}))
-    rows, lengths = collect_rows(tmp_path)
-    text = to_markdown(rows, lengths)
+    rows, lengths = select(tmp_path)
+    text = to_markdown(relative_table(rows, lengths))
     assert "MIXED HOSTS" in text and "Another CPU 9000" in text and metrics["cpu"] in text

@@ -8,46 +8,59 @@ from pathlib import Path
 from rich.console import Console
 
 from loaders.errors import DataError
+from loaders.fileio import atomic_write_text
 
 
 def table_command(console: Console, status: Console, results_dirs: list[Path], format: str,
                   out: Path | None, lengths: str | None, pivot: bool, methods: str | None,
-                  variants: bool) -> int:
-    """Print the paper-shaped table (or the pivot) and write its files; returns 0. The results
-    folder's own ``table.*`` is the whole table of that one folder: a filtered view (lengths,
-    methods, variants, pivot) or a merged one (several folders) is written only to ``out``."""
-    from bench.report.cells import save_formats
-    from bench.report.tables import FORMATS, is_variant, select_rows
+                  variants: bool, metric: str = "relative") -> int:
+    """Print a table of ``metric`` (relative: the paper-shaped Table III; kitti; ape: methods
+    x sequences; velocity), or the pivot, and write its files; returns 0. The results folder's
+    own ``table.*`` (``table_<metric>.*``) is the whole table of that one folder: a filtered
+    view (lengths, methods, variants, pivot) or a merged one (several folders) is written only
+    to ``out``."""
+    from bench.report.table import RENDERERS, render
+    from bench.report.tables import METRICS, build, select
+    from bench.report.tables_ape import collect_ape
     from bench.report.tables_pivot import pivot_markdown
 
     wanted = None if methods is None else {m.strip() for m in methods.split(",")}
 
     def keep(row) -> bool:
-        return (wanted is None or row.method in wanted) and (variants or not is_variant(row))
+        return (wanted is None or row.method in wanted) and (variants or not row.is_variant)
 
-    if format not in FORMATS:
-        raise DataError(f"unknown table format {format!r}; choose from {', '.join(FORMATS)}")
+    if format not in RENDERERS:
+        raise DataError(f"unknown table format {format!r}; choose from {', '.join(RENDERERS)}")
+    if metric not in METRICS:
+        raise DataError(f"unknown metric {metric!r}; choose from {', '.join(METRICS)}")
     try:
         lengths_m = None if lengths is None else [float(x) for x in lengths.split(",")]
     except ValueError:
         raise DataError(f"--lengths {lengths!r}: expected numbers in metres, e.g. 8,48") from None
     try:
-        rows, chosen = select_rows(list(results_dirs), lengths_m=lengths_m, keep=keep)
+        rows, chosen = select(list(results_dirs), lengths_m=lengths_m, keep=keep)
     except ValueError as e:
         raise DataError(str(e)) from None
     view = pivot or len(results_dirs) > 1 or lengths is not None or methods is not None \
         or not variants
     where = out if out is not None else (None if view else results_dirs[0])
-    texts = {fmt: fn(rows, chosen) for fmt, fn in FORMATS.items()}
     if pivot:
         texts = {"md": pivot_markdown(rows, chosen)}
+    elif metric == "ape":
+        if len(results_dirs) > 1:
+            raise DataError("--metric ape: one results folder at a time")
+        only = {r.run.dir for r in rows}
+        texts = render(collect_ape(results_dirs[0], only=only).table)
+    else:
+        texts = render(build(metric, rows, chosen))
     sys.stdout.write(texts["md" if pivot else format])  # unwrapped (a pipe gets valid CSV)
     if where is None:
         status.print("a filtered or merged view: not written (--out DIR writes it)",
-                     style="dim", markup=False)
+                      style="dim", markup=False)
         return 0
-    stem = "pivot" if pivot else "table"
-    save_formats(where, stem, texts)
+    stem = "pivot" if pivot else ("table" if metric == "relative" else f"table_{metric}")
+    for fmt, text in texts.items():
+        atomic_write_text(Path(where) / f"{stem}.{fmt}", text)
     status.print(f"wrote {where}/{stem}.{{{','.join(texts)}}}", style="dim", markup=False)
     return 0
 
@@ -56,11 +69,11 @@ def compare_command(console: Console, a: Path, b: Path, threshold: float,
                     fail_on_regression: bool) -> int:
     """Print A, B and the change per cell and the times per run as markdown; returns 1 when
     asked to fail and B regresses."""
-    from bench.report.compare import compare, compare_times, to_markdown
+    from bench.report.compare import compare, compare_run_metrics, compare_times, to_markdown
 
     cells, times = compare(a, b, threshold), compare_times(a, b)
     # written as is (not wrapped): `bench compare A B > diff.md` is a valid markdown file
-    sys.stdout.write(to_markdown(cells, times, a, b, threshold))
+    sys.stdout.write(to_markdown(cells, times, a, b, threshold, compare_run_metrics(a, b)))
     n = int(cells["regression"].sum()) if len(cells) else 0
     return 1 if fail_on_regression and n else 0
 

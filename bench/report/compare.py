@@ -6,8 +6,9 @@ shows the mean rotation [deg] and translation [m] relative error of A and B and 
 B - A; a length at which neither has segments is no cell. A cell whose error grew by more than
 ``threshold`` (relative) is a regression, and so is every cell of a run that diverges in B but
 not in A. A second table gives each run's mean time per frame ``time_ms`` (all per-frame work,
-``methods.timing``) in A and B and its change. Two run folders (each with a metrics.json) are
-compared by sequence and length whatever their methods.
+``methods.timing``) in A and B and its change, and a third its per-run metrics: APE [m] (with
+its alignment), KITTI drift [%, deg/100 m] and ego-velocity error [m/s]. Two run folders (each
+with a metrics.json) are compared by sequence and length whatever their methods.
 
 ``to_markdown`` writes both tables as one markdown document: pipe tables with a header
 separator row, columns padded to equal width so that it also reads in a terminal.
@@ -164,6 +165,32 @@ def compare_times(a: Path, b: Path) -> pd.DataFrame:
     return _in_table_order(pd.DataFrame(rows), run_keys) if rows else pd.DataFrame(rows)
 
 
+#: per-run quantities of the third table: (column of load_results, title, digits)
+RUN_QUANTITIES = (("ape_trans_m", "APE [m]", 3), ("kitti_trans_pct", "KITTI trans. [%]", 2),
+                  ("kitti_rot_deg_per_100m", "KITTI rot. [deg/100 m]", 2),
+                  ("velocity_err_mps", "Velocity err. [m/s]", 3))
+
+
+def compare_run_metrics(a: Path, b: Path) -> pd.DataFrame:
+    """One row per run: each of ``RUN_QUANTITIES`` in A and B (``<q>_a``, ``<q>_b``), the APE
+    alignment of each side and ``only_in``."""
+    da, db, run_keys = _pair(a, b)
+    cols = [*run_keys, "run", "ape_alignment", *(q for q, _, _ in RUN_QUANTITIES)]
+    runs_a, runs_b = (d.drop_duplicates(subset=run_keys)[cols] for d in (da, db))
+    merged = runs_a.merge(runs_b, on=run_keys, suffixes=("_a", "_b"), how="outer",
+                          indicator=True)
+    rows = []
+    for _, r in merged.iterrows():
+        row = {**{k: r[k] for k in run_keys}, "run": _run_name(r),
+               "only_in": {"left_only": "A", "right_only": "B"}.get(r["_merge"], "")}
+        for q, _, _ in RUN_QUANTITIES:
+            row[f"{q}_a"], row[f"{q}_b"] = r.get(f"{q}_a"), r.get(f"{q}_b")
+        row["ape_alignment_a"], row["ape_alignment_b"] = r.get("ape_alignment_a"), \
+            r.get("ape_alignment_b")
+        rows.append(row)
+    return _in_table_order(pd.DataFrame(rows), run_keys) if rows else pd.DataFrame(rows)
+
+
 # ---- output ----------------------------------------------------------------------------------
 
 def _fmt(x, digits: int = 3) -> str:
@@ -198,9 +225,9 @@ def markdown_table(header: list[str], rows: list[list[str]], right: set[int]) ->
 
 
 def to_markdown(cells: pd.DataFrame, times: pd.DataFrame, a: Path, b: Path,
-                threshold: float) -> str:
-    """The relative-error table (one row per cell), the time table (one row per run) and a
-    one-line summary, as markdown."""
+                threshold: float, per_run: pd.DataFrame | None = None) -> str:
+    """The relative-error table (one row per cell), the time table (one row per run), the
+    per-run metrics (APE, KITTI drift, velocity error) and a one-line summary, as markdown."""
     out = [f"A = `{a}`, B = `{b}`", "",
            "Mean relative error over the segments of each length: rotation [deg], translation "
            "[m]; change = B - A:", ""]
@@ -219,6 +246,16 @@ def to_markdown(cells: pd.DataFrame, times: pd.DataFrame, a: Path, b: Path,
              f"only in {r['only_in']}" if r["only_in"] else ""] for _, r in times.iterrows()]
     out += markdown_table(["Sequence", "Run", "Time A", "Time B", "Change", "Note"],
                           rows, right={2, 3, 4})
+    if per_run is not None and len(per_run):
+        aligned = sorted({str(x) for side in "ab" for x in per_run[f"ape_alignment_{side}"]
+                          if isinstance(x, str)})
+        out += ["", "Per run: APE (alignment: " + (", ".join(aligned) or "-") + "), KITTI drift "
+                "over 100-800 m and ego-velocity error (mean norm); A -> B:", ""]
+        rows = [[r["sequence"], r["run"], *(
+            f"{_fmt(r[f'{q}_a'], d)} -> {_fmt(r[f'{q}_b'], d)}" for q, _, d in RUN_QUANTITIES),
+            f"only in {r['only_in']}" if r["only_in"] else ""] for _, r in per_run.iterrows()]
+        out += markdown_table(["Sequence", "Run", *(t for _, t, _ in RUN_QUANTITIES), "Note"],
+                              rows, right={2, 3, 4, 5})
     out += ["", summary(cells, threshold)]
     return "\n".join(out) + "\n"
 

@@ -1,5 +1,11 @@
-"""Finished runs as a pandas DataFrame: one row per sequence x method x seed x segment length
-(the notebook API's ``load_results`` and ``bench compare``)."""
+"""Finished runs as pandas DataFrames (the notebook API's ``load_results``, ``bench compare``).
+
+``load_results``: one row per sequence x method x seed x segment length (``COLUMNS``), with the
+run's APE, KITTI drift and ego-velocity error repeated on each of its rows. ``load_runs_frame``:
+one row per run: ``RUN_COLUMNS``, then every other statistic of its ``RunResult`` flattened as
+"<field>.<statistic>" (e.g. ``kitti.n``, ``ape.scale``), so a metric added to ``RunResult`` is a
+column without a change here. Both read ``bench.runs.result.RunResult`` (nothing is parsed).
+"""
 
 from __future__ import annotations
 
@@ -7,13 +13,59 @@ from pathlib import Path
 
 import pandas as pd
 
-from bench.runs.folders import load_runs
+from bench.runs.folders import RunRecord, load_runs
 
-COLUMNS = ["sequence", "display_name", "sensor_class", "doppler_kind", "method", "label", "seed",
-           "length_m",
-           "rot_deg_mean", "trans_m_mean", "rot_deg_median", "trans_m_median", "segments",
-           "ape_trans_m", "ape_rot_deg", "time_ms_mean", "time_ms_median", "diverged",
-           "frames", "run_dir"]
+RUN_COLUMNS = ["sequence", "display_name", "sensor_class", "doppler_kind", "method", "label",
+               "seed",
+               "ape_trans_m", "ape_rot_deg", "ape_alignment", "kitti_trans_pct",
+               "kitti_rot_deg_per_100m", "kitti_segments", "velocity_err_mps",
+               "velocity_rmse_mps", "velocity_window_s", "velocity_own_err_mps", "time_ms_mean",
+               "time_ms_median", "diverged", "frames", "run_dir"]
+COLUMNS = [*RUN_COLUMNS[:7], "length_m", "rot_deg_mean", "trans_m_mean", "rot_deg_median",
+           "trans_m_median", "segments", *RUN_COLUMNS[7:]]
+
+
+def run_row(run: RunRecord) -> dict:
+    """The per-run columns of one run (``RUN_COLUMNS``); ``seed`` is True / False / None."""
+    res = run.result
+    ape, kitti, vel, own = res.ape, res.kitti, res.velocity, res.velocity_own
+    return {"sequence": run.sequence, "display_name": run.display_name,
+            "sensor_class": run.sensor_class, "doppler_kind": run.doppler_kind,
+            "method": run.method, "label": run.label,
+            "seed": run.seed.option,
+            "ape_trans_m": ape.trans_rmse_m if ape else None,
+            "ape_rot_deg": ape.rot_rmse_deg if ape else None,
+            "ape_alignment": ape.alignment if ape else None,
+            "kitti_trans_pct": kitti.trans_pct if kitti else None,
+            "kitti_rot_deg_per_100m": kitti.rot_deg_per_100m if kitti else None,
+            "kitti_segments": kitti.n if kitti else 0,
+            "velocity_err_mps": vel.norm_mean_mps if vel else None,
+            "velocity_rmse_mps": vel.norm_rmse_mps if vel else None,
+            "velocity_window_s": vel.window_s if vel else None,
+            "velocity_own_err_mps": own.norm_mean_mps if own else None,
+            "time_ms_mean": res.time_ms.mean, "time_ms_median": res.time_ms.median,
+            "diverged": res.diverged, "frames": res.frames, "run_dir": str(run.dir)}
+
+
+def flat(run: RunRecord) -> dict:
+    """Every number of the run's result as "<field>.<statistic>" (lists per index)."""
+    out = {}
+    for key, value in run.result.model_dump(mode="json", by_alias=True).items():
+        if isinstance(value, dict):
+            for stat, x in value.items():
+                if isinstance(x, list) and all(not isinstance(v, dict) for v in x):
+                    out.update({f"{key}.{stat}.{i}": v for i, v in enumerate(x)})
+                elif not isinstance(x, list | dict):
+                    out[f"{key}.{stat}"] = x
+    return out
+
+
+def load_runs_frame(results_dir: str | Path) -> pd.DataFrame:
+    """Every finished run under ``results_dir``, one row each (``RUN_COLUMNS``, then the
+    flattened statistics of its result)."""
+    rows = [{**run_row(r), **flat(r)} for r in load_runs(Path(results_dir))]
+    extra = list(dict.fromkeys(k for r in rows for k in r if k not in RUN_COLUMNS))
+    return pd.DataFrame(rows, columns=RUN_COLUMNS + extra)
 
 
 def load_results(results_dir: str | Path) -> pd.DataFrame:
@@ -21,16 +73,9 @@ def load_results(results_dir: str | Path) -> pd.DataFrame:
     method x seed x segment length (``COLUMNS``)."""
     rows = []
     for run in load_runs(Path(results_dir)):
-        base = {"sequence": run.sequence, "display_name": run.display_name,
-                "sensor_class": run.sensor_class, "doppler_kind": run.doppler_kind,
-                "method": run.method, "label": run.label,
-                "seed": run.seed, "ape_trans_m": run.ape.get("trans_rmse_m"),
-                "ape_rot_deg": run.ape.get("rot_rmse_deg"),
-                "time_ms_mean": run.time_ms.get("mean"),
-                "time_ms_median": run.time_ms.get("median"), "diverged": run.diverged,
-                "frames": run.metrics.get("frames"), "run_dir": str(run.dir)}
-        for length, r in run.relative_error.items():
-            rows.append({**base, "length_m": float(length), "rot_deg_mean": r["rot_deg_mean"],
-                         "trans_m_mean": r["trans_m_mean"], "rot_deg_median": r["rot_deg_median"],
-                         "trans_m_median": r["trans_m_median"], "segments": r["n"]})
+        base = run_row(run)
+        for r in run.result.relative_error:
+            rows.append({**base, "length_m": r.length_m, "rot_deg_mean": r.rot_deg_mean,
+                         "trans_m_mean": r.trans_m_mean, "rot_deg_median": r.rot_deg_median,
+                         "trans_m_median": r.trans_m_median, "segments": r.n})
     return pd.DataFrame(rows, columns=COLUMNS)

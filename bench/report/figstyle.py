@@ -10,28 +10,22 @@ import math
 import re
 from pathlib import Path
 
-from bench.report.names import display_name, order_key, seed_tag
+from bench.report.names import display_name, is_gt_assisted, order_key
 from loaders.fileio import atomic_path
+from methods.registry import Seed
+from methods.registry import color as _method_color
 
 COLUMN_IN = 3.5  # one paper column [inch]
 DPI = 300
 FONT_PT = 7
 SMALL_PT = 6
 
-#: one colour per method (tab10 hues; the paper's own methods in red and orange)
-_COLORS = {"icp-p2p": "#1f77b4", "icp-p2plane": "#17becf", "gicp": "#2ca02c",
-           "vgicp": "#bcbd22", "dicp": "#9467bd", "kiss-icp": "#8c564b",
-           "doppler": "#d62728", "doppler-icp": "#ff7f0e", "doppler-ego": "#e377c2"}
-_OTHER_COLOR = "#7f7f7f"
-
-#: seed tag -> (line style, marker, box hatch): with and without a seed differ in all three
-_PRIOR_STYLE = {"With Seed": ("-", "o", ""), "With Seed, own model": ("-", "D", ""),
-                "No Seed": ("--", "x", "//////"), "No initial guess": ("-", "s", "")}
-
 
 def color(method: str) -> str:
-    """The method's colour, the same in every figure."""
-    return _COLORS.get(method, _OTHER_COLOR)
+    """The method's colour, the same in every figure: declared with its class
+    (``Odometry.presentation``); a method without one (a plugin) gets one of its own,
+    distinct from every other method's (``methods.registry.color``)."""
+    return _method_color(method)
 
 
 #: (line style, marker, box hatch) of a labelled variant (an ablation), by order of first sight
@@ -42,14 +36,14 @@ _variant_index: dict[str, int] = {}
 
 
 def prior_style(run) -> tuple[str, str, str]:
-    """(line style, marker, hatch) of a run's motion prior (``names.seed_tag``); a labelled
+    """(line style, marker, hatch) of a run's motion prior (``Seed.style``); a labelled
     variant of a method (an ablation, same colour) gets a style of its own instead, the same
     in every figure of a command (its label names the prior)."""
     label = getattr(run, "label", None)
     if label:
         k = _variant_index.setdefault(label, len(_variant_index))
         return _VARIANT_STYLE[k % len(_VARIANT_STYLE)]
-    return _PRIOR_STYLE.get(seed_tag(run.method, run.seed), ("-", "o", ""))
+    return Seed.of(run.seed).style(run.method)
 
 
 def line_kwargs(run, k: int = 0, n: int = 1, points: int | None = None) -> dict:
@@ -186,11 +180,11 @@ def run_name(run) -> str:
     own model) and with seed is the default (``PRIOR_NOTE``): a legend of short names fits two
     columns and takes a third of the height it took with the tables' full row names."""
     name = run.label or display_name(run.method)
-    if getattr(run, "doppler_kind", None) == "gt-reconstructed":
+    if is_gt_assisted(getattr(run, "doppler_kind", None)):
         name += " [GT-assisted]"
-    return f"{name} (no seed)" if run.seed is False else name
+    return f"{name} (no seed)" if Seed.of(run.seed) is Seed.WITHOUT else name
 
 
 def run_order(run) -> tuple:
     """Runs in the tables' row order: the paper's methods, with seed before without."""
-    return (order_key(run.method), run.method, run.seed is False, run.label or "")
+    return (order_key(run.method), run.method, Seed.of(run.seed).rank, run.label or "")

@@ -6,6 +6,8 @@
   its colour and each motion prior its line style and marker (with seed solid with circles, no
   seed dashed with crosses). The axes hold the ground truth and every run that did not
   diverge; a diverged run is drawn up to where it leaves them and labelled "Div.".
+- ``velocity/<sequence-slug>``: the ego-velocity error along the path
+  (``bench.report.figures_velocity``);
 - the error figures of ``bench.report.figures_errors`` (box plots per length, error along the
   path, per-frame time and correspondences) and, given a ``bench speed`` CSV, its scaling curves.
 Every figure is written as PDF and PNG, one paper column (3.5 in) wide, legends below the axes,
@@ -148,6 +150,7 @@ def make_figures(results_dir: Path, out_dir: Path | None = None,
         plot_frames,
         plot_speed_csv,
     )
+    from bench.report.figures_velocity import plot_velocity_along_path
 
     out_dir = Path(out_dir or Path(results_dir) / "figures")
     written = plot_trajectories(results_dir, out_dir)
@@ -156,6 +159,7 @@ def make_figures(results_dir: Path, out_dir: Path | None = None,
     written += plot_error_along_path(runs, out_dir)
     written += plot_frames(runs, out_dir)
     written += plot_drift(runs, out_dir)
+    written += plot_velocity_along_path(runs, out_dir)
     if speed_csv is not None and Path(speed_csv).exists():
         written += plot_speed_csv(Path(speed_csv), out_dir)
     return written

@@ -45,8 +45,7 @@ _HEADROOM = 3.0
 
 def _scored_lengths(runs: list[RunRecord]) -> list[float]:
     """Segment lengths [m] at which any of the runs has segments (metrics.json)."""
-    lengths = {float(L) for r in runs for L, v in r.relative_error.items() if v.get("n")}
-    return sorted(lengths)
+    return sorted({L for r in runs for L in r.result.lengths_m})
 
 
 def _segments(run: RunRecord, length_m: float) -> tuple[np.ndarray, np.ndarray]:

@@ -107,13 +107,14 @@ def _tables_section(results_dir: Path, newest_run: float) -> tuple[str, int]:
 
 def _table_in_memory(results_dir: Path) -> str:
     """Table III of the folder's runs as markdown (empty when there are none)."""
-    from bench.report.tables import FORMATS, select_rows
+    from bench.report.table import to_markdown
+    from bench.report.tables import relative_table, select
 
     try:
-        rows, lengths = select_rows(results_dir)
+        rows, lengths = select(results_dir)
     except (FileNotFoundError, ValueError):
         return ""
-    return FORMATS["md"](rows, lengths)
+    return to_markdown(relative_table(rows, lengths))
 
 
 def _figures_section(figures_dir: Path, newest_run: float) -> tuple[str, int]:

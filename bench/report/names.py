@@ -1,31 +1,20 @@
-"""How methods and runs are named in every table and figure: one display name per method, the
-paper's row order, the seed tag that says which motion prior a run used, and the GT-assisted
-mark of a run whose store's Doppler was rebuilt from the ground truth (``run_label``).
+"""How runs and sequences are named in every table and figure: a method's display name, colour
+and row order are declared with its class (``Odometry.presentation``, read through
+``methods.registry``), the seed tag comes from ``methods.registry.Seed``; this module adds the
+paper's sequence order and the row label of a run.
 
-A method that is not listed shows its registry name.
+A method that is not registered shows its registry name.
 """
 
 from __future__ import annotations
 
 import re
 
-#: registry name -> display name (the paper's Tables IV/V names)
-_NAMES: dict[str, str] = {
-    "icp-p2p": "ICP point-to-point",
-    "icp-p2plane": "ICP point-to-plane",
-    "gicp": "Generalized-ICP",
-    "vgicp": "VGICP",
-    "dicp": "DICP",
-    "kiss-icp": "KISS-ICP",
-    "doppler": "Doppler Correspondence (Ours)",
-    "doppler-icp": "Doppler 4D-ICP (Ours)",
-    "doppler-ego": "Doppler-Ego (this harness)",
-}
+from methods.registry import SEED_NOTE, Seed, display_name, order_key
 
-# the paper lists the baselines first and its own methods last (Tables III-V); methods beyond
-# the paper follow (a baseline, then this harness's own)
-PAPER_ORDER = ["icp-p2p", "icp-p2plane", "gicp", "vgicp", "dicp", "doppler", "doppler-icp",
-               "kiss-icp", "doppler-ego"]
+__all__ = ["GT_ASSISTED", "SEED_NOTE", "display_name", "gt_assisted_note", "hosts_note",
+           "is_gt_assisted", "order_key", "run_label", "seed_tag", "sequence_key",
+           "synthetic_note"]
 
 #: the paper's sequences in the order of its tables (Table III: sparse radar, semi-dense radar,
 #: then LiDAR: the two CARLA walls before the Baker-Barry tunnels; Loop1_1 is only in Table IV),
@@ -37,11 +26,15 @@ PAPER_SEQUENCES = [("Campus1", "Campus1"), ("Campus2", "Campus2"),
                    ("Tunnel_Empty", "Baker-Barry Tunnel (Empty)"),
                    ("Tunnel_Vehicles", "Baker-Barry Tunnel (Vehicles)")]
 
-#: what the seed tags mean (table captions and figure notes)
-SEED_NOTE = ("With Seed: each step starts from the previous step's motion (constant velocity); "
-             "With Seed, own model: from the method's own motion prediction instead; No Seed: "
-             "from the identity, with every internal prior reset; No initial guess: a method "
-             "that takes none.")
+def synthetic_note(sequence_names) -> str:
+    """A caption's first words when any sequence shown is synthetic (its display name carries
+    loaders.sensor_classes.SYNTHETIC_MARK), else ""."""
+    from loaders.sensor_classes import SYNTHETIC_MARK
+
+    if any(SYNTHETIC_MARK in name for name in sequence_names):
+        return ("SYNTHETIC DATA: sequences marked (synthetic) are made by this repository's "
+                "generator to imitate the paper's sequences; they are not the paper's data. ")
+    return ""
 
 
 #: the mark of a run made from a store whose Doppler was reconstructed from the ground truth's
@@ -63,17 +56,6 @@ def gt_assisted_note(labels) -> str:
     return GT_ASSISTED_NOTE if any(f"[{GT_ASSISTED}]" in label for label in labels) else ""
 
 
-def synthetic_note(sequence_names) -> str:
-    """A caption's first words when any sequence shown is synthetic (its display name carries
-    loaders.sensor_classes.SYNTHETIC_MARK), else ""."""
-    from loaders.sensor_classes import SYNTHETIC_MARK
-
-    if any(SYNTHETIC_MARK in name for name in sequence_names):
-        return ("SYNTHETIC DATA: sequences marked (synthetic) are made by this repository's "
-                "generator to imitate the paper's sequences; they are not the paper's data. ")
-    return ""
-
-
 def hosts_note(cpus) -> str:
     """A caption's note when the times shown were measured on different CPU models (each run's
     metrics.json ``cpu``; a run without the record counts as unknown), else ""."""
@@ -84,38 +66,18 @@ def hosts_note(cpus) -> str:
             "times from different CPUs are not comparable. ")
 
 
-def display_name(method: str) -> str:
-    """The method's name in every table and figure, e.g. "Generalized-ICP"."""
-    return _NAMES.get(method, method)
+def seed_tag(method: str, seed) -> str:
+    """Which motion prior a run used (``Seed.tag``): "With Seed", "With Seed, own model",
+    "No Seed" or "No initial guess"."""
+    return Seed.of(seed).tag(method)
 
 
-def seed_tag(method: str, seed: bool | None) -> str:
-    """Which motion prior a run used: "With Seed" (the harness's constant-velocity guess),
-    "With Seed, own model" (the method's own prior), "No Seed" or "No initial guess"."""
-    if seed is None:
-        return "No initial guess"
-    if not seed:
-        return "No Seed"
-    from methods.base import CONSTANT_VELOCITY
-    from methods.registry import METHODS
-
-    cls = METHODS.get(method)
-    own = cls is not None and cls.motion_prior not in (None, CONSTANT_VELOCITY)
-    return "With Seed, own model" if own else "With Seed"
-
-
-def run_label(method: str, seed: bool | None, label: str | None = None,
+def run_label(method: str, seed, label: str | None = None,
               doppler_kind: str | None = None) -> str:
     """A run's row / legend name, e.g. "(With Seed) DICP"; a labelled variant shows its label
-    after the tag; a run on a store whose Doppler was reconstructed from the ground truth
-    (``doppler_kind`` "gt-reconstructed") ends with "[GT-assisted]"."""
-    text = f"({seed_tag(method, seed)}) {label or display_name(method)}"
-    return f"{text} [{GT_ASSISTED}]" if is_gt_assisted(doppler_kind) else text
-
-
-def order_key(method: str) -> int:
-    """Position of a method in the paper's row order (unknown methods after the known ones)."""
-    return PAPER_ORDER.index(method) if method in PAPER_ORDER else len(PAPER_ORDER)
+    after the tag; a run on GT-reconstructed Doppler ends in "[GT-assisted]"."""
+    mark = f" [{GT_ASSISTED}]" if is_gt_assisted(doppler_kind) else ""
+    return f"({seed_tag(method, seed)}) {label or display_name(method)}{mark}"
 
 
 def sequence_key(name: str) -> tuple:

@@ -1,19 +1,25 @@
-"""The paper's Table III from run folders: rows grouped by sensor class and sequence, one row
-per method and seed option, "rotation / translation" per segment length and the mean time per
-frame. Per sequence and column, the best value is bold and the second underlined; a diverged run
-shows "Div." and is not ranked.
+"""Per-run tables from run folders, shaped as the paper's Table III: rows grouped by sensor
+class and sequence, one row per method and seed option (``runs``), and one table per metric:
+
+- ``relative_table``: "rotation / translation" mean relative error per segment length and the
+  mean time per frame (the paper's Table III);
+- ``kitti_table``: KITTI drift, translation [%] and rotation [deg/100 m] over 100-800 m;
+- ``velocity_table``: ego-velocity error per axis and as a norm [m/s] (and, for a method that
+  measures it, its own Doppler velocity's error).
+
+The APE table (methods x sequences, the paper's Tables IV/V) is ``bench.report.tables_ape``.
+Per sequence and column the best value is bold and the second underlined; a diverged run shows
+"Div." and is not ranked; a run that did not finish stays as a "failed" row with its reason in
+a footnote. Every table is a ``bench.report.table.Table`` (rendered to md / tex / csv).
 """
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
-from bench.report.cells import md_mark, ranks, save_formats, tex_escape, tex_mark
 from bench.report.names import (
     SEED_NOTE,
     gt_assisted_note,
@@ -23,24 +29,15 @@ from bench.report.names import (
     sequence_key,
     synthetic_note,
 )
-from bench.runs.folders import load_runs
+from bench.report.table import Cell, Part, Row, Table, rank_column, save_table
+from bench.runs.folders import RunRecord, load_runs
+from bench.runs.result import RunResult, nan
 from loaders.sensor_classes import class_rank
+from methods.registry import Seed
+from metrics.velocity import DEFAULT_WINDOW_S
 
-
-@dataclass
-class Row:
-    sensor_class: str
-    sequence: str
-    method: str
-    seed: bool | None
-    label: str
-    rot: dict[str, float]     # length -> mean rotation error [deg]
-    trans: dict[str, float]   # length -> mean translation error [m]
-    time_ms: float
-    diverged: bool
-    threads: int = 1  # a run on several threads is timed by the wall clock (methods.timing)
-    cpu: str | None = None  # the CPU model the run was timed on (metrics.json)
-
+#: the metrics ``bench table --metric`` shows
+METRICS = ("relative", "kitti", "ape", "velocity")
 
 #: what the Time column holds (methods/base.py, methods/timing.py)
 TIME_NOTE = ("Time: mean per-frame time [ms] of all per-frame work from a scan in memory to its "
@@ -48,197 +45,262 @@ TIME_NOTE = ("Time: mean per-frame time [ms] of all per-frame work from a scan i
              "I/O), after the same untimed warm-up for every method; the CPU time of a "
              "one-thread run, which other jobs running beside it do not inflate (a run marked "
              "[N thr.] used N threads and is timed by the wall clock).")
+FAILED_NOTE = "failed = the run did not finish (the reason in its footnote)."
 
 
-def _value(x) -> float:
-    return math.nan if x is None else float(x)
+@dataclass
+class RunRow:
+    """One run as a table row: its record and its row label (with its folder's name when
+    several results folders are merged)."""
+
+    run: RunRecord
+    label: str
+
+    @property
+    def result(self) -> RunResult:
+        return self.run.result
+
+    @property
+    def sensor_class(self) -> str:
+        return self.run.sensor_class
+
+    @property
+    def sequence(self) -> str:
+        return self.run.display_name
+
+    @property
+    def method(self) -> str:
+        return self.run.method
+
+    @property
+    def seed(self) -> Seed:
+        return self.run.seed
+
+    @property
+    def failed(self) -> bool:
+        return not self.result.finished
+
+    @property
+    def diverged(self) -> bool:
+        return bool(self.result.diverged)
+
+    @property
+    def is_variant(self) -> bool:
+        """A labelled variant of a method (an experiment entry with its own ``label:``)."""
+        return bool(self.run.label)
+
+    def order(self) -> tuple:
+        # Table III's order: sensor classes, the paper's sequences, the baselines before the
+        # paper's own methods, and with seed before without
+        return (class_rank(self.sensor_class), self.sensor_class, sequence_key(self.sequence),
+                order_key(self.method), self.method, self.seed.rank, self.label)
 
 
-def collect_rows(results_dir: Path, only: set[Path] | None = None
-                 ) -> tuple[list[Row], list[str]]:
-    """Rows of every finished run with ground truth (or of the run folders in ``only``), sorted
-    as in the paper, and the lengths."""
-    rows, lengths = [], set()
-    for run in load_runs(results_dir, only):
-        if not run.relative_error or run.diverged is None:
-            continue
-        rel = run.relative_error
-        lengths.update(rel)
-        rows.append(Row(
-            sensor_class=run.sensor_class, sequence=run.display_name,
-            method=run.method, seed=run.seed,
-            label=run_label(run.method, run.seed, run.label, run.doppler_kind),
-            rot={k: _value(v["rot_deg_mean"]) if v["n"] else math.nan for k, v in rel.items()},
-            trans={k: _value(v["trans_m_mean"]) if v["n"] else math.nan for k, v in rel.items()},
-            time_ms=_value(run.time_ms.get("mean")),
-            diverged=bool(run.diverged),
-            threads=int(run.metrics.get("threads") or 1), cpu=run.metrics.get("cpu"),
-        ))
-    return sorted(rows, key=_row_order), sorted(lengths, key=float)
+def runs(results_dir: Path | list[Path], only: set[Path] | None = None) -> list[RunRow]:
+    """Every finished run with ground truth and every run that did not finish (or only the run
+    folders in ``only``), in the paper's order; of several results folders, each row labelled
+    with its folder's name."""
+    dirs = results_dir if isinstance(results_dir, list) else [results_dir]
+    out = []
+    for d in dirs:
+        for run in load_runs(d, only, failed=True):
+            if run.result.finished and not run.result.scored:
+                continue  # no ground truth: nothing to tabulate
+            label = run_label(run.method, run.seed, run.label, run.doppler_kind)
+            out.append(RunRow(run, f"{Path(d).name}: {label}" if len(dirs) > 1 else label))
+    return sorted(out, key=RunRow.order)
 
 
-def _row_order(r: Row):
-    # Table III's order: sensor classes, the paper's sequences, the baselines before the
-    # paper's own methods, and with seed before without
-    return (class_rank(r.sensor_class), r.sensor_class, sequence_key(r.sequence),
-            order_key(r.method), r.method, r.seed is False, r.label)
+def scored_lengths(rows: list[RunRow]) -> list[float]:
+    return sorted({r.length_m for x in rows for r in x.result.relative_error})
 
 
-def collect_rows_of(results_dirs: list[Path]) -> tuple[list[Row], list[str]]:
-    """Rows of several results folders in one table; with more than one folder, each row's
-    label starts with its folder's name (the experiment)."""
-    if len(results_dirs) == 1:
-        return collect_rows(results_dirs[0])
-    rows, lengths = [], set()
-    for d in results_dirs:
-        these, lens = collect_rows(d)
-        lengths.update(lens)
-        for r in these:
-            r.label = f"{Path(d).name}: {r.label}"
-        rows += these
-    return sorted(rows, key=_row_order), sorted(lengths, key=float)
+def select(results_dir: Path | list[Path], only: set[Path] | None = None,
+           lengths_m: list[float] | None = None,
+           keep: Callable[[RunRow], bool] | None = None) -> tuple[list[RunRow], list[float]]:
+    """The rows and lengths of a table (of every run, or of the folders in ``only``; only the
+    segment lengths in ``lengths_m`` when given; only the rows ``keep`` accepts). Raises when
+    nothing is left."""
+    first = results_dir[0] if isinstance(results_dir, list) else results_dir
+    rows = runs(results_dir, only)
+    if keep is not None and rows:
+        rows = [r for r in rows if keep(r)]
+        if not rows:
+            raise ValueError(f"{first}: no run matches the chosen methods / variants")
+    if not rows:
+        raise FileNotFoundError(f"{first}: no finished runs with ground truth "
+                                "(no metrics.json found)")
+    lengths = scored_lengths(rows)
+    if lengths_m is not None:
+        missing = [L for L in lengths_m if L not in lengths]
+        if missing:
+            raise ValueError(
+                f"{first}: no results at {', '.join(f'{L:g}' for L in missing)} m (scored "
+                f"lengths: {', '.join(f'{x:g}' for x in lengths)}); score them with `bench run "
+                f"--lengths {','.join(f'{x:g}' for x in sorted(set(lengths) | set(missing)))}` "
+                "(an experiment's lengths_m); KITTI drift over 100-800 m: `bench table --metric "
+                "kitti`")
+        lengths = [x for x in lengths if x in lengths_m]
+    return rows, lengths
 
 
-def _fmt(x: float, digits: int = 3) -> str:
-    return "-" if not math.isfinite(x) else f"{x:.{digits}f}"
+# ---- rows -------------------------------------------------------------------------------------
+
+def _row(table: Table, rr: RunRow, cells: list[Cell]) -> Row:
+    """A table row of a run; a run that did not finish gets "failed" cells and a footnote."""
+    if rr.failed:
+        reason = (rr.result.error or rr.result.status).strip().splitlines()
+        note = table.note(f"{rr.label} on {rr.sequence}: {rr.result.status}: "
+                          f"{reason[0] if reason else ''}")
+        cells = [Cell(status="failed", note=note if i == 0 else None)
+                 for i in range(len(table.columns))]
+    return Row([rr.sensor_class, rr.sequence, rr.label], (rr.sensor_class, rr.sequence), cells,
+               {"sequence": rr.run.sequence, "sensor_class": rr.sensor_class,
+                "method": rr.method, "seed": rr.seed.value, "label": rr.run.label,
+                "status": rr.result.status if rr.failed else
+                ("diverged" if rr.diverged else "done")})
 
 
-def _fmt_time(x: float, threads: int = 1) -> str:
+def fmt(x: float | None, digits: int = 3) -> str:
+    return "-" if x is None or not math.isfinite(x) else f"{x:.{digits}f}"
+
+
+def fmt_time(x: float | None, threads: int = 1) -> str:
+    x = nan(x)
     text = "-" if not math.isfinite(x) else (f"{x:.2f}" if x < 10 else f"{x:.1f}")
     return text if threads == 1 else f"{text} [{threads} thr.]"
 
 
-def _cells(rows: list[Row], lengths: list[str], mark) -> list[list[str]]:
-    """Formatted cells per row; ``mark(text, rank)`` applies bold / underline."""
-    out = [[] for _ in rows]
-    groups: dict[tuple, list[int]] = {}
-    for i, r in enumerate(rows):
-        groups.setdefault((r.sensor_class, r.sequence), []).append(i)
-    for idx in groups.values():
-        ranked = [i for i in idx if not rows[i].diverged]
-        for length in lengths:
-            rot = ranks([rows[i].rot.get(length, math.nan) for i in ranked])
-            trans = ranks([rows[i].trans.get(length, math.nan) for i in ranked])
-            rank = {i: (a, b) for i, a, b in zip(ranked, rot, trans, strict=True)}
-            for i in idx:
-                r = rows[i]
-                if r.diverged:
-                    out[i].append("Div.")
-                    continue
-                a, b = rank[i]
-                out[i].append(f"{mark(_fmt(r.rot.get(length, math.nan)), a)} / "
-                              f"{mark(_fmt(r.trans.get(length, math.nan)), b)}")
-        times = ranks([rows[i].time_ms for i in ranked])
-        trank = dict(zip(ranked, times, strict=True))
-        for i in idx:  # a diverged run's time is still real: shown, not ranked
-            text = _fmt_time(rows[i].time_ms, rows[i].threads)
-            out[i].append(text if rows[i].diverged else mark(text, trank[i]))
-    return out
+def _caption(rows: list[RunRow], text: str) -> str:
+    failed = FAILED_NOTE + " " if any(r.failed for r in rows) else ""
+    return (synthetic_note(r.sequence for r in rows) + gt_assisted_note(r.label for r in rows)
+            + text + " " + hosts_note(r.result.cpu for r in rows if r.result.finished)
+            + "Best per sequence in bold, second underlined; Div. = diverged; " + failed
+            + SEED_NOTE)
 
 
-def to_markdown(rows: list[Row], lengths: list[str]) -> str:
-    mark = md_mark
-    header = ["Sensor", "Sequence", "Method", *[f"{float(L):g} m" for L in lengths],
-              "Time (ms)"]
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    prev = (None, None)
-    for r, cells in zip(rows, _cells(rows, lengths, mark), strict=True):
-        klass = r.sensor_class if r.sensor_class != prev[0] else ""
-        seq = r.sequence if (r.sensor_class, r.sequence) != prev else ""
-        prev = (r.sensor_class, r.sequence)
-        lines.append("| " + " | ".join([klass, seq, r.label, *cells]) + " |")
-    caption = (synthetic_note(r.sequence for r in rows) + gt_assisted_note(r.label for r in rows) +
-               "Each cell: mean rotation [deg] / translation [m] relative error per segment "
-               "length. " + TIME_NOTE + " " + hosts_note(r.cpu for r in rows) +
-               "Best per sequence in bold, second underlined; Div. = "
-               "diverged. " + SEED_NOTE)
-    return "\n".join(lines) + "\n\n" + caption + "\n"
+def _time_cell(rr: RunRow) -> Cell:
+    t = rr.result.time_ms.mean
+    part = Part(fmt_time(t, rr.result.threads))
+    return Cell([part], values={"time_ms_mean": t})
 
 
-def to_latex(rows: list[Row], lengths: list[str]) -> str:
-    mark = tex_mark
-    ncol = 3 + len(lengths) + 1
-    out = [r"\begin{tabular}{@{}" + "c" * ncol + "@{}}", r"\toprule",
-           " & ".join(["Sensor", "Dataset", "Method",
-                       *[rf"\textbf{{{float(L):g}m}}" for L in lengths], r"\textbf{Time (ms)}"])
-           + r" \\", r"\midrule"]
-    prev = (None, None)
-    for r, cells in zip(rows, _cells(rows, lengths, mark), strict=True):
-        if prev[0] is not None and r.sensor_class != prev[0]:
-            out.append(r"\midrule")
-        elif prev[0] is not None and r.sequence != prev[1]:
-            out.append(rf"\cmidrule{{2-{ncol}}}")
-        klass = tex_escape(r.sensor_class) if r.sensor_class != prev[0] else ""
-        seq = rf"\emph{{{tex_escape(r.sequence)}}}" if (r.sensor_class, r.sequence) != prev \
-            else ""
-        prev = (r.sensor_class, r.sequence)
-        out.append(" & ".join([klass, seq, tex_escape(r.label), *cells]) + r" \\")
-    out += [r"\bottomrule", r"\end{tabular}"]
-    return "\n".join(out) + "\n"
-
-
-def to_csv(rows: list[Row], lengths: list[str]) -> str:
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["sensor_class", "sequence", "method", "seed", "row", "diverged",
-                *[f"{k}_{float(L):g}m" for L in lengths for k in ("rot_deg", "trans_m")],
-                "time_ms_mean"])
-    for r in rows:
-        vals = []
+def relative_table(rows: list[RunRow], lengths: list[float]) -> Table:
+    """The paper's Table III: "rotation / translation" per length and the time per frame."""
+    table = Table(["Sensor", "Sequence", "Method"],
+                  [f"{L:g} m" for L in lengths] + ["Time (ms)"], [])
+    for rr in rows:
+        cells = []
         for L in lengths:
-            vals += [r.rot.get(L, math.nan), r.trans.get(L, math.nan)]
-        w.writerow([r.sensor_class, r.sequence, r.method,
-                    "" if r.seed is None else r.seed, r.label, r.diverged,
-                    *[f"{v:.6f}" for v in vals], f"{r.time_ms:.6f}"])
-    return buf.getvalue()
+            rel = rr.result.relative(L)
+            rot, trans = (rel.rot_deg_mean, rel.trans_m_mean) if rel and rel.n else (None, None)
+            values = {"rot_deg_mean": rot, "trans_m_mean": trans, "segments":
+                      rel.n if rel else 0}
+            cells.append(Cell(status="Div.", values=values) if rr.diverged else
+                         Cell([Part(fmt(rot)), Part(fmt(trans))], values=values))
+        table.rows.append(_row(table, rr, [*cells, _time_cell(rr)]))
+    for i in range(len(lengths)):
+        for part, q in ((0, "rot_deg_mean"), (1, "trans_m_mean")):
+            rank_column(table.rows, i, part, lambda r, i=i, q=q: nan(r.cells[i].values[q]))
+    # a diverged run's time is real: shown, not ranked
+    ranked = [r for r, rr in zip(table.rows, rows, strict=True) if not rr.diverged]
+    rank_column(ranked, len(lengths), 0, lambda r: nan(r.cells[-1].values["time_ms_mean"]))
+    table.caption = _caption(rows, "Each cell: mean rotation [deg] / translation [m] relative "
+                             "error over the segments of each length (evo_rpe's definition). "
+                             + TIME_NOTE)
+    return table
 
 
-FORMATS = {"md": to_markdown, "tex": to_latex, "csv": to_csv}
+def kitti_table(rows: list[RunRow]) -> Table:
+    """KITTI drift: translation [%] and rotation [deg/100 m] per run."""
+    table = Table(["Sensor", "Sequence", "Method"],
+                  ["Trans. drift (%)", "Rot. drift (deg/100 m)", "Segments"], [])
+    lengths: set[tuple] = set()
+    for rr in rows:
+        k = rr.result.kitti
+        if k is not None:
+            lengths.add(tuple(k.lengths_m))
+        t, r, n = (k.trans_pct, k.rot_deg_per_100m, k.n) if k else (None, None, 0)
+        values = {"trans_pct": t, "rot_deg_per_100m": r}
+        if rr.diverged:
+            cells = [Cell(status="Div.", values=values), Cell(status="Div."),
+                     Cell([Part(str(n))], values={"segments": n})]
+        else:
+            cells = [Cell([Part(fmt(t))], values={"trans_pct": t}),
+                     Cell([Part(fmt(r))], values={"rot_deg_per_100m": r}),
+                     Cell([Part(str(n))], values={"segments": n})]
+        table.rows.append(_row(table, rr, cells))
+    for col, q in ((0, "trans_pct"), (1, "rot_deg_per_100m")):
+        rank_column(table.rows, col, 0, lambda r, col=col, q=q: nan(r.cells[col].values.get(q)))
+    over = ", ".join("-".join(f"{x:g}" for x in (ls[0], ls[-1])) + " m" for ls in
+                     sorted(lengths)) or "100-800 m"
+    table.caption = _caption(rows, f"KITTI drift over segments of {over} (the KITTI odometry "
+                             "devkit's definition: a segment starts every 10 frames and ends at "
+                             "the first frame beyond its length; translation error in % of the "
+                             "length, rotation error in deg per 100 m, averaged over every "
+                             "segment); - = the path is shorter than the shortest length.")
+    return table
 
 
-def is_variant(row: Row) -> bool:
-    """A labelled variant of a method (an experiment entry with its own ``label:``)."""
-    return row.label not in (run_label(row.method, row.seed),
-                             run_label(row.method, row.seed, doppler_kind="gt-reconstructed"))
+def _velocity_cells(v, diverged: bool) -> list[Cell]:
+    if v is None or diverged:
+        status = "Div." if diverged else "-"
+        return [Cell(status=status) for _ in range(5)]
+    values = [*v.axis_mean_mps, v.norm_mean_mps, v.norm_rmse_mps]
+    names = ["x_mean_mps", "y_mean_mps", "z_mean_mps", "norm_mean_mps", "norm_rmse_mps"]
+    return [Cell([Part(fmt(x))], values={q: x}) for q, x in zip(names, values, strict=True)]
 
 
-def select_rows(results_dir: Path | list[Path], only: set[Path] | None = None,
-                lengths_m: list[float] | None = None,
-                keep: Callable[[Row], bool] | None = None) -> tuple[list[Row], list[str]]:
-    """The rows and lengths of a table (of every run, or of the folders in ``only``; of several
-    results folders, each row labelled with its folder; only the segment lengths in
-    ``lengths_m`` when given; only the rows ``keep`` accepts). Raises when nothing is left."""
-    if isinstance(results_dir, list):
-        rows, lengths = collect_rows_of(results_dir)
-        results_dir = results_dir[0]
-    else:
-        rows, lengths = collect_rows(results_dir, only)
-    if keep is not None and rows:
-        rows = [r for r in rows if keep(r)]
-        if not rows:
-            raise ValueError(f"{results_dir}: no run matches the chosen methods / variants")
-    if not rows:
-        raise FileNotFoundError(f"{results_dir}: no finished runs with ground truth "
-                                "(no metrics.json found)")
-    if lengths_m is not None:
-        missing = [L for L in lengths_m if not any(float(x) == L for x in lengths)]
-        if missing:
-            raise ValueError(f"{results_dir}: no results at {', '.join(f'{L:g}' for L in missing)}"
-                             f" m (scored lengths: {', '.join(f'{float(x):g}' for x in lengths)})")
-        lengths = [x for x in lengths if float(x) in lengths_m]
-    return rows, lengths
+def velocity_table(rows: list[RunRow]) -> Table:
+    """Ego-velocity error per run (and a "Doppler ego velocity" row for a method that
+    measures its own)."""
+    table = Table(["Sensor", "Sequence", "Method"],
+                  ["x (m/s)", "y (m/s)", "z (m/s)", "Norm mean (m/s)", "Norm RMSE (m/s)"], [])
+    windows = set()
+    for rr in rows:
+        v = rr.result.velocity
+        if v is not None:
+            windows.add(v.window_s)
+        table.rows.append(_row(table, rr, _velocity_cells(v, rr.diverged)))
+        own = rr.result.velocity_own
+        if own is not None and not rr.failed:
+            row = _row(table, rr, _velocity_cells(own, False))
+            row.keys[-1] = f"{rr.label} [Doppler ego velocity]"
+            row.meta["status"] = "doppler"
+            table.rows.append(row)
+    for col in range(5):
+        rank_column(table.rows, col, 0,
+                    lambda r, col=col: nan(next(iter(r.cells[col].values.values()), None)))
+    w = ", ".join(f"{x:g}" for x in sorted(windows)) or f"{DEFAULT_WINDOW_S:g}"
+    table.caption = _caption(rows, (
+        "Ego-velocity error [m/s] in the sensor frame: mean absolute error per axis (x, y, z) "
+        "and the mean and RMS of the error vector's norm. A frame's velocity is its relative "
+        f"translation to the first frame at least {w} s later over the time between (the same "
+        "frames for the estimate and the ground truth). The reference is the GT over that "
+        f"window, not frame to frame: a GT nearest-matched to the scans (NTU4DRadLM: 10 Hz "
+        "poses at 12 Hz scans) makes frame-to-frame GT velocities mostly artefact. [Doppler ego "
+        f"velocity] rows: the method's own instantaneous Doppler estimate against the GT "
+        f"velocity over a {w} s window centred on the frame."))
+    return table
+
+
+TABLES = {"relative": relative_table, "kitti": kitti_table, "velocity": velocity_table}
+
+
+def build(metric: str, rows: list[RunRow], lengths: list[float] | None = None) -> Table:
+    """The table of ``metric`` (one of ``TABLES``) for ``rows``."""
+    if metric == "relative":
+        return relative_table(rows, lengths if lengths is not None else scored_lengths(rows))
+    return TABLES[metric](rows)
 
 
 def write_tables(results_dir: Path | list[Path], out_dir: Path | None = None,
                  only: set[Path] | None = None, stem: str = "table",
                  lengths_m: list[float] | None = None,
-                 keep: Callable[[Row], bool] | None = None,
-                 rows_lengths: tuple[list[Row], list[str]] | None = None) -> dict[str, str]:
-    """Write <stem>.md, .tex and .csv of ``select_rows``'s rows (or of ``rows_lengths`` when
-    already selected); return the texts by format."""
-    rows, lengths = rows_lengths or select_rows(results_dir, only, lengths_m, keep)
+                 keep: Callable[[RunRow], bool] | None = None,
+                 metric: str = "relative") -> dict[str, str]:
+    """Write <stem>.md, .tex and .csv of ``metric``'s table of the selected rows; return the
+    texts by format."""
+    rows, lengths = select(results_dir, only, lengths_m, keep)
     first = results_dir[0] if isinstance(results_dir, list) else results_dir
-    return save_formats(Path(out_dir or first), stem,
-                        {fmt: fn(rows, lengths) for fmt, fn in FORMATS.items()})
-
-
+    return save_table(build(metric, rows, lengths), Path(out_dir or first), stem)

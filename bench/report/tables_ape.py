@@ -1,20 +1,21 @@
-"""The paper's Tables IV and V from run folders: absolute pose error per method and sequence.
+"""The paper's Tables IV and V from run folders (``bench table --metric ape`` for any results
+folder): absolute pose error per method and sequence.
 
 One row per method (and seed option, when a results folder holds both), one column per
-sequence; each cell is the translation APE [m] after SE(3) alignment (``metrics.json``'s
-``ape.trans_rmse_m``, as evo computes it). Per column the best value is bold and the second
-underlined; a diverged run shows "Div." and is not ranked, as in the paper's Table V.
+sequence; each cell is the translation APE [m] (``metrics.json``'s ``ape.trans_rmse_m``, as
+evo_ape computes it) after the alignment the runs were scored with (``ape.requested``, stated
+in the caption; a cell whose alignment fell back to the orientations, or differs from the
+others, carries a footnote). Per column the best value is bold and the second underlined; a
+diverged run shows "Div." and is not ranked, as in the paper's Table V; a run that did not
+finish shows "failed" with its reason in a footnote.
 """
 
 from __future__ import annotations
 
-import csv
-import io
 import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from bench.report.cells import md_mark, save_formats, tex_escape, tex_mark
 from bench.report.names import (
     SEED_NOTE,
     gt_assisted_note,
@@ -23,121 +24,96 @@ from bench.report.names import (
     sequence_key,
     synthetic_note,
 )
-from bench.runs.folders import load_runs
-
-
-@dataclass(frozen=True)
-class ApeCell:
-    ape_m: float
-    diverged: bool
+from bench.report.table import Cell, Part, Row, Table, rank_column, save_table
+from bench.runs.folders import RunRecord, load_runs
+from bench.runs.result import nan
+from metrics.ape import Alignment
 
 
 @dataclass
 class ApeTable:
-    sequences: list[str]                       # column titles (display names), in order
-    rows: list[tuple[str, dict[str, ApeCell]]]  # (row label, sequence -> cell)
+    """The table model and what it was made of."""
+
+    table: Table
+    sequences: list[str]  # column titles (display names), in order
+
+    @property
+    def rows(self) -> list[tuple[str, Row]]:
+        return [(r.keys[0], r) for r in self.table.rows]
+
+
+def _runs(results_dir: Path, only: set[Path] | None) -> list[RunRecord]:
+    return [r for r in load_runs(results_dir, only, failed=True)
+            if not r.result.finished or (r.diverged is not None and r.result.ape is not None)]
 
 
 def collect_ape(results_dir: Path, sequences: list[str] | None = None,
-                only: set[Path] | None = None) -> ApeTable:
-    """The APE table of every finished run with ground truth under ``results_dir``.
+                only: set[Path] | None = None, caption: str = "") -> ApeTable:
+    """The APE table of every finished run with ground truth (and every run that did not
+    finish) under ``results_dir``.
 
     ``sequences``: the columns (display names or sequence names) in order; default: every
     sequence found, in the paper's order (``names.sequence_key``)."""
-    runs = [r for r in load_runs(results_dir, only) if r.diverged is not None and r.ape]
-    cells: dict[tuple, dict[str, ApeCell]] = {}
-    names: dict[str, str] = {}
+    runs = _runs(results_dir, only)
+    names = {r.sequence: r.display_name for r in runs}
+    columns = (sorted(set(names.values()), key=sequence_key) if sequences is None
+               else [names.get(s, s) for s in sequences])
+    table = Table(["Method"], columns, [])
+    by_row: dict[tuple, dict[str, RunRecord]] = {}
     for r in runs:
-        title = r.display_name
-        names[r.sequence] = title
-        key = (order_key(r.method), r.method, r.label or "", r.seed is False,
+        key = (order_key(r.method), r.method, r.label or "", r.seed.rank, r.seed.value,
                run_label(r.method, r.seed, r.label, r.doppler_kind))
-        ape_m = r.ape.get("trans_rmse_m")
-        cells.setdefault(key, {})[title] = ApeCell(
-            math.nan if ape_m is None else float(ape_m), bool(r.diverged))
-    if sequences is None:
-        columns = sorted(set(names.values()), key=sequence_key)
-    else:
-        columns = [names.get(s, s) for s in sequences]
-    rows = [(key[-1], cells[key]) for key in sorted(cells)]
-    return ApeTable(columns, rows)
+        by_row.setdefault(key, {})[r.display_name] = r
+    requested = {r.result.ape.requested for r in runs if r.result.finished}
+    common = max(requested, key=lambda a: sum(r.result.finished and r.result.ape.requested == a
+                                              for r in runs)) if requested else "se3"
+    for key in sorted(by_row):
+        cells = []
+        for col in columns:
+            r = by_row[key].get(col)
+            if r is None:
+                cells.append(Cell(status="-"))
+            elif not r.result.finished:
+                reason = (r.result.error or r.result.status).strip().splitlines()
+                cells.append(Cell(status="failed", note=table.note(
+                    f"{key[-1]} on {col}: {r.result.status}: {reason[0] if reason else ''}")))
+            elif r.diverged:
+                cells.append(Cell(status="Div.", values={"ape_trans_rmse_m":
+                                                         r.result.ape.trans_rmse_m}))
+            else:
+                a = r.result.ape
+                cell = Cell([Part(fmt2(a.trans_rmse_m))], values={"ape_trans_rmse_m":
+                                                                  a.trans_rmse_m})
+                if a.alignment and a.alignment != common:
+                    cell.note = table.note(f"{key[-1]} on {col}: aligned by {a.alignment} "
+                                           f"(the others: {common})")
+                cells.append(cell)
+        table.rows.append(Row([key[-1]], (), cells, {"method": key[1], "label": key[2] or None,
+                                                     "seed": key[4], "status": "done"}))
+    for i in range(len(columns)):
+        rank_column(table.rows, i, 0,
+                    lambda row, i=i: nan(row.cells[i].values.get("ape_trans_rmse_m")))
+    failed = any(not r.result.finished for r in runs)
+    table.caption = (synthetic_note(columns) + gt_assisted_note(row.keys[0] for row in table.rows)
+                     + (caption or "Absolute pose error [m]: "
+                     "translation RMSE") + f" after {Alignment.parse(common).description}, as "
+                     f"evo_ape {Alignment.parse(common).evo_options} computes it. Best per "
+                     "sequence in bold, second underlined; Div. = diverged; - = not run"
+                     + ("; failed = the run did not finish (reason in its footnote)" if failed
+                        else "") + ". " + SEED_NOTE)
+    return ApeTable(table, columns)
 
 
-def _ranks(table: ApeTable) -> dict[tuple[int, str], int]:
-    """(row index, column) -> 0 best, 1 second, 2 otherwise; diverged and missing unranked."""
-    ranks = {}
-    for col in table.sequences:
-        values = sorted({c.ape_m for _, row in table.rows if (c := row.get(col))
-                         and not c.diverged and math.isfinite(c.ape_m)})
-        for i, (_, row) in enumerate(table.rows):
-            c = row.get(col)
-            if c and not c.diverged and math.isfinite(c.ape_m):
-                ranks[(i, col)] = min(values.index(c.ape_m), 2)
-    return ranks
-
-
-def _cell_text(table: ApeTable, ranks, i: int, col: str, mark) -> str:
-    c = table.rows[i][1].get(col)
-    if c is None:
-        return "-"
-    if c.diverged:
-        return "Div."
-    if not math.isfinite(c.ape_m):
-        return "-"
-    return mark(f"{c.ape_m:.2f}", ranks.get((i, col), 2))
-
-
-def to_markdown(table: ApeTable, caption: str = "") -> str:
-    mark = md_mark
-    ranks = _ranks(table)
-    lines = ["| Method | " + " | ".join(table.sequences) + " |",
-             "|---|" + "---|" * len(table.sequences)]
-    for i, (label, _) in enumerate(table.rows):
-        lines.append(f"| {label} | " + " | ".join(
-            _cell_text(table, ranks, i, col, mark) for col in table.sequences) + " |")
-    caption = (caption or "Absolute pose error [m] (translation RMSE after SE(3) alignment, as "
-               "evo). Best per sequence in bold, second underlined; Div. = diverged.")
-    caption = (synthetic_note(table.sequences) + gt_assisted_note(label for label, _ in table.rows)
-               + caption + " " + SEED_NOTE)
-    return "\n".join(lines) + "\n\n" + caption + "\n"
-
-
-def to_latex(table: ApeTable, caption: str = "") -> str:
-    mark = tex_mark
-    ranks = _ranks(table)
-    out = [r"\begin{tabular}{c|" + "c" * len(table.sequences) + "}", r"\hline",
-           r"\textbf{Method} & "
-           + " & ".join(rf"\textit{{{tex_escape(s)}}}" for s in table.sequences) + r" \\ \hline"]
-    for i, (label, _) in enumerate(table.rows):
-        out.append(tex_escape(label) + " & " + " & ".join(
-            _cell_text(table, ranks, i, col, mark) for col in table.sequences) + r" \\")
-    out += [r"\hline", r"\end{tabular}"]
-    return "\n".join(out) + "\n"
-
-
-def to_csv(table: ApeTable, caption: str = "") -> str:
-    buf = io.StringIO()
-    w = csv.writer(buf, lineterminator="\n")
-    w.writerow(["method", "sequence", "ape_m", "diverged"])
-    for label, row in table.rows:
-        for col in table.sequences:
-            c = row.get(col)
-            if c is not None:
-                w.writerow([label, col, "" if not math.isfinite(c.ape_m) else f"{c.ape_m:.6f}",
-                            c.diverged])
-    return buf.getvalue()
-
-
-FORMATS = {"md": to_markdown, "tex": to_latex, "csv": to_csv}
+def fmt2(x: float | None) -> str:
+    return "-" if x is None or not math.isfinite(x) else f"{x:.2f}"
 
 
 def write_ape_tables(results_dir: Path, out_dir: Path | None = None,
                      sequences: list[str] | None = None, stem: str = "table_ape",
                      caption: str = "", only: set[Path] | None = None) -> dict[str, str]:
     """Write ``<stem>.{md,tex,csv}`` and return the texts by format."""
-    table = collect_ape(results_dir, sequences, only)
-    if not table.rows:
+    ape = collect_ape(results_dir, sequences, only, caption)
+    if not ape.table.rows:
         raise FileNotFoundError(f"{results_dir}: no finished runs with ground truth "
                                 "(no metrics.json with an APE found)")
-    return save_formats(Path(out_dir or results_dir), stem,
-                        {fmt: fn(table, caption) for fmt, fn in FORMATS.items()})
+    return save_table(ape.table, Path(out_dir or results_dir), stem)

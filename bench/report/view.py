@@ -51,7 +51,8 @@ def write_recording(store: Path, out: Path, run_dir: Path | None = None,
         if run_dir is not None:
             if not (run_dir / "est_tum.txt").exists():
                 raise DataError(f"{run_dir}: no est_tum.txt (not a finished run folder)")
-            est = read_tum(run_dir / "est_tum.txt")
+            all_frames = run_dir / "est_all_tum.txt"  # every frame, when some have no GT
+            est = read_tum(all_frames if all_frames.exists() else run_dir / "est_tum.txt")
         with atomic_path(Path(out)) as tmp:
             rec = rr.RecordingStream("doppler-bench", recording_id=f"view-{Path(store).stem}")
             rec.save(str(tmp))

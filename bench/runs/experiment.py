@@ -13,7 +13,9 @@
       - name: icp-p2p
         params: {max_iterations: 100}
         seeds: [true, false]        # default: both, or [true] for methods without a guess
-    lengths_m: [8, 16, 24, 32, 40, 48]
+    lengths_m: [8, 16, 24, 32, 40, 48]     # relative-error segment lengths [m]
+    kitti_lengths_m: [100, 200, 300, 400, 500, 600, 700, 800]   # KITTI drift (the default)
+    alignment: se3                  # APE: none, origin, se3, sim3, first-N, sim3-first-N
     jobs: 2
     out: results/paper-synthetic
 
@@ -40,7 +42,9 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from loaders.errors import DataError, did_you_mean, validation_problems
 from methods.registry import METHODS, get_method, seed_options
-from metrics.relative import DEFAULT_LENGTHS_M
+from metrics.ape import Alignment
+from metrics.kitti import KITTI_LENGTHS_M
+from metrics.relative import DEFAULT_LENGTHS_M, MetricError
 
 
 class _Strict(BaseModel):
@@ -101,15 +105,28 @@ class Experiment(_Strict):
     sequences: list[SequenceEntry] = Field(default_factory=list)
     methods: list[MethodEntry]
     lengths_m: list[float] = Field(default_factory=lambda: list(DEFAULT_LENGTHS_M))
+    #: KITTI drift's segment lengths [m] and the APE alignment (metrics.Alignment: none,
+    #: origin, se3, sim3, first-N, sim3-first-N)
+    kitti_lengths_m: list[float] = Field(default_factory=lambda: list(KITTI_LENGTHS_M))
+    alignment: str = "se3"
     jobs: int = Field(1, ge=1)
     out: Path | None = None
 
-    @field_validator("lengths_m")
+    @field_validator("lengths_m", "kitti_lengths_m")
     @classmethod
-    def _positive(cls, v: list[float]) -> list[float]:
+    def _positive(cls, v: list[float], info) -> list[float]:
         if not v or min(v) <= 0:
-            raise ValueError("lengths_m must be a non-empty list of positive lengths [m]")
+            raise ValueError(f"{info.field_name} must be a non-empty list of positive "
+                             "lengths [m]")
         return v
+
+    @field_validator("alignment")
+    @classmethod
+    def _alignment(cls, v: str) -> str:
+        try:
+            return Alignment.parse(v).name
+        except MetricError as err:
+            raise ValueError(str(err)) from None
 
     @model_validator(mode="after")
     def _has_data(self) -> Experiment:

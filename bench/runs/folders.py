@@ -1,12 +1,22 @@
 """Run folders: what one run (sequence x method x seed option) leaves on disk.
 
     <out>/<sequence>/<method>[_seed|_noseed]/
-        est_tum.txt  est_kitti.txt  gt_tum.txt  frames.csv  config.yaml  meta.json
-        metrics.json   (written last: its presence means the run finished)
+        est_tum.txt  est_kitti.txt  gt_tum.txt  gt_kitti.txt   (see below)
+        est_all_tum.txt   (every frame's pose, when some frames have no ground truth)
+        frames.csv  config.yaml  meta.json
+        metrics.json   (written last: its presence means the run finished; a RunResult)
         failed.json    (instead of metrics.json when the run raised; retried on the next run)
 
-Every file is written atomically (temporary file + rename). ``RunRecord`` is a finished run
-read back (``read_run``, ``load_runs``).
+With ground truth, the four trajectory files hold exactly the scored frames (those with GT),
+row-aligned, so evo and the KITTI devkit read them directly: ``gt_kitti.txt`` / ``est_kitti.txt``
+(3x4 row-major), ``gt_tum.txt`` / ``est_tum.txt`` (the same stamps). Numbers are written with 17
+significant digits (they read back as the float64 values that were scored). Without ground
+truth ``est_tum.txt`` / ``est_kitti.txt`` hold every frame.
+
+Every file is written atomically (temporary file + rename). ``RunRecord`` is a run read back
+(``read_run``, ``load_runs``): a thin view of its ``bench.runs.result.RunResult`` and
+config.yaml. A metrics.json of an older version is re-scored from the run's trajectory files
+on reading (methods not re-run), with one message saying so.
 """
 
 from __future__ import annotations
@@ -15,6 +25,7 @@ import csv
 import io
 import json
 import re
+import sys
 from dataclasses import dataclass
 from datetime import UTC, datetime
 from functools import cached_property
@@ -24,10 +35,13 @@ import numpy as np
 import yaml
 
 from bench.runs.provenance import run_meta
-from loaders.fileio import atomic_path, atomic_write_text
-from loaders.posefile import read_tum, write_kitti, write_tum
+from bench.runs.result import RunResult
+from loaders.fileio import atomic_write_text
+from loaders.posefile import read_tum
+from loaders.se3 import tum_from_T
 from loaders.trajectory import Trajectory
 from methods.base import OdometryResult
+from methods.registry import Seed
 
 FRAME_COLUMNS = ["index", "stamp", "time_ms", "register_ms", "wall_ms", "points",
                  "correspondences", "iterations", "converged"]
@@ -36,11 +50,12 @@ FRAME_COLUMNS = ["index", "stamp", "time_ms", "register_ms", "wall_ms", "points"
 RUN_RECORDS = ("metrics.json", "failed.json")
 
 
-def run_dir_name(method: str, seed: bool | None, label: str | None = None) -> str:
-    """``doppler`` (method without initial guess), ``icp-p2p_seed`` or ``icp-p2p_noseed``; a
-    labelled variant uses its label (made file-name safe) instead of the method name."""
+def run_dir_name(method: str, seed: bool | None | Seed, label: str | None = None) -> str:
+    """``doppler`` (method without initial guess), ``icp-p2p_seed`` or ``icp-p2p_noseed``
+    (``Seed.suffix``); a labelled variant uses its label (made file-name safe) instead of the
+    method name."""
     base = re.sub(r"[^A-Za-z0-9._+-]+", "-", label).strip("-") if label else method
-    return base if seed is None else f"{base}_{'seed' if seed else 'noseed'}"
+    return base + Seed.of(seed).suffix
 
 
 def is_finished(run_dir: Path, key: str | None = None) -> bool:
@@ -66,9 +81,18 @@ def clear_run(run_dir: Path) -> None:
         (run_dir / name).unlink(missing_ok=True)
 
 
+def _rows(values: np.ndarray) -> str:
+    return "".join(" ".join(f"{x:.17g}" for x in row) + "\n" for row in values)
+
+
 def write_trajectory(path: Path, traj: Trajectory, fmt: str) -> None:
-    with atomic_path(path) as tmp:
-        write_tum(traj, tmp) if fmt == "tum" else write_kitti(traj, tmp)
+    """TUM (``t x y z qx qy qz qw``) or KITTI (3x4 row-major) rows, 17 significant digits."""
+    if fmt == "tum":
+        xyz, quat = tum_from_T(np.asarray(traj.poses, dtype=np.float64))
+        text = _rows(np.column_stack([traj.stamps, xyz, quat]))
+    else:
+        text = _rows(np.asarray(traj.poses, dtype=np.float64)[:, :3, :].reshape(-1, 12))
+    atomic_write_text(path, text)
 
 
 def frames_csv(result: OdometryResult) -> str:
@@ -85,19 +109,31 @@ def frames_csv(result: OdometryResult) -> str:
 
 def write_run(run_dir: Path, result: OdometryResult, gt: Trajectory | None,
               config: dict, metrics: dict, warnings: list[str] | None = None) -> None:
-    """Write every file of a finished run; ``metrics.json`` last."""
+    """Write every file of a finished run; ``metrics.json`` (the ``RunResult`` of ``metrics``
+    with the run's names from ``config``) last."""
     run_dir.mkdir(parents=True, exist_ok=True)
-    est = Trajectory(result.stamps, result.poses)
+    est = Trajectory(np.asarray(result.stamps, dtype=np.float64), result.poses)
+    for stale in ("gt_tum.txt", "gt_kitti.txt", "est_all_tum.txt"):
+        (run_dir / stale).unlink(missing_ok=True)
+    if gt is not None:
+        keep = np.isin(est.stamps, gt.stamps)
+        if not keep.all():
+            write_trajectory(run_dir / "est_all_tum.txt", est, "tum")
+        est = Trajectory(est.stamps[keep], est.poses[keep])
+        write_trajectory(run_dir / "gt_tum.txt", gt, "tum")
+        write_trajectory(run_dir / "gt_kitti.txt", gt, "kitti")
     write_trajectory(run_dir / "est_tum.txt", est, "tum")
     write_trajectory(run_dir / "est_kitti.txt", est, "kitti")
-    if gt is not None:
-        write_trajectory(run_dir / "gt_tum.txt", gt, "tum")
     atomic_write_text(run_dir / "frames.csv", frames_csv(result))
     atomic_write_text(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
     atomic_write_text(run_dir / "meta.json",
                       json.dumps({**run_meta(), "warnings": list(warnings or [])}, indent=2))
     (run_dir / "failed.json").unlink(missing_ok=True)
-    atomic_write_text(run_dir / "metrics.json", json.dumps(metrics, indent=2))
+    seq = config.get("sequence") or {}
+    record = RunResult.model_validate({
+        **metrics, "label": config.get("label"), "display_name": seq.get("display_name"),
+        "sensor_class": seq.get("sensor_class"), "notes": list(warnings or [])})
+    atomic_write_text(run_dir / "metrics.json", record.dump())
 
 
 def write_failure(run_dir: Path, config: dict | None, error: str, trace: str = "",
@@ -114,24 +150,27 @@ def write_failure(run_dir: Path, config: dict | None, error: str, trace: str = "
 
 @dataclass(frozen=True)
 class RunRecord:
-    """A finished run read back from its folder: the one record tables, figures, compare, the
-    notebook API, regress and ``bench run``'s summary read (``read_run`` / ``load_runs``)."""
+    """A run read back from its folder (``read_run`` / ``load_runs``): its typed ``result``
+    (``bench.runs.result.RunResult``, the one record tables, figures, compare, regress,
+    fidelity and the notebook API read), its config.yaml and its trajectory files."""
 
     dir: Path
-    metrics: dict
+    result: RunResult
     config: dict
 
     @property
     def sequence(self) -> str:
-        return self.metrics["sequence"]
+        return self.result.sequence
 
     @property
     def display_name(self) -> str:
-        return (self.config.get("sequence") or {}).get("display_name") or self.sequence
+        return (self.result.display_name or (self.config.get("sequence") or {})
+                .get("display_name") or self.sequence)
 
     @property
     def sensor_class(self) -> str:
-        return (self.config.get("sequence") or {}).get("sensor_class") or "4D sensor"
+        return (self.result.sensor_class or (self.config.get("sequence") or {})
+                .get("sensor_class") or "4D sensor")
 
     @property
     def doppler_kind(self) -> str:
@@ -141,42 +180,23 @@ class RunRecord:
 
     @property
     def method(self) -> str:
-        return self.metrics["method"]
+        return self.result.method
 
     @property
-    def seed(self) -> bool | None:
-        return self.metrics["seed"]
+    def seed(self) -> Seed:
+        return self.result.seed
 
     @property
     def label(self) -> str | None:
-        return self.config.get("label")
+        return self.result.label or self.config.get("label")
 
     @property
     def diverged(self) -> bool | None:
-        return self.metrics.get("diverged")
-
-    @property
-    def relative_error(self) -> dict:
-        """{length: {rot_deg_mean, trans_m_mean, rot_deg_median, trans_m_median, n}}."""
-        return self.metrics.get("relative_error") or {}
-
-    @property
-    def ape(self) -> dict:
-        return self.metrics.get("ape") or {}
-
-    @property
-    def time_ms(self) -> dict:
-        """{median, mean, p95} of the total per-frame time [ms] (``methods.base``)."""
-        return self.metrics.get("time_ms") or {}
-
-    @property
-    def register_ms(self) -> dict:
-        """{median, mean, p95} of the registration call alone [ms]."""
-        return self.metrics.get("register_ms") or {}
+        return self.result.diverged
 
     @property
     def has_gt(self) -> bool:
-        return (self.dir / "gt_tum.txt").exists()
+        return self.result.finished and (self.dir / "gt_tum.txt").exists()
 
     @cached_property
     def _paired(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -201,24 +221,116 @@ class RunRecord:
         """(N, 4, 4) estimated T_world_sensor at ``stamps``."""
         return self._paired[2]
 
+    def estimate_all(self) -> Trajectory:
+        """Every frame's estimated pose (with or without ground truth)."""
+        path = self.dir / "est_all_tum.txt"
+        return read_tum(path if path.exists() else self.dir / "est_tum.txt")
 
-def read_run(run_dir: Path) -> RunRecord | None:
-    """The finished run in ``run_dir`` (None when it has no metrics.json)."""
+
+#: results folders whose re-scoring was already announced (one message each)
+_told: set[str] = set()
+
+
+def _config(run_dir: Path) -> dict:
+    path = run_dir / "config.yaml"
+    try:
+        return (yaml.safe_load(path.read_text()) or {}) if path.exists() else {}
+    except (OSError, yaml.YAMLError):
+        return {}
+
+
+def _rescored(run_dir: Path, raw: dict, config: dict) -> dict:
+    """A metrics.json of schema 1 re-scored from the run's trajectory files (the methods are
+    not re-run): every metric of today's ``RunResult`` from est_tum.txt / gt_tum.txt, with the
+    lengths in its config.yaml and the default KITTI lengths, alignment and velocity window."""
+    from bench.runs.evaluate import Scoring, score
+
+    if raw.get("diverged") is None or not (run_dir / "gt_tum.txt").exists() or \
+            not (run_dir / "est_tum.txt").exists():
+        return raw
+    gt = read_tum(run_dir / "gt_tum.txt")
+    est = read_tum(run_dir / "est_tum.txt")
+    idx = np.searchsorted(est.stamps, gt.stamps).clip(0, len(est) - 1)
+    keep = np.abs(est.stamps[idx] - gt.stamps) < 1e-6
+    lengths = config.get("lengths_m") or [float(k) for k in (raw.get("relative_error") or {})]
+    timings = {k: raw[k] for k in ("time_ms", "register_ms", "wall_ms") if raw.get(k)}
+    part = score(gt.poses[keep], est.poses[idx[keep]], np.zeros(0), name=str(run_dir),
+                 scoring=Scoring(tuple(lengths)), stamps=gt.stamps[keep], timings=timings)
+    part["diverged"] = raw["diverged"]  # it looked at every frame, est_tum.txt only at some
+    return {**raw, **part, "schema": 2, "frames_scored": raw.get("frames_scored",
+                                                                  int(keep.sum()))}
+
+
+def _failed(run_dir: Path, config: dict) -> RunResult:
+    """A run that did not finish, from its failed.json and config.yaml (or its folder names)."""
+    try:
+        info = json.loads((run_dir / "failed.json").read_text())
+    except (OSError, ValueError):
+        info = {"status": "failed", "error": "unreadable failed.json"}
+    seq = config.get("sequence") or {}
+    name = run_dir.name
+    seed = config.get("seed", False if name.endswith("_noseed") else
+                      (True if name.endswith("_seed") else None))
+    method = (config.get("method") or {}).get("name") or re.sub(r"_(no)?seed$", "", name)
+    return RunResult(status=info.get("status") or "failed", error=info.get("error") or "",
+                     sequence=seq.get("name") or run_dir.parent.name, method=method, seed=seed,
+                     label=config.get("label"), display_name=seq.get("display_name"),
+                     sensor_class=seq.get("sensor_class"))
+
+
+def read_run(run_dir: Path, failed: bool = False, _stale: list | None = None
+             ) -> RunRecord | None:
+    """The finished run in ``run_dir`` (None when it has no metrics.json; with ``failed``, a
+    run that did not finish is returned too, its ``result.status`` saying how it ended)."""
     run_dir = Path(run_dir)
     metrics_path = run_dir / "metrics.json"
+    config = _config(run_dir)
     if not metrics_path.exists():
+        if failed and (run_dir / "failed.json").exists():
+            return RunRecord(run_dir, _failed(run_dir, config), config)
         return None
-    config_path = run_dir / "config.yaml"
-    config = (yaml.safe_load(config_path.read_text()) or {}) if config_path.exists() else {}
-    return RunRecord(run_dir, json.loads(metrics_path.read_text()), config)
+    raw = json.loads(metrics_path.read_text())
+    if raw.get("schema", 1) < 2:
+        new = _rescored(run_dir, raw, config)
+        stale = [(run_dir, new is not raw)]
+        raw = new
+        if _stale is not None:
+            _stale += stale
+        else:
+            _announce(stale, run_dir)
+    return RunRecord(run_dir, RunResult.model_validate(raw), config)
 
 
-def load_runs(results_dir: Path, only: set[Path] | None = None) -> list[RunRecord]:
+def _announce(stale: list[tuple[Path, bool]], where: Path) -> None:
+    """One message per results folder about its run folders of an older version: how many
+    were re-scored from their trajectory files, how many read as they are."""
+    key = str(Path(where).resolve())
+    if not stale or key in _told:
+        return
+    _told.add(key)
+    rescored = sum(done for _, done in stale)
+    parts = []
+    if rescored:
+        parts.append(f"{rescored} re-scored from their trajectory files (methods not re-run)")
+    if len(stale) - rescored:
+        parts.append(f"{len(stale) - rescored} read as they are (no trajectory files to "
+                     "re-score: no KITTI drift or velocity error)")
+    sys.stderr.write(f"note: {len(stale)} run folder(s) under {where} were written by an older "
+                     f"version of the harness: {'; '.join(parts)}; `bench run` re-runs them\n")
+
+
+def load_runs(results_dir: Path, only: set[Path] | None = None,
+              failed: bool = False) -> list[RunRecord]:
     """Every finished run under ``results_dir`` (or only the folders in ``only``), in path
-    order."""
+    order; with ``failed`` also the runs that did not finish (failed.json)."""
     wanted = None if only is None else {Path(p).resolve() for p in only}
-    runs = []
-    for metrics_path in sorted(Path(results_dir).rglob("metrics.json")):
-        if wanted is None or metrics_path.parent.resolve() in wanted:
-            runs.append(read_run(metrics_path.parent))
+    names = ("metrics.json", "failed.json") if failed else ("metrics.json",)
+    folders = sorted({p.parent for n in names for p in Path(results_dir).rglob(n)})
+    runs, stale = [], []
+    for folder in folders:
+        if wanted is None or folder.resolve() in wanted:
+            run = read_run(folder, failed, stale)
+            if run is not None:
+                runs.append(run)
+    _announce(stale, Path(results_dir))
     return runs

@@ -39,7 +39,8 @@ from loaders.fileio import atomic_write_text
 
 #: code whose content determines a result (folders searched recursively for *.py), with every
 #: repository module it imports (``result_modules``)
-RESULT_CODE = ("loaders", "methods", "metrics", "bench/runs/evaluate.py", "bench/runs/timed.py",
+RESULT_CODE = ("loaders", "methods", "metrics", "bench/runs/evaluate.py", "bench/runs/result.py",
+               "bench/runs/timed.py",
                "bench/threads.py")
 #: functions of other modules that determine a result: (file, function name)
 RESULT_FUNCTIONS = (("bench/runs/job.py", "calibration_frames"),)

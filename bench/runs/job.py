@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import ValidationError
 
-from bench.runs.evaluate import evaluate_run
+from bench.runs.evaluate import Scoring, evaluate_run
 from bench.runs.folders import clear_run, is_finished, run_dir_name, write_failure, write_run
 from bench.runs.identity import code_identity, host_identity, run_key, store_identity
 from bench.runs.timed import timed_run
@@ -33,6 +33,7 @@ from loaders.sensor_classes import SYNTHETIC_MARK, is_synthetic, sensor_class
 from loaders.store import StoreSequence
 from methods.base import Odometry
 from methods.registry import get_method, make_method
+from metrics.kitti import KITTI_LENGTHS_M
 from metrics.relative import DEFAULT_LENGTHS_M
 
 
@@ -52,6 +53,13 @@ class Job:
     frame_range: tuple[int, int | None] | None = None  # (start, frames) of the store, or all
     run_key: str | None = None  # set by ``plan``
     store_sha256: str | None = None  # set by ``plan``, so workers do not hash the store again
+    alignment: str = "se3"  # APE alignment (metrics.Alignment spec)
+    kitti_lengths_m: tuple[float, ...] = KITTI_LENGTHS_M
+
+    @property
+    def scoring(self) -> Scoring:
+        """How the run is scored (bench.runs.evaluate.Scoring)."""
+        return Scoring(self.lengths_m, self.kitti_lengths_m, self.alignment)
 
     @property
     def title(self) -> str:
@@ -153,6 +161,8 @@ def prepare(job: Job) -> Prepared:
             "label": job.label,
             "seed": job.seed,
             "lengths_m": list(job.lengths_m),
+            "kitti_lengths_m": list(job.kitti_lengths_m),
+            "alignment": job.scoring.alignment,
         }
         try:
             method = make_method(job.method, job.params, seq.sensor, job.seed)
@@ -166,6 +176,8 @@ def prepare(job: Job) -> Prepared:
                     "method": job.method, "frame_range": job.frame_range,
                     "params": config["method"]["params"], "seed": job.seed,
                     "lengths_m": [float(x) for x in job.lengths_m],
+                    "scoring": {"kitti_lengths_m": [float(x) for x in job.kitti_lengths_m],
+                                "alignment": job.scoring.alignment},
                     "code_sha256": code_identity(), "host": host_identity()}
         config["run_key"] = run_key(identity)
         config["identity"] = identity
@@ -198,8 +210,8 @@ def run_job(job: Job, force: bool = False,
             result, timing = timed_run(prep.method, seq, bool(job.seed),
                                        (lambda i: on_frame(i + 1, total)) if on_frame else None)
             warn_few_points(result, job)
-            evaluation = evaluate_run(seq.ground_truth, result, job.lengths_m,
-                                      name=str(job.store), excluded=calibration_frames(seq))
+            evaluation = evaluate_run(seq.ground_truth, result, name=str(job.store),
+                                      scoring=job.scoring, excluded=calibration_frames(seq))
         notes = list(dict.fromkeys(str(w.message) for w in said))
         metrics = {"sequence": prep.config["sequence"]["name"], "method": job.method,
                    "seed": job.seed, "frames": len(seq), **evaluation.metrics, **timing}

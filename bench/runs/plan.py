@@ -76,7 +76,8 @@ def jobs_for_experiment(exp: Experiment, console: Console | None = None) -> list
                             f"sequences {', '.join(unknown)}")
     return [
         Job(store=Path(s.path), method=m.name, seed=seed, out_root=exp.out_dir,
-            params=dict(m.params), lengths_m=tuple(exp.lengths_m), name=s.name,
+            params=dict(m.params), lengths_m=tuple(exp.lengths_m),
+            kitti_lengths_m=tuple(exp.kitti_lengths_m), alignment=exp.alignment, name=s.name,
             display_name=s.display_name, sensor_class=s.sensor_class, label=m.label,
             frame_range=s.frame_range)
         for s in sequences
@@ -86,10 +87,13 @@ def jobs_for_experiment(exp: Experiment, console: Console | None = None) -> list
     ]
 
 
-def single_job(method: str, data: Path, seed: bool, out: Path | None, params: dict) -> Job:
-    """One run; ``out`` is the run folder itself (default results/runs/<store>/<method_seed>)."""
+def single_job(method: str, data: Path, seed: bool, out: Path | None, params: dict,
+               scoring: dict | None = None) -> Job:
+    """One run; ``out`` is the run folder itself (default results/runs/<store>/<method_seed>);
+    ``scoring``: lengths_m, kitti_lengths_m, alignment (Job fields) other than the defaults."""
     return Job(store=Path(data), method=method, seed=seed_option(method, seed),
-               out_root=Path("results/runs"), params=params, run_dir_override=out)
+               out_root=Path("results/runs"), params=params, run_dir_override=out,
+               **{k: v for k, v in (scoring or {}).items() if v is not None})
 
 
 def plan(jobs: list[Job]) -> list[Job]:
@@ -193,6 +197,14 @@ def _lengths_problems(job: Job, path_m: float | None, warned: set[str]) -> list[
         warnings.warn(f"{name}: the ground truth's path is {path_m:.1f} m long: no segments of "
                       f"{', '.join(f'{L:g}' for L in too_long)} m (their cells stay empty)",
                       stacklevel=3)
+    kitti_short = [L for L in job.kitti_lengths_m if path_m <= L]
+    if kitti_short and f"kitti:{name}" not in warned:
+        warned.add(f"kitti:{name}")
+        warnings.warn(f"{name}: the ground truth's path is {path_m:.1f} m long: "
+                      + ("no KITTI drift (its shortest length is "
+                         f"{min(job.kitti_lengths_m):g} m)" if len(kitti_short) ==
+                         len(job.kitti_lengths_m) else "KITTI drift leaves out "
+                         f"{', '.join(f'{L:g}' for L in kitti_short)} m"), stacklevel=3)
     return []
 
 

@@ -27,6 +27,7 @@ from pathlib import Path
 
 from bench.paths import PAPER_TABLE3, PAPER_TABLE4_5
 from bench.runs.folders import load_runs
+from bench.runs.result import nan
 
 SUITE = "synthetic-paper"
 LENGTHS = ("8", "16", "24", "32", "40", "48")
@@ -132,15 +133,13 @@ def collect_runs(results_dir: Path) -> dict[tuple[str, str, bool | None], Run]:
     for rec in load_runs(Path(results_dir)):
         if rec.label:
             continue
-        rel = {n: (float(v["rot_deg_mean"]) if v["rot_deg_mean"] is not None else math.nan,
-                   float(v["trans_m_mean"]) if v["trans_m_mean"] is not None else math.nan)
-               for n, v in rec.relative_error.items()}
-        ape = rec.ape.get("trans_rmse_m")
-        t = rec.time_ms.get("mean")
+        res = rec.result
+        rel = {f"{r.length_m:g}": (nan(r.rot_deg_mean), nan(r.trans_m_mean))
+               for r in res.relative_error}
+        ape = res.ape.trans_rmse_m if res.ape is not None else None
         sensor_class = (rec.config.get("sequence") or {}).get("sensor_class") or ""
-        run = Run(rec.sequence, sensor_class, rec.method, rec.seed, rel,
-                  math.nan if t is None else float(t), None if ape is None else float(ape),
-                  bool(rec.diverged))
+        run = Run(rec.sequence, sensor_class, rec.method, rec.seed.option, rel,
+                  nan(res.time_ms.mean), ape, bool(rec.diverged))
         runs[(run.sequence, run.method, run.seed)] = run
     return runs
 

@@ -18,25 +18,29 @@ from pathlib import Path
 from bench.paths import CI_BASELINE as BASELINE
 from bench.paths import CI_EXPERIMENT
 from bench.runs.folders import load_runs
+from bench.runs.result import RunResult
 from loaders.fileio import atomic_write_text
+from methods.registry import Seed
 
 FLOOR = {"rot_deg": 0.01, "trans_m": 0.001}
 
 
-def _key(m: dict) -> str:
-    seed = {True: "seed", False: "noseed", None: "-"}[m["seed"]]
-    return f"{m['sequence']}/{m['method']}/{seed}"
+def _key(result: RunResult) -> str:
+    seed = {Seed.WITH: "seed", Seed.WITHOUT: "noseed", Seed.NONE: "-"}[result.seed]
+    return f"{result.sequence}/{result.method}/{seed}"
 
 
 def snapshot(results_dir: Path, only: set[Path] | None = None) -> dict:
-    """{run key: {"diverged", "rot_deg": {length: mean}, "trans_m": {length: mean}}}."""
+    """{run key: {"diverged", "rot_deg": {length: mean}, "trans_m": {length: mean}}} (lengths
+    written as in the baseline file: "8", "16" ...)."""
     out = {}
     for run in load_runs(results_dir, only):
-        rel = run.relative_error
-        out[_key(run.metrics)] = {
-            "diverged": bool(run.diverged),
-            "rot_deg": {k: v["rot_deg_mean"] for k, v in rel.items() if v["n"]},
-            "trans_m": {k: v["trans_m_mean"] for k, v in rel.items() if v["n"]},
+        res = run.result
+        scored = [r for r in res.relative_error if r.n]
+        out[_key(res)] = {
+            "diverged": bool(res.diverged),
+            "rot_deg": {f"{r.length_m:g}": r.rot_deg_mean for r in scored},
+            "trans_m": {f"{r.length_m:g}": r.trans_m_mean for r in scored},
         }
     return dict(sorted(out.items()))
 

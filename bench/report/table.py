@@ -1,0 +1,222 @@
+"""One table model for every results table, rendered once each to markdown, LaTeX and CSV.
+
+A ``Table`` is rows of cells under column titles, with row keys (sensor, sequence, method ...)
+on the left, rows grouped (a rule between groups; ranks are per group), a caption and
+footnotes. A cell is one or more ``Part``s ("rotation / translation"), each a formatted number
+with its rank (0 best, 1 second, 2 other: bold / underlined), or a status ("Div.", "failed",
+"-" for no value, "" for not run), and the values behind it for the CSV.
+
+Every table of the harness is built as a ``Table`` (``bench.report.tables``) and written by
+``save_table``: ``to_markdown`` (pipe table + caption + footnotes), ``to_latex`` (a booktabs
+``table`` with its caption and the synthetic notice) and ``to_csv`` (long format: one line per
+cell value, for pandas). Another renderer (HTML) needs only ``Table.rows`` / ``Row.cells`` /
+``Cell.parts`` and ``Part.rank``.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from loaders.fileio import atomic_write_text
+
+BEST, SECOND, OTHER = 0, 1, 2
+
+
+@dataclass
+class Part:
+    """A formatted value and its rank within its group and column (``OTHER``: unranked)."""
+
+    text: str
+    rank: int = OTHER
+
+
+@dataclass
+class Cell:
+    """One cell: its parts (joined by " / "), or a ``status`` text instead ("Div.", "failed",
+    "-", ""); ``values`` (quantity -> number) go to the CSV; ``note`` is a footnote number."""
+
+    parts: list[Part] = field(default_factory=list)
+    status: str | None = None
+    values: dict[str, float | None] = field(default_factory=dict)
+    note: int | None = None
+
+
+@dataclass
+class Row:
+    """A row: its key texts (one per ``Table.keys``), its ``group`` (ranked together, a rule
+    between groups), its cells (one per ``Table.columns``) and what it is (``meta``: sequence,
+    method, seed, label, status ... for the CSV)."""
+
+    keys: list[str]
+    group: tuple
+    cells: list[Cell]
+    meta: dict = field(default_factory=dict)
+
+
+@dataclass
+class Table:
+    """``keys``: the titles of the row-key columns; ``columns``: the value columns' titles."""
+
+    keys: list[str]
+    columns: list[str]
+    rows: list[Row]
+    caption: str = ""
+    footnotes: list[str] = field(default_factory=list)
+
+    def note(self, text: str) -> int:
+        """The footnote number of ``text`` (added once)."""
+        if text not in self.footnotes:
+            self.footnotes.append(text)
+        return self.footnotes.index(text) + 1
+
+
+def rank_values(values: list[float]) -> list[int]:
+    """BEST for the lowest finite value, SECOND for the next, OTHER otherwise (ties share)."""
+    finite = sorted({v for v in values if math.isfinite(v)})
+    return [finite.index(v) if math.isfinite(v) and finite.index(v) < 2 else OTHER
+            for v in values]
+
+
+def rank_column(rows: list[Row], col: int, part: int, value_of) -> None:
+    """Rank part ``part`` of column ``col`` within each group (rows with a status unranked);
+    ``value_of(row)`` gives the number ranked (lower is better)."""
+    groups: dict[tuple, list[Row]] = {}
+    for r in rows:
+        if r.cells[col].status is None and len(r.cells[col].parts) > part:
+            groups.setdefault(r.group, []).append(r)
+    for members in groups.values():
+        for r, rank in zip(members, rank_values([value_of(r) for r in members]), strict=True):
+            r.cells[col].parts[part].rank = rank
+
+
+# ---- renderers --------------------------------------------------------------------------------
+
+def _md_part(p: Part) -> str:
+    if p.text == "-":
+        return p.text
+    return {BEST: f"**{p.text}**", SECOND: f"<u>{p.text}</u>"}.get(p.rank, p.text)
+
+
+def _tex_part(p: Part) -> str:
+    return {BEST: rf"\textbf{{{p.text}}}", SECOND: rf"\underline{{{p.text}}}"}.get(p.rank,
+                                                                                   p.text)
+
+
+def _cell_text(c: Cell, part, note) -> str:
+    text = c.status if c.status is not None else " / ".join(part(p) for p in c.parts)
+    return text + (note(c.note) if c.note else "")
+
+
+def _shown_keys(table: Table) -> list[list[str]]:
+    """Row keys with repeats of the row above blanked (left to right, as in the paper)."""
+    out, prev = [], None
+    for r in table.rows:
+        keys = list(r.keys)
+        if prev is not None:
+            for i in range(len(keys) - 1):
+                if r.keys[: i + 1] != prev[: i + 1]:
+                    break
+                keys[i] = ""
+        out.append(keys)
+        prev = list(r.keys)
+    return out
+
+
+def md_escape(text: str) -> str:
+    return str(text).replace("|", r"\|")
+
+
+def to_markdown(table: Table) -> str:
+    """A pipe table, its caption and footnotes."""
+    lines = ["| " + " | ".join(md_escape(x) for x in [*table.keys, *table.columns]) + " |",
+             "|" + "---|" * (len(table.keys) + len(table.columns))]
+    for r, keys in zip(table.rows, _shown_keys(table), strict=True):
+        cells = [_cell_text(c, _md_part, lambda n: f" [{n}]") for c in r.cells]
+        lines.append("| " + " | ".join(md_escape(x) for x in [*keys, *cells]) + " |")
+    out = "\n".join(lines) + "\n\n" + table.caption + "\n"
+    if table.footnotes:
+        out += "\n" + "\n".join(f"[{i}] {md_escape(t)}" for i, t in
+                                enumerate(table.footnotes, 1)) + "\n"
+    return out
+
+
+def tex_escape(s: str) -> str:
+    """LaTeX special characters escaped."""
+    table = {"\\": r"\textbackslash{}", "&": r"\&", "%": r"\%", "$": r"\$", "#": r"\#",
+             "_": r"\_", "{": r"\{", "}": r"\}", "~": r"\textasciitilde{}",
+             "^": r"\textasciicircum{}"}
+    return "".join(table.get(ch, ch) for ch in str(s))
+
+
+def to_latex(table: Table, label: str = "") -> str:
+    """A booktabs ``table`` float: caption (with the synthetic notice), ``\\toprule``,
+    ``\\midrule`` between groups of the first key, ``\\cmidrule`` between other groups,
+    ``\\bottomrule``, footnotes below."""
+    nkeys, ncol = len(table.keys), len(table.keys) + len(table.columns)
+    out = [r"\begin{table}[t]", r"\centering", r"\footnotesize",
+           rf"\caption{{{tex_escape(table.caption)}}}"]
+    if label:
+        out.append(rf"\label{{{label}}}")
+    out += [r"\begin{tabular}{@{}" + "l" * nkeys + "c" * len(table.columns) + "@{}}",
+            r"\toprule",
+            " & ".join([*(tex_escape(k) for k in table.keys),
+                        *(rf"\textbf{{{tex_escape(c)}}}" for c in table.columns)]) + r" \\",
+            r"\midrule"]
+    prev = None
+    for r, keys in zip(table.rows, _shown_keys(table), strict=True):
+        if prev is not None and r.group != prev.group:
+            same_first = nkeys > 1 and r.keys[:1] == prev.keys[:1]
+            out.append(rf"\cmidrule{{2-{ncol}}}" if same_first else r"\midrule")
+        cells = [_cell_text(c, lambda p: _tex_part(Part(tex_escape(p.text), p.rank)),
+                            lambda n: rf"\textsuperscript{{{n}}}") for c in r.cells]
+        out.append(" & ".join([*(tex_escape(k) for k in keys), *cells]) + r" \\")
+        prev = r
+    out += [r"\bottomrule", r"\end{tabular}"]
+    if table.footnotes:
+        out.append(r"\par\smallskip\raggedright\scriptsize")
+        out += [rf"\textsuperscript{{{i}}}{tex_escape(t)}\\" for i, t in
+                enumerate(table.footnotes, 1)]
+    out.append(r"\end{table}")
+    return "\n".join(out) + "\n"
+
+
+CSV_META = ("sequence", "sensor_class", "method", "seed", "label", "status")
+
+
+def to_csv(table: Table) -> str:
+    """Long format: one line per cell value (``CSV_META`` of its row, ``row`` = its label,
+    ``column`` = its column title, ``quantity`` and ``value``; a cell with a status ("Div.",
+    "failed", "-") has it as its ``status``, and its footnote as its ``note``)."""
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow([*CSV_META, "row", "column", "quantity", "value", "note"])
+    for r in table.rows:
+        for col, c in zip(table.columns, r.cells, strict=True):
+            meta = {**r.meta, **({"status": c.status} if c.status else {})}
+            meta = ["" if meta.get(k) is None else meta[k] for k in CSV_META]
+            note = table.footnotes[c.note - 1] if c.note else ""
+            items = c.values.items() if c.values else [("", None)]
+            for quantity, value in items:
+                text = "" if value is None or not math.isfinite(value) else repr(float(value))
+                w.writerow([*meta, r.keys[-1], col, quantity, text, note])
+    return buf.getvalue()
+
+
+RENDERERS = {"md": to_markdown, "tex": to_latex, "csv": to_csv}
+
+
+def render(table: Table) -> dict[str, str]:
+    """The table in every format."""
+    return {fmt: fn(table) for fmt, fn in RENDERERS.items()}
+
+
+def save_table(table: Table, out_dir: Path, stem: str) -> dict[str, str]:
+    """Write ``<stem>.md/.tex/.csv`` atomically; return the texts by format."""
+    texts = render(table)
+    for fmt, text in texts.items():
+        atomic_write_text(Path(out_dir) / f"{stem}.{fmt}", text)
+    return texts
