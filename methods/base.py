@@ -132,6 +132,11 @@ class Odometry(ABC):
     #: what "with seed" starts from: ``CONSTANT_VELOCITY`` (the harness's guess) or the name of
     #: the method's own prior; None when ``uses_initial_guess`` is False
     motion_prior: ClassVar[str | None] = CONSTANT_VELOCITY
+    #: True for a method that uses the sequence's sensor extrinsic (``T_body_sensor``) unless
+    #: its parameter ``extrinsic_param`` is given: a run on a store whose extrinsic ``bench
+    #: calibrate`` fitted to the GT is marked in every table
+    uses_sensor_extrinsic: ClassVar[bool] = False
+    extrinsic_param: ClassVar[str | None] = None
     #: True for a method that needs raw radial Doppler in every scan: the harness refuses it,
     #: before any job runs, on a store without Doppler or with ego-compensated Doppler
     needs_doppler: ClassVar[bool] = False

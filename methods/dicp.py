@@ -152,6 +152,8 @@ def estimate_normals(points: np.ndarray, radius_m: float, max_neighbours: int,
 class Dicp(Registration):
     name = "dicp"
     reads_fields = frozenset({"doppler"})
+    uses_sensor_extrinsic = True  # T_vehicle_sensor None: the sequence's T_body_sensor
+    extrinsic_param = "T_vehicle_sensor"
     presentation = Presentation("DICP", "#9467bd", 4)
     description = "DICP, Doppler ICP (Hexsel et al. 2022; the authors' Open3D implementation)"
     needs_doppler = True

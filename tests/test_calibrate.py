@@ -190,3 +190,24 @@ def test_calibration_frames_are_excluded_by_index_whatever_the_gt_rate(loop, tmp
     metrics = run_method("icp-p2p", store, out=tmp_path / "run")
     assert metrics["frames"] == 60
     assert metrics["frames_scored"] <= 40  # frames 0-19 never scored
+
+
+def test_a_method_consuming_the_gt_fitted_extrinsic_is_marked(loop, tmp_path):
+    """dicp takes the store's extrinsic, which bench calibrate corrected with a rotation fitted
+    to the GT: its row says so; a method that does not use the extrinsic is not marked, and a
+    dicp run given its own extrinsic is not either."""
+    from bench.api import run_method
+    from bench.report.tables import select
+    from bench.runs.job import GT_EXTRINSIC_MARK
+
+    short = MemorySequence("s", loop.sensor, [loop[i] for i in range(40)], loop.ground_truth,
+                           {})
+    store = write_store(CorrectedSequence(short, np.eye(3), (0, 10), {}), tmp_path / "c.h5")
+    out = tmp_path / "results"
+    run_method("dicp", store, out=out / "s" / "dicp_seed")
+    run_method("icp-p2p", store, out=out / "s" / "icp-p2p_seed")
+    run_method("dicp", store, params={"T_vehicle_sensor": np.eye(4).tolist()},
+               out=out / "s" / "own_seed")
+    labels = sorted(r.label for r in select(out)[0])
+    assert sum(GT_EXTRINSIC_MARK in label for label in labels) == 1, labels
+    assert any("DICP " + GT_EXTRINSIC_MARK in label for label in labels), labels

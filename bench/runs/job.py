@@ -32,7 +32,7 @@ from loaders.scan import FrameRange, Sequence
 from loaders.sensor_classes import SYNTHETIC_MARK, is_synthetic, sensor_class
 from loaders.store import StoreSequence
 from methods.base import Odometry
-from methods.registry import get_method, make_method
+from methods.registry import display_name, get_method, make_method
 from metrics.kitti import KITTI_LENGTHS_M
 from metrics.relative import DEFAULT_LENGTHS_M
 
@@ -130,6 +130,20 @@ def calibration_frames(seq: Sequence) -> np.ndarray | None:
     return (index >= frames[0]) & (index < frames[1])
 
 
+#: the label mark of a run whose method used an extrinsic ``bench calibrate`` fitted to the GT
+GT_EXTRINSIC_MARK = "(extrinsic fitted to GT)"
+
+
+def extrinsic_from_gt(seq: Sequence, cls: type[Odometry], params: dict | None) -> bool:
+    """True when ``cls`` takes the store's sensor extrinsic (``uses_sensor_extrinsic``, none
+    given in ``params``) and ``bench calibrate`` corrected that extrinsic with a rotation fitted
+    to the ground truth: the run is then not independent of the GT it is scored against."""
+    calibrated = bool((seq.provenance.get("calibration") or {}).get("frames"))
+    given = getattr(cls, "extrinsic_param", None)
+    return (calibrated and bool(getattr(cls, "uses_sensor_extrinsic", False))
+            and not (given and (params or {}).get(given) is not None))
+
+
 def _method_error(job: Job, err: Exception) -> DataError:
     if isinstance(err, ValidationError):
         params = list(get_method(job.method).Params.model_fields)
@@ -172,6 +186,10 @@ def prepare(job: Job) -> Prepared:
             raise error from None
         params = getattr(method, "params", None)
         config["method"]["params"] = params.model_dump(mode="json") if params is not None else {}
+        if extrinsic_from_gt(seq, cls, job.params):
+            # the method consumes the store's extrinsic, which bench calibrate fitted to the GT
+            config["method"]["extrinsic_from_gt"] = True
+            config["label"] = f"{job.label or display_name(job.method)} {GT_EXTRINSIC_MARK}"
         identity = {"store_sha256": job.store_sha256 or store_identity(job.store),
                     "method": job.method, "frame_range": job.frame_range,
                     "params": config["method"]["params"], "seed": job.seed,
