@@ -21,11 +21,23 @@ Unknown keys, unknown methods and unknown method parameters are errors. Relative
 (``data_dir``, ``out``, sequence ``path``s) are relative to the YAML file. A method entry may
 carry a ``label`` (variants of one method: each its own folder and table row) and a
 ``sequences`` list (run it only on those sequences).
+
+Parameter sweeps (``bench.runs.sweep``): a method entry's parameter given as a list of values
+where the parameter itself takes one value (``params: {tau_spatial_m: [2.0, 3.0, 4.0]}``), or
+any parameter listed under ``sweep:`` (``sweep: {voxel_m: [0.25, 0.5], map_seconds: [0.5, 1]}``),
+expands to one labelled variant per point of the grid over those keys, labelled
+``"<label or method> key=value ..."``. A parameter whose value is itself a list (e.g.
+``angle_noise_deg: [0.4, 2.6]``) is that value in ``params``: sweep it under ``sweep:`` (a list
+of its values). An experiment with sweeps may name its ``criterion`` (the error and the lengths
+whose mean picks a sweep's best point); ``bench run`` then prints the sweep's table and choice.
+``default_differs`` says why a method's default is not the sweep's choice, where it is not
+(configs/tuning/*.yaml; tests/test_tuning.py holds every tuned default to its sweep).
 """
 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
@@ -33,6 +45,9 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 from loaders.errors import DataError, did_you_mean, validation_problems
 from methods.registry import METHODS, get_method, seed_options
 from metrics.relative import DEFAULT_LENGTHS_M
+
+if TYPE_CHECKING:
+    from bench.runs.sweep import Variant
 
 
 class _Strict(BaseModel):
@@ -57,6 +72,7 @@ class MethodEntry(_Strict):
     name: str
     label: str | None = None           # a variant's name in folders and tables
     params: dict = Field(default_factory=dict)
+    sweep: dict[str, list] | None = None  # a grid: one variant per combination of values
     seeds: list[bool] | None = None
     sequences: list[str] | None = None  # run only on these sequences (names or store stems)
 
@@ -66,18 +82,38 @@ class MethodEntry(_Strict):
             raise ValueError(f"unknown method {self.name!r}{did_you_mean(self.name, METHODS)}; "
                              f"registered: {', '.join(METHODS)}")
         Params = getattr(get_method(self.name), "Params", None)
-        if Params is not None:
+        for point in self.variants():
+            if Params is None:
+                break
             try:
-                Params.model_validate(self.params)
+                Params.model_validate(point.params)
             except ValidationError as err:
                 keys = list(Params.model_fields)
-                raise ValueError(f"{self.name} params: " + "; ".join(
+                where = f" (sweep point {point.label})" if point.point else ""
+                raise ValueError(f"{self.name} params{where}: " + "; ".join(
                     validation_problems(err, lambda loc: keys, "parameter"))) from None
         return self
+
+    def variants(self) -> list[Variant]:
+        """The runs this entry stands for: itself, or one variant per sweep point."""
+        from bench.runs.sweep import expand
+
+        return expand(self)
 
     def seed_options(self) -> list[bool | None]:
         """Seed options to run (``methods.registry.seed_options``)."""
         return seed_options(self.name, self.seeds)
+
+
+class Criterion(_Strict):
+    """How a sweep's best point is chosen: the lowest mean of ``error`` (rotation [deg] or
+    translation [m], mean relative error) over ``lengths_m`` and over the sweep's sequences.
+    Points within ``tie_within`` (a fraction) of the best count as equal and the first of them
+    in the sweep's order wins (list the cheaper or simpler values first)."""
+
+    error: Literal["rotation", "translation"]
+    lengths_m: list[float] = Field(min_length=1)
+    tie_within: float = Field(0.0, ge=0, lt=1)
 
 
 class Experiment(_Strict):
@@ -89,6 +125,8 @@ class Experiment(_Strict):
     lengths_m: list[float] = Field(default_factory=lambda: list(DEFAULT_LENGTHS_M))
     jobs: int = Field(1, ge=1)
     out: Path | None = None
+    criterion: Criterion | None = None  # picks each sweep's best point
+    default_differs: str | None = None  # why a method's default is not the sweep's choice
 
     @field_validator("lengths_m")
     @classmethod
@@ -103,10 +141,15 @@ class Experiment(_Strict):
             raise ValueError("an experiment needs a 'suite' or a list of 'sequences'")
         seen = set()
         for m in self.methods:
-            if (m.name, m.label) in seen:
-                raise ValueError(f"method {m.name!r} is listed twice: give each variant a "
-                                 "distinct 'label:'")
-            seen.add((m.name, m.label))
+            for v in m.variants():
+                if (m.name, v.label) in seen:
+                    raise ValueError(f"method {m.name!r} is listed twice: give each variant a "
+                                     "distinct 'label:'")
+                seen.add((m.name, v.label))
+        if self.criterion is not None:
+            missing = set(self.criterion.lengths_m) - set(self.lengths_m)
+            if missing:
+                raise ValueError(f"criterion lengths {sorted(missing)} are not among lengths_m")
         return self
 
     def resolved(self, base: Path) -> Experiment:
@@ -140,6 +183,7 @@ def load_experiment(path: str | Path) -> Experiment:
 
 def _known_keys(loc: tuple) -> list[str] | None:
     """The keys of the experiment model at ``loc`` (for "did you mean")."""
-    model = {(): Experiment, ("sequences",): SequenceEntry, ("methods",): MethodEntry}.get(
+    model = {(): Experiment, ("sequences",): SequenceEntry, ("methods",): MethodEntry,
+             ("criterion",): Criterion}.get(
         tuple(x for x in loc if not isinstance(x, int)))
     return list(model.model_fields) if model else None

@@ -48,12 +48,13 @@ def jobs_for_experiment(exp: Experiment, console: Console | None = None) -> list
                             f"sequences {', '.join(unknown)}")
     return [
         Job(store=Path(s.path), method=m.name, seed=seed, out_root=exp.out_dir,
-            params=dict(m.params), lengths_m=tuple(exp.lengths_m), name=s.name,
-            display_name=s.display_name, sensor_class=s.sensor_class, label=m.label,
+            params=dict(v.params), lengths_m=tuple(exp.lengths_m), name=s.name,
+            display_name=s.display_name, sensor_class=s.sensor_class, label=v.label,
             frame_range=s.frame_range)
         for s in sequences
         for m in exp.methods
         if m.sequences is None or _names(s) & set(m.sequences)
+        for v in m.variants()  # one per sweep point (bench.runs.sweep)
         for seed in m.seed_options()
     ]
 
