@@ -2,6 +2,8 @@
 
     name: paper-synthetic
     suite: synthetic-paper          # a synthetic suite, generated/cached under data_dir
+    synthetic:                      # and/or synthetic sequences of its own (generated)
+      - {name: campus-lidar-1000, scene: campus, sensor: lidar-dense, frames: 40, seed: 1000}
     sequences:                      # and/or explicit stores
       - path: data/real/Loop1_0.h5
         display_name: Loop1_0
@@ -68,6 +70,39 @@ class SequenceEntry(_Strict):
         return None if self.start == 0 and self.frames is None else (self.start, self.frames)
 
 
+class SyntheticEntry(_Strict):
+    """A synthetic sequence of the experiment's own (``loaders.synthetic``: a scene, a sensor,
+    a seed and generator options), written to ``data_dir/synthetic-entries/`` when missing
+    (bench.data.synth.ensure_entries_with_progress). What the tuning experiments (configs/tuning/) run on: the tuning seeds
+    of configs/splits.yaml, which no reported suite uses."""
+
+    name: str
+    display_name: str | None = None
+    sensor_class: str | None = None
+    scene: str
+    sensor: str
+    frames: int = Field(ge=2)
+    seed: int
+    options: dict = Field(default_factory=dict)
+
+    def suite_entry(self):
+        from loaders.sensor_classes import DENSE_LIDAR
+        from loaders.synthetic.sensors import SENSORS
+        from loaders.synthetic.suite import SuiteEntry
+
+        if self.sensor not in SENSORS:
+            raise DataError(f"unknown synthetic sensor {self.sensor!r}; known: "
+                            f"{', '.join(SENSORS)}")
+        from loaders.synthetic.scenes import SCENES
+
+        if self.scene not in SCENES:
+            raise DataError(f"unknown synthetic scene {self.scene!r}; known: {', '.join(SCENES)}")
+        kind = SENSORS[self.sensor].kind
+        klass = self.sensor_class or (DENSE_LIDAR if kind == "lidar" else "4D Radar")
+        return SuiteEntry(self.name, self.display_name or self.name, klass, self.scene,
+                          self.sensor, self.frames, self.seed, dict(self.options))
+
+
 class MethodEntry(_Strict):
     name: str
     label: str | None = None           # a variant's name in folders and tables
@@ -121,6 +156,7 @@ class Experiment(_Strict):
     suite: str | None = None
     data_dir: Path = Path("data")
     sequences: list[SequenceEntry] = Field(default_factory=list)
+    synthetic: list[SyntheticEntry] = Field(default_factory=list)
     methods: list[MethodEntry]
     lengths_m: list[float] = Field(default_factory=lambda: list(DEFAULT_LENGTHS_M))
     jobs: int = Field(1, ge=1)
@@ -137,8 +173,9 @@ class Experiment(_Strict):
 
     @model_validator(mode="after")
     def _has_data(self) -> Experiment:
-        if self.suite is None and not self.sequences:
-            raise ValueError("an experiment needs a 'suite' or a list of 'sequences'")
+        if self.suite is None and not self.sequences and not self.synthetic:
+            raise ValueError("an experiment needs a 'suite', a list of 'sequences' or of "
+                             "'synthetic' sequences")
         seen = set()
         for m in self.methods:
             for v in m.variants():
@@ -184,6 +221,6 @@ def load_experiment(path: str | Path) -> Experiment:
 def _known_keys(loc: tuple) -> list[str] | None:
     """The keys of the experiment model at ``loc`` (for "did you mean")."""
     model = {(): Experiment, ("sequences",): SequenceEntry, ("methods",): MethodEntry,
-             ("criterion",): Criterion}.get(
+             ("criterion",): Criterion, ("synthetic",): SyntheticEntry}.get(
         tuple(x for x in loc if not isinstance(x, int)))
     return list(model.model_fields) if model else None

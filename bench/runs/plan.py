@@ -29,6 +29,19 @@ def suite_sequences(suite: str, data_dir: Path, console: Console | None = None
             for p, e in zip(paths, entries, strict=True)]
 
 
+def synthetic_sequences(exp: Experiment, console: Console | None = None
+                        ) -> list[SequenceEntry]:
+    """Generate (or reuse) the experiment's own synthetic sequences under
+    ``data_dir/synthetic-entries/`` and describe their stores."""
+    from bench.data.synth import ensure_entries_with_progress
+
+    entries = [s.suite_entry() for s in exp.synthetic]
+    paths = ensure_entries_with_progress(entries, exp.data_dir / "synthetic-entries",
+                                         console)
+    return [SequenceEntry(path=p, name=e.name, display_name=e.display, sensor_class=e.klass)
+            for p, e in zip(paths, entries, strict=True)]
+
+
 def _names(entry: SequenceEntry) -> set[str]:
     return {n for n in (entry.name, Path(entry.path).stem, entry.display_name) if n}
 
@@ -37,6 +50,8 @@ def jobs_for_experiment(exp: Experiment, console: Console | None = None) -> list
     sequences = list(exp.sequences)
     if exp.suite is not None:
         sequences += suite_sequences(exp.suite, exp.data_dir, console)
+    if exp.synthetic:
+        sequences += synthetic_sequences(exp, console)
     missing = [str(s.path) for s in sequences if not Path(s.path).exists()]
     if missing:
         raise DataError(f"experiment {exp.name!r}: stores not found: {', '.join(missing)}")
