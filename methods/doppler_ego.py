@@ -90,10 +90,15 @@ DEFAULTS = {
     # about the cross-range noise at the median range: radar 0.4 deg at 70 m (tuning: real)
     # = 0.49 m; LiDAR: kiss-icp's voxel rule max_range / 100 for a 100 m sensor
     "voxel_m": (0.5, 1.0),
-    # noise in every direction [m]: radar tuning: real (48 m errors flat over 0.05-0.3 m);
+    # pair gate [m]: radar tuning: real (configs/tuning/doppler-ego-gate.yaml: the rotation
+    # error falls from 0.5 to 3 m and is flat beyond, where a wider gate only costs time; the
+    # Cauchy kernel, not the gate, keeps far pairs from pulling); LiDAR: about its 1 m voxel
+    "max_correspondence_m": (3.0, 1.0),
+    # noise in every direction [m]: radar tuning: real (configs/tuning/doppler-ego-covariance-
+    # floor.yaml: 0.1 m best, within 0.6 % over 0.05-0.15 m, 0.3 m worse);
     # LiDAR: a few cm of FMCW range precision (Aeva's CARLA script adds 0.05 m, REFERENCE.md;
     # the synthetic LiDAR prefers ever smaller floors, which would only fit its own noise)
-    "covariance_floor_m": (0.15, 0.03),
+    "covariance_floor_m": (0.1, 0.03),
     # radar: 1 s (tuning: real; 0.5 s worse, 2 s no better); LiDAR: dense scans carry their
     # own structure, 5 scans
     "map_seconds": (1.0, 0.5),
@@ -115,10 +120,8 @@ class DopplerEgoParams(MethodParams):
     cauchy_sigmas: float = Field(1.5, gt=0, description="ego velocity: Cauchy-weighted least "
                                  "squares with this scale in robust sigmas")
     voxel_m: float | None = Field(None, gt=0, description="source voxel size [m]")
-    # The translation is tied to Doppler (to mm) and the rotation predicted from the last
-    # step, so a correctly associated point lies within about a voxel diagonal (0.87 m for the
-    # radar's 0.5 m) of its nearest map point; farther pairs are wrong associations.
-    max_correspondence_m: float = Field(1.0, gt=0, description="pair gate [m]")
+    max_correspondence_m: float | None = Field(None, gt=0, description="pair gate [m] "
+                                               "(radar 3.0, LiDAR 1.0)")
     covariance_floor_m: float | None = Field(None, gt=0, description="covariance floor [m]")
     angle_noise_deg: tuple[float, float] | None = Field(
         None, description="angular noise across the ray (azimuth, elevation) [deg]: point "

@@ -177,3 +177,12 @@ def test_the_index_names_each_point_s_runs_and_the_resolved_default(tmp_path):
     assert [p["runs"][0]["dir"] for p in s["points"]] == [
         "ntu4dradlm-loop1/doppler-ego-voxel_m-0.5_seed",
         "ntu4dradlm-loop1/doppler-ego-voxel_m-1.0_seed"]
+
+
+def test_both_weighs_rotation_and_translation_by_their_means_over_the_points(tmp_path):
+    # rot 8/48: (1, 1), (2, 2); trans 8/48: (0.1, 9), (0.05, 9) -> means rot 1.5, 1.5,
+    # trans 0.075, 9: point 1: (1/1.5 + 1/1.5 + 0.1/0.075 + 1) / 4 = 0.9167, point 2:
+    # (2/1.5 * 2 + 0.05/0.075 + 1) / 4 = 1.0833
+    _fake_runs(tmp_path, [(1.0, 0.1, 1.0), (2.0, 0.05, 2.0)], "both")
+    (c,) = sweep_choices(tmp_path)
+    assert c.point == {"tau_spatial_m": 1.0} and c.value == pytest.approx(0.9166667)

@@ -13,8 +13,7 @@ from pathlib import Path
 from bench.runs.folders import read_run
 from bench.runs.sweep import format_value, read_sweep_index
 
-ERROR_KEYS = {"rotation": "rot_deg_mean", "translation": "trans_m_mean"}
-UNITS = {"rotation": "deg", "translation": "m"}
+UNITS = {"rotation": "deg", "translation": "m", "both": "(relative to the points' mean)"}
 
 
 @dataclass
@@ -41,7 +40,9 @@ class Choice:
         point = " ".join(f"{k}={format_value(v)}" for k, v in self.point.items())
         lengths = ", ".join(f"{x:g}" for x in criterion["lengths_m"])
         seed = {True: " (with seed)", False: " (no seed)", None: ""}[self.seed]
-        text = (f"chosen{seed}: {self.method} {point} (mean {criterion['error']} error at "
+        error = ("rotation and translation" if criterion["error"] == "both"
+                 else criterion["error"])
+        text = (f"chosen{seed}: {self.method} {point} (mean {error} error at "
                 f"{lengths} m: {self.value:.4g} {UNITS[criterion['error']]}")
         if criterion.get("tie_within"):
             text += f"; points within {100 * criterion['tie_within']:g} % of the best tie, "
@@ -87,14 +88,21 @@ def _errors(index: dict, results_dir: Path, sweep: dict, seed) -> tuple[list, li
     return rows, sorted(lengths)
 
 
-def _criterion_value(cells: dict | None, criterion: dict) -> float | None:
-    if cells is None:
-        return None
-    i = 0 if criterion["error"] == "rotation" else 1
-    values = [cells[float(x)][i] for x in criterion["lengths_m"] if float(x) in cells]
-    if len(values) != len(criterion["lengths_m"]):
-        return None
-    return sum(values) / len(values)
+def _criterion_values(rows: list[dict | None], criterion: dict) -> list[float | None]:
+    """Each point's criterion value (None when a run or a criterion length is missing)."""
+    lengths = [float(x) for x in criterion["lengths_m"]]
+    complete = [c if c is not None and all(x in c for x in lengths) else None for c in rows]
+    if criterion["error"] != "both":
+        i = 0 if criterion["error"] == "rotation" else 1
+        return [None if c is None else sum(c[x][i] for x in lengths) / len(lengths)
+                for c in complete]
+    scored = [c for c in complete if c is not None]
+    if not scored:
+        return [None] * len(rows)
+    # each error over the points' mean, so that degrees and metres weigh alike
+    mean = {(x, i): sum(c[x][i] for c in scored) / len(scored) for x in lengths for i in (0, 1)}
+    return [None if c is None else sum(c[x][i] / mean[(x, i)] for x in lengths for i in (0, 1))
+            / (2 * len(lengths)) for c in complete]
 
 
 def _choose(values: list[float | None], tie_within: float) -> int | None:
@@ -126,7 +134,7 @@ def sweep_choices(results_dir: Path) -> list[Choice]:
     for sweep in index["sweeps"]:
         for seed in _seeds(sweep):
             rows, _ = _errors(index, results_dir, sweep, seed)
-            values = [_criterion_value(c, criterion) for c in rows]
+            values = _criterion_values(rows, criterion)
             best = _choose(values, criterion.get("tie_within", 0.0))
             missing = [p["label"] for p, v in zip(sweep["points"], values, strict=True)
                        if v is None]
@@ -162,7 +170,8 @@ def sweep_markdown(results_dir: Path) -> str:
             best = {(x, i): min((c[x][i] for c in rows if c and x in c), default=None)
                     for x in lengths for i in (0, 1)}
             choice = choices.get((sweep["group"], seed))
-            for p, cells in zip(sweep["points"], rows, strict=True):
+            values = _criterion_values(rows, criterion) if criterion else [None] * len(rows)
+            for p, cells, v in zip(sweep["points"], rows, values, strict=True):
                 name = " ".join(f"{k}={format_value(v)}" for k, v in p["point"].items())
                 if default is not None and all(_same(v, default.get(k))
                                                for k, v in p["point"].items()):
@@ -177,7 +186,6 @@ def sweep_markdown(results_dir: Path) -> str:
                              for i, t in enumerate(parts)]
                     row.append(" / ".join(parts))
                 if criterion:
-                    v = _criterion_value(cells, criterion)
                     text = "failed or not run" if cells is None else (
                         "-" if v is None else f"{v:.4f}")
                     if choice and choice.point == p["point"]:

@@ -142,11 +142,13 @@ class MethodEntry(_Strict):
 
 class Criterion(_Strict):
     """How a sweep's best point is chosen: the lowest mean of ``error`` (rotation [deg] or
-    translation [m], mean relative error) over ``lengths_m`` and over the sweep's sequences.
-    Points within ``tie_within`` (a fraction) of the best count as equal and the first of them
-    in the sweep's order wins (list the cheaper or simpler values first)."""
+    translation [m], mean relative error) over ``lengths_m`` and over the sweep's sequences;
+    ``both``: rotation and translation, each divided by its mean over the sweep's points, then
+    averaged (for a parameter that moves both). Points within ``tie_within`` (a fraction) of
+    the best count as equal and the first of them in the sweep's order wins (list the cheaper
+    or simpler values first)."""
 
-    error: Literal["rotation", "translation"]
+    error: Literal["rotation", "translation", "both"]
     lengths_m: list[float] = Field(min_length=1)
     tie_within: float = Field(0.0, ge=0, lt=1)
 
