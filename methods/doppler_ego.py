@@ -95,10 +95,10 @@ DEFAULTS = {
     # Cauchy kernel, not the gate, keeps far pairs from pulling); LiDAR: about its 1 m voxel
     "max_correspondence_m": (3.0, 1.0),
     # noise in every direction [m]: radar tuning: real (configs/tuning/doppler-ego-covariance-
-    # floor.yaml: 0.1 m best, within 0.6 % over 0.05-0.15 m, 0.3 m worse);
+    # floor.yaml: flat within 1 % over 0.05-0.15 m, 0.3 m worse);
     # LiDAR: a few cm of FMCW range precision (Aeva's CARLA script adds 0.05 m, REFERENCE.md;
     # the synthetic LiDAR prefers ever smaller floors, which would only fit its own noise)
-    "covariance_floor_m": (0.1, 0.03),
+    "covariance_floor_m": (0.15, 0.03),
     # radar: 1 s (tuning: real; 0.5 s worse, 2 s no better); LiDAR: dense scans carry their
     # own structure, 5 scans
     "map_seconds": (1.0, 0.5),
@@ -131,7 +131,7 @@ class DopplerEgoParams(MethodParams):
     replace_within_m: float = Field(
         0.05, ge=0, description="on a sensor that re-publishes its detections, a scan's point "
         "replaces older map points within this distance [m] (each detection kept once)")
-    neighbours: int = Field(10, ge=3, description="points per covariance")
+    neighbours: int = Field(20, ge=3, description="points per covariance")
     kernel_scale: float = Field(3.0, gt=0, description="Cauchy scale, Mahalanobis [-]")
     max_iterations: int = Field(15, ge=1, description="Gauss-Newton iterations at most")
     max_source_points: int = Field(1500, ge=10, description="registration uses at most this "

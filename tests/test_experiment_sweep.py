@@ -96,7 +96,8 @@ def test_jobs_of_a_sweep_on_a_frame_range(tmp_path):
 
 # --- the table and the choice, on hand-made finished runs ---------------------------------
 
-def _fake_runs(tmp_path, errors, criterion, defaults=(2.0,), tie_within=0.0, missing=()):
+def _fake_runs(tmp_path, errors, criterion, defaults=(2.0,), tie_within=0.0, missing=(),
+               keep=0.0):
     """A finished sweep of doppler tau_spatial_m over len(errors) points on two sequences:
     errors[i] = (rot at 8 m, trans at 8 m, rot at 48 m) of point i (the same on both)."""
     points = []
@@ -119,7 +120,8 @@ def _fake_runs(tmp_path, errors, criterion, defaults=(2.0,), tie_within=0.0, mis
                        "point": {"tau_spatial_m": value}, "runs": runs})
     write_sweep_index(tmp_path, {
         "experiment": "s", "criterion": {"error": criterion, "lengths_m": [8.0, 48.0],
-                                         "tie_within": tie_within},
+                                         "tie_within": tie_within,
+                                         "keep_default_within": keep},
         "default_differs": None,
         "sweeps": [{"method": "doppler", "group": "doppler", "keys": ["tau_spatial_m"],
                     "defaults": {s: {"tau_spatial_m": d} for s, d in zip("ab", defaults)},
@@ -186,3 +188,13 @@ def test_both_weighs_rotation_and_translation_by_their_means_over_the_points(tmp
     _fake_runs(tmp_path, [(1.0, 0.1, 1.0), (2.0, 0.05, 2.0)], "both")
     (c,) = sweep_choices(tmp_path)
     assert c.point == {"tau_spatial_m": 1.0} and c.value == pytest.approx(0.9166667)
+
+
+def test_the_default_stays_unless_beaten_by_more_than_keep_default_within(tmp_path):
+    # rotation means: 1.0, 0.995 (the default, tau 2.0), 0.98: 0.98 beats it by 1.5 %
+    _fake_runs(tmp_path, [(1.0, 0, 1.0), (0.995, 0, 0.995), (0.98, 0, 0.98)], "rotation",
+               keep=0.02)
+    assert sweep_choices(tmp_path)[0].point == {"tau_spatial_m": 2.0}
+    _fake_runs(tmp_path / "b", [(1.0, 0, 1.0), (0.995, 0, 0.995), (0.98, 0, 0.98)], "rotation",
+               keep=0.01)
+    assert sweep_choices(tmp_path / "b")[0].point == {"tau_spatial_m": 3.0}

@@ -47,6 +47,9 @@ class Choice:
         if criterion.get("tie_within"):
             text += f"; points within {100 * criterion['tie_within']:g} % of the best tie, "
             text += "the first listed wins"
+        if criterion.get("keep_default_within"):
+            text += (f"; the default stays unless beaten by more than "
+                     f"{100 * criterion['keep_default_within']:g} %")
         text += ")"
         if self.default is None:
             return text + "; the default differs by sequence"
@@ -105,12 +108,29 @@ def _criterion_values(rows: list[dict | None], criterion: dict) -> list[float | 
             / (2 * len(lengths)) for c in complete]
 
 
-def _choose(values: list[float | None], tie_within: float) -> int | None:
+def _choose(values: list[float | None], criterion: dict, default: int | None = None
+            ) -> int | None:
+    """The chosen point: the first within ``tie_within`` of the lowest value; the
+    ``default``'s point instead when the choice does not beat it by more than
+    ``keep_default_within``."""
     scored = [v for v in values if v is not None]
     if not scored:
         return None
     best = min(scored)
-    return next(i for i, v in enumerate(values) if v is not None and v <= best * (1 + tie_within))
+    tie, keep = criterion.get("tie_within", 0.0), criterion.get("keep_default_within", 0.0)
+    chosen = next(i for i, v in enumerate(values) if v is not None and v <= best * (1 + tie))
+    if keep and default is not None and values[default] is not None \
+            and values[chosen] * (1 + keep) >= values[default]:
+        return default
+    return chosen
+
+
+def _default_index(sweep: dict) -> int | None:
+    default = _default(sweep)
+    if default is None:
+        return None
+    return next((i for i, p in enumerate(sweep["points"])
+                 if all(_same(v, default.get(k)) for k, v in p["point"].items())), None)
 
 
 def _seeds(sweep: dict) -> list:
@@ -135,7 +155,7 @@ def sweep_choices(results_dir: Path) -> list[Choice]:
         for seed in _seeds(sweep):
             rows, _ = _errors(index, results_dir, sweep, seed)
             values = _criterion_values(rows, criterion)
-            best = _choose(values, criterion.get("tie_within", 0.0))
+            best = _choose(values, criterion, _default_index(sweep))
             missing = [p["label"] for p, v in zip(sweep["points"], values, strict=True)
                        if v is None]
             choices.append(Choice(sweep["method"], sweep["group"], seed,

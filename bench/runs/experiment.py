@@ -146,11 +146,14 @@ class Criterion(_Strict):
     ``both``: rotation and translation, each divided by its mean over the sweep's points, then
     averaged (for a parameter that moves both). Points within ``tie_within`` (a fraction) of
     the best count as equal and the first of them in the sweep's order wins (list the cheaper
-    or simpler values first)."""
+    or simpler values first). ``keep_default_within``: the method's default stays chosen
+    unless the chosen point beats it by more than this fraction (a default changes only on a
+    difference the sweep resolves)."""
 
     error: Literal["rotation", "translation", "both"]
     lengths_m: list[float] = Field(min_length=1)
     tie_within: float = Field(0.0, ge=0, lt=1)
+    keep_default_within: float = Field(0.0, ge=0, lt=1)
 
 
 class Experiment(_Strict):
