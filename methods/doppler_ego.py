@@ -95,10 +95,10 @@ DEFAULTS = {
     # Cauchy kernel, not the gate, keeps far pairs from pulling); LiDAR: about its 1 m voxel
     "max_correspondence_m": (3.0, 1.0),
     # noise in every direction [m]: radar tuning: real (configs/tuning/doppler-ego-covariance-
-    # floor.yaml: flat within 1 % over 0.05-0.15 m, 0.3 m worse);
+    # floor.yaml: flat within 0.7 % over 0.02-0.1 m, 0.15 m 2 % worse, 0.3 m 8 %);
     # LiDAR: a few cm of FMCW range precision (Aeva's CARLA script adds 0.05 m, REFERENCE.md;
     # the synthetic LiDAR prefers ever smaller floors, which would only fit its own noise)
-    "covariance_floor_m": (0.15, 0.03),
+    "covariance_floor_m": (0.02, 0.03),
     # radar: 1 s (tuning: real; 0.5 s worse, 2 s no better); LiDAR: dense scans carry their
     # own structure, 5 scans
     "map_seconds": (1.0, 0.5),
