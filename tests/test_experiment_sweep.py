@@ -118,13 +118,14 @@ def _fake_runs(tmp_path, errors, criterion, defaults=(2.0,), tie_within=0.0, mis
                  "relative_error": rel_err}))
         points.append({"label": f"doppler tau_spatial_m={value}",
                        "point": {"tau_spatial_m": value}, "runs": runs})
+    seqs = "ab"[:len(defaults)]
     write_sweep_index(tmp_path, {
         "experiment": "s", "criterion": {"error": criterion, "lengths_m": [8.0, 48.0],
                                          "tie_within": tie_within,
                                          "keep_default_within": keep},
         "default_differs": None,
         "sweeps": [{"method": "doppler", "group": "doppler", "keys": ["tau_spatial_m"],
-                    "defaults": {s: {"tau_spatial_m": d} for s, d in zip("ab", defaults)},
+                    "defaults": {s: {"tau_spatial_m": d} for s, d in zip(seqs, defaults, strict=True)},
                     "points": points}]})
 
 

@@ -73,8 +73,9 @@ class SequenceEntry(_Strict):
 class SyntheticEntry(_Strict):
     """A synthetic sequence of the experiment's own (``loaders.synthetic``: a scene, a sensor,
     a seed and generator options), written to ``data_dir/synthetic-entries/`` when missing
-    (bench.data.synth.ensure_entries_with_progress). What the tuning experiments (configs/tuning/) run on: the tuning seeds
-    of configs/splits.yaml, which no reported suite uses."""
+    (bench.data.synth.ensure_entries_with_progress). What the tuning experiments
+    (configs/tuning/) run on: the tuning seeds of configs/splits.yaml, which no reported suite
+    uses."""
 
     name: str
     display_name: str | None = None
@@ -117,13 +118,13 @@ class MethodEntry(_Strict):
             raise ValueError(f"unknown method {self.name!r}{did_you_mean(self.name, METHODS)}; "
                              f"registered: {', '.join(METHODS)}")
         Params = getattr(get_method(self.name), "Params", None)
+        keys = [] if Params is None else list(Params.model_fields)
         for point in self.variants():
             if Params is None:
                 break
             try:
                 Params.model_validate(point.params)
             except ValidationError as err:
-                keys = list(Params.model_fields)
                 where = f" (sweep point {point.label})" if point.point else ""
                 raise ValueError(f"{self.name} params{where}: " + "; ".join(
                     validation_problems(err, lambda loc: keys, "parameter"))) from None
