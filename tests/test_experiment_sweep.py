@@ -125,7 +125,8 @@ def _fake_runs(tmp_path, errors, criterion, defaults=(2.0,), tie_within=0.0, mis
                                          "keep_default_within": keep},
         "default_differs": None,
         "sweeps": [{"method": "doppler", "group": "doppler", "keys": ["tau_spatial_m"],
-                    "defaults": {s: {"tau_spatial_m": d} for s, d in zip(seqs, defaults, strict=True)},
+                    "defaults": {s: {"tau_spatial_m": d}
+                                 for s, d in zip(seqs, defaults, strict=True)},
                     "points": points}]})
 
 
