@@ -189,10 +189,21 @@ def table(
     variants: Annotated[bool, typer.Option(
         help="include labelled variants (e.g. ablations); --no-variants: plain methods only")]
     = True,
+    sweep: Annotated[bool, typer.Option(
+        help="the experiment's parameter sweeps: one row per point, the best per length in "
+        "bold, the criterion's choice beside the default")] = False,
 ) -> None:
     """Print a table (by default the paper-shaped Table III) and write table.md / .tex / .csv
     (table_<metric>.* for another metric)."""
     from bench.report.commands import table_command
+
+    if sweep:
+        from bench.report.tables_sweep import sweep_markdown
+
+        if len(results_dirs) != 1:
+            raise DataError("--sweep reads one results folder (the sweep experiment's out)")
+        sys.stdout.write(sweep_markdown(results_dirs[0]))
+        raise typer.Exit(0)
 
     raise typer.Exit(table_command(console, status, list(results_dirs), format, out, lengths,
                                    pivot, methods, variants, metric))

@@ -57,6 +57,7 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
     from bench.runs.job import summarize
     from bench.runs.plan import jobs_for_experiment, plan, single_job
     from bench.runs.progress import run_jobs
+    from bench.runs.sweep import sweep_index
 
     if executor not in EXECUTORS:
         raise DataError(f"unknown executor {executor!r}; choose from {', '.join(EXECUTORS)}")
@@ -76,6 +77,7 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
             exp.out = out
         job_list = plan(jobs_for_experiment(exp, console))
         workers, results_dir = jobs or exp.jobs, exp.out_dir
+        sweeps = sweep_index(exp, job_list)
     else:
         if method is None or data is None:
             raise DataError("give an EXPERIMENT.yaml, or --method M --data PATH.h5 [--out DIR]")
@@ -85,7 +87,7 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
         job_list = plan([single_job(method, data, seed is not False, out, params,
                                     {k: tuple(v) if isinstance(v, list) else v
                                      for k, v in given.items()})])
-        workers, results_dir = 1, None
+        workers, results_dir, sweeps = 1, None, None
     outcomes = run_jobs(job_list, console, workers, force, executor, job_timeout, scheduler)
     console.print(summarize(outcomes), markup=False)
     if results_dir is not None and any(o.status in ("done", "skipped") for o in outcomes):
@@ -93,9 +95,24 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
 
         # tables are never wrapped mid-row (a terminal narrower than a row scrolls instead)
         console.print(write_tables(results_dir)["md"], markup=False, soft_wrap=True)
+        if sweeps is not None:
+            print_sweeps(results_dir, sweeps, console)
     elif results_dir is None and outcomes and outcomes[0].run_dir is not None:
         print_run_summary(outcomes[0].run_dir, console)
     return 1 if any(o.status not in ("done", "skipped") for o in outcomes) else 0
+
+
+def print_sweeps(results_dir: Path, index: dict, console: Console) -> None:
+    """Write the experiment's sweep index and its sweep table (sweep.md), and print the table
+    with each sweep's chosen point (bench/report/tables_sweep.py)."""
+    from bench.report.tables_sweep import sweep_markdown
+    from bench.runs.sweep import write_sweep_index
+    from loaders.fileio import atomic_write_text
+
+    write_sweep_index(results_dir, index)
+    text = sweep_markdown(results_dir)
+    atomic_write_text(Path(results_dir) / "sweep.md", text)
+    console.print(text, markup=False, soft_wrap=True)
 
 
 def print_run_summary(run_dir: Path, console: Console) -> None:

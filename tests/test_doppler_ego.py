@@ -104,7 +104,7 @@ def test_sensor_defaults_and_registry():
     assert radar.params.threshold_mps > lidar.params.threshold_mps
     assert radar.params.map_seconds > lidar.params.map_seconds
     assert lidar.params.voxel_m == 0.7  # an explicit value is kept
-    assert seed_options("doppler-ego") == [True, False]  # own motion prior, or none
+    assert seed_options("doppler-ego") == [True, False]  # constant-velocity guess, or none
 
 
 def test_repeated_detections_are_told_from_independent_ones():

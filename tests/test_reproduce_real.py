@@ -47,7 +47,9 @@ def test_a_real_reproduction_says_what_it_found_checked_and_wrote(data_dir, tmp_
     # only the tables with rows: no table5 (no tunnel), the old one removed
     assert (out / "table3.md").exists() and (out / "table4.md").exists()
     assert not (out / "table5.md").exists()
-    assert f"wrote {out}/table3.{{md,tex,csv}}, {out}/table4.{{md,tex,csv}}" in text
+    for stem in ("table3", "table3_kitti", "table3_velocity", "table4"):
+        assert f"{out}/{stem}.{{md,tex,csv}}" in text
+    assert f"{out}/table5.{{md,tex,csv}}" not in text
     assert "table5.{" not in text
     assert ("not written: table5 (none of its sequences found (Tunnel_Empty, "
             "Tunnel_Vehicles))") in text

@@ -60,3 +60,27 @@ def ensure_suite_with_progress(suite: str, data_dir: Path,
             progress.update(tasks[name], completed=done)
 
         return synthetic.ensure_suite(suite, data_dir, progress=report)
+
+
+def ensure_entries_with_progress(entries: list, out_dir: Path,
+                                 console: Console | None = None) -> list[Path]:
+    """Write the stores of synthetic ``entries`` (``loaders.synthetic.SuiteEntry``; an
+    experiment's own ``synthetic:`` sequences, e.g. the tuning seeds of configs/tuning/) under
+    ``out_dir`` as ``<name>-<entry hash>.h5`` (so experiments that list the same sequence
+    share its store), only missing ones, with a progress bar each."""
+    from loaders.store import write_store
+    from loaders.synthetic.suite import store_is_current
+
+    paths = []
+    with Progress(TextColumn("[bold]{task.description}"), BarColumn(), MofNCompleteColumn(),
+                  TimeElapsedColumn(), console=console or Console()) as progress:
+        for entry in entries:
+            path = Path(out_dir) / f"{entry.name}-{entry.entry_hash()}.h5"
+            if not store_is_current(path, entry):
+                task = progress.add_task(escape(f"{out_dir.name}/{entry.name}"),
+                                         total=entry.frames)
+                path.parent.mkdir(parents=True, exist_ok=True)
+                write_store(entry.sequence(out_dir.name), path,
+                            lambda i, _t=task: progress.update(_t, completed=i + 1))
+            paths.append(path)
+    return paths

@@ -2,6 +2,8 @@
 
     name: paper-synthetic
     suite: synthetic-paper          # a synthetic suite, generated/cached under data_dir
+    synthetic:                      # and/or synthetic sequences of its own (generated)
+      - {name: campus-lidar-1000, scene: campus, sensor: lidar-dense, frames: 40, seed: 1000}
     sequences:                      # and/or explicit stores
       - path: data/real/Loop1_0.h5
         display_name: Loop1_0
@@ -28,6 +30,17 @@ A sequence ``path`` may be a glob (``data/real/NTU4DRadLM_*.h5``): every matchin
 sequence, named by its file stem, in natural order. With ``optional: true`` a path that matches
 nothing is skipped with one line (naming its ``dataset``) instead of being an error: an
 experiment over whichever converted stores exist (``configs/experiments/public.yaml``).
+
+Parameter sweeps (``bench.runs.sweep``): a method entry's parameter given as a list of values
+where the parameter itself takes one value (``params: {tau_spatial_m: [2.0, 3.0, 4.0]}``), or
+any parameter listed under ``sweep:`` (``sweep: {voxel_m: [0.25, 0.5], map_seconds: [0.5, 1]}``),
+expands to one labelled variant per point of the grid over those keys, labelled
+``"<label or method> key=value ..."``. A parameter whose value is itself a list (e.g.
+``angle_noise_deg: [0.4, 2.6]``) is that value in ``params``: sweep it under ``sweep:`` (a list
+of its values). An experiment with sweeps may name its ``criterion`` (the error and the lengths
+whose mean picks a sweep's best point); ``bench run`` then prints the sweep's table and choice.
+``default_differs`` says why a method's default is not the sweep's choice, where it is not
+(configs/tuning/*.yaml; tests/test_tuning.py holds every tuned default to its sweep).
 """
 
 from __future__ import annotations
@@ -36,6 +49,7 @@ import glob
 import os
 import re
 from pathlib import Path
+from typing import TYPE_CHECKING, Literal
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
@@ -45,6 +59,9 @@ from methods.registry import METHODS, get_method, seed_options
 from metrics.ape import Alignment
 from metrics.kitti import KITTI_LENGTHS_M
 from metrics.relative import DEFAULT_LENGTHS_M, MetricError
+
+if TYPE_CHECKING:
+    from bench.runs.sweep import Variant
 
 
 class _Strict(BaseModel):
@@ -71,10 +88,45 @@ class SequenceEntry(_Strict):
         return None if self.start == 0 and self.frames is None else (self.start, self.frames)
 
 
+class SyntheticEntry(_Strict):
+    """A synthetic sequence of the experiment's own (``loaders.synthetic``: a scene, a sensor,
+    a seed and generator options), written to ``data_dir/synthetic-entries/`` when missing
+    (bench.data.synth.ensure_entries_with_progress). What the tuning experiments
+    (configs/tuning/) run on: the tuning seeds of configs/splits.yaml, which no reported suite
+    uses."""
+
+    name: str
+    display_name: str | None = None
+    sensor_class: str | None = None
+    scene: str
+    sensor: str
+    frames: int = Field(ge=2)
+    seed: int
+    options: dict = Field(default_factory=dict)
+
+    def suite_entry(self):
+        from loaders.sensor_classes import DENSE_LIDAR
+        from loaders.synthetic.sensors import SENSORS
+        from loaders.synthetic.suite import SuiteEntry
+
+        if self.sensor not in SENSORS:
+            raise DataError(f"unknown synthetic sensor {self.sensor!r}; known: "
+                            f"{', '.join(SENSORS)}")
+        from loaders.synthetic.scenes import SCENES
+
+        if self.scene not in SCENES:
+            raise DataError(f"unknown synthetic scene {self.scene!r}; known: {', '.join(SCENES)}")
+        kind = SENSORS[self.sensor].kind
+        klass = self.sensor_class or (DENSE_LIDAR if kind == "lidar" else "4D Radar")
+        return SuiteEntry(self.name, self.display_name or self.name, klass, self.scene,
+                          self.sensor, self.frames, self.seed, dict(self.options))
+
+
 class MethodEntry(_Strict):
     name: str
     label: str | None = None           # a variant's name in folders and tables
     params: dict = Field(default_factory=dict)
+    sweep: dict[str, list] | None = None  # a grid: one variant per combination of values
     seeds: list[bool] | None = None
     sequences: list[str] | None = None  # run only on these sequences (names or store stems)
 
@@ -84,18 +136,43 @@ class MethodEntry(_Strict):
             raise ValueError(f"unknown method {self.name!r}{did_you_mean(self.name, METHODS)}; "
                              f"registered: {', '.join(METHODS)}")
         Params = getattr(get_method(self.name), "Params", None)
-        if Params is not None:
+        keys = [] if Params is None else list(Params.model_fields)
+        for point in self.variants():
+            if Params is None:
+                break
             try:
-                Params.model_validate(self.params)
+                Params.model_validate(point.params)
             except ValidationError as err:
-                keys = list(Params.model_fields)
-                raise ValueError(f"{self.name} params: " + "; ".join(
+                where = f" (sweep point {point.label})" if point.point else ""
+                raise ValueError(f"{self.name} params{where}: " + "; ".join(
                     validation_problems(err, lambda loc: keys, "parameter"))) from None
         return self
+
+    def variants(self) -> list[Variant]:
+        """The runs this entry stands for: itself, or one variant per sweep point."""
+        from bench.runs.sweep import expand
+
+        return expand(self)
 
     def seed_options(self) -> list[bool | None]:
         """Seed options to run (``methods.registry.seed_options``)."""
         return seed_options(self.name, self.seeds)
+
+
+class Criterion(_Strict):
+    """How a sweep's best point is chosen: the lowest mean of ``error`` (rotation [deg] or
+    translation [m], mean relative error) over ``lengths_m`` and over the sweep's sequences;
+    ``both``: rotation and translation, each divided by its mean over the sweep's points, then
+    averaged (for a parameter that moves both). Points within ``tie_within`` (a fraction) of
+    the best count as equal and the first of them in the sweep's order wins (list the cheaper
+    or simpler values first). ``keep_default_within``: the method's default stays chosen
+    unless the chosen point beats it by more than this fraction (a default changes only on a
+    difference the sweep resolves)."""
+
+    error: Literal["rotation", "translation", "both"]
+    lengths_m: list[float] = Field(min_length=1)
+    tie_within: float = Field(0.0, ge=0, lt=1)
+    keep_default_within: float = Field(0.0, ge=0, lt=1)
 
 
 class Experiment(_Strict):
@@ -103,6 +180,7 @@ class Experiment(_Strict):
     suite: str | None = None
     data_dir: Path = Path("data")
     sequences: list[SequenceEntry] = Field(default_factory=list)
+    synthetic: list[SyntheticEntry] = Field(default_factory=list)
     methods: list[MethodEntry]
     lengths_m: list[float] = Field(default_factory=lambda: list(DEFAULT_LENGTHS_M))
     #: KITTI drift's segment lengths [m] and the APE alignment (metrics.Alignment: none,
@@ -111,6 +189,8 @@ class Experiment(_Strict):
     alignment: str = "se3"
     jobs: int = Field(1, ge=1)
     out: Path | None = None
+    criterion: Criterion | None = None  # picks each sweep's best point
+    default_differs: str | None = None  # why a method's default is not the sweep's choice
 
     @field_validator("lengths_m", "kitti_lengths_m")
     @classmethod
@@ -130,14 +210,20 @@ class Experiment(_Strict):
 
     @model_validator(mode="after")
     def _has_data(self) -> Experiment:
-        if self.suite is None and not self.sequences:
-            raise ValueError("an experiment needs a 'suite' or a list of 'sequences'")
+        if self.suite is None and not self.sequences and not self.synthetic:
+            raise ValueError("an experiment needs a 'suite', a list of 'sequences' or of "
+                             "'synthetic' sequences")
         seen = set()
         for m in self.methods:
-            if (m.name, m.label) in seen:
-                raise ValueError(f"method {m.name!r} is listed twice: give each variant a "
-                                 "distinct 'label:'")
-            seen.add((m.name, m.label))
+            for v in m.variants():
+                if (m.name, v.label) in seen:
+                    raise ValueError(f"method {m.name!r} is listed twice: give each variant a "
+                                     "distinct 'label:'")
+                seen.add((m.name, v.label))
+        if self.criterion is not None:
+            missing = set(self.criterion.lengths_m) - set(self.lengths_m)
+            if missing:
+                raise ValueError(f"criterion lengths {sorted(missing)} are not among lengths_m")
         return self
 
     def resolved(self, base: Path) -> Experiment:
@@ -171,7 +257,8 @@ def load_experiment(path: str | Path) -> Experiment:
 
 def _known_keys(loc: tuple) -> list[str] | None:
     """The keys of the experiment model at ``loc`` (for "did you mean")."""
-    model = {(): Experiment, ("sequences",): SequenceEntry, ("methods",): MethodEntry}.get(
+    model = {(): Experiment, ("sequences",): SequenceEntry, ("methods",): MethodEntry,
+             ("criterion",): Criterion, ("synthetic",): SyntheticEntry}.get(
         tuple(x for x in loc if not isinstance(x, int)))
     return list(model.model_fields) if model else None
 

@@ -34,6 +34,19 @@ def suite_sequences(suite: str, data_dir: Path, console: Console | None = None
             for p, e in zip(paths, entries, strict=True)]
 
 
+def synthetic_sequences(exp: Experiment, console: Console | None = None
+                        ) -> list[SequenceEntry]:
+    """Generate (or reuse) the experiment's own synthetic sequences under
+    ``data_dir/synthetic-entries/`` and describe their stores."""
+    from bench.data.synth import ensure_entries_with_progress
+
+    entries = [s.suite_entry() for s in exp.synthetic]
+    paths = ensure_entries_with_progress(entries, exp.data_dir / "synthetic-entries",
+                                         console)
+    return [SequenceEntry(path=p, name=e.name, display_name=e.display, sensor_class=e.klass)
+            for p, e in zip(paths, entries, strict=True)]
+
+
 def _names(entry: SequenceEntry) -> set[str]:
     return {n for n in (entry.name, Path(entry.path).stem, entry.display_name) if n}
 
@@ -60,6 +73,8 @@ def jobs_for_experiment(exp: Experiment, console: Console | None = None) -> list
     sequences = expand_sequences(list(exp.sequences), say)
     if exp.suite is not None:
         sequences += suite_sequences(exp.suite, exp.data_dir, console)
+    if exp.synthetic:
+        sequences += synthetic_sequences(exp, console)
     if not sequences:
         raise DataError(f"experiment {exp.name!r}: none of its stores exist (convert them "
                         "first: `bench datasets` lists the commands)")
@@ -76,13 +91,14 @@ def jobs_for_experiment(exp: Experiment, console: Console | None = None) -> list
                             f"sequences {', '.join(unknown)}")
     return [
         Job(store=Path(s.path), method=m.name, seed=seed, out_root=exp.out_dir,
-            params=dict(m.params), lengths_m=tuple(exp.lengths_m),
+            params=dict(v.params), lengths_m=tuple(exp.lengths_m),
             kitti_lengths_m=tuple(exp.kitti_lengths_m), alignment=exp.alignment, name=s.name,
-            display_name=s.display_name, sensor_class=s.sensor_class, label=m.label,
+            display_name=s.display_name, sensor_class=s.sensor_class, label=v.label,
             frame_range=s.frame_range)
         for s in sequences
         for m in exp.methods
         if _wanted(s, m.sequences)
+        for v in m.variants()  # one per sweep point (bench.runs.sweep)
         for seed in m.seed_options()
     ]
 
