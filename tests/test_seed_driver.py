@@ -17,6 +17,8 @@ closer to the truth than from the inverted prior.
 
 from __future__ import annotations
 
+from typing import ClassVar
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
@@ -45,8 +47,8 @@ class SpyRegistration(Registration):
     name = "test-spy"
     description = "test only: records the initial guesses of the driver"
 
-    def __init__(self, **kwargs) -> None:
-        super().__init__(**kwargs)
+    def __init__(self, params=None, **overrides) -> None:
+        super().__init__(params, **overrides)
         self.inits: list[np.ndarray] = []
         self.answers: list[np.ndarray] = []
 
@@ -194,3 +196,36 @@ def test_the_prior_beats_its_inverse(name, drive):
     lost = not bad.converged or err_bad > 0.1
     assert lost or (good.iterations < bad.iterations and err_good <= err_bad + 1e-6), \
         (good.iterations, bad.iterations, err_good, err_bad)
+
+
+# the harness passes the seed option through ------------------------------------------------
+
+class RecordingSpy(SpyRegistration):
+    """Records each ``run``'s guesses in a list of its own (class-wide: the harness makes its
+    own instance), so the warm-up's run is told apart from the timed one."""
+
+    name = "test-recording-spy"
+    runs: ClassVar[list[list[np.ndarray]]] = []
+
+    def run(self, sequence, seed, on_frame=None):
+        self.inits = []
+        RecordingSpy.runs.append(self.inits)
+        return super().run(sequence, seed, on_frame)
+
+
+@pytest.mark.parametrize("seed", [False, True])
+def test_a_job_runs_the_seed_option_it_names(seed, tmp_path, monkeypatch):
+    from bench.runs.job import Job, run_job
+    from loaders.store import write_store
+    from methods import registry
+
+    monkeypatch.setitem(registry.METHODS, RecordingSpy.name, RecordingSpy)
+    monkeypatch.setattr(RecordingSpy, "runs", [])
+    store = write_store(constant_twist_sequence(n_frames=8, n_points=300), tmp_path / "s.h5")
+    outcome = run_job(Job(store=store, method=RecordingSpy.name, seed=seed, out_root=tmp_path,
+                          lengths_m=(2.0,)))
+    assert outcome.status == "done", outcome.message
+    timed = max(RecordingSpy.runs, key=len)  # the run over the whole sequence
+    assert len(timed) == 7
+    moved = [not np.array_equal(init, np.eye(4)) for init in timed]
+    assert moved == [False] + [seed] * 6
