@@ -1,8 +1,10 @@
-"""CI regression: every method on small synthetic sequences of every sensor class against the
-committed baseline (configs/ci/baseline.json). Accept a deliberate change with
-`bench regress --update`."""
+"""CI regression: every method, seeded and not, on small synthetic sequences of every sensor
+class against the committed baseline (configs/ci/baseline.json), two-sided: errors that grow
+fail, errors that drop and runs not in the baseline wait for review. Accept a deliberate
+change with `bench regress --update`."""
 
 import copy
+from pathlib import Path
 
 import pytest
 from typer.testing import CliRunner
@@ -12,16 +14,39 @@ from bench.runs.experiment import load_experiment
 from bench.runs.plan import jobs_for_experiment, plan
 from bench.runs.progress import run_jobs
 from bench.studies import regress as rg
+from methods.registry import METHODS
 
 
 @pytest.fixture(scope="module")
-def current(tmp_path_factory, ci_data_dir):
+def ci_out(tmp_path_factory, ci_data_dir) -> Path:
+    """The CI experiment's runs, once per module (the CLI tests below reuse them)."""
     exp = load_experiment(rg.CI_EXPERIMENT)
     exp.data_dir = ci_data_dir
     exp.out = tmp_path_factory.mktemp("ci")
     outcomes = run_jobs(plan(jobs_for_experiment(exp)), workers=2)
     assert all(o.status == "done" for o in outcomes), [o.message for o in outcomes]
-    return rg.snapshot(exp.out)
+    return exp.out
+
+
+@pytest.fixture(scope="module")
+def current(ci_out):
+    return rg.snapshot(ci_out)
+
+
+def test_the_ci_experiment_covers_seeded_and_unseeded_runs(current):
+    runs = {tuple(key.split("/")) for key in current}
+    sequences = {seq for seq, _, _ in runs}
+    for name in (n for n in METHODS if not n.startswith("test-")):
+        tags = ("seed", "noseed") if METHODS[name].uses_initial_guess else ("-",)
+        for seq in sequences:
+            for tag in tags:
+                assert (seq, name, tag) in runs, (seq, name, tag)
+
+
+def test_every_ci_run_is_in_the_committed_baseline(current):
+    new = [str(f) for f in rg.check(rg.read_baseline(), current) if f.kind == rg.NEW_RUN]
+    assert not new, "\n".join(new) + "\n(checked against nothing: after merging, regenerate " \
+        "the baseline with `bench regress --update` and commit it)"
 
 
 def test_no_method_regressed_against_the_committed_baseline(current):
@@ -30,8 +55,18 @@ def test_no_method_regressed_against_the_committed_baseline(current):
     assert not bad, "\n".join(bad) + "\n(deliberate? accept it with `bench regress --update`)"
 
 
+def test_no_error_dropped_without_review(current):
+    """A bug can shrink errors as well as grow them (scoring the wrong frames, a prior taken
+    from the ground truth): an error that drops by more than the tolerance fails until it is
+    accepted."""
+    findings = rg.check(rg.read_baseline(), current)
+    improved = [str(f) for f in findings if f.kind == rg.IMPROVED]
+    assert not improved, "\n".join(improved) + "\n(review it, then accept it with " \
+        "`bench regress --update`)"
+
+
 def test_a_deliberately_degraded_method_is_caught(current, tmp_path, ci_data_dir):
-    baseline = rg.read_baseline()
+    baseline = copy.deepcopy(current)
     # doppler with a feature gate 100x too tight: fewer, worse correspondences
     store = ci_data_dir / "synthetic-ci" / "ci-semidense.h5"
     run_method("doppler", store, params={"tau_doppler": 0.05},
@@ -48,22 +83,76 @@ def test_a_deliberately_degraded_method_is_caught(current, tmp_path, ci_data_dir
     assert any(f.regression and f.what == "run" for f in rg.check(baseline, gone))
 
 
-def test_regress_update_rewrites_the_baseline_and_prints_the_diff(tmp_path, monkeypatch,
-                                                                   ci_data_dir):
+def test_an_improvement_and_a_new_run_are_flagged_for_review(current):
+    baseline = copy.deepcopy(current)
+    run = "ci-semidense/icp-p2p/noseed"
+    baseline[run]["trans_m"]["8"] = current[run]["trans_m"]["8"] * 2.0 + 0.01  # now halved
+    baseline[run]["rot_deg"]["8"] = current[run]["rot_deg"]["8"] * 1.05  # within tolerance
+    del baseline["ci-wall/dicp/seed"]
+    findings = {(f.run, f.what): f for f in rg.check(baseline, current)}
+    assert findings[run, "trans_m at 8 m"].kind == rg.IMPROVED
+    assert findings[run, "rot_deg at 8 m"].kind == rg.CHANGED
+    assert findings["ci-wall/dicp/seed", "run"].kind == rg.NEW_RUN
+    assert "! improved: review" in str(findings[run, "trans_m at 8 m"])
+    assert "new run, not in baseline" in str(findings["ci-wall/dicp/seed", "run"])
+    assert not any(f.regression for f in findings.values())
+    assert {f.kind for f in rg.failing(list(findings.values()))} == {rg.IMPROVED, rg.NEW_RUN}
+    assert {f.kind for f in rg.failing(list(findings.values()), accept_improvements=True)} \
+        == {rg.NEW_RUN}
+    # a run that no longer diverges is an improvement too
+    was_diverged = copy.deepcopy(current)
+    was_diverged[run]["diverged"] = True
+    assert [f.kind for f in rg.check(was_diverged, current) if f.what == "diverged"] == \
+        [rg.IMPROVED]
+
+
+def test_regress_exits_by_the_findings_and_update_rewrites_the_baseline(
+        tmp_path, monkeypatch, ci_data_dir, ci_out, current):
     from bench.cli import app
 
-    old = rg.read_baseline()
-    stale = copy.deepcopy(old)
-    stale["ci-sparse/doppler/-"]["trans_m"]["8"] *= 0.5
     path = tmp_path / "baseline.json"
-    rg.write_baseline(stale, path)
     monkeypatch.setattr(rg, "BASELINE", path)
-    where = ["--data-dir", str(ci_data_dir), "--out", str(tmp_path / "ci")]
-    res = CliRunner().invoke(app, ["regress", *where])
-    assert res.exit_code == 1 and "REGRESSION  ci-sparse/doppler/-  trans_m at 8 m" in res.output
-    res = CliRunner().invoke(app, ["regress", "--update", *where])
-    assert res.exit_code == 0 and "ci-sparse/doppler/-  trans_m at 8 m" in res.output
-    _assert_same_run(rg.read_baseline(path)["ci-sparse/doppler/-"], old["ci-sparse/doppler/-"])
+    where = ["--data-dir", str(ci_data_dir), "--out", str(ci_out)]  # every run reused
+
+    def regress(*options):
+        return CliRunner().invoke(app, ["regress", *where, *options])
+
+    rg.write_baseline(current, path)
+    res = regress()
+    assert res.exit_code == 0 and "0 regressions, 0 improvements" in res.output, res.output
+    # an error that halved: "! improved: review", exit 1 unless accepted
+    stale = copy.deepcopy(current)
+    stale["ci-sparse/doppler/-"]["trans_m"]["8"] *= 2.0
+    rg.write_baseline(stale, path)
+    res = regress()
+    assert res.exit_code == 1 and "! improved: review  ci-sparse/doppler/-  trans_m at 8 m" \
+        in res.output, res.output
+    assert regress("--accept-improvements").exit_code == 0
+    # an error that doubled: a regression, whatever is accepted
+    stale = copy.deepcopy(current)
+    stale["ci-sparse/doppler/-"]["trans_m"]["8"] *= 0.5
+    rg.write_baseline(stale, path)
+    res = regress("--accept-improvements")
+    assert res.exit_code == 1 and "REGRESSION  ci-sparse/doppler/-  trans_m at 8 m" \
+        in res.output, res.output
+    # a run the baseline lacks: checked against nothing, so it fails with what to do
+    stale = copy.deepcopy(current)
+    del stale["ci-tunnel/gicp/noseed"]
+    rg.write_baseline(stale, path)
+    res = regress("--accept-improvements")
+    assert res.exit_code == 1 and "new run, not in baseline  ci-tunnel/gicp/noseed" \
+        in res.output and "run `bench regress --update`" in res.output, res.output
+    # --update accepts all of it and prints the diff
+    res = regress("--update")
+    assert res.exit_code == 0 and "ci-tunnel/gicp/noseed" in res.output, res.output
+    assert rg.read_baseline(path) == current
+
+
+def test_the_committed_baseline_matches_a_rerun(current):
+    """The committed numbers, regenerated here: equal up to cross-CPU rounding (below)."""
+    baseline = rg.read_baseline()
+    for run in ("ci-sparse/doppler/-", "ci-wall/dicp/seed"):
+        _assert_same_run(current[run], baseline[run])
 
 
 def _assert_same_run(got: dict, expected: dict) -> None:
