@@ -83,27 +83,54 @@ def test_a_deliberately_degraded_method_is_caught(current, tmp_path, ci_data_dir
     assert any(f.regression and f.what == "run" for f in rg.check(baseline, gone))
 
 
-def test_an_improvement_and_a_new_run_are_flagged_for_review(current):
-    baseline = copy.deepcopy(current)
-    run = "ci-semidense/icp-p2p/noseed"
-    baseline[run]["trans_m"]["8"] = current[run]["trans_m"]["8"] * 2.0 + 0.01  # now halved
-    baseline[run]["rot_deg"]["8"] = current[run]["rot_deg"]["8"] * 1.05  # within tolerance
-    del baseline["ci-wall/dicp/seed"]
+def _snapshot(trans_8m: float = 0.5, diverged: bool = False) -> dict:
+    """A small snapshot of two runs (the shape of ``regress.snapshot``)."""
+    run = {"diverged": diverged, "rot_deg": {"8": 0.4, "16": 0.6},
+           "trans_m": {"8": trans_8m, "16": 0.9}}
+    return {"seq/icp-p2p/noseed": run, "seq/dicp/seed": copy.deepcopy(run)}
+
+
+@pytest.mark.parametrize("trans_8m, kind", [
+    (0.5, None), (0.52, rg.CHANGED), (0.5 * 1.1 + 0.001 - 1e-6, rg.CHANGED),
+    (0.5 * 1.1 + 0.001 + 1e-6, rg.REGRESSION), (0.5 * 0.9 - 0.001 + 1e-6, rg.CHANGED),
+    (0.5 * 0.9 - 0.001 - 1e-6, rg.IMPROVED), (0.1, rg.IMPROVED)])
+def test_the_check_is_two_sided(trans_8m, kind):
+    """10 % + 1 mm either way: above is a regression, below an improvement to review, between
+    a change that passes; equal is no finding."""
+    current = _snapshot()
+    current["seq/icp-p2p/noseed"]["trans_m"]["8"] = trans_8m
+    findings = rg.check(_snapshot(), current)
+    assert [f.kind for f in findings] == ([] if kind is None else [kind])
+    if kind is not None:
+        assert findings[0].run == "seq/icp-p2p/noseed" and findings[0].what == "trans_m at 8 m"
+
+
+def test_an_improvement_and_a_new_run_are_flagged_for_review():
+    baseline, current = _snapshot(trans_8m=1.0), _snapshot(trans_8m=0.5)
+    del baseline["seq/dicp/seed"]
     findings = {(f.run, f.what): f for f in rg.check(baseline, current)}
-    assert findings[run, "trans_m at 8 m"].kind == rg.IMPROVED
-    assert findings[run, "rot_deg at 8 m"].kind == rg.CHANGED
-    assert findings["ci-wall/dicp/seed", "run"].kind == rg.NEW_RUN
-    assert "! improved: review" in str(findings[run, "trans_m at 8 m"])
-    assert "new run, not in baseline" in str(findings["ci-wall/dicp/seed", "run"])
-    assert not any(f.regression for f in findings.values())
+    improved = findings["seq/icp-p2p/noseed", "trans_m at 8 m"]
+    new = findings["seq/dicp/seed", "run"]
+    assert improved.kind == rg.IMPROVED and improved.review and not improved.regression
+    assert new.kind == rg.NEW_RUN and new.review and not new.regression
+    assert "! improved: review" in str(improved)
+    assert "new run, not in baseline" in str(new)
     assert {f.kind for f in rg.failing(list(findings.values()))} == {rg.IMPROVED, rg.NEW_RUN}
     assert {f.kind for f in rg.failing(list(findings.values()), accept_improvements=True)} \
         == {rg.NEW_RUN}
-    # a run that no longer diverges is an improvement too
-    was_diverged = copy.deepcopy(current)
-    was_diverged[run]["diverged"] = True
-    assert [f.kind for f in rg.check(was_diverged, current) if f.what == "diverged"] == \
-        [rg.IMPROVED]
+    # a run that no longer diverges is an improvement, one that newly diverges a regression
+    assert [f.kind for f in rg.check(_snapshot(diverged=True), _snapshot())] == \
+        [rg.IMPROVED, rg.IMPROVED]
+    assert [f.kind for f in rg.check(_snapshot(), _snapshot(diverged=True))] == \
+        [rg.REGRESSION, rg.REGRESSION]
+    # a vanished run or length is a regression, a length the baseline lacks is new
+    gone = _snapshot()
+    del gone["seq/dicp/seed"]
+    del gone["seq/icp-p2p/noseed"]["trans_m"]["16"]
+    assert {(f.what, f.kind) for f in rg.check(_snapshot(), gone)} == {
+        ("run", rg.REGRESSION), ("trans_m at 16 m", rg.REGRESSION)}
+    assert {(f.what, f.kind) for f in rg.check(gone, _snapshot())} == {
+        ("run", rg.NEW_RUN), ("trans_m at 16 m", rg.NEW_RUN)}
 
 
 def test_regress_exits_by_the_findings_and_update_rewrites_the_baseline(
