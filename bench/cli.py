@@ -234,13 +234,18 @@ def regress(
         help="where the CI suite is generated (default: the experiment's, data/)")] = None,
     out: Annotated[Path | None, typer.Option(
         help="where its runs go (default: the experiment's, results/ci)")] = None,
+    accept_improvements: Annotated[bool, typer.Option(
+        help="let errors that dropped by more than the tolerance pass (printed, baseline "
+             "unchanged)")] = False,
 ) -> None:
     """CI regression: run configs/experiments/ci.yaml (unchanged runs are reused) and compare
     with configs/ci/baseline.json; exit 1 when a method's error grows by more than the
-    tolerance or it newly diverges."""
+    tolerance or it newly diverges, when an error drops by more than the tolerance ("!
+    improved: review", unless --accept-improvements) and when a run is not in the baseline."""
     from bench.studies.regress import regress_command
 
-    raise typer.Exit(regress_command(console, update, tolerance, jobs, data_dir, out))
+    raise typer.Exit(regress_command(console, update, tolerance, jobs, data_dir, out,
+                                     accept_improvements))
 
 
 @app.command(short_help="paper figures from results")

@@ -6,6 +6,7 @@ from __future__ import annotations
 # (bench/threads.py: importing bench pins them)
 import bench  # noqa: F401  # isort: skip
 
+import importlib
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,18 @@ from loaders.trajectory import Trajectory
 
 #: the vendored real radar frames (samples/README.md); frames 0-59 are the 60-frame sample
 SAMPLE_STORE = Path(__file__).resolve().parents[1] / "samples" / "ntu4dradlm-loop1.h5"
+
+
+def dev_dependency(module: str):
+    """Import ``module``, a dev dependency (pyproject.toml's ``dev`` extra: Open3D, rerun, ...),
+    or FAIL the test: a cross-check that skips when its library is missing guards nothing in
+    `make test`. Never ``pytest.importorskip`` (tests/test_suite_rules.py checks)."""
+    try:
+        return importlib.import_module(module)
+    except (ImportError, OSError) as error:  # OSError: a shared library missing (libusb)
+        pytest.fail(f"{module} is not importable ({error}): it is a dev dependency, install it "
+                    "with `make install-dev` (Open3D also needs libusb-1.0: `make system-deps`)",
+                    pytrace=False)
 
 
 def exact_doppler(points_sensor: np.ndarray, v_sensor: np.ndarray) -> np.ndarray:

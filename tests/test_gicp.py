@@ -1,10 +1,9 @@
 """The small_gicp family (icp-p2plane, gicp, vgicp) (icp-p2p: tests/test_icp.py)."""
 
-import importlib.util
-
 import numpy as np
 import pytest
 
+from conftest import dev_dependency
 from loaders.scan import Scan, SensorInfo
 from loaders.se3 import exp_se3, inv_T, rotation_angle_deg, transform_points
 from loaders.synthetic import SyntheticSequence
@@ -151,9 +150,7 @@ def test_point_to_plane_system_is_the_scalar_plane_distance():
 def test_point_to_plane_agrees_with_open3d():
     # the same cost as Open3D's TransformationEstimationPointToPlane: given our normals, the
     # same gate and a tight criterion, both converge to the same pose on a noisy pair
-    if not importlib.util.find_spec("open3d"):
-        pytest.fail("open3d (a dev dependency) is needed for this cross-check")
-    import open3d as o3d
+    o3d = dev_dependency("open3d")  # fails (never skips) when missing
 
     T_w1 = exp_se3(np.array([0.6, 0.1, 0.02, 0.0, 0.005, 0.03]))
     scans = _pair(T_w1, _planar_world()[::3], noise_m=0.03)

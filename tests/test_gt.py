@@ -7,7 +7,13 @@ import pytest
 
 from helpers_bags import Motion
 from loaders.errors import DataError, GroundTruthWarning
-from loaders.gt import associate, clean_trajectory, nearest_indices, remove_origin
+from loaders.gt import (
+    associate,
+    clean_trajectory,
+    gt_for_frames,
+    nearest_indices,
+    remove_origin,
+)
 from loaders.gt_report import gt_sanity_report
 from loaders.posefile import parse_extrinsic, read_gt_file
 from loaders.se3 import interpolate_poses, make_T
@@ -117,6 +123,30 @@ def test_a_long_gap_is_never_bridged_even_near_its_edge():
     # an edge scan exactly on the last pose before the outage is covered (it takes that pose)
     b = associate(gt, np.array([4.0, 5.0]), max_gap_s=0.5)
     assert b.covered.all()
+
+
+@pytest.mark.parametrize("gap_steps, bridged", [(2, True), (3, True), (4, False), (6, False)])
+def test_gt_at_its_own_rate_is_bridged_across_at_most_three_steps(gap_steps, bridged):
+    """The scoring path (``gt_for_frames``, used by every run's evaluation): GT sampled at its
+    own rate (0.25 s, not at the scans) is interpolated across a gap of up to 3 of its median
+    steps and never across a longer one. Stamps are multiples of 1/4 s (exact in binary), so
+    the gap of exactly 3 steps sits on the boundary: 2 and 3 steps bridged, 4 (one step over)
+    and 6 not."""
+    m = Motion(t0=0.0, v=10.0, w=0.3)
+    before = np.arange(0, 21) * 0.25  # 0 .. 5 s
+    after = 5.0 + gap_steps * 0.25 + np.arange(0, 21) * 0.25
+    t = np.concatenate([before, after])
+    gt = Trajectory(t, m.body_pose(t))
+    scans = np.arange(0.01, after[-1], 0.1)  # never on a GT stamp
+    poses, mask = gt_for_frames(gt, scans)
+    in_gap = (scans > 5.0) & (scans < after[0])
+    assert in_gap.sum() >= 4
+    assert mask[~in_gap].all()
+    assert mask[in_gap].all() == bridged and mask[in_gap].any() == bridged, mask[in_gap]
+    assert np.isnan(poses[~mask]).all()
+    # what is scored off the gap is the truth up to the interpolation between 0.25 s poses
+    err = np.linalg.norm(poses[mask, :3, 3] - m.body_pose(scans[mask])[:, :3, 3], axis=1)
+    assert err[~in_gap[mask]].max() < 0.05
 
 
 def test_tolerance_and_nearest_mode():

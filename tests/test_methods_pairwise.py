@@ -119,18 +119,57 @@ def test_registry_lists_both_methods_with_descriptions():
         make_method("doppler", {"tau_spatial": 3})  # typo: the real key is tau_spatial_m
 
 
+def _reference_doppler_odometry(seq, tau_spatial_m: float, tau_doppler: float) -> np.ndarray:
+    """An independent float64 Algorithm 2 (paper Eq. 8/9, as tests/test_reference_notebook.py
+    pins it against the authors' notebook): per consecutive pair, f = r^2 + r v dT (source),
+    g = r^2 - r v dT (target), dT from the stamps; each source point's nearest g by scipy's
+    kd-tree; pairs kept within both gates; one proper rigid fit by scipy's Kabsch
+    (``Rotation.align_vectors``) of the centred pairs; poses chained
+    T_world_curr = T_world_prev inv(T_curr_prev)."""
+    from scipy.spatial import cKDTree
+
+    poses = [np.eye(4)]
+    prev = seq[0]
+    for k in range(1, len(seq)):
+        curr = seq[k]
+        dt = curr.stamp - prev.stamp
+        p, q = prev.points.astype(float), curr.points.astype(float)
+        r_p, r_q = np.linalg.norm(p, axis=1), np.linalg.norm(q, axis=1)
+        f = r_p**2 + r_p * prev.doppler * dt
+        g = r_q**2 - r_q * curr.doppler * dt
+        gap, match = cKDTree(g[:, None]).query(f[:, None], k=1)
+        keep = (np.linalg.norm(p - q[match], axis=1) <= tau_spatial_m) & (gap <= tau_doppler)
+        P, Q = p[keep], q[match[keep]]
+        R, _ = Rotation.align_vectors(Q - Q.mean(0), P - P.mean(0))
+        T = np.eye(4)
+        T[:3, :3] = R.as_matrix()
+        T[:3, 3] = Q.mean(0) - T[:3, :3] @ P.mean(0)
+        poses.append(poses[-1] @ inv_T(T))
+        prev = curr
+    return np.array(poses)
+
+
 def test_real_sample_matches_the_independent_implementation(sample_dir):
-    """An independent implementation of Algorithm 2 gives 0.56 m / 0.63 deg at 8 m and
-    1.16 m / 1.06 deg at 24 m on this sample (period 1/12 s); we must be within 5 %."""
+    """The real 60-frame sample (period 1/12 s): our odometry's relative errors at 8 and 24 m
+    within 1 % of the independent float64 implementation above (which gives 0.562 m / 0.634 deg
+    at 8 m and 1.160 m / 1.062 deg at 24 m, asserted too so a change of the sample shows; ours
+    agree to 1e-4 m / 1e-4 deg). The two differ only where float32 features tie
+    (tests/test_reference_notebook.py)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         seq = NpyFramesSequence(sample_dir, period_s=1 / 12)
-    result = DopplerCorrespondence().run(seq, seed=True)
-    rel = relative_errors(seq.ground_truth.poses, result.poses, (8, 24))
-    for length, trans_m, rot_deg in ((8, 0.56, 0.63), (24, 1.16, 1.06)):
-        assert rel[length].trans_m_mean == pytest.approx(trans_m, rel=0.05)
-        assert rel[length].rot_deg_mean == pytest.approx(rot_deg, rel=0.05)
+    method = DopplerCorrespondence()
+    result = method.run(seq, seed=True)
     assert all(f.converged for f in result.frames)
+    gt = seq.ground_truth.poses
+    # the paper's gates (README: tau_spatial 3 m, tau_doppler 5), not read from our defaults
+    reference = _reference_doppler_odometry(seq, tau_spatial_m=3.0, tau_doppler=5.0)
+    ours, ref = (relative_errors(gt, poses, (8, 24)) for poses in (result.poses, reference))
+    for length, trans_m, rot_deg in ((8, 0.562, 0.634), (24, 1.160, 1.062)):
+        assert ref[length].trans_m_mean == pytest.approx(trans_m, abs=0.001)
+        assert ref[length].rot_deg_mean == pytest.approx(rot_deg, abs=0.001)
+        assert ours[length].trans_m_mean == pytest.approx(ref[length].trans_m_mean, rel=0.01)
+        assert ours[length].rot_deg_mean == pytest.approx(ref[length].rot_deg_mean, rel=0.01)
 
 
 def _pairs_with_outliers(seed: int = 4):

@@ -104,3 +104,24 @@ def test_single_tum_file_in_folder_is_used(tmp_path):
     seq, _ = _load(folder, period_s=0.25)
     assert isinstance(seq.ground_truth, Trajectory)
     np.testing.assert_allclose(seq.ground_truth.stamps, [0, 0.25, 0.5, 0.75])
+
+
+@pytest.mark.parametrize("gap_steps, bridged", [(3, True), (4, False)])
+def test_time_association_bridges_a_gt_gap_of_at_most_three_steps(tmp_path, gap_steps, bridged):
+    """associate="time": the GT (here 0.25 s rows, exact in binary, with one gap) is
+    interpolated across at most 3 of its median steps; frames in a longer gap stay in the
+    sequence without GT (the boundary: 3 steps bridged, 4 not)."""
+    n = 40
+    rng = np.random.default_rng(0)
+    for i in range(1, n + 1):
+        np.save(tmp_path / f"frame_{i:03d}.npy", rng.normal(size=(50, 3)) * 10)
+        np.save(tmp_path / f"frame_{i:03d}_dop.npy", rng.normal(size=50))
+    t = np.concatenate([np.arange(0, 9) * 0.25, 2.0 + gap_steps * 0.25 + np.arange(0, 9) * 0.25])
+    np.savetxt(tmp_path / "gt.txt", np.column_stack(
+        [t, t * 5.0, np.zeros((len(t), 5)), np.ones(len(t))]))
+    seq, _ = _load(tmp_path, period_s=0.1, associate="time")
+    in_gap = (seq.stamps > 2.0) & (seq.stamps < 2.0 + gap_steps * 0.25)
+    scored = np.isin(seq.stamps, seq.ground_truth.stamps)
+    assert len(seq) == n and in_gap.sum() >= 7
+    assert scored[in_gap].all() == bridged and scored[in_gap].any() == bridged
+    assert scored[~in_gap & (seq.stamps <= t[-1])].all()

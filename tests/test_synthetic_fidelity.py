@@ -282,15 +282,29 @@ def test_report_is_titled_synthetic_and_written_from_run_folders(tmp_path):
     assert len(rows) == 1 + 2 * 13
 
 
-def test_bench_synth_realism_prints_every_statistic_and_exits_by_the_check():
-    """`bench synth --realism`: one line per statistic; exit 0 only when all are within 20 %."""
+def test_bench_synth_realism_prints_every_statistic_and_exits_by_the_check(real_vs_synth):
+    """`bench synth --realism`: one line per statistic with the real and synthetic values and
+    whether they are within 20 %; exit 0 only when all are. The verdict is recomputed here from
+    the statistics computed in this process (``sequence_stats`` of both sequences, the
+    ``real_vs_synth`` fixture; only its raw values, not its flags) with the issue's rule,
+    |synthetic / real - 1| <= 0.2, so a command that prints a wrong flag or exits by another
+    rule fails."""
     from typer.testing import CliRunner
 
     from bench.cli import app
 
     assert R.REAL_SAMPLE.exists(), f"the vendored real sample {R.REAL_SAMPLE} is missing"
     res = CliRunner().invoke(app, ["synth", "--realism"])
-    lines = {ln.split()[0]: ln for ln in res.output.splitlines() if ln.strip()}
+    lines = {ln.split()[0]: ln.split() for ln in res.output.splitlines() if ln.strip()}
     assert all(name in lines for name in R.STAT_NAMES + R.EXTRA_NAMES), res.output
-    all_within = all(lines[name].rstrip().endswith("yes") for name in R.STAT_NAMES)
-    assert res.exit_code == (0 if all_within else 1), res.output
+    verdicts = {}
+    for name in R.STAT_NAMES:
+        _, real, synth, _, _ = real_vs_synth[name]
+        printed_real, printed_synth = float(lines[name][1]), float(lines[name][2])
+        assert printed_real == pytest.approx(real, abs=1e-3), name
+        assert printed_synth == pytest.approx(synth, abs=1e-3), name
+        verdicts[name] = abs(synth / real - 1.0) <= 0.20
+        assert lines[name][-1] == ("yes" if verdicts[name] else "NO"), (name, lines[name])
+    assert res.exit_code == (0 if all(verdicts.values()) else 1), res.output
+    # today's known gaps (NOT_REACHED, strict xfails above) are the statistics outside
+    assert {n for n, ok in verdicts.items() if not ok} == NOT_REACHED

@@ -1,17 +1,16 @@
 """bench view writes a rerun recording that rerun's own reader loads."""
 
-import pytest
 from typer.testing import CliRunner
 
 from bench.cli import app
 from bench.report.view import doppler_colors
 from bench.runs.job import Job, run_job
-from conftest import constant_twist_sequence
+from conftest import constant_twist_sequence, dev_dependency
 from loaders.store import write_store
 
 
 def test_view_writes_a_recording_rerun_can_read(tmp_path):
-    chunk = pytest.importorskip("rerun.chunk")
+    chunk = dev_dependency("rerun.chunk")
     store = write_store(constant_twist_sequence(n_frames=12, n_points=800), tmp_path / "t.h5")
     run = run_job(Job(store=store, method="doppler", seed=None, out_root=tmp_path)).run_dir
     out = tmp_path / "t.rrd"
