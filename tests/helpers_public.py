@@ -166,14 +166,15 @@ def runs_agree(store_a: Path, store_b: Path, out: Path, methods=("doppler", "icp
             warnings.simplefilter("ignore")
             a = run_method(method, store_a, out=out / f"a_{method}")
             b = run_method(method, store_b, out=out / f"b_{method}")
-        assert a["frames"] == b["frames"] and a["frames_scored"] == b["frames_scored"] > 0
-        pairs = [(a["ape"]["trans_rmse_m"], b["ape"]["trans_rmse_m"]),
-                 (a["ape"]["rot_rmse_deg"], b["ape"]["rot_rmse_deg"])]
-        for length, cell in a["relative_error"].items():
-            if cell["trans_m_mean"] is not None:
-                other = b["relative_error"][length]
-                pairs += [(cell["trans_m_mean"], other["trans_m_mean"]),
-                          (cell["rot_deg_mean"], other["rot_deg_mean"])]
+        assert a.frames == b.frames and a.frames_scored == b.frames_scored > 0
+        pairs = [(a.ape.trans_rmse_m, b.ape.trans_rmse_m),
+                 (a.ape.rot_rmse_deg, b.ape.rot_rmse_deg)]
+        other_of = {r.length_m: r for r in b.relative_error}
+        for cell in a.relative_error:
+            if cell.trans_m_mean is not None:
+                other = other_of[cell.length_m]
+                pairs += [(cell.trans_m_mean, other.trans_m_mean),
+                          (cell.rot_deg_mean, other.rot_deg_mean)]
         for x, y in pairs:
             assert abs(x - y) <= rel * max(abs(x), abs(y)) + 1e-9, (method, x, y)
         found[method] = (a, b)

@@ -188,8 +188,8 @@ def test_calibration_frames_are_excluded_by_index_whatever_the_gt_rate(loop, tmp
     fixed = CorrectedSequence(short, np.eye(3), (0, 20), {})
     store = write_store(fixed, tmp_path / "fixed.h5")
     metrics = run_method("icp-p2p", store, out=tmp_path / "run")
-    assert metrics["frames"] == 60
-    assert metrics["frames_scored"] <= 40  # frames 0-19 never scored
+    assert metrics.frames == 60
+    assert metrics.frames_scored <= 40  # frames 0-19 never scored
 
 
 def test_a_method_consuming_the_gt_fitted_extrinsic_is_marked(loop, tmp_path):

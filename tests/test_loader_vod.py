@@ -159,4 +159,4 @@ def test_store_runs_agree_with_the_npy_frame_route(tmp_path):
     npy = write_npy_frames(tmp_path / "npy", points, doppler, stamps - stamps[0], poses)
     ref = write_store(NpyFramesSequence(npy, period_s=period), tmp_path / "npy.h5")
     found = runs_agree(vod, ref, tmp_path / "runs")
-    assert found["doppler"][0]["ape"]["trans_rmse_m"] < 1.0  # the runs did register
+    assert found["doppler"][0].ape.trans_rmse_m < 1.0  # the runs did register

@@ -120,7 +120,7 @@ from bench.api import run_method
 out = {}
 for name in METHODS:
     m = run_method(name, store, out=sys.argv[1] + "/" + name)
-    out[name] = [m["clock"], m["cpu_process_to_thread"], m.get("cpu_process_to_thread_first")]
+    out[name] = [m.clock, m.cpu_process_to_thread, m.cpu_process_to_thread_first]
 print(json.dumps(out))
 """
 

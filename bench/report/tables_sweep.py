@@ -77,10 +77,10 @@ def _errors(index: dict, results_dir: Path, sweep: dict, seed) -> tuple[list, li
             continue
         per_length: dict[float, list] = {}
         for run in runs:
-            for key, rel in run.relative_error.items():
-                if rel.get("n"):
-                    per_length.setdefault(float(key), []).append(
-                        (rel["rot_deg_mean"], rel["trans_m_mean"]))
+            for rel in run.result.relative_error:
+                if rel.n:
+                    per_length.setdefault(float(rel.length_m), []).append(
+                        (rel.rot_deg_mean, rel.trans_m_mean))
         cells = {}
         for length, values in per_length.items():
             if len(values) == len(runs):  # every sequence has segments of this length

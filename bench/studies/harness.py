@@ -92,7 +92,8 @@ def phases(store: Path, method: str = "doppler", params: dict | None = None) -> 
             with _clock() as evaluate:
                 evaluation = evaluate_run(seq.ground_truth, result, job.lengths_m,
                                           excluded=calibration_frames(seq))
-            metrics = {"method": method, **evaluation.metrics}
+            metrics = {"sequence": seq.name, "method": method, "seed": job.seed,
+                       "frames": len(seq), **evaluation.metrics}
             with _clock() as write:
                 write_run(prep.run_dir, result, evaluation.gt, prep.config, metrics, [])
             # the part of writing that does not grow with the frames (meta.json's versions

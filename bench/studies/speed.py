@@ -171,8 +171,8 @@ def compare_with_run(name: str, sequence, folder: Path) -> tuple[float, float]:
     scans = MemorySequence(sequence.name, sequence.sensor, list(sequence))
     store = write_store(scans, folder / f"{name}.h5")
     ours = time_method(name, sequence)["median_ms"]
-    run = run_single(name, store, True, {}, folder / name, force=True).metrics
-    return ours, run["time_ms"]["median"]
+    run = run_single(name, store, True, {}, folder / name, force=True).result
+    return ours, run.time_ms.median
 
 
 #: what every `bench run` imports before it reads a scan (the CLI, every method's module and
