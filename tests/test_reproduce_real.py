@@ -44,6 +44,7 @@ def test_a_real_reproduction_says_what_it_found_checked_and_wrote(data_dir, tmp_
     # the store checked against configs/datasets/Loop1_0.yaml
     assert "a lidar store, but Loop1_0 is a radar sequence" in text
     assert "its ground truth's path is 15 m" in text and "about 1390 m" in text
+    assert "the store's duration is far off" in text  # 1390 m in a few seconds
     # only the tables with rows: no table5 (no tunnel), the old one removed
     assert (out / "table3.md").exists() and (out / "table4.md").exists()
     assert not (out / "table5.md").exists()

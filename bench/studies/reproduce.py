@@ -67,6 +67,9 @@ def missing_sequences(data_dir: Path) -> list[str]:
 #: a store's scan period may differ from its dataset's by this fraction; its ground-truth path
 #: length by this factor (either way) before ``check_store`` warns
 PERIOD_TOLERANCE, PATH_FACTOR = 0.25, 3.0
+#: the sequence's path over the store's duration outside this speed range [m/s]: the duration
+#: is far off (``check_store``)
+MIN_SPEED_MPS, MAX_SPEED_MPS = 0.3, 40.0
 
 
 def check_store(cfg, path: Path) -> tuple[str, list[str]]:
@@ -97,6 +100,14 @@ def check_store(cfg, path: Path) -> tuple[str, list[str]]:
         warns.append(f"{path}: its ground truth's path is {path_m:.0f} m ({duration:.0f} s), "
                      f"far from {cfg.name}'s about {exp.path_m:.0f} m ({exp.source}): a part "
                      "of the sequence, or another one? Its numbers are not the paper's")
+    if exp.path_m and duration > 0 and not (
+            MIN_SPEED_MPS <= exp.path_m / duration <= MAX_SPEED_MPS):
+        # no public figure gives these recordings' durations: the sequence's path over the
+        # store's duration must be a speed a car, a cart or a person on foot could drive
+        warns.append(f"{path}: {duration:.0f} s of scans, but {cfg.name} covers about "
+                     f"{exp.path_m:.0f} m: that would be {exp.path_m / duration:.1f} m/s "
+                     f"(expected {MIN_SPEED_MPS:g}-{MAX_SPEED_MPS:g} m/s), so the store's "
+                     "duration is far off: a part of the sequence, or another one?")
     if path_m is None:
         warns.append(f"{path}: no ground truth: {cfg.name} gives no table row")
     return described, warns
