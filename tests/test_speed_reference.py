@@ -91,7 +91,8 @@ def test_csv_has_one_row_per_pair_and_method_with_a_counterpart(tmp_path):
                     ("lidar", "vgicp")]  # doppler has no counterpart
     ours = {(r["scenario"], r["method"]): r for r in _rows(tmp_path / "speed.csv")[1]}
     for r in rows:
-        assert r["ours_ms"] == ours[r["scenario"], r["method"]]["median_ms"]  # the same figure
+        # ours' fastest of the alternating rounds: bench speed's own figure or below it
+        assert float(r["ours_ms"]) <= float(ours[r["scenario"], r["method"]]["median_ms"])
         for lib in libraries:
             if lib in ref.COUNTERPARTS[r["method"]]:
                 ratio = float(r["ours_ms"]) / float(r[f"{lib}_ms"])
