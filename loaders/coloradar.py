@@ -154,12 +154,6 @@ class ColoradarSequence(OpensFromOptions, Sequence):
     inputs = "ColoRadar run folder (single_chip/pointclouds, groundtruth; calib beside it)"
     many_inputs = False
 
-    @classmethod
-    def open(cls, paths: list[Path], options: LoaderOptions) -> ColoradarSequence:
-        if len(paths) != 1:
-            raise DataError(f"coloradar: expected one run folder, got {len(paths)} paths")
-        return cls(paths[0], options)
-
     def __init__(self, run: str | Path, options: Options | None = None, **kwargs) -> None:
         opts = options if options is not None else Options(**kwargs)
         if float(opts.doppler_sign) not in (1.0, -1.0):

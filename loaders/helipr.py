@@ -127,12 +127,6 @@ class HeliprSequence(OpensFromOptions, Sequence):
     inputs = "HeLiPR/HeRCULES sequence folder (LiDAR/Aeva/<t_ns>.bin, LiDAR_GT/Aeva_gt.txt)"
     many_inputs = False
 
-    @classmethod
-    def open(cls, paths: list[Path], options: LoaderOptions) -> HeliprSequence:
-        if len(paths) != 1:
-            raise DataError(f"helipr: expected one sequence folder, got {len(paths)} paths")
-        return cls(paths[0], options)
-
     def __init__(self, path: str | Path, options: Options | None = None, **kwargs) -> None:
         opts = options if options is not None else Options(**kwargs)
         if float(opts.doppler_sign) not in (1.0, -1.0):

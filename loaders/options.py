@@ -23,6 +23,8 @@ from typing import Any, ClassVar, Literal
 from pydantic import BaseModel, ConfigDict, Field
 from pydantic.fields import FieldInfo
 
+from loaders.errors import DataError
+
 
 class LoaderOptions(BaseModel):
     """Options every loader takes; a loader's own model subclasses it."""
@@ -62,8 +64,16 @@ class OpensFromOptions:
 
     @classmethod
     def open(cls, paths: list[Path], options: LoaderOptions):  # -> Sequence
-        """The sequence read from ``paths`` with ``options`` (validated by ``Options``)."""
-        raise NotImplementedError
+        """The sequence read from ``paths`` with ``options`` (validated by ``Options``). The
+        default serves a loader of one input whose constructor takes ``(path, options)``:
+        exactly one path; a loader of several inputs, or another constructor, overrides it."""
+        if cls.many_inputs:
+            raise NotImplementedError(f"{cls.__name__}.open: a loader of several inputs opens "
+                                      "them itself")
+        if len(paths) != 1:
+            raise DataError(f"{cls.__name__}: expected one input ({cls.inputs}), got "
+                            f"{len(paths)} paths")
+        return cls(paths[0], cls.Options.model_validate(options.model_dump()))
 
 
 def cli_flag(name: str, field: FieldInfo) -> str | None:

@@ -297,12 +297,6 @@ class SnailRadarSequence(Sequence, OpensFromOptions):
               "folder (e.g. 20240123/data3 with eagleg7/ and ars548/)")
     many_inputs = False
 
-    @classmethod
-    def open(cls, paths: list[Path], options: LoaderOptions) -> SnailRadarSequence:
-        if len(paths) != 1:
-            raise DataError(f"snail-radar takes one bag or folder, got {len(paths)} inputs")
-        return cls(paths[0], Options.model_validate(options.model_dump()))
-
     def __init__(self, path: str | Path, options: Options | None = None, **overrides) -> None:
         from pydantic import ValidationError
 

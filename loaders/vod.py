@@ -181,12 +181,6 @@ class VodSequence(OpensFromOptions, Sequence):
     inputs = "View-of-Delft folder (with radar/<split>/velodyne, pose, calib)"
     many_inputs = False
 
-    @classmethod
-    def open(cls, paths: list[Path], options: LoaderOptions) -> VodSequence:
-        if len(paths) != 1:
-            raise DataError(f"vod: expected one folder, got {len(paths)} paths")
-        return cls(paths[0], options)
-
     def __init__(self, path: str | Path, options: Options | None = None, **kwargs) -> None:
         opts = options if options is not None else Options(**kwargs)
         self.options = opts
