@@ -115,7 +115,10 @@ def sweep_index(exp, jobs) -> dict | None:
                         store = StoreSequence(j.store)
                         try:
                             fixed = {k: val for k, val in v.params.items() if k not in v.point}
-                            params = make_method(m.name, fixed, store.sensor).params
+                            # the default of the seed option swept (a no-seed run may
+                            # have its own, ``Odometry.for_seed``)
+                            params = make_method(m.name, fixed, store.sensor,
+                                                 j.seed).params
                         finally:
                             store.close()
                         s["defaults"][name] = {k: _plain(getattr(params, k)) for k in v.point}
