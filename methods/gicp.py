@@ -258,17 +258,6 @@ class _SmallGicp(Registration):
                                   int(res.iterations) + 1, ok)
 
 
-def point_to_plane_system(moved: np.ndarray, target: np.ndarray,
-                          normals: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Gauss-Newton normal equations (H, b) of the point-to-plane residuals
-    r_i = n_i . (q_i - p_i) for paired rows (moved source p_i, target q_i, target normal n_i),
-    for an update exp(xi) applied on the left, xi = (rho, phi): p_i + rho + phi x p_i gives
-    r_i - [n_i, p_i x n_i] . xi. The step is xi = H^-1 b."""
-    r = np.einsum("ij,ij->i", normals, target - moved)
-    J = np.hstack([normals, np.cross(moved, normals)])
-    return J.T @ J, J.T @ r
-
-
 class PointToPlaneIcp(_SmallGicp):
     name = "icp-p2plane"
     presentation = Presentation("ICP point-to-plane", "#17becf", 1)

@@ -1,9 +1,10 @@
 """The compiled inner step of point-to-plane ICP (``methods.gicp.PointToPlaneIcp``).
 
 ``normal_equations`` accumulates the Gauss-Newton system of the point-to-plane residuals in one
-pass over the paired source points (no (M, 6) Jacobian array, no gathers), as
-``gicp.point_to_plane_system`` does with NumPy: r_i = n_i . (q_i - p_i), J_i = [n_i, p_i x n_i];
-H = sum J_i^T J_i, b = sum J_i^T r_i (an update exp(xi) on the left, xi = (rho, phi)).
+pass over the paired source points (no (M, 6) Jacobian array, no gathers):
+r_i = n_i . (q_i - p_i), J_i = [n_i, p_i x n_i]; H = sum J_i^T J_i, b = sum J_i^T r_i (an
+update exp(xi) on the left, xi = (rho, phi): p_i + rho + phi x p_i gives r_i - J_i . xi; the
+step is xi = H^-1 b). tests/test_gicp.py checks it against a NumPy version of the same sums.
 """
 
 from __future__ import annotations
