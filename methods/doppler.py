@@ -276,12 +276,18 @@ class DopplerCorrespondence(Registration):
         if self.params.backend == "numba":
             from methods import doppler_kernel  # numba loads only when this backend is used
 
-            doppler_kernel.warm_up()
             pool = ThreadPoolExecutor(1) if self.threads > 1 else None
             # sorting scratch reused by every call (one instance registers one pair at a time)
             workspaces = (doppler_kernel.SortWorkspace(), doppler_kernel.SortWorkspace())
             self._step = partial(register_numba, doppler_kernel, workspaces=workspaces,
                                  pool=pool)
+
+    def warm_up(self, sequence) -> None:
+        if self.params.backend == "numba":
+            from methods import doppler_kernel
+
+            doppler_kernel.warm_up()  # every compiled path, not only the warm-up pair's
+        super().warm_up(sequence)
 
     @property
     def threads(self) -> int:

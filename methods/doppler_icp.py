@@ -188,9 +188,9 @@ class DopplerIcp(Registration):
     needs_doppler = True
     Params = DopplerIcpParams
 
-    def __init__(self, params: DopplerIcpParams | None = None, **overrides) -> None:
-        super().__init__(params, **overrides)
-        warm_up()  # compile outside the timed call
+    def warm_up(self, sequence) -> None:
+        warm_up()  # every compiled path, not only the warm-up pair's
+        super().warm_up(sequence)
 
     def configured_for(self, sensor: SensorInfo) -> DopplerIcp:
         tau_s, tau_d, alpha = PARAMETER_SETS[sensor.kind]

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import ast
 import hashlib
+import importlib.util
 import json
 import os
 import platform
@@ -45,6 +46,8 @@ RESULT_CODE = ("loaders", "methods", "metrics", "bench/runs/evaluate.py", "bench
 #: functions of other modules that determine a result: (file, function name)
 RESULT_FUNCTIONS = (("bench/runs/job.py", "calibration_frames"),)
 #: libraries whose version can change a result (beside those the result code imports)
+#: importable modules whose distribution is named otherwise (no scan of every installed file)
+MODULE_DISTRIBUTIONS = {"open3d": ("open3d", "open3d-cpu"), "yaml": ("PyYAML",)}
 RESULT_LIBRARIES = ("numpy", "scipy", "numba", "small_gicp", "kiss-icp", "open3d-cpu", "open3d",
                     "evo", "h5py", "pydantic")
 _store_hashes: dict[str, str] = {}
@@ -158,8 +161,13 @@ def result_libraries(external: set[str]) -> list[str]:
         try:
             names.add(metadata.distribution(module).metadata["Name"])
         except metadata.PackageNotFoundError:
-            unknown.append(module)
-    if unknown:
+            if module in MODULE_DISTRIBUTIONS:
+                names.update(MODULE_DISTRIBUTIONS[module])
+            elif importlib.util.find_spec(module) is None:
+                names.add(module)  # not installed: listed without a version
+            else:
+                unknown.append(module)
+    if unknown:  # scanning every installed distribution's file list costs about 0.5 s
         provided = metadata.packages_distributions()
         for module in unknown:
             names.update(provided.get(module, [module]))

@@ -53,6 +53,7 @@ class Job:
     frame_range: tuple[int, int | None] | None = None  # (start, frames) of the store, or all
     run_key: str | None = None  # set by ``plan``
     store_sha256: str | None = None  # set by ``plan``, so workers do not hash the store again
+    code_sha256: str | None = None  # set by ``plan``, so workers do not hash the code again
     alignment: str = "se3"  # APE alignment (metrics.Alignment spec)
     kitti_lengths_m: tuple[float, ...] = KITTI_LENGTHS_M
 
@@ -196,7 +197,8 @@ def prepare(job: Job) -> Prepared:
                     "lengths_m": [float(x) for x in job.lengths_m],
                     "scoring": {"kitti_lengths_m": [float(x) for x in job.kitti_lengths_m],
                                 "alignment": job.scoring.alignment},
-                    "code_sha256": code_identity(), "host": host_identity()}
+                    "code_sha256": job.code_sha256 or code_identity(),
+                    "host": host_identity()}
         config["run_key"] = run_key(identity)
         config["identity"] = identity
         return Prepared(seq, method, run_dir, config["run_key"], config)

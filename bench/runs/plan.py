@@ -143,7 +143,8 @@ def plan(jobs: list[Job]) -> list[Job]:
         owners[prep.run_dir] = (job, prep.key)
         _check_writable(prep.run_dir)
         planned.append(replace(job, run_dir_override=prep.run_dir, run_key=prep.key,
-                               store_sha256=prep.config["identity"]["store_sha256"]))
+                               store_sha256=prep.config["identity"]["store_sha256"],
+                               code_sha256=prep.config["identity"]["code_sha256"]))
     if problems:
         raise DataError("\n".join(dict.fromkeys(problems)))
     # the same run asked for twice (e.g. by two tables) runs once
