@@ -115,7 +115,6 @@ import small_gicp
 from pydantic import Field
 
 from loaders.scan import Scan, SensorInfo
-from loaders.se3 import exp_se3
 from methods import plane_kernel
 from methods.base import (
     MethodParams,
@@ -306,13 +305,9 @@ class PointToPlaneIcp(_SmallGicp):
                                                         target.normals)
             if pairs < 6:
                 return RegistrationResult(T, pairs, iteration, False)
-            try:
-                xi = np.linalg.solve(H, b)
-            except np.linalg.LinAlgError:
+            T, xi = plane_kernel.solve_update(H, b, T)  # exp(H^-1 b) T
+            if not np.all(np.isfinite(xi)):  # a singular system or a step that is not finite
                 return RegistrationResult(T, pairs, iteration, False)
-            if not np.all(np.isfinite(xi)):
-                return RegistrationResult(T, pairs, iteration, False)
-            T = exp_se3(xi) @ T
             if (np.linalg.norm(xi[3:]) <= p.rotation_eps_rad
                     and np.linalg.norm(xi[:3]) <= p.translation_eps_m):
                 return RegistrationResult(T, pairs, iteration, True)

@@ -54,7 +54,45 @@ def transform(T, points):  # pragma: no cover - compiled
     return out
 
 
+@nb.njit(cache=True, nogil=True)
+def solve_update(H, b, T):  # pragma: no cover - compiled
+    """(exp(xi) T (4, 4), xi (6,)) with xi = H^-1 b, the Gauss-Newton step (xi = (rho, phi):
+    translation then rotation vector; ``loaders.se3.exp_se3``'s closed form: Rodrigues for
+    the rotation, the left Jacobian of SO(3) for the translation); (T, NaNs) when H is singular
+    or the step is not finite. One compiled call instead of a LAPACK solve, SciPy's rotation
+    and five small NumPy products per iteration."""
+    xi = np.full(6, np.nan)
+    try:
+        x = np.linalg.solve(H, b)
+    except Exception:  # noqa: BLE001 - numba raises a plain exception for a singular matrix
+        return T, xi
+    for k in range(6):
+        if not np.isfinite(x[k]):
+            return T, xi
+        xi[k] = x[k]
+    wx, wy, wz = xi[3], xi[4], xi[5]
+    theta2 = wx * wx + wy * wy + wz * wz
+    theta = np.sqrt(theta2)
+    K = np.array([[0.0, -wz, wy], [wz, 0.0, -wx], [-wy, wx, 0.0]])
+    K2 = K @ K
+    if theta < 1e-9:  # to first order: R = I + K, V = I + K / 2
+        R = np.eye(3) + K
+        V = np.eye(3) + 0.5 * K
+    else:
+        sin_t, one_cos = np.sin(theta) / theta, (1.0 - np.cos(theta)) / theta2
+        R = np.eye(3) + sin_t * K + one_cos * K2
+        V = np.eye(3) + one_cos * K + (theta - np.sin(theta)) / (theta2 * theta) * K2
+    step = np.eye(4)
+    step[:3, :3] = R
+    for r in range(3):
+        step[r, 3] = V[r, 0] * xi[0] + V[r, 1] * xi[1] + V[r, 2] * xi[2]
+    return step @ T, xi
+
+
 def warm_up() -> None:
     """Compile (or load from numba's cache) before any timed call."""
     pts = np.zeros((2, 3))
     normal_equations(transform(np.eye(4), pts), np.array([0, -1]), pts, pts)
+    solve_update(np.eye(6), np.full(6, 1e-3), np.eye(4))
+    solve_update(np.eye(6), np.zeros(6), np.eye(4))
+    solve_update(np.zeros((6, 6)), np.zeros(6), np.eye(4))

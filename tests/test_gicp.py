@@ -233,6 +233,40 @@ def test_compiled_plane_step_equals_the_numpy_system():
                                atol=1e-12)
 
 
+@pytest.mark.parametrize("scale", [1.0, 1e-3, 1e-11])
+def test_compiled_step_update_is_exp_of_the_solved_twist(scale):
+    """plane_kernel.solve_update against np.linalg.solve and loaders.se3.exp_se3 (whose
+    rotation is SciPy's): a large, a small and a below-threshold rotation; the rotation part
+    checked against SciPy's Rodrigues directly too."""
+    from scipy.spatial.transform import Rotation
+
+    from methods import plane_kernel
+
+    rng = np.random.default_rng(int(-np.log10(scale)))
+    A = rng.normal(size=(6, 6))
+    H = A @ A.T + 6 * np.eye(6)
+    xi_true = np.array([0.8, -0.4, 0.3, 0.9, -0.5, 0.7]) * scale
+    b = H @ xi_true
+    T = exp_se3(np.array([1.0, 2.0, -0.5, 0.1, 0.2, -0.3]))
+    T_new, xi = plane_kernel.solve_update(H, b, T)
+    np.testing.assert_allclose(xi, np.linalg.solve(H, b), rtol=1e-9, atol=1e-20)
+    np.testing.assert_allclose(T_new, exp_se3(xi) @ T, atol=1e-12)
+    step = T_new @ inv_T(T)
+    np.testing.assert_allclose(step[:3, :3], Rotation.from_rotvec(xi[3:]).as_matrix(),
+                               atol=1e-12)
+
+
+def test_compiled_step_update_refuses_a_singular_system():
+    from methods import plane_kernel
+
+    T = exp_se3(np.array([1.0, 2.0, -0.5, 0.1, 0.2, -0.3]))
+    H = np.zeros((6, 6))
+    H[:5, :5] = np.eye(5)  # no constraint on the last axis
+    T_new, xi = plane_kernel.solve_update(H, np.ones(6), T)
+    assert not np.all(np.isfinite(xi))
+    np.testing.assert_array_equal(T_new, T)
+
+
 @pytest.mark.parametrize("method", ["icp-p2plane", "gicp"])
 def test_no_seed_runs_get_a_gate_valid_without_the_motion_prior(method):
     """The 0.5 m LiDAR gate needs the seed (a frame's motion is often longer): a no-seed run
@@ -244,5 +278,7 @@ def test_no_seed_runs_get_a_gate_valid_without_the_motion_prior(method):
     assert unseeded.params.max_correspondence_m == {"icp-p2plane": 1.0, "gicp": 2.0}[method]
     assert make_method(method, {"max_correspondence_m": 0.7}, LIDAR, seed=False) \
         .params.max_correspondence_m == 0.7
-    assert make_method(method, {}, RADAR, seed=False).params.max_correspondence_m == 3.0
+    radar = make_method(method, {}, RADAR, seed=True).params.max_correspondence_m
+    assert radar == {"icp-p2plane": 5.0, "gicp": 3.0}[method]
+    assert make_method(method, {}, RADAR, seed=False).params.max_correspondence_m == radar
     assert make_method("vgicp", {}, LIDAR, seed=False).params.max_correspondence_m == 1.0
