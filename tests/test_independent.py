@@ -184,3 +184,30 @@ def test_comparison_table_computes_ours_over_reference_and_the_limit():
     assert "1.00 / **1.25**" in text and "NO (worst 1.25x)" in text
     assert "yes (worst 1.15x)" in text and "no run" in text
     assert "NOT the same algorithm" in text  # doppler-icp's reference says what it is
+
+
+def test_stale_choices_names_a_validation_setting_that_is_not_the_tuning_choice(
+        registered, monkeypatch):
+    """The driver stops when the validation YAML does not run a reference at its tuning
+    choice (here: every choice as the YAML runs it, then one gate changed, one sweep with no
+    finished point)."""
+    from bench.report import tables_sweep
+    from bench.runs.experiment import load_experiment
+
+    entries = [m for m in load_experiment(independent.VALIDATION).methods
+               if m.name.startswith("ref-")]
+    choices = [tables_sweep.Choice(m.name, m.name, True, dict(m.params), 1.0, None, [])
+               for m in entries]
+    monkeypatch.setattr(tables_sweep, "sweep_choices", lambda _: choices)
+    assert independent.stale_choices(Path("unused"), independent.VALIDATION) == []
+    p2plane = next(c for c in choices if c.method == "ref-open3d-p2plane")
+    gate = p2plane.point["max_correspondence_m"]
+    p2plane.point["max_correspondence_m"] = gate + 1.0
+    choices.append(tables_sweep.Choice("ref-kiss-icp", "ref-kiss-icp", True, None, None, None,
+                                       []))
+    stale = independent.stale_choices(Path("unused"), independent.VALIDATION)
+    assert len(stale) == 2
+    assert stale[0].startswith("ref-open3d-p2plane: ")
+    assert f"runs max_correspondence_m={gate} but the tuning sweep chose " \
+        f"max_correspondence_m={gate + 1.0}" in stale[0]
+    assert "no point of the tuning sweep finished" in stale[1]
