@@ -46,7 +46,11 @@ is limited with ``o3d.utility.set_max_threads(1)`` for the run (its oneTBB ignor
 OMP_NUM_THREADS), small_gicp takes ``num_threads=1``, kiss-icp ``max_num_threads=1`` (its
 default 0 takes every core; threads do not change what it computes beyond reproducibility).
 Open3D is imported lazily (an optional extra); this module imports nothing of ``bench`` at
-its top, since ``methods.registry`` imports it while it loads.
+its top but the package itself, since ``methods.registry`` imports it while it loads. Loading
+it imports ``bench``, whose import pins the thread counts (``bench.threads``): a process that
+loads it should import ``bench`` before ``methods`` (the CLI, its workers, the driver and the
+tests do), else numba has already started with another thread count and refuses the pinned
+one at its next compilation (seen from a script importing ``methods.registry`` first).
 """
 
 from __future__ import annotations
