@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 # the second singular value below this fraction of the first: points (nearly) collinear
-_DEGENERATE_RATIO = 1e-9
+DEGENERATE_RATIO = 1e-9
 
 
 def fit_rigid(
@@ -53,7 +53,7 @@ def rigid_from_sums(n: int, sum_p: np.ndarray, sum_q: np.ndarray, sum_pq: np.nda
 def _rigid_from_cross_covariance(H: np.ndarray, mu_p: np.ndarray, mu_q: np.ndarray
                                  ) -> np.ndarray | None:
     U, S, Vt = np.linalg.svd(H)
-    if not np.all(np.isfinite(S)) or S[0] <= 0 or S[1] < _DEGENERATE_RATIO * S[0]:
+    if not np.all(np.isfinite(S)) or S[0] <= 0 or S[1] < DEGENERATE_RATIO * S[0]:
         return None
     D = np.eye(3)
     D[2, 2] = np.sign(np.linalg.det(Vt.T @ U.T)) or 1.0
