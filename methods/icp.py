@@ -39,7 +39,7 @@ from methods.base import (
     RegistrationResult,
     uniform_downsample,
 )
-from methods.rigid import DEGENERATE_RATIO
+from methods.rigid import rigid_update_from_sums
 
 
 class IcpParams(MethodParams):
@@ -142,30 +142,6 @@ def _pair_sums(moved, target, nearest, max_sq_dist):  # pragma: no cover - compi
     return n, sum_p, sum_q, sum_pq, dist_sum
 
 
-@nb.njit(cache=True)
-def _fit_update(n, sum_p, sum_q, sum_pq, T):  # pragma: no cover - compiled
-    """(delta T, True) with delta the closed-form rigid fit of the pair sums
-    (``methods.rigid.rigid_from_sums``' algorithm: SVD of the cross-covariance, reflection
-    guard, None below 3 pairs or for collinear points), or (T, False) when it is degenerate:
-    one compiled call per iteration instead of NumPy's small-array overhead (about 30 us)."""
-    if n < 3:
-        return T, False
-    mu_p, mu_q = sum_p / n, sum_q / n
-    H = sum_pq - n * np.outer(mu_p, mu_q)
-    U, S, Vt = np.linalg.svd(H)
-    if not (np.isfinite(S[0]) and np.isfinite(S[1]) and np.isfinite(S[2])) or S[0] <= 0 \
-            or S[1] < DEGENERATE_RATIO * S[0]:
-        return T, False
-    D = np.eye(3)
-    det = np.linalg.det(Vt.T @ U.T)
-    D[2, 2] = 1.0 if det >= 0 else -1.0
-    R = Vt.T @ D @ U.T
-    delta = np.eye(4)
-    delta[:3, :3] = R
-    delta[:3, 3] = mu_q - R @ mu_p
-    return delta @ T, True
-
-
 def warm_up() -> None:
     """Compile (or load from numba's cache) once, so no timed call pays for it."""
     pts = np.zeros((4, 3))
@@ -175,7 +151,7 @@ def warm_up() -> None:
     _refresh(stale, moved, np.zeros((4, 2), dtype=np.uint64), np.zeros((4, 2)), pts.copy(),
              nearest, d.copy(), d.copy())
     _pair_sums(moved, pts, nearest, 1.0)
-    _fit_update(4, np.zeros(3), np.zeros(3), np.eye(3), np.eye(4))
+    rigid_update_from_sums(4, np.zeros(3), np.zeros(3), np.eye(3), np.eye(4))
 
 
 @dataclass(frozen=True, eq=False)
@@ -229,7 +205,7 @@ class PointToPointIcp(Registration):
                                                         num_threads=p.num_threads)
                 _refresh(stale, moved, knn_idx, knn_sq, anchor, nearest, d1, d2)
             n, sum_p, sum_q, sum_pq, dist_sum = _pair_sums(moved, tgt, nearest, max_sq)
-            T, fitted = _fit_update(n, sum_p, sum_q, sum_pq, T)
+            T, fitted = rigid_update_from_sums(n, sum_p, sum_q, sum_pq, T)
             if not fitted:
                 return RegistrationResult(T, n, iteration, False)
             error = dist_sum / n

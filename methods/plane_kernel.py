@@ -12,6 +12,8 @@ from __future__ import annotations
 import numba as nb
 import numpy as np
 
+from methods.dicp_kernel import transform  # the iterations' point transform (shared)
+
 
 @nb.njit(cache=True, nogil=True)
 def normal_equations(moved, idx, target, normals):  # pragma: no cover - compiled
@@ -41,17 +43,6 @@ def normal_equations(moved, idx, target, normals):  # pragma: no cover - compile
         for c in range(a):
             H[a, c] = H[c, a]
     return H, b, pairs
-
-
-@nb.njit(cache=True, nogil=True)
-def transform(T, points):  # pragma: no cover - compiled
-    """``points`` (N, 3) moved by the 4x4 ``T``."""
-    out = np.empty_like(points)
-    for i in range(points.shape[0]):
-        x, y, z = points[i, 0], points[i, 1], points[i, 2]
-        for a in range(3):
-            out[i, a] = T[a, 0] * x + T[a, 1] * y + T[a, 2] * z + T[a, 3]
-    return out
 
 
 @nb.njit(cache=True, nogil=True)

@@ -103,12 +103,11 @@ def test_noise_free_motion_from_a_seed_and_threads_agree():
 
 
 def test_the_compiled_fit_equals_the_shared_rigid_fit():
-    """icp-p2p's compiled per-iteration fit (``methods.icp._fit_update``) against
+    """icp-p2p's compiled per-iteration fit (``methods.rigid.rigid_update_from_sums``) against
     ``methods.rigid.rigid_from_sums`` (the NumPy fit every point-to-point method shares) on
     random pair sums, a reflected configuration, and the degenerate cases (fewer than 3 pairs,
     collinear points) it must refuse."""
-    from methods.icp import _fit_update
-    from methods.rigid import rigid_from_sums
+    from methods.rigid import rigid_from_sums, rigid_update_from_sums
 
     rng = np.random.default_rng(7)
     T0 = exp_se3(np.array([0.3, -0.1, 0.2, 0.05, -0.02, 0.1]))
@@ -119,7 +118,7 @@ def test_the_compiled_fit_equals_the_shared_rigid_fit():
         if case == 0:
             q = q * np.array([1.0, 1.0, -1.0])  # a mirrored target: the guard keeps det(R) = 1
         sums = (len(p), p.sum(axis=0), q.sum(axis=0), p.T @ q)
-        T, fitted = _fit_update(*sums, T0)
+        T, fitted = rigid_update_from_sums(*sums, T0)
         expected = rigid_from_sums(*sums)
         assert fitted and expected is not None
         np.testing.assert_allclose(T, expected @ T0, atol=1e-10)
@@ -127,6 +126,6 @@ def test_the_compiled_fit_equals_the_shared_rigid_fit():
     line = np.outer(np.arange(10.0), [1.0, 2.0, 3.0])
     for sums in ((2, np.ones(3), np.ones(3), np.eye(3)),
                  (10, line.sum(axis=0), line.sum(axis=0) + 10, line.T @ (line + 1))):
-        T, fitted = _fit_update(*sums, T0)
+        T, fitted = rigid_update_from_sums(*sums, T0)
         assert not fitted and rigid_from_sums(*sums) is None
         np.testing.assert_array_equal(T, T0)
