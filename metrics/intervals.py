@@ -1,0 +1,216 @@
+"""Confidence intervals for statistics of errors measured along one trajectory.
+
+Errors along a trajectory are not independent: relative-error segments that start a few frames
+apart share most of their frames, a drifting estimate makes neighbouring APE errors alike, and
+consecutive velocity windows overlap. Resampling single segments or frames would treat them as
+independent and give intervals far too narrow. Here every error is a *unit* anchored at the
+frame it starts at (a segment's start pose, an APE frame, a velocity window's first frame), and
+the resampling draws **blocks of consecutive frames** (a circular block bootstrap, Politis &
+Romano 1992): ``ceil(n / b)`` blocks of ``b`` frames with uniformly drawn starts, wrapped at the
+end, the first ``n`` drawn frames kept. A unit enters a resample as often as its anchor frame
+was drawn. The statistic (a mean, or the RMSE) of each resample is the weighted statistic of
+the units; the interval is the percentile interval of ``reps`` resamples.
+
+Block length (:func:`block_frames`): at least the frames one unit spans (a segment's end index
+minus its start index, its median over the units) so that units sharing frames mostly fall in
+one block, and at least the automatic block length of Politis & White (2004) for the unit
+values ordered by anchor (:func:`correlation_length`); never more than half the frames. Every
+interval records its block length.
+
+Paired comparison (:func:`paired_interval`): two estimates scored on the same segments (the
+same GT, the same scored frames) are compared through the per-unit difference, resampled with
+the same blocks; "significantly different" means the difference's interval excludes zero.
+
+The number of *independent* units behind a figure (:func:`independent_count`) is the longest
+chain of non-overlapping units (greedy from the first: the next unit starts at or after the
+previous one's end). A figure with fewer than :data:`MIN_INDEPENDENT` of them is reported as
+such and never ranked.
+
+The resampling is seeded (``seed``), so a run's ``metrics.json`` is reproducible.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+#: the default confidence level of every interval
+LEVEL = 0.95
+#: the default number of bootstrap resamples
+REPS = 1000
+#: fewer independent units than this: the figure is not ranked
+MIN_INDEPENDENT = 2
+
+
+@dataclass(frozen=True)
+class Interval:
+    """A ``level`` confidence interval ``[low, high]`` of a statistic, from a circular block
+    bootstrap with blocks of ``block_frames`` frames, behind which stand ``n_independent``
+    non-overlapping units. ``low`` / ``high`` are NaN when there is nothing to resample."""
+
+    low: float
+    high: float
+    level: float
+    block_frames: int
+    n_independent: int
+
+    @property
+    def excludes_zero(self) -> bool:
+        return bool(np.isfinite(self.low) and np.isfinite(self.high)
+                    and (self.low > 0.0 or self.high < 0.0))
+
+    @property
+    def rankable(self) -> bool:
+        return self.n_independent >= MIN_INDEPENDENT
+
+
+def independent_count(start_idx: np.ndarray, end_idx: np.ndarray) -> int:
+    """The longest greedy chain of non-overlapping units (each starting at or after the
+    previous one's end), taken in order of their start."""
+    start = np.asarray(start_idx, dtype=np.int64)
+    end = np.asarray(end_idx, dtype=np.int64)
+    if start.size == 0:
+        return 0
+    order = np.argsort(start, kind="stable")
+    start, end = start[order], end[order]
+    count, k = 0, 0
+    while k < start.size:
+        count += 1
+        k = max(k + 1, int(np.searchsorted(start, end[k], side="left")))
+    return count
+
+
+def correlation_length(values: np.ndarray) -> int:
+    """The automatic block length of Politis & White (2004, corrected by Patton, Politis &
+    White 2009) for the circular block bootstrap of the mean of ``values``: from the sample
+    autocovariances up to the lag ``M`` where the autocorrelation stops being significant,
+    ``b = (2 G^2 / D)^(1/3) n^(1/3)`` with ``G = sum lambda(k/M) |k| R(k)``,
+    ``D = 4/3 g(0)^2``, ``g(0) = sum lambda(k/M) R(k)`` and the flat-top window ``lambda``.
+    1 for a series too short or constant."""
+    x = np.asarray(values, dtype=np.float64)
+    x = x[np.isfinite(x)]
+    n = x.size
+    if n < 8:
+        return 1
+    x = x - x.mean()
+    size = 1 << int(math.ceil(math.log2(2 * n)))
+    f = np.fft.rfft(x, size)
+    acov = np.fft.irfft(f * np.conj(f), size)[:n] / n
+    if acov[0] <= 0.0:
+        return 1
+    rho = acov / acov[0]
+    # m: the first lag after which K_N consecutive autocorrelations are insignificant
+    k_n = max(5, int(math.ceil(math.sqrt(math.log10(n)))))
+    threshold = 2.0 * math.sqrt(math.log10(n) / n)
+    small = np.abs(rho[1:]) < threshold  # small[j]: lag j + 1
+    m = None
+    for lag in range(0, n - 1 - k_n):
+        if np.all(small[lag:lag + k_n]):
+            m = lag
+            break
+    if m is None:
+        m = n // 2
+    big_m = int(min(max(2 * m, 1), n // 2 - 1)) if n // 2 > 1 else 1
+    lags = np.arange(-big_m, big_m + 1)
+    t = np.abs(lags) / big_m
+    lam = np.where(t <= 0.5, 1.0, np.where(t <= 1.0, 2.0 * (1.0 - t), 0.0))
+    r = acov[np.abs(lags)]
+    g = float(np.sum(lam * np.abs(lags) * r))
+    g0 = float(np.sum(lam * r))
+    if g0 <= 0.0:
+        return 1
+    d = 4.0 / 3.0 * g0**2
+    b = (2.0 * g**2 / d) ** (1.0 / 3.0) * n ** (1.0 / 3.0)
+    return int(max(1, math.ceil(b)))
+
+
+def block_frames(n_frames: int, span_frames: float, values: np.ndarray | None = None) -> int:
+    """The block length [frames] for units spanning ``span_frames`` (median end - start) whose
+    values, ordered by anchor, are ``values``: the larger of the span and the correlation
+    length, at least 1, at most half the frames."""
+    b = max(1.0, float(span_frames))
+    if values is not None:
+        b = max(b, float(correlation_length(values)))
+    return int(max(1, min(math.ceil(b), max(1, n_frames // 2))))
+
+
+def block_counts(n_frames: int, block: int, reps: int = REPS, seed: int = 0) -> np.ndarray:
+    """(reps, n_frames) how often each frame is drawn in each circular block resample."""
+    n, b = int(n_frames), max(1, int(block))
+    rng = np.random.default_rng(seed)
+    k = -(-n // b)
+    starts = rng.integers(0, n, size=(reps, k))
+    idx = (starts[:, :, None] + np.arange(b)[None, None, :]).reshape(reps, k * b)[:, :n] % n
+    counts = np.zeros((reps, n), dtype=np.float64)
+    rows = np.repeat(np.arange(reps), n)
+    np.add.at(counts, (rows, idx.ravel()), 1.0)
+    return counts
+
+
+def _weighted(counts: np.ndarray, anchor: np.ndarray, values: np.ndarray, rmse: bool
+              ) -> np.ndarray:
+    w = counts[:, anchor]
+    total = w.sum(axis=1)
+    v = values**2 if rmse else values
+    with np.errstate(invalid="ignore", divide="ignore"):
+        stat = (w @ v) / total
+    stat[total == 0] = np.nan
+    return np.sqrt(stat) if rmse else stat
+
+
+def _percentiles(stats: np.ndarray, level: float) -> tuple[float, float]:
+    stats = stats[np.isfinite(stats)]
+    if stats.size == 0:
+        return math.nan, math.nan
+    alpha = 0.5 * (1.0 - level)
+    lo, hi = np.quantile(stats, [alpha, 1.0 - alpha])
+    return float(lo), float(hi)
+
+
+def unit_intervals(n_frames: int, anchor: np.ndarray, end: np.ndarray,
+                   values: dict[str, np.ndarray], rmse: bool = False, level: float = LEVEL,
+                   reps: int = REPS, seed: int = 0, block: int | None = None
+                   ) -> dict[str, Interval]:
+    """Intervals of the mean (``rmse``: the RMSE) of each array in ``values`` (one value per
+    unit, units anchored at frame ``anchor`` and ending at frame ``end``), all resampled with
+    the same blocks. The block length is :func:`block_frames` of the units' span and of the
+    most correlated of the value series, unless ``block`` is given."""
+    anchor = np.asarray(anchor, dtype=np.int64)
+    end = np.asarray(end, dtype=np.int64)
+    n_ind = independent_count(anchor, end)
+    nan = Interval(math.nan, math.nan, level, 0, n_ind)
+    finite = {k: np.asarray(v, dtype=np.float64) for k, v in values.items()}
+    if anchor.size == 0 or n_frames < 2:
+        return {k: nan for k in finite}
+    order = np.argsort(anchor, kind="stable")
+    if block is None:
+        span = float(np.median(end - anchor))
+        block = max(block_frames(n_frames, span, v[order]) for v in finite.values())
+    counts = block_counts(n_frames, block, reps, seed)
+    out = {}
+    for key, v in finite.items():
+        if not np.all(np.isfinite(v)):
+            out[key] = Interval(math.nan, math.nan, level, int(block), n_ind)
+            continue
+        lo, hi = _percentiles(_weighted(counts, anchor, v, rmse), level)
+        out[key] = Interval(lo, hi, level, int(block), n_ind)
+    return out
+
+
+def paired_interval(n_frames: int, anchor: np.ndarray, end: np.ndarray, values_a: np.ndarray,
+                    values_b: np.ndarray, level: float = LEVEL, reps: int = REPS,
+                    seed: int = 0, block: int | None = None) -> Interval:
+    """The interval of ``mean(values_a) - mean(values_b)`` over the same units (paired), by
+    the circular block bootstrap of :func:`unit_intervals` on the per-unit difference. The
+    block length is the larger of both series' (and the difference's) rule unless given."""
+    a = np.asarray(values_a, dtype=np.float64)
+    b = np.asarray(values_b, dtype=np.float64)
+    anchor = np.asarray(anchor, dtype=np.int64)
+    if block is None and anchor.size:
+        order = np.argsort(anchor, kind="stable")
+        span = float(np.median(np.asarray(end) - anchor))
+        block = max(block_frames(n_frames, span, x[order]) for x in (a, b, a - b))
+    return unit_intervals(n_frames, anchor, end, {"d": a - b}, level=level, reps=reps,
+                          seed=seed, block=block)["d"]
