@@ -192,6 +192,13 @@ def table(
     sweep: Annotated[bool, typer.Option(
         help="the experiment's parameter sweeps: one row per point, the best per length in "
         "bold, the criterion's choice beside the default")] = False,
+    marks: Annotated[str, typer.Option(
+        help="significance (default: bold = the best and every method not significantly "
+        "different from it, paired comparisons on the same segments) or value (the paper's "
+        "plain by-value style)")] = "significance",
+    ci: Annotated[bool, typer.Option(
+        "--ci/--no-ci", help="show each figure's 95 % confidence interval [low, high] in the "
+        "cells (the CSV always has them)")] = False,
 ) -> None:
     """Print a table (by default the paper-shaped Table III) and write table.md / .tex / .csv
     (table_<metric>.* for another metric)."""
@@ -206,7 +213,7 @@ def table(
         raise typer.Exit(0)
 
     raise typer.Exit(table_command(console, status, list(results_dirs), format, out, lengths,
-                                   pivot, methods, variants, metric))
+                                   pivot, methods, variants, metric, marks, ci))
 
 
 @app.command(short_help="two result folders side by side")

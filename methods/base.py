@@ -63,7 +63,9 @@ class FrameRecord:
     elapsed time of the frame's work (beside ``time_ms``, it shows waiting for a core);
     ``thread_ms`` / ``process_ms``: the CPU time of the calling thread / the whole process over
     the frame's work (their ratio shows work that left the thread, ``methods.timing``);
-    ``compiles``: numba compilations inside the frame (0 after a complete warm-up)."""
+    ``compiles``: numba compilations inside the frame (0 after a complete warm-up);
+    ``replaced``: the registration gave no usable transform (non-finite, or too few pairs) and
+    the step was replaced by the motion prior (the identity without a seed)."""
 
     index: int
     stamp: float
@@ -77,6 +79,7 @@ class FrameRecord:
     thread_ms: float = float("nan")
     process_ms: float = float("nan")
     compiles: int = 0
+    replaced: bool = False
 
 
 @dataclass
@@ -160,17 +163,21 @@ class Odometry(ABC):
         return getattr(self, "clock_override", None) or ("cpu" if self.threads == 1 else "wall")
 
     def frame_record(self, index: int, stamp: float, total, register, points: int,
-                     correspondences: int, iterations: int, converged: bool) -> FrameRecord:
+                     correspondences: int, iterations: int, converged: bool,
+                     replaced: bool = False) -> FrameRecord:
         """A frame's record from its ``timed_section`` (``total``; None: not timed, as the
-        first frame) and the stopwatch of its registration call (``register``; None: none)."""
+        first frame) and the stopwatch of its registration call (``register``; None: none);
+        ``replaced``: its step was replaced by the motion prior (see ``FrameRecord``)."""
         nan = float("nan")
         if total is None:
             return FrameRecord(index, stamp, nan, points, correspondences, iterations,
-                               converged, nan if register is None else register.ms(self.clock))
+                               converged, nan if register is None else register.ms(self.clock),
+                               replaced=replaced)
         return FrameRecord(index, stamp, total.ms(self.clock), points, correspondences,
                            iterations, converged,
                            nan if register is None else register.ms(self.clock),
-                           total.wall_ms, total.cpu_ms, total.process_ms, total.compiles)
+                           total.wall_ms, total.cpu_ms, total.process_ms, total.compiles,
+                           replaced)
 
     def configured_for(self, sensor: SensorInfo) -> Odometry:
         """This method with the parameters that depend on the sensor resolved for ``sensor``
@@ -256,7 +263,8 @@ class Registration(Odometry):
                     with stopwatch() as reg:
                         result = self.register(prev, scan, init)
                     T = result.T_target_source
-                    if not np.all(np.isfinite(T)):
+                    replaced = not np.all(np.isfinite(T))
+                    if replaced:  # counted and shown (RunResult.frames_replaced)
                         T = init
                         result = RegistrationResult(init, result.correspondences,
                                                     result.iterations, False)
@@ -268,7 +276,7 @@ class Registration(Odometry):
             else:
                 frames.append(self.frame_record(i, raw.stamp, total, reg, len(scan),
                                                 result.correspondences, result.iterations,
-                                                result.converged))
+                                                result.converged, replaced))
             prev = scan
             if on_frame:
                 on_frame(i)

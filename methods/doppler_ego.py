@@ -213,7 +213,7 @@ class DopplerEgo(Odometry):
                 v_curr = ego.velocity if ego.observable else None
                 if v_curr is not None:
                     velocities[i] = v_curr
-                pairs, iterations, converged = 0, 0, True
+                pairs, iterations, converged, replaced = 0, 0, True, False
                 if i == 0 and free_vertical is None:
                     first_static = pts
                 if i > 0:
@@ -236,8 +236,9 @@ class DopplerEgo(Odometry):
                                               p.max_iterations, free_axes_sensor=_SENSOR_Z
                                               if free_vertical else None)
                     T = fit.T_world_sensor
-                    if fit.correspondences < 10 or not np.all(np.isfinite(T)):
-                        T = init  # nothing to register to: keep the motion prior
+                    replaced = fit.correspondences < 10 or not np.all(np.isfinite(T))
+                    if replaced:  # nothing to register to: keep the motion prior (counted)
+                        T = init
                     if ego_t is not None:  # the translation is the Doppler one, always
                         T = _with_t(T, ego_t)
                     poses[i] = T
@@ -247,7 +248,8 @@ class DopplerEgo(Odometry):
                 local_map.add(src, covs, poses[i],
                               replace_within_m=p.replace_within_m if free_vertical else 0.0)
             records.append(self.frame_record(i, scan.stamp, watch if i else None, reg,
-                                             len(scan), pairs, iterations, converged))
+                                             len(scan), pairs, iterations, converged,
+                                             replaced))
             v_prev = v_curr
             if on_frame:
                 on_frame(i)

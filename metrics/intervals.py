@@ -18,13 +18,14 @@ values ordered by anchor (:func:`correlation_length`); never more than half the 
 interval records its block length.
 
 Paired comparison (:func:`paired_interval`): two estimates scored on the same segments (the
-same GT, the same scored frames) are compared through the per-unit difference, resampled with
-the same blocks; "significantly different" means the difference's interval excludes zero.
+same GT, the same scored frames) are resampled with the same blocks and the difference of their
+statistics taken per resample; "significantly different" means the difference's interval
+excludes zero.
 
 The number of *independent* units behind a figure (:func:`independent_count`) is the longest
 chain of non-overlapping units (greedy from the first: the next unit starts at or after the
-previous one's end). A figure with fewer than :data:`MIN_INDEPENDENT` of them is reported as
-such and never ranked.
+previous one's end); for single-frame units (APE) it is the number of whole blocks. A figure
+with fewer than :data:`MIN_INDEPENDENT` of them is reported as such and never ranked.
 
 The resampling is seeded (``seed``), so a run's ``metrics.json`` is reproducible.
 """
@@ -33,6 +34,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 
@@ -137,16 +139,31 @@ def block_frames(n_frames: int, span_frames: float, values: np.ndarray | None = 
 
 
 def block_counts(n_frames: int, block: int, reps: int = REPS, seed: int = 0) -> np.ndarray:
-    """(reps, n_frames) how often each frame is drawn in each circular block resample."""
-    n, b = int(n_frames), max(1, int(block))
+    """(reps, n_frames) how often each frame is drawn in each circular block resample
+    (read-only: resamples of the same size, block and seed are computed once)."""
+    return _block_counts(int(n_frames), max(1, int(block)), int(reps), int(seed))
+
+
+@lru_cache(maxsize=16)
+def _block_counts(n: int, b: int, reps: int, seed: int) -> np.ndarray:
     rng = np.random.default_rng(seed)
     k = -(-n // b)
     starts = rng.integers(0, n, size=(reps, k))
     idx = (starts[:, :, None] + np.arange(b)[None, None, :]).reshape(reps, k * b)[:, :n] % n
-    counts = np.zeros((reps, n), dtype=np.float64)
-    rows = np.repeat(np.arange(reps), n)
-    np.add.at(counts, (rows, idx.ravel()), 1.0)
+    flat = (np.arange(reps)[:, None] * n + idx).ravel()
+    counts = np.bincount(flat, minlength=reps * n).reshape(reps, n).astype(np.float64)
+    counts.flags.writeable = False
     return counts
+
+
+def block_indices(n_frames: int, block: int, reps: int = REPS, seed: int = 0) -> np.ndarray:
+    """(reps, n_frames) the frame indices of each circular block resample, in drawn order
+    (for statistics that are not weighted means, e.g. a fit redone on every resample)."""
+    n, b = int(n_frames), max(1, int(block))
+    rng = np.random.default_rng(seed)
+    k = -(-n // b)
+    starts = rng.integers(0, n, size=(reps, k))
+    return (starts[:, :, None] + np.arange(b)[None, None, :]).reshape(reps, k * b)[:, :n] % n
 
 
 def _weighted(counts: np.ndarray, anchor: np.ndarray, values: np.ndarray, rmse: bool
@@ -185,9 +202,11 @@ def unit_intervals(n_frames: int, anchor: np.ndarray, end: np.ndarray,
     if anchor.size == 0 or n_frames < 2:
         return {k: nan for k in finite}
     order = np.argsort(anchor, kind="stable")
+    span = float(np.median(end - anchor))
     if block is None:
-        span = float(np.median(end - anchor))
         block = max(block_frames(n_frames, span, v[order]) for v in finite.values())
+    if span <= 1.0:  # single frames: the independent pieces are the blocks themselves
+        n_ind = min(n_ind, max(1, n_frames // int(block)))
     counts = block_counts(n_frames, block, reps, seed)
     out = {}
     for key, v in finite.items():
@@ -200,17 +219,24 @@ def unit_intervals(n_frames: int, anchor: np.ndarray, end: np.ndarray,
 
 
 def paired_interval(n_frames: int, anchor: np.ndarray, end: np.ndarray, values_a: np.ndarray,
-                    values_b: np.ndarray, level: float = LEVEL, reps: int = REPS,
-                    seed: int = 0, block: int | None = None) -> Interval:
-    """The interval of ``mean(values_a) - mean(values_b)`` over the same units (paired), by
-    the circular block bootstrap of :func:`unit_intervals` on the per-unit difference. The
-    block length is the larger of both series' (and the difference's) rule unless given."""
+                    values_b: np.ndarray, rmse: bool = False, level: float = LEVEL,
+                    reps: int = REPS, seed: int = 0, block: int | None = None) -> Interval:
+    """The interval of ``stat(values_a) - stat(values_b)`` over the same units (paired: both
+    resampled with the same blocks; ``stat`` the mean, or the RMSE when ``rmse``). The block
+    length is the largest of both series' and their difference's rule unless given."""
     a = np.asarray(values_a, dtype=np.float64)
     b = np.asarray(values_b, dtype=np.float64)
     anchor = np.asarray(anchor, dtype=np.int64)
-    if block is None and anchor.size:
+    end = np.asarray(end, dtype=np.int64)
+    n_ind = independent_count(anchor, end)
+    if anchor.size == 0 or n_frames < 2 or not (np.all(np.isfinite(a))
+                                                 and np.all(np.isfinite(b))):
+        return Interval(math.nan, math.nan, level, 0, n_ind)
+    if block is None:
         order = np.argsort(anchor, kind="stable")
-        span = float(np.median(np.asarray(end) - anchor))
+        span = float(np.median(end - anchor))
         block = max(block_frames(n_frames, span, x[order]) for x in (a, b, a - b))
-    return unit_intervals(n_frames, anchor, end, {"d": a - b}, level=level, reps=reps,
-                          seed=seed, block=block)["d"]
+    counts = block_counts(n_frames, block, reps, seed)
+    diff = _weighted(counts, anchor, a, rmse) - _weighted(counts, anchor, b, rmse)
+    lo, hi = _percentiles(diff, level)
+    return Interval(lo, hi, level, int(block), n_ind)

@@ -22,7 +22,7 @@ import numpy as np
 from metrics.ape import ape_errors
 from metrics.kitti import KITTI_LENGTHS_M, STEP_FRAMES, kitti_segments
 from metrics.relative import segment_errors
-from metrics.velocity import DEFAULT_WINDOW_S, velocity_series
+from metrics.velocity import DEFAULT_WINDOW_S, own_velocity_series, velocity_series
 
 
 @dataclass(frozen=True)
@@ -72,7 +72,19 @@ def ape_units(gt_poses: np.ndarray, est_poses: np.ndarray, alignment="se3") -> U
 
 def velocity_units(gt_poses: np.ndarray, est_poses: np.ndarray, stamps: np.ndarray,
                    window_s: float = DEFAULT_WINDOW_S) -> Units:
-    """The velocity windows: ``norm_mps``, the norm of each window's velocity error."""
+    """The velocity windows: ``norm_mps``, the norm of each window's velocity error, and
+    ``x_abs_mps`` / ``y_abs_mps`` / ``z_abs_mps``, its absolute value per axis."""
     series = velocity_series(gt_poses, est_poses, stamps, window_s)
+    err = series.error_mps
     return Units(series.start_idx, series.end_idx,
+                 {"norm_mps": np.linalg.norm(err, axis=1), "x_abs_mps": np.abs(err[:, 0]),
+                  "y_abs_mps": np.abs(err[:, 1]), "z_abs_mps": np.abs(err[:, 2])})
+
+
+def own_velocity_units(gt_poses: np.ndarray, stamps: np.ndarray, est_mps: np.ndarray,
+                       window_s: float = DEFAULT_WINDOW_S) -> Units:
+    """A method's own velocity estimate per frame against the GT window around it:
+    ``norm_mps``."""
+    series = own_velocity_series(gt_poses, stamps, est_mps, window_s)
+    return Units(series.start_idx, np.maximum(series.end_idx, series.start_idx + 1),
                  {"norm_mps": np.linalg.norm(series.error_mps, axis=1)})

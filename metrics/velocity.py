@@ -118,6 +118,12 @@ def velocity_errors(gt_poses: np.ndarray, est_poses: np.ndarray, stamps: np.ndar
 
 def own_velocity_errors(gt_poses: np.ndarray, stamps: np.ndarray, est_mps: np.ndarray,
                         window_s: float = DEFAULT_WINDOW_S) -> VelocityErrorStats:
+    """Error statistics of a method's own velocity estimate (:func:`own_velocity_series`)."""
+    return velocity_stats(own_velocity_series(gt_poses, stamps, est_mps, window_s), window_s)
+
+
+def own_velocity_series(gt_poses: np.ndarray, stamps: np.ndarray, est_mps: np.ndarray,
+                        window_s: float = DEFAULT_WINDOW_S) -> VelocitySeries:
     """Error of a method's own per-frame velocity estimate ``est_mps`` (N, 3) [m/s, sensor
     frame at the frame] (a Doppler ego velocity, an instantaneous measurement) against the GT
     velocity over a window centred on the frame: from the last frame at or before
@@ -139,4 +145,4 @@ def own_velocity_errors(gt_poses: np.ndarray, stamps: np.ndarray, est_mps: np.nd
     k, a, b = k[keep], a[keep], b[keep]
     d = gt[b, :3, 3] - gt[a, :3, 3]
     gt_v = np.einsum("kji,kj->ki", gt[k, :3, :3], d) / (s[b] - s[a])[:, None]
-    return velocity_stats(VelocitySeries(k, b, s[k], est[k], gt_v), window_s)
+    return VelocitySeries(k, b, s[k], est[k], gt_v)

@@ -13,13 +13,14 @@ from loaders.fileio import atomic_write_text
 
 def table_command(console: Console, status: Console, results_dirs: list[Path], format: str,
                   out: Path | None, lengths: str | None, pivot: bool, methods: str | None,
-                  variants: bool, metric: str = "relative") -> int:
+                  variants: bool, metric: str = "relative", marks: str = "significance",
+                  ci: bool = False) -> int:
     """Print a table of ``metric`` (relative: the paper-shaped Table III; kitti; ape: methods
     x sequences; velocity), or the pivot, and write its files; returns 0. The results folder's
     own ``table.*`` (``table_<metric>.*``) is the whole table of that one folder: a filtered
     view (lengths, methods, variants, pivot) or a merged one (several folders) is written only
     to ``out``."""
-    from bench.report.table import RENDERERS, render
+    from bench.report.table import MARK_RULES, RENDERERS, render
     from bench.report.tables import METRICS, build, select
     from bench.report.tables_ape import collect_ape
     from bench.report.tables_pivot import pivot_markdown
@@ -33,6 +34,8 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
         raise DataError(f"unknown table format {format!r}; choose from {', '.join(RENDERERS)}")
     if metric not in METRICS:
         raise DataError(f"unknown metric {metric!r}; choose from {', '.join(METRICS)}")
+    if marks not in MARK_RULES:
+        raise DataError(f"--marks {marks!r}: choose from {', '.join(MARK_RULES)}")
     try:
         lengths_m = None if lengths is None else [float(x) for x in lengths.split(",")]
     except ValueError:
@@ -50,9 +53,9 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
         if len(results_dirs) > 1:
             raise DataError("--metric ape: one results folder at a time")
         only = {r.run.dir for r in rows}
-        texts = render(collect_ape(results_dirs[0], only=only).table)
+        texts = render(collect_ape(results_dirs[0], only=only, marks=marks, ci=ci).table)
     else:
-        texts = render(build(metric, rows, chosen))
+        texts = render(build(metric, rows, chosen, marks, ci))
     sys.stdout.write(texts["md" if pivot else format])  # unwrapped (a pipe gets valid CSV)
     if where is None:
         status.print("a filtered or merged view: not written (--out DIR writes it)",

@@ -3,8 +3,15 @@
 A ``Table`` is rows of cells under column titles, with row keys (sensor, sequence, method ...)
 on the left, rows grouped (a rule between groups; ranks are per group), a caption and
 footnotes. A cell is one or more ``Part``s ("rotation / translation"), each a formatted number
-with its rank (0 best, 1 second, 2 other: bold / underlined), or a status ("Div.", "failed",
-"-" for no value, "" for not run), and the values behind it for the CSV.
+with its rank (0 best, 1 second, 2 other: bold / underlined) and the ``Stat`` behind it (value,
+confidence interval, independent units, and its per-unit errors for a paired comparison), or a
+status ("Div.", "failed", "-" for no value, "" for not run), and the values behind it for the
+CSV.
+
+Marks (``mark_column``) follow one of two rules, stated in every caption (``MARK_RULES``):
+"significance" (the default: ``bench.report.significance``, paired comparisons on the same
+segments, ties share a mark, the seed and no-seed rows of a method are one contender) or
+"value" (the paper's plain style: the lowest value bold, the next underlined).
 
 Every table of the harness is built as a ``Table`` (``bench.report.tables``) and written by
 ``save_table``: ``to_markdown`` (pipe table + caption + footnotes), ``to_latex`` (a booktabs
@@ -21,17 +28,30 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from bench.report.significance import BEST, OTHER, SECOND, Stat, mark_significant  # noqa: F401
 from loaders.fileio import atomic_write_text
 
-BEST, SECOND, OTHER = 0, 1, 2
+#: the marking rules and how a caption states them
+MARK_RULES = {
+    "significance": ("Bold: the best per sequence and every method not significantly "
+                     "different from it (paired block-bootstrap comparison on the same "
+                     "segments, 95 % interval of the difference containing zero); underlined: "
+                     "the best of the rest and its ties. The seed and no-seed rows of a method "
+                     "are one contender (its better row is marked). A figure resting on fewer "
+                     "than 2 independent segments is not ranked."),
+    "value": ("Best value per sequence in bold, second underlined (by value alone, the "
+              "paper's style: differences may lie within the noise)."),
+}
 
 
 @dataclass
 class Part:
-    """A formatted value and its rank within its group and column (``OTHER``: unranked)."""
+    """A formatted value, its rank within its group and column (``OTHER``: unranked) and the
+    statistic behind it (None: a plain number, ranked by value)."""
 
     text: str
     rank: int = OTHER
+    stat: Stat | None = None
 
 
 @dataclass
@@ -82,15 +102,56 @@ def rank_values(values: list[float]) -> list[int]:
 
 
 def rank_column(rows: list[Row], col: int, part: int, value_of) -> None:
-    """Rank part ``part`` of column ``col`` within each group (rows with a status unranked);
-    ``value_of(row)`` gives the number ranked (lower is better)."""
+    """Rank part ``part`` of column ``col`` within each group by value (rows with a status
+    unranked); ``value_of(row)`` gives the number ranked (lower is better)."""
+    for members in _groups(rows, col, part).values():
+        for r, rank in zip(members, rank_values([value_of(r) for r in members]), strict=True):
+            r.cells[col].parts[part].rank = rank
+
+
+def _groups(rows: list[Row], col: int, part: int) -> dict[tuple, list[Row]]:
     groups: dict[tuple, list[Row]] = {}
     for r in rows:
         if r.cells[col].status is None and len(r.cells[col].parts) > part:
             groups.setdefault(r.group, []).append(r)
-    for members in groups.values():
-        for r, rank in zip(members, rank_values([value_of(r) for r in members]), strict=True):
-            r.cells[col].parts[part].rank = rank
+    return groups
+
+
+def mark_column(rows: list[Row], col: int, part: int, marks: str = "significance") -> None:
+    """Mark part ``part`` of column ``col`` within each group by the rule ``marks`` (see
+    ``MARK_RULES``) from each part's ``Stat``; a part without one is ranked by value."""
+    if marks not in MARK_RULES:
+        raise ValueError(f"unknown marking rule {marks!r}: one of {', '.join(MARK_RULES)}")
+    for members in _groups(rows, col, part).values():
+        parts = [r.cells[col].parts[part] for r in members]
+        ranks = (rank_values([_value(p) for p in parts]) if marks == "value"
+                 else mark_significant(members, parts))
+        for p, rank in zip(parts, ranks, strict=True):
+            p.rank = rank
+
+
+def _value(p: Part) -> float:
+    """The number a part is ranked by (NaN: not ranked)."""
+    if p.stat is not None:
+        return p.stat.value if p.stat.rankable else math.nan
+    try:
+        return float(p.text.split()[0])
+    except (ValueError, IndexError):
+        return math.nan
+
+
+def stat_text(value: float | None, ci: tuple | list | None, n_independent: int | None,
+              digits: int = 3, show_ci: bool = False) -> str:
+    """A figure's text: the value, with ``show_ci`` its interval "[low, high]", and "(1
+    segment)" when fewer than two independent units stand behind it."""
+    if value is None or not math.isfinite(value):
+        return "-"
+    text = f"{value:.{digits}f}"
+    if show_ci and ci is not None and None not in ci:
+        text += f" [{ci[0]:.{digits}f}, {ci[1]:.{digits}f}]"
+    if n_independent is not None and n_independent < 2:
+        text += f" ({n_independent} segment{'' if n_independent == 1 else 's'})"
+    return text
 
 
 # ---- renderers --------------------------------------------------------------------------------

@@ -8,9 +8,15 @@ class and sequence, one row per method and seed option (``runs``), and one table
   measures it, its own Doppler velocity's error).
 
 The APE table (methods x sequences, the paper's Tables IV/V) is ``bench.report.tables_ape``.
-Per sequence and column the best value is bold and the second underlined; a diverged run shows
-"Div." and is not ranked; a run that did not finish stays as a "failed" row with its reason in
-a footnote. Every table is a ``bench.report.table.Table`` (rendered to md / tex / csv).
+Every figure carries its confidence interval and independent-segment count (``metrics.json``,
+``bench.runs.uncertainty``), shown with ``ci=True`` and always in the CSV; marks follow
+``marks`` (``bench.report.table.MARK_RULES``: by default only significant differences, from
+paired comparisons of the runs' per-segment errors, ``bench.report.run_units``); a diverged run
+shows "Div." and is not ranked; a run that did not finish stays as a "failed" row with its
+reason in a footnote; a run whose frames fell back (replaced by the motion prior, or not
+converged) carries a footnote saying how many, and is flagged when more than
+``FALLBACK_LIMIT`` of them did. Every table is a ``bench.report.table.Table`` (rendered to md /
+tex / csv).
 """
 
 from __future__ import annotations
@@ -29,9 +35,20 @@ from bench.report.names import (
     sequence_key,
     synthetic_note,
 )
-from bench.report.table import Cell, Part, Row, Table, rank_column, save_table
+from bench.report.run_units import RunUnits
+from bench.report.table import (
+    MARK_RULES,
+    Cell,
+    Part,
+    Row,
+    Stat,
+    Table,
+    mark_column,
+    save_table,
+    stat_text,
+)
 from bench.runs.folders import RunRecord, load_runs
-from bench.runs.result import RunResult, nan
+from bench.runs.result import FALLBACK_LIMIT, RunResult, nan
 from loaders.sensor_classes import class_rank
 from methods.registry import Seed
 from metrics.velocity import DEFAULT_WINDOW_S
@@ -55,6 +72,9 @@ class RunRow:
 
     run: RunRecord
     label: str
+
+    def __post_init__(self) -> None:
+        self.units = RunUnits(self.run)
 
     @property
     def result(self) -> RunResult:
@@ -147,14 +167,22 @@ def select(results_dir: Path | list[Path], only: set[Path] | None = None,
 # ---- rows -------------------------------------------------------------------------------------
 
 def _row(table: Table, rr: RunRow, cells: list[Cell]) -> Row:
-    """A table row of a run; a run that did not finish gets "failed" cells and a footnote."""
+    """A table row of a run; a run that did not finish gets "failed" cells and a footnote, a
+    run whose frames fell back a footnote on its first cell saying how many (and "[fell
+    back]" in its label above ``FALLBACK_LIMIT``)."""
     if rr.failed:
         reason = (rr.result.error or rr.result.status).strip().splitlines()
         note = table.note(f"{rr.label} on {rr.sequence}: {rr.result.status}: "
                           f"{reason[0] if reason else ''}")
         cells = [Cell(status="failed", note=note if i == 0 else None)
                  for i in range(len(table.columns))]
-    return Row([rr.sensor_class, rr.sequence, rr.label], (rr.sensor_class, rr.sequence), cells,
+    elif rr.result.fallback_text() and cells and cells[0].note is None:
+        cells[0].note = table.note(f"{rr.label} on {rr.sequence}: "
+                                   f"{rr.result.fallback_text()}")
+    label = rr.label
+    if not rr.failed and rr.result.fell_back:
+        label += " [fell back]"
+    return Row([rr.sensor_class, rr.sequence, label], (rr.sensor_class, rr.sequence), cells,
                {"sequence": rr.run.sequence, "sensor_class": rr.sensor_class,
                 "method": rr.method, "seed": rr.seed.value, "label": rr.run.label,
                 "status": rr.result.status if rr.failed else
@@ -171,21 +199,44 @@ def fmt_time(x: float | None, threads: int = 1) -> str:
     return text if threads == 1 else f"{text} [{threads} thr.]"
 
 
-def _caption(rows: list[RunRow], text: str) -> str:
+def _caption(rows: list[RunRow], text: str, marks: str = "significance",
+             ci: bool = False) -> str:
     failed = FAILED_NOTE + " " if any(r.failed for r in rows) else ""
+    fell = (f"[fell back] = more than {100 * FALLBACK_LIMIT:g} % of the run's frames were "
+            "replaced by the motion prior or did not converge (counts in the footnotes). "
+            if any(not r.failed and r.result.fell_back for r in rows) else "")
+    level = next((r.result.ci_level for r in rows if r.result.finished), 0.95)
+    shown = (f"[low, high] = the {100 * level:g} % confidence interval (circular block "
+             "bootstrap over the trajectory, blocks at least one segment long). " if ci else "")
     return (synthetic_note(r.sequence for r in rows) + gt_assisted_note(r.label for r in rows)
-            + text + " " + hosts_note(r.result.cpu for r in rows if r.result.finished)
-            + "Best per sequence in bold, second underlined; Div. = diverged; " + failed
-            + SEED_NOTE)
+            + text + " " + shown + hosts_note(r.result.cpu for r in rows if r.result.finished)
+            + MARK_RULES[marks] + " Div. = diverged; " + failed + fell + SEED_NOTE)
+
+
+def _ci(ci) -> tuple[float, float] | None:
+    return None if ci is None or None in ci else (float(ci[0]), float(ci[1]))
+
+
+def stat_part(value: float | None, ci, n_independent: int | None, units=None,
+              digits: int = 3, show_ci: bool = False) -> Part:
+    """A figure as a table part with the ``Stat`` its marks are decided on."""
+    stat = Stat(nan(value), _ci(ci), n_independent, units)
+    return Part(stat_text(value, ci, n_independent, digits, show_ci), stat=stat)
 
 
 def _time_cell(rr: RunRow) -> Cell:
     t = rr.result.time_ms.mean
-    part = Part(fmt_time(t, rr.result.threads))
+    part = Part(fmt_time(t, rr.result.threads), stat=Stat(nan(t)))
     return Cell([part], values={"time_ms_mean": t})
 
 
-def relative_table(rows: list[RunRow], lengths: list[float]) -> Table:
+def _ci_values(name: str, ci) -> dict:
+    ci = _ci(ci)
+    return {f"{name}_ci_low": ci[0] if ci else None, f"{name}_ci_high": ci[1] if ci else None}
+
+
+def relative_table(rows: list[RunRow], lengths: list[float], marks: str = "significance",
+                   ci: bool = False) -> Table:
     """The paper's Table III: "rotation / translation" per length and the time per frame."""
     table = Table(["Sensor", "Sequence", "Method"],
                   [f"{L:g} m" for L in lengths] + ["Time (ms)"], [])
@@ -193,65 +244,129 @@ def relative_table(rows: list[RunRow], lengths: list[float]) -> Table:
         cells = []
         for L in lengths:
             rel = rr.result.relative(L)
-            rot, trans = (rel.rot_deg_mean, rel.trans_m_mean) if rel and rel.n else (None, None)
-            values = {"rot_deg_mean": rot, "trans_m_mean": trans, "segments":
-                      rel.n if rel else 0}
-            cells.append(Cell(status="Div.", values=values) if rr.diverged else
-                         Cell([Part(fmt(rot)), Part(fmt(trans))], values=values))
+            ok = rel is not None and rel.n > 0
+            rot, trans = (rel.rot_deg_mean, rel.trans_m_mean) if ok else (None, None)
+            n_ind = rel.spread.n_independent if ok else None
+            values = {"rot_deg_mean": rot, "trans_m_mean": trans,
+                      "segments": rel.n if rel else 0, "independent_segments": n_ind,
+                      **_ci_values("rot_deg_mean", rel.rot_deg_mean_ci if ok else None),
+                      **_ci_values("trans_m_mean", rel.trans_m_mean_ci if ok else None)}
+            if rr.diverged:
+                cells.append(Cell(status="Div.", values=values))
+                continue
+            u = rr.units
+            cells.append(Cell([
+                stat_part(rot, rel.rot_deg_mean_ci if ok else None, n_ind,
+                          lambda L=L, u=u: u.relative(L, "rot_deg"), show_ci=ci),
+                stat_part(trans, rel.trans_m_mean_ci if ok else None, n_ind,
+                          lambda L=L, u=u: u.relative(L, "trans_m"), show_ci=ci)],
+                values=values))
         table.rows.append(_row(table, rr, [*cells, _time_cell(rr)]))
     for i in range(len(lengths)):
-        for part, q in ((0, "rot_deg_mean"), (1, "trans_m_mean")):
-            rank_column(table.rows, i, part, lambda r, i=i, q=q: nan(r.cells[i].values[q]))
+        for part in (0, 1):
+            mark_column(table.rows, i, part, marks)
     # a diverged run's time is real: shown, not ranked
     ranked = [r for r, rr in zip(table.rows, rows, strict=True) if not rr.diverged]
-    rank_column(ranked, len(lengths), 0, lambda r: nan(r.cells[-1].values["time_ms_mean"]))
+    mark_column(ranked, len(lengths), 0, marks)
     table.caption = _caption(rows, "Each cell: mean rotation [deg] / translation [m] relative "
                              "error over the segments of each length (evo_rpe's definition). "
-                             + TIME_NOTE)
+                             + TIME_NOTE + " Times have no interval: marked by value.", marks, ci)
     return table
 
 
-def kitti_table(rows: list[RunRow]) -> Table:
+def kitti_segments_text(rows: list[RunRow]) -> str:
+    """Which KITTI lengths had segments, and how many per sequence: "100 m (4 segments per
+    sequence; Campus1: 1)"; the lengths no path reaches are named apart."""
+    per_seq: dict[float, dict[str, int]] = {}
+    asked: set[float] = set()
+    for rr in rows:
+        k = rr.result.kitti if rr.result.finished else None
+        if k is None:
+            continue
+        asked.update(k.lengths_m)
+        for pl in k.per_length:
+            per_seq.setdefault(pl.length_m, {})[rr.sequence] = pl.n
+    used = [L for L in sorted(per_seq) if any(per_seq[L].values())]
+    if not used:
+        return "no KITTI segment: every path is shorter than the shortest length"
+    parts = []
+    for L in used:
+        counts = per_seq[L]
+        common = max(set(counts.values()), key=list(counts.values()).count)
+        odd = [f"{s}: {n}" for s, n in counts.items() if n != common]
+        noun = "segment" if common == 1 else "segments"
+        parts.append(f"{L:g} m ({common} {noun} per sequence" +
+                     (f"; {', '.join(odd)}" if odd else "") + ")")
+    unused = sorted(asked - set(used))
+    text = "segments of " + ", ".join(parts)
+    if unused:
+        text += (f"; none of {unused[0]:g}-{unused[-1]:g} m (the paths are shorter)"
+                 if len(unused) > 1 else f"; none of {unused[0]:g} m (the paths are shorter)")
+    return text
+
+
+def kitti_table(rows: list[RunRow], marks: str = "significance", ci: bool = False) -> Table:
     """KITTI drift: translation [%] and rotation [deg/100 m] per run."""
     table = Table(["Sensor", "Sequence", "Method"],
                   ["Trans. drift (%)", "Rot. drift (deg/100 m)", "Segments"], [])
-    lengths: set[tuple] = set()
     for rr in rows:
         k = rr.result.kitti
-        if k is not None:
-            lengths.add(tuple(k.lengths_m))
         t, r, n = (k.trans_pct, k.rot_deg_per_100m, k.n) if k else (None, None, 0)
+        n_ind = k.spread.n_independent if k else None
         values = {"trans_pct": t, "rot_deg_per_100m": r}
         if rr.diverged:
             cells = [Cell(status="Div.", values=values), Cell(status="Div."),
                      Cell([Part(str(n))], values={"segments": n})]
         else:
-            cells = [Cell([Part(fmt(t))], values={"trans_pct": t}),
-                     Cell([Part(fmt(r))], values={"rot_deg_per_100m": r}),
-                     Cell([Part(str(n))], values={"segments": n})]
+            u, lengths = rr.units, tuple(k.lengths_m) if k else ()
+            step = k.step_frames if k else 10
+            cells = [Cell([stat_part(t, k.trans_pct_ci if k else None, n_ind,
+                                     lambda u=u, ls=lengths, s=step: u.kitti(ls, s, "trans_pct"),
+                                     digits=2, show_ci=ci)],
+                          values={"trans_pct": t, **_ci_values("trans_pct",
+                                                               k.trans_pct_ci if k else None)}),
+                     Cell([stat_part(r, k.rot_deg_per_100m_ci if k else None, n_ind,
+                                     lambda u=u, ls=lengths, s=step:
+                                     u.kitti(ls, s, "rot_deg_per_100m"), digits=2, show_ci=ci)],
+                          values={"rot_deg_per_100m": r, **_ci_values(
+                              "rot_deg_per_100m", k.rot_deg_per_100m_ci if k else None)}),
+                     Cell([Part(str(n))], values={"segments": n,
+                                                  "independent_segments": n_ind})]
         table.rows.append(_row(table, rr, cells))
-    for col, q in ((0, "trans_pct"), (1, "rot_deg_per_100m")):
-        rank_column(table.rows, col, 0, lambda r, col=col, q=q: nan(r.cells[col].values.get(q)))
-    over = ", ".join("-".join(f"{x:g}" for x in (ls[0], ls[-1])) + " m" for ls in
-                     sorted(lengths)) or "100-800 m"
-    table.caption = _caption(rows, f"KITTI drift over segments of {over} (the KITTI odometry "
-                             "devkit's definition: a segment starts every 10 frames and ends at "
-                             "the first frame beyond its length; translation error in % of the "
-                             "length, rotation error in deg per 100 m, averaged over every "
-                             "segment); - = the path is shorter than the shortest length.")
+    for col in (0, 1):
+        mark_column(table.rows, col, 0, marks)
+    table.caption = _caption(rows, f"KITTI drift over {kitti_segments_text(rows)} (the KITTI "
+                             "odometry devkit's definition: a segment starts every 10 frames "
+                             "and ends at the first frame beyond its length; translation error "
+                             "in % of the length, rotation error in deg per 100 m, averaged "
+                             "over every segment); - = the path is shorter than the shortest "
+                             "length.", marks, ci)
     return table
 
 
-def _velocity_cells(v, diverged: bool) -> list[Cell]:
+VELOCITY_COLUMNS = (("x_mean_mps", "x_abs_mps", False), ("y_mean_mps", "y_abs_mps", False),
+                    ("z_mean_mps", "z_abs_mps", False), ("norm_mean_mps", "norm_mps", False),
+                    ("norm_rmse_mps", "norm_mps", True))
+
+
+def _velocity_cells(v, diverged: bool, units: RunUnits | None, ci: bool) -> list[Cell]:
     if v is None or diverged:
         status = "Div." if diverged else "-"
         return [Cell(status=status) for _ in range(5)]
     values = [*v.axis_mean_mps, v.norm_mean_mps, v.norm_rmse_mps]
-    names = ["x_mean_mps", "y_mean_mps", "z_mean_mps", "norm_mean_mps", "norm_rmse_mps"]
-    return [Cell([Part(fmt(x))], values={q: x}) for q, x in zip(names, values, strict=True)]
+    n_ind = v.spread.n_independent
+    cells = []
+    for (name, quantity, rmse), x in zip(VELOCITY_COLUMNS, values, strict=True):
+        interval = v.norm_mean_mps_ci if name == "norm_mean_mps" else None
+        source = None if units is None else (
+            lambda q=quantity, rm=rmse, w=v.window_s: units.velocity(w, q, rm))
+        cells.append(Cell([stat_part(x, interval, n_ind, source, show_ci=ci)],
+                          values={name: x, **(_ci_values(name, interval) if interval
+                                              else {})}))
+    return cells
 
 
-def velocity_table(rows: list[RunRow]) -> Table:
+def velocity_table(rows: list[RunRow], marks: str = "significance", ci: bool = False) -> Table:
     """Ego-velocity error per run (and a "Doppler ego velocity" row for a method that
     measures its own)."""
     table = Table(["Sensor", "Sequence", "Method"],
@@ -261,16 +376,16 @@ def velocity_table(rows: list[RunRow]) -> Table:
         v = rr.result.velocity
         if v is not None:
             windows.add(v.window_s)
-        table.rows.append(_row(table, rr, _velocity_cells(v, rr.diverged)))
+        table.rows.append(_row(table, rr, _velocity_cells(v, rr.diverged, rr.units, ci)))
         own = rr.result.velocity_own
         if own is not None and not rr.failed:
-            row = _row(table, rr, _velocity_cells(own, False))
+            row = _row(table, rr, _velocity_cells(own, False, None, ci))
             row.keys[-1] = f"{rr.label} [Doppler ego velocity]"
             row.meta["status"] = "doppler"
+            row.meta["label"] = f"{rr.run.label or ''} [Doppler ego velocity]"
             table.rows.append(row)
     for col in range(5):
-        rank_column(table.rows, col, 0,
-                    lambda r, col=col: nan(next(iter(r.cells[col].values.values()), None)))
+        mark_column(table.rows, col, 0, marks)
     w = ", ".join(f"{x:g}" for x in sorted(windows)) or f"{DEFAULT_WINDOW_S:g}"
     table.caption = _caption(rows, (
         "Ego-velocity error [m/s] in the sensor frame: mean absolute error per axis (x, y, z) "
@@ -280,27 +395,31 @@ def velocity_table(rows: list[RunRow]) -> Table:
         f"window, not frame to frame: a GT nearest-matched to the scans (NTU4DRadLM: 10 Hz "
         "poses at 12 Hz scans) makes frame-to-frame GT velocities mostly artefact. [Doppler ego "
         f"velocity] rows: the method's own instantaneous Doppler estimate against the GT "
-        f"velocity over a {w} s window centred on the frame."))
+        f"velocity over a {w} s window centred on the frame."), marks, ci)
     return table
 
 
 TABLES = {"relative": relative_table, "kitti": kitti_table, "velocity": velocity_table}
 
 
-def build(metric: str, rows: list[RunRow], lengths: list[float] | None = None) -> Table:
-    """The table of ``metric`` (one of ``TABLES``) for ``rows``."""
+def build(metric: str, rows: list[RunRow], lengths: list[float] | None = None,
+          marks: str = "significance", ci: bool = False) -> Table:
+    """The table of ``metric`` (one of ``TABLES``) for ``rows``, marked by ``marks``, with
+    the intervals in the cells when ``ci``."""
     if metric == "relative":
-        return relative_table(rows, lengths if lengths is not None else scored_lengths(rows))
-    return TABLES[metric](rows)
+        return relative_table(rows, lengths if lengths is not None else scored_lengths(rows),
+                              marks, ci)
+    return TABLES[metric](rows, marks, ci)
 
 
 def write_tables(results_dir: Path | list[Path], out_dir: Path | None = None,
                  only: set[Path] | None = None, stem: str = "table",
                  lengths_m: list[float] | None = None,
                  keep: Callable[[RunRow], bool] | None = None,
-                 metric: str = "relative") -> dict[str, str]:
+                 metric: str = "relative", marks: str = "significance",
+                 ci: bool = False) -> dict[str, str]:
     """Write <stem>.md, .tex and .csv of ``metric``'s table of the selected rows; return the
     texts by format."""
     rows, lengths = select(results_dir, only, lengths_m, keep)
     first = results_dir[0] if isinstance(results_dir, list) else results_dir
-    return save_table(build(metric, rows, lengths), Path(out_dir or first), stem)
+    return save_table(build(metric, rows, lengths, marks, ci), Path(out_dir or first), stem)

@@ -5,9 +5,10 @@ One row per method (and seed option, when a results folder holds both), one colu
 sequence; each cell is the translation APE [m] (``metrics.json``'s ``ape.trans_rmse_m``, as
 evo_ape computes it) after the alignment the runs were scored with (``ape.requested``, stated
 in the caption; a cell whose alignment fell back to the orientations, or differs from the
-others, carries a footnote). Per column the best value is bold and the second underlined; a
-diverged run shows "Div." and is not ranked, as in the paper's Table V; a run that did not
-finish shows "failed" with its reason in a footnote.
+others, carries a footnote), with its confidence interval (``ci``) and marks by ``marks``
+(``bench.report.table.MARK_RULES``: by default only significant differences); a diverged run
+shows "Div." and is not ranked, as in the paper's Table V; a run that did not finish shows
+"failed" with its reason in a footnote.
 """
 
 from __future__ import annotations
@@ -24,9 +25,10 @@ from bench.report.names import (
     sequence_key,
     synthetic_note,
 )
-from bench.report.table import Cell, Part, Row, Table, rank_column, save_table
+from bench.report.run_units import RunUnits
+from bench.report.table import MARK_RULES, Cell, Row, Table, mark_column, save_table
+from bench.report.tables import stat_part
 from bench.runs.folders import RunRecord, load_runs
-from bench.runs.result import nan
 from metrics.ape import Alignment
 
 
@@ -48,7 +50,8 @@ def _runs(results_dir: Path, only: set[Path] | None) -> list[RunRecord]:
 
 
 def collect_ape(results_dir: Path, sequences: list[str] | None = None,
-                only: set[Path] | None = None, caption: str = "") -> ApeTable:
+                only: set[Path] | None = None, caption: str = "",
+                marks: str = "significance", ci: bool = False) -> ApeTable:
     """The APE table of every finished run with ground truth (and every run that did not
     finish) under ``results_dir``.
 
@@ -82,8 +85,15 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
                                                          r.result.ape.trans_rmse_m}))
             else:
                 a = r.result.ape
-                cell = Cell([Part(fmt2(a.trans_rmse_m))], values={"ape_trans_rmse_m":
-                                                                  a.trans_rmse_m})
+                u = RunUnits(r)
+                low, high = a.trans_rmse_m_ci or (None, None)
+                cell = Cell([stat_part(a.trans_rmse_m, a.trans_rmse_m_ci,
+                                       a.spread.n_independent,
+                                       lambda u=u, al=a.requested: u.ape(al, "trans_m"),
+                                       digits=2, show_ci=ci)],
+                            values={"ape_trans_rmse_m": a.trans_rmse_m,
+                                    "ape_trans_rmse_m_ci_low": low,
+                                    "ape_trans_rmse_m_ci_high": high})
                 if a.alignment and a.alignment != common:
                     cell.note = table.note(f"{key[-1]} on {col}: aligned by {a.alignment} "
                                            f"(the others: {common})")
@@ -91,14 +101,15 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
         table.rows.append(Row([key[-1]], (), cells, {"method": key[1], "label": key[2] or None,
                                                      "seed": key[4], "status": "done"}))
     for i in range(len(columns)):
-        rank_column(table.rows, i, 0,
-                    lambda row, i=i: nan(row.cells[i].values.get("ape_trans_rmse_m")))
+        mark_column(table.rows, i, 0, marks)
     failed = any(not r.result.finished for r in runs)
     table.caption = (synthetic_note(columns) + gt_assisted_note(row.keys[0] for row in table.rows)
                      + (caption or "Absolute pose error [m]: "
                      "translation RMSE") + f" after {Alignment.parse(common).description}, as "
-                     f"evo_ape {Alignment.parse(common).evo_options} computes it. Best per "
-                     "sequence in bold, second underlined; Div. = diverged; - = not run"
+                     f"evo_ape {Alignment.parse(common).evo_options} computes it"
+                     + (" ([low, high]: its 95 % confidence interval, circular block bootstrap "
+                        "of the aligned per-frame errors)" if ci else "") + ". "
+                     + MARK_RULES[marks] + " Div. = diverged; - = not run"
                      + ("; failed = the run did not finish (reason in its footnote)" if failed
                         else "") + ". " + SEED_NOTE)
     return ApeTable(table, columns)
@@ -110,9 +121,10 @@ def fmt2(x: float | None) -> str:
 
 def write_ape_tables(results_dir: Path, out_dir: Path | None = None,
                      sequences: list[str] | None = None, stem: str = "table_ape",
-                     caption: str = "", only: set[Path] | None = None) -> dict[str, str]:
+                     caption: str = "", only: set[Path] | None = None,
+                     marks: str = "significance", ci: bool = False) -> dict[str, str]:
     """Write ``<stem>.{md,tex,csv}`` and return the texts by format."""
-    ape = collect_ape(results_dir, sequences, only, caption)
+    ape = collect_ape(results_dir, sequences, only, caption, marks, ci)
     if not ape.table.rows:
         raise FileNotFoundError(f"{results_dir}: no finished runs with ground truth "
                                 "(no metrics.json with an APE found)")

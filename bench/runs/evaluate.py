@@ -35,6 +35,7 @@ from bench.runs.result import (
     VelocityResult,
     num,
 )
+from bench.runs.uncertainty import intervals
 from loaders.errors import DataError
 from loaders.gt import gt_for_frames
 from loaders.trajectory import Trajectory
@@ -42,6 +43,13 @@ from methods.base import OdometryResult
 from metrics import Alignment, ape, is_diverged, kitti_drift, relative_errors, timing_stats
 from metrics.kitti import KITTI_LENGTHS_M, STEP_FRAMES
 from metrics.relative import DEFAULT_LENGTHS_M, MetricError
+from metrics.units import (
+    ape_units,
+    kitti_units,
+    own_velocity_units,
+    relative_units,
+    velocity_units,
+)
 from metrics.velocity import DEFAULT_WINDOW_S, own_velocity_errors, velocity_errors
 
 
@@ -61,6 +69,17 @@ class Scoring:
         object.__setattr__(self, "alignment", Alignment.parse(self.alignment).name)
 
 
+def fallbacks(result: OdometryResult) -> dict:
+    """``frames_replaced`` / ``frames_unconverged`` of ``metrics.json``: registered frames
+    (all but the first) whose step was replaced by the motion prior, and those that did not
+    converge (and were not replaced)."""
+    registered = result.frames[1:]
+    replaced = sum(bool(getattr(f, "replaced", False)) for f in registered)
+    unconverged = sum((not f.converged) and not getattr(f, "replaced", False)
+                      for f in registered)
+    return {"frames_replaced": int(replaced), "frames_unconverged": int(unconverged)}
+
+
 def _num(x: float) -> float | None:
     return num(x)
 
@@ -70,24 +89,27 @@ def timing_part(times_ms: np.ndarray) -> dict:
     return {k: _num(v) for k, v in timing_stats(times_ms).items()}
 
 
-def _velocity(stats, source: str) -> dict:
+def _velocity(stats, source: str, spread: dict | None = None) -> dict:
     return VelocityResult(
         source=source, window_s=stats.window_s, axis_mean_mps=[num(x) for x in
                                                                stats.axis_mean_mps],
         axis_rmse_mps=[num(x) for x in stats.axis_rmse_mps], norm_mean_mps=num(stats.norm_mean_mps),
-        norm_rmse_mps=num(stats.norm_rmse_mps), n=stats.n).model_dump()
+        norm_rmse_mps=num(stats.norm_rmse_mps), n=stats.n, **(spread or {})).model_dump()
 
 
 def _kitti(gt_s: np.ndarray, est_s: np.ndarray, scoring: Scoring) -> dict:
     """The KITTI part (lengths the path is too short for are listed in ``too_long``; the plan
     says so once per sequence, ``bench.runs.plan``)."""
     k = kitti_drift(gt_s, est_s, scoring.kitti_lengths_m, STEP_FRAMES)
+    spread = intervals(kitti_units(gt_s, est_s, scoring.kitti_lengths_m, STEP_FRAMES),
+                       len(gt_s), {"trans_pct": "trans_pct_ci",
+                                   "rot_deg_per_100m": "rot_deg_per_100m_ci"})
     return KittiResult(
         lengths_m=list(scoring.kitti_lengths_m), step_frames=STEP_FRAMES,
         trans_pct=num(k.trans_pct), rot_deg_per_100m=num(k.rot_deg_per_100m), n=k.n,
         per_length=[KittiLength(length_m=L, trans_pct=num(t), rot_deg_per_100m=num(r), n=n)
                     for L, (t, r, n) in k.per_length.items()],
-        too_long=list(k.too_long)).model_dump()
+        too_long=list(k.too_long), **spread).model_dump()
 
 
 def score(gt_poses: np.ndarray, est_poses: np.ndarray, times_ms: np.ndarray,
@@ -116,6 +138,8 @@ def score(gt_poses: np.ndarray, est_poses: np.ndarray, times_ms: np.ndarray,
         length_m=length, rot_deg_mean=num(s.rot_deg_mean), rot_deg_median=num(s.rot_deg_median),
         rot_deg_rmse=num(s.rot_deg_rmse), trans_m_mean=num(s.trans_m_mean),
         trans_m_median=num(s.trans_m_median), trans_m_rmse=num(s.trans_m_rmse), n=int(s.n),
+        **intervals(relative_units(gt_s, est_s, length), len(idx),
+                    {"rot_deg": "rot_deg_mean_ci", "trans_m": "trans_m_mean_ci"}),
     ).model_dump() for length, s in rel.items()]
     finite = bool(np.all(np.isfinite(est_poses)))
     if finite and len(idx) >= 2:
@@ -124,7 +148,10 @@ def score(gt_poses: np.ndarray, est_poses: np.ndarray, times_ms: np.ndarray,
             requested=scoring.alignment, alignment=a.alignment, trans_rmse_m=num(a.trans_rmse_m),
             trans_mean_m=num(a.trans_mean_m), trans_median_m=num(a.trans_median_m),
             trans_max_m=num(a.trans_max_m), rot_rmse_deg=num(a.rot_rmse_deg),
-            rot_mean_deg=num(a.rot_mean_deg), scale=num(a.scale)).model_dump()
+            rot_mean_deg=num(a.rot_mean_deg), scale=num(a.scale),
+            **intervals(ape_units(gt_s, est_s, scoring.alignment), len(idx),
+                        {"trans_m": "trans_rmse_m_ci", "rot_deg": "rot_rmse_deg_ci"}),
+        ).model_dump()
     else:
         ape_part = ApeResult(requested=scoring.alignment, scale=None).model_dump()
     out = {
@@ -137,12 +164,16 @@ def score(gt_poses: np.ndarray, est_poses: np.ndarray, times_ms: np.ndarray,
     }
     if stamps is not None and len(idx) >= 2:
         st = np.asarray(stamps, dtype=np.float64)[idx]
-        out["velocity"] = _velocity(velocity_errors(gt_s, est_s, st, scoring.velocity_window_s),
-                                    "trajectory")
+        out["velocity"] = _velocity(
+            velocity_errors(gt_s, est_s, st, scoring.velocity_window_s), "trajectory",
+            intervals(velocity_units(gt_s, est_s, st, scoring.velocity_window_s), len(idx),
+                      {"norm_mps": "norm_mean_mps_ci"}))
         if velocity_mps is not None:
             own = np.asarray(velocity_mps, dtype=np.float64)[idx]
             out["velocity_own"] = _velocity(
-                own_velocity_errors(gt_s, st, own, scoring.velocity_window_s), "doppler")
+                own_velocity_errors(gt_s, st, own, scoring.velocity_window_s), "doppler",
+                intervals(own_velocity_units(gt_s, st, own, scoring.velocity_window_s),
+                          len(idx), {"norm_mps": "norm_mean_mps_ci"}))
     return out
 
 
@@ -170,6 +201,7 @@ def evaluate_run(ground_truth: Trajectory | None, result: OdometryResult,
     timings = {key: timing_part(np.array([getattr(f, key) for f in result.frames],
                                          dtype=np.float64))
                for key in ("time_ms", "register_ms", "wall_ms")}
+    timings |= fallbacks(result)
     if ground_truth is None:
         return Evaluation(None, {"diverged": None, "relative_error": [], "ape": None,
                                  **timings, "frames_scored": 0})

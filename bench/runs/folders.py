@@ -44,7 +44,7 @@ from methods.base import OdometryResult
 from methods.registry import Seed
 
 FRAME_COLUMNS = ["index", "stamp", "time_ms", "register_ms", "wall_ms", "points",
-                 "correspondences", "iterations", "converged"]
+                 "correspondences", "iterations", "converged", "replaced"]
 
 
 RUN_RECORDS = ("metrics.json", "failed.json")
@@ -103,7 +103,7 @@ def frames_csv(result: OdometryResult) -> str:
     # per-frame cost of writing a run)
     writer.writerows([f.index, f"{f.stamp:.9f}", f"{f.time_ms:.6f}", f"{f.register_ms:.6f}",
                       f"{f.wall_ms:.6f}", f.points, f.correspondences, f.iterations,
-                      int(f.converged)] for f in result.frames)
+                      int(f.converged), int(f.replaced)] for f in result.frames)
     return buf.getvalue()
 
 

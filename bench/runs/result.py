@@ -29,6 +29,9 @@ from methods.registry import Seed
 
 #: the version of metrics.json this module writes
 SCHEMA = 2
+#: a run where more than this share of registered frames fell back (replaced by the motion
+#: prior, or not converged) is marked in every table and the report
+FALLBACK_LIMIT = 0.05
 
 Num = float | None  # a statistic; None = no value (NaN / infinite / nothing to measure)
 
@@ -55,9 +58,23 @@ class TimingStats(_Model):
     p95: Num = None
 
 
+Ci = list[Num] | None  # a confidence interval [low, high] of the statistic beside it
+
+
+class Spread(_Model):
+    """How sure a figure is (``metrics.intervals``): its intervals come from a circular block
+    bootstrap with blocks of ``block_frames`` frames at ``RunResult.ci_level``; behind it stand
+    ``n_independent`` non-overlapping units (segments, windows, blocks of frames). A figure
+    with fewer than two is never ranked."""
+
+    block_frames: int | None = None
+    n_independent: int | None = None
+
+
 class RelativeError(_Model):
     """Relative error over segments of ``length_m`` (``metrics.relative``): rotation [deg],
-    translation [m]; ``n`` segments (0: none, statistics None)."""
+    translation [m]; ``n`` segments (0: none, statistics None); the means' intervals
+    (``*_ci``) and their ``spread``."""
 
     length_m: float
     rot_deg_mean: Num = None
@@ -67,6 +84,9 @@ class RelativeError(_Model):
     trans_m_median: Num = None
     trans_m_rmse: Num = None
     n: int = 0
+    rot_deg_mean_ci: Ci = None
+    trans_m_mean_ci: Ci = None
+    spread: Spread = Spread()
 
 
 class ApeResult(_Model):
@@ -82,6 +102,9 @@ class ApeResult(_Model):
     rot_rmse_deg: Num = None
     rot_mean_deg: Num = None
     scale: Num = 1.0
+    trans_rmse_m_ci: Ci = None
+    rot_rmse_deg_ci: Ci = None
+    spread: Spread = Spread()
 
 
 class KittiLength(_Model):
@@ -102,6 +125,9 @@ class KittiResult(_Model):
     n: int = 0
     per_length: list[KittiLength] = Field(default_factory=list)
     too_long: list[float] = Field(default_factory=list)
+    trans_pct_ci: Ci = None
+    rot_deg_per_100m_ci: Ci = None
+    spread: Spread = Spread()
 
 
 class VelocityResult(_Model):
@@ -115,6 +141,8 @@ class VelocityResult(_Model):
     norm_mean_mps: Num = None
     norm_rmse_mps: Num = None
     n: int = 0
+    norm_mean_mps_ci: Ci = None
+    spread: Spread = Spread()
 
 
 class RunResult(_Model):
@@ -154,6 +182,13 @@ class RunResult(_Model):
     timing_outliers: dict[str, str] = Field(default_factory=dict)
     timing_clean: bool = True
     notes: list[str] = Field(default_factory=list)
+    #: the confidence level of every ``*_ci`` interval (``bench.runs.uncertainty``)
+    ci_level: float = 0.95
+    #: registered frames (every frame but the first) whose registration gave no usable
+    #: transform and whose step was replaced by the motion prior (the identity without a
+    #: seed), and frames whose registration stopped before converging (its last iterate kept)
+    frames_replaced: int = 0
+    frames_unconverged: int = 0
 
     model_config = ConfigDict(extra="ignore", frozen=True, populate_by_name=True)
 
@@ -193,6 +228,31 @@ class RunResult(_Model):
     def scored(self) -> bool:
         """Finished with ground truth (has relative errors)."""
         return self.finished and self.diverged is not None and bool(self.relative_error)
+
+    @property
+    def fallback_share(self) -> float:
+        """The share of registered frames replaced or not converged (0 with none)."""
+        registered = max(0, (self.frames or 0) - 1)
+        bad = self.frames_replaced + self.frames_unconverged
+        return bad / registered if registered else 0.0
+
+    @property
+    def fell_back(self) -> bool:
+        """More than ``FALLBACK_LIMIT`` of the registered frames fell back."""
+        return self.fallback_share > FALLBACK_LIMIT
+
+    def fallback_text(self) -> str | None:
+        """"3 of 249 frames replaced by the motion prior, 11 not converged" (None: none)."""
+        parts = []
+        registered = max(0, (self.frames or 0) - 1)
+        if self.frames_replaced:
+            prior = "the identity" if self.seed is Seed.WITHOUT else "the motion prior"
+            parts.append(f"{self.frames_replaced} of {registered} frames replaced by {prior} "
+                         "(no usable registration)")
+        if self.frames_unconverged:
+            parts.append(f"{self.frames_unconverged} of {registered} frames not converged "
+                         "(last iterate kept)")
+        return "; ".join(parts) or None
 
     @property
     def seed_option(self) -> bool | None:

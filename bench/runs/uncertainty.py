@@ -1,0 +1,48 @@
+"""The intervals of a scored run's figures (``metrics.intervals`` on ``metrics.units``).
+
+Every figure ``bench.runs.evaluate.score`` writes gets, beside it, its confidence interval at
+``LEVEL`` (95 %) from a circular block bootstrap over the scored frames and the count of
+independent (non-overlapping) units behind it:
+
+- relative error per length: the rotation and translation means, blocks at least one segment's
+  span (``metrics.intervals.block_frames``);
+- KITTI drift: the translation [%] and rotation [deg/100 m] means over every segment;
+- APE: the translation and rotation RMSE, the alignment fitted once on the whole trajectory
+  (the resampling is of the aligned per-frame errors);
+- velocity error: the mean error norm over the windows.
+
+The resampling is seeded (``SEED``): the same trajectory gives the same interval, and two runs
+on the same frames are resampled with the same blocks (their paired comparison,
+``bench.report.significance``).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from bench.runs.result import Spread, num
+from metrics.intervals import LEVEL, REPS, Interval, unit_intervals
+from metrics.units import Units
+
+SEED = 0
+
+
+def _ci(iv: Interval) -> list | None:
+    if not (np.isfinite(iv.low) and np.isfinite(iv.high)):
+        return None
+    return [num(iv.low), num(iv.high)]
+
+
+def intervals(units: Units, n_frames: int, keys: dict[str, str]) -> dict:
+    """The ``*_ci`` fields (``keys``: quantity in ``units`` -> field name) and the ``spread``
+    of one figure's units over ``n_frames`` scored frames."""
+    if len(units) == 0:
+        return {field: None for field in keys.values()} | {"spread": Spread(n_independent=0)}
+    ivs = unit_intervals(n_frames, units.anchor, units.end,
+                         {k: units.values[k] for k in keys}, rmse=units.rmse, level=LEVEL,
+                         reps=REPS, seed=SEED)
+    first = next(iter(ivs.values()))
+    out = {field: _ci(ivs[key]) for key, field in keys.items()}
+    out["spread"] = Spread(block_frames=first.block_frames or None,
+                           n_independent=first.n_independent)
+    return out
