@@ -115,6 +115,13 @@ def print_sweeps(results_dir: Path, index: dict, console: Console) -> None:
     console.print(text, markup=False, soft_wrap=True)
 
 
+def _with_ci(value: float | None, ci: list | None) -> str:
+    text = "-" if value is None else f"{value:.3f}"
+    if value is not None and ci and None not in ci:
+        text += f" [{ci[0]:.3f}, {ci[1]:.3f}]"
+    return text
+
+
 def print_run_summary(run_dir: Path, console: Console) -> None:
     """Key metrics of a finished single run, and its folder."""
     run = read_run(run_dir)
@@ -124,9 +131,11 @@ def print_run_summary(run_dir: Path, console: Console) -> None:
         parts = []
         for length in dict.fromkeys(scored[:1] + scored[-1:]):  # the shortest and longest
             r = res.relative(length)
-            parts.append(f"{length:g} m: {r.rot_deg_mean:.3f} deg / {r.trans_m_mean:.3f} m")
+            parts.append(f"{length:g} m: {_with_ci(r.rot_deg_mean, r.rot_deg_mean_ci)} deg / "
+                         f"{_with_ci(r.trans_m_mean, r.trans_m_mean_ci)} m")
         if res.ape is not None and res.ape.trans_rmse_m is not None:
-            parts.append(f"APE {res.ape.trans_rmse_m:.3f} m ({res.ape.alignment})")
+            parts.append(f"APE {_with_ci(res.ape.trans_rmse_m, res.ape.trans_rmse_m_ci)} m "
+                         f"({res.ape.alignment})")
         if res.kitti is not None and res.kitti.n:
             parts.append(f"KITTI {res.kitti.trans_pct:.2f} % / "
                          f"{res.kitti.rot_deg_per_100m:.2f} deg/100 m")
@@ -137,7 +146,13 @@ def print_run_summary(run_dir: Path, console: Console) -> None:
             parts.append(f"time {res.time_ms.mean:.2f} ms/frame")
         if run.diverged:
             parts.append("DIVERGED")
+        if res.fallback_text():
+            parts.append(res.fallback_text() + (" [fell back]" if res.fell_back else ""))
         console.print("; ".join(parts) or "no ground truth: no errors", markup=False)
+        if parts and scored:
+            console.print(f"[low, high]: {100 * res.ci_level:g} % confidence intervals "
+                          "(circular block bootstrap over the trajectory)", markup=False,
+                          style="dim")
     console.print(f"run folder: {run_dir}", markup=False)
 
 

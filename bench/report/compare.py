@@ -2,8 +2,9 @@
 
 Runs are matched by sequence, method, label and seed tag (which motion prior a run used: "With
 Seed", "No Seed", ...). For every segment length at which A or B has segments, one row (a cell)
-shows the mean rotation [deg] and translation [m] relative error of A and B and the change
-B - A; a length at which neither has segments is no cell. A cell whose error grew by more than
+shows the mean rotation [deg] and translation [m] relative error of A and B, each with its 95 %
+confidence interval "[low, high]", and the change B - A; a length at which neither has
+segments is no cell. A cell whose error grew by more than
 ``threshold`` (relative) is a regression, and so is every cell of a run that diverges in B but
 not in A. A second table gives each run's mean time per frame ``time_ms`` (all per-frame work,
 ``methods.timing``) in A and B and its change, and a third its per-run metrics: APE [m] (with
@@ -87,6 +88,9 @@ def compare(a: Path, b: Path, threshold: float = 0.10) -> pd.DataFrame:
         for q in QUANTITIES:
             va, vb = r.get(f"{q}_a"), r.get(f"{q}_b")
             row[f"{q}_a"], row[f"{q}_b"] = va, vb
+            for side in "ab":
+                for end in ("low", "high"):
+                    row[f"{q}_ci_{end}_{side}"] = r.get(f"{q}_ci_{end}_{side}")
             delta = vb - va if _finite(va) and _finite(vb) else math.nan
             row[f"{q}_delta"] = delta
             grew |= _finite(delta) and va > 0 and delta / va > threshold
@@ -197,6 +201,15 @@ def _fmt(x, digits: int = 3) -> str:
     return f"{x:.{digits}f}" if _finite(x) else "-"
 
 
+def _fmt_ci(r, q: str, side: str, digits: int = 3) -> str:
+    """The value of quantity ``q`` on ``side`` with its interval: "0.697 [0.523, 0.889]"."""
+    text = _fmt(r[f"{q}_{side}"], digits)
+    low, high = r.get(f"{q}_ci_low_{side}"), r.get(f"{q}_ci_high_{side}")
+    if text != "-" and _finite(low) and _finite(high):
+        text += f" [{low:.{digits}f}, {high:.{digits}f}]"
+    return text
+
+
 def _change(a, b, digits: int = 3) -> str:
     """B - A with its sign, and the relative change when A is not zero: "+0.012 (+4.1%)"."""
     if not (_finite(a) and _finite(b)):
@@ -230,12 +243,13 @@ def to_markdown(cells: pd.DataFrame, times: pd.DataFrame, a: Path, b: Path,
     per-run metrics (APE, KITTI drift, velocity error) and a one-line summary, as markdown."""
     out = [f"A = `{a}`, B = `{b}`", "",
            "Mean relative error over the segments of each length: rotation [deg], translation "
-           "[m]; change = B - A:", ""]
+           "[m], each with its 95 % confidence interval [low, high] (circular block bootstrap "
+           "over the trajectory); change = B - A:", ""]
     rows = []
     for _, r in cells.iterrows():
         row = [r["sequence"], r["run"], _length(r["length_m"])]
         for q in QUANTITIES:
-            row += [_fmt(r[f"{q}_a"]), _fmt(r[f"{q}_b"]), _change(r[f"{q}_a"], r[f"{q}_b"])]
+            row += [_fmt_ci(r, q, "a"), _fmt_ci(r, q, "b"), _change(r[f"{q}_a"], r[f"{q}_b"])]
         rows.append([*row, r["note"]])
     out += markdown_table(["Sequence", "Run", "Length [m]", "Rot. A", "Rot. B", "Rot. change",
                            "Trans. A", "Trans. B", "Trans. change", "Note"], rows,

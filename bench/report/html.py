@@ -1,10 +1,12 @@
 """``bench report RESULTS_DIR``: one self-contained HTML page of a results folder.
 
-The page holds every table the harness wrote into the folder (``table*.md``, ``pivot.md``,
-``fidelity.md``; the Table III of the folder's runs, made in memory, when none was written),
-with the paper's marking (best bold, second underlined, as in the markdown), every figure under
-``figures/`` embedded as a base64 PNG with its caption, the provenance of the runs (code
-version, store hashes, machine, how times were taken), the failed runs and the missing data
+The page holds the tables of the folder's runs made for it (relative error, KITTI drift, APE,
+velocity error: every figure with its 95 % confidence interval, marks only where a difference
+is significant), then every table the harness wrote into the folder (every ``*.md`` of the
+folder: ``table*.md`` of any metric, ``pivot.md``, ``fidelity.md`` ...) as written, every
+figure under ``figures/`` embedded as a base64 PNG with its caption, the provenance of the runs
+(code version, store hashes, machine, how times were taken), the failed runs, the runs whose
+frames fell back and the missing data
 (runs without ground truth, paper sequences a reproduction did not find: ``reproduction.json``).
 
 It is readable offline and loads nothing: no script, no external style, font or image; its
@@ -85,36 +87,64 @@ def _stale_note(path: Path, newest_run: float) -> str:
     return ""
 
 
+def table_files(results_dir: Path) -> list[Path]:
+    """Every markdown table in the folder: ``TABLE_FILES`` first, then any other ``*.md``."""
+    known = [results_dir / n for n in TABLE_FILES if (results_dir / n).exists()]
+    others = sorted(p for p in results_dir.glob("*.md") if p not in known)
+    return known + others
+
+
 def _tables_section(results_dir: Path, newest_run: float) -> tuple[str, int]:
     parts, count = [], 0
-    files = [results_dir / n for n in TABLE_FILES if (results_dir / n).exists()]
+    made = _tables_in_memory(results_dir)
+    if made:
+        parts.append("<p>Tables of the folder's finished runs, made for this page: every "
+                     "figure with its 95 % confidence interval [low, high]; bold / underlined "
+                     "only where the difference is significant (the caption states the "
+                     "rule).</p>")
+    for title, text in made:
+        body, n = markdown_html(text)
+        count += n
+        parts.append(f"<h3>{esc(title)}</h3>{body}")
+    files = table_files(results_dir)
+    if files:
+        parts.append("<p>Tables written into this folder, as written:</p>")
     for path in files:
         body, n = markdown_html(path.read_text(errors="replace"))
         count += n
         parts.append(f'<h3 id="{esc(path.stem)}">{esc(path.name)}</h3>'
                      f"{_stale_note(path, newest_run)}{body}")
-    if not files:
-        text = _table_in_memory(results_dir)
-        if text:
-            body, n = markdown_html(text)
-            count += n
-            parts.append("<p>No table was written into this folder; Table III of its finished "
-                         "runs, made for this page:</p>" + body)
-        else:
-            parts.append("<p>No table: no finished run with ground truth.</p>")
+    if not made and not files:
+        parts.append("<p>No table: no finished run with ground truth.</p>")
     return "\n".join(parts), count
 
 
-def _table_in_memory(results_dir: Path) -> str:
-    """Table III of the folder's runs as markdown (empty when there are none)."""
+#: the tables made for the page: (title, metric)
+PAGE_TABLES = (("Relative error per segment length (Table III)", "relative"),
+               ("KITTI drift", "kitti"), ("Absolute pose error (Tables IV / V)", "ape"),
+               ("Ego-velocity error", "velocity"))
+
+
+def _tables_in_memory(results_dir: Path) -> list[tuple[str, str]]:
+    """(title, markdown) of every metric's table of the folder's runs, with intervals (none
+    when there is no finished run with ground truth)."""
     from bench.report.table import to_markdown
-    from bench.report.tables import relative_table, select
+    from bench.report.tables import build, select
+    from bench.report.tables_ape import collect_ape
 
     try:
         rows, lengths = select(results_dir)
     except (FileNotFoundError, ValueError):
-        return ""
-    return to_markdown(relative_table(rows, lengths))
+        return []
+    out = []
+    for title, metric in PAGE_TABLES:
+        if metric == "ape":
+            table = collect_ape(results_dir, only={r.run.dir for r in rows}, ci=True).table
+        else:
+            table = build(metric, rows, lengths, ci=True)
+        if table.rows:
+            out.append((title, to_markdown(table)))
+    return out
 
 
 def _figures_section(figures_dir: Path, newest_run: float) -> tuple[str, int]:
@@ -213,6 +243,31 @@ def _problems_section(runs: list[PageRun], coverage: dict) -> str:
             f"<li>{esc(w)} <span class=\"caption\">({len(where)} run(s): "
             f"{esc(', '.join(where[:3]))}{', ...' if len(where) > 3 else ''})</span></li>"
             for w, where in said.items()) + "</ul>")
+    fell = [r for r in runs if r.status == "finished"
+            and (r.frames_replaced or r.frames_unconverged)]
+    if fell:
+        from bench.runs.result import FALLBACK_LIMIT
+
+        def share(r: PageRun) -> float:
+            return (r.frames_replaced + r.frames_unconverged) / max(1, (r.frames or 1) - 1)
+
+        def line(r: PageRun) -> str:
+            red = ' class="failed"' if share(r) > FALLBACK_LIMIT else ""
+            return (f'<tr><td><code>{esc(r.folder)}</code></td><td class="num">'
+                    f'{r.frames_replaced}</td><td class="num">{r.frames_unconverged}</td>'
+                    f'<td class="num">{max(0, (r.frames or 1) - 1)}</td>'
+                    f"<td{red}>{100 * share(r):.1f} %</td></tr>")
+
+        rows = "".join(line(r) for r in fell)
+        parts.append(
+            f"<h3>Runs whose frames fell back ({len(fell)})</h3><p class=\"caption\">Replaced: "
+            "the registration gave no usable transform and the step was replaced by the motion "
+            "prior (the identity without a seed); not converged: the registration stopped "
+            "before converging and its last iterate was kept. Above "
+            f"{100 * FALLBACK_LIMIT:g} % (in red) the run is marked [fell back] in every "
+            "table.</p><table><thead><tr><th>run folder</th><th>replaced</th>"
+            "<th>not converged</th><th>registered frames</th><th>share</th></tr></thead>"
+            f"<tbody>{rows}</tbody></table>")
     no_gt = [r for r in runs if r.status == "finished" and not r.has_gt]
     if no_gt:
         parts.append("<h3>Runs without ground truth (in no table)</h3><ul>" + "".join(

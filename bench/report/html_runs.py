@@ -31,6 +31,8 @@ class PageRun:
     code_sha256: str | None = None
     meta: dict = field(default_factory=dict)
     mtime: float = 0.0
+    frames_replaced: int = 0       # registered frames replaced by the motion prior
+    frames_unconverged: int = 0    # registered frames that did not converge
 
 
 def read_json(path: Path) -> dict:
@@ -77,5 +79,7 @@ def read_page_runs(results_dir: Path) -> list[PageRun]:
             has_gt=(d / "gt_tum.txt").exists(), diverged=metrics.get("diverged"),
             clock=metrics.get("clock"), threads=metrics.get("threads"),
             code_sha256=identity.get("code_sha256"), meta=read_json(d / "meta.json"),
-            mtime=max((p.stat().st_mtime for p in records), default=0.0)))
+            mtime=max((p.stat().st_mtime for p in records), default=0.0),
+            frames_replaced=int(metrics.get("frames_replaced") or 0),
+            frames_unconverged=int(metrics.get("frames_unconverged") or 0)))
     return runs
