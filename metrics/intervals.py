@@ -9,13 +9,24 @@ the resampling draws **blocks of consecutive frames** (a circular block bootstra
 Romano 1992): ``ceil(n / b)`` blocks of ``b`` frames with uniformly drawn starts, wrapped at the
 end, the first ``n`` drawn frames kept. A unit enters a resample as often as its anchor frame
 was drawn. The statistic (a mean, or the RMSE) of each resample is the weighted statistic of
-the units; the interval is the percentile interval of ``reps`` resamples.
+the units; the interval is the percentile interval of ``reps`` resamples, widened about the
+observed statistic by ``t_{K-1} / z`` (the Student quantile for the ``K`` independent units
+behind it over the normal one: a percentile interval from few effectively independent pieces
+is too narrow; with ``K`` = 15 it widens it by 9 %, with ``K`` >= 60 by under 2 %). With fewer
+than two independent units there is no interval (NaN).
+
+Coverage measured on synthetic drives with exact ground truth and known noise
+(``python -m bench.studies.coverage``; the numbers are in the manual): about 90-95 % for the
+8 m relative errors, about 90 % at 48 m (15 independent segments per 750 m), and well below
+95 % for the APE RMSE, a figure of the whole trajectory's drift of which one trajectory holds
+few independent pieces: its blocks are at least a quarter of the frames (``APE_MIN_BLOCKS``).
 
 Block length (:func:`block_frames`): at least the frames one unit spans (a segment's end index
 minus its start index, its median over the units) so that units sharing frames mostly fall in
 one block, and at least the automatic block length of Politis & White (2004) for the unit
-values ordered by anchor (:func:`correlation_length`); never more than half the frames. Every
-interval records its block length.
+values ordered by anchor (:func:`correlation_length`); never more than half the frames; for
+single-frame units (APE) at least ``n / APE_MIN_BLOCKS``. Every interval records its block
+length.
 
 Paired comparison (:func:`paired_interval`): two estimates scored on the same segments (the
 same GT, the same scored frames) are resampled with the same blocks and the difference of their
@@ -37,6 +48,8 @@ from dataclasses import dataclass
 from functools import lru_cache
 
 import numpy as np
+from scipy.stats import norm
+from scipy.stats import t as student_t
 
 #: the default confidence level of every interval
 LEVEL = 0.95
@@ -44,6 +57,9 @@ LEVEL = 0.95
 REPS = 1000
 #: fewer independent units than this: the figure is not ranked
 MIN_INDEPENDENT = 2
+#: single-frame units (APE after an alignment fitted on the whole trajectory): at most this
+#: many blocks, i.e. blocks of at least a quarter of the frames
+APE_MIN_BLOCKS = 4
 
 
 @dataclass(frozen=True)
@@ -205,6 +221,8 @@ def unit_intervals(n_frames: int, anchor: np.ndarray, end: np.ndarray,
     span = float(np.median(end - anchor))
     if block is None:
         block = max(block_frames(n_frames, span, v[order]) for v in finite.values())
+        if span <= 1.0:
+            block = max(block, -(-n_frames // APE_MIN_BLOCKS))
     if span <= 1.0:  # single frames: the independent pieces are the blocks themselves
         n_ind = min(n_ind, max(1, n_frames // int(block)))
     counts = block_counts(n_frames, block, reps, seed)
@@ -214,8 +232,21 @@ def unit_intervals(n_frames: int, anchor: np.ndarray, end: np.ndarray,
             out[key] = Interval(math.nan, math.nan, level, int(block), n_ind)
             continue
         lo, hi = _percentiles(_weighted(counts, anchor, v, rmse), level)
+        observed = float(np.sqrt(np.mean(v**2))) if rmse else float(np.mean(v))
+        lo, hi = widen(observed, lo, hi, n_ind, level)
         out[key] = Interval(lo, hi, level, int(block), n_ind)
     return out
+
+
+def widen(observed: float, low: float, high: float, n_independent: int, level: float
+          ) -> tuple[float, float]:
+    """The percentile interval ``[low, high]`` widened about ``observed`` by
+    ``t_{K-1} / z`` for ``K = n_independent`` (NaN for K < 2)."""
+    if n_independent < MIN_INDEPENDENT or not (math.isfinite(low) and math.isfinite(high)):
+        return math.nan, math.nan
+    q = 0.5 * (1.0 + level)
+    f = float(student_t.ppf(q, n_independent - 1) / norm.ppf(q))
+    return observed - (observed - low) * f, observed + (high - observed) * f
 
 
 def paired_interval(n_frames: int, anchor: np.ndarray, end: np.ndarray, values_a: np.ndarray,
@@ -232,11 +263,17 @@ def paired_interval(n_frames: int, anchor: np.ndarray, end: np.ndarray, values_a
     if anchor.size == 0 or n_frames < 2 or not (np.all(np.isfinite(a))
                                                  and np.all(np.isfinite(b))):
         return Interval(math.nan, math.nan, level, 0, n_ind)
+    span = float(np.median(end - anchor))
     if block is None:
         order = np.argsort(anchor, kind="stable")
-        span = float(np.median(end - anchor))
         block = max(block_frames(n_frames, span, x[order]) for x in (a, b, a - b))
+        if span <= 1.0:
+            block = max(block, -(-n_frames // APE_MIN_BLOCKS))
+    if span <= 1.0:
+        n_ind = min(n_ind, max(1, n_frames // int(block)))
     counts = block_counts(n_frames, block, reps, seed)
     diff = _weighted(counts, anchor, a, rmse) - _weighted(counts, anchor, b, rmse)
     lo, hi = _percentiles(diff, level)
+    stat = (lambda x: float(np.sqrt(np.mean(x**2)))) if rmse else (lambda x: float(np.mean(x)))
+    lo, hi = widen(stat(a) - stat(b), lo, hi, n_ind, level)
     return Interval(lo, hi, level, int(block), n_ind)
