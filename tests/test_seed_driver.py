@@ -147,6 +147,17 @@ def test_a_non_finite_answer_keeps_the_guess_and_is_not_converged():
     np.testing.assert_allclose(result.poses[3], result.poses[2] @ inv_T(spy.inits[2]),
                                atol=1e-12)
     assert np.all(np.isfinite(result.poses))
+    # counted as replaced (not as "not converged"), and said so (issue 33 point 5)
+    assert [f.replaced for f in result.frames] == [False, False, False, True, False, False]
+    from bench.runs.evaluate import fallbacks
+    from bench.runs.result import RunResult
+
+    counts = fallbacks(result)
+    assert counts == {"frames_replaced": 1, "frames_unconverged": 0}
+    run = RunResult(sequence="s", method="m", seed=True, frames=len(result.frames), **counts)
+    assert run.fallback_text() == ("1 of 5 frames replaced by the motion prior (no usable "
+                                   "registration)")
+    assert run.fell_back  # 1 of 5 is above the 5 % limit
 
 
 # a real pairwise method: the prior helps, its inverse hurts ---------------------------------
