@@ -370,15 +370,21 @@ def reproduce(
         help="KITTI drift segment lengths [m] (default 100,200,...,800)")] = None,
     alignment: Annotated[str | None, typer.Option(
         help="APE alignment of Tables IV/V (default se3)")] = None,
+    marks: Annotated[str, typer.Option(
+        help="significance (default: bold only where a paired comparison is significant) or "
+        "value (the paper's by-value style)")] = "significance",
 ) -> None:
     """Reproduce the paper's Tables III, IV and V (configs/experiments/table3-5.yaml) on the
     paper's sequences: real stores under DATA_DIR/real when present, else the synthetic suite."""
     from bench.commands import scoring_options
+    from bench.report.table import MARK_RULES
     from bench.studies.reproduce import reproduce_table
 
+    if marks not in MARK_RULES:
+        raise DataError(f"--marks {marks!r}: choose from {', '.join(MARK_RULES)}")
     if reproduce_table(out, data_dir, jobs, force, synthetic_only, console, executor,
                        scheduler, job_timeout,
-                       scoring_options(lengths, kitti_lengths, alignment)):
+                       scoring_options(lengths, kitti_lengths, alignment), marks):
         raise typer.Exit(1)
 
 
