@@ -48,7 +48,7 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
         or not variants
     where = out if out is not None else (None if view else results_dirs[0])
     if pivot:
-        texts = {"md": pivot_markdown(rows, chosen)}
+        texts = {"md": pivot_markdown(rows, chosen, marks)}
     elif metric == "ape":
         if len(results_dirs) > 1:
             raise DataError("--metric ape: one results folder at a time")

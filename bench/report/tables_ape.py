@@ -97,6 +97,10 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
                 if a.alignment and a.alignment != common:
                     cell.note = table.note(f"{key[-1]} on {col}: aligned by {a.alignment} "
                                            f"(the others: {common})")
+                elif r.result.fallback_text():
+                    flag = " [fell back]" if r.result.fell_back else ""
+                    cell.note = table.note(f"{key[-1]} on {col}{flag}: "
+                                           f"{r.result.fallback_text()}")
                 cells.append(cell)
         table.rows.append(Row([key[-1]], (), cells, {"method": key[1], "label": key[2] or None,
                                                      "seed": key[4], "status": "done"}))

@@ -1,20 +1,21 @@
 """Methods against sequences: one table per segment length, a row per method (and seed option
 or label), a column per sequence, the main table's "rotation / translation" cell per sequence
-(ranked per sequence as there: best bold, second underlined; "Div." not ranked; "failed" with
-its footnote), then the times. For comparing one method with all others across a suite at a
-glance (``bench table DIR --pivot``). Built from ``tables.relative_table``, so a cell reads
-exactly as in the main table."""
+(marked per sequence as there, by the same rule: ``bench.report.table.MARK_RULES``; "Div." not
+ranked; "failed" with its footnote), then the times. For comparing one method with all others
+across a suite at a glance (``bench table DIR --pivot``). Built from ``tables.relative_table``,
+so a cell reads exactly as in the main table."""
 
 from __future__ import annotations
 
 from bench.report.names import hosts_note, order_key
-from bench.report.table import Cell, Row, Table, to_markdown
+from bench.report.table import MARK_RULES, Cell, Row, Table, to_markdown
 from bench.report.tables import TIME_NOTE, RunRow, relative_table
 
 
-def pivot_tables(rows: list[RunRow], lengths: list[float]) -> list[Table]:
+def pivot_tables(rows: list[RunRow], lengths: list[float], marks: str = "significance"
+                 ) -> list[Table]:
     """One table per length and one of the times."""
-    main = relative_table(rows, lengths)
+    main = relative_table(rows, lengths, marks)
     sequences = list(dict.fromkeys(r.sequence for r in rows))
     order = {}
     for rr in rows:
@@ -30,17 +31,18 @@ def pivot_tables(rows: list[RunRow], lengths: list[float]) -> list[Table]:
             t.rows.append(Row([label], (), cells))
         if col < len(lengths):
             t.caption = (f"Each cell: mean rotation [deg] / translation [m] relative error over "
-                         f"{title} segments; per sequence the best is bold, the second "
-                         "underlined; Div. = diverged; empty = not run.")
+                         f"{title} segments. {MARK_RULES[marks]} Div. = diverged; empty = "
+                         "not run.")
         else:
             t.caption = (TIME_NOTE + " " + hosts_note(r.result.cpu for r in rows
                                                       if r.result.finished)
-                         + "Per sequence the fastest is bold, the second underlined; "
-                         "empty = not run.")
+                         + "Per sequence the fastest is bold, the second underlined (by "
+                         "value: times have no interval); empty = not run.")
         tables.append(t)
     return tables
 
 
-def pivot_markdown(rows: list[RunRow], lengths: list[float]) -> str:
+def pivot_markdown(rows: list[RunRow], lengths: list[float], marks: str = "significance"
+                   ) -> str:
     """``pivot.md``: one table per segment length, then the times."""
-    return "\n".join(to_markdown(t) for t in pivot_tables(rows, lengths))
+    return "\n".join(to_markdown(t) for t in pivot_tables(rows, lengths, marks))
