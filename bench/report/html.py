@@ -27,6 +27,8 @@ from pathlib import Path
 
 from bench.report.html_markdown import esc, markdown_html
 from bench.report.html_runs import PageRun, read_json, read_page_runs
+from bench.report.summary import cross_dataset
+from bench.report.table import to_markdown
 from loaders.fileio import atomic_write_text
 
 #: the page's name inside the results folder
@@ -104,6 +106,10 @@ def _tables_section(results_dir: Path, newest_run: float) -> tuple[str, int]:
                      "rule).</p>")
     for title, text in made:
         body, n = markdown_html(text)
+        count += n
+        parts.append(f"<h3>{esc(title)}</h3>{body}")
+    for title, table in cross_dataset(results_dir):
+        body, n = markdown_html(to_markdown(table))
         count += n
         parts.append(f"<h3>{esc(title)}</h3>{body}")
     files = table_files(results_dir)

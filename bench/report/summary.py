@@ -1,0 +1,201 @@
+"""One page across datasets: how each method fares over every sequence of a results folder.
+
+Per sensor class (the paper's order) one row per method: the sequences it was scored on, its
+**mean rank** over the sequences with significance-aware ties, and how many of its runs failed,
+diverged or fell back. A method's rank on one figure of one sequence (the mean rotation and the
+mean translation relative error at each ``lengths_m``) is one plus the number of methods
+significantly better than it there (paired block-bootstrap comparisons on the same segments,
+``bench.report.significance``): methods that tie share a rank, and a method beaten by nobody
+ranks 1 even when its value is not the lowest. A method's seed and no-seed rows are one
+contender (its better row), as in the tables. A figure resting on fewer than two independent
+segments is not ranked. A method run in the folder but not on a sensor class says why (a Doppler
+method on stores without raw Doppler; otherwise: not run on that class).
+
+``sources``: every sequence's store with its dataset, licence and loader options (the store's
+provenance and ``loaders.registry``), for the page.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from collections import defaultdict
+from pathlib import Path
+
+from bench.report.names import order_key
+from bench.report.significance import contender, worse
+from bench.report.table import Cell, Part, Row, Table
+from bench.report.tables import RunRow, stat_part
+from loaders.sensor_classes import class_rank
+from methods.registry import get_method
+
+
+def _ranks(rows: list[RunRow], length_m: float, quantity: str) -> dict[tuple, dict[str, int]]:
+    """sequence -> contender -> significance-aware rank of ``quantity`` at ``length_m``."""
+    by_seq: dict[str, list[tuple[tuple, object]]] = defaultdict(list)
+    for rr in rows:
+        if rr.failed or rr.diverged:
+            continue
+        rel = rr.result.relative(length_m)
+        if rel is None or not rel.n:
+            continue
+        value = rel.rot_deg_mean if quantity == "rot_deg" else rel.trans_m_mean
+        ci = rel.rot_deg_mean_ci if quantity == "rot_deg" else rel.trans_m_mean_ci
+        part = stat_part(value, ci, rel.spread.n_independent,
+                         lambda u=rr.units, q=quantity: u.relative(length_m, q))
+        if not part.stat.rankable:
+            continue
+        key = contender(Row([rr.label], (), [], {"method": rr.method, "label": rr.run.label}))
+        by_seq[rr.sequence].append((key, part.stat))
+    out: dict[str, dict[tuple, int]] = {}
+    for seq, entries in by_seq.items():
+        best: dict[tuple, object] = {}
+        for key, stat in entries:  # a method's better row
+            if key not in best or stat.value < best[key].value:
+                best[key] = stat
+        out[seq] = {k: 1 + sum(worse(s, o) for o in best.values() if o is not s)
+                    for k, s in best.items()}
+    return out
+
+
+def _why_not(method: str, class_rows: list[RunRow]) -> str:
+    cls = get_method(method)
+    kinds = {rr.run.doppler_kind for rr in class_rows}
+    if getattr(cls, "needs_doppler", False) and "radial" not in kinds:
+        return (f"not run: needs raw (radial) Doppler; these stores have "
+                f"{', '.join(sorted(kinds))} Doppler")
+    return "not run on this class (the experiment did not ask for it)"
+
+
+def summary_table(rows: list[RunRow], lengths_m: tuple[float, ...] = (8.0, 48.0)) -> Table:
+    """The cross-dataset summary (see the module docstring)."""
+    usable = [L for L in lengths_m if any(rr.result.relative(L) is not None for rr in rows)]
+    ranks = {(L, q): _ranks(rows, L, q) for L in usable for q in ("rot_deg", "trans_m")}
+    table = Table(["Sensor class", "Method"],
+                  ["Sequences", "Mean rank", "Failed", "Diverged", "Fell back"], [])
+    classes = sorted({rr.sensor_class for rr in rows}, key=lambda c: (class_rank(c), c))
+    methods = sorted({(rr.method, rr.run.label or "") for rr in rows},
+                     key=lambda m: (order_key(m[0]), m))
+    for cls_name in classes:
+        class_rows = [rr for rr in rows if rr.sensor_class == cls_name]
+        for method, label in methods:
+            mine = [rr for rr in class_rows if rr.method == method
+                    and (rr.run.label or "") == label]
+            name = method + (f" [{label}]" if label else "")
+            if not mine:
+                table.rows.append(Row([cls_name, name], (cls_name,),
+                                      [Cell(status=_why_not(method, class_rows))]
+                                      + [Cell(status="") for _ in range(4)],
+                                      {"method": method, "label": label or None}))
+                continue
+            key = (method, label or None)
+            seqs = sorted({rr.sequence for rr in mine})
+            got = [per_q[seq][key] for per_q in ranks.values() for seq in seqs
+                   if key in per_q.get(seq, {})]
+            mean = sum(got) / len(got) if got else math.nan
+            cells = [Cell([Part(str(len(seqs)))], values={"sequences": len(seqs)}),
+                     Cell([Part(f"{mean:.2f}" if got else "-")],
+                          values={"mean_rank": mean, "ranked_figures": len(got)}),
+                     Cell([Part(str(sum(rr.failed for rr in mine)))]),
+                     Cell([Part(str(sum(not rr.failed and rr.diverged for rr in mine)))]),
+                     Cell([Part(str(sum(not rr.failed and rr.result.fell_back
+                                        for rr in mine)))])]
+            table.rows.append(Row([cls_name, name], (cls_name,), cells,
+                                  {"method": method, "label": label or None}))
+    # within a class, the lowest mean rank in bold (a summary of ranks: by value, said so)
+    for group in {r.group for r in table.rows}:
+        members = [r for r in table.rows if r.group == group and r.cells[1].parts
+                   and math.isfinite(r.cells[1].values.get("mean_rank", math.nan))]
+        if members:
+            low = min(r.cells[1].values["mean_rank"] for r in members)
+            for r in members:
+                if r.cells[1].values["mean_rank"] == low:
+                    r.cells[1].parts[0].rank = 0
+    lengths = " and ".join(f"{L:g} m" for L in usable)
+    table.caption = (
+        "Across datasets, per sensor class: the sequences each method was scored on and its mean "
+        f"rank over them (the mean rotation and the mean translation relative error at {lengths};"
+        " on each figure a method's rank is 1 + the number of methods significantly better than "
+        "it, paired block-bootstrap comparisons on the same segments, so ties share a rank; the "
+        "seed and no-seed rows of a method count as one, its better row; figures on fewer than "
+        "2 independent segments are not ranked). The lowest mean rank of a class is bold. "
+        "Failed / Diverged: runs that did not finish / diverged; Fell back: runs with more "
+        "than 5 % of their frames replaced by the motion prior or not converged.")
+    return table
+
+
+def sources(rows: list[RunRow]) -> list[dict]:
+    """Every sequence's source: its name, sensor class, store, dataset, licence and the
+    loader with its options (from the store's provenance and ``loaders.registry``)."""
+    from loaders.registry import LOADERS as entries
+    seen: dict[str, dict] = {}
+    for rr in rows:
+        seq = rr.run.config.get("sequence") or {}
+        store = seq.get("store")
+        if rr.sequence in seen:
+            continue
+        prov = _provenance(store, rr.run.dir)
+        loader = prov.get("loader") or seq.get("sensor_model")
+        entry = entries.get(loader)
+        options = {k: v for k, v in (prov.get("options") or {}).items() if v is not None}
+        seen[rr.sequence] = {
+            "sequence": rr.sequence, "sensor_class": rr.sensor_class, "store": store,
+            "dataset": (entry.dataset if entry else "") or prov.get("source") or "",
+            "licence": entry.licence if entry else "",
+            "loader": loader or "", "options": options, "source": prov.get("source", "")}
+    return sorted(seen.values(), key=lambda s: (class_rank(s["sensor_class"]), s["sequence"]))
+
+
+def _provenance(store: str | None, run_dir: Path) -> dict:
+    if not store:
+        return {}
+    path = Path(store)
+    for candidate in (path, Path.cwd() / path, run_dir / path):
+        if candidate.exists():
+            try:
+                import h5py
+
+                with h5py.File(candidate, "r") as f:
+                    return json.loads(f.attrs.get("provenance", "{}"))
+            except (OSError, ValueError):
+                return {}
+    return {}
+
+
+def sources_table(rows: list[RunRow]) -> Table:
+    """Every sequence's source (``sources``) as a table."""
+    table = Table(["Sensor class", "Sequence"],
+                  ["Dataset", "Licence", "Loader and options", "Store"], [])
+    for s in sources(rows):
+        options = ", ".join(f"{k}={v}" for k, v in sorted(s["options"].items()))
+        table.rows.append(Row([s["sensor_class"], s["sequence"]], (s["sensor_class"],), [
+            Cell([Part(s["dataset"] or "-")]), Cell([Part(s["licence"] or "-")]),
+            Cell([Part(s["loader"] + (f" ({options})" if options else ""))]),
+            Cell([Part(str(s["store"] or "-"))])]))
+    table.caption = ("The source of every sequence: its dataset and licence (loaders.registry), "
+                     "the loader and options that made its store (the store's provenance).")
+    return table
+
+
+def cross_dataset(results_dir: Path) -> list[tuple[str, Table]]:
+    """(title, table) of the page across datasets: when the folder's runs span more than one
+    dataset, a relative-error table per dataset (with intervals), the summary and the
+    sources; nothing for a single dataset."""
+    from bench.report.tables import build, select
+
+    try:
+        rows, lengths = select(Path(results_dir))
+    except (FileNotFoundError, ValueError):
+        return []
+    by_dataset: dict[str, list[RunRow]] = defaultdict(list)
+    names = {s["sequence"]: s["dataset"] or s["sequence"] for s in sources(rows)}
+    for rr in rows:
+        by_dataset[names.get(rr.sequence, rr.sequence)].append(rr)
+    if len(by_dataset) < 2:
+        return []
+    out = [("Across datasets: mean rank per method", summary_table(rows)),
+           ("Sources of the sequences", sources_table(rows))]
+    for dataset in sorted(by_dataset):
+        out.append((f"Dataset: {dataset}", build("relative", by_dataset[dataset], lengths,
+                                                 ci=True)))
+    return out
