@@ -14,7 +14,7 @@ DEV_STAMP := $(VENV)/.installed-dev
 PIP_TOOLS := pip-tools==7.6.2
 LOCK_VENV := .venv-lock
 
-.PHONY: install install-dev system-deps test lint reproduce-table figures speed lock clean
+.PHONY: install install-dev system-deps test lint docs reproduce-table figures speed lock clean
 
 # System packages the tests need, installed with apt when missing and we may (root), else we
 # say what to run: libusb-1.0 for Open3D's wheel (a dev extra: the DICP cross-check) and
@@ -75,6 +75,14 @@ test: system-deps $(DEV_STAMP)
 lint: $(DEV_STAMP)
 	$(VENV)/bin/ruff check .
 
+# the manual (docs/, mkdocs.yml): regenerate its generated parts (the command reference from the
+# command line, the datasets page from the loader table), then build it into site/; --strict
+# fails on a broken link or anchor
+docs: $(DEV_STAMP)
+	$(PY) -m bench.docs_cli
+	$(PY) -m bench.data.catalogue
+	$(VENV)/bin/mkdocs build --strict
+
 # the paper's Tables III-V on the synthetic suite (or on real stores under data/real when present)
 reproduce-table: $(RUNTIME_STAMP)
 	$(BENCH) reproduce
@@ -109,4 +117,4 @@ lock:
 	  --extra dev -c $(RUNTIME_LOCK) -o $(DEV_LOCK) pyproject.toml
 
 clean:
-	rm -rf $(VENV) $(LOCK_VENV) .pytest_cache .ruff_cache
+	rm -rf $(VENV) $(LOCK_VENV) .pytest_cache .ruff_cache site

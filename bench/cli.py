@@ -39,7 +39,7 @@ def list_cmd() -> None:
 @app.command(short_help="the public datasets and how to convert each")
 def datasets(
     markdown: Annotated[bool, typer.Option(
-        "--markdown", help="print the README's markdown table instead")] = False,
+        "--markdown", help="print the datasets page's markdown table instead")] = False,
 ) -> None:
     """Every supported dataset: sensor, sensor class, Doppler kind, licence, where its owners
     publish it, the layout the loader expects and the exact `bench convert` command."""

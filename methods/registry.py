@@ -64,7 +64,7 @@ def get_method(name: str) -> type[Odometry]:
         loaded = os.environ.get(PLUGINS_ENV, "").strip()
         plugins = (f"plugin modules loaded from {PLUGINS_ENV}={loaded}" if loaded else
                    f"a method of your own: name its module in {PLUGINS_ENV}=my_module (on "
-                   "PYTHONPATH; it lists its classes in METHODS), README 'Adding a method'")
+                   "PYTHONPATH; it lists its classes in METHODS), see docs/extending.md")
         raise DataError(f"unknown method {name!r}{did_you_mean(name, METHODS)}; registered: "
                         f"{', '.join(METHODS)}; {plugins}") from None
 

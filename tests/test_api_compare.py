@@ -1,4 +1,4 @@
-"""The notebook API (and the README's example) and `bench compare`."""
+"""The notebook API (and the manual's example, docs/results.md) and `bench compare`."""
 
 import json
 import re
@@ -12,7 +12,7 @@ from bench.cli import app
 from conftest import constant_twist_sequence
 from loaders.store import write_store
 
-README = Path(__file__).resolve().parents[1] / "README.md"
+EXAMPLE_PAGE = Path(__file__).resolve().parents[1] / "docs" / "results.md"
 
 
 @pytest.fixture(scope="module")
@@ -21,14 +21,14 @@ def store(tmp_path_factory):
     return write_store(seq, tmp_path_factory.mktemp("data") / "twist.h5")
 
 
-def test_readme_notebook_example_runs(store, tmp_path, monkeypatch):
-    block = re.search(r"<!-- notebook-example -->\s*```python\n(.*?)```", README.read_text(),
-                      re.S).group(1)
+def test_manual_notebook_example_runs(store, tmp_path, monkeypatch):
+    block = re.search(r"<!-- notebook-example -->\s*```python\n(.*?)```",
+                      EXAMPLE_PAGE.read_text(), re.S).group(1)
     monkeypatch.chdir(tmp_path)
     namespace = {"STORE": str(store)}
     assert block.count('"samples/ntu4dradlm-loop1.h5"') == 2  # the vendored sample
-    exec(compile(block.replace('"samples/ntu4dradlm-loop1.h5"', "STORE"), "README", "exec"),
-         namespace)
+    exec(compile(block.replace('"samples/ntu4dradlm-loop1.h5"', "STORE"), "docs/results.md",
+                 "exec"), namespace)
     df = namespace["df"]
     assert list(df.columns) == COLUMNS
     assert set(df["method"]) == {"doppler", "icp-p2p"} and len(df) == 2 * 6

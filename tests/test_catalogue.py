@@ -1,7 +1,8 @@
 """The loader table as the one place a loader is declared: the dataset catalogue (`bench
-datasets`, the README's table), `bench convert LOADER` built from each loader's Options model,
-dataset configs validated by the same model, loaders listed before their module exists, and one
-message for a missing or half-extracted dataset folder."""
+datasets`, the manual's datasets page and the README's short table), `bench convert LOADER`
+built from each loader's Options model, dataset configs validated by the same model, loaders
+listed before their module exists, and one message for a missing or half-extracted dataset
+folder."""
 
 import shlex
 
@@ -11,7 +12,17 @@ import yaml
 from typer.testing import CliRunner
 
 from bench.cli import app
-from bench.data.catalogue import README, readme_block, render_markdown
+from bench.data.catalogue import (
+    BEGIN,
+    LOADERS_BEGIN,
+    PAGE,
+    README,
+    SUMMARY_BEGIN,
+    page_block,
+    render_loader_sections,
+    render_markdown,
+    render_summary,
+)
 from bench.data.convert import loader_command
 from loaders.errors import DataError
 from loaders.layout import require_paths
@@ -58,13 +69,38 @@ def test_catalogue_examples_use_options_the_loaders_have():
         assert set(used) <= flags, (row.name, set(used) - flags)
 
 
-def test_readme_table_is_generated_from_the_loader_table():
-    block = readme_block(README.read_text())
-    assert block is not None, "README lacks the <!-- datasets --> markers"
-    assert block == render_markdown(), "README out of date: run python -m bench.data.catalogue"
+def test_datasets_page_and_readme_table_are_generated_from_the_loader_table():
+    block = page_block(PAGE.read_text(), BEGIN)
+    assert block is not None, "docs/datasets.md lacks the <!-- datasets --> markers"
+    assert block == render_markdown(), \
+        "docs/datasets.md out of date: run python -m bench.data.catalogue"
     for row in catalogue():
         assert row.example in block
     assert "never released by Aeva" in block and "Campus** recordings are not" in block
+    sections = page_block(PAGE.read_text(), LOADERS_BEGIN)
+    assert sections == render_loader_sections(), \
+        "docs/datasets.md's loader sections out of date: run python -m bench.data.catalogue"
+    summary = page_block(README.read_text(), SUMMARY_BEGIN)
+    assert summary == render_summary(), \
+        "README's dataset table out of date: run python -m bench.data.catalogue"
+    assert summary.count("\n") == len(catalogue()) + 1  # header, rule, one line per row
+
+
+def test_each_loader_has_a_section_with_every_option_of_its_command():
+    """One section per loader: its datasets' layouts and commands, and each option of
+    `bench convert LOADER` (from its Options model) but the four every loader shares."""
+    sections = render_loader_sections()
+    for name, entry in LOADERS.items():
+        part = sections.split(f"(loader `{name}`)", 1)[1].split("\n### ", 1)[0]
+        for row in entry.rows():
+            assert row.layout in part and row.example in part, name
+        if not entry.available:
+            continue
+        command = loader_command(entry)
+        for p in command.params:
+            flags = set(getattr(p, "opts", ())) - {"--out", "--start", "--frames", "--stride"}
+            if p.param_type_name == "option" and flags:
+                assert any(f"`{f}" in part for f in flags), (name, flags)
 
 
 def test_bench_datasets_lists_every_row_even_without_the_loader_module(monkeypatch):

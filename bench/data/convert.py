@@ -23,6 +23,7 @@ import typer
 import typer.core
 from rich.console import Console
 
+from bench.data.loader_options import validate_options
 from loaders.errors import DataError
 from loaders.registry import LOADERS, LoaderEntry
 
@@ -164,24 +165,6 @@ def option_parameters(Options) -> tuple[list[inspect.Parameter], dict[str, str]]
         params.append(inspect.Parameter(name, inspect.Parameter.KEYWORD_ONLY, default=None,
                                         annotation=Annotated[tp | None, option]))
     return params, flags
-
-
-def validate_options(Options, values: dict, flags: dict[str, str] | None = None,
-                     where: str = "options"):
-    """``values`` validated by the loader's Options model; one DataError listing every
-    problem (by command-line flag when ``flags`` names them)."""
-    from pydantic import ValidationError
-
-    from loaders.errors import validation_problems
-
-    try:
-        return Options.model_validate(values)
-    except ValidationError as err:
-        problems = validation_problems(err, lambda loc: list(Options.model_fields), "option")
-        for key, flag in (flags or {}).items():
-            problems = [flag + p[len(key):] if p.startswith(f"{key}: ") else p
-                        for p in problems]
-        raise DataError(f"{where}:\n  " + "\n  ".join(problems)) from None
 
 
 def _frame_parameters() -> list[inspect.Parameter]:

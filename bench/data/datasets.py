@@ -103,7 +103,7 @@ class DatasetConfig(BaseModel):
     def loader_options(self, raw_dir: Path | None = None):
         """The options validated by the loader's model, path options made relative to the raw
         folder and ``name`` set to this sequence's name."""
-        from bench.data.convert import validate_options
+        from bench.data.loader_options import validate_options
         from loaders.options import is_path_field
 
         Options = get_loader(self.loader).load_class().Options

@@ -90,8 +90,9 @@ def expand(entry) -> list[Variant]:
 def sweep_index(exp, jobs) -> dict | None:
     """The index of ``exp``'s sweeps over the planned ``jobs`` (None without sweeps): per sweep
     its method, keys, the method's resolved default for those keys on each sequence's sensor,
-    and per point its run folders (relative to the experiment's out folder)."""
-    from bench.runs.experiment import Experiment  # noqa: F401  (type only)
+    and per point its run folders (relative to the experiment's out folder). ``exp`` is a
+    ``bench.runs.experiment.Experiment``; this module imports nothing of it (the experiment
+    model imports the expansion, so the sweep stays below it)."""
     from loaders.store import StoreSequence
     from methods.registry import make_method
 

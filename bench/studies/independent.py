@@ -195,6 +195,36 @@ def stale_choices(tuning_dir: Path, validation_yaml: Path) -> list[str]:
     return problems
 
 
+def run_experiment(console: Console, yaml_path: Path, jobs: int | None, force: bool,
+                   executor: str) -> int:
+    """One step: the experiment's runs, its table and, for a sweep, its index and sweep table
+    (``sweeps.json``, ``sweep.md``: what ``stale_choices`` reads), as ``bench run
+    EXPERIMENT.yaml`` writes them; built from the runs and report layers (this study sits
+    below ``bench.commands``). Exit code 0 when every run finished or was reused, else 1."""
+    from bench.report.tables import write_tables
+    from bench.report.tables_sweep import sweep_markdown
+    from bench.runs.experiment import load_experiment
+    from bench.runs.job import summarize
+    from bench.runs.plan import jobs_for_experiment, plan
+    from bench.runs.progress import run_jobs
+    from bench.runs.sweep import sweep_index, write_sweep_index
+    from loaders.fileio import atomic_write_text
+
+    exp = load_experiment(yaml_path)
+    job_list = plan(jobs_for_experiment(exp, console))
+    sweeps = sweep_index(exp, job_list)
+    outcomes = run_jobs(job_list, console, jobs or exp.jobs, force, executor, None, None)
+    console.print(summarize(outcomes), markup=False)
+    if any(o.status in ("done", "skipped") for o in outcomes):
+        console.print(write_tables(exp.out_dir)["md"], markup=False, soft_wrap=True)
+        if sweeps is not None:
+            write_sweep_index(exp.out_dir, sweeps)
+            text = sweep_markdown(exp.out_dir)
+            atomic_write_text(Path(exp.out_dir) / "sweep.md", text)
+            console.print(text, markup=False, soft_wrap=True)
+    return 1 if any(o.status not in ("done", "skipped") for o in outcomes) else 0
+
+
 def _with_plugin() -> None:
     """The references registered here and in every worker (``DOPPLER_BENCH_METHODS``)."""
     from methods import registry
@@ -234,7 +264,6 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--out", type=Path, default=OUT, help="where the table is written")
     args = ap.parse_args(argv)
     _with_plugin()
-    from bench.commands import run_command
     from bench.runs.experiment import load_experiment
 
     console = Console()
@@ -243,8 +272,7 @@ def main(argv: list[str] | None = None) -> int:
     steps = (("tuning", TUNING), ("validation", VALIDATION))
     for step, yaml_path in steps:
         console.print(f"[bold]{step}[/bold]: {yaml_path.relative_to(ROOT)}")
-        code = run_command(console, yaml_path, None, None, None, None, {}, args.jobs,
-                           args.force, args.executor, None, None)
+        code = run_experiment(console, yaml_path, args.jobs, args.force, args.executor)
         if code:
             console.print(f"{step}: a run failed (see above); no comparison table")
             return 1

@@ -42,10 +42,9 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from bench.runs.timed import timed_run
+from bench.studies.speed_timing import method_params, time_frames
 from loaders.fileio import atomic_path, atomic_write_text
 from loaders.scan import MemorySequence, Scan, SensorInfo
-from methods.base import MethodParams, Odometry, Registration
 from methods.registry import METHODS, make_method
 
 LIDAR_SCENE, RADAR_SCENE = "campus", "loop"
@@ -77,14 +76,6 @@ def subsample(scan: Scan, n: int, seed: int) -> Scan:
     return scan.select(idx)
 
 
-def _stats(total_ms: list[float], register_ms: list[float]) -> dict:
-    t, r = np.asarray(total_ms), np.asarray(register_ms)
-    return {"median_ms": float(np.median(t)), "mean_ms": float(t.mean()),
-            "p5_ms": float(np.percentile(t, 5)), "p95_ms": float(np.percentile(t, 95)),
-            "register_median_ms": float(np.nanmedian(r)) if np.isfinite(r).any() else np.nan,
-            "repeats": len(t)}
-
-
 def _prep_note(method) -> str:
     """How the method thins its input (its own stride, voxel grid, VGICP voxels)."""
     params = getattr(method, "params", None)
@@ -96,60 +87,6 @@ def _prep_note(method) -> str:
     if voxel and "vgicp" in getattr(method, "name", ""):
         notes.append(f"VGICP voxels {voxel:g} m")
     return ", ".join(notes)
-
-
-class _Prepared:
-    """A library pipeline's prepared scan (any object) with its input point count."""
-
-    def __init__(self, data, points: int) -> None:
-        self.data, self.points = data, points
-
-    def __len__(self) -> int:
-        return self.points
-
-
-class PipelineRun(Registration):
-    """A library's own per-frame pipeline (``preprocess`` / ``register`` / ``threads``,
-    ``bench.studies.speed_reference``) driven exactly as a ``Registration`` run, so it is
-    timed with the same protocol as the methods."""
-
-    name = "pipeline"
-    description = "a library's own per-frame pipeline"
-
-    def __init__(self, pipeline) -> None:
-        self.pipeline = pipeline
-        self.params = MethodParams()
-
-    @property
-    def threads(self) -> int:
-        return self.pipeline.threads
-
-    def preprocess(self, scan: Scan) -> _Prepared:
-        return _Prepared(self.pipeline.preprocess(scan), len(scan))
-
-    def register(self, source: _Prepared, target: _Prepared, init: np.ndarray):
-        return self.pipeline.register(source.data, target.data, init)
-
-
-def time_frames(method, sequence) -> dict:
-    """Frame times of ``method`` (an ``Odometry``, or a library pipeline) as a run times them:
-    ``timed_run`` (threads limited, the common warm-up, one seeded run over the sequence's
-    distinct frames); figures over every registered frame, by the method's clock."""
-    odometry = method if isinstance(method, Odometry) else PipelineRun(method)
-    result, timing = timed_run(odometry, sequence, seed=True)
-    frames = result.frames[1:]
-    return {**_stats([f.time_ms for f in frames], [f.register_ms for f in frames]),
-            "correspondences": int(np.median([f.correspondences for f in frames])),
-            "iterations": int(np.median([f.iterations for f in frames])),
-            "clock": timing["clock"], "cpu_ratio": timing["cpu_process_to_thread"]}
-
-
-def method_params(name: str, threads: int) -> dict:
-    """The parameters that set ``threads`` threads for ``name`` (none when it has no thread
-    count: it computes on one)."""
-    fields = getattr(METHODS[name], "Params", None)
-    has = fields is not None and "num_threads" in getattr(fields, "model_fields", {})
-    return {"num_threads": threads} if has else {}
 
 
 def time_method(name: str, sequence, threads: int = 1) -> dict:

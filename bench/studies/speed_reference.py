@@ -1,10 +1,10 @@
 """``bench speed --reference``: the libraries' own pipelines timed beside the methods that wrap
 or reimplement them, on the same scan pairs, with the same parameters, threads, clock and
-warm-up (``speed.time_frames`` times both, a reference driven as a run, ``speed.PipelineRun``),
-so a ratio ours / reference is the harness's cost. Ours and each reference run in
-``ROUNDS`` alternating rounds and the ratio compares each side's fastest round (its median
-frame), so a burst of load on a shared machine during one side's round does not decide it;
-``ours ms`` is ours' fastest round.
+warm-up (``speed_timing.time_frames`` times both, a reference driven as a run,
+``speed_timing.PipelineRun``), so a ratio ours / reference is the harness's cost. Ours and
+each reference run in ``ROUNDS`` alternating rounds and the ratio compares each side's fastest
+round (its median frame), so a burst of load on a shared machine during one side's round does
+not decide it; ``ours ms`` is ours' fastest round.
 
 Each reference is the library's per-frame pipeline as its documentation drives it: the new
 scan's preparation (downsampling, normals / covariances, kd-tree or voxel map) plus its
@@ -70,7 +70,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
-from bench.studies.speed import method_params, time_frames
+from bench.studies.speed_timing import method_params, time_frames
 from loaders.scan import MemorySequence, Scan
 from loaders.se3 import inv_T, rotation_angle_deg
 from methods.base import RegistrationResult, uniform_downsample
@@ -87,7 +87,7 @@ O3D_CRITERIA = (1e-6, 1e-6)
 
 @dataclass
 class Pipeline:
-    """A library's own per-frame pipeline in the shape ``speed.time_frames`` times:
+    """A library's own per-frame pipeline in the shape ``speed_timing.time_frames`` times:
     ``preprocess`` (the new scan's preparation) and ``register`` (the registration call)."""
 
     describe: str
@@ -301,8 +301,8 @@ def difference(T_ours: np.ndarray, T_ref: np.ndarray) -> tuple[float, float]:
 
 
 def timed(pipeline, sequence: MemorySequence) -> dict:
-    """``speed.time_frames``'s figures over ``sequence`` (the same frames, protocol and clock as
-    ours), with the process's CPU time over the timing against the calling thread's
+    """``speed_timing.time_frames``'s figures over ``sequence`` (the same frames, protocol and
+    clock as ours), with the process's CPU time over the timing against the calling thread's
     (``cpu_ratio``, 1.00: every thread the pipeline used was the timed one)."""
     return time_frames(pipeline, sequence)
 
