@@ -18,7 +18,7 @@ from loaders.trajectory import Trajectory
 from methods.base import FrameRecord, OdometryResult
 
 
-def _write(root, seq, cls, kind, name, method, seed, gt, est):
+def _write(root, seq, cls, kind, name, method, seed, gt, est, dataset=None):
     n = len(gt)
     stamps = np.arange(n) / 10.0
     frames = [FrameRecord(i, stamps[i], 1.0, 100, 50, 3, True) for i in range(n)]
@@ -26,7 +26,7 @@ def _write(root, seq, cls, kind, name, method, seed, gt, est):
     ev = evaluate_run(Trajectory(stamps, gt), result, lengths_m=(8.0, 48.0))
     config = {"method": method, "seed": seed,
               "sequence": {"name": seq, "display_name": seq, "sensor_class": cls,
-                           "doppler_kind": kind}}
+                           "doppler_kind": kind, "dataset": dataset or f"{seq} dataset"}}
     write_run(root / seq / name, result, ev.gt, config,
               {**ev.metrics, "sequence": seq, "method": method, "seed": seed, "frames": n,
                "status": "done"})

@@ -140,7 +140,8 @@ def sources(rows: list[RunRow]) -> list[dict]:
         options = {k: v for k, v in (prov.get("options") or {}).items() if v is not None}
         seen[rr.sequence] = {
             "sequence": rr.sequence, "sensor_class": rr.sensor_class, "store": store,
-            "dataset": (entry.dataset if entry else "") or prov.get("source") or "",
+            "dataset": seq.get("dataset") or (entry.dataset if entry else "")
+            or prov.get("source") or "",
             "licence": entry.licence if entry else "",
             "loader": loader or "", "options": options, "source": prov.get("source", "")}
     return sorted(seen.values(), key=lambda s: (class_rank(s["sensor_class"]), s["sequence"]))
@@ -179,8 +180,9 @@ def sources_table(rows: list[RunRow]) -> Table:
 
 def cross_dataset(results_dir: Path) -> list[tuple[str, Table]]:
     """(title, table) of the page across datasets: when the folder's runs span more than one
-    dataset, a relative-error table per dataset (with intervals), the summary and the
-    sources; nothing for a single dataset."""
+    dataset (recorded in the run's configuration or the store's provenance), a relative-error
+    table per dataset (with intervals), the summary and the sources; nothing for a single
+    dataset."""
     from bench.report.tables import build, select
 
     try:
@@ -188,11 +190,11 @@ def cross_dataset(results_dir: Path) -> list[tuple[str, Table]]:
     except (FileNotFoundError, ValueError):
         return []
     by_dataset: dict[str, list[RunRow]] = defaultdict(list)
-    names = {s["sequence"]: s["dataset"] or s["sequence"] for s in sources(rows)}
+    names = {s["sequence"]: s["dataset"] for s in sources(rows)}
     for rr in rows:
-        by_dataset[names.get(rr.sequence, rr.sequence)].append(rr)
-    if len(by_dataset) < 2:
-        return []
+        by_dataset[names.get(rr.sequence) or "dataset not recorded"].append(rr)
+    if len([d for d in by_dataset if d != "dataset not recorded"]) < 2:
+        return []  # one dataset (or none recorded): the ordinary tables say it all
     out = [("Across datasets: mean rank per method", summary_table(rows)),
            ("Sources of the sequences", sources_table(rows))]
     for dataset in sorted(by_dataset):
