@@ -149,6 +149,18 @@ def block_counts(n_frames: int, block: int, reps: int = REPS, seed: int = 0) -> 
     return counts
 
 
+def block_indices(n_frames: int, block: int, reps: int = REPS, seed: int = 0) -> np.ndarray:
+    """(reps, n_frames) the frames drawn in each circular block resample, in drawing order:
+    ``ceil(n / b)`` blocks of ``b`` consecutive frames (wrapped at the end) from uniformly drawn
+    starts, the first ``n`` kept. For statistics that are not weighted means (a fit redone on
+    every resample); the same draws as :func:`block_counts` with the same seed."""
+    n, b = int(n_frames), max(1, int(block))
+    rng = np.random.default_rng(seed)
+    k = -(-n // b)
+    starts = rng.integers(0, n, size=(reps, k))
+    return (starts[:, :, None] + np.arange(b)[None, None, :]).reshape(reps, k * b)[:, :n] % n
+
+
 def _weighted(counts: np.ndarray, anchor: np.ndarray, values: np.ndarray, rmse: bool
               ) -> np.ndarray:
     w = counts[:, anchor]
