@@ -45,7 +45,7 @@ def format_result(cal: CalibrationResult) -> list[str]:
                                  cal.level) + f"  ({cal.source[ax]})")
     if cal.block is not None:
         lines.append("  uncertainty: " + cal.block.describe(
-            cal.resamples, "each refitted with its own outlier cut"))
+            cal.resamples, cal.frames_total, "each refitted with its own outlier cut"))
     if cal.not_observable:
         lines.append(f"  not observable: {', '.join(cal.not_observable)} (reported as 0)")
     r = cal.road
@@ -60,21 +60,22 @@ def format_result(cal: CalibrationResult) -> list[str]:
     return lines
 
 
-#: two estimates disagree when they differ by more than this many combined standard deviations
-DISAGREE_SIGMAS = 3.0
+def _half_width(interval: tuple[float, float]) -> float:
+    return 0.5 * (interval[1] - interval[0])
 
 
 def disagreements(he: HandEyeResult, cal: CalibrationResult) -> list[str]:
-    """The angles both estimates observe on which they differ by more than
-    ``DISAGREE_SIGMAS`` x their combined block-bootstrap standard deviation."""
+    """The angles both estimates observe on which their difference exceeds the combined
+    half-widths of their stated intervals, ``sqrt(h_he^2 + h_doppler^2)``."""
     out = []
     for ax in ANGLES:
         if not he.observable[ax] or ax in cal.not_observable:
             continue
         diff = he.angles_deg[ax] - cal.angles_deg[ax]
-        sigma = float(np.hypot(he.std_deg[ax], cal.std_deg[ax]))
-        if abs(diff) > DISAGREE_SIGMAS * sigma:
-            out.append(f"{ax} ({diff:+.2f} deg apart, combined +- {sigma:.2f})")
+        width = float(np.hypot(_half_width(he.interval_deg[ax]),
+                               _half_width(cal.interval_deg[ax])))
+        if not abs(diff) <= width:
+            out.append(f"{ax} ({diff:+.2f} deg apart, combined +- {width:.2f})")
     return out
 
 
@@ -89,7 +90,7 @@ def format_hand_eye(he: HandEyeResult, cal: CalibrationResult) -> list[str]:
                      f"deg  ({how})")
     if he.block is not None:
         lines.append("  uncertainty: " + he.block.describe(
-            he.resamples,
+            he.resamples, he.frames_total,
             f"both stages refitted on each; blocks of at least {HE_BLOCK_S:g} s asked"))
     between = Rotation.from_matrix(he.R_gt_sensor @ cal.R_gt_sensor.T).magnitude()
     lines.append(f"  the two rotations differ by {np.degrees(between):.3f} deg in all")
@@ -101,8 +102,8 @@ def format_hand_eye(he: HandEyeResult, cal: CalibrationResult) -> list[str]:
             "hand-eye: the odometry's drift and the lever arm), so neither is exact; check "
             "with `bench inspect` before applying one")
     else:
-        lines.append(f"  the two agree within {DISAGREE_SIGMAS:g} x their combined "
-                     "uncertainty on every angle both observe")
+        lines.append("  the two agree within their combined intervals on every angle both "
+                     "observe")
     return lines
 
 

@@ -14,14 +14,15 @@ the spread of the directions around it; an axis whose RMS spread is below ``min_
 not observable from velocity. Roll then comes from the road plane: per frame a plane fitted to
 the points below the sensor gives the road normal in the sensor frame, paired with the world's
 up direction in the GT frame (the road is level on average). Each cue fits only its own
-angles, holding the other's (alternated until they settle). Both are reported, with which
-angles came from which cue and which remained unobservable.
+angles, holding the other's (the two sets of equations solved together). Both are reported,
+with which angles came from which cue and which remained unobservable.
 
 Angles: ``R_gt_sensor = Rz(yaw) Ry(pitch) Rx(roll)`` [deg]. Uncertainty: a circular block
 bootstrap of the frames (``bench.data.rotation_bootstrap``): the velocity pairs and road normals
 of the drawn frames, the outlier cut and both fits redone on each resample; the block length
 from the autocorrelation of the per-frame residuals of every fitted angle (at least 3 frames,
-the span of the GT's central difference); 95 % percentile intervals and standard deviations.
+the span of the GT's central difference); 95 % t intervals (degrees of freedom from the number
+of blocks) and standard deviations.
 The road-plane check reports the sensor's height above the
 road and the road normal's tilt in the sensor frame and in the GT frame.
 
@@ -56,10 +57,10 @@ AXES = np.eye(3)  # roll about x, pitch about y, yaw about z
 @dataclass
 class CalibrationResult:
     """R_gt_sensor (3x3) and its angles [deg]; ``std_deg`` the bootstrap standard deviation and
-    ``interval_deg`` the ``level`` percentile interval of each angle [deg] (``block``: how the
-    frames were resampled, ``resamples`` how many were fitted); source per angle ("velocity",
-    "road plane" or "not observable"); velocity frames kept after the outlier cut; road-plane
-    check values."""
+    ``interval_deg`` the ``level`` t interval of each angle [deg] (``block``: how the
+    ``frames_total`` frames were resampled, ``resamples`` how many were fitted); source per
+    angle ("velocity", "road plane" or "not observable"); velocity frames kept after the
+    outlier cut; road-plane check values."""
 
     R_gt_sensor: np.ndarray
     angles_deg: dict[str, float]
@@ -71,6 +72,7 @@ class CalibrationResult:
     level: float = LEVEL
     block: BlockChoice | None = None
     resamples: int = 0
+    frames_total: int = 0
 
     @property
     def total_deg(self) -> float:
@@ -165,25 +167,34 @@ def _axial(M: np.ndarray) -> np.ndarray:
 
 def euler_matrix(angles_rad: np.ndarray) -> np.ndarray:
     """``Rz(yaw) Ry(pitch) Rx(roll)`` of (roll, pitch, yaw) [rad]."""
-    return Rotation.from_euler("ZYX", np.asarray(angles_rad)[::-1]).as_matrix()
+    cr, cp, cy = np.cos(angles_rad)
+    sr, sp, sy = np.sin(angles_rad)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
 
 
-def fit_angles(S_ab: np.ndarray, free: np.ndarray, angles_rad: np.ndarray) -> np.ndarray:
-    """(roll, pitch, yaw) [rad] maximising ``tr(R S_ab)`` (i.e. minimising ``sum |b - R a|^2``
-    for ``S_ab = sum a b^T``) over the ``free`` angles, the others held at ``angles_rad``.
-    Newton steps: a change of the angles turns R (on the left) about ``W = [Rz Ry e_x, Rz e_y,
-    e_z]``; the gradient of ``tr(exp(th) M)`` (``M = R S_ab``) is ``axial(M)`` and its Hessian
-    ``sym(M) - tr(M) I``, pulled back through W."""
-    ang = np.array(angles_rad, dtype=float)
+def fit_angles(cues: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """(roll, pitch, yaw) [rad] where each cue ``(S_ab, free)`` is at its best for its own
+    ``free`` angles (disjoint masks; angles in no mask stay 0): ``tr(R S_ab)`` stationary in
+    them, i.e. ``sum |b - R a|^2`` least for ``S_ab = sum a b^T`` with the other cues' angles
+    held. Newton steps on these equations together: a change of the angles turns R (on the
+    left) about the columns of ``W = [Rz Ry e_x, Rz e_y, e_z]``; the gradient of ``tr(exp(th)
+    M)`` (``M = R S_ab``) is ``axial(M)`` and its Hessian ``sym(M) - tr(M) I``, pulled back
+    through W."""
+    ang = np.zeros(3)
     for _ in range(30):
         R = euler_matrix(ang)
         cy, sy, cp, sp = np.cos(ang[2]), np.sin(ang[2]), np.cos(ang[1]), np.sin(ang[1])
-        W = np.array([[cy * cp, -sy, 0.0], [sy * cp, cy, 0.0], [-sp, 0.0, 1.0]])[:, free]
-        M = R @ S_ab
-        sym = 0.5 * (M + M.T)
-        H = W.T @ (np.trace(sym) * np.eye(3) - sym) @ W
-        step = np.linalg.solve(H, W.T @ _axial(M))
-        ang[free] += step
+        W = np.array([[cy * cp, -sy, 0.0], [sy * cp, cy, 0.0], [-sp, 0.0, 1.0]])
+        H, g = np.eye(3), np.zeros(3)
+        for S_ab, free in cues:
+            M = R @ S_ab
+            sym = 0.5 * (M + M.T)
+            H[free] = (W.T @ ((sym[0, 0] + sym[1, 1] + sym[2, 2]) * np.eye(3) - sym) @ W)[free]
+            g[free] = (W.T @ _axial(M))[free]
+        step = np.linalg.solve(H, g)
+        ang += step
         if np.abs(step).max() < 1e-12:
             break
     return ang
@@ -280,28 +291,23 @@ def outlier_cut(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 def _estimate(a, b, normals, ups, free_vel, use_road):
     """Outlier cut of the velocity pairs, then the angles: the ``free_vel`` ones from the
     velocity directions, the ``use_road`` ones from the road normals, each fit holding the
-    other's angles (alternated until they settle; the angles not fitted stay 0). Fitting the
+    other's angles (solved together; the angles not fitted stay 0). Fitting the
     reported angles themselves matters: a road rotation composed after the velocity fit would
     turn the velocity's own angles by the product of roll and the velocity's tilt (0.25 deg of
     yaw on the real sample's second half)."""
     keep = outlier_cut(a, b)
-    S_v = a[keep].T @ b[keep]
-    road = use_road.any() and len(normals) > 0
-    S_r = normals.T @ ups if road else None
-    ang = fit_angles(S_v, free_vel, np.zeros(3))
-    for _ in range(10):
-        if not road:
-            break
-        before = ang.copy()
-        ang = fit_angles(S_v, free_vel, fit_angles(S_r, use_road, ang))
-        if np.abs(ang - before).max() < 1e-11:
-            break
+    cues = [(a[keep].T @ b[keep], free_vel)]
+    if use_road.any() and len(normals):
+        cues.append((normals.T @ ups, use_road))
+    ang = fit_angles(cues)
     return euler_matrix(ang)
 
 
-def _bootstrap(cues: FrameCues, free_vel, use_road, reps: int, seed: int, level: float):
+def _bootstrap(cues: FrameCues, free_vel, use_road, reps: int, seed: int, level: float,
+               block_frames: int | None = None):
     """Block choice and angle spread of the whole estimate (outlier cut included) over circular
-    block resamples of the frames; the block from the residuals of the full fit."""
+    block resamples of the frames; the block from the residuals of the full fit unless
+    ``block_frames`` is given."""
     R = _estimate(cues.a, cues.b, cues.normals, cues.ups, free_vel, use_road)
     keep = outlier_cut(cues.a, cues.b)
     series = residual_series(cues.a[keep] @ R.T, cues.b[keep], free_vel,
@@ -310,6 +316,9 @@ def _bootstrap(cues: FrameCues, free_vel, use_road, reps: int, seed: int, level:
         series += residual_series(cues.normals @ R.T, cues.ups, use_road, cues.road_frame)
     # the GT velocity of a frame is a central difference over its two neighbours
     block = choose_block(cues.n_frames, cues.period_s, series, floor_frames=3)
+    if block_frames is not None:
+        block = BlockChoice(int(block_frames), block_frames * cues.period_s, int(block_frames),
+                            block.correlation)
 
     def fit(frames: np.ndarray) -> np.ndarray | None:
         v, r = cues.rows(frames)
@@ -318,15 +327,18 @@ def _bootstrap(cues: FrameCues, free_vel, use_road, reps: int, seed: int, level:
         return rotation_angles(_estimate(cues.a[v], cues.b[v], cues.normals[r], cues.ups[r],
                                          free_vel, use_road))
 
-    return block, bootstrap_angles(cues.n_frames, block.frames, reps, seed, fit, level)
+    return block, bootstrap_angles(cues.n_frames, block, reps, seed, fit, rotation_angles(R),
+                                   level)
 
 
 def calibrate_cues(cues: FrameCues, min_spread: float = 0.05, max_std_deg: float = 1.0,
                    bootstrap: int = 200, seed: int = 0, level: float = LEVEL,
-                   name: str = "sequence") -> CalibrationResult:
+                   name: str = "sequence", block_frames: int | None = None
+                   ) -> CalibrationResult:
     """Fit R_gt_sensor to per-frame cues (see the module docstring). An axis is observable from
     velocity when the directions spread around it by ``min_spread`` RMS [-] and its bootstrap
-    standard deviation stays below ``max_std_deg``."""
+    standard deviation stays below ``max_std_deg``. ``block_frames`` overrides the bootstrap's
+    block length (for studies of the rule)."""
     if len(cues.a) < 5:
         raise DataError(f"{name}: only {len(cues.a)} frames fast enough with an observable "
                         "ego velocity; calibration needs at least 5")
@@ -337,13 +349,15 @@ def calibrate_cues(cues: FrameCues, min_spread: float = 0.05, max_std_deg: float
     # road normals are near z: they observe rotations about x and y (roll, pitch)
     road_ok = len(cues.normals) >= 5
     use_road = np.array([road_ok, False, False]) & ~free_vel
-    block, spread_deg = _bootstrap(cues, free_vel, use_road, bootstrap, seed, level)
+    block, spread_deg = _bootstrap(cues, free_vel, use_road, bootstrap, seed, level,
+                                   block_frames)
     # an axis the velocity spread seemed to fix but the bootstrap says it did not: give it up
     weak = free_vel & (spread_deg.sd_deg > max_std_deg)
     if weak.any():
         free_vel &= ~weak
         use_road = np.array([road_ok, False, False]) & ~free_vel
-        block, spread_deg = _bootstrap(cues, free_vel, use_road, bootstrap, seed, level)
+        block, spread_deg = _bootstrap(cues, free_vel, use_road, bootstrap, seed, level,
+                                   block_frames)
     R = _estimate(cues.a, cues.b, cues.normals, cues.ups, free_vel, use_road)
     angles = rotation_angles(R)
     source = {ax: ("velocity" if free_vel[k] else "road plane" if use_road[k]
@@ -365,7 +379,7 @@ def calibrate_cues(cues: FrameCues, min_spread: float = 0.05, max_std_deg: float
         R, per_angle(angles), per_angle(spread_deg.sd_deg), source,
         int(outlier_cut(cues.a, cues.b).sum()), road,
         {ax: (float(spread_deg.low_deg[k]), float(spread_deg.high_deg[k]))
-         for k, ax in enumerate(ANGLES)}, level, block, spread_deg.resamples)
+         for k, ax in enumerate(ANGLES)}, level, block, spread_deg.resamples, cues.n_frames)
 
 
 def calibrate_sequence(sequence: Sequence, min_speed_mps: float = 2.0,

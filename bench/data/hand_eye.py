@@ -56,7 +56,7 @@ HE_BLOCK_S = 10.0
 @dataclass
 class HandEyeResult:
     """R_gt_sensor from a geometric odometry: angles, block-bootstrap standard deviation and
-    ``level`` percentile interval [deg], per-angle observability and which vectors fixed it,
+    ``level`` t interval [deg], per-angle observability and which vectors fixed it,
     segments used, how the frames were resampled."""
 
     R_gt_sensor: np.ndarray
@@ -70,6 +70,7 @@ class HandEyeResult:
     level: float = LEVEL
     block: BlockChoice | None = None
     resamples: int = 0
+    frames_total: int = 0
 
 
 @dataclass
@@ -166,7 +167,7 @@ def _bootstrap(v: SegmentVectors, n_frames: int, period_s: float, from_turns,
             return None
         return rotation_angles(_two_stage(sample, from_turns, from_displacements))
 
-    return block, bootstrap_angles(n_frames, block.frames, reps, seed, fit, level)
+    return block, bootstrap_angles(n_frames, block, reps, seed, fit, rotation_angles(R), level)
 
 
 def hand_eye_rotation(gt_poses: np.ndarray, est_poses: np.ndarray, period_s: float,
@@ -205,7 +206,8 @@ def hand_eye_rotation(gt_poses: np.ndarray, est_poses: np.ndarray, period_s: flo
                          dict(zip(ANGLES, map(bool, observable), strict=True)),
                          len(v.odometry), odometry, source,
                          {ax: (float(spread.low_deg[i]), float(spread.high_deg[i]))
-                          for i, ax in enumerate(ANGLES)}, level, block, spread.resamples)
+                          for i, ax in enumerate(ANGLES)}, level, block, spread.resamples,
+                         len(gt_poses))
 
 
 def hand_eye_on(sequence: Sequence, odometry: str = "kiss-icp", **kwargs) -> HandEyeResult:
