@@ -159,3 +159,40 @@ def test_the_real_samples_halves_agree_within_their_stated_uncertainty():
             lo, hi = h.interval_deg[ax]
             assert lo < h.angles_deg[ax] < hi
             assert hi - h.angles_deg[ax] >= 1.96 * h.std_deg[ax]
+
+
+def test_block_choice_floor_cap_and_description():
+    from bench.data.rotation_bootstrap import choose_block
+
+    white = np.random.default_rng(0).normal(size=100)
+    free = choose_block(100, 0.1, [white], floor_frames=3)
+    assert free.frames == free.wanted >= 3 and not free.capped
+    smooth = _ar1(np.random.default_rng(1), 100, 0.9, 1.0)[:, 0]  # correlated over ~19 frames
+    assert choose_block(100, 0.1, [white, smooth]).frames > 2 * free.frames
+    capped = choose_block(100, 0.1, [white], floor_frames=70)
+    assert (capped.frames, capped.wanted, capped.capped) == (50, 70, True)
+    assert capped.seconds == pytest.approx(5.0) and capped.dof(100) == pytest.approx(1.0)
+    text = capped.describe(200, 100)
+    assert "block 50 frames (5.0 s)" in text and "asked for 70 frames" in text
+    assert "1.0 degrees of freedom" in text
+
+
+def test_t_interval_of_a_block_bootstrapped_mean():
+    """bootstrap_angles on a plain mean, against the same draws counted by
+    metrics.intervals.block_counts: sd of the weighted means, and the half-width t(k - 1) * sd *
+    sqrt(n / (n - b)) with k = n / b blocks."""
+    from scipy.stats import t as student_t
+
+    from bench.data.rotation_bootstrap import BlockChoice, bootstrap_angles
+    from metrics.intervals import block_counts
+
+    x = np.cumsum(np.random.default_rng(2).normal(size=90)) * 0.1
+    block = BlockChoice(15, 1.5, 15, ())
+    spread = bootstrap_angles(90, block, 300, 7, lambda idx: np.array([x[idx].mean(), 0, 0]),
+                              np.array([x.mean(), 0.0, 0.0]))
+    means = block_counts(90, 15, 300, 7) @ x / 90
+    assert spread.sd_deg[0] == pytest.approx(means.std(ddof=1), rel=1e-9)
+    half = student_t.ppf(0.975, 90 / 15 - 1) * means.std(ddof=1) * np.sqrt(90 / 75)
+    assert spread.low_deg[0] == pytest.approx(x.mean() - half, rel=1e-9)
+    assert spread.high_deg[0] == pytest.approx(x.mean() + half, rel=1e-9)
+    assert spread.resamples == 300 and spread.sd_deg[1] == 0.0
