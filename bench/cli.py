@@ -1,5 +1,5 @@
-"""The ``bench`` command line: list, datasets, synth, convert, inspect, calibrate, run, table,
-figures, speed, reproduce.
+"""The ``bench`` command line: list, datasets, synth, convert, inspect, calibrate,
+calibrate-coverage, run, table, figures, speed, reproduce.
 
 Exit codes: 0 when everything asked for succeeded, 1 when any run failed (the summary lists
 them), 2 for a user error (bad input, option or YAML; one message, no traceback), 130 after
@@ -118,6 +118,38 @@ def calibrate(
     from bench.data.calibrate import calibrate_store
 
     calibrate_store(store, write, console, min_speed, bootstrap, start, frames, apply)
+
+
+@app.command("calibrate-coverage", short_help="how often bench calibrate's intervals cover a "
+             "known rotation (synthetic)")
+def calibrate_coverage(
+    seeds: Annotated[int, typer.Option(min=1, help="synthetic sequences (one per seed)")] = 20,
+    first_seed: Annotated[int, typer.Option(help="the first seed")] = 100,
+    frames: Annotated[int, typer.Option(min=10, help="frames per sequence")] = 125,
+    scene: Annotated[str, typer.Option(help="synthetic scene (bench list)")] = "loop",
+    sensor: Annotated[str, typer.Option(help="synthetic sensor (bench list)")]
+    = "radar-semidense",
+    bootstrap: Annotated[int, typer.Option(min=10, help="bootstrap resamples")] = 200,
+) -> None:
+    """Rotate the GT of synthetic sequences by a known R_gt_sensor (roll 1, pitch 2, yaw -1.5
+    deg), run the Doppler calibration on each and print, per angle, how often its stated 95 %
+    interval covers the truth, the mean error and the mean stated sd."""
+    from bench.studies.calibration_coverage import TRUTH_DEG, calibration_coverage
+
+    def progress(seed, cal) -> None:
+        status.print(f"seed {seed}: " + ", ".join(
+            f"{ax} {cal.angles_deg[ax] - TRUTH_DEG[ax]:+.3f} (sd {cal.std_deg[ax]:.3f})"
+            for ax in cal.angles_deg) + " deg off", highlight=False)
+
+    cov = calibration_coverage(range(first_seed, first_seed + seeds), frames, scene, sensor,
+                               bootstrap, progress=progress)
+    console.print(f"calibration coverage: {seeds} {scene} / {sensor} sequences of {frames} "
+                  f"frames (seeds {first_seed}-{first_seed + seeds - 1}), truth roll "
+                  f"{TRUTH_DEG['roll']:+g}, pitch {TRUTH_DEG['pitch']:+g}, yaw "
+                  f"{TRUTH_DEG['yaw']:+g} deg, {100 * cov.level:.0f} % intervals:",
+                  highlight=False)
+    for line in cov.lines():
+        console.print(line, highlight=False)
 
 
 @app.command(short_help="one run, or every run of an experiment")

@@ -173,8 +173,10 @@ def _block_counts(n: int, b: int, reps: int, seed: int) -> np.ndarray:
 
 
 def block_indices(n_frames: int, block: int, reps: int = REPS, seed: int = 0) -> np.ndarray:
-    """(reps, n_frames) the frame indices of each circular block resample, in drawn order
-    (for statistics that are not weighted means, e.g. a fit redone on every resample)."""
+    """(reps, n_frames) the frames drawn in each circular block resample, in drawing order:
+    ``ceil(n / b)`` blocks of ``b`` consecutive frames (wrapped at the end) from uniformly drawn
+    starts, the first ``n`` kept. For statistics that are not weighted means (a fit redone on
+    every resample); the same draws as :func:`block_counts` with the same seed."""
     n, b = int(n_frames), max(1, int(block))
     rng = np.random.default_rng(seed)
     k = -(-n // b)

@@ -131,19 +131,55 @@ def test_hand_eye_ignores_a_drifting_odometry_and_its_spread_covers_it():
 
 
 def test_calibrate_says_when_the_estimates_disagree():
+    """Apart beyond the combined half-widths of the stated intervals, sqrt(0.2^2 + 0.1^2) =
+    0.224 deg: 0.25 deg apart disagrees, 0.2 deg does not."""
     from types import SimpleNamespace
 
     from bench.data.calibrate import disagreements
     from bench.data.hand_eye import HandEyeResult
 
     angles = {"roll": 0.0, "pitch": -1.7, "yaw": 0.0}
-    cal = SimpleNamespace(angles_deg=angles, std_deg=dict.fromkeys(angles, 0.1),
-                          not_observable=[])
-    he = HandEyeResult(np.eye(3), {**angles, "pitch": -4.05}, dict.fromkeys(angles, 0.05),
-                       dict.fromkeys(angles, True), 40, "kiss-icp")
+    cal = SimpleNamespace(angles_deg=angles, not_observable=[],
+                          interval_deg={a: (v - 0.2, v + 0.2) for a, v in angles.items()})
+    he_angles = {**angles, "pitch": -1.95}
+    he = HandEyeResult(np.eye(3), he_angles, dict.fromkeys(angles, 0.05),
+                       dict.fromkeys(angles, True), 40, "kiss-icp",
+                       interval_deg={a: (v - 0.1, v + 0.1) for a, v in he_angles.items()})
     assert [d.split()[0] for d in disagreements(he, cal)] == ["pitch"]
-    he.std_deg["pitch"] = 1.0  # an uncertainty that covers the gap: no disagreement
+    he.angles_deg["pitch"] = -1.9  # 0.2 apart: within 0.224
+    he.interval_deg["pitch"] = (-2.0, -1.8)
     assert disagreements(he, cal) == []
+    he.observable["pitch"] = False  # an angle one estimate does not observe is not compared
+    he.angles_deg["pitch"] = -5.0
+    assert disagreements(he, cal) == []
+
+
+def test_hand_eye_recovers_a_large_mount_rotation_exactly():
+    """An exact odometry (the GT seen from a sensor mounted at roll 5, pitch -7, yaw 4 deg):
+    the turn axes fix roll and pitch, then the displacements - moved by that first rotation -
+    fix yaw; exact to 1e-6 deg. Moving the displacements by the transpose instead leaves yaw
+    0.5 deg off, which the small rotations of the other tests hid."""
+    from bench.data.hand_eye import hand_eye_rotation
+    from loaders.se3 import exp_se3
+
+    period, n = 0.1, 300
+    gt = [np.eye(4)]
+    for k in range(1, n):
+        xi = np.array([8.0, 0, 0.4 * np.sin(k / 17), 0, 0, 0.35 * np.sin(k / 30)])
+        gt.append(gt[-1] @ exp_se3(xi * period))
+    gt = np.array(gt)
+    truth = {"roll": 5.0, "pitch": -7.0, "yaw": 4.0}
+    T = np.eye(4)
+    T[:3, :3] = Rotation.from_euler("ZYX", [truth["yaw"], truth["pitch"], truth["roll"]],
+                                    degrees=True).as_matrix()
+    est = np.linalg.inv(T) @ gt @ T  # the sensor's own trajectory, in its own frame
+    he = hand_eye_rotation(gt, est, period, bootstrap=10, block_s=2.0)
+    assert he.source == {"roll": "turn axes", "pitch": "turn axes",
+                         "yaw": "displacement directions"}
+    for ax, value in truth.items():
+        assert he.angles_deg[ax] == pytest.approx(value, abs=1e-6), (ax, he.angles_deg)
+    # the block asked for (2 s = 20 frames, or longer for correlated residuals) is used
+    assert 20 <= he.block.frames <= n // 2 and he.frames_total == n
 
 
 def test_calibrated_store_scores_only_the_frames_not_used(loop, tmp_path):
@@ -211,3 +247,44 @@ def test_a_method_consuming_the_gt_fitted_extrinsic_is_marked(loop, tmp_path):
     labels = sorted(r.label for r in select(out)[0])
     assert sum(GT_EXTRINSIC_MARK in label for label in labels) == 1, labels
     assert any("DICP " + GT_EXTRINSIC_MARK in label for label in labels), labels
+
+
+def test_calibrate_apply_writes_the_chosen_estimate(loop, tmp_path):
+    """`bench calibrate --write --apply doppler` corrects the GT by the Doppler rotation (the
+    one calibrate_sequence finds on the same frames), `--apply hand-eye` by the hand-eye one;
+    the two differ here, so a swapped choice shows."""
+    from typer.testing import CliRunner
+
+    from bench.cli import app
+    from loaders.scan import FrameRange
+
+    short = MemorySequence("s", loop.sensor, [loop[i] for i in range(60)], loop.ground_truth,
+                           {})
+    src = write_store(rotated_gt(short), tmp_path / "rot.h5")
+    written = {}
+    for choice in ("doppler", "hand-eye"):
+        out = tmp_path / f"{choice}.h5"
+        res = CliRunner().invoke(app, ["calibrate", str(src), "--frames", "60", "--bootstrap",
+                                       "10", "--apply", choice, "--write", str(out)])
+        assert res.exit_code == 0, res.output
+        assert f"corrected by the {choice} estimate" in res.output
+        fixed = StoreSequence(out)
+        written[choice] = np.array(fixed.provenance["calibration"]["R_gt_sensor"])
+        details = fixed.provenance["calibration"]
+        assert details["applied_estimate"] == choice
+        # the GT written is the source GT turned by that rotation
+        original = StoreSequence(src)
+        T_fix = np.eye(4)
+        T_fix[:3, :3] = written[choice]
+        np.testing.assert_allclose(fixed.ground_truth.poses[7],
+                                   original.ground_truth.poses[7] @ T_fix, atol=1e-9)
+        original.close()
+        fixed.close()
+    seq = StoreSequence(src)
+    doppler = calibrate_sequence(FrameRange(seq, 0, 60), bootstrap=10).R_gt_sensor
+    seq.close()
+    np.testing.assert_allclose(written["doppler"], doppler, atol=1e-12)
+    apart = np.degrees(Rotation.from_matrix(written["hand-eye"] @ doppler.T).magnitude())
+    assert apart > 0.01  # the two estimates are distinguishable here
+    rpy = Rotation.from_matrix(written["hand-eye"]).as_euler("ZYX", degrees=True)[::-1]
+    np.testing.assert_allclose(rpy, details["hand_eye_rpy_deg"], atol=1e-9)

@@ -23,19 +23,29 @@ from bench.data.calibration import (
     CorrectedSequence,
     calibrate_sequence,
 )
-from bench.data.hand_eye import HandEyeResult, hand_eye_on
+from bench.data.hand_eye import HE_BLOCK_S, HandEyeResult, hand_eye_on
 from loaders.errors import DataError
 from loaders.scan import FrameRange
 
 ESTIMATES = ("doppler", "hand-eye")
 
 
+def _angle_line(ax: str, angle: float, interval: tuple[float, float], sd: float,
+                level: float) -> str:
+    lo, hi = interval
+    return (f"  {ax:<5} {angle:+8.3f} deg  {100 * level:.0f} % [{lo:+.3f}, {hi:+.3f}]  "
+            f"sd {sd:.3f}")
+
+
 def format_result(cal: CalibrationResult) -> list[str]:
     lines = [f"Doppler ego velocity + road plane: R_gt_sensor from {cal.frames_used} frames "
              f"(rotation {cal.total_deg:.3f} deg):"]
     for ax in ANGLES:
-        lines.append(f"  {ax:<5} {cal.angles_deg[ax]:+8.3f} deg  +- {cal.std_deg[ax]:.3f}  "
-                     f"({cal.source[ax]})")
+        lines.append(_angle_line(ax, cal.angles_deg[ax], cal.interval_deg[ax], cal.std_deg[ax],
+                                 cal.level) + f"  ({cal.source[ax]})")
+    if cal.block is not None:
+        lines.append("  uncertainty: " + cal.block.describe(
+            cal.resamples, cal.frames_total, "each refitted with its own outlier cut"))
     if cal.not_observable:
         lines.append(f"  not observable: {', '.join(cal.not_observable)} (reported as 0)")
     r = cal.road
@@ -50,33 +60,38 @@ def format_result(cal: CalibrationResult) -> list[str]:
     return lines
 
 
-#: two estimates disagree when they differ by more than this many combined standard deviations
-DISAGREE_SIGMAS = 3.0
+def _half_width(interval: tuple[float, float]) -> float:
+    return 0.5 * (interval[1] - interval[0])
 
 
 def disagreements(he: HandEyeResult, cal: CalibrationResult) -> list[str]:
-    """The angles both estimates observe on which they differ by more than
-    ``DISAGREE_SIGMAS`` x their combined bootstrap standard deviation."""
+    """The angles both estimates observe on which their difference exceeds the combined
+    half-widths of their stated intervals, ``sqrt(h_he^2 + h_doppler^2)``."""
     out = []
     for ax in ANGLES:
         if not he.observable[ax] or ax in cal.not_observable:
             continue
         diff = he.angles_deg[ax] - cal.angles_deg[ax]
-        sigma = float(np.hypot(he.std_deg[ax], cal.std_deg[ax]))
-        if abs(diff) > DISAGREE_SIGMAS * sigma:
-            out.append(f"{ax} ({diff:+.2f} deg apart, combined +- {sigma:.2f})")
+        width = float(np.hypot(_half_width(he.interval_deg[ax]),
+                               _half_width(cal.interval_deg[ax])))
+        if not abs(diff) <= width:
+            out.append(f"{ax} ({diff:+.2f} deg apart, combined +- {width:.2f})")
     return out
 
 
 def format_hand_eye(he: HandEyeResult, cal: CalibrationResult) -> list[str]:
     lines = [f"hand-eye alignment of {he.odometry} (no Doppler): R_gt_sensor from "
-             f"{he.segments} segments (turn axes first, then displacement directions; +- is "
-             "a block bootstrap over 10 s of segments):"]
+             f"{he.segments} segments (turn axes first, then displacement directions):"]
     for ax in ANGLES:
         how = he.source.get(ax, "") if he.observable[ax] else "not observable"
-        lines.append(f"  {ax:<5} {he.angles_deg[ax]:+8.3f} deg  +- {he.std_deg[ax]:.3f}"
-                     f"   difference to Doppler {he.angles_deg[ax] - cal.angles_deg[ax]:+.3f} "
+        lines.append(_angle_line(ax, he.angles_deg[ax], he.interval_deg[ax], he.std_deg[ax],
+                                 he.level)
+                     + f"  difference to Doppler {he.angles_deg[ax] - cal.angles_deg[ax]:+.3f} "
                      f"deg  ({how})")
+    if he.block is not None:
+        lines.append("  uncertainty: " + he.block.describe(
+            he.resamples, he.frames_total,
+            f"both stages refitted on each; blocks of at least {HE_BLOCK_S:g} s asked"))
     between = Rotation.from_matrix(he.R_gt_sensor @ cal.R_gt_sensor.T).magnitude()
     lines.append(f"  the two rotations differ by {np.degrees(between):.3f} deg in all")
     apart = disagreements(he, cal)
@@ -87,8 +102,8 @@ def format_hand_eye(he: HandEyeResult, cal: CalibrationResult) -> list[str]:
             "hand-eye: the odometry's drift and the lever arm), so neither is exact; check "
             "with `bench inspect` before applying one")
     else:
-        lines.append(f"  the two agree within {DISAGREE_SIGMAS:g} x their combined "
-                     "uncertainty on every angle both observe")
+        lines.append("  the two agree within their combined intervals on every angle both "
+                     "observe")
     return lines
 
 

@@ -4,19 +4,26 @@ ego velocity (the estimator behind ``bench calibrate`` and ``bench inspect``'s c
 The Doppler ego velocity (methods/ego_velocity.py) is the sensor's velocity in the sensor frame;
 the ground truth gives the same velocity in the GT frame (central differences of the GT
 positions, rotated into the GT frame). Over the frames with enough speed, the rotation
-``R_gt_sensor`` that maps the one set of directions onto the other is fitted (Wahba/Kabsch on
-unit vectors, Gauss-Newton on a rotation vector, outlier frames dropped at 3 robust sigmas).
+``R_gt_sensor`` that maps the one set of directions onto the other is fitted (least squares on
+unit vectors, Newton steps on the Euler angles themselves; outlier frames, more than 3 robust
+sigmas off a free Kabsch fit, dropped).
 
 Observability: a car moves forward, so velocity directions fix pitch and yaw of the mount but
 hardly roll (rotation about the direction of travel). The information of each rotation axis is
 the spread of the directions around it; an axis whose RMS spread is below ``min_spread`` is
 not observable from velocity. Roll then comes from the road plane: per frame a plane fitted to
 the points below the sensor gives the road normal in the sensor frame, paired with the world's
-up direction in the GT frame (the road is level on average). Both are reported, with which
-angles came from which cue and which remained unobservable.
+up direction in the GT frame (the road is level on average). Each cue fits only its own
+angles, holding the other's (the two sets of equations solved together). Both are reported,
+with which angles came from which cue and which remained unobservable.
 
-Angles: ``R_gt_sensor = Rz(yaw) Ry(pitch) Rx(roll)`` [deg]; uncertainties are bootstrap
-standard deviations over frames. The road-plane check reports the sensor's height above the
+Angles: ``R_gt_sensor = Rz(yaw) Ry(pitch) Rx(roll)`` [deg]. Uncertainty: a circular block
+bootstrap of the frames (``bench.data.rotation_bootstrap``): the velocity pairs and road normals
+of the drawn frames, the outlier cut and both fits redone on each resample; the block length
+from the autocorrelation of the per-frame residuals of every fitted angle (at least 3 frames,
+the span of the GT's central difference); 95 % t intervals (degrees of freedom from the number
+of blocks) and standard deviations.
+The road-plane check reports the sensor's height above the
 road and the road normal's tilt in the sensor frame and in the GT frame.
 
 A corrected store keeps the points exactly as measured and corrects the ground truth:
@@ -31,6 +38,13 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from bench.data.rotation_bootstrap import (
+    LEVEL,
+    BlockChoice,
+    bootstrap_angles,
+    choose_block,
+    residual_series,
+)
 from loaders.errors import DataError
 from loaders.scan import Scan, SensorInfo, Sequence
 from loaders.trajectory import Trajectory
@@ -42,8 +56,11 @@ AXES = np.eye(3)  # roll about x, pitch about y, yaw about z
 
 @dataclass
 class CalibrationResult:
-    """R_gt_sensor (3x3) and its angles [deg]; std_deg from the bootstrap; source per angle
-    ("velocity", "road plane" or "not observable"); frames used; road-plane check values."""
+    """R_gt_sensor (3x3) and its angles [deg]; ``std_deg`` the bootstrap standard deviation and
+    ``interval_deg`` the ``level`` t interval of each angle [deg] (``block``: how the
+    ``frames_total`` frames were resampled, ``resamples`` how many were fitted); source per
+    angle ("velocity", "road plane" or "not observable"); velocity frames kept after the
+    outlier cut; road-plane check values."""
 
     R_gt_sensor: np.ndarray
     angles_deg: dict[str, float]
@@ -51,6 +68,11 @@ class CalibrationResult:
     source: dict[str, str]
     frames_used: int
     road: dict[str, float] = field(default_factory=dict)
+    interval_deg: dict[str, tuple[float, float]] = field(default_factory=dict)
+    level: float = LEVEL
+    block: BlockChoice | None = None
+    resamples: int = 0
+    frames_total: int = 0
 
     @property
     def total_deg(self) -> float:
@@ -109,24 +131,80 @@ def road_normal(scan: Scan, seed: int = 0, threshold_m: float = 0.15
     return normal, float(-(normal @ c))
 
 
-def fit_rotation(a: np.ndarray, b: np.ndarray, free: np.ndarray) -> np.ndarray:
-    """Rotation R minimising sum |b - R a|^2 over unit-vector pairs, updating only the rotation
-    axes (columns of AXES) flagged in ``free`` (Gauss-Newton on a rotation vector)."""
+def _exp_so3(w: np.ndarray) -> np.ndarray:
+    """Rodrigues: the rotation matrix of rotation vector ``w`` [rad]."""
+    theta = float(np.linalg.norm(w))
+    K = np.array([[0.0, -w[2], w[1]], [w[2], 0.0, -w[0]], [-w[1], w[0], 0.0]])
+    if theta < 1e-12:
+        return np.eye(3) + K
+    return np.eye(3) + np.sin(theta) / theta * K + (1 - np.cos(theta)) / theta**2 * K @ K
+
+
+def fit_rotation_sums(S_aa: np.ndarray, S_ab: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """``fit_rotation`` from the pairs' sums ``S_aa = sum a a^T`` and ``S_ab = sum a b^T``
+    (3x3): the cost ``sum |b - R a|^2`` and its Gauss-Newton steps depend on the pairs only
+    through them. With ``u = R a``: the Jacobian of ``exp(th) u`` is ``axis_k x u``, so
+    ``J^T J = tr(U) I - U`` (``U = R S_aa R^T``) and ``J^T (b - u) = sum u x b``, the axial
+    vector of ``M = R S_ab``."""
     R = np.eye(3)
     for _ in range(20):
-        Ra = a @ R.T
-        e = b - Ra
-        # d(exp(th) R a)/d th_k = axis_k x (R a)
-        J = np.stack([np.cross(AXES[k], Ra) for k in range(3)], axis=2)  # (n, 3, 3)
-        J = J[:, :, free]
-        H = np.einsum("nia,nib->ab", J, J)
-        g = np.einsum("nia,ni->a", J, e)
+        U = R @ S_aa @ R.T
+        M = R @ S_ab
+        H = (np.trace(U) * np.eye(3) - U)[np.ix_(free, free)]
         step = np.zeros(3)
-        step[free] = np.linalg.solve(H, g)
-        R = Rotation.from_rotvec(step).as_matrix() @ R
+        step[free] = np.linalg.solve(H, _axial(M)[free])
+        R = _exp_so3(step) @ R
         if np.linalg.norm(step) < 1e-10:
             break
     return R
+
+
+def _axial(M: np.ndarray) -> np.ndarray:
+    """The axial vector of M's antisymmetric part, times 2: ``sum u x b`` for ``M = sum u
+    b^T``."""
+    return np.array([M[1, 2] - M[2, 1], M[2, 0] - M[0, 2], M[0, 1] - M[1, 0]])
+
+
+def euler_matrix(angles_rad: np.ndarray) -> np.ndarray:
+    """``Rz(yaw) Ry(pitch) Rx(roll)`` of (roll, pitch, yaw) [rad]."""
+    cr, cp, cy = np.cos(angles_rad)
+    sr, sp, sy = np.sin(angles_rad)
+    return np.array([[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                     [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                     [-sp, cp * sr, cp * cr]])
+
+
+def fit_angles(cues: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """(roll, pitch, yaw) [rad] where each cue ``(S_ab, free)`` is at its best for its own
+    ``free`` angles (disjoint masks; angles in no mask stay 0): ``tr(R S_ab)`` stationary in
+    them, i.e. ``sum |b - R a|^2`` least for ``S_ab = sum a b^T`` with the other cues' angles
+    held. Newton steps on these equations together: a change of the angles turns R (on the
+    left) about the columns of ``W = [Rz Ry e_x, Rz e_y, e_z]``; the gradient of ``tr(exp(th)
+    M)`` (``M = R S_ab``) is ``axial(M)`` and its Hessian ``sym(M) - tr(M) I``, pulled back
+    through W."""
+    ang = np.zeros(3)
+    for _ in range(30):
+        R = euler_matrix(ang)
+        cy, sy, cp, sp = np.cos(ang[2]), np.sin(ang[2]), np.cos(ang[1]), np.sin(ang[1])
+        W = np.array([[cy * cp, -sy, 0.0], [sy * cp, cy, 0.0], [-sp, 0.0, 1.0]])
+        H, g = np.eye(3), np.zeros(3)
+        for S_ab, free in cues:
+            M = R @ S_ab
+            sym = 0.5 * (M + M.T)
+            H[free] = (W.T @ ((sym[0, 0] + sym[1, 1] + sym[2, 2]) * np.eye(3) - sym) @ W)[free]
+            g[free] = (W.T @ _axial(M))[free]
+        step = np.linalg.solve(H, g)
+        ang += step
+        if np.abs(step).max() < 1e-12:
+            break
+    return ang
+
+
+def fit_rotation(a: np.ndarray, b: np.ndarray, free: np.ndarray) -> np.ndarray:
+    """Rotation R minimising sum |b - R a|^2 over unit-vector pairs, updating only the rotation
+    axes (columns of AXES) flagged in ``free`` (Gauss-Newton on a rotation vector, left
+    updates ``R := exp(th) R`` from the identity; see ``fit_rotation_sums``)."""
+    return fit_rotation_sums(a.T @ a, a.T @ b, np.asarray(free, dtype=bool))
 
 
 def rotation_angles(R: np.ndarray) -> np.ndarray:
@@ -134,101 +212,187 @@ def rotation_angles(R: np.ndarray) -> np.ndarray:
     return np.array([roll, pitch, yaw])
 
 
-def _estimate(a, b, normals, ups, free_vel, use_road):
-    R = fit_rotation(a, b, free_vel)
-    if use_road.any() and len(normals):
-        # the road fixes what velocity cannot: a rotation about the remaining axes, applied
-        # after the velocity fit (velocity axes untouched)
-        R_road = fit_rotation(normals @ R.T, ups, use_road)
-        R = R_road @ R
-    return R
+@dataclass
+class FrameCues:
+    """What each frame of a sequence says about ``R_gt_sensor``: Doppler (sensor frame) and GT
+    (GT frame) unit velocity directions of the frames fast enough (``vel_frame``: their frame
+    indices), road normals (sensor frame) and world up (GT frame) of the frames with a road
+    plane (``road_frame``), the sensor's height above the road [m]; ``n_frames`` frames of
+    ``period_s`` [s]."""
+
+    n_frames: int
+    period_s: float
+    vel_frame: np.ndarray
+    a: np.ndarray
+    b: np.ndarray
+    road_frame: np.ndarray
+    normals: np.ndarray
+    ups: np.ndarray
+    heights: np.ndarray
+
+    def rows(self, frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Velocity and road rows of the drawn ``frames`` (repeats kept)."""
+        vel = np.full(self.n_frames, -1)
+        vel[self.vel_frame] = np.arange(len(self.vel_frame))
+        road = np.full(self.n_frames, -1)
+        road[self.road_frame] = np.arange(len(self.road_frame))
+        v, r = vel[frames], road[frames]
+        return v[v >= 0], r[r >= 0]
 
 
-def _bootstrap(a, b, normals, ups, free_vel, use_road, n: int, seed: int) -> np.ndarray:
-    """Standard deviation [deg] of (roll, pitch, yaw) over ``n`` resamples of the frames."""
-    if n < 2:
-        return np.full(3, np.nan)
-    rng = np.random.default_rng(seed)
-    samples = []
-    for _ in range(n):
-        i = rng.integers(0, len(a), len(a))
-        j = rng.integers(0, len(normals), len(normals)) if len(normals) else np.arange(0)
-        R = _estimate(a[i], b[i], normals[j], ups[j], free_vel, use_road)
-        samples.append(rotation_angles(R))
-    return np.std(samples, axis=0)
-
-
-def calibrate_sequence(sequence: Sequence, min_speed_mps: float = 2.0,
-                       min_spread: float = 0.05, max_std_deg: float = 1.0,
-                       bootstrap: int = 200, seed: int = 0) -> CalibrationResult:
-    """Fit R_gt_sensor for ``sequence`` (see the module docstring). An axis is observable from
-    velocity when the directions spread around it by ``min_spread`` RMS [-] and its bootstrap
-    standard deviation stays below ``max_std_deg``."""
+def collect_cues(sequence: Sequence, min_speed_mps: float = 2.0) -> FrameCues:
+    """The per-frame cues of ``sequence`` (see FrameCues); DataError without GT or Doppler."""
     name = getattr(sequence, "path", sequence.name)
     if sequence.ground_truth is None:
         raise DataError(f"{name}: calibration needs ground truth; this store has none")
     stamps = sequence.stamps
     v_gt, up_gt = gt_velocity_directions(sequence.ground_truth, stamps)
     thr = 0.2 if sequence.sensor.kind == "radar" else 0.1
-    a, b, normals, ups, heights = [], [], [], [], []
+    vel_frame, a, b, road_frame, normals, ups, heights = [], [], [], [], [], [], []
     for i, scan in enumerate(sequence):
         if scan.doppler is None:
-            raise DataError(f"{scan.source or name}: calibration needs Doppler")
+            raise DataError(f"{scan.source or name}: frame {i}: calibration needs Doppler")
         if not np.isfinite(v_gt[i]).all():
             continue
         ego = estimate_ego_velocity(scan.points, scan.doppler, threshold_mps=thr)
         if ego.observable and ego.speed_mps > min_speed_mps and \
                 np.linalg.norm(v_gt[i]) > min_speed_mps:
+            vel_frame.append(i)
             a.append(ego.velocity / ego.speed_mps)
             b.append(v_gt[i] / np.linalg.norm(v_gt[i]))
         road = road_normal(scan.select(ego.inliers) if ego.observable else scan, seed=i)
         if road is not None:
+            road_frame.append(i)
             normals.append(road[0])
             ups.append(up_gt[i])
             heights.append(road[1])
-    if len(a) < 5:
-        raise DataError(f"{name}: only {len(a)} frames faster than {min_speed_mps} m/s with "
-                        "an observable ego velocity; calibration needs at least 5")
-    a, b = np.array(a), np.array(b)
-    normals, ups = np.array(normals).reshape(-1, 3), np.array(ups).reshape(-1, 3)
-    # outlier frames: refit without directions more than 3 robust sigmas off
-    R0 = fit_rotation(a, b, np.ones(3, bool))
+    return FrameCues(len(stamps), float(sequence.sensor.period_s),
+                     np.array(vel_frame, dtype=int), np.array(a).reshape(-1, 3),
+                     np.array(b).reshape(-1, 3), np.array(road_frame, dtype=int),
+                     np.array(normals).reshape(-1, 3), np.array(ups).reshape(-1, 3),
+                     np.array(heights))
+
+
+def kabsch(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """The rotation R minimising sum |b - R a|^2 (all three axes free; SVD, no reflection)."""
+    u, _, vt = np.linalg.svd(b.T @ a)
+    d = np.sign(np.linalg.det(u @ vt)) or 1.0
+    return u @ np.diag([1.0, 1.0, d]) @ vt
+
+
+def outlier_cut(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Mask of the direction pairs within 3 robust sigmas (1.4826 x median, at least 0.05 deg
+    overall) of a free fit to all of them."""
+    R0 = kabsch(a, b)
     err = np.degrees(np.arccos(np.clip(np.einsum("ni,ni->n", a @ R0.T, b), -1, 1)))
-    keep = err <= max(3 * 1.4826 * np.median(err), 0.05)
-    a, b = a[keep], b[keep]
+    return err <= max(3 * 1.4826 * np.median(err), 0.05)
+
+
+def _estimate(a, b, normals, ups, free_vel, use_road):
+    """Outlier cut of the velocity pairs, then the angles: the ``free_vel`` ones from the
+    velocity directions, the ``use_road`` ones from the road normals, each fit holding the
+    other's angles (solved together; the angles not fitted stay 0). Fitting the
+    reported angles themselves matters: a road rotation composed after the velocity fit would
+    turn the velocity's own angles by the product of roll and the velocity's tilt (0.25 deg of
+    yaw on the real sample's second half)."""
+    keep = outlier_cut(a, b)
+    cues = [(a[keep].T @ b[keep], free_vel)]
+    if use_road.any() and len(normals):
+        cues.append((normals.T @ ups, use_road))
+    ang = fit_angles(cues)
+    return euler_matrix(ang)
+
+
+def _bootstrap(cues: FrameCues, free_vel, use_road, reps: int, seed: int, level: float,
+               block_frames: int | None = None):
+    """Block choice and angle spread of the whole estimate (outlier cut included) over circular
+    block resamples of the frames; the block from the residuals of the full fit unless
+    ``block_frames`` is given."""
+    R = _estimate(cues.a, cues.b, cues.normals, cues.ups, free_vel, use_road)
+    keep = outlier_cut(cues.a, cues.b)
+    series = residual_series(cues.a[keep] @ R.T, cues.b[keep], free_vel,
+                             cues.vel_frame[keep])
+    if use_road.any():
+        series += residual_series(cues.normals @ R.T, cues.ups, use_road, cues.road_frame)
+    # the GT velocity of a frame is a central difference over its two neighbours
+    block = choose_block(cues.n_frames, cues.period_s, series, floor_frames=3)
+    if block_frames is not None:
+        block = BlockChoice(int(block_frames), block_frames * cues.period_s, int(block_frames),
+                            block.correlation)
+
+    def fit(frames: np.ndarray) -> np.ndarray | None:
+        v, r = cues.rows(frames)
+        if len(v) < 5:
+            return None
+        return rotation_angles(_estimate(cues.a[v], cues.b[v], cues.normals[r], cues.ups[r],
+                                         free_vel, use_road))
+
+    return block, bootstrap_angles(cues.n_frames, block, reps, seed, fit, rotation_angles(R),
+                                   level)
+
+
+def calibrate_cues(cues: FrameCues, min_spread: float = 0.05, max_std_deg: float = 1.0,
+                   bootstrap: int = 200, seed: int = 0, level: float = LEVEL,
+                   name: str = "sequence", block_frames: int | None = None
+                   ) -> CalibrationResult:
+    """Fit R_gt_sensor to per-frame cues (see the module docstring). An axis is observable from
+    velocity when the directions spread around it by ``min_spread`` RMS [-] and its bootstrap
+    standard deviation stays below ``max_std_deg``. ``block_frames`` overrides the bootstrap's
+    block length (for studies of the rule)."""
+    if len(cues.a) < 5:
+        raise DataError(f"{name}: only {len(cues.a)} frames fast enough with an observable "
+                        "ego velocity; calibration needs at least 5")
+    kept = cues.a[outlier_cut(cues.a, cues.b)]
     # observability of each axis from velocity: RMS spread of the directions around it
-    spread = np.sqrt(np.mean(1.0 - (a @ AXES.T) ** 2, axis=0))
+    spread = np.sqrt(np.mean(1.0 - (kept @ AXES.T) ** 2, axis=0))
     free_vel = spread >= min_spread
     # road normals are near z: they observe rotations about x and y (roll, pitch)
-    road_ok = len(normals) >= 5
+    road_ok = len(cues.normals) >= 5
     use_road = np.array([road_ok, False, False]) & ~free_vel
-    R = _estimate(a, b, normals, ups, free_vel, use_road)
-
-    std = _bootstrap(a, b, normals, ups, free_vel, use_road, bootstrap, seed)
+    block, spread_deg = _bootstrap(cues, free_vel, use_road, bootstrap, seed, level,
+                                   block_frames)
     # an axis the velocity spread seemed to fix but the bootstrap says it did not: give it up
-    weak = free_vel & (std > max_std_deg)
+    weak = free_vel & (spread_deg.sd_deg > max_std_deg)
     if weak.any():
         free_vel &= ~weak
         use_road = np.array([road_ok, False, False]) & ~free_vel
-        R = _estimate(a, b, normals, ups, free_vel, use_road)
-        std = _bootstrap(a, b, normals, ups, free_vel, use_road, bootstrap, seed)
+        block, spread_deg = _bootstrap(cues, free_vel, use_road, bootstrap, seed, level,
+                                   block_frames)
+    R = _estimate(cues.a, cues.b, cues.normals, cues.ups, free_vel, use_road)
     angles = rotation_angles(R)
     source = {ax: ("velocity" if free_vel[k] else "road plane" if use_road[k]
                    else "not observable") for k, ax in enumerate(ANGLES)}
     road = {}
+    normals, ups = cues.normals, cues.ups
     if len(normals):
         n_s = normals.mean(axis=0)
         n_s /= np.linalg.norm(n_s)
         u_g = ups.mean(axis=0)
         u_g /= np.linalg.norm(u_g)
-        road = {"frames": float(len(normals)), "height_m": float(np.median(heights)),
+        road = {"frames": float(len(normals)), "height_m": float(np.median(cues.heights)),
                 "road_pitch_in_sensor_deg": float(np.degrees(np.arctan2(-n_s[0], n_s[2]))),
                 "road_roll_in_sensor_deg": float(np.degrees(np.arctan2(n_s[1], n_s[2]))),
                 "up_pitch_in_gt_deg": float(np.degrees(np.arctan2(-u_g[0], u_g[2]))),
                 "up_roll_in_gt_deg": float(np.degrees(np.arctan2(u_g[1], u_g[2])))}
-    return CalibrationResult(R, dict(zip(ANGLES, map(float, angles), strict=True)),
-                             dict(zip(ANGLES, map(float, std), strict=True)), source,
-                             int(len(a)), road)
+    per_angle = lambda x: dict(zip(ANGLES, map(float, x), strict=True))  # noqa: E731
+    return CalibrationResult(
+        R, per_angle(angles), per_angle(spread_deg.sd_deg), source,
+        int(outlier_cut(cues.a, cues.b).sum()), road,
+        {ax: (float(spread_deg.low_deg[k]), float(spread_deg.high_deg[k]))
+         for k, ax in enumerate(ANGLES)}, level, block, spread_deg.resamples, cues.n_frames)
+
+
+def calibrate_sequence(sequence: Sequence, min_speed_mps: float = 2.0,
+                       min_spread: float = 0.05, max_std_deg: float = 1.0,
+                       bootstrap: int = 200, seed: int = 0,
+                       level: float = LEVEL) -> CalibrationResult:
+    """Fit R_gt_sensor for ``sequence`` (see the module docstring and ``calibrate_cues``)."""
+    name = str(getattr(sequence, "path", sequence.name))
+    cues = collect_cues(sequence, min_speed_mps)
+    if len(cues.a) < 5:
+        raise DataError(f"{name}: only {len(cues.a)} frames faster than {min_speed_mps} m/s "
+                        "with an observable ego velocity; calibration needs at least 5")
+    return calibrate_cues(cues, min_spread, max_std_deg, bootstrap, seed, level, name)
 
 
 class CorrectedSequence(Sequence):

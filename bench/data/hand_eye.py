@@ -16,32 +16,48 @@ So the rotation is fitted in two stages, most trusted first (Wahba on unit vecto
 ``bench.data.calibration.fit_rotation``): the turn axes fix the rotations they observe (roll
 and pitch on a drive whose turns are about the vertical), then the displacement directions fix
 only what the turns cannot (yaw). An axis that neither set of vectors spreads around is
-reported as not observable. The uncertainty is a block bootstrap: whole blocks of consecutive
-segments (``block_s`` seconds, default 10 s) are resampled, so the correlated errors of a
-drifting odometry widen it instead of averaging out, as resampling single overlapping segments
-did.
+reported as not observable. The uncertainty is a circular block bootstrap of the frames
+(``bench.data.rotation_bootstrap``): a segment enters a resample as often as its start frame is
+drawn, and both stages are refitted. The blocks are at least ``block_s`` seconds (default
+10 s) and one segment long, and longer when the per-segment residuals are correlated for
+longer, so the correlated errors of a drifting odometry widen the interval instead of averaging
+out; at most half the frames (over a range shorter than twice ``block_s`` the block is capped,
+and the output says so).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from bench.data.calibration import ANGLES, AXES, fit_rotation, rotation_angles
+from bench.data.rotation_bootstrap import (
+    LEVEL,
+    AngleSpread,
+    BlockChoice,
+    bootstrap_angles,
+    choose_block,
+    residual_series,
+)
 from loaders.errors import DataError
 from loaders.gt import gt_for_frames
 from loaders.scan import Sequence
 from loaders.se3 import inv_T
 
 TURN_AXES, DISPLACEMENTS = "turn axes", "displacement directions"
+#: the shortest bootstrap block [s]: an odometry's drift is correlated for longer than the
+#: residuals of a 125-frame range can show
+HE_BLOCK_S = 10.0
 
 
 @dataclass
 class HandEyeResult:
-    """R_gt_sensor from a geometric odometry: angles and block-bootstrap std [deg], per-angle
-    observability and which vectors fixed it, segments used."""
+    """R_gt_sensor from a geometric odometry: angles, block-bootstrap standard deviation and
+    ``level`` t interval [deg], per-angle observability and which vectors fixed it,
+    segments used, how the frames were resampled."""
 
     R_gt_sensor: np.ndarray
     angles_deg: dict[str, float]
@@ -50,6 +66,11 @@ class HandEyeResult:
     segments: int
     odometry: str
     source: dict[str, str] = field(default_factory=dict)
+    interval_deg: dict[str, tuple[float, float]] = field(default_factory=dict)
+    level: float = LEVEL
+    block: BlockChoice | None = None
+    resamples: int = 0
+    frames_total: int = 0
 
 
 @dataclass
@@ -124,37 +145,43 @@ def _two_stage(v: SegmentVectors, from_turns: np.ndarray,
     return R
 
 
-def block_bootstrap(v: SegmentVectors, from_turns, from_displacements, block: int, n: int,
-                    seed: int = 0) -> np.ndarray:
-    """Std [deg] of (roll, pitch, yaw) over ``n`` moving-block resamples: blocks of ``block``
-    consecutive segment starts (at most a fifth of the span, so there are several) drawn at
-    random positions, with replacement, until they cover the span."""
-    if n < 2 or len(v.start) == 0:
-        return np.full(3, np.nan)
-    first, span = int(v.start.min()), int(np.ptp(v.start)) + 1
-    block = int(np.clip(block, 1, max(1, span // 5)))
-    rng = np.random.default_rng(seed)
-    samples = []
-    for _ in range(n):
-        starts = first + rng.integers(0, span - block + 1, max(1, -(-span // block)))
-        rows = np.concatenate([np.flatnonzero((v.start >= a) & (v.start < a + block))
-                               for a in starts])
-        samples.append(rotation_angles(_two_stage(v.take(rows), from_turns,
-                                                  from_displacements)))
-    return np.std(samples, axis=0)
+def _bootstrap(v: SegmentVectors, n_frames: int, period_s: float, from_turns,
+               from_displacements, floor_frames: int, reps: int, seed: int, level: float
+               ) -> tuple[BlockChoice, AngleSpread]:
+    """Circular block resamples of the frames 0 .. n_frames - 1; a segment enters a resample
+    as often as its start frame was drawn and the two-stage fit is redone. The block: at least
+    ``floor_frames``, and at least the correlation length of each fitted angle's per-segment
+    residuals (turn axes and displacement directions, by start frame)."""
+    R = _two_stage(v, from_turns, from_displacements)
+    t = v.turn
+    series = residual_series(v.odometry[t] @ R.T, v.gt[t], from_turns, v.start[t])
+    series += residual_series(v.odometry[~t] @ R.T, v.gt[~t], from_displacements, v.start[~t])
+    block = choose_block(n_frames, period_s, series, floor_frames)
+
+    def fit(frames: np.ndarray) -> np.ndarray | None:
+        drawn = np.bincount(frames, minlength=n_frames)[v.start]
+        rows = np.repeat(np.arange(len(v.start)), drawn)
+        sample = v.take(rows)
+        if (from_turns.any() and sample.turn.sum() < 3) or \
+                (from_displacements.any() and (~sample.turn).sum() < 3):
+            return None
+        return rotation_angles(_two_stage(sample, from_turns, from_displacements))
+
+    return block, bootstrap_angles(n_frames, block, reps, seed, fit, rotation_angles(R), level)
 
 
 def hand_eye_rotation(gt_poses: np.ndarray, est_poses: np.ndarray, period_s: float,
                       odometry: str = "kiss-icp", segment_s: float = 1.0,
                       min_spread: float = 0.05, min_turn_spread: float = 0.2,
-                      bootstrap: int = 200, block_s: float = 10.0,
-                      seed: int = 0) -> HandEyeResult:
+                      bootstrap: int = 200, block_s: float = HE_BLOCK_S,
+                      seed: int = 0, level: float = LEVEL) -> HandEyeResult:
     """R_gt_sensor from paired GT (GT frame) and odometry (sensor frame) poses of the same
     frames (see the module docstring). An axis is fitted from the turn axes when they spread
     around it by at least ``min_turn_spread`` (the axes of small turns are noisy: on a drive
     whose turns are about the vertical, their few-degree tilts would otherwise fix yaw, 0.9
     deg off on the synthetic loop), else from the displacements when they spread by at least
-    ``min_spread``."""
+    ``min_spread``. Uncertainty: blocks of at least ``block_s`` seconds and one segment (see
+    ``_bootstrap``), at most half the frames."""
     step = max(1, int(round(segment_s / period_s)))
     v = segment_vectors(gt_poses, est_poses, step)
     if len(v.odometry) < 5:
@@ -167,16 +194,20 @@ def hand_eye_rotation(gt_poses: np.ndarray, est_poses: np.ndarray, period_s: flo
     from_displacements = (~from_turns) & (_spread(v.odometry[~v.turn], v.weight[~v.turn])
                                           >= min_spread)
     R = _two_stage(v, from_turns, from_displacements)
-    block = max(1, int(round(block_s / period_s)))
-    std = block_bootstrap(v, from_turns, from_displacements, block, bootstrap, seed)
+    floor = max(step + 1, int(math.ceil(block_s / period_s - 1e-9)))
+    block, spread = _bootstrap(v, len(gt_poses), period_s, from_turns, from_displacements,
+                               floor, bootstrap, seed, level)
     angles = rotation_angles(R)
     observable = from_turns | from_displacements
     source = {ax: TURN_AXES if from_turns[i] else DISPLACEMENTS if from_displacements[i]
               else "not observable" for i, ax in enumerate(ANGLES)}
-    return HandEyeResult(R, dict(zip(ANGLES, map(float, angles), strict=True)),
-                         dict(zip(ANGLES, map(float, std), strict=True)),
+    per_angle = lambda x: dict(zip(ANGLES, map(float, x), strict=True))  # noqa: E731
+    return HandEyeResult(R, per_angle(angles), per_angle(spread.sd_deg),
                          dict(zip(ANGLES, map(bool, observable), strict=True)),
-                         len(v.odometry), odometry, source)
+                         len(v.odometry), odometry, source,
+                         {ax: (float(spread.low_deg[i]), float(spread.high_deg[i]))
+                          for i, ax in enumerate(ANGLES)}, level, block, spread.resamples,
+                         len(gt_poses))
 
 
 def hand_eye_on(sequence: Sequence, odometry: str = "kiss-icp", **kwargs) -> HandEyeResult:
