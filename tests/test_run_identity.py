@@ -125,6 +125,38 @@ def test_store_hashes_are_cached_by_path_size_mtime_and_inode(store, tmp_path, m
     assert results.store_identity(copy) == hashlib.sha256(copy.read_bytes()).hexdigest()
 
 
+def test_a_same_size_same_mtime_store_replaced_by_rename_is_hashed_again(store, tmp_path,
+                                                                         monkeypatch):
+    """Only the inode tells this store from the one it replaced: same path, same size, same
+    mtime (set back by os.utime), other bytes, moved in by os.replace. Neither the in-memory
+    cache of this process nor the cache file may serve the old hash."""
+    import hashlib
+    import os
+
+    from bench.runs import identity
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr(identity, "_store_hashes", {})
+    path = tmp_path / "twist.h5"
+    data = bytearray(store.read_bytes())
+    path.write_bytes(data)
+    old = identity.store_identity(path)
+    assert old == hashlib.sha256(data).hexdigest()
+    before = path.stat()
+    data[len(data) // 2] ^= 0xFF  # one byte changed, the size kept
+    new = tmp_path / "twist.h5.tmp"
+    new.write_bytes(data)
+    os.utime(new, ns=(before.st_atime_ns, before.st_mtime_ns))
+    os.replace(new, path)
+    after = path.stat()
+    assert (after.st_size, after.st_mtime_ns) == (before.st_size, before.st_mtime_ns)
+    assert after.st_ino != before.st_ino
+    expected = hashlib.sha256(data).hexdigest()
+    assert identity.store_identity(path) == expected  # this process's memory cache
+    monkeypatch.setattr(identity, "_store_hashes", {})
+    assert identity.store_identity(path) == expected  # another process: the cache file
+
+
 def test_part_of_a_store_runs_as_its_own_keyed_run(store, tmp_path):
     """An experiment may run frames start .. start + frames - 1 of a store (e.g. a validation
     split); the range is part of the run's identity and recorded in its config."""
