@@ -2,10 +2,13 @@
 
 A job's folder is ``<out>/<sequence>/<method or label>[_seed|_noseed]``; its ``config.yaml``
 holds a ``run_key``: a hash of everything that determines the result (the store's content
-hash, the method, its resolved parameters, the seed option, the evaluation lengths, and the
-hash of the code that computes results: methods/, metrics/, the scoring). A job is skipped
-only when its folder holds a finished run with the same key; otherwise the old records are
-removed first and it runs again, so a failed re-run never leaves stale metrics behind.
+hash, the method, its resolved parameters, the seed option, the evaluation lengths, the host
+and the hash of the code that runs between the store and metrics.json, this module included:
+``bench.runs.identity``), and ``libraries``: the third-party libraries the run imported, with
+their versions (``bench.runs.libraries``). A job is skipped only when its folder holds a
+finished run with the same key whose libraries are installed at the same versions; otherwise
+the old records are removed first and it runs again, so a failed re-run never leaves stale
+metrics behind.
 ``bench.runs.plan`` resolves every job before anything runs (stores, parameters, folders), so
 bad input is one clear error up front; executors (``bench.runs.executors``) run the planned
 jobs through ``run_job``.
@@ -26,6 +29,7 @@ from pydantic import ValidationError
 from bench.runs.evaluate import Scoring, evaluate_run
 from bench.runs.folders import clear_run, is_finished, run_dir_name, write_failure, write_run
 from bench.runs.identity import code_identity, host_identity, run_key, store_identity
+from bench.runs.libraries import imported_libraries
 from bench.runs.timed import timed_run
 from loaders.errors import DataError, validation_problems
 from loaders.scan import FrameRange, Sequence
@@ -233,6 +237,9 @@ def run_job(job: Job, force: bool = False,
             evaluation = evaluate_run(seq.ground_truth, result, name=str(job.store),
                                       scoring=job.scoring, excluded=calibration_frames(seq))
         notes = list(dict.fromkeys(str(w.message) for w in said))
+        # the libraries this run imported, at their versions: it is reused only while they
+        # are installed as they were (bench.runs.libraries, bench.runs.folders.is_finished)
+        prep.config["libraries"] = imported_libraries()
         metrics = {"sequence": prep.config["sequence"]["name"], "method": job.method,
                    "seed": job.seed, "frames": len(seq), **evaluation.metrics, **timing}
         write_run(run_dir, result, evaluation.gt, prep.config, metrics, notes)
