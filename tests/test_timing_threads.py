@@ -170,3 +170,58 @@ def test_kiss_icp_honours_each_runs_thread_count():
     assert (t2, fresh2, clock2) == (2, False, "wall")
     assert (t1, fresh1, clock1) == (1, True, "cpu")
     assert ratio1 <= 1.05 and n1 == n2 == 8
+
+
+_NUMBA_FIRST = """
+import json, sys
+import numba
+import numpy as np
+
+
+@numba.njit(parallel=True)
+def total(x):
+    s = 0.0
+    for i in numba.prange(x.shape[0]):
+        s += x[i]
+    return s
+
+
+assert total(np.ones(1000)) == 1000.0  # numba's thread pool now runs, at its default size
+pool = numba.config.NUMBA_NUM_THREADS
+from bench.api import run_method
+from bench.runs.folders import read_run
+out = {}
+for method in ("doppler", "doppler-ego"):
+    run_dir = f"{sys.argv[2]}/{method}"
+    run_method(method, sys.argv[1], seed=False, out=run_dir, params={})
+    record = read_run(__import__("pathlib").Path(run_dir))
+    out[method] = {"frames": record.result.frames, "threads": numba.get_num_threads()}
+@numba.njit
+def late(x):  # numba reads its configuration again at every compilation
+    return x + 1
+out["late"] = late(1)
+out["pool"] = pool
+out["env"] = __import__("os").environ.get("NUMBA_NUM_THREADS")
+print(json.dumps(out))
+"""
+
+
+def test_numba_imported_and_running_before_bench_is_limited_at_run_time(tmp_path):
+    """A notebook that imported numba, compiled and ran a parallel function before importing
+    ``bench``: ``doppler`` and ``doppler-ego`` run through the API (no "Cannot set
+    NUMBA_NUM_THREADS ... once the threads have been launched"), numba is limited to one
+    thread at run time, and a later compilation still works. In a fresh interpreter."""
+    from loaders.store import write_store
+
+    store = write_store(constant_twist_sequence(n_frames=12, n_points=800),
+                        tmp_path / "twelve.h5")
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_NUM_THREADS"}
+    done = subprocess.run([sys.executable, "-c", _NUMBA_FIRST, str(store), str(tmp_path)],
+                          cwd=ROOT, capture_output=True, text=True, timeout=600,
+                          env={**env, "PYTHONPATH": str(ROOT)})
+    assert done.returncode == 0, done.stderr[-3000:]
+    out = json.loads(done.stdout.splitlines()[-1])
+    assert out["pool"] == (os.cpu_count() or 1) and out["env"] is None  # left as launched
+    for method in ("doppler", "doppler-ego"):
+        assert out[method] == {"frames": 12, "threads": 1}
+    assert out["late"] == 2
