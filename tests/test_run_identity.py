@@ -294,18 +294,33 @@ def test_the_python_version_changes_the_key(code_copy, monkeypatch):
 # ---- the libraries a run imported (bench/runs/libraries.py) ---------------------------------
 
 _RUN_RECORDING = """
-import json, sys
+import ast, json, sys
 from importlib import metadata
 from pathlib import Path
+import bench.cli  # the command line's own libraries (rich, typer) are loaded, not the run's
 from bench.runs.job import Job, run_job
 from bench.runs.plan import plan
 job = plan([Job(store=Path(sys.argv[1]), method=sys.argv[3], seed=None,
                 out_root=Path(sys.argv[2]))])[0]
 outcome = run_job(job)
-# an independent map of what this process imported: the installed distributions' file lists
+# independently of bench.runs.libraries: the installed distributions' file lists, and the
+# import statements of the run path's files parsed by ast
 provided = metadata.packages_distributions()
-dists = sorted({d for name in list(sys.modules) for d in provided.get(name.partition(".")[0], [])})
-print(json.dumps({"status": outcome.status, "message": outcome.message, "dists": dists,
+loaded = {name.partition(".")[0] for name in list(sys.modules)}
+root = Path(sys.argv[4])
+files = [*root.glob("loaders/**/*.py"), *root.glob("methods/*.py"), *root.glob("metrics/*.py"),
+         *(root / "bench" / "runs" / f for f in ("job.py", "executors.py", "evaluate.py",
+                                                  "result.py", "folders.py", "timed.py"))]
+imported = set()
+for f in files:
+    for node in ast.walk(ast.parse(f.read_text())):
+        if isinstance(node, ast.Import):
+            imported |= {a.name.partition(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            imported.add(node.module.partition(".")[0])
+print(json.dumps({"status": outcome.status, "message": outcome.message,
+                  "loaded": sorted({d for m in loaded for d in provided.get(m, [])}),
+                  "used": sorted({d for m in loaded & imported for d in provided.get(m, [])}),
                   "run_dir": str(outcome.run_dir)}))
 """
 
@@ -318,7 +333,8 @@ def _run_in_fresh_process(store, out, method="doppler", extra_path=()):
 
     root = Path(__file__).resolve().parents[1]
     path = os.pathsep.join([*map(str, extra_path), str(root)])
-    done = subprocess.run([sys.executable, "-c", _RUN_RECORDING, str(store), str(out), method],
+    done = subprocess.run([sys.executable, "-c", _RUN_RECORDING, str(store), str(out), method,
+                           str(root)],
                           capture_output=True, text=True, timeout=300, cwd=root,
                           env={**os.environ, "PYTHONPATH": path})
     assert done.returncode == 0, done.stderr[-2000:]
@@ -341,22 +357,26 @@ def _norm(name):
 
 
 def test_a_run_records_every_library_it_imported_and_no_other(store, tmp_path):
-    """Checked against reality in a fresh process: every distribution whose module the run's
-    process loaded (found independently, from the installed distributions' file lists) is
-    recorded with its version, except the repository itself and the interpreter's distutils
-    shim; Open3D, which only the DICP's open3d backend imports, is not."""
+    """Checked against reality in a fresh process that also loaded the command line: every
+    loaded distribution whose modules the run path's code imports (found independently: the
+    installed distributions' file lists, the files' import statements parsed by ast) is
+    recorded with its version, and so are the loaded libraries those require (numba's
+    llvmlite, pydantic's pydantic-core); the command line's rich and typer, loaded in the same
+    process, are not, nor Open3D or kiss-icp, which other methods import."""
     from importlib import metadata
 
     result = _run_in_fresh_process(store, tmp_path / "runs")
     assert result["status"] == "done", result["message"]
     config = yaml.safe_load((Path(result["run_dir"]) / "config.yaml").read_text())
     recorded = {_norm(k): v for k, v in config["libraries"].items()}
-    loaded = {_norm(d) for d in result["dists"]} - {"doppler_bench", "setuptools"}
-    assert {"numpy", "scipy", "numba", "h5py", "pydantic"} <= loaded
-    assert loaded <= set(recorded), loaded - set(recorded)
-    assert recorded["numpy"] == metadata.version("numpy") and recorded["python"]
-    assert "open3d_cpu" not in recorded and "open3d" not in recorded
-    assert "kiss_icp" not in recorded  # imported by kiss-icp runs only
+    used = {_norm(d) for d in result["used"]} - {"doppler_bench"}
+    assert {"numpy", "scipy", "numba", "h5py", "pydantic", "pyyaml"} <= used
+    assert used <= set(recorded), used - set(recorded)
+    assert {"llvmlite", "pydantic_core"} <= set(recorded)
+    assert all(v == metadata.version(k) for k, v in config["libraries"].items() if k != "python")
+    loaded = {_norm(d) for d in result["loaded"]}
+    assert {"rich", "typer"} <= loaded and not {"rich", "typer"} & set(recorded)
+    assert not {"open3d_cpu", "open3d", "kiss_icp"} & set(recorded)
 
 
 def test_installing_an_unrelated_library_reruns_nothing_a_used_one_reruns(store, tmp_path):

@@ -30,6 +30,7 @@ import json
 import os
 import platform
 import re
+import sys
 from pathlib import Path
 
 from bench.paths import ROOT
@@ -45,6 +46,7 @@ RESULT_CODE = ("loaders", "methods", "metrics", "bench/runs/job.py", "bench/runs
                "bench/runs/folders.py", "bench/runs/timed.py", "bench/threads.py")
 _store_hashes: dict[str, str] = {}
 _code_hash: list[str] = []
+_scanned: list[tuple[list[Path], set[str]]] = []  # ``_scan`` of ROOT, once per process
 
 
 def _hash_cache_file() -> Path:
@@ -110,14 +112,14 @@ def _module_file(name: str, root: Path) -> Path | None:
     return None
 
 
-def result_modules(root: Path = ROOT) -> list[Path]:
-    """Every repository file that determines a result: ``RESULT_CODE`` and, transitively, every
-    repository module those import (with its packages' ``__init__.py``)."""
+def _scan(root: Path) -> tuple[list[Path], set[str]]:
+    if root == ROOT and _scanned:
+        return _scanned[0]
     todo = []
     for entry in RESULT_CODE:
         path = root / entry
         todo += sorted(path.rglob("*.py")) if path.is_dir() else [path]
-    files = set()
+    files, external = set(), set()
     while todo:
         path = todo.pop()
         if path in files:
@@ -126,8 +128,33 @@ def result_modules(root: Path = ROOT) -> list[Path]:
         for name in _imports(path):
             parts = name.split(".")
             found = [_module_file(".".join(parts[:k]), root) for k in range(1, len(parts) + 1)]
+            if not any(found):
+                if parts[0] not in sys.stdlib_module_names:
+                    external.add(parts[0])
+                continue
             todo += [f for f in found if f is not None and f not in files]
-    return sorted(files)
+    scanned = (sorted(files), external)
+    if root == ROOT:
+        _scanned.append(scanned)
+    return scanned
+
+
+def result_modules(root: Path = ROOT) -> list[Path]:
+    """Every repository file that determines a result: ``RESULT_CODE`` and, transitively, every
+    repository module those import (with its packages' ``__init__.py``)."""
+    return _scan(root)[0]
+
+
+def result_imports(root: Path = ROOT) -> set[str]:
+    """The top-level names of the third-party modules that the files of ``result_modules``
+    import, at module level or inside a function (``bench.runs.libraries`` keeps those a run
+    actually loaded)."""
+    return set(_scan(root)[1])
+
+
+def file_imports(path: Path) -> set[str]:
+    """The top-level names of the modules ``path`` imports (e.g. a plugin method's module)."""
+    return {name.partition(".")[0] for name in _imports(path)}
 
 
 def host_identity() -> dict:

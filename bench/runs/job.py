@@ -16,6 +16,7 @@ jobs through ``run_job``.
 
 from __future__ import annotations
 
+import sys
 import time
 import traceback
 import warnings
@@ -26,6 +27,7 @@ from pathlib import Path
 import numpy as np
 from pydantic import ValidationError
 
+from bench.paths import ROOT
 from bench.runs.evaluate import Scoring, evaluate_run
 from bench.runs.folders import clear_run, is_finished, run_dir_name, write_failure, write_run
 from bench.runs.identity import code_identity, host_identity, run_key, store_identity
@@ -239,7 +241,7 @@ def run_job(job: Job, force: bool = False,
         notes = list(dict.fromkeys(str(w.message) for w in said))
         # the libraries this run imported, at their versions: it is reused only while they
         # are installed as they were (bench.runs.libraries, bench.runs.folders.is_finished)
-        prep.config["libraries"] = imported_libraries()
+        prep.config["libraries"] = imported_libraries(_outside_files(prep.method))
         metrics = {"sequence": prep.config["sequence"]["name"], "method": job.method,
                    "seed": job.seed, "frames": len(seq), **evaluation.metrics, **timing}
         write_run(run_dir, result, evaluation.gt, prep.config, metrics, notes)
@@ -252,6 +254,16 @@ def run_job(job: Job, force: bool = False,
                           run_dir=run_dir)
     finally:
         seq.close()
+
+
+def _outside_files(method: Odometry) -> list[Path]:
+    """The method's module when it lives outside the repository (a plugin): its imports
+    count among the run's libraries too."""
+    module = sys.modules.get(type(method).__module__)
+    file = getattr(module, "__file__", None)
+    if file and not Path(file).resolve().is_relative_to(ROOT):
+        return [Path(file)]
+    return []
 
 
 #: fewer points than this after a method's own preparation leave nothing to register

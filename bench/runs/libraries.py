@@ -3,21 +3,26 @@
 
 A run is reused only while every library it imported is installed at the version it ran with
 (``libraries_current``, checked by ``bench.runs.folders.is_finished`` beside the run key). The
-list is taken from the worker's ``sys.modules`` after the run (``imported_libraries``), not
-from a fixed list or from every import line of the repository: a ``doppler`` run records NumPy,
-SciPy, numba, h5py, pydantic and what they load, never Open3D, so installing an extra that only
-another method or backend imports (``.[open3d]``, ``.[dev]``) re-runs nothing, while a new
-version of a library the run used re-runs it. The repository's own packages are covered by the
-code hash (``bench.runs.identity.code_identity``) instead.
+list is taken from what the worker loaded, after the run (``imported_libraries``): the loaded
+libraries that the run path's code imports, with the loaded libraries they require; not a
+fixed list, nor every library any line of the repository names: a ``doppler`` run records
+NumPy, SciPy, numba and llvmlite, h5py, pydantic and its parts, PyYAML, small_gicp (every
+method module is loaded by the registry), never Open3D, kiss-icp, dask or the command line's
+rich, so installing an extra that only another method or backend imports (``.[open3d]``,
+``.[dev]``) re-runs nothing, while a new version of a library the run used re-runs it. The
+repository's own packages are covered by the code hash (``bench.runs.identity.code_identity``)
+instead.
 """
 
 from __future__ import annotations
 
 import functools
 import os
+import re
 import sys
 import sysconfig
 from importlib import metadata
+from pathlib import Path
 
 from bench.paths import ROOT
 
@@ -94,15 +99,60 @@ def installed_version(name: str) -> str | None:
         return None
 
 
-def imported_libraries() -> dict[str, str | None]:
-    """The distributions (name -> installed version) of every third-party module loaded in
-    this process, and ``python`` (its version). Called by the job runner after the run, so
-    it lists what the run imported (and whatever the process had loaded before: never less)."""
+def _normal(name: str) -> str:
+    return re.sub(r"[-_.]+", "-", name).lower()
+
+
+def _requirements(dist: str) -> list[str]:
+    """The distributions ``dist`` requires, other than for an extra of its own."""
+    try:
+        requires = metadata.requires(dist) or []
+    except metadata.PackageNotFoundError:
+        return []
+    found = []
+    for req in requires:
+        name, _, marker = req.partition(";")
+        if "extra" not in marker:
+            match = re.match(r"\s*([A-Za-z0-9][A-Za-z0-9._-]*)", name)
+            if match:
+                found.append(match.group(1))
+    return found
+
+
+def imported_libraries(code_files=()) -> dict[str, str | None]:
+    """The distributions (name -> installed version) of the third-party libraries the run
+    loaded, and ``python``: those whose modules the code of the run path imports
+    (``bench.runs.identity.result_imports``, at module level or lazily inside a function, and
+    ``code_files``: a plugin method's module) and that are loaded in this process, with the
+    loaded distributions these require (numba's llvmlite, pydantic's pydantic-core). Called by
+    the job runner after the run. What the process loaded for other reasons (the command
+    line's rich and typer, a notebook's imports, another method's Open3D) is left out; a
+    library loaded only after the run's code asked for it (an Open3D backend) is in."""
     import platform
 
-    dists = {d for d in map(distribution_of, _third_party_modules()) if d is not None}
+    from bench.runs.identity import file_imports, result_imports
+
+    loaded: dict[str, str] = {}  # normalized name -> distribution name
+    by_module: dict[str, str] = {}
+    for module in _third_party_modules():
+        dist = distribution_of(module)
+        if dist is not None:
+            loaded[_normal(dist)] = dist
+            by_module[module] = dist
+    wanted = set(result_imports())
+    for path in code_files:
+        wanted |= file_imports(Path(path))
+    todo = [by_module[m] for m in sorted(wanted) if m in by_module]
+    used: set[str] = set()
+    while todo:
+        dist = todo.pop()
+        if _normal(dist) in used:
+            continue
+        used.add(_normal(dist))
+        todo += [loaded[_normal(r)] for r in _requirements(dist) if _normal(r) in loaded]
+    names = sorted((loaded[n] for n in used), key=str.lower)
     return {"python": platform.python_version(),
-            **{name: installed_version(name) for name in sorted(dists, key=str.lower)}}
+            **{name: installed_version(name) for name in names}}
 
 
 def changed_libraries(recorded: dict[str, str | None]) -> dict[str, tuple]:
