@@ -44,7 +44,7 @@ _SETTERS = (
 )
 
 
-def _numba_pool_launched() -> bool:
+def numba_pool_launched() -> bool:
     """numba is loaded and its thread pool already started (its size is then fixed)."""
     parallel = sys.modules.get("numba.np.ufunc.parallel")
     return bool(getattr(parallel, "_is_initialized", False))
@@ -61,7 +61,7 @@ def pin_threads() -> dict[str, str]:
     numba at run time instead (``numba.set_num_threads(1)`` in ``limit_threads``). numba
     loaded but its pool not started: its configuration is read again, so the pool starts with
     one thread."""
-    launched = _numba_pool_launched()
+    launched = numba_pool_launched()
     for var in THREAD_VARS:
         if var == "NUMBA_NUM_THREADS" and launched:
             _numba_limited_at_run_time[:] = [True]

@@ -200,6 +200,15 @@ for method in ("doppler", "doppler-ego"):
 def late(x):  # numba reads its configuration again at every compilation
     return x + 1
 out["late"] = late(1)
+# the process executor spawns its workers here (a fork would copy the running pool)
+from bench.runs.executors import execute, start_method
+from bench.runs.job import Job
+from bench.runs.plan import plan
+jobs = plan([Job(store=__import__("pathlib").Path(sys.argv[1]), method="doppler", seed=None,
+                 out_root=__import__("pathlib").Path(sys.argv[2]) / "process")])
+outcomes = execute(jobs, "process", 1, True, lambda *a: None, lambda o: None)
+out["start"] = start_method()
+out["process"] = [o.status for o in outcomes]
 out["pool"] = pool
 out["env"] = __import__("os").environ.get("NUMBA_NUM_THREADS")
 print(json.dumps(out))
@@ -210,7 +219,8 @@ def test_numba_imported_and_running_before_bench_is_limited_at_run_time(tmp_path
     """A notebook that imported numba, compiled and ran a parallel function before importing
     ``bench``: ``doppler`` and ``doppler-ego`` run through the API (no "Cannot set
     NUMBA_NUM_THREADS ... once the threads have been launched"), numba is limited to one
-    thread at run time, and a later compilation still works. In a fresh interpreter."""
+    thread at run time, and a later compilation still works; the process executor spawns its
+    worker instead of forking the running pool. In a fresh interpreter."""
     from loaders.store import write_store
 
     store = write_store(constant_twist_sequence(n_frames=12, n_points=800),
@@ -225,3 +235,4 @@ def test_numba_imported_and_running_before_bench_is_limited_at_run_time(tmp_path
     for method in ("doppler", "doppler-ego"):
         assert out[method] == {"frames": 12, "threads": 1}
     assert out["late"] == 2
+    assert out["start"] == "spawn" and out["process"] == ["done"]

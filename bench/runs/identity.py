@@ -120,6 +120,13 @@ def _scan(root: Path) -> tuple[list[Path], set[str]]:
         path = root / entry
         todo += sorted(path.rglob("*.py")) if path.is_dir() else [path]
     files, external = set(), set()
+    where: dict[str, Path | None] = {}  # module name -> its file (each looked up once)
+
+    def module_file(name: str) -> Path | None:
+        if name not in where:
+            where[name] = _module_file(name, root)
+        return where[name]
+
     while todo:
         path = todo.pop()
         if path in files:
@@ -127,7 +134,7 @@ def _scan(root: Path) -> tuple[list[Path], set[str]]:
         files.add(path)
         for name in _imports(path):
             parts = name.split(".")
-            found = [_module_file(".".join(parts[:k]), root) for k in range(1, len(parts) + 1)]
+            found = [module_file(".".join(parts[:k])) for k in range(1, len(parts) + 1)]
             if not any(found):
                 if parts[0] not in sys.stdlib_module_names:
                     external.add(parts[0])
