@@ -174,8 +174,9 @@ def test_kiss_icp_honours_each_runs_thread_count():
 
 _NUMBA_FIRST = """
 import json, sys
+import numpy as np  # NumPy (and its BLAS) and kiss-icp loaded before bench, too
+import kiss_icp.pipeline
 import numba
-import numpy as np
 
 
 @numba.njit(parallel=True)
@@ -216,8 +217,9 @@ print(json.dumps(out))
 
 
 def test_numba_imported_and_running_before_bench_is_limited_at_run_time(tmp_path):
-    """A notebook that imported numba, compiled and ran a parallel function before importing
-    ``bench``: ``doppler`` and ``doppler-ego`` run through the API (no "Cannot set
+    """A notebook that imported NumPy, kiss-icp and numba, compiled and ran a parallel numba
+    function before importing ``bench``: ``doppler`` and ``doppler-ego`` run through the API
+    (no "Cannot set
     NUMBA_NUM_THREADS ... once the threads have been launched"), numba is limited to one
     thread at run time, and a later compilation still works; the process executor spawns its
     worker instead of forking the running pool. In a fresh interpreter."""
