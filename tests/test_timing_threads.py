@@ -219,10 +219,9 @@ print(json.dumps(out))
 def test_numba_imported_and_running_before_bench_is_limited_at_run_time(tmp_path):
     """A notebook that imported NumPy, kiss-icp and numba, compiled and ran a parallel numba
     function before importing ``bench``: ``doppler`` and ``doppler-ego`` run through the API
-    (no "Cannot set
-    NUMBA_NUM_THREADS ... once the threads have been launched"), numba is limited to one
-    thread at run time, and a later compilation still works; the process executor spawns its
-    worker instead of forking the running pool. In a fresh interpreter."""
+    (no "Cannot set NUMBA_NUM_THREADS ... once the threads have been launched"), numba is
+    limited to one thread at run time, and a later compilation still works; the process
+    executor spawns its worker instead of forking the running pool. In a fresh interpreter."""
     from loaders.store import write_store
 
     store = write_store(constant_twist_sequence(n_frames=12, n_points=800),
