@@ -42,7 +42,10 @@ system-deps:
 # pip install, quiet; its warning "typer ... does not provide the extra 'all'" is left out:
 # it comes from kiss-icp's requirement `typer[all]`, an extra that typer dropped in 0.12 when
 # plain typer came to include what it gave (rich, shellingham), so nothing is missing. Any other
-# output is shown, and a failing install shows everything and stops.
+# output is shown, and a failing install shows everything and stops. setuptools' block
+# "Editable installation ... Please be careful with folders in your working directory" is not
+# hidden here but avoided: pyproject.toml names the checkout as the package directory, so the
+# editable install is a static .pth entry rather than an import-hook finder.
 PIP_LOG := $(VENV)/.pip-install.log
 define pip_install
 	@echo "pip install $(1)"

@@ -43,9 +43,9 @@ TIMING_LOCK_ENV = "DOPPLER_BENCH_TIMING_LOCK"
 DEFAULT_TIMING_LOCK = os.path.join(tempfile.gettempdir(), "doppler-bench-timing.lock")
 #: process CPU above the thread's by more than this fraction: work left the timed thread
 CPU_LEAK_LIMIT = 0.05
-#: a timed frame above this many times the run's median (and ``OUTLIER_MIN_MS`` above it)
+#: a timed frame above this many times the run's own median is flagged, at any speed (no floor
+#: in milliseconds: a sub-millisecond method's 10x spike is as much an outlier as a slow one's)
 OUTLIER_FACTOR = 10.0
-OUTLIER_MIN_MS = 10.0
 _lock_files: dict[str, int] = {}
 _compiles = [0]  # numba compilations and cache loads in this process (while listened to)
 _harness_clocks: list[int] = []  # CPU clocks of the threads whose work is not the method's
@@ -160,8 +160,8 @@ def cpu_leak(frames) -> float:
 
 def timing_outliers(frames) -> dict[int, str]:
     """Timed frames whose time is not the method's steady work: frame index -> why (a numba
-    compilation inside it, or ``time_ms`` over ``OUTLIER_FACTOR`` x the run's median and
-    ``OUTLIER_MIN_MS`` above it)."""
+    compilation inside it, or ``time_ms`` over ``OUTLIER_FACTOR`` x the run's own median,
+    whatever the method's speed)."""
     timed = [f for f in frames if f.time_ms == f.time_ms]
     if not timed:
         return {}
@@ -170,6 +170,7 @@ def timing_outliers(frames) -> dict[int, str]:
     for f in timed:
         if getattr(f, "compiles", 0):
             out[f.index] = f"numba compiled {f.compiles}x inside it ({f.time_ms:.1f} ms)"
-        elif f.time_ms > OUTLIER_FACTOR * median and f.time_ms > median + OUTLIER_MIN_MS:
-            out[f.index] = f"{f.time_ms:.1f} ms, {f.time_ms / median:.0f}x the median"
+        elif median > 0 and f.time_ms > OUTLIER_FACTOR * median:
+            out[f.index] = (f"{f.time_ms:.3g} ms, {f.time_ms / median:.0f}x the median "
+                            f"({median:.3g} ms)")
     return out

@@ -115,7 +115,7 @@ def test_ctrl_c_exits_130_within_seconds_and_leaves_no_worker(store, tmp_path):
                                  str(_slow_experiment(tmp_path, store))], env=ENV,
                                 stdout=sink, stderr=subprocess.STDOUT, text=True,
                                 preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
-        workers = _wait_for_workers(proc, 3)  # two workers and multiprocessing's tracker
+        workers = _wait_for_workers(proc, 2)  # the two workers (forked: no resource tracker)
         time.sleep(2.0)  # inside the runs
         t0 = time.monotonic()
         proc.send_signal(signal.SIGINT)
@@ -212,3 +212,14 @@ def test_piped_output_is_plain_and_keeps_units(store, tmp_path):
     proc = _bench(["run", "--help"])
     help_text, _ = proc.communicate(timeout=60)
     assert "[s]" in help_text
+
+
+def test_workers_are_forked_from_a_process_without_a_running_numba_pool():
+    """The main process of `bench run` has imported the harness and the methods while
+    planning; its workers are forked from it (no second import before the first frame)."""
+    code = ("import bench.runs.job, bench.runs.executors as e; import numba; "
+            "print(e.start_method())")
+    done = subprocess.run([sys.executable, "-c", code], env=ENV, capture_output=True,
+                          text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stdout.split()[-1] == "fork"

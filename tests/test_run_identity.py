@@ -1,6 +1,7 @@
 """Run identity: a run is keyed by what determines it; labelled variants; no stale rows."""
 
 import json
+from pathlib import Path
 
 import pytest
 import yaml
@@ -125,6 +126,38 @@ def test_store_hashes_are_cached_by_path_size_mtime_and_inode(store, tmp_path, m
     assert results.store_identity(copy) == hashlib.sha256(copy.read_bytes()).hexdigest()
 
 
+def test_a_same_size_same_mtime_store_replaced_by_rename_is_hashed_again(store, tmp_path,
+                                                                         monkeypatch):
+    """Only the inode tells this store from the one it replaced: same path, same size, same
+    mtime (set back by os.utime), other bytes, moved in by os.replace. Neither the in-memory
+    cache of this process nor the cache file may serve the old hash."""
+    import hashlib
+    import os
+
+    from bench.runs import identity
+
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "cache"))
+    monkeypatch.setattr(identity, "_store_hashes", {})
+    path = tmp_path / "twist.h5"
+    data = bytearray(store.read_bytes())
+    path.write_bytes(data)
+    old = identity.store_identity(path)
+    assert old == hashlib.sha256(data).hexdigest()
+    before = path.stat()
+    data[len(data) // 2] ^= 0xFF  # one byte changed, the size kept
+    new = tmp_path / "twist.h5.tmp"
+    new.write_bytes(data)
+    os.utime(new, ns=(before.st_atime_ns, before.st_mtime_ns))
+    os.replace(new, path)
+    after = path.stat()
+    assert (after.st_size, after.st_mtime_ns) == (before.st_size, before.st_mtime_ns)
+    assert after.st_ino != before.st_ino
+    expected = hashlib.sha256(data).hexdigest()
+    assert identity.store_identity(path) == expected  # this process's memory cache
+    monkeypatch.setattr(identity, "_store_hashes", {})
+    assert identity.store_identity(path) == expected  # another process: the cache file
+
+
 def test_part_of_a_store_runs_as_its_own_keyed_run(store, tmp_path):
     """An experiment may run frames start .. start + frames - 1 of a store (e.g. a validation
     split); the range is part of the run's identity and recorded in its config."""
@@ -206,19 +239,23 @@ def code_copy(tmp_path_factory):
 
 
 def _scoring_files():
-    """Every module of metrics/ and the scoring, listed from the folder (not from the key)."""
+    """Every module of metrics/ and the scoring, listed from the folder (not from the key), and
+    the rest of the path from the store to metrics.json: the job runner, the executors that
+    call it, the folder writer, the store reader and a method."""
     from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
     return sorted(str(p.relative_to(root)) for p in (root / "metrics").glob("*.py")) + [
-        "bench/runs/evaluate.py", "bench/runs/timed.py", "bench/threads.py", "loaders/gt.py"]
+        "bench/runs/evaluate.py", "bench/runs/timed.py", "bench/threads.py", "loaders/gt.py",
+        "bench/runs/job.py", "bench/runs/executors.py", "bench/runs/folders.py",
+        "bench/runs/result.py", "loaders/store.py", "methods/doppler.py",
+        "methods/doppler_ego.py"]
 
 
 @pytest.mark.parametrize("path", _scoring_files())
-def test_editing_any_scoring_module_changes_the_key(code_copy, path, monkeypatch):
+def test_editing_any_scoring_module_changes_the_key(code_copy, path):
     from bench.runs import identity
 
-    monkeypatch.setattr(identity, "library_versions", lambda external=None: {})
     before = identity.code_identity(code_copy)
     file = code_copy / path
     text = file.read_text()
@@ -230,68 +267,146 @@ def test_editing_any_scoring_module_changes_the_key(code_copy, path, monkeypatch
     assert identity.code_identity(code_copy) == before
 
 
-def test_the_key_covers_the_choice_of_scored_frames_in_job_py(code_copy, monkeypatch):
-    """job.py's ``calibration_frames`` (the frames never scored) is part of the key; the rest
-    of job.py (progress, records) is not."""
+def test_flipping_the_seed_handling_in_run_job_changes_the_key(code_copy):
+    """The issue's case: run_job's own handling of the seed option changed and the old result
+    was served as current. Every line of job.py is in the key, run_job's body included."""
     from bench.runs import identity
 
-    monkeypatch.setattr(identity, "library_versions", lambda external=None: {})
     before = identity.code_identity(code_copy)
     file = code_copy / "bench" / "runs" / "job.py"
     text = file.read_text()
-    marker = "def calibration_frames(seq: Sequence) -> np.ndarray | None:\n"
-    assert marker in text
+    assert text.count("bool(job.seed)") == 1
     try:
-        file.write_text(text + "\n# elsewhere in job.py\n")
-        assert identity.code_identity(code_copy) == before
-        file.write_text(text.replace(marker, marker + "    # edited\n"))
+        file.write_text(text.replace("bool(job.seed)", "not job.seed"))
         assert identity.code_identity(code_copy) != before
     finally:
         file.write_text(text)
 
 
-@pytest.mark.parametrize("library", ["numpy", "scipy", "evo", "numba", "small_gicp", "kiss-icp",
-                                     "pydantic", "python"])
-def test_a_library_version_changes_the_key(code_copy, library, monkeypatch):
+def test_the_python_version_changes_the_key(code_copy, monkeypatch):
     from bench.runs import identity
 
-    versions = identity.library_versions()
-    assert library in versions  # every library the scoring and the methods use is listed
-    real = identity.installed_versions
     before = identity.code_identity(code_copy)
-    if library == "python":
-        monkeypatch.setattr(identity.platform, "python_version", lambda: "3.99.0")
-    else:
-        monkeypatch.setattr(identity, "installed_versions", lambda names: {
-            **real(names), library: "0.0.1-other"})
+    monkeypatch.setattr(identity.platform, "python_version", lambda: "3.99.0")
     assert identity.code_identity(code_copy) != before
 
 
-def test_every_library_the_result_code_imports_is_versioned():
-    """The third-party modules imported by the result code (found by the test, from the
-    import lines of methods/, metrics/, loaders/ and the scoring) all have a version entry."""
-    import re
+# ---- the libraries a run imported (bench/runs/libraries.py) ---------------------------------
+
+_RUN_RECORDING = """
+import ast, json, sys
+from importlib import metadata
+from pathlib import Path
+import bench.cli  # the command line's own libraries (rich, typer) are loaded, not the run's
+from bench.runs.job import Job, run_job
+from bench.runs.plan import plan
+job = plan([Job(store=Path(sys.argv[1]), method=sys.argv[3], seed=None,
+                out_root=Path(sys.argv[2]))])[0]
+outcome = run_job(job)
+# independently of bench.runs.libraries: the installed distributions' file lists, and the
+# import statements of the run path's files parsed by ast
+provided = metadata.packages_distributions()
+loaded = {name.partition(".")[0] for name in list(sys.modules)}
+root = Path(sys.argv[4])
+files = [*root.glob("loaders/**/*.py"), *root.glob("methods/*.py"), *root.glob("metrics/*.py"),
+         *(root / "bench" / "runs" / f for f in ("job.py", "executors.py", "evaluate.py",
+                                                  "result.py", "folders.py", "timed.py"))]
+imported = set()
+for f in files:
+    for node in ast.walk(ast.parse(f.read_text())):
+        if isinstance(node, ast.Import):
+            imported |= {a.name.partition(".")[0] for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            imported.add(node.module.partition(".")[0])
+print(json.dumps({"status": outcome.status, "message": outcome.message,
+                  "loaded": sorted({d for m in loaded for d in provided.get(m, [])}),
+                  "used": sorted({d for m in loaded & imported for d in provided.get(m, [])}),
+                  "run_dir": str(outcome.run_dir)}))
+"""
+
+
+def _run_in_fresh_process(store, out, method="doppler", extra_path=()):
+    import os
+    import subprocess
     import sys
     from pathlib import Path
 
-    from bench.runs import identity
-
     root = Path(__file__).resolve().parents[1]
-    files = [*root.glob("methods/*.py"), *root.glob("metrics/*.py"),
-             *root.glob("loaders/**/*.py"), root / "bench/runs/evaluate.py"]
-    imported = set()
-    for f in files:
-        for a, b in re.findall(r"^[ \t]*(?:import (\w+)|from (\w+)[\w.]* import )",
-                               f.read_text(), re.MULTILINE):
-            imported.add(a or b)
-    local = {p.name for p in root.iterdir()} | {"bench"}
-    external = {m for m in imported if m not in sys.stdlib_module_names and m not in local
-                and m != "__future__"}
-    assert {"numpy", "scipy", "numba", "small_gicp", "h5py"} <= external
-    listed = {name.replace("-", "_").lower() for name in identity.library_versions()}
-    aliases = {"open3d": "open3d_cpu", "kiss_icp": "kiss_icp", "yaml": "pyyaml"}
-    missing = {m for m in external if aliases.get(m, m).lower() not in listed}
-    assert not missing
+    path = os.pathsep.join([*map(str, extra_path), str(root)])
+    done = subprocess.run([sys.executable, "-c", _RUN_RECORDING, str(store), str(out), method,
+                           str(root)],
+                          capture_output=True, text=True, timeout=300, cwd=root,
+                          env={**os.environ, "PYTHONPATH": path})
+    assert done.returncode == 0, done.stderr[-2000:]
+    return json.loads(done.stdout.splitlines()[-1])
+
+
+def _fake_distribution(folder, name, version, module=None):
+    """A distribution as pip installs it, enough for importlib.metadata (and a module)."""
+    info = folder / f"{name.replace('-', '_')}-{version}.dist-info"
+    info.mkdir(parents=True)
+    (info / "METADATA").write_text(f"Metadata-Version: 2.1\nName: {name}\nVersion: {version}\n")
+    if module:
+        (folder / module).mkdir()
+        (folder / module / "__init__.py").write_text("")
+    return folder
+
+
+def _norm(name):
+    return name.lower().replace("-", "_")
+
+
+def test_a_run_records_every_library_it_imported_and_no_other(store, tmp_path):
+    """Checked against reality in a fresh process that also loaded the command line: every
+    loaded distribution whose modules the run path's code imports (found independently: the
+    installed distributions' file lists, the files' import statements parsed by ast) is
+    recorded with its version, and so are the loaded libraries those require (numba's
+    llvmlite, pydantic's pydantic-core); the command line's rich and typer, loaded in the same
+    process, are not, nor Open3D or kiss-icp, which other methods import."""
+    from importlib import metadata
+
+    result = _run_in_fresh_process(store, tmp_path / "runs")
+    assert result["status"] == "done", result["message"]
+    config = yaml.safe_load((Path(result["run_dir"]) / "config.yaml").read_text())
+    recorded = {_norm(k): v for k, v in config["libraries"].items()}
+    used = {_norm(d) for d in result["used"]} - {"doppler_bench"}
+    assert {"numpy", "scipy", "numba", "h5py", "pydantic", "pyyaml"} <= used
+    assert used <= set(recorded), used - set(recorded)
+    assert {"llvmlite", "pydantic_core"} <= set(recorded)
+    assert all(v == metadata.version(k) for k, v in config["libraries"].items() if k != "python")
+    loaded = {_norm(d) for d in result["loaded"]}
+    assert {"rich", "typer"} <= loaded and not {"rich", "typer"} & set(recorded)
+    assert not {"open3d_cpu", "open3d", "kiss_icp"} & set(recorded)
+
+
+def test_installing_an_unrelated_library_reruns_nothing_a_used_one_reruns(store, tmp_path):
+    """A doppler run is reused when Open3D (another method's library) appears at another
+    version, and runs again when the NumPy it imported is installed at another version."""
+    out = tmp_path / "runs"
+    assert _run_in_fresh_process(store, out)["status"] == "done"
+    assert _run_in_fresh_process(store, out)["status"] == "skipped"
+    extra = _fake_distribution(tmp_path / "extra", "open3d-cpu", "0.99.0", module="open3d")
+    _fake_distribution(extra, "rerun-sdk", "0.99.0")
+    assert _run_in_fresh_process(store, out, extra_path=[extra])["status"] == "skipped"
+    numpy = _fake_distribution(tmp_path / "numpy", "numpy", "0.0.1")
+    changed = _run_in_fresh_process(store, out, extra_path=[numpy])
+    assert changed["status"] == "done"
+    config = yaml.safe_load((Path(changed["run_dir"]) / "config.yaml").read_text())
+    assert config["libraries"]["numpy"] == "0.0.1"
+    assert _run_in_fresh_process(store, out)["status"] == "done"  # the real NumPy again
+
+
+def test_libraries_current_compares_each_recorded_version():
+    from importlib import metadata
+
+    from bench.runs.libraries import changed_libraries, libraries_current
+
+    real = metadata.version("numpy")
+    assert libraries_current({"numpy": real}) and libraries_current(None)
+    assert not libraries_current({"numpy": "0.0.1"})
+    assert changed_libraries({"numpy": "0.0.1", "no-such-dist-xyz": None}) == {
+        "numpy": ("0.0.1", real)}
+    assert not libraries_current({"no-such-dist-xyz": "1.0"})
 
 
 def test_another_cpu_or_thread_setting_reruns_the_job(store, tmp_path, monkeypatch):
@@ -327,3 +442,43 @@ def test_a_table_of_times_from_two_cpus_says_so(store, tmp_path):
     rows, lengths = select(tmp_path)
     text = to_markdown(relative_table(rows, lengths))
     assert "MIXED HOSTS" in text and "Another CPU 9000" in text and metrics["cpu"] in text
+
+
+_CPUINFO = """processor\t: 0
+vendor_id\t: AuthenticAMD
+cpu family\t: {family}
+model\t\t: {model}
+model name\t: AMD EPYC
+stepping\t: 1
+flags\t\t: fpu sse2 avx2 {extra}
+
+processor\t: 1
+vendor_id\t: AuthenticAMD
+model name\t: AMD EPYC
+"""
+
+
+def test_the_cpu_model_is_the_full_description_and_tells_generations_apart():
+    """A virtual machine names two CPU generations "AMD EPYC"; the description keeps the full
+    model name and adds vendor, family, model and stepping, and the flags digest tells
+    instruction sets apart (numba compiles for them)."""
+    from bench.runs.provenance import cpu_flags_digest, cpu_model
+
+    zen3 = _CPUINFO.format(family=25, model=1, extra="")
+    zen4 = _CPUINFO.format(family=25, model=17, extra="avx512f")
+    assert cpu_model(zen3) == "AMD EPYC (AuthenticAMD family 25 model 1 stepping 1)"
+    assert cpu_model(zen4) != cpu_model(zen3)
+    assert cpu_flags_digest(zen4) != cpu_flags_digest(zen3)
+    assert cpu_flags_digest("model name\t: X\n") is None
+    long_name = "Intel(R) Xeon(R) Gold 6248R CPU @ 3.00GHz"
+    assert cpu_model(f"model name\t: {long_name}\n") == long_name
+
+
+def test_this_machines_cpu_model_holds_its_whole_model_name_line():
+    """Read independently: the text after the first "model name" colon of /proc/cpuinfo."""
+    from bench.runs.provenance import cpu_model
+
+    lines = Path("/proc/cpuinfo").read_text().splitlines()
+    name = next(x for x in lines if x.startswith("model name")).split(":", 1)[1].strip()
+    family = next(x for x in lines if x.startswith("cpu family")).split(":", 1)[1].strip()
+    assert cpu_model().startswith(name + " (") and f"family {family} " in cpu_model()

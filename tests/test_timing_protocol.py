@@ -170,6 +170,26 @@ def test_a_compilation_or_a_far_outlier_is_flagged():
     assert "compiled" in flagged[5] and "x the median" in flagged[9]
 
 
+def test_a_spike_of_a_sub_millisecond_method_is_flagged_too():
+    """The rule is relative to the method's own median at any speed: a 0.3 ms method's 4 ms
+    frame (13x) is flagged, its 2.5 ms frame (8x) and a spike-free series are not."""
+    from methods.base import FrameRecord
+    from methods.timing import OUTLIER_FACTOR, timing_outliers
+
+    def frame(i, ms):
+        return FrameRecord(i, i * 0.1, ms, 100, 50, 3, True, ms / 2, ms, ms, ms, 0)
+
+    rng = np.random.default_rng(3)
+    steady = [frame(i, 0.3 + 0.02 * rng.standard_normal()) for i in range(1, 40)]
+    assert timing_outliers(steady) == {}
+    spiky = list(steady)
+    spiky[10] = frame(11, 4.0)
+    spiky[20] = frame(21, 2.5)
+    flagged = timing_outliers(spiky)
+    assert list(flagged) == [11] and "x the median" in flagged[11]
+    assert 4.0 > OUTLIER_FACTOR * 0.3 > 2.5  # the two spikes straddle the rule
+
+
 def test_a_run_with_a_compilation_in_a_timed_frame_is_not_reused(tmp_path):
     """It is written and marked (``timing_clean: false``), and the next run re-runs it."""
     from bench.runs.folders import is_finished
@@ -181,3 +201,60 @@ def test_a_run_with_a_compilation_in_a_timed_frame_is_not_reused(tmp_path):
     assert is_finished(run, "abc")
     (run / "metrics.json").write_text(json.dumps({"timing_clean": False}))
     assert is_finished(run) and not is_finished(run, "abc")
+
+
+def test_a_compilation_in_a_timed_frame_marks_the_run_unclean_and_it_runs_again(
+        tmp_path, monkeypatch):
+    """The real path: a method whose fourth registration (a timed frame; the warm-up made the
+    first) calls a numba function not compiled before. ``timed_run`` records the compilation
+    in that frame and ``timing_clean: false``; ``run_job`` writes it, and the next ``run_job``
+    of the same job runs again instead of reusing the unclean timing. A method without the late
+    compilation is clean and reused."""
+    import numba
+
+    from bench.runs.job import Job, run_job
+    from bench.runs.timed import timed_run
+    from conftest import constant_twist_sequence
+    from loaders.store import write_store
+    from methods import registry
+    from methods.base import Registration, RegistrationResult
+
+    class LateCompile(Registration):
+        name = "test-late-compile"
+        description = "test only: compiles a numba function in its fourth registration"
+        uses_initial_guess = False
+        late = True
+
+        def __init__(self, params=None, **overrides):
+            super().__init__(params, **overrides)
+            self.calls = 0
+
+        def register(self, source, target, init_T_target_source):
+            self.calls += 1
+            if self.late and self.calls == 4:
+                numba.njit(lambda x: x * 2.0 + 1.0)(float(self.calls))  # a new dispatcher
+            return RegistrationResult(np.eye(4), len(source), 1, True)
+
+    class OnTime(LateCompile):
+        name = "test-on-time"
+        description = "test only: the same without the late compilation"
+        late = False
+
+    seq = constant_twist_sequence(n_frames=8, n_points=200)
+    result, timing = timed_run(LateCompile(), seq, seed=False)
+    compiled = [f.index for f in result.frames if f.compiles]
+    assert compiled == [3]
+    assert timing["timing_clean"] is False and "3" in timing["timing_outliers"]
+    assert timed_run(OnTime(), seq, seed=False)[1]["timing_clean"] is True
+
+    monkeypatch.setitem(registry.METHODS, LateCompile.name, LateCompile)
+    monkeypatch.setitem(registry.METHODS, OnTime.name, OnTime)
+    store = write_store(seq, tmp_path / "eight.h5")
+    for cls, second in ((LateCompile, "done"), (OnTime, "skipped")):
+        job = Job(store=store, method=cls.name, seed=None, out_root=tmp_path / "runs",
+                  lengths_m=(2.0,))
+        first = run_job(job)
+        assert first.status == "done", first.message
+        metrics = json.loads((first.run_dir / "metrics.json").read_text())
+        assert metrics["timing_clean"] is (cls is OnTime)
+        assert run_job(job).status == second

@@ -170,3 +170,70 @@ def test_kiss_icp_honours_each_runs_thread_count():
     assert (t2, fresh2, clock2) == (2, False, "wall")
     assert (t1, fresh1, clock1) == (1, True, "cpu")
     assert ratio1 <= 1.05 and n1 == n2 == 8
+
+
+_NUMBA_FIRST = """
+import json, sys
+import numpy as np  # NumPy (and its BLAS) and kiss-icp loaded before bench, too
+import kiss_icp.pipeline
+import numba
+
+
+@numba.njit(parallel=True)
+def total(x):
+    s = 0.0
+    for i in numba.prange(x.shape[0]):
+        s += x[i]
+    return s
+
+
+assert total(np.ones(1000)) == 1000.0  # numba's thread pool now runs, at its default size
+pool = numba.config.NUMBA_NUM_THREADS
+from bench.api import run_method
+from bench.runs.folders import read_run
+out = {}
+for method in ("doppler", "doppler-ego"):
+    run_dir = f"{sys.argv[2]}/{method}"
+    run_method(method, sys.argv[1], seed=False, out=run_dir, params={})
+    record = read_run(__import__("pathlib").Path(run_dir))
+    out[method] = {"frames": record.result.frames, "threads": numba.get_num_threads()}
+@numba.njit
+def late(x):  # numba reads its configuration again at every compilation
+    return x + 1
+out["late"] = late(1)
+# the process executor spawns its workers here (a fork would copy the running pool)
+from bench.runs.executors import execute, start_method
+from bench.runs.job import Job
+from bench.runs.plan import plan
+jobs = plan([Job(store=__import__("pathlib").Path(sys.argv[1]), method="doppler", seed=None,
+                 out_root=__import__("pathlib").Path(sys.argv[2]) / "process")])
+outcomes = execute(jobs, "process", 1, True, lambda *a: None, lambda o: None)
+out["start"] = start_method()
+out["process"] = [o.status for o in outcomes]
+out["pool"] = pool
+out["env"] = __import__("os").environ.get("NUMBA_NUM_THREADS")
+print(json.dumps(out))
+"""
+
+
+def test_numba_imported_and_running_before_bench_is_limited_at_run_time(tmp_path):
+    """A notebook that imported NumPy, kiss-icp and numba, compiled and ran a parallel numba
+    function before importing ``bench``: ``doppler`` and ``doppler-ego`` run through the API
+    (no "Cannot set NUMBA_NUM_THREADS ... once the threads have been launched"), numba is
+    limited to one thread at run time, and a later compilation still works; the process
+    executor spawns its worker instead of forking the running pool. In a fresh interpreter."""
+    from loaders.store import write_store
+
+    store = write_store(constant_twist_sequence(n_frames=12, n_points=800),
+                        tmp_path / "twelve.h5")
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_NUM_THREADS"}
+    done = subprocess.run([sys.executable, "-c", _NUMBA_FIRST, str(store), str(tmp_path)],
+                          cwd=ROOT, capture_output=True, text=True, timeout=600,
+                          env={**env, "PYTHONPATH": str(ROOT)})
+    assert done.returncode == 0, done.stderr[-3000:]
+    out = json.loads(done.stdout.splitlines()[-1])
+    assert out["pool"] == (os.cpu_count() or 1) and out["env"] is None  # left as launched
+    for method in ("doppler", "doppler-ego"):
+        assert out[method] == {"frames": 12, "threads": 1}
+    assert out["late"] == 2
+    assert out["start"] == "spawn" and out["process"] == ["done"]

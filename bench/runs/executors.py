@@ -2,8 +2,11 @@
 
 - ``local``: in this process, one after another (for debugging; a crash in a native library
   ends the command).
-- ``process`` (default): every job in its own fresh worker process (spawned), at most
-  ``workers`` at once, so a segfault or abort inside a native library fails that job only.
+- ``process`` (default): every job in its own worker process, at most ``workers`` at once, so a
+  segfault or abort inside a native library fails that job only. A worker is forked from the
+  main process, which has imported the harness, the methods and their libraries while planning,
+  so it starts at once (a spawned worker imported them again: about 1.2 s of CPU before its
+  first frame); it is spawned instead where forking is unsafe (``start_method``).
   Workers die with the main process (PR_SET_PDEATHSIG and a parent watchdog), ignore Ctrl-C
   (the main process ends them and records their runs as interrupted), and a job that runs
   longer than ``job_timeout_s`` is killed and recorded as failed.
@@ -25,12 +28,12 @@ import sys
 import threading
 import time
 from collections.abc import Callable
-from multiprocessing import get_context
+from multiprocessing import get_all_start_methods, get_context
 from multiprocessing.connection import wait as wait_for
 
 from bench.runs.folders import is_finished
 from bench.runs.job import Job, JobOutcome, expected_cost, record_unfinished, run_job
-from bench.threads import pin_threads
+from bench.threads import numba_pool_launched, pin_threads
 from loaders.errors import DataError
 from methods.timing import DEFAULT_TIMING_LOCK, TIMING_LOCK_ENV
 
@@ -112,8 +115,18 @@ def _die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
-def _worker(job: Job, force: bool, conn, parent_pid: int) -> None:
-    """One job in a fresh process; reports on its own pipe (no lock shared with other workers,
+def start_method() -> str:
+    """How a worker process starts: "fork" (the worker has everything the main process
+    imported), unless this platform cannot fork or numba's thread pool already runs in this
+    process (a notebook that ran parallel numba code: its OpenMP / TBB layers do not survive a
+    fork), then "spawn" (a fresh interpreter that imports what the job needs)."""
+    if "fork" in get_all_start_methods() and not numba_pool_launched():
+        return "fork"
+    return "spawn"
+
+
+def _worker(job: Job, force: bool, conn, parent_pid: int, forked: bool = False) -> None:
+    """One job in its own process; reports on its own pipe (no lock shared with other workers,
     so a worker that crashes mid-message cannot block the others)."""
     _die_with_parent(parent_pid)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # the main process decides what Ctrl-C ends
@@ -128,9 +141,12 @@ def _worker(job: Job, force: bool, conn, parent_pid: int) -> None:
     conn.send(("outcome", run_job(job, force, progress)))
     conn.close()
     # the run is written and reported: skip the interpreter's teardown of numba, LLVM and
-    # h5py (about 0.4 s a job), which only frees memory the exit frees anyway
-    sys.stdout.flush()
-    sys.stderr.flush()
+    # h5py (about 0.4 s a job), which only frees memory the exit frees anyway. A forked
+    # worker's output buffers are copies of the main process's (its unflushed progress
+    # display): flushing them would print that twice, and the worker prints nothing itself
+    if not forked:
+        sys.stdout.flush()
+        sys.stderr.flush()
     os._exit(0)
 
 
@@ -144,7 +160,11 @@ def _exit_reason(exitcode: int | None) -> str:
 
 
 def _run_processes(jobs, workers, force, report, finish, job_timeout_s) -> list[JobOutcome]:
-    ctx = get_context("spawn")
+    method = start_method()
+    ctx = get_context(method)
+    if method == "fork":  # nothing of this process's pending output is copied into a worker
+        sys.stdout.flush()
+        sys.stderr.flush()
     # longest jobs first (iterative methods on large stores), so workers finish together
     pending = sorted(range(len(jobs)), key=lambda i: expected_cost(jobs[i]), reverse=True)
     running: dict[int, tuple] = {}   # index -> (process, start time, receiving end)
@@ -174,9 +194,10 @@ def _run_processes(jobs, workers, force, report, finish, job_timeout_s) -> list[
                 index = pending.pop(0)
                 receiver, sender = ctx.Pipe(duplex=False)
                 proc = ctx.Process(target=_worker, daemon=True,
-                                   args=(jobs[index], force, sender, os.getpid()))
-                # the worker starts with SIGINT blocked (inherited through exec), so a Ctrl-C
-                # during its start-up cannot print a traceback there; here it is only
+                                   args=(jobs[index], force, sender, os.getpid(),
+                                         method == "fork"))
+                # the worker starts with SIGINT blocked (inherited through fork or exec), so a
+                # Ctrl-C during its start-up cannot print a traceback there; here it is only
                 # deferred until the worker is registered, never lost
                 mask = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT})
                 try:

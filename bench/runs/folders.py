@@ -34,6 +34,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from bench.runs.libraries import libraries_current
 from bench.runs.provenance import run_meta
 from bench.runs.result import RunResult
 from loaders.fileio import atomic_write_text
@@ -59,8 +60,10 @@ def run_dir_name(method: str, seed: bool | None | Seed, label: str | None = None
 
 
 def is_finished(run_dir: Path, key: str | None = None) -> bool:
-    """The run in ``run_dir`` finished (and, given ``key``, was made from the same inputs and
-    its timing is clean: no compilation inside a timed frame, ``bench.runs.timed``)."""
+    """The run in ``run_dir`` finished (and, given ``key``, was made from the same inputs, with
+    the libraries it imported still installed at the versions it ran with
+    (``bench.runs.libraries``), and its timing is clean: no compilation inside a timed frame,
+    ``bench.runs.timed``)."""
     if not (run_dir / "metrics.json").exists():
         return False
     if key is None:
@@ -71,7 +74,8 @@ def is_finished(run_dir: Path, key: str | None = None) -> bool:
         clean = json.loads((run_dir / "metrics.json").read_text()).get("timing_clean", True)
     except (OSError, ValueError, yaml.YAMLError):
         return False
-    return config.get("run_key") == key and clean is not False
+    return (config.get("run_key") == key and clean is not False
+            and libraries_current(config.get("libraries")))
 
 
 def clear_run(run_dir: Path) -> None:

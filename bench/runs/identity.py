@@ -1,57 +1,52 @@
 """What determines a run's result, as one short key (``config.yaml``'s ``run_key``).
 
-A run is reused only when its folder holds a finished run with the same key, so the key covers
-everything that can change the numbers:
+A run is reused only when its folder holds a finished run with the same key, whose timing is
+clean and whose libraries are still installed at the versions it ran with
+(``bench.runs.folders.is_finished``). The key covers everything that can change the numbers:
 - the store's content (``store_identity``: SHA-256 of its bytes, cached by path, size, mtime
   and inode);
 - the method, its resolved parameters, the seed option, the frame range and the evaluation
   lengths (given by the job);
-- the code (``code_identity``): the content of every module that can change a result, i.e. all
-  of ``loaders/`` (the scan types, SE(3) helpers and ground-truth handling that methods and
-  scoring use), ``methods/``, ``metrics/``, the scoring (``bench/runs/evaluate.py``), how a run
-  is timed (``bench/runs/timed.py``, ``bench/threads.py``), every module of the repository these
-  import (followed transitively, ``result_modules``), and the source of the functions of other
-  modules that decide what is scored (``RESULT_FUNCTIONS``: the choice of scored frames in
-  ``bench/runs/job.py``); and the versions of Python, of ``RESULT_LIBRARIES`` and of every
-  third-party distribution that code imports (``result_libraries``);
-- the machine (``host_identity``): the CPU model and the library thread settings, so a
-  ``time_ms`` measured on another computer or with other threads is never reused as this
+- the code (``code_identity``): the content of every module that executes between the store and
+  metrics.json (``RESULT_CODE``): all of ``loaders/`` (the store reader, the scan types, SE(3)
+  helpers, ground truth), ``methods/``, ``metrics/``, the job runner (``bench/runs/job.py``:
+  ``prepare``, ``run_job``, the choice of scored frames), the executors that call it in a
+  worker, the scoring (``evaluate.py``, ``result.py``), the writing of the run folder
+  (``folders.py``), how a run is timed (``timed.py``, ``bench/threads.py``), and every module of
+  the repository these import (followed transitively, ``result_modules``); and the Python
+  version;
+- the machine (``host_identity``): the full CPU description and the library thread settings,
+  so a ``time_ms`` measured on another computer or with other threads is never reused as this
   one's.
+The third-party libraries are not guessed here: the job runner records the ones the run
+actually imported, with their versions (``bench.runs.libraries``), and a run whose libraries
+changed since is run again.
 """
 
 from __future__ import annotations
 
-import ast
 import hashlib
-import importlib.util
 import json
 import os
 import platform
 import re
 import sys
-from importlib import metadata
 from pathlib import Path
 
 from bench.paths import ROOT
-from bench.runs.provenance import cpu_model, installed_versions
+from bench.runs.provenance import cpu_flags_digest, cpu_model
 from bench.threads import thread_settings
 from loaders.errors import DataError
 from loaders.fileio import atomic_write_text
 
-#: code whose content determines a result (folders searched recursively for *.py), with every
-#: repository module it imports (``result_modules``)
-RESULT_CODE = ("loaders", "methods", "metrics", "bench/runs/evaluate.py", "bench/runs/result.py",
-               "bench/runs/timed.py",
-               "bench/threads.py")
-#: functions of other modules that determine a result: (file, function name)
-RESULT_FUNCTIONS = (("bench/runs/job.py", "calibration_frames"),)
-#: libraries whose version can change a result (beside those the result code imports)
-#: importable modules whose distribution is named otherwise (no scan of every installed file)
-MODULE_DISTRIBUTIONS = {"open3d": ("open3d", "open3d-cpu"), "yaml": ("PyYAML",)}
-RESULT_LIBRARIES = ("numpy", "scipy", "numba", "small_gicp", "kiss-icp", "open3d-cpu", "open3d",
-                    "evo", "h5py", "pydantic")
+#: code that executes between the store and metrics.json (folders searched recursively for
+#: *.py), with every repository module it imports (``result_modules``)
+RESULT_CODE = ("loaders", "methods", "metrics", "bench/runs/job.py", "bench/runs/executors.py",
+               "bench/runs/executor_dask.py", "bench/runs/evaluate.py", "bench/runs/result.py",
+               "bench/runs/folders.py", "bench/runs/timed.py", "bench/threads.py")
 _store_hashes: dict[str, str] = {}
 _code_hash: list[str] = []
+_scanned: list[tuple[list[Path], set[str]]] = []  # ``_scan`` of ROOT, once per process
 
 
 def _hash_cache_file() -> Path:
@@ -117,15 +112,21 @@ def _module_file(name: str, root: Path) -> Path | None:
     return None
 
 
-def result_modules(root: Path = ROOT) -> tuple[list[Path], set[str]]:
-    """(every repository file that determines a result, the top-level names of the
-    third-party modules they import): ``RESULT_CODE`` and, transitively, every repository
-    module those import (with its packages' ``__init__.py``)."""
+def _scan(root: Path) -> tuple[list[Path], set[str]]:
+    if root == ROOT and _scanned:
+        return _scanned[0]
     todo = []
     for entry in RESULT_CODE:
         path = root / entry
         todo += sorted(path.rglob("*.py")) if path.is_dir() else [path]
     files, external = set(), set()
+    where: dict[str, Path | None] = {}  # module name -> its file (each looked up once)
+
+    def module_file(name: str) -> Path | None:
+        if name not in where:
+            where[name] = _module_file(name, root)
+        return where[name]
+
     while todo:
         path = todo.pop()
         if path in files:
@@ -133,75 +134,53 @@ def result_modules(root: Path = ROOT) -> tuple[list[Path], set[str]]:
         files.add(path)
         for name in _imports(path):
             parts = name.split(".")
-            found = [_module_file(".".join(parts[:k]), root) for k in range(1, len(parts) + 1)]
+            found = [module_file(".".join(parts[:k])) for k in range(1, len(parts) + 1)]
             if not any(found):
                 if parts[0] not in sys.stdlib_module_names:
                     external.add(parts[0])
                 continue
             todo += [f for f in found if f is not None and f not in files]
-    return sorted(files), external
+    scanned = (sorted(files), external)
+    if root == ROOT:
+        _scanned.append(scanned)
+    return scanned
 
 
-def function_source(path: Path, name: str) -> str:
-    """The source of the top-level function ``name`` of ``path`` (ValueError when absent: a
-    renamed function must be renamed in ``RESULT_FUNCTIONS`` too)."""
-    text = path.read_text()
-    for node in ast.parse(text, str(path)).body:
-        if isinstance(node, ast.FunctionDef) and node.name == name:
-            return ast.get_source_segment(text, node) or ""
-    raise ValueError(f"{path}: no function {name!r} (RESULT_FUNCTIONS in {__file__})")
+def result_modules(root: Path = ROOT) -> list[Path]:
+    """Every repository file that determines a result: ``RESULT_CODE`` and, transitively, every
+    repository module those import (with its packages' ``__init__.py``)."""
+    return _scan(root)[0]
 
 
-def result_libraries(external: set[str]) -> list[str]:
-    """``RESULT_LIBRARIES`` and the distributions that provide the modules in ``external``
-    (a module named like its distribution directly, the others through the installed
-    distributions' file lists)."""
-    names, unknown = set(RESULT_LIBRARIES), []
-    for module in sorted(external):
-        try:
-            names.add(metadata.distribution(module).metadata["Name"])
-        except metadata.PackageNotFoundError:
-            if module in MODULE_DISTRIBUTIONS:
-                names.update(MODULE_DISTRIBUTIONS[module])
-            elif importlib.util.find_spec(module) is None:
-                names.add(module)  # not installed: listed without a version
-            else:
-                unknown.append(module)
-    if unknown:  # scanning every installed distribution's file list costs about 0.5 s
-        provided = metadata.packages_distributions()
-        for module in unknown:
-            names.update(provided.get(module, [module]))
-    return sorted(names)
+def result_imports(root: Path = ROOT) -> set[str]:
+    """The top-level names of the third-party modules that the files of ``result_modules``
+    import, at module level or inside a function (``bench.runs.libraries`` keeps those a run
+    actually loaded)."""
+    return set(_scan(root)[1])
 
 
-def library_versions(external: set[str] | None = None) -> dict[str, str | None]:
-    """Installed versions of the result libraries (None when absent) and of Python."""
-    if external is None:
-        external = result_modules()[1]
-    return {"python": platform.python_version(),
-            **installed_versions(result_libraries(external))}
+def file_imports(path: Path) -> set[str]:
+    """The top-level names of the modules ``path`` imports (e.g. a plugin method's module)."""
+    return {name.partition(".")[0] for name in _imports(path)}
 
 
 def host_identity() -> dict:
-    """The machine a run's times depend on: CPU model and library thread settings."""
-    return {"cpu": cpu_model(), "threads": thread_settings()}
+    """The machine a run's times depend on: the full CPU description (``cpu_model``), a digest
+    of its instruction-set flags (numba compiles for them) and the library thread settings."""
+    return {"cpu": cpu_model(), "cpu_flags": cpu_flags_digest(), "threads": thread_settings()}
 
 
 def code_identity(root: Path = ROOT) -> str:
     """SHA-256 (16 hex digits) of the code that determines a result: the path and content of
-    every file of ``result_modules``, the source of ``RESULT_FUNCTIONS`` and the library
-    versions. A change there re-runs every run, so no result of older code is shown as
-    current."""
+    every file of ``result_modules`` and the Python version. A change there re-runs every run,
+    so no result of older code is shown as current."""
     if root != ROOT or not _code_hash:
         h = hashlib.sha256()
-        files, external = result_modules(root)
-        for path in files:
+        for path in result_modules(root):
             h.update(str(path.relative_to(root)).encode())
             h.update(b"\0")
             h.update(path.read_bytes())
-        for file, name in RESULT_FUNCTIONS:
-            h.update(f"{file}:{name}\0{function_source(root / file, name)}".encode())
-        h.update(json.dumps(library_versions(external), sort_keys=True).encode())
+        h.update(f"python {platform.python_version()}".encode())
         digest = h.hexdigest()[:16]
         if root != ROOT:
             return digest

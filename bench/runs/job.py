@@ -2,10 +2,13 @@
 
 A job's folder is ``<out>/<sequence>/<method or label>[_seed|_noseed]``; its ``config.yaml``
 holds a ``run_key``: a hash of everything that determines the result (the store's content
-hash, the method, its resolved parameters, the seed option, the evaluation lengths, and the
-hash of the code that computes results: methods/, metrics/, the scoring). A job is skipped
-only when its folder holds a finished run with the same key; otherwise the old records are
-removed first and it runs again, so a failed re-run never leaves stale metrics behind.
+hash, the method, its resolved parameters, the seed option, the evaluation lengths, the host
+and the hash of the code that runs between the store and metrics.json, this module included:
+``bench.runs.identity``), and ``libraries``: the third-party libraries the run imported, with
+their versions (``bench.runs.libraries``). A job is skipped only when its folder holds a
+finished run with the same key whose libraries are installed at the same versions; otherwise
+the old records are removed first and it runs again, so a failed re-run never leaves stale
+metrics behind.
 ``bench.runs.plan`` resolves every job before anything runs (stores, parameters, folders), so
 bad input is one clear error up front; executors (``bench.runs.executors``) run the planned
 jobs through ``run_job``.
@@ -13,6 +16,7 @@ jobs through ``run_job``.
 
 from __future__ import annotations
 
+import sys
 import time
 import traceback
 import warnings
@@ -23,9 +27,11 @@ from pathlib import Path
 import numpy as np
 from pydantic import ValidationError
 
+from bench.paths import ROOT
 from bench.runs.evaluate import Scoring, evaluate_run
 from bench.runs.folders import clear_run, is_finished, run_dir_name, write_failure, write_run
 from bench.runs.identity import code_identity, host_identity, run_key, store_identity
+from bench.runs.libraries import imported_libraries
 from bench.runs.timed import timed_run
 from loaders.errors import DataError, validation_problems
 from loaders.scan import FrameRange, Sequence
@@ -233,6 +239,9 @@ def run_job(job: Job, force: bool = False,
             evaluation = evaluate_run(seq.ground_truth, result, name=str(job.store),
                                       scoring=job.scoring, excluded=calibration_frames(seq))
         notes = list(dict.fromkeys(str(w.message) for w in said))
+        # the libraries this run imported, at their versions: it is reused only while they
+        # are installed as they were (bench.runs.libraries, bench.runs.folders.is_finished)
+        prep.config["libraries"] = imported_libraries(_outside_files(prep.method))
         metrics = {"sequence": prep.config["sequence"]["name"], "method": job.method,
                    "seed": job.seed, "frames": len(seq), **evaluation.metrics, **timing}
         write_run(run_dir, result, evaluation.gt, prep.config, metrics, notes)
@@ -245,6 +254,16 @@ def run_job(job: Job, force: bool = False,
                           run_dir=run_dir)
     finally:
         seq.close()
+
+
+def _outside_files(method: Odometry) -> list[Path]:
+    """The method's module when it lives outside the repository (a plugin): its imports
+    count among the run's libraries too."""
+    module = sys.modules.get(type(method).__module__)
+    file = getattr(module, "__file__", None)
+    if file and not Path(file).resolve().is_relative_to(ROOT):
+        return [Path(file)]
+    return []
 
 
 #: fewer points than this after a method's own preparation leave nothing to register

@@ -4,6 +4,7 @@ result is ``bench.runs.identity``."""
 
 from __future__ import annotations
 
+import hashlib
 import os
 import platform
 import subprocess
@@ -32,15 +33,61 @@ def _git_state() -> dict:
         return {"commit": None, "dirty": None}
 
 
-def cpu_model() -> str:
-    """The CPU model name (/proc/cpuinfo), else what platform knows."""
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
+def _cpuinfo(text: str | None = None) -> dict[str, str]:
+    """The first processor's fields of /proc/cpuinfo (or of ``text``); empty elsewhere."""
+    if text is None:
+        try:
+            text = Path("/proc/cpuinfo").read_text()
+        except OSError:
+            return {}
+    fields: dict[str, str] = {}
+    for line in text.splitlines():
+        if not line.strip():
+            if fields:
+                break  # the first processor's block is enough
+            continue
+        key, sep, value = line.partition(":")
+        if sep:
+            fields.setdefault(key.strip(), value.strip())
+    return fields
+
+
+def cpu_model(cpuinfo: str | None = None) -> str:
+    """The CPU's full description: /proc/cpuinfo's model name with the vendor, family, model
+    and stepping numbers, e.g. "AMD EPYC (AuthenticAMD family 25 model 1 stepping 1)". A virtual
+    machine may name only "AMD EPYC" for every generation; the numbers still tell them apart.
+    Elsewhere macOS's brand string, else what ``platform`` knows (on Windows it holds the
+    family, model and stepping too)."""
+    info = _cpuinfo(cpuinfo)
+    name = info.get("model name") or info.get("Model Name") or info.get("Hardware")
+    numbers = [f"{label} {info[key]}" for key, label in (
+        ("cpu family", "family"), ("model", "model"), ("stepping", "stepping"),
+        ("CPU implementer", "implementer"), ("CPU part", "part"), ("CPU variant", "variant"),
+        ("CPU revision", "revision")) if key in info]
+    vendor = info.get("vendor_id")
+    detail = " ".join(([vendor] if vendor else []) + numbers)
+    if name or detail:
+        return f"{name or 'unknown CPU'} ({detail})" if detail else name
+    if platform.system() == "Darwin":
+        try:
+            brand = subprocess.run(["sysctl", "-n", "machdep.cpu.brand_string"],
+                                   capture_output=True, text=True, timeout=5).stdout.strip()
+            if brand:
+                return brand
+        except (OSError, subprocess.SubprocessError):
+            pass
     return platform.processor() or platform.machine()
+
+
+def cpu_flags_digest(cpuinfo: str | None = None) -> str | None:
+    """SHA-256 (12 hex digits) of the CPU's instruction-set flags (/proc/cpuinfo ``flags``, or
+    ``Features`` on ARM; None elsewhere): two hosts of one model name may expose different
+    instruction sets (a virtual machine's configuration), and numba compiles for them."""
+    info = _cpuinfo(cpuinfo)
+    flags = info.get("flags") or info.get("Features")
+    if not flags:
+        return None
+    return hashlib.sha256(" ".join(sorted(flags.split())).encode()).hexdigest()[:12]
 
 
 def installed_versions(names) -> dict[str, str | None]:
