@@ -65,7 +65,9 @@ def _third_party_modules() -> list[str]:
             continue  # built in, or a namespace without a file
         file = os.path.abspath(file)
         root = next((r for r in roots if file.startswith(r + os.sep)), None)
-        if root is None or root in stdlib or file.startswith(repo + os.sep):
+        # the repository's own modules sit directly below its root (a virtual environment
+        # inside the checkout, .venv, is a longer sys.path entry and matched first)
+        if root is None or root in stdlib or root == repo:
             continue
         top = file[len(root) + 1:].split(os.sep, 1)[0].split(".", 1)[0]
         if (top and top not in REPO_PACKAGES and top not in IGNORED
