@@ -1,0 +1,281 @@
+"""Any store back out as a ROS bag (``bench export STORE --format ros1|ros2|mcap``).
+
+One uniform form for every dataset the harness loads, to feed a ROS node:
+
+- ``/points`` ``sensor_msgs/PointCloud2`` (frame ``sensor``), one message per scan stamped
+  with the scan's stamp: float32 fields ``x y z`` [m, sensor frame], ``doppler`` [m/s] in the
+  harness's sign (``DOPPLER_SIGN``: positive when the point recedes from the sensor; a static
+  point ahead of a forward-moving sensor reads negative), then every per-point field of the
+  store (``intensity``, ``power``, ``rcs``, ...) by its name;
+- ``/ground_truth`` ``nav_msgs/Odometry`` (frame ``world``, child ``base_link``): the GT body
+  pose ``T_world_body = T_world_sensor @ inv(T_body_sensor)`` at each scan that has GT (twist
+  zero: not given);
+- ``/tf_static`` ``tf2_msgs/TFMessage``: ``base_link`` -> ``sensor``, the store's
+  ``T_body_sensor``;
+- ``/doppler_bench/description`` ``std_msgs/String``: a JSON text stating the fields, the
+  Doppler sign and kind, the frames, the sensor and the store it came from.
+
+Formats: ``ros1`` (one ``.bag`` file), ``ros2`` (a rosbag2 folder, sqlite3 storage) and
+``mcap`` (a rosbag2 folder, mcap storage), written with ``rosbags``. Streaming: one scan is
+read from the store, serialised and written at a time, so memory stays flat in the sequence
+length. Atomic: the bag is written beside its destination under a temporary name and renamed
+when complete. ``bench convert rosbag`` reads it back to the same store contents
+(``reimport_command`` prints the exact command).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from loaders.errors import DataError
+from loaders.fileio import atomic_path
+from loaders.se3 import inv_T, tum_from_T
+from loaders.store import StoreSequence
+
+FORMATS = ("ros1", "ros2", "mcap")
+POINTS_TOPIC = "/points"
+GT_TOPIC = "/ground_truth"
+TF_TOPIC = "/tf_static"
+INFO_TOPIC = "/doppler_bench/description"
+WORLD_FRAME, BODY_FRAME, SENSOR_FRAME = "world", "base_link", "sensor"
+#: the Doppler sign of the exported field (the harness's: positive = receding)
+DOPPLER_SIGN = ("doppler [m/s]: radial velocity of the point relative to the sensor, positive "
+                "when the point recedes (moves away from the sensor); a static point ahead of "
+                "a forward-moving sensor reads negative")
+CLOUD, ODOM, TF, STRING = ("sensor_msgs/msg/PointCloud2", "nav_msgs/msg/Odometry",
+                           "tf2_msgs/msg/TFMessage", "std_msgs/msg/String")
+
+
+@dataclass(frozen=True)
+class ExportSummary:
+    path: Path
+    format: str
+    frames: int
+    gt_poses: int
+    fields: list[str]
+
+
+def default_out(store: Path, fmt: str) -> Path:
+    """``STORE.bag`` (ros1), ``STORE_ros2/`` or ``STORE_mcap/`` beside the store."""
+    store = Path(store)
+    return store.with_suffix(".bag") if fmt == "ros1" else \
+        store.with_name(f"{store.stem}_{fmt}")
+
+
+def _sec_nsec(t: float) -> tuple[int, int]:
+    sec = int(np.floor(t))
+    nsec = int(round((t - sec) * 1e9))
+    return (sec + 1, nsec - 1_000_000_000) if nsec >= 1_000_000_000 else (sec, nsec)
+
+
+class _Bag:
+    """One writer interface over rosbags' ROS1 and rosbag2 writers (serialisation included)."""
+
+    def __init__(self, path: Path, fmt: str) -> None:
+        from rosbags.typesys import Stores, get_typestore
+
+        self.ros1 = fmt == "ros1"
+        self.store = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
+        if TF not in self.store.types:  # rosbags' ROS1 store lacks tf2_msgs: its one-line def
+            from rosbags.typesys import get_types_from_msg
+
+            self.store.register(get_types_from_msg(
+                "geometry_msgs/TransformStamped[] transforms", TF))
+        if self.ros1:
+            from rosbags.rosbag1 import Writer
+
+            self.writer = Writer(path)
+        else:
+            from rosbags.rosbag2 import StoragePlugin, Writer
+
+            plugin = StoragePlugin.MCAP if fmt == "mcap" else StoragePlugin.SQLITE3
+            self.writer = Writer(path, version=9, storage_plugin=plugin)
+        self.writer.open()
+        self.seq = 0
+
+    def connection(self, topic: str, msgtype: str, latched: bool = False):
+        kw = {"latching": 1} if self.ros1 and latched else {}
+        return self.writer.add_connection(topic, msgtype, typestore=self.store, **kw)
+
+    def header(self, t: float, frame: str):
+        T = self.store.types
+        sec, nsec = _sec_nsec(t)
+        stamp = T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec)
+        self.seq += 1
+        if self.ros1:
+            return T["std_msgs/msg/Header"](seq=self.seq, stamp=stamp, frame_id=frame)
+        return T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
+
+    def write(self, conn, t: float, msg) -> None:
+        data = (self.store.serialize_ros1(msg, conn.msgtype) if self.ros1
+                else self.store.serialize_cdr(msg, conn.msgtype))
+        sec, nsec = _sec_nsec(t)
+        self.writer.write(conn, sec * 1_000_000_000 + nsec, data)
+
+    def close(self) -> None:
+        self.writer.close()
+
+
+def cloud_msg(bag: _Bag, t: float, points: np.ndarray, values: dict[str, np.ndarray]):
+    """A PointCloud2 of float32 fields x, y, z and ``values`` (packed, little-endian)."""
+    T = bag.store.types
+    names = ["x", "y", "z", *values]
+    dtype = np.dtype({"names": names, "formats": ["<f4"] * len(names),
+                      "offsets": [4 * i for i in range(len(names))], "itemsize": 4 * len(names)})
+    arr = np.empty(len(points), dtype=dtype)
+    for k, axis in enumerate("xyz"):
+        arr[axis] = points[:, k]
+    for name, v in values.items():
+        arr[name] = v
+    PF = T["sensor_msgs/msg/PointField"]  # datatype 7: FLOAT32
+    return T[CLOUD](
+        header=bag.header(t, SENSOR_FRAME), height=1, width=len(arr),
+        fields=[PF(name=n, offset=4 * i, datatype=7, count=1)
+                for i, n in enumerate(names)],
+        is_bigendian=False, point_step=dtype.itemsize, row_step=dtype.itemsize * len(arr),
+        data=np.frombuffer(arr.tobytes(), dtype=np.uint8), is_dense=True)
+
+
+def _pose(T, pose: np.ndarray):
+    xyz, quat = tum_from_T(pose[None])
+    (x, y, z), (qx, qy, qz, qw) = xyz[0], quat[0]
+    return T["geometry_msgs/msg/Pose"](
+        position=T["geometry_msgs/msg/Point"](x=float(x), y=float(y), z=float(z)),
+        orientation=T["geometry_msgs/msg/Quaternion"](x=float(qx), y=float(qy), z=float(qz),
+                                                      w=float(qw)))
+
+
+def odometry_msg(bag: _Bag, t: float, T_world_body: np.ndarray):
+    T = bag.store.types
+    cov = np.zeros(36)
+    zero = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+    return T[ODOM](
+        header=bag.header(t, WORLD_FRAME), child_frame_id=BODY_FRAME,
+        pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=_pose(T, T_world_body),
+                                                       covariance=cov),
+        twist=T["geometry_msgs/msg/TwistWithCovariance"](
+            twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=cov))
+
+
+def tf_static_msg(bag: _Bag, t: float, T_body_sensor: np.ndarray):
+    T = bag.store.types
+    xyz, quat = tum_from_T(np.asarray(T_body_sensor, dtype=np.float64)[None])
+    (x, y, z), (qx, qy, qz, qw) = xyz[0], quat[0]
+    tf = T["geometry_msgs/msg/TransformStamped"](
+        header=bag.header(t, BODY_FRAME), child_frame_id=SENSOR_FRAME,
+        transform=T["geometry_msgs/msg/Transform"](
+            translation=T["geometry_msgs/msg/Vector3"](x=float(x), y=float(y), z=float(z)),
+            rotation=T["geometry_msgs/msg/Quaternion"](x=float(qx), y=float(qy), z=float(qz),
+                                                       w=float(qw))))
+    return T[TF](transforms=[tf])
+
+
+def description(seq: StoreSequence, store: Path, fields: list[str]) -> dict:
+    """The bag's description (``INFO_TOPIC``): fields, Doppler sign and kind, frames, sensor."""
+    return {
+        "exported_by": "doppler-bench (bench export)", "store": str(store),
+        "sequence": seq.name, "points_topic": POINTS_TOPIC, "ground_truth_topic": GT_TOPIC,
+        "fields": ["x", "y", "z", *fields],
+        "units": "x y z [m] in the sensor frame; doppler [m/s]; other fields as stored",
+        "doppler": DOPPLER_SIGN if seq.has_doppler else "none (the store has no Doppler)",
+        "doppler_kind": seq.sensor.doppler_kind, "sensor_kind": seq.sensor.kind,
+        "sensor_model": seq.sensor.model, "period_s": seq.sensor.period_s,
+        "frames": {"world": WORLD_FRAME, "body": BODY_FRAME, "sensor": SENSOR_FRAME},
+        "ground_truth": f"nav_msgs/Odometry: T_world_body ({BODY_FRAME}) at the scans with "
+                        "ground truth; the sensor pose is T_world_body @ T_body_sensor "
+                        f"({TF_TOPIC})",
+        "T_body_sensor": np.asarray(seq.sensor.T_body_sensor).tolist(),
+    }
+
+
+def write_bag(seq: StoreSequence, store: Path, path: Path, fmt: str,
+              progress: Callable[[int], None] | None = None) -> ExportSummary:
+    """Write ``seq`` to a new bag at ``path`` (must not exist), one scan at a time."""
+    bag = _Bag(path, fmt)
+    try:
+        stamps = seq.stamps
+        T_bs = np.asarray(seq.sensor.T_body_sensor, dtype=np.float64)
+        gt = seq.ground_truth
+        fields = (["doppler"] if seq.has_doppler else []) + list(seq.fields)
+        cloud = bag.connection(POINTS_TOPIC, CLOUD)
+        tf = bag.connection(TF_TOPIC, TF, latched=True)
+        info = bag.connection(INFO_TOPIC, STRING, latched=True)
+        odom = bag.connection(GT_TOPIC, ODOM) if gt is not None else None
+        t0 = float(stamps[0])
+        bag.write(tf, t0, tf_static_msg(bag, t0, T_bs))
+        text = json.dumps(description(seq, store, fields), indent=1)
+        bag.write(info, t0, bag.store.types[STRING](data=text))
+        gt_stamps = gt.stamps if gt is not None else np.zeros(0)
+        T_sb = inv_T(T_bs)
+        g = 0
+        for i in range(len(seq)):
+            t = float(stamps[i])
+            while g < len(gt_stamps) and gt_stamps[g] <= t:  # GT in time order with the scans
+                bag.write(odom, float(gt_stamps[g]),
+                          odometry_msg(bag, float(gt_stamps[g]), gt.poses[g] @ T_sb))
+                g += 1
+            scan = seq.scan(i)
+            values = {} if scan.doppler is None else {"doppler": scan.doppler}
+            values.update({name: scan.fields[name] for name in seq.fields})
+            bag.write(cloud, t, cloud_msg(bag, t, scan.points, values))
+            if progress:
+                progress(i)
+        for k in range(g, len(gt_stamps)):
+            bag.write(odom, float(gt_stamps[k]),
+                      odometry_msg(bag, float(gt_stamps[k]), gt.poses[k] @ T_sb))
+    finally:
+        bag.close()
+    return ExportSummary(path, fmt, len(seq), len(gt_stamps), fields)
+
+
+def export_store(store: Path, fmt: str, out: Path | None = None, force: bool = False,
+                 progress: Callable[[int], None] | None = None) -> ExportSummary:
+    """Export ``store`` as a ``fmt`` bag to ``out`` (default ``default_out``); an existing
+    ``out`` is replaced only with ``force``. Written under a temporary name, then renamed."""
+    if fmt not in FORMATS:
+        raise DataError(f"--format {fmt!r}: expected one of {', '.join(FORMATS)}")
+    store = Path(store)
+    out = Path(out) if out is not None else default_out(store, fmt)
+    if out.exists() and not force:
+        raise DataError(f"{out}: exists; give another --out or --force to replace it")
+    seq = StoreSequence(store)
+    try:
+        if fmt == "ros1":
+            with atomic_path(out) as tmp:
+                tmp.unlink()  # rosbags' ROS1 writer refuses an existing file
+                summary = write_bag(seq, store, tmp, fmt, progress)
+            return replace(summary, path=out)
+        # a rosbag2 bag is a folder named like its storage file: written in a temporary
+        # parent folder under its final name, then moved into place
+        work = out.parent / f".{out.name}.{os.getpid()}.export"
+        shutil.rmtree(work, ignore_errors=True)
+        work.mkdir(parents=True)
+        try:
+            summary = write_bag(seq, store, work / out.name, fmt, progress)
+            if out.exists():
+                shutil.rmtree(out) if out.is_dir() else out.unlink()
+            os.replace(work / out.name, out)
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
+        return replace(summary, path=out)
+    finally:
+        seq.close()
+
+
+def reimport_command(summary: ExportSummary, seq_name: str, sensor_kind: str, model: str,
+                     doppler_kind: str, T_body_sensor: np.ndarray) -> str:
+    """The ``bench convert rosbag`` command that reads the bag back to the same store."""
+    xyz, quat = tum_from_T(np.asarray(T_body_sensor, dtype=np.float64)[None])
+    ext = " ".join(f"{v:.17g}" for v in [*xyz[0], *quat[0]])
+    gt = f" --gt-topic {GT_TOPIC}" if summary.gt_poses else ""
+    model_opt = f" --model {model}" if model else ""
+    return (f"bench convert rosbag {summary.path} --topic {POINTS_TOPIC}{gt} "
+            f"--T-body-sensor '{ext}' --sensor-kind {sensor_kind}{model_opt} "
+            f"--doppler-kind {doppler_kind} --name {seq_name} --out {seq_name}.h5")
