@@ -141,6 +141,28 @@ def print_run_summary(run_dir: Path, console: Console) -> None:
     console.print(f"run folder: {run_dir}", markup=False)
 
 
+def score_command(console: Console, store: Path, spec, out: Path, force: bool,
+                  scoring: dict) -> int:
+    """``bench score``: score an external trajectory (``bench.runs.external``), print its
+    coverage and key metrics."""
+    from bench.runs.evaluate import Scoring
+    from bench.runs.external import score_external
+
+    given = {k: v for k, v in scoring.items() if v is not None}
+    outcome = score_external(store, spec, out, Scoring(**given), force)
+    c = outcome.coverage
+    console.print(f"{spec.name}: {c['scored']} of the {c['scans_with_gt']} scans with ground "
+                  f"truth scored ({100 * c['share_scored']:.1f} %; {c['matched']} matched within "
+                  f"{c['tolerance_s']:g} s, {c['interpolated']} interpolated)"
+                  + (" (unchanged: not scored again; --force to)" if outcome.status == "skipped"
+                     else ""), markup=False)
+    run = read_run(outcome.run_dir)
+    if run is not None:
+        console.print(f"timing: {run.result.clock_note}", markup=False)
+    print_run_summary(outcome.run_dir, console)
+    return 0
+
+
 def synth_dispatch(console: Console, fidelity: bool, fidelity_out: Path, realism: bool,
                    data_dir: Path, **synth_options) -> int:
     """``bench synth --fidelity`` (the paper's tables on the synthetic suite, run when missing,

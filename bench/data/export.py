@@ -276,6 +276,27 @@ def reimport_command(summary: ExportSummary, seq_name: str, sensor_kind: str, mo
     ext = " ".join(f"{v:.17g}" for v in [*xyz[0], *quat[0]])
     gt = f" --gt-topic {GT_TOPIC}" if summary.gt_poses else ""
     model_opt = f" --model {model}" if model else ""
-    return (f"bench convert rosbag {summary.path} --topic {POINTS_TOPIC}{gt} "
+    text = (f"bench convert rosbag {summary.path} --topic {POINTS_TOPIC}{gt} "
             f"--T-body-sensor '{ext}' --sensor-kind {sensor_kind}{model_opt} "
             f"--doppler-kind {doppler_kind} --name {seq_name} --out {seq_name}.h5")
+    if doppler_kind not in ("radial", "ego-compensated"):
+        text += (f" (this store's Doppler is {doppler_kind}, which the rosbag loader does not "
+                 "take: results from its bag are not independent of the ground truth)")
+    return text
+
+
+def export_command(console, store: Path, fmt: str, out: Path | None, force: bool) -> None:
+    """``bench export``: write the bag, then print what it holds and how to read it back."""
+    summary = export_store(store, fmt, out, force)
+    seq = StoreSequence(store)
+    try:
+        back = reimport_command(summary, seq.name, seq.sensor.kind, seq.sensor.model,
+                                seq.sensor.doppler_kind, seq.sensor.T_body_sensor)
+    finally:
+        seq.close()
+    console.print(
+        f"wrote {summary.path} ({summary.format}): {summary.frames} scans on {POINTS_TOPIC} "
+        f"(fields x y z {' '.join(summary.fields)}), {summary.gt_poses} ground-truth poses on "
+        f"{GT_TOPIC}, the extrinsic on {TF_TOPIC}, the description on {INFO_TOPIC}; "
+        f"{DOPPLER_SIGN}", markup=False)
+    console.print(f"read it back with: {back}", markup=False)

@@ -31,7 +31,7 @@ from bench.report.names import (
 )
 from bench.report.table import Cell, Part, Row, Table, rank_column, save_table
 from bench.runs.folders import RunRecord, load_runs
-from bench.runs.result import RunResult, nan
+from bench.runs.result import REPORTED_CLOCK, RunResult, nan
 from loaders.sensor_classes import class_rank
 from methods.registry import Seed
 from metrics.velocity import DEFAULT_WINDOW_S
@@ -179,10 +179,20 @@ def _caption(rows: list[RunRow], text: str) -> str:
             + SEED_NOTE)
 
 
+REPORTED_NOTE = ("A time marked [reported] is the external method's own figure, not measured by "
+                 "the harness: not ranked. ")
+
+
 def _time_cell(rr: RunRow) -> Cell:
     t = rr.result.time_ms.mean
-    part = Part(fmt_time(t, rr.result.threads))
-    return Cell([part], values={"time_ms_mean": t})
+    text = fmt_time(t, rr.result.threads)
+    if rr.result.clock == REPORTED_CLOCK and text != "-":
+        text += " [reported]"
+    return Cell([Part(text)], values={"time_ms_mean": t})
+
+
+def _timed_by_harness(rr: RunRow) -> bool:
+    return not rr.diverged and rr.result.clock != REPORTED_CLOCK
 
 
 def relative_table(rows: list[RunRow], lengths: list[float]) -> Table:
@@ -202,12 +212,13 @@ def relative_table(rows: list[RunRow], lengths: list[float]) -> Table:
     for i in range(len(lengths)):
         for part, q in ((0, "rot_deg_mean"), (1, "trans_m_mean")):
             rank_column(table.rows, i, part, lambda r, i=i, q=q: nan(r.cells[i].values[q]))
-    # a diverged run's time is real: shown, not ranked
-    ranked = [r for r, rr in zip(table.rows, rows, strict=True) if not rr.diverged]
+    # a diverged run's time is real: shown, not ranked; a time its method reported, too
+    ranked = [r for r, rr in zip(table.rows, rows, strict=True) if _timed_by_harness(rr)]
     rank_column(ranked, len(lengths), 0, lambda r: nan(r.cells[-1].values["time_ms_mean"]))
+    reported = REPORTED_NOTE if any(r.result.clock == REPORTED_CLOCK for r in rows) else ""
     table.caption = _caption(rows, "Each cell: mean rotation [deg] / translation [m] relative "
                              "error over the segments of each length (evo_rpe's definition). "
-                             + TIME_NOTE)
+                             + TIME_NOTE + " " + reported)
     return table
 
 

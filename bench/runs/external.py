@@ -31,6 +31,7 @@ from bench.runs.external_match import match_to_scans
 from bench.runs.folders import is_finished, run_dir_name, write_run
 from bench.runs.identity import code_identity, run_key, store_identity
 from bench.runs.job import calibration_frames, sequence_folder, sequence_labels
+from bench.runs.result import REPORTED_CLOCK
 from loaders.errors import DataError
 from loaders.estimate import read_estimate
 from loaders.gt import STAMP_TOLERANCE_S, gt_for_frames
@@ -41,7 +42,6 @@ from methods.registry import METHODS
 
 #: the label mark of an external run, and its clocks
 EXTERNAL = "external"
-REPORTED_CLOCK = "reported by the method"
 NOT_TIMED = ("not timed: the trajectory was made outside the harness and came without "
              "per-frame times")
 DEFAULT_OUT = Path("results/external")

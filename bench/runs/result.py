@@ -31,6 +31,9 @@ from methods.registry import Seed
 SCHEMA = 2
 
 Num = float | None  # a statistic; None = no value (NaN / infinite / nothing to measure)
+#: ``RunResult.clock`` of a run whose per-frame times its method reported (an external
+#: trajectory scored by ``bench score``): shown, never ranked against the harness's clock
+REPORTED_CLOCK = "reported by the method"
 
 
 def num(x) -> float | None:
