@@ -179,8 +179,8 @@ def score(
     time_offset: Annotated[float, typer.Option(
         help="est_stamp + offset = the store's scan clock [s]")] = 0.0,
     tolerance: Annotated[float, typer.Option(
-        metavar="SECONDS", help="a scan within this of an estimated pose takes that pose [s]; the others are "
-        "interpolated")] = 1e-4,
+        metavar="SECONDS", help="a scan within this of an estimated pose takes that pose [s]; "
+        "the others are interpolated")] = 1e-4,
     max_gap: Annotated[float | None, typer.Option(
         help="largest gap between estimated poses interpolated across [s] (default: 3 median "
         "steps of the estimate)")] = None,
