@@ -174,7 +174,8 @@ def fmt_time(x: float | None, threads: int = 1) -> str:
 def _caption(rows: list[RunRow], text: str) -> str:
     failed = FAILED_NOTE + " " if any(r.failed for r in rows) else ""
     return (synthetic_note(r.sequence for r in rows) + gt_assisted_note(r.label for r in rows)
-            + text + " " + hosts_note(r.result.cpu for r in rows if r.result.finished)
+            + text + " " + hosts_note(r.result.cpu for r in rows
+                                      if r.result.finished and r.result.timed_by_harness)
             + "Best per sequence in bold, second underlined; Div. = diverged; " + failed
             + SEED_NOTE)
 

@@ -31,7 +31,7 @@ from bench.runs.external_match import match_to_scans
 from bench.runs.folders import is_finished, run_dir_name, write_run
 from bench.runs.identity import code_identity, run_key, store_identity
 from bench.runs.job import calibration_frames, sequence_folder, sequence_labels
-from bench.runs.result import REPORTED_CLOCK
+from bench.runs.result import EXTERNAL_MARK, REPORTED_CLOCK
 from loaders.errors import DataError
 from loaders.estimate import read_estimate
 from loaders.gt import STAMP_TOLERANCE_S, gt_for_frames
@@ -192,7 +192,7 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
                          "doppler_kind": seq.sensor.doppler_kind},
             "method": {"name": name, "description": f"external trajectory {where}",
                        "uses_initial_guess": False, "params": {}},
-            "label": f"{name} ({EXTERNAL})", "seed": None,
+            "label": f"{name} {EXTERNAL_MARK}", "seed": None,
             "lengths_m": list(scoring.lengths_m),
             "kitti_lengths_m": list(scoring.kitti_lengths_m), "alignment": scoring.alignment,
             "external": {"trajectory": str(spec.trajectory), "format": spec.fmt,

@@ -34,6 +34,8 @@ Num = float | None  # a statistic; None = no value (NaN / infinite / nothing to 
 #: ``RunResult.clock`` of a run whose per-frame times its method reported (an external
 #: trajectory scored by ``bench score``): shown, never ranked against the harness's clock
 REPORTED_CLOCK = "reported by the method"
+#: the end of an external run's label ("NAME (external)", ``bench.runs.external``)
+EXTERNAL_MARK = "(external)"
 
 
 def num(x) -> float | None:
@@ -196,6 +198,12 @@ class RunResult(_Model):
     def scored(self) -> bool:
         """Finished with ground truth (has relative errors)."""
         return self.finished and self.diverged is not None and bool(self.relative_error)
+
+    @property
+    def timed_by_harness(self) -> bool:
+        """Its times were measured by the harness (not an external run's: not timed, or
+        ``REPORTED_CLOCK``), so its CPU model matters beside the others'."""
+        return self.clock != REPORTED_CLOCK and self.time_ms.mean is not None
 
     @property
     def seed_option(self) -> bool | None:
