@@ -77,5 +77,6 @@ def match_to_scans(est: Trajectory, scan_stamps: np.ndarray, *, time_offset_s: f
             f"{time_span(s)} (offset {time_offset_s:+.3f} s applied), the {len(q)} scans span "
             f"{time_span(q)} (a scan needs a pose within {tolerance_s:g} s, or two poses at most "
             f"{gap:g} s apart around it); different clocks? "
-            + offset_hint(s, q).replace("gt_stamp", "est_stamp"))
+            + offset_hint(s, q).replace("gt_stamp", "est_stamp")
+            .replace("the ground truth's clock", "the estimate's clock"))
     return Matched(out, covered, matched, report)
