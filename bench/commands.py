@@ -156,6 +156,8 @@ def score_command(console: Console, store: Path, spec, out: Path, force: bool,
                   f"{c['tolerance_s']:g} s, {c['interpolated']} interpolated)"
                   + (" (unchanged: not scored again; --force to)" if outcome.status == "skipped"
                      else ""), markup=False)
+    console.print(f"poses moved to the sensor frame by T_frame_sensor = {outcome.frame}",
+                  markup=False)
     run = read_run(outcome.run_dir)
     if run is not None:
         console.print(f"timing: {run.result.clock_note}", markup=False)

@@ -201,6 +201,26 @@ def test_poses_of_the_body_frame_with_the_stores_extrinsic(tmp_path):
     wrong = read_run(score_external(store, ExternalSpec(path, "wrong"),  # taken as the sensor's
                                     tmp_path / "r").run_dir).result
     assert wrong.relative(8.0).trans_m_mean > 0.01
+    # the same body poses as a ROS1 bag's nav_msgs/Odometry topic: `bench export` writes the
+    # GT that way (T_world_body of base_link)
+    from bench.data.export import export_store
+
+    bag = export_store(store, "ros1", tmp_path / "ext.bag").path
+    odom = score_external(store, ExternalSpec(bag, "odom", topic="/ground_truth",
+                                              pose_frame="body"), tmp_path / "r")
+    assert odom.coverage["matched"] == 40 and odom.frame == "the store's T_body_sensor"
+    res = read_run(odom.run_dir).result
+    assert res.relative(8.0).trans_m_mean < 1e-9 and res.ape.trans_rmse_m < 1e-9
+
+
+def test_a_kitti_file_with_its_stamps_scores_as_its_tum_twin(data, tmp_path):
+    store, _, doppler_dir = data
+    est = read_tum(doppler_dir / "est_tum.txt")
+    stamps = tmp_path / "times.txt"
+    stamps.write_text("".join(f"{t:.17g}\n" for t in est.stamps))
+    out = score_external(store, ExternalSpec(doppler_dir / "est_kitti.txt", "kitti",
+                                             stamps=stamps), tmp_path / "r")
+    assert_same_metrics(read_run(doppler_dir).result, read_run(out.run_dir).result, rel=1e-9)
 
 
 def test_identity_reuses_an_unchanged_run_and_rescores_a_changed_file(data, tmp_path):
@@ -274,6 +294,7 @@ def test_cli_scores_and_bad_input_is_one_message(data, tmp_path, capsys, monkeyp
     assert code == 0, out
     assert "cli-ext: 60 of the 60 scans with ground truth scored (100.0 %" in out
     assert "timing: not timed" in out and "8 m: " in out
+    assert "T_frame_sensor = identity (poses of the sensor)" in out
     metrics = json.loads((tmp_path / "r" / "twist" / "cli-ext" / "metrics.json").read_text())
     assert metrics["label"] == "cli-ext (external)"
     bad = tmp_path / "bad.tum"

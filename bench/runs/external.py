@@ -74,6 +74,7 @@ class ExternalOutcome:
     run_dir: Path
     status: str  # "done" or "skipped" (same run key)
     coverage: dict = field(default_factory=dict)
+    frame: str = ""  # how the poses were moved to the sensor (T_frame_sensor)
 
 
 def file_sha256(path: Path | None) -> str | None:
@@ -164,7 +165,7 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
             "code_sha256": code_identity(), "external_code_sha256": _own_code()}
         key = run_key(identity)
         if is_finished(run_dir, key) and not force:
-            return ExternalOutcome(run_dir, "skipped", coverage)
+            return ExternalOutcome(run_dir, "skipped", coverage, how)
         idx = np.flatnonzero(m.covered)
         row_times = _frame_times(est.frame_times_ms, est.trajectory.stamps + spec.time_offset_s,
                                  stamps, m)
@@ -203,7 +204,7 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
                          "coverage": coverage},
             "run_key": key, "identity": identity}
         write_run(run_dir, result, evaluation.gt, config, metrics, notes)
-        return ExternalOutcome(run_dir, "done", coverage)
+        return ExternalOutcome(run_dir, "done", coverage, how)
     finally:
         seq.close()
 
