@@ -75,6 +75,7 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
             exp = exp.model_copy(update=given)
         if out is not None:
             exp.out = out
+        check_external(exp, experiment)
         job_list = plan(jobs_for_experiment(exp, console))
         workers, results_dir = jobs or exp.jobs, exp.out_dir
         sweeps = sweep_index(exp, job_list)
@@ -90,7 +91,9 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
         workers, results_dir, sweeps = 1, None, None
     outcomes = run_jobs(job_list, console, workers, force, executor, job_timeout, scheduler)
     console.print(summarize(outcomes), markup=False)
-    if results_dir is not None and any(o.status in ("done", "skipped") for o in outcomes):
+    external = external_runs(exp, force, console) if experiment is not None else []
+    if results_dir is not None and (any(o.status in ("done", "skipped") for o in outcomes)
+                                    or any(status != "failed" for _, status, _ in external)):
         from bench.report.tables import write_tables
 
         # tables are never wrapped mid-row (a terminal narrower than a row scrolls instead)
@@ -99,7 +102,30 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
             print_sweeps(results_dir, sweeps, console)
     elif results_dir is None and outcomes and outcomes[0].run_dir is not None:
         print_run_summary(outcomes[0].run_dir, console)
-    return 1 if any(o.status not in ("done", "skipped") for o in outcomes) else 0
+    return 1 if any(o.status not in ("done", "skipped") for o in outcomes) or \
+        any(status == "failed" for _, status, _ in external) else 0
+
+
+def check_external(exp, experiment: Path) -> None:
+    """Every file an ``external`` entry names exists (one clear error before anything runs)."""
+    for i, e in enumerate(exp.external):
+        for key in ("trajectory", "store", "stamps", "frame_times"):
+            path = getattr(e, key)
+            if path is not None and not Path(path).exists():
+                raise DataError(f"{experiment}: external[{i}] ({e.name}): {key} {path} not found")
+
+
+def external_runs(exp, force: bool, console: Console) -> list[tuple[str, str, str]]:
+    """Score the experiment's ``external`` trajectories (``bench score`` for each) and say how
+    each went."""
+    if not exp.external:
+        return []
+    from bench.runs.external import score_experiment_external
+
+    done = score_experiment_external(exp, force)
+    for name, status, message in done:
+        console.print(f"external {name}: {status}: {message}", markup=False)
+    return done
 
 
 def print_sweeps(results_dir: Path, index: dict, console: Console) -> None:

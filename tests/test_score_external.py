@@ -305,3 +305,32 @@ def test_cli_scores_and_bad_input_is_one_message(data, tmp_path, capsys, monkeyp
     code, out = _bench(["score", str(doppler_dir / "est_tum.txt"), "--store", str(store),
                         "--name", "x", "--pose-frame", "world"], capsys, monkeypatch)
     assert code == 2 and "--pose-frame 'world': expected sensor or body" in out
+
+
+def test_an_experiment_scores_its_external_trajectories(data, tmp_path, capsys, monkeypatch):
+    import yaml
+
+    store, _, doppler_dir = data
+    est = shutil.copy(doppler_dir / "est_tum.txt", tmp_path / "odom.tum")
+    exp = tmp_path / "exp.yaml"
+    entry = {"name": "odom", "trajectory": "odom.tum", "store": str(store)}
+    exp.write_text(yaml.safe_dump({
+        "name": "e", "out": "out", "sequences": [{"path": str(store), "name": "twist-exp"}],
+        "methods": [{"name": "doppler"}], "external": [entry]}))
+    code, out = _bench(["run", str(exp), "--executor", "local"], capsys, monkeypatch)
+    assert code == 0, out
+    assert "external odom: done: " in out and "(100.0 %)" in out
+    assert "| odom (external) |" in out  # in the experiment's table
+    runs = tmp_path / "out" / "twist-exp"
+    assert_same_metrics(read_run(runs / "doppler").result, read_run(runs / "odom").result,
+                        rel=1e-9)
+    assert read_run(runs / "odom").result.sequence == "twist-exp"
+    code, out = _bench(["run", str(exp), "--executor", "local"], capsys, monkeypatch)
+    assert code == 0 and "external odom: skipped" in out  # unchanged: reused
+    Path(est).unlink()
+    code, out = _bench(["run", str(exp), "--executor", "local"], capsys, monkeypatch)
+    assert code == 2 and "external[0] (odom): trajectory" in out and "not found" in out
+    exp.write_text(yaml.safe_dump({"name": "e", "sequences": [{"path": str(store)}],
+                                   "methods": [], "external": [{**entry, "name": "doppler"}]}))
+    code, out = _bench(["run", str(exp)], capsys, monkeypatch)
+    assert code == 2 and "'doppler' is a method of the harness" in out

@@ -121,9 +121,11 @@ def frame_transform(spec: ExternalSpec, T_body_sensor: np.ndarray) -> tuple[np.n
 
 
 def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
-                   scoring: Scoring | None = None, force: bool = False) -> ExternalOutcome:
+                   scoring: Scoring | None = None, force: bool = False,
+                   names: dict | None = None) -> ExternalOutcome:
     """Score ``spec``'s trajectory against ``store``'s ground truth into a run folder
-    (``out``/<sequence>/<name>; ``out`` default results/external)."""
+    (``out``/<sequence>/<name>; ``out`` default results/external). ``names``: the sequence's
+    name, display_name and sensor_class in an experiment (default: the store's)."""
     name = check_name(spec.name)
     scoring = scoring or Scoring()
     est = read_estimate(spec.trajectory, spec.fmt, spec.stamps, spec.topic, spec.frame_times)
@@ -132,8 +134,8 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         if seq.ground_truth is None:
             raise DataError(f"{store}: the store has no ground truth; nothing to score "
                             f"{spec.trajectory} against")
-        seq_name, display, klass = sequence_labels(
-            seq, SimpleNamespace(name=None, display_name=None, sensor_class=None))
+        given = {"name": None, "display_name": None, "sensor_class": None, **(names or {})}
+        seq_name, display, klass = sequence_labels(seq, SimpleNamespace(**given))
         run_dir = Path(out or DEFAULT_OUT) / sequence_folder(seq_name) / run_dir_name(name, None)
         T_frame_sensor, how = frame_transform(spec, seq.sensor.T_body_sensor)
         stamps = seq.stamps
@@ -235,3 +237,32 @@ def _notes(coverage: dict, reported: bool) -> list[str]:
     if not reported:
         notes.append(NOT_TIMED)
     return notes
+
+
+def score_experiment_external(exp, force: bool = False) -> list[tuple[str, str, str]]:
+    """Score every ``external`` entry of an experiment (``bench.runs.experiment``) into its
+    results folder with its scoring settings, filed under the sequence entry of the same
+    store; returns (name, status "done" / "skipped" / "failed", message) per entry: a failing
+    entry is reported, the others carry on."""
+    from bench.runs.experiment import expand_sequences
+
+    entries = {Path(s.path).resolve(): s for s in expand_sequences(exp.sequences, lambda t: None)}
+    scoring = Scoring(tuple(exp.lengths_m), tuple(exp.kitti_lengths_m), exp.alignment)
+    done = []
+    for e in exp.external:
+        seq = entries.get(Path(e.store).resolve())
+        names = None if seq is None else {"name": seq.name, "display_name": seq.display_name,
+                                          "sensor_class": seq.sensor_class}
+        spec = ExternalSpec(e.trajectory, e.name, e.format, e.stamps, e.topic, e.frame_times,
+                            e.time_offset_s, e.tolerance_s, e.max_gap_s, e.pose_frame,
+                            e.extrinsic)
+        try:
+            o = score_external(e.store, spec, exp.out_dir, scoring, force, names)
+        except DataError as err:
+            done.append((e.name, "failed", str(err)))
+            continue
+        c = o.coverage
+        done.append((e.name, o.status, f"{o.run_dir}: {c['scored']} of the "
+                     f"{c['scans_with_gt']} scans with ground truth scored "
+                     f"({100 * c['share_scored']:.1f} %)"))
+    return done
