@@ -216,10 +216,10 @@ def relative_table(rows: list[RunRow], lengths: list[float]) -> Table:
     # a diverged run's time is real: shown, not ranked; a time its method reported, too
     ranked = [r for r, rr in zip(table.rows, rows, strict=True) if _timed_by_harness(rr)]
     rank_column(ranked, len(lengths), 0, lambda r: nan(r.cells[-1].values["time_ms_mean"]))
-    reported = REPORTED_NOTE if any(r.result.clock == REPORTED_CLOCK for r in rows) else ""
+    reported = any(r.result.clock == REPORTED_CLOCK for r in rows)
     table.caption = _caption(rows, "Each cell: mean rotation [deg] / translation [m] relative "
                              "error over the segments of each length (evo_rpe's definition). "
-                             + TIME_NOTE + " " + reported)
+                             + TIME_NOTE + (" " + REPORTED_NOTE.rstrip() if reported else ""))
     return table
 
 
