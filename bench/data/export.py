@@ -20,7 +20,8 @@ Formats: ``ros1`` (one ``.bag`` file), ``ros2`` (a rosbag2 folder, sqlite3 stora
 read from the store, serialised and written at a time, so memory stays flat in the sequence
 length. Atomic: the bag is written beside its destination under a temporary name and renamed
 when complete. ``bench convert rosbag`` reads it back to the same store contents
-(``reimport_command`` prints the exact command).
+(``reimport_command`` prints the exact command). The messages and the writer over rosbags'
+formats: ``bench.data.bag_messages``.
 """
 
 from __future__ import annotations
@@ -34,6 +35,19 @@ from pathlib import Path
 
 import numpy as np
 
+from bench.data.bag_messages import (
+    BODY_FRAME,
+    CLOUD,
+    ODOM,
+    SENSOR_FRAME,
+    STRING,
+    TF,
+    WORLD_FRAME,
+    BagWriter,
+    cloud_msg,
+    odometry_msg,
+    tf_static_msg,
+)
 from loaders.errors import DataError
 from loaders.fileio import atomic_path
 from loaders.se3 import inv_T, tum_from_T
@@ -44,13 +58,10 @@ POINTS_TOPIC = "/points"
 GT_TOPIC = "/ground_truth"
 TF_TOPIC = "/tf_static"
 INFO_TOPIC = "/doppler_bench/description"
-WORLD_FRAME, BODY_FRAME, SENSOR_FRAME = "world", "base_link", "sensor"
 #: the Doppler sign of the exported field (the harness's: positive = receding)
 DOPPLER_SIGN = ("doppler [m/s]: radial velocity of the point relative to the sensor, positive "
                 "when the point recedes (moves away from the sensor); a static point ahead of "
                 "a forward-moving sensor reads negative")
-CLOUD, ODOM, TF, STRING = ("sensor_msgs/msg/PointCloud2", "nav_msgs/msg/Odometry",
-                           "tf2_msgs/msg/TFMessage", "std_msgs/msg/String")
 
 
 @dataclass(frozen=True)
@@ -67,114 +78,6 @@ def default_out(store: Path, fmt: str) -> Path:
     store = Path(store)
     return store.with_suffix(".bag") if fmt == "ros1" else \
         store.with_name(f"{store.stem}_{fmt}")
-
-
-def _sec_nsec(t: float) -> tuple[int, int]:
-    sec = int(np.floor(t))
-    nsec = int(round((t - sec) * 1e9))
-    return (sec + 1, nsec - 1_000_000_000) if nsec >= 1_000_000_000 else (sec, nsec)
-
-
-class _Bag:
-    """One writer interface over rosbags' ROS1 and rosbag2 writers (serialisation included)."""
-
-    def __init__(self, path: Path, fmt: str) -> None:
-        from rosbags.typesys import Stores, get_typestore
-
-        self.ros1 = fmt == "ros1"
-        self.store = get_typestore(Stores.ROS1_NOETIC if self.ros1 else Stores.ROS2_HUMBLE)
-        if TF not in self.store.types:  # rosbags' ROS1 store lacks tf2_msgs: its one-line def
-            from rosbags.typesys import get_types_from_msg
-
-            self.store.register(get_types_from_msg(
-                "geometry_msgs/TransformStamped[] transforms", TF))
-        if self.ros1:
-            from rosbags.rosbag1 import Writer
-
-            self.writer = Writer(path)
-        else:
-            from rosbags.rosbag2 import StoragePlugin, Writer
-
-            plugin = StoragePlugin.MCAP if fmt == "mcap" else StoragePlugin.SQLITE3
-            self.writer = Writer(path, version=9, storage_plugin=plugin)
-        self.writer.open()
-        self.seq = 0
-
-    def connection(self, topic: str, msgtype: str, latched: bool = False):
-        kw = {"latching": 1} if self.ros1 and latched else {}
-        return self.writer.add_connection(topic, msgtype, typestore=self.store, **kw)
-
-    def header(self, t: float, frame: str):
-        T = self.store.types
-        sec, nsec = _sec_nsec(t)
-        stamp = T["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec)
-        self.seq += 1
-        if self.ros1:
-            return T["std_msgs/msg/Header"](seq=self.seq, stamp=stamp, frame_id=frame)
-        return T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
-
-    def write(self, conn, t: float, msg) -> None:
-        data = (self.store.serialize_ros1(msg, conn.msgtype) if self.ros1
-                else self.store.serialize_cdr(msg, conn.msgtype))
-        sec, nsec = _sec_nsec(t)
-        self.writer.write(conn, sec * 1_000_000_000 + nsec, data)
-
-    def close(self) -> None:
-        self.writer.close()
-
-
-def cloud_msg(bag: _Bag, t: float, points: np.ndarray, values: dict[str, np.ndarray]):
-    """A PointCloud2 of float32 fields x, y, z and ``values`` (packed, little-endian)."""
-    T = bag.store.types
-    names = ["x", "y", "z", *values]
-    dtype = np.dtype({"names": names, "formats": ["<f4"] * len(names),
-                      "offsets": [4 * i for i in range(len(names))], "itemsize": 4 * len(names)})
-    arr = np.empty(len(points), dtype=dtype)
-    for k, axis in enumerate("xyz"):
-        arr[axis] = points[:, k]
-    for name, v in values.items():
-        arr[name] = v
-    PF = T["sensor_msgs/msg/PointField"]  # datatype 7: FLOAT32
-    return T[CLOUD](
-        header=bag.header(t, SENSOR_FRAME), height=1, width=len(arr),
-        fields=[PF(name=n, offset=4 * i, datatype=7, count=1)
-                for i, n in enumerate(names)],
-        is_bigendian=False, point_step=dtype.itemsize, row_step=dtype.itemsize * len(arr),
-        data=np.frombuffer(arr.tobytes(), dtype=np.uint8), is_dense=True)
-
-
-def _pose(T, pose: np.ndarray):
-    xyz, quat = tum_from_T(pose[None])
-    (x, y, z), (qx, qy, qz, qw) = xyz[0], quat[0]
-    return T["geometry_msgs/msg/Pose"](
-        position=T["geometry_msgs/msg/Point"](x=float(x), y=float(y), z=float(z)),
-        orientation=T["geometry_msgs/msg/Quaternion"](x=float(qx), y=float(qy), z=float(qz),
-                                                      w=float(qw)))
-
-
-def odometry_msg(bag: _Bag, t: float, T_world_body: np.ndarray):
-    T = bag.store.types
-    cov = np.zeros(36)
-    zero = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
-    return T[ODOM](
-        header=bag.header(t, WORLD_FRAME), child_frame_id=BODY_FRAME,
-        pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=_pose(T, T_world_body),
-                                                       covariance=cov),
-        twist=T["geometry_msgs/msg/TwistWithCovariance"](
-            twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=cov))
-
-
-def tf_static_msg(bag: _Bag, t: float, T_body_sensor: np.ndarray):
-    T = bag.store.types
-    xyz, quat = tum_from_T(np.asarray(T_body_sensor, dtype=np.float64)[None])
-    (x, y, z), (qx, qy, qz, qw) = xyz[0], quat[0]
-    tf = T["geometry_msgs/msg/TransformStamped"](
-        header=bag.header(t, BODY_FRAME), child_frame_id=SENSOR_FRAME,
-        transform=T["geometry_msgs/msg/Transform"](
-            translation=T["geometry_msgs/msg/Vector3"](x=float(x), y=float(y), z=float(z)),
-            rotation=T["geometry_msgs/msg/Quaternion"](x=float(qx), y=float(qy), z=float(qz),
-                                                       w=float(qw))))
-    return T[TF](transforms=[tf])
 
 
 def description(seq: StoreSequence, store: Path, fields: list[str]) -> dict:
@@ -198,7 +101,7 @@ def description(seq: StoreSequence, store: Path, fields: list[str]) -> dict:
 def write_bag(seq: StoreSequence, store: Path, path: Path, fmt: str,
               progress: Callable[[int], None] | None = None) -> ExportSummary:
     """Write ``seq`` to a new bag at ``path`` (must not exist), one scan at a time."""
-    bag = _Bag(path, fmt)
+    bag = BagWriter(path, fmt)
     try:
         stamps = seq.stamps
         T_bs = np.asarray(seq.sensor.T_body_sensor, dtype=np.float64)

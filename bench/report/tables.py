@@ -181,7 +181,7 @@ def _caption(rows: list[RunRow], text: str) -> str:
 
 
 REPORTED_NOTE = ("A time marked [reported] is the external method's own figure, not measured by "
-                 "the harness: not ranked. ")
+                 "the harness: not ranked.")
 
 
 def _time_cell(rr: RunRow) -> Cell:
@@ -219,7 +219,7 @@ def relative_table(rows: list[RunRow], lengths: list[float]) -> Table:
     reported = any(r.result.clock == REPORTED_CLOCK for r in rows)
     table.caption = _caption(rows, "Each cell: mean rotation [deg] / translation [m] relative "
                              "error over the segments of each length (evo_rpe's definition). "
-                             + TIME_NOTE + (" " + REPORTED_NOTE.rstrip() if reported else ""))
+                             + TIME_NOTE + (" " + REPORTED_NOTE if reported else ""))
     return table
 
 
