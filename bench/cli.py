@@ -165,7 +165,8 @@ def score(
     store: Annotated[Path, typer.Option(help="the store whose ground truth it is scored "
                                              "against")],
     name: Annotated[str, typer.Option(help="the run's name (its folder and row label)")],
-    out: Annotated[Path, typer.Option(help="results root: the run goes to OUT/SEQUENCE/NAME")]
+    out: Annotated[Path, typer.Option(
+        metavar="RESULTS_DIR", help="results root: the run goes to RESULTS_DIR/SEQUENCE/NAME")]
     = Path("results/external"),
     format: Annotated[str, typer.Option("--format", metavar="auto|tum|kitti|bag",
                                         help="the trajectory's format")] = "auto",
@@ -217,7 +218,8 @@ def export(
         "--format", metavar="ros1|ros2|mcap", help="ros1 (.bag), ros2 (rosbag2 folder, sqlite3) "
         "or mcap (rosbag2 folder, mcap)")] = "mcap",
     out: Annotated[Path | None, typer.Option(
-        help="bag to write (default: STORE.bag, STORE_ros2/ or STORE_mcap/)")] = None,
+        metavar="BAG", help="bag to write (default: STORE.bag, STORE_ros2/ or STORE_mcap/)")]
+    = None,
     force: Annotated[bool, typer.Option(help="replace an existing bag")] = False,
 ) -> None:
     """Write a store as a ROS bag: /points (PointCloud2: x y z doppler and the stored fields;
