@@ -108,6 +108,13 @@ def test_tf_static_holds_the_extrinsic_and_the_description_the_doppler_sign(stor
     assert text["fields"] == ["x", "y", "z", "doppler", "intensity", "power"]
     odom = _topic_messages(out, GT_TOPIC)
     assert odom[0].header.frame_id == "world" and odom[0].child_frame_id == "base_link"
+    if fmt == "mcap":  # a node started after playback began still gets the extrinsic
+        from rosbags.highlevel import AnyReader
+        from rosbags.interfaces import QosDurability
+
+        with AnyReader([out]) as reader:
+            (conn,) = [c for c in reader.connections if c.topic == TF_TOPIC]
+            assert conn.ext.offered_qos_profiles[0].durability == QosDurability.TRANSIENT_LOCAL
     clouds = _topic_messages(out, POINTS_TOPIC)
     assert [f.name for f in clouds[0].fields] == ["x", "y", "z", "doppler", "intensity",
                                                    "power"]

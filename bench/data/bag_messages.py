@@ -47,7 +47,9 @@ class BagWriter:
         self.seq = 0
 
     def connection(self, topic: str, msgtype: str, latched: bool = False):
-        kw = {"latching": 1} if self.ros1 and latched else {}
+        kw = {}
+        if latched:  # ROS1 latched; ROS2 transient local, depth 1 (as tf_static's publisher)
+            kw = {"latching": 1} if self.ros1 else {"offered_qos_profiles": [latched_qos()]}
         return self.writer.add_connection(topic, msgtype, typestore=self.store, **kw)
 
     def header(self, t: float, frame: str):
@@ -121,3 +123,18 @@ def tf_static_msg(bag: BagWriter, t: float, T_body_sensor: np.ndarray):
             rotation=T["geometry_msgs/msg/Quaternion"](x=float(qx), y=float(qy), z=float(qz),
                                                        w=float(qw))))
     return T[TF](transforms=[tf])
+
+
+def latched_qos():
+    """rosbag2's offered QoS of a latched topic: reliable, transient local, keep last 1."""
+    from rosbags.interfaces import (
+        Qos,
+        QosDurability,
+        QosHistory,
+        QosLiveliness,
+        QosReliability,
+        QosTime,
+    )
+
+    return Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL,
+               QosTime(0, 0), QosTime(0, 0), QosLiveliness.AUTOMATIC, QosTime(0, 0), False)
