@@ -1,5 +1,5 @@
 """The ``bench`` command line: list, datasets, synth, convert, inspect, calibrate,
-calibrate-coverage, run, table, figures, speed, reproduce.
+calibrate-coverage, run, score, export, table, figures, speed, reproduce.
 
 Exit codes: 0 when everything asked for succeeded, 1 when any run failed (the summary lists
 them), 2 for a user error (bad input, option or YAML; one message, no traceback), 130 after
@@ -187,6 +187,79 @@ def run(
                                  _parse_params(param), jobs, force, executor, scheduler,
                                  job_timeout, scoring_options(lengths, kitti_lengths,
                                                               alignment)))
+
+
+@app.command(short_help="score a trajectory made elsewhere as a run")
+def score(
+    trajectory: Annotated[Path, typer.Argument(
+        help="TUM file (t x y z qx qy qz qw [time_ms]), KITTI pose file (with --stamps) or a "
+        "bag (ROS1 .bag, ROS2 folder, .db3, .mcap) with an Odometry / PoseStamped topic")],
+    store: Annotated[Path, typer.Option(help="the store whose ground truth it is scored "
+                                             "against")],
+    name: Annotated[str, typer.Option(help="the run's name (its folder and row label)")],
+    out: Annotated[Path, typer.Option(
+        metavar="RESULTS_DIR", help="results root: the run goes to RESULTS_DIR/SEQUENCE/NAME")]
+    = Path("results/external"),
+    format: Annotated[str, typer.Option("--format", metavar="auto|tum|kitti|bag",
+                                        help="the trajectory's format")] = "auto",
+    stamps: Annotated[Path | None, typer.Option(
+        help="KITTI: the stamps file, one stamp [s] per pose row")] = None,
+    topic: Annotated[str | None, typer.Option(
+        help="bag: the pose topic (default: its only Odometry / PoseStamped topic)")] = None,
+    frame_times: Annotated[Path | None, typer.Option(
+        help="the method's own time of each pose row [ms], one a line (shown as reported by "
+        "the method; without it the run is not timed)")] = None,
+    time_offset: Annotated[float, typer.Option(
+        help="est_stamp + offset = the store's scan clock [s]")] = 0.0,
+    tolerance: Annotated[float, typer.Option(
+        metavar="SECONDS", help="a scan within this of an estimated pose takes that pose [s]; "
+        "the others are interpolated")] = 1e-4,
+    max_gap: Annotated[float | None, typer.Option(
+        help="largest gap between estimated poses interpolated across [s] (default: 3 median "
+        "steps of the estimate)")] = None,
+    pose_frame: Annotated[str, typer.Option(
+        help="the frame the poses are given in: sensor, or body (the store's T_body_sensor "
+        "moves them to the sensor)")] = "sensor",
+    extrinsic: Annotated[str | None, typer.Option(
+        help="T_frame_sensor: the sensor in the frame of the poses, 'x y z qx qy qz qw' or 16 "
+        "numbers (overrides --pose-frame)")] = None,
+    force: Annotated[bool, typer.Option(help="score again even when unchanged")] = False,
+    lengths: Annotated[str | None, typer.Option(
+        help="relative-error segment lengths [m], comma separated (default 8,16,...,48)")] = None,
+    kitti_lengths: Annotated[str | None, typer.Option(
+        help="KITTI drift segment lengths [m] (default 100,200,...,800)")] = None,
+    alignment: Annotated[str | None, typer.Option(
+        help="APE alignment: none, origin, se3 (default), sim3, first-N, sim3-first-N")] = None,
+) -> None:
+    """Score a trajectory estimated elsewhere (another odometry, a ROS node) against a store's
+    ground truth, as a run of its own: the same metrics as `bench run`, in an ordinary run
+    folder that every table, figure, compare, regress and report shows."""
+    from bench.commands import score_command, scoring_options
+    from bench.runs.external import ExternalSpec
+
+    spec = ExternalSpec(trajectory, name, format, stamps, topic, frame_times, time_offset,
+                        tolerance, max_gap, pose_frame, extrinsic)
+    raise typer.Exit(score_command(console, store, spec, out, force,
+                                   scoring_options(lengths, kitti_lengths, alignment)))
+
+
+@app.command(short_help="a store as a ROS bag (ros1, ros2, mcap)")
+def export(
+    store: Annotated[Path, typer.Argument(help="store (.h5)")],
+    format: Annotated[str, typer.Option(
+        "--format", metavar="ros1|ros2|mcap", help="ros1 (.bag), ros2 (rosbag2 folder, sqlite3) "
+        "or mcap (rosbag2 folder, mcap)")] = "mcap",
+    out: Annotated[Path | None, typer.Option(
+        metavar="BAG", help="bag to write (default: STORE.bag, STORE_ros2/ or STORE_mcap/)")]
+    = None,
+    force: Annotated[bool, typer.Option(help="replace an existing bag")] = False,
+) -> None:
+    """Write a store as a ROS bag: /points (PointCloud2: x y z doppler and the stored fields;
+    doppler positive when the point recedes), /ground_truth (nav_msgs/Odometry of base_link),
+    /tf_static (base_link -> sensor) and /doppler_bench/description; one scan at a time."""
+    from bench.data.export import export_command
+
+    export_command(console, store, format, out, force)
 
 
 def _parse_params(items: list[str] | None) -> dict:
@@ -430,7 +503,10 @@ METAVARS = {"param": "KEY=VALUE", "option": "KEY=VALUE", "experiment": "EXPERIME
             "lengths": "8,48,...", "methods": "METHOD,...", "sizes": "N,...",
             "format": "md|tex|csv", "executor": "local|process|dask", "apply": "doppler|hand-eye",
             "min_speed": "M_PER_S", "threshold": "FRACTION", "tolerance": "FRACTION",
-            "run": "RUN_DIR", "a": "A", "b": "B"}
+            "run": "RUN_DIR", "a": "A", "b": "B", "trajectory": "TRAJECTORY",
+            "name": "NAME", "topic": "TOPIC", "frame_times": "TIMES.txt", "stamps": "STAMPS.txt",
+            "time_offset": "SECONDS", "max_gap": "SECONDS",
+            "pose_frame": "sensor|body", "extrinsic": "'X Y Z QX QY QZ QW'"}
 
 
 def tidy_help(command) -> None:

@@ -75,6 +75,7 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
             exp = exp.model_copy(update=given)
         if out is not None:
             exp.out = out
+        check_external(exp, experiment)
         job_list = plan(jobs_for_experiment(exp, console))
         workers, results_dir = jobs or exp.jobs, exp.out_dir
         sweeps = sweep_index(exp, job_list)
@@ -90,7 +91,9 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
         workers, results_dir, sweeps = 1, None, None
     outcomes = run_jobs(job_list, console, workers, force, executor, job_timeout, scheduler)
     console.print(summarize(outcomes), markup=False)
-    if results_dir is not None and any(o.status in ("done", "skipped") for o in outcomes):
+    external = external_runs(exp, force, console) if experiment is not None else []
+    if results_dir is not None and (any(o.status in ("done", "skipped") for o in outcomes)
+                                    or any(status != "failed" for _, status, _ in external)):
         from bench.report.tables import write_tables
 
         # tables are never wrapped mid-row (a terminal narrower than a row scrolls instead)
@@ -99,7 +102,30 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
             print_sweeps(results_dir, sweeps, console)
     elif results_dir is None and outcomes and outcomes[0].run_dir is not None:
         print_run_summary(outcomes[0].run_dir, console)
-    return 1 if any(o.status not in ("done", "skipped") for o in outcomes) else 0
+    return 1 if any(o.status not in ("done", "skipped") for o in outcomes) or \
+        any(status == "failed" for _, status, _ in external) else 0
+
+
+def check_external(exp, experiment: Path) -> None:
+    """Every file an ``external`` entry names exists (one clear error before anything runs)."""
+    for i, e in enumerate(exp.external):
+        for key in ("trajectory", "store", "stamps", "frame_times"):
+            path = getattr(e, key)
+            if path is not None and not Path(path).exists():
+                raise DataError(f"{experiment}: external[{i}] ({e.name}): {key} {path} not found")
+
+
+def external_runs(exp, force: bool, console: Console) -> list[tuple[str, str, str]]:
+    """Score the experiment's ``external`` trajectories (``bench score`` for each) and say how
+    each went."""
+    if not exp.external:
+        return []
+    from bench.runs.external import score_experiment_external
+
+    done = score_experiment_external(exp, force)
+    for name, status, message in done:
+        console.print(f"external {name}: {status}: {message}", markup=False)
+    return done
 
 
 def print_sweeps(results_dir: Path, index: dict, console: Console) -> None:
@@ -154,6 +180,30 @@ def print_run_summary(run_dir: Path, console: Console) -> None:
                           "(circular block bootstrap over the trajectory)", markup=False,
                           style="dim")
     console.print(f"run folder: {run_dir}", markup=False)
+
+
+def score_command(console: Console, store: Path, spec, out: Path, force: bool,
+                  scoring: dict) -> int:
+    """``bench score``: score an external trajectory (``bench.runs.external``), print its
+    coverage and key metrics."""
+    from bench.runs.evaluate import Scoring
+    from bench.runs.external import score_external
+
+    given = {k: v for k, v in scoring.items() if v is not None}
+    outcome = score_external(store, spec, out, Scoring(**given), force)
+    c = outcome.coverage
+    console.print(f"{spec.name}: {c['scored']} of the {c['scans_with_gt']} scans with ground "
+                  f"truth scored ({100 * c['share_scored']:.1f} %; {c['matched']} matched within "
+                  f"{c['tolerance_s']:g} s, {c['interpolated']} interpolated)"
+                  + (" (unchanged: not scored again; --force to)" if outcome.status == "skipped"
+                     else ""), markup=False)
+    console.print(f"poses moved to the sensor frame by T_frame_sensor = {outcome.frame}",
+                  markup=False)
+    run = read_run(outcome.run_dir)
+    if run is not None:
+        console.print(f"timing: {run.result.clock_note}", markup=False)
+    print_run_summary(outcome.run_dir, console)
+    return 0
 
 
 def synth_dispatch(console: Console, fidelity: bool, fidelity_out: Path, realism: bool,

@@ -250,19 +250,19 @@ def _pose_of(msg, msgtype: str) -> tuple[np.ndarray, np.ndarray]:
     return np.array([p.x, p.y, p.z]), np.array([q.x, q.y, q.z, q.w])
 
 
-def read_gt_topic(paths: list[Path], topic: str) -> Trajectory:
+def read_gt_topic(paths: list[Path], topic: str, what: str = "ground-truth") -> Trajectory:
     """``T_world_body`` from a pose topic of the bag(s), stamped by ``header.stamp`` and sorted
-    (record order is not stamp order)."""
+    (record order is not stamp order); ``what`` names the poses in errors."""
     reader = _any_reader(paths)
     try:
         conns = [c for c in reader.connections if c.topic == topic]
         if not conns:
             have = sorted(f"{c.topic} ({c.msgtype})" for c in reader.connections)
-            raise DataError(f"{', '.join(map(str, paths))}: no ground-truth topic {topic}; the "
+            raise DataError(f"{', '.join(map(str, paths))}: no {what} topic {topic}; the "
                             f"bag has {', '.join(have) or 'no topics'}")
         msgtype = conns[0].msgtype
         if msgtype not in POSE_TYPES:
-            raise DataError(f"{paths[0]}: ground-truth topic {topic} has type {msgtype}; "
+            raise DataError(f"{paths[0]}: {what} topic {topic} has type {msgtype}; "
                             f"expected one of {', '.join(POSE_TYPES)}")
         stamps, xyz, quat = [], [], []
         for conn, _, raw in reader.messages(connections=conns):
@@ -275,7 +275,7 @@ def read_gt_topic(paths: list[Path], topic: str) -> Trajectory:
     finally:
         reader.close()
     if not stamps:
-        raise DataError(f"{paths[0]}: ground-truth topic {topic} has no messages")
+        raise DataError(f"{paths[0]}: {what} topic {topic} has no messages")
     order = np.argsort(stamps, kind="stable")
     q = np.asarray(quat)[order]
     norms = np.linalg.norm(q, axis=1)

@@ -29,6 +29,7 @@ from bench.report.html_markdown import esc, markdown_html
 from bench.report.html_runs import PageRun, read_json, read_page_runs
 from bench.report.summary import cross_dataset
 from bench.report.table import to_markdown
+from bench.runs.result import REPORTED_CLOCK
 from loaders.fileio import atomic_write_text
 
 #: the page's name inside the results folder
@@ -206,7 +207,8 @@ def _provenance_section(runs: list[PageRun]) -> str:
         ("machine", _counts(f"{m.get('cpu', '?')}, {m.get('cpu_count', '?')} cores, "
                             f"host {m.get('host', '?')}, Python {m.get('python', '?')}"
                             if m else None for m in metas)),
-        ("clock", _counts(f"{r.clock} time, {r.threads or 1} thread(s)" if r.clock else None
+        ("clock", _counts((r.clock if r.clock == REPORTED_CLOCK else
+                           f"{r.clock} time, {r.threads or 1} thread(s)") if r.clock else None
                           for r in runs)),
         ("timing lock", _counts(m.get("timing_lock") or "default" for m in metas if m)),
         ("run dates", esc(f"{dates[0]} to {dates[-1]}") if dates else "not recorded"),

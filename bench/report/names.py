@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import re
 
+from bench.runs.result import EXTERNAL_MARK
 from methods.registry import SEED_NOTE, Seed, display_name, order_key
 
 __all__ = ["GT_ASSISTED", "SEED_NOTE", "display_name", "gt_assisted_note", "hosts_note",
@@ -75,8 +76,11 @@ def seed_tag(method: str, seed) -> str:
 def run_label(method: str, seed, label: str | None = None,
               doppler_kind: str | None = None) -> str:
     """A run's row / legend name, e.g. "(With Seed) DICP"; a labelled variant shows its label
-    after the tag; a run on GT-reconstructed Doppler ends in "[GT-assisted]"."""
+    after the tag; an external run (``bench score``) its label alone, "NAME (external)"; a run
+    on GT-reconstructed Doppler ends in "[GT-assisted]"."""
     mark = f" [{GT_ASSISTED}]" if is_gt_assisted(doppler_kind) else ""
+    if label and label.endswith(EXTERNAL_MARK):  # no motion prior of the harness's to name
+        return f"{label}{mark}"
     return f"({seed_tag(method, seed)}) {label or display_name(method)}{mark}"
 
 

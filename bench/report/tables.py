@@ -48,7 +48,7 @@ from bench.report.table import (
     stat_text,
 )
 from bench.runs.folders import RunRecord, load_runs
-from bench.runs.result import FALLBACK_LIMIT, RunResult, nan
+from bench.runs.result import FALLBACK_LIMIT, REPORTED_CLOCK, RunResult, nan
 from loaders.sensor_classes import class_rank
 from methods.registry import Seed
 from metrics.velocity import DEFAULT_WINDOW_S
@@ -209,7 +209,8 @@ def _caption(rows: list[RunRow], text: str, marks: str = "significance",
     shown = (f"[low, high] = the {100 * level:g} % confidence interval (circular block "
              "bootstrap over the trajectory, blocks at least one segment long). " if ci else "")
     return (synthetic_note(r.sequence for r in rows) + gt_assisted_note(r.label for r in rows)
-            + text + " " + shown + hosts_note(r.result.cpu for r in rows if r.result.finished)
+            + text + " " + shown + hosts_note(r.result.cpu for r in rows
+                                              if r.result.finished and r.result.timed_by_harness)
             + MARK_RULES[marks] + " Div. = diverged; " + failed + fell + SEED_NOTE)
 
 
@@ -224,10 +225,20 @@ def stat_part(value: float | None, ci, n_independent: int | None, units=None,
     return Part(stat_text(value, ci, n_independent, digits, show_ci), stat=stat)
 
 
+REPORTED_NOTE = ("A time marked [reported] is the external method's own figure, not measured by "
+                 "the harness: not ranked.")
+
+
 def _time_cell(rr: RunRow) -> Cell:
     t = rr.result.time_ms.mean
-    part = Part(fmt_time(t, rr.result.threads), stat=Stat(nan(t)))
-    return Cell([part], values={"time_ms_mean": t})
+    text = fmt_time(t, rr.result.threads)
+    if rr.result.clock == REPORTED_CLOCK and text != "-":
+        text += " [reported]"
+    return Cell([Part(text, stat=Stat(nan(t)))], values={"time_ms_mean": t})
+
+
+def _timed_by_harness(rr: RunRow) -> bool:
+    return not rr.diverged and rr.result.clock != REPORTED_CLOCK
 
 
 def _ci_values(name: str, ci) -> dict:
@@ -265,12 +276,14 @@ def relative_table(rows: list[RunRow], lengths: list[float], marks: str = "signi
     for i in range(len(lengths)):
         for part in (0, 1):
             mark_column(table.rows, i, part, marks)
-    # a diverged run's time is real: shown, not ranked
-    ranked = [r for r, rr in zip(table.rows, rows, strict=True) if not rr.diverged]
+    # a diverged run's time is real: shown, not ranked; a time its method reported, too
+    ranked = [r for r, rr in zip(table.rows, rows, strict=True) if _timed_by_harness(rr)]
     mark_column(ranked, len(lengths), 0, marks)
+    reported = any(r.result.clock == REPORTED_CLOCK for r in rows)
     table.caption = _caption(rows, "Each cell: mean rotation [deg] / translation [m] relative "
                              "error over the segments of each length (evo_rpe's definition). "
-                             + TIME_NOTE + " Times have no interval: marked by value.", marks, ci)
+                             + TIME_NOTE + " Times have no interval: marked by value."
+                             + (" " + REPORTED_NOTE if reported else ""), marks, ci)
     return table
 
 

@@ -35,7 +35,8 @@ def pivot_tables(rows: list[RunRow], lengths: list[float], marks: str = "signifi
                          "not run.")
         else:
             t.caption = (TIME_NOTE + " " + hosts_note(r.result.cpu for r in rows
-                                                      if r.result.finished)
+                                                      if r.result.finished
+                                                      and r.result.timed_by_harness)
                          + "Per sequence the fastest is bold, the second underlined (by "
                          "value: times have no interval); empty = not run.")
         tables.append(t)

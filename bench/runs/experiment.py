@@ -22,7 +22,11 @@
     out: results/paper-synthetic
 
 Unknown keys, unknown methods and unknown method parameters are errors. Relative paths
-(``data_dir``, ``out``, sequence ``path``s) are relative to the YAML file. A method entry may
+(``data_dir``, ``out``, sequence ``path``s, ``external`` files) are relative to the YAML file.
+``external:`` lists trajectories made elsewhere, scored after the runs as runs of their own
+(``bench score``: ``{name: my-odom, trajectory: odom.tum, store: data/real/Loop1_0.h5}`` and
+its options: format, stamps, topic, frame_times, time_offset_s, tolerance_s, max_gap_s,
+pose_frame, extrinsic). A method entry may
 carry a ``label`` (variants of one method: each its own folder and table row) and a
 ``sequences`` list (run it only on those sequences; glob patterns such as ``VoD*`` allowed).
 
@@ -175,6 +179,33 @@ class Criterion(_Strict):
     keep_default_within: float = Field(0.0, ge=0, lt=1)
 
 
+class ExternalEntry(_Strict):
+    """A trajectory made elsewhere, scored against ``store``'s ground truth after the jobs ran
+    (``bench.runs.external``; the options of ``bench score``). It is filed under the sequence
+    entry of the same store (its name), else the store's own name."""
+
+    name: str
+    trajectory: Path
+    store: Path
+    format: Literal["auto", "tum", "kitti", "bag"] = "auto"
+    stamps: Path | None = None
+    topic: str | None = None
+    frame_times: Path | None = None
+    time_offset_s: float = 0.0
+    tolerance_s: float = Field(1e-4, ge=0)
+    max_gap_s: float | None = Field(None, gt=0)
+    pose_frame: Literal["sensor", "body"] = "sensor"
+    extrinsic: str | None = None
+
+    @field_validator("name")
+    @classmethod
+    def _own_name(cls, v: str) -> str:
+        if v in METHODS:
+            raise ValueError(f"{v!r} is a method of the harness; an external run needs a name "
+                             "of its own")
+        return v
+
+
 class Experiment(_Strict):
     name: str
     suite: str | None = None
@@ -182,6 +213,8 @@ class Experiment(_Strict):
     sequences: list[SequenceEntry] = Field(default_factory=list)
     synthetic: list[SyntheticEntry] = Field(default_factory=list)
     methods: list[MethodEntry]
+    #: trajectories made elsewhere, scored beside the runs (``bench score``'s options)
+    external: list[ExternalEntry] = Field(default_factory=list)
     lengths_m: list[float] = Field(default_factory=lambda: list(DEFAULT_LENGTHS_M))
     #: KITTI drift's segment lengths [m] and the APE alignment (metrics.Alignment: none,
     #: origin, se3, sim3, first-N, sim3-first-N)
@@ -234,7 +267,11 @@ class Experiment(_Strict):
         return self.model_copy(update={
             "data_dir": at(self.data_dir),
             "out": at(self.out) if self.out is not None else None,
-            "sequences": [s.model_copy(update={"path": at(s.path)}) for s in self.sequences]})
+            "sequences": [s.model_copy(update={"path": at(s.path)}) for s in self.sequences],
+            "external": [e.model_copy(update={
+                key: at(getattr(e, key)) for key in ("trajectory", "store", "stamps",
+                                                     "frame_times")
+                if getattr(e, key) is not None}) for e in self.external]})
 
     @property
     def out_dir(self) -> Path:
@@ -258,7 +295,8 @@ def load_experiment(path: str | Path) -> Experiment:
 def _known_keys(loc: tuple) -> list[str] | None:
     """The keys of the experiment model at ``loc`` (for "did you mean")."""
     model = {(): Experiment, ("sequences",): SequenceEntry, ("methods",): MethodEntry,
-             ("criterion",): Criterion, ("synthetic",): SyntheticEntry}.get(
+             ("criterion",): Criterion, ("synthetic",): SyntheticEntry,
+             ("external",): ExternalEntry}.get(
         tuple(x for x in loc if not isinstance(x, int)))
     return list(model.model_fields) if model else None
 

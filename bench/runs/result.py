@@ -34,6 +34,11 @@ SCHEMA = 2
 FALLBACK_LIMIT = 0.05
 
 Num = float | None  # a statistic; None = no value (NaN / infinite / nothing to measure)
+#: ``RunResult.clock`` of a run whose per-frame times its method reported (an external
+#: trajectory scored by ``bench score``): shown, never ranked against the harness's clock
+REPORTED_CLOCK = "reported by the method"
+#: the end of an external run's label ("NAME (external)", ``bench.runs.external``)
+EXTERNAL_MARK = "(external)"
 
 
 def num(x) -> float | None:
@@ -253,6 +258,12 @@ class RunResult(_Model):
             parts.append(f"{self.frames_unconverged} of {registered} frames not converged "
                          "(last iterate kept)")
         return "; ".join(parts) or None
+
+    @property
+    def timed_by_harness(self) -> bool:
+        """Its times were measured by the harness (not an external run's: not timed, or
+        ``REPORTED_CLOCK``), so its CPU model matters beside the others'."""
+        return self.clock != REPORTED_CLOCK and self.time_ms.mean is not None
 
     @property
     def seed_option(self) -> bool | None:

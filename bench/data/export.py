@@ -1,0 +1,205 @@
+"""Any store back out as a ROS bag (``bench export STORE --format ros1|ros2|mcap``).
+
+One uniform form for every dataset the harness loads, to feed a ROS node:
+
+- ``/points`` ``sensor_msgs/PointCloud2`` (frame ``sensor``), one message per scan stamped
+  with the scan's stamp: float32 fields ``x y z`` [m, sensor frame], ``doppler`` [m/s] in the
+  harness's sign (``DOPPLER_SIGN``: positive when the point recedes from the sensor; a static
+  point ahead of a forward-moving sensor reads negative), then every per-point field of the
+  store (``intensity``, ``power``, ``rcs``, ...) by its name;
+- ``/ground_truth`` ``nav_msgs/Odometry`` (frame ``world``, child ``base_link``): the GT body
+  pose ``T_world_body = T_world_sensor @ inv(T_body_sensor)`` at each scan that has GT (twist
+  zero: not given);
+- ``/tf_static`` ``tf2_msgs/TFMessage``: ``base_link`` -> ``sensor``, the store's
+  ``T_body_sensor``;
+- ``/doppler_bench/description`` ``std_msgs/String``: a JSON text stating the fields, the
+  Doppler sign and kind, the frames, the sensor and the store it came from.
+
+Formats: ``ros1`` (one ``.bag`` file), ``ros2`` (a rosbag2 folder, sqlite3 storage) and
+``mcap`` (a rosbag2 folder, mcap storage), written with ``rosbags``. Streaming: one scan is
+read from the store, serialised and written at a time, so memory stays flat in the sequence
+length. Atomic: the bag is written beside its destination under a temporary name and renamed
+when complete. ``bench convert rosbag`` reads it back to the same store contents
+(``reimport_command`` prints the exact command). The messages and the writer over rosbags'
+formats: ``bench.data.bag_messages``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+from collections.abc import Callable
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from bench.data.bag_messages import (
+    BODY_FRAME,
+    CLOUD,
+    ODOM,
+    SENSOR_FRAME,
+    STRING,
+    TF,
+    WORLD_FRAME,
+    BagWriter,
+    cloud_msg,
+    odometry_msg,
+    tf_static_msg,
+)
+from loaders.errors import DataError
+from loaders.fileio import atomic_path
+from loaders.se3 import inv_T, tum_from_T
+from loaders.store import StoreSequence
+
+FORMATS = ("ros1", "ros2", "mcap")
+POINTS_TOPIC = "/points"
+GT_TOPIC = "/ground_truth"
+TF_TOPIC = "/tf_static"
+INFO_TOPIC = "/doppler_bench/description"
+#: the Doppler sign of the exported field (the harness's: positive = receding)
+DOPPLER_SIGN = ("doppler [m/s]: radial velocity of the point relative to the sensor, positive "
+                "when the point recedes (moves away from the sensor); a static point ahead of "
+                "a forward-moving sensor reads negative")
+
+
+@dataclass(frozen=True)
+class ExportSummary:
+    path: Path
+    format: str
+    frames: int
+    gt_poses: int
+    fields: list[str]
+
+
+def default_out(store: Path, fmt: str) -> Path:
+    """``STORE.bag`` (ros1), ``STORE_ros2/`` or ``STORE_mcap/`` beside the store."""
+    store = Path(store)
+    return store.with_suffix(".bag") if fmt == "ros1" else \
+        store.with_name(f"{store.stem}_{fmt}")
+
+
+def description(seq: StoreSequence, store: Path, fields: list[str]) -> dict:
+    """The bag's description (``INFO_TOPIC``): fields, Doppler sign and kind, frames, sensor."""
+    return {
+        "exported_by": "doppler-bench (bench export)", "store": str(store),
+        "sequence": seq.name, "points_topic": POINTS_TOPIC, "ground_truth_topic": GT_TOPIC,
+        "fields": ["x", "y", "z", *fields],
+        "units": "x y z [m] in the sensor frame; doppler [m/s]; other fields as stored",
+        "doppler": DOPPLER_SIGN if seq.has_doppler else "none (the store has no Doppler)",
+        "doppler_kind": seq.sensor.doppler_kind, "sensor_kind": seq.sensor.kind,
+        "sensor_model": seq.sensor.model, "period_s": seq.sensor.period_s,
+        "frames": {"world": WORLD_FRAME, "body": BODY_FRAME, "sensor": SENSOR_FRAME},
+        "ground_truth": f"nav_msgs/Odometry: T_world_body ({BODY_FRAME}) at the scans with "
+                        "ground truth; the sensor pose is T_world_body @ T_body_sensor "
+                        f"({TF_TOPIC})",
+        "T_body_sensor": np.asarray(seq.sensor.T_body_sensor).tolist(),
+    }
+
+
+def write_bag(seq: StoreSequence, store: Path, path: Path, fmt: str,
+              progress: Callable[[int], None] | None = None) -> ExportSummary:
+    """Write ``seq`` to a new bag at ``path`` (must not exist), one scan at a time."""
+    bag = BagWriter(path, fmt)
+    try:
+        stamps = seq.stamps
+        T_bs = np.asarray(seq.sensor.T_body_sensor, dtype=np.float64)
+        gt = seq.ground_truth
+        fields = (["doppler"] if seq.has_doppler else []) + list(seq.fields)
+        cloud = bag.connection(POINTS_TOPIC, CLOUD)
+        tf = bag.connection(TF_TOPIC, TF, latched=True)
+        info = bag.connection(INFO_TOPIC, STRING, latched=True)
+        odom = bag.connection(GT_TOPIC, ODOM) if gt is not None else None
+        t0 = float(stamps[0])
+        bag.write(tf, t0, tf_static_msg(bag, t0, T_bs))
+        text = json.dumps(description(seq, store, fields), indent=1)
+        bag.write(info, t0, bag.store.types[STRING](data=text))
+        gt_stamps = gt.stamps if gt is not None else np.zeros(0)
+        T_sb = inv_T(T_bs)
+        g = 0
+        for i in range(len(seq)):
+            t = float(stamps[i])
+            while g < len(gt_stamps) and gt_stamps[g] <= t:  # GT in time order with the scans
+                bag.write(odom, float(gt_stamps[g]),
+                          odometry_msg(bag, float(gt_stamps[g]), gt.poses[g] @ T_sb))
+                g += 1
+            scan = seq.scan(i)
+            values = {} if scan.doppler is None else {"doppler": scan.doppler}
+            values.update({name: scan.fields[name] for name in seq.fields})
+            bag.write(cloud, t, cloud_msg(bag, t, scan.points, values))
+            if progress:
+                progress(i)
+        for k in range(g, len(gt_stamps)):
+            bag.write(odom, float(gt_stamps[k]),
+                      odometry_msg(bag, float(gt_stamps[k]), gt.poses[k] @ T_sb))
+    finally:
+        bag.close()
+    return ExportSummary(path, fmt, len(seq), len(gt_stamps), fields)
+
+
+def export_store(store: Path, fmt: str, out: Path | None = None, force: bool = False,
+                 progress: Callable[[int], None] | None = None) -> ExportSummary:
+    """Export ``store`` as a ``fmt`` bag to ``out`` (default ``default_out``); an existing
+    ``out`` is replaced only with ``force``. Written under a temporary name, then renamed."""
+    if fmt not in FORMATS:
+        raise DataError(f"--format {fmt!r}: expected one of {', '.join(FORMATS)}")
+    store = Path(store)
+    out = Path(out) if out is not None else default_out(store, fmt)
+    if out.exists() and not force:
+        raise DataError(f"{out}: exists; give another --out or --force to replace it")
+    seq = StoreSequence(store)
+    try:
+        if fmt == "ros1":
+            with atomic_path(out) as tmp:
+                tmp.unlink()  # rosbags' ROS1 writer refuses an existing file
+                summary = write_bag(seq, store, tmp, fmt, progress)
+            return replace(summary, path=out)
+        # a rosbag2 bag is a folder named like its storage file: written in a temporary
+        # parent folder under its final name, then moved into place
+        work = out.parent / f".{out.name}.{os.getpid()}.export"
+        shutil.rmtree(work, ignore_errors=True)
+        work.mkdir(parents=True)
+        try:
+            summary = write_bag(seq, store, work / out.name, fmt, progress)
+            if out.exists():
+                shutil.rmtree(out) if out.is_dir() else out.unlink()
+            os.replace(work / out.name, out)
+        finally:
+            shutil.rmtree(work, ignore_errors=True)
+        return replace(summary, path=out)
+    finally:
+        seq.close()
+
+
+def reimport_command(summary: ExportSummary, seq_name: str, sensor_kind: str, model: str,
+                     doppler_kind: str, T_body_sensor: np.ndarray) -> str:
+    """The ``bench convert rosbag`` command that reads the bag back to the same store."""
+    xyz, quat = tum_from_T(np.asarray(T_body_sensor, dtype=np.float64)[None])
+    ext = " ".join(f"{v:.17g}" for v in [*xyz[0], *quat[0]])
+    gt = f" --gt-topic {GT_TOPIC}" if summary.gt_poses else ""
+    model_opt = f" --model {model}" if model else ""
+    text = (f"bench convert rosbag {summary.path} --topic {POINTS_TOPIC}{gt} "
+            f"--T-body-sensor '{ext}' --sensor-kind {sensor_kind}{model_opt} "
+            f"--doppler-kind {doppler_kind} --name {seq_name} --out {seq_name}.h5")
+    if doppler_kind not in ("radial", "ego-compensated"):
+        text += (f" (this store's Doppler is {doppler_kind}, which the rosbag loader does not "
+                 "take: results from its bag are not independent of the ground truth)")
+    return text
+
+
+def export_command(console, store: Path, fmt: str, out: Path | None, force: bool) -> None:
+    """``bench export``: write the bag, then print what it holds and how to read it back."""
+    summary = export_store(store, fmt, out, force)
+    seq = StoreSequence(store)
+    try:
+        back = reimport_command(summary, seq.name, seq.sensor.kind, seq.sensor.model,
+                                seq.sensor.doppler_kind, seq.sensor.T_body_sensor)
+    finally:
+        seq.close()
+    console.print(
+        f"wrote {summary.path} ({summary.format}): {summary.frames} scans on {POINTS_TOPIC} "
+        f"(fields x y z {' '.join(summary.fields)}), {summary.gt_poses} ground-truth poses on "
+        f"{GT_TOPIC}, the extrinsic on {TF_TOPIC}, the description on {INFO_TOPIC}; "
+        f"{DOPPLER_SIGN}", markup=False)
+    console.print(f"read it back with: {back}", markup=False)

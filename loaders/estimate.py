@@ -1,0 +1,210 @@
+"""A trajectory estimated elsewhere (another odometry, a ROS node), read strictly for scoring.
+
+Formats (``read_estimate``):
+
+- TUM: rows ``t x y z qx qy qz qw`` [s, m], optionally a 9th column: the method's own time for
+  that frame [ms] ("reported by the method"); '#' comments and one leading header line skipped;
+- KITTI: rows of 12 values (the 3x4 ``T_world_frame`` row-major) with their stamps from a
+  separate file (``stamps``: one stamp [s] per row, as KITTI's ``times.txt``);
+- a bag (ROS1 ``.bag``, ROS2 folder / ``.db3`` / ``.mcap``): a ``nav_msgs/Odometry``,
+  ``geometry_msgs/PoseStamped`` or ``PoseWithCovarianceStamped`` topic, stamped by
+  ``header.stamp``.
+
+Per-frame times may also come from a file (``frame_times``: one time [ms] per pose row).
+
+Bad input is one ``DataError`` naming the file, the row and what was expected: a wrong column
+count, a non-finite value, stamps that do not strictly increase, a quaternion of zero norm, a
+bag without the topic. Quaternions of any other norm are normalised (files written with few
+digits are slightly off unit length).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from loaders.errors import DataError
+from loaders.se3 import T_from_tum, make_T
+from loaders.trajectory import Trajectory
+
+#: a quaternion shorter than this is no rotation
+MIN_QUATERNION_NORM = 1e-6
+FORMATS = ("auto", "tum", "kitti", "bag")
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """The estimated poses ``T_world_frame`` at their stamps [s], and the method's own time of
+    each row [ms] (None when it reported none)."""
+
+    trajectory: Trajectory
+    frame_times_ms: np.ndarray | None = None
+
+
+def _numeric_rows(path: Path, widths: tuple[int, ...], expected: str) -> tuple[np.ndarray, list]:
+    """The numeric rows of a text file (all with the same width, one of ``widths``) and their
+    line numbers."""
+    rows, lines = [], []
+    with open(path) as f:
+        for lineno, line in enumerate(f, start=1):
+            text = line.strip()
+            if not text or text.startswith("#"):
+                continue
+            parts = text.replace(",", " ").split()
+            try:
+                values = [float(v) for v in parts]
+            except ValueError:
+                if not rows:  # a header line
+                    continue
+                raise DataError(f"{path}, line {lineno}: expected numbers ({expected}), got "
+                                f"{text!r}") from None
+            if len(values) not in widths or (rows and len(values) != len(rows[0])):
+                want = len(rows[0]) if rows else " or ".join(map(str, widths))
+                raise DataError(f"{path}, line {lineno}: expected {want} values ({expected}), "
+                                f"got {len(values)}")
+            rows.append(values)
+            lines.append(lineno)
+    if not rows:
+        raise DataError(f"{path}: no pose rows found; expected {expected}")
+    data = np.array(rows, dtype=np.float64)
+    bad = ~np.isfinite(data)
+    if bad.any():
+        r = int(np.flatnonzero(bad.any(axis=1))[0])
+        raise DataError(f"{path}, line {lines[r]}: non-finite value (NaN or inf); expected "
+                        f"finite numbers ({expected})")
+    return data, lines
+
+
+def check_stamps(stamps: np.ndarray, where: str, lines: list | None = None) -> None:
+    """Stamps must be finite and strictly increase (a DataError names the first bad row)."""
+    s = np.asarray(stamps, dtype=np.float64)
+    if not np.all(np.isfinite(s)):
+        r = int(np.flatnonzero(~np.isfinite(s))[0])
+        raise DataError(f"{where}, {_row(r, lines)}: stamp is not finite")
+    back = np.flatnonzero(np.diff(s) <= 0)
+    if len(back):
+        r = int(back[0]) + 1
+        raise DataError(f"{where}, {_row(r, lines)}: stamp {s[r]:.9f} s does not increase from "
+                        f"{s[r - 1]:.9f} s ({len(back)} such rows); expected strictly "
+                        "increasing stamps, one pose per instant")
+
+
+def _row(r: int, lines: list | None) -> str:
+    return f"line {lines[r]}" if lines is not None else f"pose {r}"
+
+
+def poses_from_tum(xyz: np.ndarray, quat_xyzw: np.ndarray, where: str,
+                   lines: list | None = None) -> np.ndarray:
+    """4x4 poses from positions and quaternions (x y z w); a zero quaternion is a DataError,
+    any other is normalised."""
+    norms = np.linalg.norm(quat_xyzw, axis=1)
+    zero = np.flatnonzero(norms < MIN_QUATERNION_NORM)
+    if len(zero):
+        raise DataError(f"{where}, {_row(int(zero[0]), lines)}: quaternion (qx qy qz qw) has "
+                        f"zero norm ({len(zero)} such rows); expected a rotation")
+    return T_from_tum(xyz, quat_xyzw / norms[:, None])
+
+
+def read_tum_estimate(path: Path) -> Estimate:
+    """TUM rows, with an optional 9th column: the method's time of the frame [ms]."""
+    data, lines = _numeric_rows(path, (8, 9), "t x y z qx qy qz qw [time_ms]")
+    check_stamps(data[:, 0], str(path), lines)
+    poses = poses_from_tum(data[:, 1:4], data[:, 4:8], str(path), lines)
+    times = data[:, 8].copy() if data.shape[1] == 9 else None
+    if times is not None and (times < 0).any():
+        r = int(np.flatnonzero(times < 0)[0])
+        raise DataError(f"{path}, line {lines[r]}: negative time in the 9th column; expected "
+                        "the method's time of the frame [ms] >= 0")
+    return Estimate(Trajectory(data[:, 0], poses), times)
+
+
+def read_stamps(path: Path) -> np.ndarray:
+    """One stamp [s] per line (KITTI's times.txt)."""
+    data, lines = _numeric_rows(path, (1,), "one stamp [s] a line")
+    check_stamps(data[:, 0], str(path), lines)
+    return data[:, 0]
+
+
+def read_kitti_estimate(path: Path, stamps_file: Path | None) -> Estimate:
+    """KITTI rows (12 values) and their stamps from ``stamps_file`` (one per row)."""
+    if stamps_file is None:
+        raise DataError(f"{path}: a KITTI pose file has no stamps; give its stamps file "
+                        "(--stamps times.txt: one stamp [s] per pose row)")
+    data, lines = _numeric_rows(path, (12,), "12 values: the 3x4 pose row-major")
+    stamps = read_stamps(Path(stamps_file))
+    if len(stamps) != len(data):
+        raise DataError(f"{path}: {len(data)} pose rows but {stamps_file} has {len(stamps)} "
+                        "stamps; expected one stamp per pose row")
+    M = data.reshape(-1, 3, 4)
+    R = M[:, :, :3]
+    det = np.linalg.det(R)
+    bad = np.flatnonzero(np.abs(det - 1.0) > 1e-3)
+    if len(bad):
+        raise DataError(f"{path}, line {lines[int(bad[0])]}: the 3x3 block is no rotation "
+                        f"(determinant {det[int(bad[0])]:.4f}); expected a rigid pose")
+    # re-orthonormalise (rows written with few digits): the nearest rotation
+    U, _, Vt = np.linalg.svd(R)
+    return Estimate(Trajectory(stamps, make_T(U @ Vt, M[:, :, 3])), None)
+
+
+def read_bag_estimate(path: Path, topic: str | None) -> Estimate:
+    """Poses of an Odometry / PoseStamped topic of a bag (``loaders.rosbag.read_gt_topic``,
+    sorted by ``header.stamp``)."""
+    from loaders.rosbag import POSE_TYPES, bag_topics, read_gt_topic
+
+    if topic is None:
+        topics = bag_topics([path])
+        poses = sorted(t for t, m in topics.items() if m in POSE_TYPES)
+        if len(poses) != 1:
+            raise DataError(f"{path}: {len(poses)} pose topics ({', '.join(POSE_TYPES)}); give "
+                            "the estimate's topic (--topic); the bag has "
+                            + (", ".join(f"{t} ({m})" for t, m in sorted(topics.items()))
+                               or "no topics"))
+        topic = poses[0]
+    traj = read_gt_topic([path], topic, what="estimated pose")
+    check_stamps(traj.stamps, f"{path}:{topic}")
+    return Estimate(traj, None)
+
+
+def is_bag(path: Path) -> bool:
+    return path.suffix in (".bag", ".db3", ".mcap") or (path.is_dir()
+                                                         and (path / "metadata.yaml").exists())
+
+
+def read_estimate(path: str | Path, fmt: str = "auto", stamps: str | Path | None = None,
+                  topic: str | None = None, frame_times: str | Path | None = None) -> Estimate:
+    """An estimated trajectory from a TUM file, a KITTI file with its ``stamps`` file or a
+    bag's pose ``topic``; ``frame_times``: a file of per-row times [ms] (see the module
+    docstring)."""
+    path = Path(path)
+    if not path.exists():
+        raise DataError(f"{path}: trajectory file not found")
+    if fmt not in FORMATS:
+        raise DataError(f"{path}: unknown trajectory format {fmt!r}; expected one of "
+                        f"{', '.join(FORMATS)}")
+    if fmt == "auto":
+        if is_bag(path):
+            fmt = "bag"
+        else:
+            from loaders.posefile import detect_pose_format
+
+            fmt = detect_pose_format(path)
+    if fmt == "bag":
+        est = read_bag_estimate(path, topic)
+    elif fmt == "kitti":
+        est = read_kitti_estimate(path, None if stamps is None else Path(stamps))
+    else:
+        est = read_tum_estimate(path)
+    if frame_times is not None:
+        data, lines = _numeric_rows(Path(frame_times), (1,), "one time [ms] a line")
+        if len(data) != len(est.trajectory):
+            raise DataError(f"{frame_times}: {len(data)} times but {path} has "
+                            f"{len(est.trajectory)} poses; expected one time [ms] per pose")
+        neg = np.flatnonzero(data[:, 0] < 0)
+        if len(neg):
+            raise DataError(f"{frame_times}, line {lines[int(neg[0])]}: negative time; "
+                            "expected a time per frame [ms] >= 0")
+        est = Estimate(est.trajectory, data[:, 0].copy())
+    return est
