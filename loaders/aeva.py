@@ -33,6 +33,7 @@ from pydantic import Field
 from loaders.assemble import finish_scan, median_period
 from loaders.errors import DataError
 from loaders.gt import associate
+from loaders.limits import check_file_size
 from loaders.options import GroundTruthTimeOptions, OpensFromOptions
 from loaders.posefile import detect_pose_format, parse_extrinsic, read_gt_file
 from loaders.scan import Scan, SensorInfo, Sequence
@@ -101,7 +102,7 @@ def read_timestamps(path: Path, unit: str = "auto") -> tuple[np.ndarray, str]:
 
 def _calibration_dicp(path: Path) -> np.ndarray:
     try:
-        cal = json.loads(path.read_text())["T_V_to_S"]
+        cal = json.loads(path.read_text(errors="replace"))["T_V_to_S"]
         t, q = cal["translation"], cal["quaternion"]
         xyz = [float(t["x"]), float(t["y"]), float(t["z"])]
         quat = [float(q["x"]), float(q["y"]), float(q["z"]), float(q["w"])]
@@ -115,7 +116,7 @@ def _calibration_dicp(path: Path) -> np.ndarray:
 
 def _calibration_open3d(path: Path) -> tuple[np.ndarray, float | None]:
     try:
-        cal = json.loads(path.read_text())
+        cal = json.loads(path.read_text(errors="replace"))
         T = np.asarray(cal["transform_vehicle_to_sensor"], dtype=np.float64)
         period = cal.get("period")
     except (OSError, ValueError, KeyError, TypeError) as err:
@@ -367,9 +368,10 @@ class AevaSequence(OpensFromOptions, Sequence):
         path = self._files[k]
         where = f"{path}, frame {index}"
         fields: dict[str, np.ndarray] = {}
+        check_file_size(path, where)
         if self.layout == "open3d":
             try:
-                values = np.array(path.read_text().split(), dtype=np.float64)
+                values = np.array(path.read_text(errors="replace").split(), dtype=np.float64)
             except ValueError as err:
                 raise DataError(f"{where}: expected ASCII 'x y z doppler' lines ({err})") from None
             if values.size % 4:

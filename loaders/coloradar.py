@@ -40,6 +40,7 @@ from pydantic import Field
 from loaders.assemble import finish_scan, median_period
 from loaders.errors import DataError
 from loaders.gt import associate
+from loaders.limits import file_number
 from loaders.options import LoaderOptions, OpensFromOptions
 from loaders.posefile import parse_extrinsic
 from loaders.records import read_records, record_dtype
@@ -81,7 +82,7 @@ def read_stamps(path: Path) -> np.ndarray:
     if not path.exists():
         raise DataError(f"{path}: timestamps file not found; expected one stamp [s] a line")
     values = []
-    with open(path) as f:
+    with open(path, errors="replace") as f:
         for lineno, line in enumerate(f, start=1):
             if not line.strip():
                 continue
@@ -99,7 +100,7 @@ def read_poses(path: Path) -> np.ndarray:
         raise DataError(f"{path}: ground-truth poses not found; expected 'x y z qx qy qz qw' "
                         "a line")
     rows = []
-    with open(path) as f:
+    with open(path, errors="replace") as f:
         for lineno, line in enumerate(f, start=1):
             parts = line.split()
             if not parts:
@@ -129,7 +130,7 @@ def read_transform(path: Path) -> np.ndarray:
                         "(ColoRadar ships calib/ beside the run folders: give --calib DIR, or "
                         "--extrinsic 'x y z qx qy qz qw' (radar -> base; '0 0 0 0 0 0 1' when "
                         "the GT is the radar's own pose))")
-    lines = [ln.split() for ln in path.read_text().splitlines() if ln.strip()]
+    lines = [ln.split() for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
     if len(lines) < 2 or len(lines[0]) != 3 or len(lines[1]) != 4:
         raise DataError(f"{path}: expected a line 'x y z' and a line 'qx qy qz qw'")
     try:
@@ -165,16 +166,20 @@ class ColoradarSequence(OpensFromOptions, Sequence):
             raise DataError(f"{self.root}: no {CLOUD_DIR}/data folder; expected a ColoRadar run "
                             f"with {CLOUD_DIR}/data/radar_pointcloud_<i>.bin and "
                             f"{CLOUD_DIR}/timestamps.txt")
-        found = {int(m.group(1)): p for p in (clouds / "data").iterdir()
+        found = {file_number(m.group(1), p): p for p in (clouds / "data").iterdir()
                  if (m := _FRAME.match(p.name))}
         if not found:
             raise DataError(f"{clouds / 'data'}: no radar_pointcloud_<i>.bin files")
         n = max(found) + 1
-        missing = sorted(set(range(n)) - set(found))
-        if missing:
-            raise DataError(f"{clouds / 'data'}: radar_pointcloud_{missing[0]}.bin is missing "
-                            f"({len(missing)} of indices 0..{n - 1}); expected one file per "
-                            "line of timestamps.txt")
+        if len(found) != n:  # a gap or a stray index: found from the indices present only
+            # (never a set of range(max + 1): a stray radar_pointcloud_20000000.bin would
+            # allocate 20 million entries)
+            idx = sorted(found)
+            first = next((i for i, k in enumerate(idx) if i != k), len(idx))
+            raise DataError(f"{clouds / 'data'}: radar_pointcloud_{first}.bin is missing "
+                            f"({n - len(found)} of indices 0..{n - 1}; the highest is "
+                            f"{found[idx[-1]].name}); expected one file per line of "
+                            "timestamps.txt, indices 0..N-1")
         self._files = [found[i] for i in range(n)]
         stamp_file = clouds / "timestamps.txt"
         stamps = read_stamps(stamp_file)

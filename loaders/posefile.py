@@ -22,8 +22,9 @@ def read_tum(path: str | Path) -> Trajectory:
     """Read TUM rows ``t x y z qx qy qz qw``; '#' comments and one leading header line that
     is not numeric are skipped."""
     path = Path(path)
-    rows = []
-    with open(path) as f:
+    rows: list[list[float]] = []
+    linenos: list[int] = []
+    with open(path, errors="replace") as f:
         for lineno, line in enumerate(f, start=1):
             text = line.strip()
             if not text or text.startswith("#"):
@@ -43,12 +44,37 @@ def read_tum(path: str | Path) -> Trajectory:
                     f"got {len(values)}"
                 )
             rows.append(values)
+            linenos.append(lineno)
     if not rows:
         raise DataError(f"{path}: no TUM pose rows found")
     data = np.array(rows)
-    if not np.isfinite(data).all():
-        raise DataError(f"{path}: non-finite values in the TUM rows")
-    return Trajectory(data[:, 0], T_from_tum(data[:, 1:4], data[:, 4:8]))
+    quat = check_quaternions(data[:, 4:8], path, linenos, finite=data)
+    return Trajectory(data[:, 0], T_from_tum(data[:, 1:4], quat))
+
+
+#: a pose row's quaternion must have a norm within this of 1 (files print 6-9 digits)
+QUAT_NORM_TOLERANCE = 0.01
+
+
+def check_quaternions(quat: np.ndarray, path, linenos: list[int],
+                      finite: np.ndarray | None = None) -> np.ndarray:
+    """The unit quaternions of pose rows (normalised); a ``DataError`` naming the file and the
+    line of the first row that is not finite (``finite``: the whole rows) or whose quaternion
+    is not unit length within ``QUAT_NORM_TOLERANCE`` (a zero quaternion is no orientation)."""
+    rows = quat if finite is None else finite
+    bad = ~np.isfinite(rows).all(axis=1)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{path}, line {linenos[k]}: non-finite value in the pose row; expected "
+                        "finite numbers")
+    norms = np.linalg.norm(quat, axis=1)
+    bad = np.abs(norms - 1.0) > QUAT_NORM_TOLERANCE
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{path}, line {linenos[k]}: quaternion (qx qy qz qw) = "
+                        f"{' '.join(f'{v:g}' for v in quat[k])} has norm {norms[k]:.4g}; "
+                        "expected a unit quaternion (norm 1)")
+    return quat / norms[:, None]
 
 def write_tum(traj: Trajectory, path: str | Path) -> None:
     """Write TUM rows ``t x y z qx qy qz qw`` (9 decimals)."""
@@ -64,7 +90,16 @@ def read_kitti(path: str | Path, stamps: np.ndarray | None = None) -> Trajectory
         raise DataError(f"{path}: not a KITTI pose file ({err})") from err
     if data.shape[1] != 12:
         raise DataError(f"{path}: expected 12 values per KITTI row, got {data.shape[1]}")
-    poses = make_T(data[:, [0, 1, 2, 4, 5, 6, 8, 9, 10]].reshape(-1, 3, 3), data[:, [3, 7, 11]])
+    R = data[:, [0, 1, 2, 4, 5, 6, 8, 9, 10]].reshape(-1, 3, 3)
+    with np.errstate(invalid="ignore"):
+        err = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max(axis=(1, 2))
+    bad = ~np.isfinite(data).all(axis=1) | ~(err <= 1e-3) | ~(np.linalg.det(R) > 0)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{path}, pose row {k + 1}: not a rigid transform (its 3x3 part is not "
+                        "a rotation, or a value is not finite); expected 12 values, a 3x4 "
+                        "[R | t] row-major")
+    poses = make_T(R, data[:, [3, 7, 11]])
     if stamps is None:
         stamps = np.arange(len(poses), dtype=np.float64)
     elif len(stamps) != len(poses):
@@ -115,7 +150,7 @@ def parse_extrinsic(text: str | list | tuple | np.ndarray | None) -> np.ndarray:
 
 def detect_pose_format(path: str | Path) -> str:
     """"kitti" when the first numeric row has 12 values, else "tum"."""
-    with open(path) as f:
+    with open(path, errors="replace") as f:
         for line in f:
             parts = line.replace(",", " ").split()
             if not parts or parts[0].startswith("#"):

@@ -256,7 +256,8 @@ class _FolderFrames:
             raise DataError(f"{folder}: no times.txt; expected the extracted layout "
                             "<sec>.<nsec>.pcd + times.txt (snail-radar dataset_tools "
                             "bag_to_folder.py)")
-        names = [line.strip() for line in times.read_text().splitlines() if line.strip()]
+        names = [line.strip() for line in times.read_text(errors="replace").splitlines()
+                 if line.strip()]
         if not names:
             raise DataError(f"{times}: no stamps; expected one <sec>.<nsec> per line")
         try:
