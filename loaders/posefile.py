@@ -3,7 +3,9 @@
 - TUM: rows ``t x y z qx qy qz qw`` (``read_tum`` / ``write_tum``);
 - KITTI: rows of 12 values, the 3x4 ``T_world_frame`` row-major, no stamps (``read_kitti`` /
   ``write_kitti``);
-- ``read_gt_file``: either, detected from the first numeric row;
+- reference CSV: ``time, M_p_L_x .. M_q_L_w, W_v_L_x ..`` (Snail-Radar's ``ref_tls_T_xt32.csv``,
+  ``read_ref_csv``);
+- ``read_gt_file``: any of these, detected from the header / first numeric row;
 - ``parse_extrinsic``: a 4x4 transform from "x y z qx qy qz qw", 3, 7 or 16 numbers.
 """
 
@@ -148,8 +150,85 @@ def parse_extrinsic(text: str | list | tuple | np.ndarray | None) -> np.ndarray:
     return make_T(Rotation.from_quat(q / np.linalg.norm(q)).as_matrix(), v[:3])
 
 
+#: the columns of the Snail-Radar reference trajectories in CSV form (``ref_tls_T_xt32.csv``,
+#: the header the dataset authors' TLS localisation writes): the XT32 lidar's pose in the map
+#: (position M_p_L, quaternion M_q_L x y z w) and its velocity in the world frame W_v_L
+REF_CSV_COLUMNS = ("time", "M_p_L_x", "M_p_L_y", "M_p_L_z", "M_q_L_x", "M_q_L_y", "M_q_L_z",
+                   "M_q_L_w", "W_v_L_x", "W_v_L_y", "W_v_L_z")
+
+
+def _csv_header(line: str) -> list[str]:
+    return [c.strip() for c in line.lstrip("#").split(",") if c.strip()]
+
+
+def read_ref_csv(path: str | Path) -> Trajectory:
+    """A reference trajectory in the comma-separated form ``ref_tls_T_xt32.csv``: one ``#``
+    header line naming the columns ``REF_CSV_COLUMNS`` (11: time, position, quaternion x y z w,
+    world velocity; a file without the velocity columns, 8, is read too), then one row per
+    pose. The header's first 8 names must be those (by name: a file of other columns is
+    refused); the velocity columns are not used. Stamps in seconds (nanoseconds, detected
+    from the magnitude, are converted)."""
+    path = Path(path)
+    rows: list[list[float]] = []
+    linenos: list[int] = []
+    header: list[str] | None = None
+    with open(path, errors="replace") as f:
+        for lineno, line in enumerate(f, start=1):
+            text = line.strip()
+            if not text:
+                continue
+            if text.startswith("#"):
+                if header is None and not rows:
+                    header = _csv_header(text)
+                continue
+            parts = [p.strip() for p in text.split(",")]
+            try:
+                values = [float(v) for v in parts]
+            except ValueError:
+                if header is None and not rows:  # an uncommented header line
+                    header = _csv_header(text)
+                    continue
+                raise DataError(f"{path}, line {lineno}: expected comma-separated numbers "
+                                f"({', '.join(REF_CSV_COLUMNS)}), got {text[:80]!r}") from None
+            if len(values) not in (8, 11) or (rows and len(values) != len(rows[0])):
+                raise DataError(f"{path}, line {lineno}: {len(values)} values; expected 11 "
+                                f"({', '.join(REF_CSV_COLUMNS)}) or the first 8")
+            rows.append(values)
+            linenos.append(lineno)
+    if header is not None and [h.lower() for h in header[:8]] != [
+            c.lower() for c in REF_CSV_COLUMNS[:8]]:
+        raise DataError(f"{path}: header columns {', '.join(header[:11])}; expected "
+                        f"{', '.join(REF_CSV_COLUMNS)} (the Snail-Radar reference trajectory)")
+    if not rows:
+        raise DataError(f"{path}: no pose rows; expected lines of "
+                        f"{', '.join(REF_CSV_COLUMNS)}")
+    data = np.array(rows)
+    quat = check_quaternions(data[:, 4:8], path, linenos, finite=data[:, :8])
+    stamps = data[:, 0] * (1e-9 if np.median(np.abs(data[:, 0])) > 1e17 else 1.0)
+    return Trajectory(stamps, T_from_tum(data[:, 1:4], quat))
+
+
+def is_ref_csv(path: str | Path) -> bool:
+    """The file is a reference trajectory in CSV form: its header names ``M_p_L_x``, or its
+    first row has 11 comma-separated values."""
+    with open(path, errors="replace") as f:
+        for line in f:
+            text = line.strip()
+            if not text:
+                continue
+            if "M_p_L_x" in text:
+                return True
+            if text.startswith("#"):
+                continue
+            return text.count(",") == len(REF_CSV_COLUMNS) - 1
+    return False
+
+
 def detect_pose_format(path: str | Path) -> str:
-    """"kitti" when the first numeric row has 12 values, else "tum"."""
+    """"ref-csv" for a reference trajectory in CSV form (``is_ref_csv``), "kitti" when the first
+    numeric row has 12 values, else "tum"."""
+    if is_ref_csv(path):
+        return "ref-csv"
     with open(path, errors="replace") as f:
         for line in f:
             parts = line.replace(",", " ").split()
@@ -165,8 +244,9 @@ def detect_pose_format(path: str | Path) -> str:
 
 def read_gt_file(path: str | Path, fmt: str = "auto", stamps: np.ndarray | None = None
                  ) -> Trajectory:
-    """Read a TUM (8 columns) or KITTI (12 columns) pose file; ``fmt`` "auto" decides from the
-    first numeric row. KITTI rows get ``stamps`` (default: the row index)."""
+    """Read a TUM (8 columns), KITTI (12 columns) or reference-CSV (``read_ref_csv``) pose
+    file; ``fmt`` "auto" decides (``detect_pose_format``). KITTI rows get ``stamps`` (default:
+    the row index)."""
     path = Path(path)
     if not path.exists():
         raise DataError(f"{path}: ground-truth file not found")
@@ -176,4 +256,7 @@ def read_gt_file(path: str | Path, fmt: str = "auto", stamps: np.ndarray | None 
         return read_tum(path)
     if fmt == "kitti":
         return read_kitti(path, stamps)
-    raise DataError(f"{path}: unknown ground-truth format {fmt!r} (expected tum or kitti)")
+    if fmt == "ref-csv":
+        return read_ref_csv(path)
+    raise DataError(f"{path}: unknown ground-truth format {fmt!r} (expected tum, kitti or "
+                    "ref-csv)")

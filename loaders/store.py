@@ -127,6 +127,16 @@ class _Writer:
         self.buffered = 0
 
 
+def store_has_ground_truth(path: str | Path) -> bool | None:
+    """Whether the store at ``path`` holds ground truth (None when it cannot be read as a
+    store: the caller's own reading reports that)."""
+    try:
+        with h5py.File(path, "r") as h5:
+            return "ground_truth" in h5
+    except (OSError, ValueError):
+        return None
+
+
 def write_store(
     sequence: Sequence,
     path: str | Path,
