@@ -123,7 +123,7 @@ def report_ground_truth(sequence, flags: list[str]) -> None:
 
     note = ground_truth_note(sequence)
     if note is not None:
-        console.print(note, markup=False, highlight=False)
+        console.print(note, markup=False, highlight=False, soft_wrap=True)
         return
     how = (f"give it with {' or '.join(flags)}" if flags else
            "this loader reads none from its input")
