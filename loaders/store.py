@@ -219,7 +219,8 @@ class StoreSequence(Sequence):
         if not self.path.exists():
             raise DataError(f"{self.path}: store not found")
         if not h5py.is_hdf5(self.path):
-            raise DataError(f"{self.path}: not an HDF5 file (truncated, or not a store)")
+            raise DataError(f"{self.path}: not an HDF5 file (truncated, or not a store: a "
+                            "raw recording is converted first with `bench convert LOADER`)")
         self._h5: h5py.File | None = None
         try:
             h5 = self._file()

@@ -295,3 +295,63 @@ def test_a_vod_pose_file_with_strings(tmp_path):
     code, out = _main(main, ["convert", "vod", str(root), "--out", str(tmp_path / "o.h5")])
     assert code == 2 and "Traceback" not in out, out
     assert "00002.json: odomToCamera holds" in " ".join(out.split()) and "16 numbers" in out
+
+
+# -- wrong exit / unclear messages ---------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def cloud_bag(tmp_path_factory):
+    """A ROS1 bag with one PointCloud2 topic (Eagle layout: x y z Doppler ...) and no GT."""
+    from helpers_snail import write_snail_bag
+
+    truth = make_truth(Motion(), frames=6, points=40, period=0.1)
+    rng = np.random.default_rng(0)
+    items = [(t, radar_array("eagle", p, d, rng))
+             for t, p, d in zip(truth.stamps, truth.points, truth.doppler, strict=True)]
+    return write_snail_bag(tmp_path_factory.mktemp("bag") / "rec.bag",
+                           {"/radar_enhanced_pcl2": items})
+
+
+def test_rosbag_without_gt_warns_and_a_run_says_not_scored(cloud_bag, tmp_path):
+    from bench.cli import main
+
+    store = tmp_path / "rec.h5"
+    code, out = _main_warnings(main, ["convert", "rosbag", str(cloud_bag), "--out", str(store)])
+    assert code == 2 and "no Doppler field 'doppler'" in out and "--doppler-field" in out, out
+    code, out = _main_warnings(main, ["convert", "rosbag", str(cloud_bag), "--doppler-field",
+                                      "Doppler", "--out", str(store)])
+    flat = " ".join(out.split())
+    assert code == 0 and "rec: no ground truth found" in flat, out
+    assert "scores none (give it with --gt or --gt-topic)" in flat
+    code, out = _main_warnings(main, ["run", "--method", "doppler", "--data", str(store),
+                                      "--out", str(tmp_path / "runs")])
+    flat = " ".join(out.split())
+    assert code == 0 and "1 done" in flat, out
+    assert "not scored: " in flat and f"{store} has no ground truth" in flat, out
+
+
+def test_inspect_on_a_bag_says_convert_it_first(cloud_bag):
+    from bench.cli import main
+
+    code, out = _main_warnings(main, ["inspect", str(cloud_bag)])
+    flat = " ".join(out.split())
+    assert code == 2 and "Traceback" not in out, out
+    assert "a ROS1 bag, not a store: convert it first" in flat and "bench convert rosbag" in flat
+
+
+def _main_warnings(main, args):
+    """``_main`` with warnings shown the way the CLI shows them."""
+    import contextlib
+    import io
+
+    err = io.StringIO()
+    old = sys.argv
+    sys.argv = ["bench", *args]
+    try:
+        with contextlib.redirect_stderr(err), contextlib.redirect_stdout(err), \
+                pytest.raises(SystemExit) as exit_, warnings.catch_warnings():
+            warnings.simplefilter("always")
+            main()
+    finally:
+        sys.argv = old
+    return exit_.value.code, err.getvalue()
