@@ -86,6 +86,7 @@ def sorted_frames(folder: Path, ext: str) -> list[Path]:
 
 def read_timestamps(path: Path, unit: str = "auto") -> tuple[np.ndarray, str]:
     """One stamp per line (first column); ``unit`` auto picks s/ms/us/ns from the magnitude."""
+    check_file_size(path, str(path))
     try:
         values = np.loadtxt(path, ndmin=2, usecols=0, comments="#")
     except ValueError as err:
@@ -101,6 +102,7 @@ def read_timestamps(path: Path, unit: str = "auto") -> tuple[np.ndarray, str]:
 
 
 def _calibration_dicp(path: Path) -> np.ndarray:
+    check_file_size(path, str(path))
     try:
         cal = json.loads(path.read_text(errors="replace"))["T_V_to_S"]
         t, q = cal["translation"], cal["quaternion"]
@@ -115,6 +117,7 @@ def _calibration_dicp(path: Path) -> np.ndarray:
 
 
 def _calibration_open3d(path: Path) -> tuple[np.ndarray, float | None]:
+    check_file_size(path, str(path))
     try:
         cal = json.loads(path.read_text(errors="replace"))
         T = np.asarray(cal["transform_vehicle_to_sensor"], dtype=np.float64)

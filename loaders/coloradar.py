@@ -40,7 +40,7 @@ from pydantic import Field
 from loaders.assemble import finish_scan, median_period
 from loaders.errors import DataError
 from loaders.gt import associate
-from loaders.limits import file_number
+from loaders.limits import check_file_size, file_number
 from loaders.options import LoaderOptions, OpensFromOptions
 from loaders.posefile import parse_extrinsic
 from loaders.records import read_records, record_dtype
@@ -81,6 +81,7 @@ def read_stamps(path: Path) -> np.ndarray:
     """One float stamp [s] a line (``DataError`` naming the line otherwise)."""
     if not path.exists():
         raise DataError(f"{path}: timestamps file not found; expected one stamp [s] a line")
+    check_file_size(path, str(path))
     values = []
     with open(path, errors="replace") as f:
         for lineno, line in enumerate(f, start=1):
@@ -99,6 +100,7 @@ def read_poses(path: Path) -> np.ndarray:
     if not path.exists():
         raise DataError(f"{path}: ground-truth poses not found; expected 'x y z qx qy qz qw' "
                         "a line")
+    check_file_size(path, str(path))
     rows = []
     with open(path, errors="replace") as f:
         for lineno, line in enumerate(f, start=1):
@@ -130,6 +132,7 @@ def read_transform(path: Path) -> np.ndarray:
                         "(ColoRadar ships calib/ beside the run folders: give --calib DIR, or "
                         "--extrinsic 'x y z qx qy qz qw' (radar -> base; '0 0 0 0 0 0 1' when "
                         "the GT is the radar's own pose))")
+    check_file_size(path, str(path))
     lines = [ln.split() for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
     if len(lines) < 2 or len(lines[0]) != 3 or len(lines[1]) != 4:
         raise DataError(f"{path}: expected a line 'x y z' and a line 'qx qy qz qw'")

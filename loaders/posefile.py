@@ -11,11 +11,13 @@
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 
 from loaders.errors import DataError
+from loaders.limits import check_file_size
 from loaders.se3 import T_from_tum, make_T, tum_from_T
 from loaders.trajectory import Trajectory
 
@@ -24,6 +26,7 @@ def read_tum(path: str | Path) -> Trajectory:
     """Read TUM rows ``t x y z qx qy qz qw``; '#' comments and one leading header line that
     is not numeric are skipped."""
     path = Path(path)
+    check_file_size(path, str(path))
     rows: list[list[float]] = []
     linenos: list[int] = []
     with open(path, errors="replace") as f:
@@ -86,6 +89,7 @@ def write_tum(traj: Trajectory, path: str | Path) -> None:
 def read_kitti(path: str | Path, stamps: np.ndarray | None = None) -> Trajectory:
     """Read KITTI rows (12 values, 3x4 row-major); stamps default to the row index."""
     path = Path(path)
+    check_file_size(path, str(path))
     try:
         data = np.loadtxt(path, ndmin=2)
     except ValueError as err:
@@ -158,7 +162,8 @@ REF_CSV_COLUMNS = ("time", "M_p_L_x", "M_p_L_y", "M_p_L_z", "M_q_L_x", "M_q_L_y"
 
 
 def _csv_header(line: str) -> list[str]:
-    return [c.strip() for c in line.lstrip("#").split(",") if c.strip()]
+    """Column names of a header line, separated by commas and / or spaces."""
+    return [c for c in re.split(r"[,\s]+", line.lstrip("#").strip()) if c]
 
 
 def read_ref_csv(path: str | Path) -> Trajectory:
@@ -169,6 +174,7 @@ def read_ref_csv(path: str | Path) -> Trajectory:
     refused); the velocity columns are not used. Stamps in seconds (nanoseconds, detected
     from the magnitude, are converted)."""
     path = Path(path)
+    check_file_size(path, str(path))
     rows: list[list[float]] = []
     linenos: list[int] = []
     header: list[str] | None = None
@@ -211,6 +217,7 @@ def read_ref_csv(path: str | Path) -> Trajectory:
 def is_ref_csv(path: str | Path) -> bool:
     """The file is a reference trajectory in CSV form: its header names ``M_p_L_x``, or its
     first row has 11 comma-separated values."""
+    check_file_size(Path(path), str(path))
     with open(path, errors="replace") as f:
         for line in f:
             text = line.strip()
@@ -227,7 +234,7 @@ def is_ref_csv(path: str | Path) -> bool:
 def detect_pose_format(path: str | Path) -> str:
     """"ref-csv" for a reference trajectory in CSV form (``is_ref_csv``), "kitti" when the first
     numeric row has 12 values, else "tum"."""
-    if is_ref_csv(path):
+    if is_ref_csv(path):  # (checks the file's size against the per-file limit first)
         return "ref-csv"
     with open(path, errors="replace") as f:
         for line in f:

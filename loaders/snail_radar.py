@@ -69,6 +69,7 @@ from pydantic import Field, field_validator
 from loaders.assemble import finish_scan, median_period
 from loaders.errors import DataError
 from loaders.gt import associate
+from loaders.limits import check_file_size
 from loaders.options import LoaderOptions, OpensFromOptions
 from loaders.pcd import read_pcd
 from loaders.posefile import parse_extrinsic, read_gt_file
@@ -330,6 +331,7 @@ class _FolderFrames:
             raise DataError(f"{folder}: no times.txt; expected the extracted layout "
                             "<sec>.<nsec>.pcd + times.txt (snail-radar dataset_tools "
                             "bag_to_folder.py)")
+        check_file_size(times, str(times))
         names = [line.strip() for line in times.read_text(errors="replace").splitlines()
                  if line.strip()]
         if not names:

@@ -52,7 +52,7 @@ from pydantic import Field
 
 from loaders.assemble import finish_scan
 from loaders.errors import DataError
-from loaders.limits import file_number
+from loaders.limits import check_file_size, file_number
 from loaders.options import LoaderOptions, OpensFromOptions
 from loaders.records import read_records, record_dtype
 from loaders.scan import Scan, SensorInfo, Sequence
@@ -107,6 +107,8 @@ def find_radar_root(path: Path, split: str) -> Path:
 def read_pose_file(path: Path, key: str) -> np.ndarray:
     """``T_world_camera`` (4x4) from a VoD pose file (one JSON object a line, or one object)."""
     try:
+        if path.exists():  # (a missing file: the OSError below names it)
+            check_file_size(path, str(path))
         text = path.read_text(errors="replace")
     except OSError as err:
         raise DataError(f"{path}: cannot read the pose file ({err.strerror or err}); expected "
@@ -139,6 +141,8 @@ def read_pose_file(path: Path, key: str) -> np.ndarray:
 def read_calib(path: Path) -> np.ndarray:
     """``T_camera_radar`` from a KITTI calibration file's ``Tr_velo_to_cam`` row."""
     try:
+        if path.exists():  # (a missing file: the OSError below names it)
+            check_file_size(path, str(path))
         lines = path.read_text(errors="replace").splitlines()
     except OSError as err:
         raise DataError(f"{path}: cannot read the calibration ({err.strerror or err})") from None

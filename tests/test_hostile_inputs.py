@@ -119,6 +119,22 @@ def test_a_2gb_frame_file_is_refused_from_its_size(tmp_path, dataset):
     assert not out.exists()
 
 
+@pytest.mark.parametrize("dataset", ["helipr", "coloradar"])
+def test_a_2gb_ground_truth_file_without_a_line_break_is_refused(tmp_path, dataset):
+    """A text input (here the GT) of 2 GB of NUL bytes: one "line" that reading would hold
+    whole; refused from its size like a frame."""
+    if dataset == "helipr":
+        root, _ = _helipr(tmp_path / "seq")
+        gt = root / "LiDAR_GT" / "Aeva_gt.txt"
+    else:
+        root = _coloradar(tmp_path / "runs" / "run0")
+        gt = root / "groundtruth" / "groundtruth_poses.txt"
+    gt.write_bytes(b"")
+    os.truncate(gt, 2 * 2**30)
+    res = bench_bounded(["convert", dataset, str(root), "--out", str(tmp_path / "o.h5")])
+    assert_refused(*res, str(gt), "per-frame limit of 256 MB")
+
+
 def test_the_frame_limit_is_raised_by_the_environment(tmp_path, monkeypatch):
     assert max_frame_bytes() == DEFAULT_MAX_FRAME_MB * 1_000_000
     root, stamps = _helipr(tmp_path / "seq")

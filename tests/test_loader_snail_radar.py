@@ -495,6 +495,10 @@ def test_reference_csv_errors_name_the_file_and_line(tmp_path, data):
     csv.write_text("\n".join(lines) + "\n")
     with pytest.raises(DataError, match=r"b.csv, line 4: 9 values; expected 11"):
         SnailRadarSequence(data["bag"], gt=csv)
+    # a header separated by spaces (not commas) names the same columns
+    spaced = write_ref_csv(tmp_path / "c.csv", eagle.motion, eagle.stamps[0] - 0.5,
+                           eagle.stamps[-1] + 0.5, header=CSV_HEADER.replace(",", ""))
+    assert len(SnailRadarSequence(data["bag"], gt=spaced).ground_truth) == len(eagle.stamps)
 
 
 def test_convert_without_gt_says_where_the_gt_came_from_or_warns(released, data, tmp_path,
