@@ -382,8 +382,8 @@ class RosbagSequence(Sequence, OpensFromOptions):
         clouds = sorted(t for t, m in topics.items() if m in CLOUD_TYPES)
         if len(clouds) != 1:
             have = ", ".join(f"{t} ({m})" for t, m in sorted(topics.items()))
-            raise DataError(f"{self.bags[0]}: {len(clouds)} PointCloud2 / PointCloud topics; set "
-                            f"topic (the bag has {have or 'no topics'})")
+            raise DataError(f"{self.bags[0]}: {len(clouds)} PointCloud2 / PointCloud topics; "
+                            f"choose one with --topic (the bag has {have or 'no topics'})")
         return clouds[0]
 
     def _ground_truth(self, scan_stamps: np.ndarray):

@@ -460,8 +460,8 @@ class SnailRadarSequence(Sequence, OpensFromOptions):
             return body_T_oculii(o.extrinsic)
         if self.date is None:
             raise DataError(f"{path}: the ARS548 extrinsic depends on the sequence date and no "
-                            "group folder like 20231105 or 20231105_aft is in the path; set "
-                            "date (e.g. 20231105.5)")
+                            "group folder like 20231105 or 20231105_aft is in the path; give "
+                            "--date (e.g. --date 20231105.5)")
         return body_T_ars548(self.date, str(path))
 
     def __len__(self) -> int:
