@@ -319,7 +319,7 @@ def topic_stamps(index: BagTopic, stamp: str, where: str) -> np.ndarray:
     if len(stamps) > 2 and len(np.unique(stamps)) < len(stamps) / 2:
         raise DataError(
             f"{where}: {index.topic}: only {len(np.unique(stamps))} distinct header stamps for "
-            f"{len(stamps)} messages (unset header.stamp?); use --stamp record (stamp='record') "
-            "to take the bag's record time"
+            f"{len(stamps)} messages (unset header.stamp?); use --stamp record (option "
+            "stamp='record') to take the bag's record time"
         )
     return stamps
