@@ -259,6 +259,8 @@ def read_gt_file(path: str | Path, fmt: str = "auto", stamps: np.ndarray | None 
         raise DataError(f"{path}: ground-truth file not found")
     if fmt == "auto":
         fmt = detect_pose_format(path)
+    elif fmt == "tum" and is_ref_csv(path):  # the reference CSV is T_world_frame rows too
+        fmt = "ref-csv"
     if fmt == "tum":
         return read_tum(path)
     if fmt == "kitti":
