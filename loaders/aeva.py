@@ -113,7 +113,7 @@ def _calibration_dicp(path: Path) -> np.ndarray:
             f"{path}: expected {{'T_V_to_S': {{'translation': {{x,y,z}}, 'quaternion': "
             f"{{w,x,y,z}}}}}} ({type(err).__name__}: {err})"
         ) from None
-    return parse_extrinsic(xyz + quat)
+    return _extrinsic_of(path, xyz + quat)
 
 
 def _calibration_open3d(path: Path) -> tuple[np.ndarray, float | None]:
@@ -129,7 +129,15 @@ def _calibration_open3d(path: Path) -> tuple[np.ndarray, float | None]:
         ) from None
     if T.size != 16:
         raise DataError(f"{path}: transform_vehicle_to_sensor has {T.size} values, expected 16")
-    return parse_extrinsic(T.ravel()), (float(period) if period is not None else None)
+    return _extrinsic_of(path, T.ravel()), (float(period) if period is not None else None)
+
+
+def _extrinsic_of(path: Path, values) -> np.ndarray:
+    """``parse_extrinsic`` of a calibration file's values, its error naming the file."""
+    try:
+        return parse_extrinsic(values)
+    except DataError as err:
+        raise DataError(f"{path}: {err}") from None
 
 
 class Options(GroundTruthTimeOptions):

@@ -137,9 +137,13 @@ def read_transform(path: Path) -> np.ndarray:
     if len(lines) < 2 or len(lines[0]) != 3 or len(lines[1]) != 4:
         raise DataError(f"{path}: expected a line 'x y z' and a line 'qx qy qz qw'")
     try:
-        return parse_extrinsic([float(v) for v in lines[0] + lines[1]])
+        values = [float(v) for v in lines[0] + lines[1]]
     except ValueError:
         raise DataError(f"{path}: expected numbers 'x y z' / 'qx qy qz qw'") from None
+    try:
+        return parse_extrinsic(values)
+    except DataError as err:
+        raise DataError(f"{path}: {err}") from None
 
 
 def find_calib(run: Path, calib: Path | None) -> Path:

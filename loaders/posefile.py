@@ -132,6 +132,8 @@ def parse_extrinsic(text: str | list | tuple | np.ndarray | None) -> np.ndarray:
     else:
         values = np.asarray(text, dtype=np.float64).ravel().tolist()
     v = np.asarray(values, dtype=np.float64)
+    if not np.all(np.isfinite(v)):
+        raise DataError(f"extrinsic {values}: expected finite numbers")
     if v.size == 16:
         T = v.reshape(4, 4)
         if not np.allclose(T[3], [0, 0, 0, 1]) or not np.allclose(

@@ -371,3 +371,16 @@ def _main_warnings(main, args):
     finally:
         sys.argv = old
     return exit_.value.code, err.getvalue()
+
+
+def test_a_calibration_with_a_zero_quaternion_names_its_file(tmp_path):
+    from loaders.coloradar import ColoradarSequence
+
+    run = _coloradar(tmp_path / "runs" / "run0")
+    tf = run.parent / "calib" / "transforms" / "base_to_single_chip.txt"
+    tf.write_text("0.1 0 0.05\n0 0 0 0\n")
+    with pytest.raises(DataError, match=r"base_to_single_chip.txt: extrinsic .* not unit length"):
+        ColoradarSequence(run)
+    tf.write_text("nan 0 0.05\n0 0 0 1\n")
+    with pytest.raises(DataError, match=r"base_to_single_chip.txt: .*expected finite numbers"):
+        ColoradarSequence(run)
