@@ -92,6 +92,9 @@ def read_timestamps(path: Path, unit: str = "auto") -> tuple[np.ndarray, str]:
     except ValueError as err:
         raise DataError(f"{path}: expected one number per line ({err})") from None
     v = np.asarray(values, dtype=np.float64).ravel()
+    if not np.all(np.isfinite(v)):
+        bad = int(np.flatnonzero(~np.isfinite(v))[0])
+        raise DataError(f"{path}: stamp {bad + 1} is {v[bad]}; expected finite numbers")
     if unit == "auto":
         m = float(np.median(np.abs(v))) if len(v) else 0.0
         unit = "ns" if m > 1e17 else "us" if m > 1e14 else "ms" if m > 1e11 else "s"

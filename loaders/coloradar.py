@@ -89,6 +89,8 @@ def read_stamps(path: Path) -> np.ndarray:
                 continue
             try:
                 values.append(float(line.split()[0]))
+                if not np.isfinite(values[-1]):
+                    raise ValueError
             except ValueError:
                 raise DataError(f"{path}, line {lineno}: expected a stamp in seconds, got "
                                 f"{line.strip()[:40]!r}") from None

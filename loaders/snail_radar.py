@@ -338,6 +338,8 @@ class _FolderFrames:
             raise DataError(f"{times}: no stamps; expected one <sec>.<nsec> per line")
         try:
             self.stamps = np.array([float(n) for n in names])
+            if not np.all(np.isfinite(self.stamps)):
+                raise ValueError("a stamp is not finite")
         except ValueError as err:
             raise DataError(f"{times}: a line is not a stamp <sec>.<nsec> ({err})") from None
         have = {p.name for p in folder.iterdir()}

@@ -384,3 +384,15 @@ def test_a_calibration_with_a_zero_quaternion_names_its_file(tmp_path):
     tf.write_text("nan 0 0.05\n0 0 0 1\n")
     with pytest.raises(DataError, match=r"base_to_single_chip.txt: .*expected finite numbers"):
         ColoradarSequence(run)
+
+
+def test_a_nan_scan_stamp_names_the_file_and_line(tmp_path):
+    from loaders.coloradar import ColoradarSequence
+
+    run = _coloradar(tmp_path / "runs" / "run0")
+    stamps = run / "single_chip" / "pointclouds" / "timestamps.txt"
+    lines = stamps.read_text().splitlines()
+    lines[2] = "nan"
+    stamps.write_text("\n".join(lines) + "\n")
+    with pytest.raises(DataError, match=r"timestamps.txt, line 3: expected a stamp in seconds"):
+        ColoradarSequence(run)
