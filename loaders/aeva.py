@@ -33,6 +33,7 @@ from pydantic import Field
 from loaders.assemble import finish_scan, median_period
 from loaders.errors import DataError
 from loaders.gt import associate
+from loaders.limits import check_file_size
 from loaders.options import GroundTruthTimeOptions, OpensFromOptions
 from loaders.posefile import detect_pose_format, parse_extrinsic, read_gt_file
 from loaders.scan import Scan, SensorInfo, Sequence
@@ -85,11 +86,15 @@ def sorted_frames(folder: Path, ext: str) -> list[Path]:
 
 def read_timestamps(path: Path, unit: str = "auto") -> tuple[np.ndarray, str]:
     """One stamp per line (first column); ``unit`` auto picks s/ms/us/ns from the magnitude."""
+    check_file_size(path, str(path))
     try:
         values = np.loadtxt(path, ndmin=2, usecols=0, comments="#")
     except ValueError as err:
         raise DataError(f"{path}: expected one number per line ({err})") from None
     v = np.asarray(values, dtype=np.float64).ravel()
+    if not np.all(np.isfinite(v)):
+        bad = int(np.flatnonzero(~np.isfinite(v))[0])
+        raise DataError(f"{path}: stamp {bad + 1} is {v[bad]}; expected finite numbers")
     if unit == "auto":
         m = float(np.median(np.abs(v))) if len(v) else 0.0
         unit = "ns" if m > 1e17 else "us" if m > 1e14 else "ms" if m > 1e11 else "s"
@@ -100,8 +105,9 @@ def read_timestamps(path: Path, unit: str = "auto") -> tuple[np.ndarray, str]:
 
 
 def _calibration_dicp(path: Path) -> np.ndarray:
+    check_file_size(path, str(path))
     try:
-        cal = json.loads(path.read_text())["T_V_to_S"]
+        cal = json.loads(path.read_text(errors="replace"))["T_V_to_S"]
         t, q = cal["translation"], cal["quaternion"]
         xyz = [float(t["x"]), float(t["y"]), float(t["z"])]
         quat = [float(q["x"]), float(q["y"]), float(q["z"]), float(q["w"])]
@@ -110,12 +116,13 @@ def _calibration_dicp(path: Path) -> np.ndarray:
             f"{path}: expected {{'T_V_to_S': {{'translation': {{x,y,z}}, 'quaternion': "
             f"{{w,x,y,z}}}}}} ({type(err).__name__}: {err})"
         ) from None
-    return parse_extrinsic(xyz + quat)
+    return _extrinsic_of(path, xyz + quat)
 
 
 def _calibration_open3d(path: Path) -> tuple[np.ndarray, float | None]:
+    check_file_size(path, str(path))
     try:
-        cal = json.loads(path.read_text())
+        cal = json.loads(path.read_text(errors="replace"))
         T = np.asarray(cal["transform_vehicle_to_sensor"], dtype=np.float64)
         period = cal.get("period")
     except (OSError, ValueError, KeyError, TypeError) as err:
@@ -125,7 +132,15 @@ def _calibration_open3d(path: Path) -> tuple[np.ndarray, float | None]:
         ) from None
     if T.size != 16:
         raise DataError(f"{path}: transform_vehicle_to_sensor has {T.size} values, expected 16")
-    return parse_extrinsic(T.ravel()), (float(period) if period is not None else None)
+    return _extrinsic_of(path, T.ravel()), (float(period) if period is not None else None)
+
+
+def _extrinsic_of(path: Path, values) -> np.ndarray:
+    """``parse_extrinsic`` of a calibration file's values, its error naming the file."""
+    try:
+        return parse_extrinsic(values)
+    except DataError as err:
+        raise DataError(f"{path}: {err}") from None
 
 
 class Options(GroundTruthTimeOptions):
@@ -367,9 +382,10 @@ class AevaSequence(OpensFromOptions, Sequence):
         path = self._files[k]
         where = f"{path}, frame {index}"
         fields: dict[str, np.ndarray] = {}
+        check_file_size(path, where)
         if self.layout == "open3d":
             try:
-                values = np.array(path.read_text().split(), dtype=np.float64)
+                values = np.array(path.read_text(errors="replace").split(), dtype=np.float64)
             except ValueError as err:
                 raise DataError(f"{where}: expected ASCII 'x y z doppler' lines ({err})") from None
             if values.size % 4:

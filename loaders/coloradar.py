@@ -40,6 +40,7 @@ from pydantic import Field
 from loaders.assemble import finish_scan, median_period
 from loaders.errors import DataError
 from loaders.gt import associate
+from loaders.limits import check_file_size, file_number
 from loaders.options import LoaderOptions, OpensFromOptions
 from loaders.posefile import parse_extrinsic
 from loaders.records import read_records, record_dtype
@@ -80,13 +81,16 @@ def read_stamps(path: Path) -> np.ndarray:
     """One float stamp [s] a line (``DataError`` naming the line otherwise)."""
     if not path.exists():
         raise DataError(f"{path}: timestamps file not found; expected one stamp [s] a line")
+    check_file_size(path, str(path))
     values = []
-    with open(path) as f:
+    with open(path, errors="replace") as f:
         for lineno, line in enumerate(f, start=1):
             if not line.strip():
                 continue
             try:
                 values.append(float(line.split()[0]))
+                if not np.isfinite(values[-1]):
+                    raise ValueError
             except ValueError:
                 raise DataError(f"{path}, line {lineno}: expected a stamp in seconds, got "
                                 f"{line.strip()[:40]!r}") from None
@@ -98,8 +102,9 @@ def read_poses(path: Path) -> np.ndarray:
     if not path.exists():
         raise DataError(f"{path}: ground-truth poses not found; expected 'x y z qx qy qz qw' "
                         "a line")
+    check_file_size(path, str(path))
     rows = []
-    with open(path) as f:
+    with open(path, errors="replace") as f:
         for lineno, line in enumerate(f, start=1):
             parts = line.split()
             if not parts:
@@ -129,13 +134,18 @@ def read_transform(path: Path) -> np.ndarray:
                         "(ColoRadar ships calib/ beside the run folders: give --calib DIR, or "
                         "--extrinsic 'x y z qx qy qz qw' (radar -> base; '0 0 0 0 0 0 1' when "
                         "the GT is the radar's own pose))")
-    lines = [ln.split() for ln in path.read_text().splitlines() if ln.strip()]
+    check_file_size(path, str(path))
+    lines = [ln.split() for ln in path.read_text(errors="replace").splitlines() if ln.strip()]
     if len(lines) < 2 or len(lines[0]) != 3 or len(lines[1]) != 4:
         raise DataError(f"{path}: expected a line 'x y z' and a line 'qx qy qz qw'")
     try:
-        return parse_extrinsic([float(v) for v in lines[0] + lines[1]])
+        values = [float(v) for v in lines[0] + lines[1]]
     except ValueError:
         raise DataError(f"{path}: expected numbers 'x y z' / 'qx qy qz qw'") from None
+    try:
+        return parse_extrinsic(values)
+    except DataError as err:
+        raise DataError(f"{path}: {err}") from None
 
 
 def find_calib(run: Path, calib: Path | None) -> Path:
@@ -165,16 +175,20 @@ class ColoradarSequence(OpensFromOptions, Sequence):
             raise DataError(f"{self.root}: no {CLOUD_DIR}/data folder; expected a ColoRadar run "
                             f"with {CLOUD_DIR}/data/radar_pointcloud_<i>.bin and "
                             f"{CLOUD_DIR}/timestamps.txt")
-        found = {int(m.group(1)): p for p in (clouds / "data").iterdir()
+        found = {file_number(m.group(1), p): p for p in (clouds / "data").iterdir()
                  if (m := _FRAME.match(p.name))}
         if not found:
             raise DataError(f"{clouds / 'data'}: no radar_pointcloud_<i>.bin files")
         n = max(found) + 1
-        missing = sorted(set(range(n)) - set(found))
-        if missing:
-            raise DataError(f"{clouds / 'data'}: radar_pointcloud_{missing[0]}.bin is missing "
-                            f"({len(missing)} of indices 0..{n - 1}); expected one file per "
-                            "line of timestamps.txt")
+        if len(found) != n:  # a gap or a stray index: found from the indices present only
+            # (never a set of range(max + 1): a stray radar_pointcloud_20000000.bin would
+            # allocate 20 million entries)
+            idx = sorted(found)
+            first = next((i for i, k in enumerate(idx) if i != k), len(idx))
+            raise DataError(f"{clouds / 'data'}: radar_pointcloud_{first}.bin is missing "
+                            f"({n - len(found)} of indices 0..{n - 1}; the highest is "
+                            f"{found[idx[-1]].name}); expected one file per line of "
+                            "timestamps.txt, indices 0..N-1")
         self._files = [found[i] for i in range(n)]
         stamp_file = clouds / "timestamps.txt"
         stamps = read_stamps(stamp_file)

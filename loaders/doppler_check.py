@@ -123,33 +123,60 @@ def doppler_sign_check(seq: Sequence, gt_poses: np.ndarray | None, max_frames: i
     return SignCheck(len(cosines), cos, ratio, verdict)
 
 
-def low_points_median_z(sequence: Sequence, frames: int = 50, quantile: float = 0.1) -> dict:
-    """Elevation-sign check over the first ``frames`` scans: the median z of the lowest
-    ``quantile`` of the points, the z of the densest 0.25 m height layer (on a road: the road
-    surface) and the share of points above the sensor. With the right ``elevation_sign`` the
-    road surface comes out BELOW the sensor (dominant layer about minus the mounting height,
-    e.g. -0.5 m for a bumper radar); with the wrong sign it comes out mirrored above it."""
-    zs = []
-    for i in range(min(frames, len(sequence))):
-        zs.append(sequence.scan(i).points[:, 2])
-    if not zs:
-        raise DataError(f"{sequence.name}: no frames to check")
-    z = np.concatenate(zs)
-    low = z[z <= np.quantile(z, quantile)]
-    # the densest 0.25 m height layer: on roads this is the road surface
-    edges = np.arange(np.floor(z.min()), np.ceil(z.max()) + 0.5, 0.25)
+#: the height check looks at the points within this horizontal range of the sensor [m]: near
+#: the sensor the densest layer is the road; farther out, walls, trees and vehicles' roofs can
+#: outnumber it (stores whose densest layer over all ranges sat at z = +2.1 m had the road at
+#: -0.5 m within 30 m)
+NEAR_FIELD_M = 30.0
+#: fewer near-field points than this: the check uses every point and says so
+MIN_NEAR_POINTS = 200
+LAYER_M = 0.25
+
+
+def _densest_layer(z: np.ndarray) -> float:
+    """The median z of the densest ``LAYER_M`` height layer."""
+    edges = np.arange(np.floor(z.min()), np.ceil(z.max()) + 2 * LAYER_M, LAYER_M)
     if len(edges) < 2:
-        edges = np.array([z.min() - 0.125, z.max() + 0.125])
+        edges = np.array([z.min() - LAYER_M / 2, z.max() + LAYER_M / 2])
     hist, edges = np.histogram(z, bins=edges)
     k = int(np.argmax(hist))
-    layer = float(np.median(z[(z >= edges[k]) & (z <= edges[k + 1])]))
+    return float(np.median(z[(z >= edges[k]) & (z <= edges[k + 1])]))
+
+
+def low_points_median_z(sequence: Sequence, frames: int = 50, quantile: float = 0.1,
+                        near_field_m: float = NEAR_FIELD_M) -> dict:
+    """Elevation-sign check over the first ``frames`` scans, on the near field: the points
+    within ``near_field_m`` (horizontal range) of the sensor, where the densest 0.25 m height
+    layer is the road surface (with fewer than ``MIN_NEAR_POINTS`` there, every point, said in
+    ``basis``). Reported: that layer's z, the median z of the lowest ``quantile`` of the points
+    and the share of points above the sensor. With the right ``elevation_sign`` the road comes
+    out BELOW the sensor (about minus the mounting height, e.g. -0.5 m for a bumper radar);
+    mirrored, it comes out above. The densest layer over all ranges is reported beside it
+    (``all_ranges_layer_z_m``): far away, buildings and trees can outnumber the road."""
+    pts = []
+    for i in range(min(frames, len(sequence))):
+        pts.append(sequence.scan(i).points)
+    if not pts:
+        raise DataError(f"{sequence.name}: no frames to check")
+    p = np.concatenate(pts)
+    z = p[:, 2]
+    near = np.hypot(p[:, 0], p[:, 1]) <= near_field_m
+    if near.sum() >= MIN_NEAR_POINTS:
+        zn, basis = z[near], f"points within {near_field_m:g} m"
+    else:
+        zn, basis = z, (f"all points (only {int(near.sum())} within {near_field_m:g} m, fewer "
+                        f"than {MIN_NEAR_POINTS})")
+    low = zn[zn <= np.quantile(zn, quantile)]
+    layer = _densest_layer(zn)
     return {
         "frames": min(frames, len(sequence)),
-        "points": int(len(z)),
+        "points": int(len(zn)),
+        "basis": basis,
         "low_points_median_z_m": float(np.median(low)),
         "dominant_layer_z_m": layer,
-        "median_z_m": float(np.median(z)),
-        "share_above_sensor": float((z > 0).mean()),
+        "all_ranges_layer_z_m": _densest_layer(z),
+        "median_z_m": float(np.median(zn)),
+        "share_above_sensor": float((zn > 0).mean()),
         "verdict": ("road below the sensor (sign looks right)" if layer < 0 else
                     "densest layer above the sensor (the elevation looks mirrored)"),
     }

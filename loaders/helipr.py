@@ -40,9 +40,10 @@ from typing import Literal
 import numpy as np
 from pydantic import Field
 
-from loaders.assemble import finish_scan, median_period
+from loaders.assemble import MAX_FAR_SHARE, MAX_POINT_RANGE_M, finish_scan, median_period
 from loaders.errors import DataError
 from loaders.gt import associate, clean_trajectory
+from loaders.limits import check_file_size, file_number
 from loaders.options import LoaderOptions, OpensFromOptions
 from loaders.posefile import parse_extrinsic, read_tum
 from loaders.records import read_records, record_dtype
@@ -82,6 +83,39 @@ class Options(LoaderOptions):
         "largest GT gap interpolated across (s) (default: 3 median GT steps, at least 0.3 s)"))
     uncovered: Literal["keep", "trim", "error"] = Field("keep", description=(
         "scans without GT: keep (run, unscored), trim (cut the ends) or error"))
+
+
+def _layout_name(has_intensity: bool) -> str:
+    return (f"{29 if has_intensity else 25}-byte records ("
+            f"{'with' if has_intensity else 'without'} intensity)")
+
+
+def check_layouts(files: list[Path], with_intensity: np.ndarray) -> None:
+    """Every file's size (``stat`` only, nothing read) within the per-frame limit and a whole
+    number of its layout's records: one ``DataError`` naming the first file that is not."""
+    for k, (path, has_i) in enumerate(zip(files, with_intensity, strict=True)):
+        where = f"{path}, frame {k}"
+        size = check_file_size(path, where)
+        rec = 29 if has_i else 25
+        if size == 0 or size % rec == 0:
+            continue  # empty files are refused when read (naming the frame)
+        other = 25 if has_i else 29
+        hint = (f"; it is a whole number of {_layout_name(not has_i)}: the sequence mixes the "
+                "two layouts (set --intensity yes/no for the whole sequence, or remove the "
+                "frame)" if size % other == 0 else "; the file is truncated or not this layout")
+        raise DataError(f"{where}: {size} bytes is not a whole number of "
+                        f"{_layout_name(bool(has_i))}, the layout of its stamp (intensity after "
+                        f"{INTENSITY_AFTER_NS} ns){hint}")
+
+
+def implausible_share(rec: np.ndarray) -> float:
+    """Share of the records that cannot be Aeva points: a coordinate not finite or beyond
+    ``MAX_POINT_RANGE_M``, or a per-point time offset beyond +-1 s (a scan lasts 0.1 s)."""
+    xyz = np.column_stack([rec["x"], rec["y"], rec["z"]]).astype(np.float64)
+    with np.errstate(invalid="ignore"):
+        bad = ~(np.abs(xyz) <= MAX_POINT_RANGE_M).all(axis=1)
+    bad |= np.abs(rec["time_offset_ns"].astype(np.int64)) > 1_000_000_000
+    return float(bad.mean()) if len(rec) else 0.0
 
 
 def find_aeva_dir(path: Path) -> tuple[Path, Path]:
@@ -133,12 +167,13 @@ class HeliprSequence(OpensFromOptions, Sequence):
             raise DataError(f"doppler_sign must be +1 or -1, got {opts.doppler_sign}")
         self.options = opts
         self.root, frame_dir = find_aeva_dir(Path(path))
-        files = sorted((p for p in frame_dir.iterdir() if _FRAME.match(p.name)),
-                       key=lambda p: int(p.stem))
-        if not files:
+        numbered = sorted((file_number(p.stem, p), p) for p in frame_dir.iterdir()
+                          if _FRAME.match(p.name))
+        if not numbered:
             raise DataError(f"{frame_dir}: no <t_ns>.bin Aeva scans")
+        files = [p for _, p in numbered]
         self._files = files
-        self._ns = np.array([int(p.stem) for p in files], dtype=np.int64)
+        self._ns = np.array([n for n, _ in numbered], dtype=np.int64)
         stamps = self._ns.astype(np.float64) * 1e-9
         if np.any(np.diff(self._ns) == 0):
             raise DataError(f"{frame_dir}: two scans share a stamp")
@@ -148,6 +183,7 @@ class HeliprSequence(OpensFromOptions, Sequence):
         else:
             with_intensity = np.full(len(files), opts.intensity == "yes")
         self._with_intensity = with_intensity
+        check_layouts(files, with_intensity)
         # a store keeps the same fields in every frame: intensity only when all frames have it
         self._keep_intensity = bool(with_intensity.all())
         T = parse_extrinsic(opts.extrinsic) if opts.extrinsic else np.eye(4)
@@ -238,6 +274,8 @@ class HeliprSequence(OpensFromOptions, Sequence):
                   f"{'after' if has_i else 'at or before'} {INTENSITY_AFTER_NS} ns)")
         alt = {f"the {other}-byte layout ({'without' if has_i else 'with'} intensity)": other}
         rec = read_records(path, dtype, where, layout, alt)
+        if implausible_share(rec) > MAX_FAR_SHARE:
+            self._refuse_layout(path, where, has_i, rec)
         points = np.column_stack([rec["x"], rec["y"], rec["z"]]).astype(np.float64)
         doppler = self.doppler_sign * rec["velocity"].astype(np.float64)
         if self._v_sensor is not None:
@@ -254,3 +292,21 @@ class HeliprSequence(OpensFromOptions, Sequence):
             fields["intensity"] = rec["intensity"].copy()
         return finish_scan(float(self._stamps_all[k]), points, doppler, fields, where,
                            self.provenance)
+
+    @staticmethod
+    def _refuse_layout(path: Path, where: str, has_i: bool, rec: np.ndarray) -> None:
+        """The records decode to impossible points: say whether the other layout fits."""
+        share = implausible_share(rec)
+        other = RECORD_25 if has_i else RECORD_29
+        size = path.stat().st_size
+        hint = "; the file is corrupt or not an Aeva scan"
+        if size % other.itemsize == 0:
+            alt = np.fromfile(path, dtype=other, count=size // other.itemsize)
+            if implausible_share(alt) <= MAX_FAR_SHARE:
+                hint = (f"; read as {_layout_name(not has_i)} they are plausible: this frame has "
+                        "the other layout than its stamp says (set --intensity yes/no for the "
+                        "whole sequence, or remove the frame)")
+        raise DataError(
+            f"{where}: read as {_layout_name(has_i)} (the layout of its stamp), "
+            f"{100 * share:.0f} % of the points are impossible (a coordinate beyond "
+            f"{MAX_POINT_RANGE_M:,.0f} m or not finite, or a time offset beyond 1 s){hint}")

@@ -20,6 +20,7 @@ from pydantic import Field
 
 from loaders.assemble import finish_scan
 from loaders.errors import DataError
+from loaders.limits import check_file_size, check_frame_bytes
 from loaders.options import LoaderOptions, OpensFromOptions
 from loaders.posefile import read_tum
 from loaders.scan import Scan, SensorInfo, Sequence
@@ -176,11 +177,22 @@ class NpyFramesSequence(OpensFromOptions, Sequence):
         path = self.files[index]
         source = f"{path}, frame {index}"
         try:
-            points = np.load(path)
-            doppler = np.load(path.with_name(path.stem + "_dop.npy"))
+            points = _load_bounded(path, source)
+            doppler = _load_bounded(path.with_name(path.stem + "_dop.npy"), source)
         except (OSError, ValueError) as err:
+            if isinstance(err, DataError):
+                raise
             raise DataError(f"{source}: cannot read the frame ({err})") from err
         if points.ndim != 2 or points.shape[1] != 3 or doppler.shape != (len(points),):
             raise DataError(f"{source}: expected points (N, 3) and Doppler (N,), got "
                             f"{points.shape} and {doppler.shape}")
         return finish_scan(self._stamps[index], points, doppler, {}, source)
+
+
+def _load_bounded(path: Path, source: str) -> np.ndarray:
+    """An .npy array, its size (file, then the header's shape) checked against the per-frame
+    limit before it is read (memory-mapped first: a header may promise more than the file)."""
+    check_file_size(path, source)
+    arr = np.load(path, mmap_mode="r")
+    check_frame_bytes(int(arr.nbytes), source, f"{path.name} ({arr.shape} {arr.dtype})")
+    return np.array(arr)

@@ -16,19 +16,21 @@ the dataset and is refused with a message.
 Every inconsistency is one ``DataError`` naming the file and what was expected: a data size that
 is not a whole number of records, a point count that disagrees with the bytes, a field list
 whose SIZE / TYPE / COUNT lists have another length, an unknown type or size, a missing header
-line. The point count of the header is compared with the file size before any array is made, so
-a corrupt header never causes a large allocation.
+line. The point count of the header is compared with the file size before any array is made, and
+the file size and one record (``SIZE`` x ``COUNT`` summed over the fields) with the per-frame
+limit of ``loaders.limits`` before a ``COUNT`` is expanded, so a corrupt header never causes a
+large allocation.
 """
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from loaders.errors import DataError
+from loaders.limits import check_file_size, check_frame_bytes
 
 #: the longest header read before giving up (a PCD header is a few hundred bytes)
 MAX_HEADER_BYTES = 64 * 1024
@@ -87,23 +89,28 @@ def read_pcd_header(path: Path, head: bytes | None = None) -> PcdHeader:
             f"{len(sizes)} SIZE, {len(types)} TYPE and {len(counts)} COUNT entries; expected one "
             "of each per field"
         )
-    out_names, formats = [], []
     try:
-        for name, size, kind, count in zip(names, sizes, types, counts, strict=True):
-            fmt = _KINDS.get((kind.upper(), int(size)))
-            k = int(count)
-            if fmt is None or k < 1:
-                raise DataError(f"{path}: PCD field {name!r} has TYPE {kind} SIZE {size} COUNT "
-                                f"{count}; expected TYPE F (4/8), I or U (1/2/4/8), COUNT >= 1")
-            for j in range(k):
-                out_names.append(name if k == 1 else f"{name}_{j}")
-                formats.append("<" + fmt)
+        ints = [(int(size), int(count)) for size, count in zip(sizes, counts, strict=True)]
         width = int(entries.get("WIDTH", ["-1"])[0])
         height = int(entries.get("HEIGHT", ["1"])[0])
         points = int(entries["POINTS"][0]) if "POINTS" in entries else width * height
     except ValueError as err:
         raise DataError(f"{path}: PCD header has a non-integer SIZE / COUNT / WIDTH / HEIGHT / "
                         f"POINTS ({err})") from None
+    # the sizes come first: COUNT 2000000000 must not be expanded into names before refusing
+    record = sum(size * count for size, count in ints)
+    # (POINTS is compared with the data bytes, which the file-size limit bounds, by read_pcd)
+    check_frame_bytes(record, str(path), f"one point record of the PCD header ({record:,} "
+                      "bytes: SIZE x COUNT summed over FIELDS)")
+    out_names, formats = [], []
+    for name, kind, (size, k) in zip(names, types, ints, strict=True):
+        fmt = _KINDS.get((kind.upper(), size))
+        if fmt is None or k < 1:
+            raise DataError(f"{path}: PCD field {name!r} has TYPE {kind} SIZE {size} COUNT "
+                            f"{k}; expected TYPE F (4/8), I or U (1/2/4/8), COUNT >= 1")
+        for j in range(k):
+            out_names.append(name if k == 1 else f"{name}_{j}")
+            formats.append("<" + fmt)
     if width < 0 or height < 1 or points != width * height:
         raise DataError(f"{path}: PCD header says POINTS {points} but WIDTH {width} x HEIGHT "
                         f"{height}; expected POINTS = WIDTH * HEIGHT")
@@ -118,7 +125,7 @@ def read_pcd(path: str | Path) -> tuple[np.ndarray, list[str]]:
     little-endian values) and the field names, after checking the header against the data."""
     path = Path(path)
     try:
-        size = os.path.getsize(path)
+        size = check_file_size(path, str(path))
         with open(path, "rb") as f:
             head = f.read(MAX_HEADER_BYTES)
             h = read_pcd_header(path, head)

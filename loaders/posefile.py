@@ -3,17 +3,21 @@
 - TUM: rows ``t x y z qx qy qz qw`` (``read_tum`` / ``write_tum``);
 - KITTI: rows of 12 values, the 3x4 ``T_world_frame`` row-major, no stamps (``read_kitti`` /
   ``write_kitti``);
-- ``read_gt_file``: either, detected from the first numeric row;
+- reference CSV: ``time, M_p_L_x .. M_q_L_w, W_v_L_x ..`` (Snail-Radar's ``ref_tls_T_xt32.csv``,
+  ``read_ref_csv``);
+- ``read_gt_file``: any of these, detected from the header / first numeric row;
 - ``parse_extrinsic``: a 4x4 transform from "x y z qx qy qz qw", 3, 7 or 16 numbers.
 """
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 
 import numpy as np
 
 from loaders.errors import DataError
+from loaders.limits import check_file_size
 from loaders.se3 import T_from_tum, make_T, tum_from_T
 from loaders.trajectory import Trajectory
 
@@ -22,8 +26,10 @@ def read_tum(path: str | Path) -> Trajectory:
     """Read TUM rows ``t x y z qx qy qz qw``; '#' comments and one leading header line that
     is not numeric are skipped."""
     path = Path(path)
-    rows = []
-    with open(path) as f:
+    check_file_size(path, str(path))
+    rows: list[list[float]] = []
+    linenos: list[int] = []
+    with open(path, errors="replace") as f:
         for lineno, line in enumerate(f, start=1):
             text = line.strip()
             if not text or text.startswith("#"):
@@ -43,12 +49,37 @@ def read_tum(path: str | Path) -> Trajectory:
                     f"got {len(values)}"
                 )
             rows.append(values)
+            linenos.append(lineno)
     if not rows:
         raise DataError(f"{path}: no TUM pose rows found")
     data = np.array(rows)
-    if not np.isfinite(data).all():
-        raise DataError(f"{path}: non-finite values in the TUM rows")
-    return Trajectory(data[:, 0], T_from_tum(data[:, 1:4], data[:, 4:8]))
+    quat = check_quaternions(data[:, 4:8], path, linenos, finite=data)
+    return Trajectory(data[:, 0], T_from_tum(data[:, 1:4], quat))
+
+
+#: a pose row's quaternion must have a norm within this of 1 (files print 6-9 digits)
+QUAT_NORM_TOLERANCE = 0.01
+
+
+def check_quaternions(quat: np.ndarray, path, linenos: list[int],
+                      finite: np.ndarray | None = None) -> np.ndarray:
+    """The unit quaternions of pose rows (normalised); a ``DataError`` naming the file and the
+    line of the first row that is not finite (``finite``: the whole rows) or whose quaternion
+    is not unit length within ``QUAT_NORM_TOLERANCE`` (a zero quaternion is no orientation)."""
+    rows = quat if finite is None else finite
+    bad = ~np.isfinite(rows).all(axis=1)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{path}, line {linenos[k]}: non-finite value in the pose row; expected "
+                        "finite numbers")
+    norms = np.linalg.norm(quat, axis=1)
+    bad = np.abs(norms - 1.0) > QUAT_NORM_TOLERANCE
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{path}, line {linenos[k]}: quaternion (qx qy qz qw) = "
+                        f"{' '.join(f'{v:g}' for v in quat[k])} has norm {norms[k]:.4g}; "
+                        "expected a unit quaternion (norm 1)")
+    return quat / norms[:, None]
 
 def write_tum(traj: Trajectory, path: str | Path) -> None:
     """Write TUM rows ``t x y z qx qy qz qw`` (9 decimals)."""
@@ -58,13 +89,23 @@ def write_tum(traj: Trajectory, path: str | Path) -> None:
 def read_kitti(path: str | Path, stamps: np.ndarray | None = None) -> Trajectory:
     """Read KITTI rows (12 values, 3x4 row-major); stamps default to the row index."""
     path = Path(path)
+    check_file_size(path, str(path))
     try:
         data = np.loadtxt(path, ndmin=2)
     except ValueError as err:
         raise DataError(f"{path}: not a KITTI pose file ({err})") from err
     if data.shape[1] != 12:
         raise DataError(f"{path}: expected 12 values per KITTI row, got {data.shape[1]}")
-    poses = make_T(data[:, [0, 1, 2, 4, 5, 6, 8, 9, 10]].reshape(-1, 3, 3), data[:, [3, 7, 11]])
+    R = data[:, [0, 1, 2, 4, 5, 6, 8, 9, 10]].reshape(-1, 3, 3)
+    with np.errstate(invalid="ignore"):
+        err = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max(axis=(1, 2))
+    bad = ~np.isfinite(data).all(axis=1) | ~(err <= 1e-3) | ~(np.linalg.det(R) > 0)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{path}, pose row {k + 1}: not a rigid transform (its 3x3 part is not "
+                        "a rotation, or a value is not finite); expected 12 values, a 3x4 "
+                        "[R | t] row-major")
+    poses = make_T(R, data[:, [3, 7, 11]])
     if stamps is None:
         stamps = np.arange(len(poses), dtype=np.float64)
     elif len(stamps) != len(poses):
@@ -91,6 +132,8 @@ def parse_extrinsic(text: str | list | tuple | np.ndarray | None) -> np.ndarray:
     else:
         values = np.asarray(text, dtype=np.float64).ravel().tolist()
     v = np.asarray(values, dtype=np.float64)
+    if not np.all(np.isfinite(v)):
+        raise DataError(f"extrinsic {values}: expected finite numbers")
     if v.size == 16:
         T = v.reshape(4, 4)
         if not np.allclose(T[3], [0, 0, 0, 1]) or not np.allclose(
@@ -113,9 +156,89 @@ def parse_extrinsic(text: str | list | tuple | np.ndarray | None) -> np.ndarray:
     return make_T(Rotation.from_quat(q / np.linalg.norm(q)).as_matrix(), v[:3])
 
 
+#: the columns of the Snail-Radar reference trajectories in CSV form (``ref_tls_T_xt32.csv``,
+#: the header the dataset authors' TLS localisation writes): the XT32 lidar's pose in the map
+#: (position M_p_L, quaternion M_q_L x y z w) and its velocity in the world frame W_v_L
+REF_CSV_COLUMNS = ("time", "M_p_L_x", "M_p_L_y", "M_p_L_z", "M_q_L_x", "M_q_L_y", "M_q_L_z",
+                   "M_q_L_w", "W_v_L_x", "W_v_L_y", "W_v_L_z")
+
+
+def _csv_header(line: str) -> list[str]:
+    """Column names of a header line, separated by commas and / or spaces."""
+    return [c for c in re.split(r"[,\s]+", line.lstrip("#").strip()) if c]
+
+
+def read_ref_csv(path: str | Path) -> Trajectory:
+    """A reference trajectory in the comma-separated form ``ref_tls_T_xt32.csv``: one ``#``
+    header line naming the columns ``REF_CSV_COLUMNS`` (11: time, position, quaternion x y z w,
+    world velocity; a file without the velocity columns, 8, is read too), then one row per
+    pose. The header's first 8 names must be those (by name: a file of other columns is
+    refused); the velocity columns are not used. Stamps in seconds (nanoseconds, detected
+    from the magnitude, are converted)."""
+    path = Path(path)
+    check_file_size(path, str(path))
+    rows: list[list[float]] = []
+    linenos: list[int] = []
+    header: list[str] | None = None
+    with open(path, errors="replace") as f:
+        for lineno, line in enumerate(f, start=1):
+            text = line.strip()
+            if not text:
+                continue
+            if text.startswith("#"):
+                if header is None and not rows:
+                    header = _csv_header(text)
+                continue
+            parts = [p.strip() for p in text.split(",")]
+            try:
+                values = [float(v) for v in parts]
+            except ValueError:
+                if header is None and not rows:  # an uncommented header line
+                    header = _csv_header(text)
+                    continue
+                raise DataError(f"{path}, line {lineno}: expected comma-separated numbers "
+                                f"({', '.join(REF_CSV_COLUMNS)}), got {text[:80]!r}") from None
+            if len(values) not in (8, 11) or (rows and len(values) != len(rows[0])):
+                raise DataError(f"{path}, line {lineno}: {len(values)} values; expected 11 "
+                                f"({', '.join(REF_CSV_COLUMNS)}) or the first 8")
+            rows.append(values)
+            linenos.append(lineno)
+    if header is not None and [h.lower() for h in header[:8]] != [
+            c.lower() for c in REF_CSV_COLUMNS[:8]]:
+        raise DataError(f"{path}: header columns {', '.join(header[:11])}; expected "
+                        f"{', '.join(REF_CSV_COLUMNS)} (the Snail-Radar reference trajectory)")
+    if not rows:
+        raise DataError(f"{path}: no pose rows; expected lines of "
+                        f"{', '.join(REF_CSV_COLUMNS)}")
+    data = np.array(rows)
+    quat = check_quaternions(data[:, 4:8], path, linenos, finite=data[:, :8])
+    stamps = data[:, 0] * (1e-9 if np.median(np.abs(data[:, 0])) > 1e17 else 1.0)
+    return Trajectory(stamps, T_from_tum(data[:, 1:4], quat))
+
+
+def is_ref_csv(path: str | Path) -> bool:
+    """The file is a reference trajectory in CSV form: its header names ``M_p_L_x``, or its
+    first row has 11 comma-separated values."""
+    check_file_size(Path(path), str(path))
+    with open(path, errors="replace") as f:
+        for line in f:
+            text = line.strip()
+            if not text:
+                continue
+            if "M_p_L_x" in text:
+                return True
+            if text.startswith("#"):
+                continue
+            return text.count(",") == len(REF_CSV_COLUMNS) - 1
+    return False
+
+
 def detect_pose_format(path: str | Path) -> str:
-    """"kitti" when the first numeric row has 12 values, else "tum"."""
-    with open(path) as f:
+    """"ref-csv" for a reference trajectory in CSV form (``is_ref_csv``), "kitti" when the first
+    numeric row has 12 values, else "tum"."""
+    if is_ref_csv(path):  # (checks the file's size against the per-file limit first)
+        return "ref-csv"
+    with open(path, errors="replace") as f:
         for line in f:
             parts = line.replace(",", " ").split()
             if not parts or parts[0].startswith("#"):
@@ -130,15 +253,21 @@ def detect_pose_format(path: str | Path) -> str:
 
 def read_gt_file(path: str | Path, fmt: str = "auto", stamps: np.ndarray | None = None
                  ) -> Trajectory:
-    """Read a TUM (8 columns) or KITTI (12 columns) pose file; ``fmt`` "auto" decides from the
-    first numeric row. KITTI rows get ``stamps`` (default: the row index)."""
+    """Read a TUM (8 columns), KITTI (12 columns) or reference-CSV (``read_ref_csv``) pose
+    file; ``fmt`` "auto" decides (``detect_pose_format``). KITTI rows get ``stamps`` (default:
+    the row index)."""
     path = Path(path)
     if not path.exists():
         raise DataError(f"{path}: ground-truth file not found")
     if fmt == "auto":
         fmt = detect_pose_format(path)
+    elif fmt == "tum" and is_ref_csv(path):  # the reference CSV is T_world_frame rows too
+        fmt = "ref-csv"
     if fmt == "tum":
         return read_tum(path)
     if fmt == "kitti":
         return read_kitti(path, stamps)
-    raise DataError(f"{path}: unknown ground-truth format {fmt!r} (expected tum or kitti)")
+    if fmt == "ref-csv":
+        return read_ref_csv(path)
+    raise DataError(f"{path}: unknown ground-truth format {fmt!r} (expected tum, kitti or "
+                    "ref-csv)")

@@ -4,7 +4,8 @@ View-of-Delft, ColoRadar and HeLiPR store each scan as such a file with no heade
 count is the file size divided by the record size. ``read_records`` checks that the size is a
 whole number of records before reading (a truncated file, or a file of another layout, is one
 ``DataError`` naming the file, the frame and the layout expected, never a huge allocation: the
-array read is never larger than the file), and names the layout the size does fit when one of
+array read is never larger than the file, and a file above the per-frame limit of
+``loaders.limits`` is refused from its size), and names the layout the size does fit when one of
 the ``alternatives`` (e.g. the same sensor without its Doppler field) matches.
 """
 
@@ -15,6 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from loaders.errors import DataError
+from loaders.limits import check_file_size
 
 
 def record_dtype(fields: list[tuple[str, str]]) -> np.dtype:
@@ -42,10 +44,7 @@ def read_records(path: Path, dtype: np.dtype, where: str, layout: str,
     where: "file, frame i" for messages. layout: what the loader expects ("View-of-Delft radar
     N x 7"). alternatives: other record sizes [bytes] by what they would mean ("ColoRadar lidar
     x y z intensity, no Doppler"), named in the error when the size fits one of them."""
-    try:
-        size = path.stat().st_size
-    except OSError as err:
-        raise DataError(f"{where}: cannot read the scan file ({err.strerror or err})") from None
+    size = check_file_size(path, where)
     rec = dtype.itemsize
     if size == 0:
         raise DataError(f"{where}: empty file (0 bytes); expected {layout}: {rec}-byte records "

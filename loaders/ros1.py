@@ -24,6 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from loaders.errors import DataError
+from loaders.limits import check_frame_bytes
 
 try:  # rosbags internals used for the record layout; pinned in pyproject (>= 0.10)
     from rosbags.rosbag1.reader import Header as _RecordHeader
@@ -178,6 +179,7 @@ class BagTopic:
             if cached is None or cached[0] != cp:
                 f = self._file(b)
                 f.seek(chunk.datapos)
+                check_frame_bytes(int(chunk.datasize), self.where(i), "its compressed chunk")
                 data = f.read(chunk.datasize)
                 if len(data) != chunk.datasize:
                     raise EOFError("chunk shorter than its header says")
@@ -188,6 +190,8 @@ class BagTopic:
             bio = io.BytesIO(cached[1])
             bio.seek(int(self.offset[i]))
             return _read_record(bio, prefix)
+        except DataError as err:  # the size limit (a DataError is also a ValueError)
+            raise DataError(f"{self.where(i)}{err}") from None
         except _reader_errors() as err:
             raise DataError(
                 f"{self.where(i)}: cannot read the message ({type(err).__name__}: {err}); the "
@@ -211,6 +215,8 @@ def _read_record(bio, prefix: int | None) -> bytes:
         header = _RecordHeader.read(bio)
         op = header.get_uint8("op")
         (size,) = struct.unpack("<I", _read_exact(bio, 4))
+        if prefix is None:  # a garbage length must not become a 4 GB read
+            check_frame_bytes(size, "", "the message")
         if op == _OP_CONNECTION:
             bio.seek(size, 1)
             continue
@@ -313,7 +319,7 @@ def topic_stamps(index: BagTopic, stamp: str, where: str) -> np.ndarray:
     if len(stamps) > 2 and len(np.unique(stamps)) < len(stamps) / 2:
         raise DataError(
             f"{where}: {index.topic}: only {len(np.unique(stamps))} distinct header stamps for "
-            f"{len(stamps)} messages (unset header.stamp?); use stamp='record' to take the bag's "
-            "record time"
+            f"{len(stamps)} messages (unset header.stamp?); use --stamp record (option "
+            "stamp='record') to take the bag's record time"
         )
     return stamps

@@ -382,8 +382,8 @@ class RosbagSequence(Sequence, OpensFromOptions):
         clouds = sorted(t for t, m in topics.items() if m in CLOUD_TYPES)
         if len(clouds) != 1:
             have = ", ".join(f"{t} ({m})" for t, m in sorted(topics.items()))
-            raise DataError(f"{self.bags[0]}: {len(clouds)} PointCloud2 / PointCloud topics; set "
-                            f"topic (the bag has {have or 'no topics'})")
+            raise DataError(f"{self.bags[0]}: {len(clouds)} PointCloud2 / PointCloud topics; "
+                            f"choose one with --topic (the bag has {have or 'no topics'})")
         return clouds[0]
 
     def _ground_truth(self, scan_stamps: np.ndarray):
@@ -406,7 +406,7 @@ class RosbagSequence(Sequence, OpensFromOptions):
                 )
             shifted = scan_stamps - o.time_offset_s
             return Trajectory(shifted, rows.poses), str(o.gt), "nearest"
-        return read_gt_file(o.gt, "tum"), str(o.gt), "interpolate"
+        return read_gt_file(o.gt, fmt), str(o.gt), "interpolate"
 
     def __len__(self) -> int:
         return len(self._order)
@@ -438,7 +438,8 @@ class RosbagSequence(Sequence, OpensFromOptions):
                             f"{' '.join(cols)}")
         if dname not in cols:
             raise DataError(f"{where}: no Doppler field {dname!r}; the {self.msgtype} has "
-                            f"{' '.join(cols)} (set doppler_field)")
+                            f"{' '.join(cols)} (name it with --doppler-field, option "
+                            "doppler_field)")
         points = np.column_stack([cols["x"], cols["y"], cols["z"]]).astype(np.float64)
         doppler = cols[dname].astype(np.float64) * self.options.doppler_sign
         fields = {}

@@ -35,9 +35,15 @@ Facts from the dataset's own tools (github.com/snail-radar/dataset_tools) and si
   GT rows at most ``max_gap_s`` apart (``loaders.gt.associate``); scans inside a longer gap
   keep no pose (never interpolated across: a scored segment never uses an invented pose) and
   are only excluded from scoring. ``gt_frame="body"`` takes rows of ``T_world_body`` instead.
-  Without ``gt`` those two file names are looked for in the sequence folder (the names the
-  authors' scripts use; gaussian-rio reads ``full_trajs/<day>/dataN/utm50r_T_xt32.txt``), and
-  the first GT position is subtracted (``remove_gt_origin``: UTM -> metres from the start).
+  The same reference trajectory circulates as ``ref_trajs/<date>/<run>/ref_tls_T_xt32.csv``
+  (comma-separated, one ``#`` header line, 11 columns ``time, M_p_L_x, M_p_L_y, M_p_L_z,
+  M_q_L_x, M_q_L_y, M_q_L_z, M_q_L_w, W_v_L_x, W_v_L_y, W_v_L_z``: the header the authors' TLS
+  localisation writes; ``M_p_L`` / ``M_q_L`` the XT32 lidar's pose in the map, the same frame
+  as the TUM ``tls_T_xt32``; the world velocity is not used). Without ``gt`` these names are
+  looked for in the sequence folder, then in ``ref_trajs/<date>/<run>/`` and
+  ``full_trajs/<date>/<run>/`` (gaussian-rio's ``full_trajs/<day>/dataN/utm50r_T_xt32.txt``)
+  in the folders above the sequence (``find_gt_file``), and the first GT position is
+  subtracted (``remove_gt_origin``: UTM -> metres from the start).
   ``T_world_radar = T_world_xt32 @ inv(T_body_xt32) @ T_body_radar`` (``provenance
   ["T_gtbody_radar"]``); ``sensor.T_body_sensor`` is ``T_body_radar``, the radar in the
   dataset's forward-left-up body frame (the vehicle frame for methods that use one).
@@ -63,6 +69,7 @@ from pydantic import Field, field_validator
 from loaders.assemble import finish_scan, median_period
 from loaders.errors import DataError
 from loaders.gt import associate
+from loaders.limits import check_file_size
 from loaders.options import LoaderOptions, OpensFromOptions
 from loaders.pcd import read_pcd
 from loaders.posefile import parse_extrinsic, read_gt_file
@@ -151,20 +158,87 @@ def body_T_ars548(date: float, where: str = "") -> np.ndarray:
 
 
 #: the reference-trajectory file names of the authors' tools (TLS-map localisation of the
-#: XT32 and the full trajectory in UTM zone 50R), looked for in the sequence folder
+#: XT32 and the full trajectory in UTM zone 50R), TUM rows, looked for in the sequence folder
 GT_NAMES = ("tls_T_xt32.txt", "utm50r_T_xt32.txt")
+#: the same reference trajectory in its comma-separated form, as it circulates in
+#: ``ref_trajs/<date>/<run>/`` (``loaders.posefile.read_ref_csv``)
+GT_CSV_NAME = "ref_tls_T_xt32.csv"
+#: folders of the per-sequence reference trajectories, ``<name>/<date>/<run>/`` (ref_trajs:
+#: the CSV form; full_trajs: gaussian-rio's ``full_trajs/<day>/dataN/utm50r_T_xt32.txt``)
+GT_TREES = ("ref_trajs", "full_trajs")
+#: how many folders above the sequence a GT tree is looked for in
+GT_SEARCH_LEVELS = 4
+
+
+def _sequence_folder(path: Path) -> Path:
+    """The sequence folder of an input: the folder itself, ``dataN`` for ``dataN.bag``, and
+    ``dataN`` for one of its sensor folders (``dataN/eagleg7/enhanced``)."""
+    if not path.is_dir():
+        return path.with_suffix("")
+    if any(path.parent.name == a and path.name == b for _, (_, sub, _) in STREAMS.items()
+           for a, b in [sub.split("/")]):
+        return path.parent.parent
+    return path
+
+
+def _in_folder(folder: Path) -> list[Path]:
+    return [folder / n for n in (*GT_NAMES, GT_CSV_NAME) if (folder / n).is_file()]
+
+
+def _pick(found: list[Path], where: str) -> Path | None:
+    """One reference trajectory of a folder: the TLS one (TUM, else its CSV form) before the
+    UTM one; ``tls_T_xt32.txt`` and ``utm50r_T_xt32.txt`` together are ambiguous."""
+    names = {p.name for p in found}
+    if {"tls_T_xt32.txt", "utm50r_T_xt32.txt"} <= names:
+        raise DataError(f"{where}: both {' and '.join(GT_NAMES)} are present; choose one with "
+                        "gt (--gt FILE)")
+    for name in ("tls_T_xt32.txt", GT_CSV_NAME, "utm50r_T_xt32.txt"):
+        if name in names:
+            return next(p for p in found if p.name == name)
+    return None
+
+
+def gt_candidates(path: Path) -> list[Path]:
+    """Folders that may hold the sequence's reference trajectory, in the order searched: the
+    sequence folder (``path`` itself, or for a bag ``dataN.bag`` the folder ``dataN`` beside
+    it), then ``<tree>/<date>/<run>/`` (tree ``ref_trajs`` or ``full_trajs``; date the group
+    folder the sequence is in, e.g. ``20240123`` or ``20231105_aft``; run the sequence name,
+    ``dataN``) in each folder above the sequence up to ``GT_SEARCH_LEVELS``, so a tree beside
+    the day folders (``root/ref_trajs/20240123/data3`` for ``root/20240123/data3.bag``) or
+    inside them is found."""
+    seq = _sequence_folder(path.resolve())
+    run = seq.name
+    date = seq.parent.name
+    out = [seq]
+    for up in list(seq.parents)[:GT_SEARCH_LEVELS]:
+        for tree in GT_TREES:
+            out.append(up / tree / date / run)
+    return out
 
 
 def find_gt_file(path: Path) -> Path | None:
-    """The reference trajectory in the sequence folder (``path`` itself, or for a bag
-    ``dataN.bag`` the folder ``dataN`` beside it); None when there is none; a ``DataError`` when
-    both names are there (say which with ``gt``)."""
-    folder = path if path.is_dir() else path.with_suffix("")
-    found = [folder / n for n in GT_NAMES if (folder / n).is_file()]
-    if len(found) > 1:
-        raise DataError(f"{folder}: both {' and '.join(GT_NAMES)} are present; choose one with "
-                        "gt")
-    return found[0] if found else None
+    """The reference trajectory of a sequence, without ``gt``: the first folder of
+    ``gt_candidates`` holding one of ``tls_T_xt32.txt``, ``ref_tls_T_xt32.csv``,
+    ``utm50r_T_xt32.txt`` (in that order of preference; the TLS and the UTM TUM files together
+    in the sequence folder are a ``DataError``: say which with ``gt``); None when there is
+    none."""
+    for folder in gt_candidates(Path(path)):
+        if folder.is_dir():
+            found = _pick(_in_folder(folder), str(folder))
+            if found is not None:
+                return found
+    seq = _sequence_folder(Path(path).resolve())
+    if _GROUP.match(seq.parent.name):
+        return None
+    # no day folder above the sequence: <tree>/<any day>/<run>/, if only one day has that run
+    hits = sorted({f for up in list(seq.parents)[:GT_SEARCH_LEVELS] for tree in GT_TREES
+                   for folder in (up / tree).glob(f"*/{seq.name}") if folder.is_dir()
+                   for f in [_pick(_in_folder(folder), str(folder))] if f is not None})
+    if len(hits) > 1:
+        raise DataError(f"{path}: the sequence is in no day folder (like 20240123/) and "
+                        f"{len(hits)} reference trajectories are named {seq.name} "
+                        f"({', '.join(map(str, hits[:4]))}); choose one with gt (--gt FILE)")
+    return hits[0] if hits else None
 
 
 _GROUP = re.compile(r"^(\d{8})(_aft|_eve)?$")
@@ -189,9 +263,10 @@ class Options(LoaderOptions):
     cloud: Literal["enhanced", "pcl"] = Field(
         "enhanced", description="Eagle stream: enhanced (/radar_enhanced_pcl2, "
         "eagleg7/enhanced) or pcl (/radar_pcl2, eagleg7/pcl); ignored for ars548")
-    gt: Path | None = Field(None, description="ground-truth TUM file (t x y z qx qy qz qw), "
-                            "e.g. the sequence's utm50r_T_xt32.txt / tls_T_xt32.txt (default: "
-                            "the one of these found in the sequence folder, if any)")
+    gt: Path | None = Field(None, description="ground-truth file: TUM (t x y z qx qy qz qw, "
+                            "e.g. tls_T_xt32.txt / utm50r_T_xt32.txt) or the reference CSV "
+                            "ref_tls_T_xt32.csv (default: found in the sequence folder or in "
+                            "ref_trajs/<date>/<run>/ beside it)")
     gt_frame: Literal["xt32", "body"] = Field(
         "xt32", description="frame whose poses the GT rows give: xt32 (the lidar, as the "
         "dataset's reference trajectories) or body")
@@ -256,11 +331,15 @@ class _FolderFrames:
             raise DataError(f"{folder}: no times.txt; expected the extracted layout "
                             "<sec>.<nsec>.pcd + times.txt (snail-radar dataset_tools "
                             "bag_to_folder.py)")
-        names = [line.strip() for line in times.read_text().splitlines() if line.strip()]
+        check_file_size(times, str(times))
+        names = [line.strip() for line in times.read_text(errors="replace").splitlines()
+                 if line.strip()]
         if not names:
             raise DataError(f"{times}: no stamps; expected one <sec>.<nsec> per line")
         try:
             self.stamps = np.array([float(n) for n in names])
+            if not np.all(np.isfinite(self.stamps)):
+                raise ValueError("a stamp is not finite")
         except ValueError as err:
             raise DataError(f"{times}: a line is not a stamp <sec>.<nsec> ({err})") from None
         have = {p.name for p in folder.iterdir()}
@@ -349,9 +428,14 @@ class SnailRadarSequence(Sequence, OpensFromOptions):
         self.ground_truth = None
         gt_path = o.gt if o.gt is not None else find_gt_file(path)
         if gt_path is not None:
+            found_in = ("the sequence folder" if Path(gt_path).parent == _sequence_folder(
+                path.resolve()) else "the reference trajectories beside the sequence")
             self.provenance["gt_file"] = str(gt_path) + ("" if o.gt is not None else
-                                                         " (found in the sequence folder)")
-            gt = read_gt_file(gt_path, "tum")
+                                                         f" (found in {found_in})")
+            gt = read_gt_file(gt_path, "auto")
+            if len(gt) and Path(gt_path).suffix == ".csv":
+                self.provenance["gt_format"] = ("reference CSV (time, M_p_L, M_q_L: the XT32 "
+                                                "pose in the map; W_v_L not used)")
             fix = None
             if o.remove_gt_origin:
                 fix = make_T(np.eye(3), -gt.poses[0, :3, 3])
@@ -378,8 +462,8 @@ class SnailRadarSequence(Sequence, OpensFromOptions):
             return body_T_oculii(o.extrinsic)
         if self.date is None:
             raise DataError(f"{path}: the ARS548 extrinsic depends on the sequence date and no "
-                            "group folder like 20231105 or 20231105_aft is in the path; set "
-                            "date (e.g. 20231105.5)")
+                            "group folder like 20231105 or 20231105_aft is in the path; give "
+                            "--date (e.g. --date 20231105.5)")
         return body_T_ars548(self.date, str(path))
 
     def __len__(self) -> int:

@@ -127,6 +127,16 @@ class _Writer:
         self.buffered = 0
 
 
+def store_has_ground_truth(path: str | Path) -> bool | None:
+    """Whether the store at ``path`` holds ground truth (None when it cannot be read as a
+    store: the caller's own reading reports that)."""
+    try:
+        with h5py.File(path, "r") as h5:
+            return "ground_truth" in h5
+    except (OSError, ValueError):
+        return None
+
+
 def write_store(
     sequence: Sequence,
     path: str | Path,
@@ -209,7 +219,8 @@ class StoreSequence(Sequence):
         if not self.path.exists():
             raise DataError(f"{self.path}: store not found")
         if not h5py.is_hdf5(self.path):
-            raise DataError(f"{self.path}: not an HDF5 file (truncated, or not a store)")
+            raise DataError(f"{self.path}: not an HDF5 file (truncated, or not a store: a "
+                            "raw recording is converted first with `bench convert LOADER`)")
         self._h5: h5py.File | None = None
         try:
             h5 = self._file()

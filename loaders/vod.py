@@ -52,6 +52,7 @@ from pydantic import Field
 
 from loaders.assemble import finish_scan
 from loaders.errors import DataError
+from loaders.limits import check_file_size, file_number
 from loaders.options import LoaderOptions, OpensFromOptions
 from loaders.records import read_records, record_dtype
 from loaders.scan import Scan, SensorInfo, Sequence
@@ -106,7 +107,9 @@ def find_radar_root(path: Path, split: str) -> Path:
 def read_pose_file(path: Path, key: str) -> np.ndarray:
     """``T_world_camera`` (4x4) from a VoD pose file (one JSON object a line, or one object)."""
     try:
-        text = path.read_text()
+        if path.exists():  # (a missing file: the OSError below names it)
+            check_file_size(path, str(path))
+        text = path.read_text(errors="replace")
     except OSError as err:
         raise DataError(f"{path}: cannot read the pose file ({err.strerror or err}); expected "
                         "one per radar frame") from None
@@ -124,7 +127,11 @@ def read_pose_file(path: Path, key: str) -> np.ndarray:
     if key not in found:
         raise DataError(f"{path}: no {key!r} (has {sorted(found)}); expected odomToCamera, "
                         "mapToCamera and UTMToCamera")
-    values = np.asarray(found[key], dtype=np.float64).ravel()
+    try:
+        values = np.asarray(found[key], dtype=np.float64).ravel()
+    except (ValueError, TypeError):
+        raise DataError(f"{path}: {key} holds {str(found[key])[:60]!r}; expected 16 numbers "
+                        "(a row-major 4x4)") from None
     if values.size != 16 or not np.all(np.isfinite(values)):
         raise DataError(f"{path}: {key} has {values.size} values; expected 16 finite numbers "
                         "(a row-major 4x4)")
@@ -134,7 +141,9 @@ def read_pose_file(path: Path, key: str) -> np.ndarray:
 def read_calib(path: Path) -> np.ndarray:
     """``T_camera_radar`` from a KITTI calibration file's ``Tr_velo_to_cam`` row."""
     try:
-        lines = path.read_text().splitlines()
+        if path.exists():  # (a missing file: the OSError below names it)
+            check_file_size(path, str(path))
+        lines = path.read_text(errors="replace").splitlines()
     except OSError as err:
         raise DataError(f"{path}: cannot read the calibration ({err.strerror or err})") from None
     for line in lines:
@@ -186,11 +195,12 @@ class VodSequence(OpensFromOptions, Sequence):
         self.options = opts
         self.root = find_radar_root(Path(path), opts.split)
         frame_dir = self.root / "velodyne"
-        files = sorted((p for p in frame_dir.iterdir() if _FRAME.match(p.name)),
-                       key=lambda p: int(p.stem))
-        if not files:
+        numbered = sorted((file_number(p.stem, p), p) for p in frame_dir.iterdir()
+                          if _FRAME.match(p.name))
+        if not numbered:
             raise DataError(f"{frame_dir}: no NNNNN.bin radar frames")
-        numbers = np.array([int(p.stem) for p in files])
+        files = [p for _, p in numbered]
+        numbers = np.array([n for n, _ in numbered], dtype=np.int64)
         key = POSE_KEYS[opts.world]
         pose_dir = self.root / "pose"
         if not pose_dir.is_dir():

@@ -122,3 +122,20 @@ def test_runs_on_a_gt_reconstructed_store_are_labelled_gt_assisted(tmp_path):
     df = load_results(results)
     assert set(zip(df["sequence"], df["doppler_kind"], strict=True)) == {
         ("plain", "radial"), ("rebuilt", "gt-reconstructed")}
+
+
+def test_radial_doppler_of_either_sign_is_measured_radial():
+    """The kind check is separate from the sign check: raw radial Doppler reported with the
+    opposite convention (approach positive) is still radial, not compensated or
+    inconclusive, and the sign check (not this one) flags the sign."""
+    from loaders.doppler_check import doppler_sign_check
+
+    seq = synthetic()
+    flipped = MemorySequence("flipped", seq.sensor,
+                             [Scan(s.stamp, s.points, -s.doppler) for s in seq],
+                             seq.ground_truth)
+    kind = doppler_kind_check(flipped, gt_at_scans(seq))
+    assert kind.measured == "radial" and kind.share_radial > 0.8, kind
+    assert doppler_sign_check(flipped, gt_at_scans(seq)).verdict == "appears FLIPPED"
+    same = doppler_kind_check(seq, gt_at_scans(seq))
+    assert kind.share_radial == same.share_radial  # the same points fit, either sign

@@ -88,3 +88,68 @@ def test_height_advice_names_only_an_existing_option():
     assert "elevation_sign" not in text and "--elevation-sign" not in text
     assert "ntu4dradlm takes no elevation-sign option" in text
     assert height_advice(ntu, below).endswith("(sign looks right)")
+
+
+# -- the elevation (height) check looks at the near field ------------------------------------
+
+SAMPLE = __import__("pathlib").Path(__file__).resolve().parents[1] / "samples" / \
+    "ntu4dradlm-loop1.h5"
+
+
+def _mirrored(seq, frames=50) -> MemorySequence:
+    """The first ``frames`` scans with z negated: an elevation read with the wrong sign."""
+    scans = []
+    for i in range(min(frames, len(seq))):
+        s = seq[i]
+        scans.append(Scan(s.stamp, s.points * [1.0, 1.0, -1.0], s.doppler))
+    return MemorySequence(f"{seq.name}-mirrored", seq.sensor, scans, None,
+                          {"loader": "ntu4dradlm"})
+
+
+def test_height_check_on_the_vendored_sample_and_on_it_mirrored():
+    """The vendored NTU4DRadLM sample (real Eagle frames): the road lies 0.6-0.8 m below the
+    radar; the same frames mirrored on purpose are flagged."""
+    from bench.data.inspection import inspect_sequence
+    from loaders.doppler_check import low_points_median_z
+    from loaders.store import StoreSequence
+
+    seq = StoreSequence(SAMPLE)
+    z = low_points_median_z(seq)
+    assert z["basis"] == "points within 30 m" and -0.9 < z["dominant_layer_z_m"] < -0.5
+    assert z["verdict"] == "road below the sensor (sign looks right)"
+    bad = low_points_median_z(_mirrored(seq))
+    assert 0.5 < bad["dominant_layer_z_m"] < 0.9 and "looks mirrored" in bad["verdict"]
+    rows = dict(inspect_sequence(_mirrored(seq, 20))["rows"])
+    assert "(points within 30 m): densest layer above the sensor" in rows["height check"]
+    assert "ntu4dradlm takes no elevation-sign option" in rows["height check"]
+
+
+def _road_and_far_canopy(sign: float = 1.0, frames: int = 5) -> MemorySequence:
+    """Per scan: 300 road points at z = -0.5 m within 25 m, and 700 points of a layer at
+    z = +2.1 m (trees, walls, roofs) 35-80 m away: the densest layer over all ranges is the far
+    one, the road is the densest near the sensor."""
+    rng = np.random.default_rng(4)
+    scans = []
+    for k in range(frames):
+        r = np.concatenate([rng.uniform(3, 25, 300), rng.uniform(35, 80, 700)])
+        a = rng.uniform(-1.0, 1.0, 1000)
+        z = np.concatenate([rng.normal(-0.5, 0.03, 300), rng.normal(2.1, 0.03, 700)])
+        p = np.column_stack([r * np.cos(a), r * np.sin(a), sign * z])
+        scans.append(Scan(0.1 * k, p, np.zeros(len(p))))
+    return MemorySequence("canopy", SensorInfo("radar", 0.1), scans, None,
+                          {"loader": "campus"})
+
+
+def test_a_dense_far_layer_above_the_sensor_is_no_false_alarm():
+    from loaders.doppler_check import low_points_median_z
+
+    z = low_points_median_z(_road_and_far_canopy())
+    assert z["all_ranges_layer_z_m"] == pytest.approx(2.1, abs=0.15)  # the old false alarm
+    assert z["dominant_layer_z_m"] == pytest.approx(-0.5, abs=0.15)
+    assert z["verdict"] == "road below the sensor (sign looks right)"
+    flipped = low_points_median_z(_road_and_far_canopy(sign=-1.0))
+    assert flipped["dominant_layer_z_m"] == pytest.approx(0.5, abs=0.15)
+    assert "looks mirrored" in flipped["verdict"]
+    # with too few near points the check says it used all of them
+    few = low_points_median_z(_road_and_far_canopy(), near_field_m=2.0)
+    assert few["basis"].startswith("all points (only 0 within 2 m")

@@ -185,3 +185,25 @@ def test_store_icp_run_agrees_with_the_npy_frame_route(tmp_path):
     ref = write_store(NpyFramesSequence(npy, stamps_from_gt=True, kind="lidar"),
                       tmp_path / "npy.h5")
     runs_agree(store, ref, tmp_path / "runs", methods=("icp-p2plane",))
+
+
+def test_the_intensity_stamp_boundary_itself(tmp_path):
+    """The devkit's rule is ``stamp > 1691936557946849179``: a file stamped exactly there has
+    25-byte records, one nanosecond later 29 (the other tests sit 100 s from it)."""
+    from helpers_public import write_helipr as write
+    from loaders.se3 import make_T
+
+    b = INTENSITY_AFTER_NS
+    stamps = np.array([b - 100_000_000, b, b + 1, b + 100_000_000], dtype=np.int64)
+    rng = np.random.default_rng(2)
+    pts = [rng.uniform(-20, 20, (50, 3)).astype(np.float32) for _ in stamps]
+    vel = [np.zeros(50, np.float32) for _ in stamps]
+    gt_ns = b - 200_000_000 + 50_000_000 * np.arange(8, dtype=np.int64)
+    gt_poses = np.stack([make_T(np.eye(3), [0.1 * k, 0, 0]) for k in range(8)])
+    root = write(tmp_path / "Boundary", stamps, pts, vel, gt_ns, gt_poses)
+    sizes = [(root / "LiDAR" / "Aeva" / f"{t}.bin").stat().st_size for t in stamps]
+    assert sizes == [50 * 25, 50 * 25, 50 * 29, 50 * 29]  # as the devkit writes them
+    seq = HeliprSequence(root)
+    assert "2 files of 29 bytes a point, 2 of 25" in seq.provenance["record_layout"]
+    for i in range(4):
+        np.testing.assert_array_equal(seq[i].points.astype(np.float32), pts[i])

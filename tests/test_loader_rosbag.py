@@ -109,6 +109,12 @@ def test_gt_from_tum_and_kitti_files(tmp_path, truth, storage):
     seq = RosbagSequence(path, gt=kitti, **OPTS)
     np.testing.assert_allclose(seq.ground_truth.stamps, truth.stamps, atol=1e-6)
     np.testing.assert_allclose(seq.ground_truth.poses, truth.sensor_poses(), atol=1e-6)
+    # a KITTI file has no stamps: row k is scan k whatever the time offset (here 0.37 s: an
+    # offset applied with the wrong sign would move every row 0.74 s off its scan)
+    shifted = RosbagSequence(path, gt=kitti, time_offset_s=0.37, **OPTS)
+    np.testing.assert_allclose(shifted.ground_truth.stamps, truth.stamps, atol=1e-6)
+    np.testing.assert_allclose(shifted.ground_truth.poses, truth.sensor_poses(), atol=1e-6)
+    assert shifted.provenance["gt_association"]["with_gt"] == len(truth.stamps)
     short = tmp_path / "short.txt"
     write_kitti(Trajectory(truth.stamps[:-2], MOTION.body_pose(truth.stamps[:-2])), short)
     with pytest.raises(DataError, match="5 KITTI pose rows but .* 7 scans") as err:

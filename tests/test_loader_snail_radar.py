@@ -383,3 +383,153 @@ def test_store_round_trip_and_doppler_run_match_memory(tmp_path):
         np.testing.assert_allclose(steps(method, stored), d_mem, rtol=0.02, err_msg=method)
         np.testing.assert_allclose(d_mem, gt_steps, rtol=0.2, err_msg=method)  # sensible runs
     stored.close()
+
+
+# -- the reference trajectory in its CSV form (ref_trajs/<date>/<run>/ref_tls_T_xt32.csv) ------
+
+CSV_HEADER = ("#time, M_p_L_x, M_p_L_y, M_p_L_z, M_q_L_x, M_q_L_y, M_q_L_z, M_q_L_w, W_v_L_x, "
+              "W_v_L_y, W_v_L_z")
+
+
+def write_ref_csv(path, motion, t_start, t_end, step=0.05, header=CSV_HEADER):
+    """The authors' CSV form: one '#' header line, 11 comma-separated columns (the XT32 pose in
+    the map and its world velocity)."""
+    from loaders.se3 import tum_from_T
+
+    t = np.arange(t_start, t_end + step / 2, step)
+    xyz, q = tum_from_T(motion.body_pose(t))
+    v = np.gradient(xyz, t, axis=0)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    rows = [",".join(f"{x:.9f}" for x in (ti, *p, *qq, *vv))
+            for ti, p, qq, vv in zip(t, xyz, q, v, strict=True)]
+    path.write_text(header + "\n" + "\n".join(rows) + "\n")
+    return path
+
+
+@pytest.fixture()
+def released(tmp_path, data):
+    """The release layout: root/20240123/data3.bag, root/20240123/data3/ (extracted) and
+    root/ref_trajs/20240123/data3/ref_tls_T_xt32.csv; no TUM file anywhere."""
+    import shutil
+
+    root = tmp_path / "snail"
+    day = root / "20240123"
+    day.mkdir(parents=True)
+    shutil.copy(data["bag"], day / "data3.bag")
+    shutil.copytree(data["folder"], day / "data3")
+    eagle = data["eagle"]
+    csv = write_ref_csv(root / "ref_trajs" / "20240123" / "data3" / "ref_tls_T_xt32.csv",
+                        eagle.motion, eagle.stamps[0] - 0.5, eagle.stamps[-1] + 0.5)
+    return {"bag": day / "data3.bag", "folder": day / "data3", "csv": csv, "root": root}
+
+
+@pytest.mark.parametrize("source", ["bag", "folder"])
+def test_reference_csv_is_found_without_gt_and_matches_the_tum_form(released, data, source):
+    seq = SnailRadarSequence(released[source], remove_gt_origin=False)
+    assert seq.provenance["gt_file"].startswith(str(released["csv"]))
+    assert "found in the reference trajectories" in seq.provenance["gt_file"]
+    assert "W_v_L not used" in seq.provenance["gt_format"]
+    truth = data["eagle"]
+    np.testing.assert_allclose(seq.ground_truth.stamps, seq.stamps)
+    np.testing.assert_allclose(seq.ground_truth.poses, truth.sensor_poses(), atol=1e-6)
+    tum = SnailRadarSequence(released[source], gt=data["gt"], remove_gt_origin=False)
+    np.testing.assert_allclose(seq.ground_truth.poses, tum.ground_truth.poses, atol=1e-6)
+    # the ARS548 of the same sequence takes the same file, moved to its own frame
+    ars = SnailRadarSequence(released[source], sensor="ars548", remove_gt_origin=False)
+    np.testing.assert_allclose(ars.ground_truth.poses, data["ars"].sensor_poses(), atol=1e-6)
+    # given explicitly (--gt), the CSV reads the same
+    given = SnailRadarSequence(released[source], gt=released["csv"], remove_gt_origin=False)
+    np.testing.assert_allclose(given.ground_truth.poses, seq.ground_truth.poses)
+    # a sensor folder of the extracted sequence finds it too
+    sub = SnailRadarSequence(released["folder"] / "eagleg7" / "enhanced",
+                             remove_gt_origin=False)
+    np.testing.assert_allclose(sub.ground_truth.poses, seq.ground_truth.poses)
+
+
+def test_reference_csv_in_the_sequence_folder_and_the_preference_order(released, data):
+    import shutil
+
+    folder = released["folder"]
+    shutil.copy(released["csv"], folder / "ref_tls_T_xt32.csv")
+    seq = SnailRadarSequence(folder)
+    assert seq.provenance["gt_file"] == (f"{folder / 'ref_tls_T_xt32.csv'} (found in the "
+                                         "sequence folder)")
+    shutil.copy(data["gt"], folder / "tls_T_xt32.txt")  # the TUM TLS file is preferred
+    assert SnailRadarSequence(folder).provenance["gt_file"].startswith(
+        str(folder / "tls_T_xt32.txt"))
+
+
+def test_no_day_folder_finds_the_run_when_it_is_unique(tmp_path, data):
+    import shutil
+
+    root = tmp_path / "mine"
+    root.mkdir()
+    shutil.copy(data["bag"], root / "data3.bag")
+    eagle = data["eagle"]
+    csv = write_ref_csv(root / "ref_trajs" / "20240123" / "data3" / "ref_tls_T_xt32.csv",
+                        eagle.motion, eagle.stamps[0] - 0.5, eagle.stamps[-1] + 0.5)
+    assert SnailRadarSequence(root / "data3.bag", date=DATE).provenance["gt_file"].startswith(
+        str(csv))
+    write_ref_csv(root / "ref_trajs" / "20240124" / "data3" / "ref_tls_T_xt32.csv",
+                  eagle.motion, eagle.stamps[0] - 0.5, eagle.stamps[-1] + 0.5)
+    with pytest.raises(DataError, match="2 reference trajectories are named data3"):
+        SnailRadarSequence(root / "data3.bag", date=DATE)
+
+
+def test_reference_csv_errors_name_the_file_and_line(tmp_path, data):
+    eagle = data["eagle"]
+    bad = write_ref_csv(tmp_path / "a.csv", eagle.motion, eagle.stamps[0], eagle.stamps[-1],
+                        header="#time, x, y, z, qx, qy, qz, qw, vx, vy, vz")
+    with pytest.raises(DataError, match="a.csv: header columns time, x, y.*expected time, "
+                                        "M_p_L_x"):
+        SnailRadarSequence(data["bag"], gt=bad)
+    csv = write_ref_csv(tmp_path / "b.csv", eagle.motion, eagle.stamps[0], eagle.stamps[-1])
+    lines = csv.read_text().splitlines()
+    cols = lines[3].split(",")
+    cols[4:8] = ["0", "0", "0", "0"]
+    lines[3] = ",".join(cols)
+    csv.write_text("\n".join(lines) + "\n")
+    with pytest.raises(DataError, match=r"b.csv, line 4: quaternion .* norm 0"):
+        SnailRadarSequence(data["bag"], gt=csv)
+    lines[3] = ",".join(cols[:9])
+    csv.write_text("\n".join(lines) + "\n")
+    with pytest.raises(DataError, match=r"b.csv, line 4: 9 values; expected 11"):
+        SnailRadarSequence(data["bag"], gt=csv)
+    # a header separated by spaces (not commas) names the same columns
+    spaced = write_ref_csv(tmp_path / "c.csv", eagle.motion, eagle.stamps[0] - 0.5,
+                           eagle.stamps[-1] + 0.5, header=CSV_HEADER.replace(",", ""))
+    assert len(SnailRadarSequence(data["bag"], gt=spaced).ground_truth) == len(eagle.stamps)
+
+
+def test_convert_without_gt_says_where_the_gt_came_from_or_warns(released, data, tmp_path,
+                                                                  capsys, monkeypatch):
+    """`bench convert snail-radar BAG` without --gt finds the CSV and says so; the store's GT
+    is the TUM form's (what `bench run` scores against). A sequence with no GT anywhere
+    converts with a warning that nothing will be scored."""
+    from bench.cli import main
+    from loaders.store import StoreSequence
+
+    def bench(*args):
+        monkeypatch.setattr("sys.argv", ["bench", *map(str, args)])
+        with pytest.raises(SystemExit) as exit_:
+            main()
+        out = capsys.readouterr()
+        return exit_.value.code, " ".join((out.out + out.err).split())
+
+    code, out = bench("convert", "snail-radar", released["bag"], "--out", tmp_path / "a.h5")
+    assert code == 0 and "warning" not in out, out
+    assert (f"ground truth: {released['csv']} (found in the reference trajectories beside the "
+            "sequence) (8 of 8 scans have a pose)") in out, out
+    store = StoreSequence(tmp_path / "a.h5")
+    tum = SnailRadarSequence(released["bag"], gt=data["gt"])
+    assert len(store.ground_truth) == len(store) == 8
+    rel = store.ground_truth.poses[:, :3, 3] - store.ground_truth.poses[:1, :3, 3]
+    np.testing.assert_allclose(rel, tum.ground_truth.poses[:, :3, 3]
+                               - tum.ground_truth.poses[:1, :3, 3], atol=1e-6)
+    np.testing.assert_allclose(store.ground_truth.poses[:, :3, :3],
+                               tum.ground_truth.poses[:, :3, :3], atol=1e-6)
+    store.close()
+    # no GT anywhere (the fixture's bag has its TUM file in the day folder, not searched)
+    code, out = bench("convert", "snail-radar", data["bag"], "--out", tmp_path / "b.h5")
+    assert code == 0 and "warning: data3: no ground truth found" in out, out
+    assert "scores none (give it with --gt)" in out

@@ -121,3 +121,49 @@ def test_own_velocity_skips_unobservable_frames():
     v = own_velocity_errors(gt, stamps, own, window_s=0.5)
     assert v.axis_mean_mps[0] == pytest.approx(0.5, abs=1e-9)
     assert 0 < v.n < len(stamps)
+
+
+def _yawed_poses(stamps, positions, yaw_deg):
+    poses = np.tile(np.eye(4), (len(stamps), 1, 1))
+    poses[:, :3, :3] = Rotation.from_euler("z", yaw_deg, degrees=True).as_matrix()
+    poses[:, :3, 3] = positions
+    return poses
+
+
+def test_velocity_is_rotated_into_the_sensor_frame_with_R_transpose():
+    """Known answer, signed: a sensor yawed 30 deg (not 90: a quarter turn's R and R^T differ
+    only by a sign that absolute errors hide) moving along world +x at 10 m/s moves at
+    R^T (10, 0, 0) = (8.660, -5.0, 0) in its own frame; independently, the translation of
+    inv(T_i) @ T_j over the time."""
+    s = 0.1 * np.arange(12)
+    gt = _yawed_poses(s, np.column_stack([10 * s, 0 * s, 0 * s]), 30.0)
+    from metrics.velocity import velocity_series
+
+    series = velocity_series(gt, gt, s, window_s=0.5)
+    np.testing.assert_allclose(series.gt_mps, np.tile([10 * math.cos(math.pi / 6),
+                                                       -10 * math.sin(math.pi / 6), 0.0],
+                                                      (len(series.gt_mps), 1)), atol=1e-9)
+    rel = np.linalg.inv(gt[series.start_idx]) @ gt[series.end_idx]
+    dt = s[series.end_idx] - s[series.start_idx]
+    np.testing.assert_allclose(series.gt_mps, rel[:, :3, 3] / dt[:, None], atol=1e-9)
+    # an estimate that gets the speed right along a wrongly signed lateral axis is scored so
+    est = gt.copy()
+    est[:, :3, :3] = Rotation.from_euler("z", -30.0, degrees=True).as_matrix()
+    stats = velocity_errors(gt, est, s, window_s=0.5)
+    assert stats.axis_mean_mps[1] == pytest.approx(10.0, abs=1e-9)
+
+
+def test_own_velocity_window_is_centred_on_the_frame_under_acceleration():
+    """Known answer under constant acceleration (2 m/s^2 along world x, sensor yawed 30 deg):
+    a window centred on s_i gives exactly v(s_i) = 2 s_i (the central difference of a
+    parabola is exact); a window a whole window early would give 2 (s_i - W), 1 m/s off at
+    W = 0.5 s. A constant speed could not tell them apart."""
+    s = 0.05 * np.arange(80)
+    gt = _yawed_poses(s, np.column_stack([s**2, 0 * s, 0 * s]), 30.0)
+    R = Rotation.from_euler("z", 30.0, degrees=True).as_matrix()
+    est = (R.T @ np.column_stack([2 * s, 0 * s, 0 * s]).T).T  # the exact velocity at s_i
+    stats = own_velocity_errors(gt, s, est, window_s=0.5)
+    assert stats.n == len(s) - 10  # 5 frames each end lack a full window
+    assert stats.norm_mean_mps < 1e-9
+    late = own_velocity_errors(gt, s, est - (R.T @ [1.0, 0.0, 0.0]), window_s=0.5)
+    assert late.norm_mean_mps == pytest.approx(1.0, abs=1e-9)

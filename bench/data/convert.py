@@ -92,6 +92,49 @@ def write_with_progress(sequence, out: Path) -> Path:
     return Path(out)
 
 
+# ---- ground truth: say where it came from, or warn that nothing will be scored ---------------
+
+#: loader options that give ground truth, by command-line flag
+GT_OPTIONS = ("gt", "gt_topic")
+
+
+def gt_flags(flags: dict[str, str]) -> list[str]:
+    """The command-line flags of a loader's ground-truth options (``--gt``, ``--gt-topic``)."""
+    return [flags[name] for name in GT_OPTIONS if name in flags]
+
+
+def ground_truth_note(sequence) -> str | None:
+    """"ground truth: FILE (N poses ...)" for a sequence with ground truth, else None."""
+    gt = sequence.ground_truth
+    if gt is None:
+        return None
+    prov = getattr(sequence, "provenance", {}) or {}
+    assoc = prov.get("gt_association")
+    assoc = assoc if isinstance(assoc, dict) else {}
+    source = prov.get("gt_file") or assoc.get("gt_file") or prov.get("gt") or "from the input"
+    scored = (f"{assoc['with_gt']} of {assoc.get('kept', len(sequence))} scans have a pose"
+              if "with_gt" in assoc else f"{len(gt)} poses")
+    return f"ground truth: {source} ({scored})"
+
+
+def report_ground_truth(sequence, flags: list[str]) -> None:
+    """Print where the ground truth came from; without any, warn (``GroundTruthWarning``) that
+    runs on the store will not be scored, naming the loader's ground-truth options."""
+    from loaders.errors import GroundTruthWarning
+
+    note = ground_truth_note(sequence)
+    if note is not None:
+        console.print(note, markup=False, highlight=False, soft_wrap=True)
+        return
+    how = (f"give it with {' or '.join(flags)}" if flags else
+           "this loader reads none from its input")
+    import warnings
+
+    warnings.warn(GroundTruthWarning(
+        f"{sequence.name}: no ground truth found: the store will hold the scans only, and "
+        f"`bench run` on it computes trajectories but scores none ({how})"), stacklevel=2)
+
+
 # ---- the command of one loader, from its Options model -------------------------------------
 # The command is made the public Typer way: a function whose signature (``__signature__``) has
 # one annotated parameter per option, registered on a throwaway Typer app.
@@ -220,6 +263,7 @@ def loader_command(entry: LoaderEntry):
         options = validate_options(Loader.Options, given, flags, f"bench convert {entry.name}")
         paths = list(inputs) if many else [inputs]
         sequence = Loader.open(paths, options)
+        report_ground_truth(sequence, gt_flags(flags))
         write_with_progress(select_frames(sequence, start, frames, stride), out)
 
     doc = (f"{entry.description}.\n\nINPUT: {Loader.inputs}."

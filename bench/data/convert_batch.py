@@ -82,7 +82,9 @@ def convert_one(job: ConvertJob, queue=None) -> tuple[str, str, str, int, float]
         Path(job.out).parent.mkdir(parents=True, exist_ok=True)
         write_store(seq, job.out, progress=report)
         seq.close()
-        return job.name, "done", str(job.out), n, time.perf_counter() - t0
+        note = ("" if seq.ground_truth is not None else
+                " (no ground truth: runs on this store are not scored)")
+        return job.name, "done", str(job.out) + note, n, time.perf_counter() - t0
     except DataError as err:
         return job.name, "failed", str(err), 0, time.perf_counter() - t0
     except Exception as err:  # noqa: BLE001 - reported per job, the batch goes on

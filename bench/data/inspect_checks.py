@@ -182,7 +182,8 @@ def clock_offset_lines(seq: Sequence, speeds: dict) -> list[tuple[str, str]]:
 def height_advice(seq: Sequence, z: dict) -> str:
     """The height check's line (``loaders.doppler_check.low_points_median_z``), its advice
     naming only an option the store's loader has."""
-    line = f"densest layer at z = {z['dominant_layer_z_m']:+.2f} m: {z['verdict']}"
+    basis = f" ({z['basis']})" if z.get("basis") else ""
+    line = f"densest layer at z = {z['dominant_layer_z_m']:+.2f} m{basis}: {z['verdict']}"
     if z["dominant_layer_z_m"] < 0:
         return line
     flag = option_flag(seq.provenance, "elevation_sign")

@@ -24,10 +24,39 @@ from loaders.gt_report import gt_sanity_report
 from loaders.scan import Sequence
 from methods.ego_velocity import speed_from_doppler
 
+#: the first bytes of an HDF5 file (a store), and of the raw inputs a user may pass instead
+HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
+RAW_INPUTS = ((b"#ROSBAG V2.0", "a ROS1 bag"), (b"SQLite format 3\x00", "a ROS2 bag (sqlite3)"),
+              (b"\x89MCAP", "a ROS2 bag (mcap)"), (b"# .PCD", "a PCD frame"),
+              (b"VERSION", "a PCD frame"))
+
+
+def raw_input_kind(path: Path) -> str | None:
+    """What a non-store input is ("a ROS1 bag", ...) from its first bytes or its folder (a ROS2
+    bag folder holds metadata.yaml); None for anything else."""
+    if path.is_dir():
+        return "a ROS2 bag folder" if (path / "metadata.yaml").is_file() else None
+    try:
+        with open(path, "rb") as f:
+            head = f.read(16)
+    except OSError:
+        return None
+    if head.startswith(HDF5_MAGIC):
+        return None
+    return next((what for magic, what in RAW_INPUTS if head.startswith(magic)), None)
+
 
 def open_sequence(path: Path, period_s: float | None = None) -> Sequence:
-    """A store file, or a NumPy frame folder."""
+    """A store file, or a NumPy frame folder. A raw recording (a bag, a PCD frame) is refused
+    with the command that converts it."""
     path = Path(path)
+    kind = raw_input_kind(path) if path.exists() else None
+    if kind is not None:
+        how = (f"bench convert snail-radar {path.parent} --out STORE.h5" if "PCD" in kind
+               else f"bench convert rosbag {path} --out STORE.h5")
+        raise DataError(f"{path}: {kind}, not a store: convert it first, e.g. `{how}` (or with "
+                        "its dataset's loader: `bench datasets` lists them), then `bench "
+                        "inspect STORE.h5`")
     if path.is_dir():
         from loaders.npy_frames import NpyFramesSequence
 

@@ -308,6 +308,13 @@ def summarize(outcomes: list[JobOutcome]) -> str:
     statuses = ("done", "skipped", "failed", "interrupted")
     counts = {s: sum(o.status == s for o in outcomes) for s in statuses}
     text = ", ".join(f"{v} {k}" for k, v in counts.items() if v or k == "failed")
+    from loaders.store import store_has_ground_truth
+
+    unscored = [o for o in outcomes if o.status == "done" and o.job.store.suffix == ".h5"
+                and store_has_ground_truth(o.job.store) is False]
+    for o in unscored:  # a trajectory without errors must not pass for a scored run
+        text += (f"\n  not scored: {o.job.title}: {o.job.store} has no ground truth (the "
+                 "trajectory is written, no error is computed)")
     failed = [o for o in outcomes if o.status in ("failed", "interrupted")]
     for o in failed:
         first_line = o.message.splitlines()[0] if o.message else ""
