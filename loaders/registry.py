@@ -90,7 +90,9 @@ LOADERS: dict[str, LoaderEntry] = {e.name: e for e in (
         published_at="github.com/snail-radar/dataset_tools (links to the download page)",
         layout="DATE/dataN.bag (ROS1, /radar_enhanced_pcl2 PointCloud2) or the extracted "
                "eagleg7/enhanced/<sec.nsec>.pcd + times.txt; GT from the TLS-localised LIO "
-               "(only where the scan map covers)",
+               "(only where the scan map covers), found without --gt: tls_T_xt32.txt, "
+               "ref_tls_T_xt32.csv or utm50r_T_xt32.txt in the sequence folder or in "
+               "ref_trajs/DATE/dataN/",
         example="bench convert snail-radar data/raw/snail-radar/20231213/data1.bag "
                 "--sensor eagle --out data/real/SnailRadar_Eagle_20231213_1.h5",
         more_rows=({"sensor": "Continental ARS548 4D radar", "sensor_class": SPARSE,
