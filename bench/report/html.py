@@ -27,6 +27,7 @@ from pathlib import Path
 
 from bench.report.html_markdown import esc, markdown_html
 from bench.report.html_runs import PageRun, read_json, read_page_runs
+from bench.runs.folders import BROKEN
 from loaders.fileio import atomic_write_text
 
 #: the page's name inside the results folder
@@ -229,7 +230,13 @@ def _problems_section(runs: list[PageRun], coverage: dict) -> str:
             f'<tr><td><code>{esc(r.folder)}</code></td><td class="failed">{esc(r.status)}</td>'
             f"<td>{esc((r.message or '').splitlines()[0] if r.message else '')}</td></tr>"
             for r in bad)
-        parts.append(f"<h3>Runs that did not finish ({len(bad)})</h3><table><thead><tr>"
+        broken = sum(r.status == BROKEN for r in bad)
+        what = (f"; {broken} with a broken record (its metrics.json is no valid run record: "
+                "shown as a failed row in every table, never as a result; `bench run` runs it "
+                "again)" if broken else "")
+        parts.append(f"<h3>Runs that did not finish ({len(bad)})</h3>"
+                     f'<p class="caption">{esc(what.lstrip("; "))}</p>' * bool(broken)
+                     + "<table><thead><tr>"
                      f"<th>run folder</th><th>status</th><th>error</th></tr></thead>"
                      f"<tbody>{rows}</tbody></table>")
     else:
@@ -331,7 +338,8 @@ def render_page(results_dir: Path) -> tuple[str, dict]:
 </section>
 </body></html>
 """
-    return page, {"tables": n_tables, "figures": n_figures, "runs": len(runs), "failed": failed}
+    return page, {"tables": n_tables, "figures": n_figures, "runs": len(runs), "failed": failed,
+                  "broken": sum(r.status == BROKEN for r in runs)}
 
 
 def write_page(results_dir: Path, out: Path | None = None) -> tuple[Path, dict]:
@@ -342,6 +350,12 @@ def write_page(results_dir: Path, out: Path | None = None) -> tuple[Path, dict]:
         from loaders.errors import DataError
 
         raise DataError(f"{results_dir}: no such results folder")
+    if not read_page_runs(results_dir):
+        from loaders.errors import DataError
+
+        raise DataError(f"{results_dir}: no run records in this folder (no metrics.json, "
+                        "failed.json or run config.yaml under it); expected a results folder "
+                        "of `bench run` or `bench reproduce`")
     page, counts = render_page(results_dir)
     path = Path(out) if out is not None else results_dir / PAGE_NAME
     atomic_write_text(path, page)

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import yaml
 
+from bench.runs.folders import BROKEN, check_record
+
 
 @dataclass(frozen=True)
 class PageRun:
@@ -19,7 +21,8 @@ class PageRun:
     folder: str                    # relative to the results folder
     sequence: str                  # display name
     run: str                       # the run folder's name (method, label, seed option)
-    status: str                    # finished, failed, crashed, timeout, interrupted, unfinished
+    status: str                    # finished, failed, crashed, timeout, interrupted, unfinished,
+    #                                broken (a metrics.json that is no valid record)
     message: str = ""
     store: str | None = None
     store_sha256: str | None = None
@@ -37,9 +40,10 @@ class PageRun:
 
 def read_json(path: Path) -> dict:
     try:
-        return json.loads(path.read_text()) if path.exists() else {}
+        data = json.loads(path.read_text()) if path.exists() else {}
     except (OSError, ValueError):
         return {}
+    return data if isinstance(data, dict) else {}
 
 
 def read_page_runs(results_dir: Path) -> list[PageRun]:
@@ -58,11 +62,16 @@ def read_page_runs(results_dir: Path) -> list[PageRun]:
                 pass
         config = config if isinstance(config, dict) else {}
         metrics, failed = read_json(d / "metrics.json"), read_json(d / "failed.json")
-        if not (metrics or failed or "run_key" in config):
+        broken = check_record(d / "metrics.json") if (d / "metrics.json").exists() else None
+        if broken:
+            metrics = {}
+        elif not (metrics or failed or "run_key" in config):
             continue  # a config.yaml of something else (an experiment)
         seq = config.get("sequence") or {}
         identity = config.get("identity") or {}
-        if metrics:
+        if broken:
+            status, message = BROKEN, broken
+        elif metrics:
             status, message = "finished", ""
         elif failed:
             status, message = failed.get("status", "failed"), failed.get("error", "")

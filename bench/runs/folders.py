@@ -33,9 +33,11 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from pydantic import ValidationError
 
 from bench.runs.provenance import run_meta
 from bench.runs.result import RunResult
+from loaders.errors import DataError, validation_problems
 from loaders.fileio import atomic_write_text
 from loaders.posefile import read_tum
 from loaders.se3 import tum_from_T
@@ -60,8 +62,9 @@ def run_dir_name(method: str, seed: bool | None | Seed, label: str | None = None
 
 def is_finished(run_dir: Path, key: str | None = None) -> bool:
     """The run in ``run_dir`` finished (and, given ``key``, was made from the same inputs and
-    its timing is clean: no compilation inside a timed frame, ``bench.runs.timed``)."""
-    if not (run_dir / "metrics.json").exists():
+    its timing is clean: no compilation inside a timed frame, ``bench.runs.timed``). A broken
+    metrics.json (``check_record``) is no finished run: it runs again."""
+    if not (run_dir / "metrics.json").exists() or check_record(run_dir / "metrics.json"):
         return False
     if key is None:
         return True
@@ -261,12 +264,16 @@ def _rescored(run_dir: Path, raw: dict, config: dict) -> dict:
                                                                   int(keep.sum()))}
 
 
-def _failed(run_dir: Path, config: dict) -> RunResult:
-    """A run that did not finish, from its failed.json and config.yaml (or its folder names)."""
-    try:
-        info = json.loads((run_dir / "failed.json").read_text())
-    except (OSError, ValueError):
-        info = {"status": "failed", "error": "unreadable failed.json"}
+def _failed(run_dir: Path, config: dict, info: dict | None = None) -> RunResult:
+    """A run that did not finish, from its failed.json (or ``info``) and config.yaml (or its
+    folder names)."""
+    if info is None:
+        try:
+            info = json.loads((run_dir / "failed.json").read_text())
+        except (OSError, ValueError):
+            info = None
+        if not isinstance(info, dict):
+            info = {"status": "failed", "error": f"{run_dir / 'failed.json'}: unreadable"}
     seq = config.get("sequence") or {}
     name = run_dir.name
     seed = config.get("seed", False if name.endswith("_noseed") else
@@ -276,6 +283,51 @@ def _failed(run_dir: Path, config: dict) -> RunResult:
                      sequence=seq.get("name") or run_dir.parent.name, method=method, seed=seed,
                      label=config.get("label"), display_name=seq.get("display_name"),
                      sensor_class=seq.get("sensor_class"))
+
+
+class BrokenRecord(DataError):
+    """A run's metrics.json that cannot be read as its record (truncated, not JSON, or a
+    field of the wrong type); the message names the file and what was expected."""
+
+
+#: the status of a run whose metrics.json is broken (shown as a failed row, never as a result)
+BROKEN = "broken"
+
+
+def metrics_raw(path: Path) -> dict:
+    """The JSON object of a run's metrics.json; BrokenRecord naming the file when it is not
+    valid JSON or not an object."""
+    try:
+        raw = json.loads(Path(path).read_text())
+    except OSError as err:
+        raise BrokenRecord(f"{path}: cannot be read ({err.strerror or err})") from None
+    except ValueError as err:
+        raise BrokenRecord(f"{path}: not valid JSON ({err}); expected the record a finished "
+                           "run writes (`bench run` runs it again)") from None
+    if not isinstance(raw, dict):
+        raise BrokenRecord(f"{path}: expected a JSON object (a run's record), found "
+                           f"{type(raw).__name__}")
+    return raw
+
+
+def check_record(path: Path) -> str | None:
+    """Why the metrics.json at ``path`` is broken (its message, naming the file), or None when
+    it reads as a ``RunResult``."""
+    try:
+        raw = metrics_raw(path)
+        if raw.get("schema", 1) >= 2:
+            RunResult.model_validate(raw)
+    except BrokenRecord as err:
+        return str(err)
+    except ValidationError as err:
+        return (f"{path}: not a valid run record: "
+                + "; ".join(f"field {line}" for line in validation_problems(err)))
+    return None
+
+
+def _broken(run_dir: Path, config: dict, problem: str) -> RunResult:
+    """A run whose metrics.json is broken, as a run that did not finish (status ``BROKEN``)."""
+    return _failed(run_dir, config, {"status": BROKEN, "error": problem})
 
 
 def read_run(run_dir: Path, failed: bool = False, _stale: list | None = None
@@ -289,7 +341,12 @@ def read_run(run_dir: Path, failed: bool = False, _stale: list | None = None
         if failed and (run_dir / "failed.json").exists():
             return RunRecord(run_dir, _failed(run_dir, config), config)
         return None
-    raw = json.loads(metrics_path.read_text())
+    try:
+        raw = metrics_raw(metrics_path)
+    except BrokenRecord as err:
+        if not failed:
+            raise
+        return RunRecord(run_dir, _broken(run_dir, config, str(err)), config)
     if raw.get("schema", 1) < 2:
         new = _rescored(run_dir, raw, config)
         stale = [(run_dir, new is not raw)]
@@ -298,7 +355,15 @@ def read_run(run_dir: Path, failed: bool = False, _stale: list | None = None
             _stale += stale
         else:
             _announce(stale, run_dir)
-    return RunRecord(run_dir, RunResult.model_validate(raw), config)
+    try:
+        result = RunResult.model_validate(raw)
+    except ValidationError as err:
+        problem = BrokenRecord(f"{metrics_path}: not a valid run record: "
+                               + "; ".join(f"field {line}" for line in validation_problems(err)))
+        if not failed:
+            raise problem from None
+        return RunRecord(run_dir, _broken(run_dir, config, str(problem)), config)
+    return RunRecord(run_dir, result, config)
 
 
 def _announce(stale: list[tuple[Path, bool]], where: Path) -> None:
