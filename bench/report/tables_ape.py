@@ -25,6 +25,7 @@ from bench.report.names import (
     sequence_key,
     synthetic_note,
 )
+from bench.report.row_keys import distinct_labels
 from bench.report.run_units import RunUnits
 from bench.report.table import MARK_RULES, Cell, Row, Table, mark_column, save_table
 from bench.report.tables import stat_part
@@ -63,9 +64,13 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
                else [names.get(s, s) for s in sequences])
     table = Table(["Method"], columns, [])
     by_row: dict[tuple, dict[str, RunRecord]] = {}
-    for r in runs:
-        key = (order_key(r.method), r.method, r.label or "", r.seed.rank, r.seed.value,
-               run_label(r.method, r.seed, r.label, r.doppler_kind))
+    # runs of one sequence under one label (e.g. differing only in --alignment) are told apart
+    # by what differs in their configuration: one row each, none dropped
+    labels = distinct_labels(runs, lambda r: run_label(r.method, r.seed, r.label,
+                                                       r.doppler_kind),
+                             lambda r: r.display_name, lambda r: r.config, lambda r: r.dir)
+    for r, label in zip(runs, labels, strict=True):
+        key = (order_key(r.method), r.method, r.label or "", r.seed.rank, r.seed.value, label)
         by_row.setdefault(key, {})[r.display_name] = r
     requested = {r.result.ape.requested for r in runs if r.result.finished}
     common = max(requested, key=lambda a: sum(r.result.finished and r.result.ape.requested == a
