@@ -10,7 +10,7 @@ import pytest
 
 from bench.cli import main
 from bench.report.figures import make_figures
-from bench.report.html import render_page
+from bench.report.html import PAGE_TABLES, render_page
 from bench.report.html_markdown import inline, markdown_html
 from bench.report.tables import write_tables
 from bench.runs.folders import write_failure
@@ -81,7 +81,8 @@ def test_the_page_renders_every_table_and_figure_in_chromium(results, capsys, mo
     assert seen["console_errors"] == []
     assert seen["requests"] == [] and seen["dialogs"] == []
     md_tables = markdown_html((results / "table.md").read_text())[1]
-    assert dom["tables"] == md_tables == 1
+    # the four metrics' tables made for the page (PAGE_TABLES), then table.md as written
+    assert md_tables == 1 and dom["tables"] == len(PAGE_TABLES) + md_tables
     assert dom["marked"] >= 2  # best bold, second underlined, as in table.md
     assert len(dom["images"]) == len(pngs)
     assert all(complete and width > 100 for complete, width in dom["images"])
@@ -93,7 +94,8 @@ def test_the_page_renders_every_table_and_figure_in_chromium(results, capsys, mo
 
 def test_the_page_loads_nothing_and_escapes_every_name(results):
     page, counts = render_page(results)
-    assert counts == {"tables": 1, "figures": counts["figures"], "runs": 4, "failed": 1}
+    assert counts == {"tables": len(PAGE_TABLES) + 1, "figures": counts["figures"], "runs": 4,
+                      "failed": 1, "broken": 0}
     assert EVIL not in page and "&lt;script&gt;alert(1)&lt;/script&gt;" in page
     assert "<b>bold</b>" not in page
     # nothing that loads: no script, no external URL; a policy that forbids any load
@@ -123,7 +125,7 @@ def test_a_folder_without_tables_gets_table_three_made_for_the_page(results, tmp
     shutil.copytree(results, copy, ignore=shutil.ignore_patterns("table.*", "figures",
                                                                  "report.html"))
     page, counts = render_page(copy)
-    assert counts["tables"] == 1 and counts["figures"] == 0
+    assert counts["tables"] == len(PAGE_TABLES) and counts["figures"] == 0
     assert "made for this page" in page and "bench figures RESULTS_DIR" in page
 
 

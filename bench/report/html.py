@@ -89,10 +89,12 @@ def _stale_note(path: Path, newest_run: float) -> str:
 
 
 def table_files(results_dir: Path) -> list[Path]:
-    """Every markdown table in the folder: ``TABLE_FILES`` first, then any other ``*.md``."""
+    """Every markdown table in the folder: ``TABLE_FILES`` first, then any other ``*.md`` of
+    the folder, then those of its subfolders (e.g. ``bench table --out RESULTS/sub``)."""
     known = [results_dir / n for n in TABLE_FILES if (results_dir / n).exists()]
     others = sorted(p for p in results_dir.glob("*.md") if p not in known)
-    return known + others
+    nested = sorted(p for p in results_dir.rglob("*.md") if p.parent != results_dir)
+    return known + others + nested
 
 
 def _tables_section(results_dir: Path, newest_run: float) -> tuple[str, int]:
@@ -113,7 +115,7 @@ def _tables_section(results_dir: Path, newest_run: float) -> tuple[str, int]:
     for path in files:
         body, n = markdown_html(path.read_text(errors="replace"))
         count += n
-        parts.append(f'<h3 id="{esc(path.stem)}">{esc(path.name)}</h3>'
+        parts.append(f'<h3 id="{esc(path.stem)}">{esc(path.relative_to(results_dir))}</h3>'
                      f"{_stale_note(path, newest_run)}{body}")
     if not made and not files:
         parts.append("<p>No table: no finished run with ground truth.</p>")
@@ -143,8 +145,12 @@ def _tables_in_memory(results_dir: Path) -> list[tuple[str, str]]:
             table = collect_ape(results_dir, only={r.run.dir for r in rows}, ci=True).table
         else:
             table = build(metric, rows, lengths, ci=True)
-        if table.rows:
-            out.append((title, to_markdown(table)))
+        # never left out without a line: what is missing and why
+        out.append((title, to_markdown(table) if table.rows else
+                    "Not made: no run of this folder has this metric (a finished run with "
+                    "ground truth and its figure in metrics.json; runs without ground truth "
+                    "and runs that did not finish are listed under Failed runs and missing "
+                    "data)."))
     return out
 
 

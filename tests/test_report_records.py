@@ -1,0 +1,165 @@
+"""The report's and the tables' reading of run records (issue 34): a broken metrics.json
+(truncated, or a field of the wrong type) is a failed row naming the file while every good
+run keeps its table; `bench report` on a folder without runs is exit 2, with broken records
+exit 1; runs that differ only in --alignment get one row each, saying so; names from data are
+escaped in markdown (checked with markdown-it-py, an independent renderer) and on the page."""
+
+import json
+import shutil
+
+import pytest
+from markdown_it import MarkdownIt
+
+from bench.cli import main
+from bench.report.html import render_page
+from bench.report.html_markdown import inline
+from bench.report.row_keys import differences
+from bench.report.table import md_escape
+from bench.report.tables import write_tables
+from bench.runs.folders import BROKEN, read_run
+from bench.runs.job import Job
+from bench.runs.plan import plan
+from bench.runs.progress import run_jobs
+from conftest import constant_twist_sequence
+from loaders.errors import DataError
+from loaders.store import write_store
+
+EVIL = "<img src=x onerror=alert(1)> **b** [bold]x[/bold]"
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    """Two runs of one method on one store that differ only in their APE alignment."""
+    root = tmp_path_factory.mktemp("records")
+    seq = constant_twist_sequence(n_frames=30, n_points=1200, noise_m=0.02, max_range_m=60)
+    seq.name = "twist"
+    store = write_store(seq, root / "twist.h5")
+    out = root / "results"
+    jobs = [Job(store=store, method="doppler", seed=None, out_root=out, alignment=a,
+                run_dir_override=out / "twist" / f"doppler_{a}") for a in ("se3", "sim3")]
+    assert all(o.status == "done" for o in run_jobs(plan(jobs), executor="local"))
+    return out
+
+
+def _copy(results, tmp_path):
+    copy = tmp_path / "copy"
+    shutil.copytree(results, copy)
+    return copy
+
+
+def _bench(args, capsys, monkeypatch):
+    monkeypatch.setattr("sys.argv", ["bench", *args])
+    with pytest.raises(SystemExit) as exit_:
+        main()
+    captured = capsys.readouterr()
+    return exit_.value.code, captured.out, captured.err
+
+
+def test_runs_differing_only_in_alignment_get_one_row_each(results, capsys, monkeypatch):
+    for metric in ("ape", "relative", "kitti"):
+        code, out, err = _bench(["table", str(results), "--metric", metric, "--out",
+                                 str(results / "tables")], capsys, monkeypatch)
+        assert code == 0, err
+        rows = [line for line in out.splitlines() if line.startswith("|") and "Doppler" in line]
+        assert len(rows) == 2, out
+        assert "[alignment=se3]" in rows[0] and "[alignment=sim3]" in rows[1]
+
+
+def test_what_differs_names_the_items_known_answer():
+    a = {"identity": {"params": {"k": 1.0, "m": 2}, "scoring": {"alignment": "se3"},
+                      "store_sha256": "ab" * 32, "code_sha256": "c1"},
+         "sequence": {"store": "data/x.h5"}}
+    b = json.loads(json.dumps(a))
+    b["identity"]["params"]["k"] = 0.5
+    b["identity"]["scoring"]["alignment"] = "first-50"
+    assert differences([a, b]) == ["k=1, alignment=se3", "k=0.5, alignment=first-50"]
+    assert differences([a, a]) == ["", ""]
+    c = json.loads(json.dumps(a))
+    c["sequence"]["store"], c["identity"]["store_sha256"] = "data/y.h5", "cd" * 32
+    assert differences([a, c]) == ["store=x.h5", "store=y.h5"]  # the names, not the hashes
+
+
+def test_a_truncated_record_is_a_failed_row_and_the_good_run_keeps_its_table(
+        results, tmp_path, capsys, monkeypatch):
+    copy = _copy(results, tmp_path)
+    bad = copy / "twist" / "doppler_sim3" / "metrics.json"
+    bad.write_text(bad.read_text()[:100])
+    good = read_run(copy / "twist" / "doppler_se3")
+    with pytest.raises(DataError, match="doppler_sim3/metrics.json: not valid JSON"):
+        read_run(bad.parent)
+    assert read_run(bad.parent, failed=True).result.status == BROKEN
+
+    code, out, err = _bench(["report", str(copy)], capsys, monkeypatch)
+    assert code == 1 and "1 run record(s) broken" in out and "Traceback" not in out + err
+    page = (copy / "report.html").read_text()
+    assert f"{bad}: not valid JSON" in page and "Every run finished" not in page
+    assert f"{good.result.ape.trans_rmse_m:.2f}" in page  # the good run's APE cell
+    assert "No table" not in page
+
+    code, out, err = _bench(["table", str(copy), "--metric", "ape"], capsys, monkeypatch)
+    assert code == 1 and f"broken run record: {bad}: not valid JSON" in err
+    assert "failed" in out and f"{good.result.ape.trans_rmse_m:.2f}" in out
+
+
+def test_a_schema_invalid_record_names_the_field(results, tmp_path, capsys, monkeypatch):
+    copy = _copy(results, tmp_path)
+    bad = copy / "twist" / "doppler_se3" / "metrics.json"
+    bad.write_text(json.dumps({**json.loads(bad.read_text()), "frames": "x"}))
+    code, out, err = _bench(["report", str(copy)], capsys, monkeypatch)
+    assert code == 1
+    page = (copy / "report.html").read_text()
+    assert "Every run finished" not in page
+    assert f"{bad}: not a valid run record: field frames" in page
+    code, out, err = _bench(["table", str(copy)], capsys, monkeypatch)
+    assert code == 1 and "field frames" in out and "failed" in out  # its footnote and row
+
+
+def test_a_folder_without_runs_is_exit_2(tmp_path, capsys, monkeypatch):
+    (tmp_path / "empty").mkdir()
+    code, out, err = _bench(["report", str(tmp_path / "empty")], capsys, monkeypatch)
+    assert code == 2 and "no run records" in err and "Traceback" not in out + err
+    assert not (tmp_path / "empty" / "report.html").exists()
+
+
+def test_names_from_data_render_as_text_in_any_markdown_renderer(results, tmp_path):
+    copy = _copy(results, tmp_path)
+    for path in copy.rglob("metrics.json"):
+        path.write_text(json.dumps({**json.loads(path.read_text()), "display_name": EVIL}))
+    md = write_tables(copy)["md"]
+    html = MarkdownIt("commonmark").enable("table").render(md)
+    assert "<img" not in html and "<strong>b</strong>" not in html
+    assert "&lt;img src=x onerror=alert(1)&gt; **b** [bold]x[/bold]" in html
+    assert "<strong>" in html  # the table's own marks still render
+    page, _ = render_page(copy)
+    assert "<img src=x" not in page and "&lt;img src=x onerror=alert(1)&gt;" in page
+
+
+def test_md_escape_keeps_plain_names_and_the_page_reads_it_back():
+    assert md_escape("loop_radar-semidense_s0 (synthetic)") == \
+        "loop_radar-semidense_s0 (synthetic)"
+    assert md_escape("_a | `b`") == r"\_a \| \`b\`"
+    for text in (EVIL, "a_ b | c & d [x](javascript:y) \\"):
+        assert inline(md_escape(text)) == inline.__globals__["esc"](text)
+
+
+def test_paper_coverage_notes_are_escaped_on_the_page(results, tmp_path):
+    copy = _copy(results, tmp_path)
+    (copy / "reproduction.json").write_text(json.dumps(
+        {"data": "real", "found": [], "missing": ["Campus1"],
+         "notes": ["<img src=x onerror=alert(1)> note"]}))
+    page, _ = render_page(copy)
+    assert "<img src=x" not in page
+    assert "&lt;img src=x onerror=alert(1)&gt; note" in page
+
+
+def test_a_metric_without_figures_and_nested_tables_are_not_dropped_silently(results,
+                                                                           tmp_path):
+    copy = _copy(results, tmp_path)
+    for path in copy.rglob("metrics.json"):
+        path.write_text(json.dumps({**json.loads(path.read_text()), "ape": None}))
+    (copy / "sub").mkdir()
+    (copy / "sub" / "table_kitti.md").write_text("| a | b |\n|---|---|\n| 1 | 2 |\n")
+    page, counts = render_page(copy)
+    ape = page.split("Absolute pose error (Tables IV / V)</h3>")[1].split("<h3>")[0]
+    assert "Not made: no run of this folder has this metric" in ape
+    assert "sub/table_kitti.md" in page and counts["tables"] == 4  # 3 made + the nested one
