@@ -158,6 +158,11 @@ def print_run_summary(run_dir: Path, console: Console) -> None:
         if res.fallback_text():
             parts.append(res.fallback_text() + (" [fell back]" if res.fell_back else ""))
         console.print("; ".join(parts) or "no ground truth: no errors", markup=False)
+        from bench.report.tables_ape import start_offset_note
+
+        offset = start_offset_note(run)
+        if offset:
+            console.print(f"note: APE with {offset}", markup=False)
         if parts and scored:
             console.print(f"[low, high]: {100 * res.ci_level:g} % confidence intervals "
                           "(circular block bootstrap over the trajectory)", markup=False,

@@ -163,3 +163,29 @@ def test_a_metric_without_figures_and_nested_tables_are_not_dropped_silently(res
     ape = page.split("Absolute pose error (Tables IV / V)</h3>")[1].split("<h3>")[0]
     assert "Not made: no run of this folder has this metric" in ape
     assert "sub/table_kitti.md" in page and counts["tables"] == 4  # 3 made + the nested one
+
+
+def test_no_alignment_on_gt_in_world_coordinates_says_why_the_ape_is_large(
+        tmp_path, capsys, monkeypatch):
+    import numpy as np
+
+    from loaders.trajectory import Trajectory
+
+    seq = constant_twist_sequence(n_frames=25, n_points=1000, noise_m=0.02, max_range_m=60)
+    T_world_origin = np.eye(4)
+    T_world_origin[:3, 3] = (100.0, -40.0, 2.0)  # GT in world coordinates, far from the origin
+    seq.ground_truth = Trajectory(seq.ground_truth.stamps, T_world_origin @ seq.ground_truth.poses)
+    store = write_store(seq, tmp_path / "world.h5")
+    res = tmp_path / "res"
+    for alignment in ("none", "first-10"):
+        code, out, err = _bench(["run", "--method", "doppler", "--data", str(store), "--out",
+                                 str(res / "world" / f"doppler_{alignment}"), "--alignment",
+                                 alignment, "--executor", "local"], capsys, monkeypatch)
+        assert code == 0, out + err
+        assert ("note: APE with no alignment, and the estimate starts 107.7 m" in out) == \
+            (alignment == "none")
+    code, out, err = _bench(["table", str(res), "--metric", "ape"], capsys, monkeypatch)
+    assert code == 0, err
+    assert "[alignment=none] on twist: no alignment, and the estimate starts 107.7 m" in out
+    assert out.count("the estimate starts") == 1  # the first-10 run needs no such note
+    assert "se3-first-10" in out and "[alignment=se3-first-10]" in out
