@@ -25,6 +25,7 @@ from bench.report.figstyle import (
     PRIOR_NOTE,
     SMALL_PT,
     color,
+    div_labels,
     figure,
     legend_below,
     line_kwargs,
@@ -107,20 +108,18 @@ def plot_sequence(sequence: str, runs: list[RunRecord], out_dir: Path) -> list[P
                     break
             else:
                 labels.append([x, y, color(run.method), 1])
-    for x, y, c, count in labels:
-        ax.annotate("Div." if count == 1 else f"Div. ({count})", (x, y), xytext=(2, 2),
-                    textcoords="offset points", fontsize=SMALL_PT,
-                    color=c if count == 1 else "0.25")
     ax.set_xlim(lo_ax[0], hi_ax[0])
     ax.set_ylim(lo_ax[1], hi_ax[1])
     ax.set_aspect("equal", adjustable="box")  # one metre is as long in x as in y
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     set_title(ax, f"{sequence} (\u25cb start, \u25a0 end)")
-    handles, labels = ax.get_legend_handles_labels()
-    legend_below(fig, handles, labels, note=PRIOR_NOTE)
+    handles, names = ax.get_legend_handles_labels()
+    legend_below(fig, handles, names, note=PRIOR_NOTE)
     legend_in = fig.legends[0].get_window_extent(fig.canvas.get_renderer()).height / fig.dpi
     fig.set_figheight(axes_in + _TOP_BOTTOM_IN + legend_in + 0.1)
+    # labels that would touch are merged (figstyle.div_labels), drawn at the final size
+    div_labels(ax, [tuple(lab) for lab in labels], (2, 2), SMALL_PT)
     paths = save(fig, out_dir / "trajectories" / slug(sequence))
     plt.close(fig)
     return paths
