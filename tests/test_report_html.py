@@ -95,7 +95,7 @@ def test_the_page_renders_every_table_and_figure_in_chromium(results, capsys, mo
 def test_the_page_loads_nothing_and_escapes_every_name(results):
     page, counts = render_page(results)
     assert counts == {"tables": len(PAGE_TABLES) + 1, "figures": counts["figures"], "runs": 4,
-                      "failed": 1, "broken": 0}
+                      "failed": 1, "broken": 0, "damaged": 0}
     assert EVIL not in page and "&lt;script&gt;alert(1)&lt;/script&gt;" in page
     assert "<b>bold</b>" not in page
     # nothing that loads: no script, no external URL; a policy that forbids any load

@@ -55,10 +55,11 @@ def _bench(args, capsys, monkeypatch):
     return exit_.value.code, captured.out, captured.err
 
 
-def test_runs_differing_only_in_alignment_get_one_row_each(results, capsys, monkeypatch):
+def test_runs_differing_only_in_alignment_get_one_row_each(results, tmp_path, capsys,
+                                                           monkeypatch):
     for metric in ("ape", "relative", "kitti"):
         code, out, err = _bench(["table", str(results), "--metric", metric, "--out",
-                                 str(results / "tables")], capsys, monkeypatch)
+                                 str(tmp_path)], capsys, monkeypatch)
         assert code == 0, err
         rows = [line for line in out.splitlines() if line.startswith("|") and "Doppler" in line]
         assert len(rows) == 2, out
@@ -189,3 +190,20 @@ def test_no_alignment_on_gt_in_world_coordinates_says_why_the_ape_is_large(
     assert "[alignment=none] on twist: no alignment, and the estimate starts 107.7 m" in out
     assert out.count("the estimate starts") == 1  # the first-10 run needs no such note
     assert "se3-first-10" in out and "[alignment=se3-first-10]" in out
+
+
+def test_unreadable_files_of_a_run_folder_are_listed_and_exit_1(results, tmp_path, capsys,
+                                                               monkeypatch):
+    copy = _copy(results, tmp_path)
+    gt = copy / "twist" / "doppler_se3" / "gt_tum.txt"
+    gt.write_text("garbage\n")
+    failed = copy / "twist" / "dicp_seed" / "failed.json"
+    failed.parent.mkdir()
+    failed.write_text("{trunc")
+    (copy / "reproduction.json").write_text("[1, 2")
+    code, out, err = _bench(["report", str(copy)], capsys, monkeypatch)
+    assert code == 1 and "1 run folder(s) with unreadable files" in out
+    page = (copy / "report.html").read_text()
+    assert f"{gt}: no TUM pose rows found" in page and "Runs with unreadable files (1)" in page
+    assert f"{failed}: not a readable failure record" in page
+    assert "reproduction.json is not readable" in page

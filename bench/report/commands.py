@@ -110,7 +110,8 @@ def figures_command(console: Console, results_dir: Path | None, out: Path | None
 
 def report_command(console: Console, results_dir: Path, out: Path | None) -> int:
     """Write the results folder's HTML page and say what it holds; returns 0, or 1 when some
-    run records are broken (the page lists them; a broken record is never a success)."""
+    run records are broken or run folders hold unreadable files (the page lists them; a
+    broken record is never a success)."""
     from bench.report.html import write_page
 
     path, counts = write_page(results_dir, out)
@@ -120,5 +121,8 @@ def report_command(console: Console, results_dir: Path, out: Path | None) -> int
         console.print(f"{counts['broken']} run record(s) broken (metrics.json not a valid "
                       "record): listed under \"Failed runs and missing data\" on the page; "
                       "`bench run` runs them again", markup=False)
-        return 1
-    return 0
+    if counts["damaged"]:
+        console.print(f"{counts['damaged']} run folder(s) with unreadable files (config.yaml, "
+                      "meta.json or trajectory files): listed under \"Failed runs and missing "
+                      "data\" on the page", markup=False)
+    return 1 if counts["broken"] or counts["damaged"] else 0

@@ -247,6 +247,16 @@ def _problems_section(runs: list[PageRun], coverage: dict) -> str:
                      f"<tbody>{rows}</tbody></table>")
     else:
         parts.append("<p>Every run finished.</p>")
+    damaged = [r for r in runs if r.damaged]
+    if damaged:
+        rows = "".join(f"<tr><td><code>{esc(r.folder)}</code></td><td>{esc(line)}</td></tr>"
+                       for r in damaged for line in r.damaged)
+        parts.append(f'<h3>Runs with unreadable files ({len(damaged)})</h3><p class="caption">'
+                     "A finished run keeps its row (its figures come from metrics.json), but "
+                     "without readable trajectory files its per-segment errors, and so its "
+                     "significance marks and figures, are missing.</p><table><thead><tr>"
+                     "<th>run folder</th><th>problem</th></tr></thead>"
+                     f"<tbody>{rows}</tbody></table>")
     said: dict[str, list[str]] = {}
     for r in runs:
         for w in r.meta.get("warnings") or []:
@@ -287,10 +297,11 @@ def _problems_section(runs: list[PageRun], coverage: dict) -> str:
             f"<li><code>{esc(r.folder)}</code></li>" for r in no_gt) + "</ul>")
     if coverage:
         found, missing = coverage.get("found") or [], coverage.get("missing") or []
-        parts.append(f"<h3>The paper's sequences ({esc(coverage.get('data', ''))})</h3>"
-                     f"<p>Found ({len(found)}): {esc(', '.join(found) or 'none')}</p>"
-                     f'<p class="failed">Missing ({len(missing)}): '
-                     f"{esc(', '.join(missing) or 'none')}</p>")
+        parts.append(f"<h3>The paper's sequences ({esc(coverage.get('data', ''))})</h3>")
+        if "found" in coverage or "missing" in coverage:
+            parts.append(f"<p>Found ({len(found)}): {esc(', '.join(found) or 'none')}</p>"
+                         f'<p class="failed">Missing ({len(missing)}): '
+                         f"{esc(', '.join(missing) or 'none')}</p>")
         for note in coverage.get("notes") or []:
             parts.append(f'<p class="caption">{esc(note)}</p>')
     return "\n".join(parts)
@@ -302,6 +313,9 @@ def render_page(results_dir: Path) -> tuple[str, dict]:
     runs = read_page_runs(results_dir)
     newest = max((r.mtime for r in runs), default=0.0)
     coverage = read_json(results_dir / "reproduction.json")
+    if (results_dir / "reproduction.json").exists() and not coverage:
+        coverage = {"notes": [f"{results_dir / 'reproduction.json'} is not readable (not a JSON "
+                              "object): the paper's coverage of this folder is unknown"]}
     tables, n_tables = _tables_section(results_dir, newest)
     figures, n_figures = _figures_section(results_dir / "figures", newest)
     failed = sum(r.status != "finished" for r in runs)
@@ -345,7 +359,8 @@ def render_page(results_dir: Path) -> tuple[str, dict]:
 </body></html>
 """
     return page, {"tables": n_tables, "figures": n_figures, "runs": len(runs), "failed": failed,
-                  "broken": sum(r.status == BROKEN for r in runs)}
+                  "broken": sum(r.status == BROKEN for r in runs),
+                  "damaged": sum(bool(r.damaged) for r in runs)}
 
 
 def write_page(results_dir: Path, out: Path | None = None) -> tuple[Path, dict]:
