@@ -211,3 +211,20 @@ def test_unreadable_files_of_a_run_folder_are_listed_and_exit_1(results, tmp_pat
     assert f"{gt}: no TUM pose rows found" in page and "Runs with unreadable files (1)" in page
     assert f"{failed}: not a readable failure record" in page
     assert "reproduction.json is not readable" in page
+
+
+def test_figures_leave_out_a_broken_record_naming_it_and_tell_runs_apart(
+        results, tmp_path, capsys, monkeypatch):
+    from bench.report.figstyle import run_name
+    from bench.report.figures import _runs_with_gt
+
+    assert sorted(run_name(r) for r in _runs_with_gt(results)) == [
+        "Doppler Correspondence (Ours) [alignment=se3]",
+        "Doppler Correspondence (Ours) [alignment=sim3]"]
+    copy = _copy(results, tmp_path)
+    bad = copy / "twist" / "doppler_sim3" / "metrics.json"
+    bad.write_text("")
+    code, out, err = _bench(["figures", str(copy)], capsys, monkeypatch)
+    assert code == 1 and f"left out of the figures: {bad}: not valid JSON" in err
+    assert "Traceback" not in out + err
+    assert list((copy / "figures" / "trajectories").glob("*.png"))  # the good run's figure

@@ -89,7 +89,8 @@ def compare_command(console: Console, a: Path, b: Path, threshold: float,
 
 def figures_command(console: Console, results_dir: Path | None, out: Path | None,
                     speed_csv: Path | None, pair: tuple[Path, int] | None) -> int:
-    """Write the figures asked for and list them; returns 0."""
+    """Write the figures asked for and list them; returns 0 (1 when a run record of the
+    folder is broken: left out, with a warning naming it)."""
     from bench.report.figures import make_figures
     from bench.report.figures_pair import plot_pair
 
@@ -105,6 +106,12 @@ def figures_command(console: Console, results_dir: Path | None, out: Path | None
     for p in paths:
         if p.suffix == ".png":
             console.print(f"wrote {p} (+ .pdf)", markup=False)
+    if results_dir is not None:
+        from bench.runs.folders import BROKEN, load_runs
+
+        # the broken records were named in warnings and left out: no success
+        if any(r.result.status == BROKEN for r in load_runs(results_dir, failed=True)):
+            return 1
     return 0
 
 
