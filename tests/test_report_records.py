@@ -228,3 +228,16 @@ def test_figures_leave_out_a_broken_record_naming_it_and_tell_runs_apart(
     assert code == 1 and f"left out of the figures: {bad}: not valid JSON" in err
     assert "Traceback" not in out + err
     assert list((copy / "figures" / "trajectories").glob("*.png"))  # the good run's figure
+
+
+def test_a_run_without_ground_truth_is_named_when_left_out_of_a_table(
+        results, tmp_path, capsys, monkeypatch):
+    copy = _copy(results, tmp_path)
+    run = copy / "twist" / "doppler_sim3"
+    raw = json.loads((run / "metrics.json").read_text())
+    (run / "metrics.json").write_text(json.dumps({**raw, "relative_error": [], "ape": None,
+                                                  "diverged": None, "kitti": None,
+                                                  "velocity": None}))
+    code, out, err = _bench(["table", str(copy)], capsys, monkeypatch)
+    assert code == 0 and "[alignment=" not in out  # one row left: nothing to tell apart
+    assert f"not in the table: {run} (no ground truth: nothing to score)" in err

@@ -25,7 +25,7 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
     from bench.report.tables import METRICS, build, select
     from bench.report.tables_ape import collect_ape
     from bench.report.tables_pivot import pivot_markdown
-    from bench.runs.folders import BROKEN
+    from bench.runs.folders import BROKEN, load_runs
 
     wanted = None if methods is None else {m.strip() for m in methods.split(",")}
 
@@ -62,6 +62,11 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
     broken = [r for r in rows if r.result.status == BROKEN]
     for r in broken:
         status.print(f"broken run record: {r.result.error}", markup=False)
+    for d in results_dirs:  # never left out without a line
+        for r in load_runs(d, failed=True):
+            if r.result.finished and not r.result.scored:
+                status.print(f"not in the table: {r.dir} (no ground truth: nothing to score)",
+                             style="dim", markup=False)
     code = 1 if broken else 0  # a broken record is a failed row, never a success
     if where is None:
         status.print("a filtered or merged view: not written (--out DIR writes it)",
