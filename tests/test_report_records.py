@@ -241,3 +241,31 @@ def test_a_run_without_ground_truth_is_named_when_left_out_of_a_table(
     code, out, err = _bench(["table", str(copy)], capsys, monkeypatch)
     assert code == 0 and "[alignment=" not in out  # one row left: nothing to tell apart
     assert f"not in the table: {run} (no ground truth: nothing to score)" in err
+
+
+@pytest.mark.parametrize("text,expected", [
+    ("", "not valid JSON"), ("null", "expected a JSON object"),
+    ('{"schema": "2"}', "field schema: should be an integer"),
+    ('{"schema": 1, "sequence": "s", "method": "doppler", "diverged": "maybe"}',
+     "field diverged"),  # an older record, re-scored, still invalid
+])
+def test_every_kind_of_broken_record_is_one_line_naming_the_file(results, tmp_path, text,
+                                                                 expected):
+    copy = _copy(results, tmp_path)
+    bad = copy / "twist" / "doppler_sim3" / "metrics.json"
+    bad.write_text(text)
+    with pytest.raises(DataError, match=expected) as err:
+        read_run(bad.parent)
+    assert str(err.value).startswith(f"{bad}: ")
+    rec = read_run(bad.parent, failed=True)
+    assert rec.result.status == BROKEN and expected in rec.result.error
+    page, counts = render_page(copy)
+    assert counts["broken"] == 1 and expected in page
+
+
+def test_a_failure_record_saying_done_is_no_finished_run(results, tmp_path):
+    copy = _copy(results, tmp_path)
+    run = copy / "twist" / "doppler_sim3"
+    (run / "metrics.json").unlink()
+    (run / "failed.json").write_text(json.dumps({"status": "done", "error": "odd"}))
+    assert read_run(run, failed=True).result.status == "failed"

@@ -68,8 +68,8 @@ def read_page_runs(results_dir: Path) -> list[PageRun]:
             metrics = {}
         elif not (metrics or (d / "failed.json").exists() or "run_key" in config):
             continue  # a config.yaml of something else (an experiment)
-        seq = config.get("sequence") or {}
-        identity = config.get("identity") or {}
+        seq = config.get("sequence") if isinstance(config.get("sequence"), dict) else {}
+        identity = config.get("identity") if isinstance(config.get("identity"), dict) else {}
         if broken:
             status, message = BROKEN, broken
         elif metrics:

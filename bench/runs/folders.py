@@ -64,17 +64,18 @@ def is_finished(run_dir: Path, key: str | None = None) -> bool:
     """The run in ``run_dir`` finished (and, given ``key``, was made from the same inputs and
     its timing is clean: no compilation inside a timed frame, ``bench.runs.timed``). A broken
     metrics.json (``check_record``) is no finished run: it runs again."""
-    if not (run_dir / "metrics.json").exists() or check_record(run_dir / "metrics.json"):
+    if not (run_dir / "metrics.json").exists():
         return False
     if key is None:
-        return True
+        return check_record(run_dir / "metrics.json") is None
     try:
         config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}
         # a run with a compilation inside a timed frame is no clean timing: it runs again
         clean = json.loads((run_dir / "metrics.json").read_text()).get("timing_clean", True)
-    except (OSError, ValueError, yaml.YAMLError):
+    except (OSError, ValueError, AttributeError, yaml.YAMLError):
         return False
-    return config.get("run_key") == key and clean is not False
+    return (isinstance(config, dict) and config.get("run_key") == key and clean is not False
+            and check_record(run_dir / "metrics.json") is None)
 
 
 def clear_run(run_dir: Path) -> None:
@@ -237,9 +238,14 @@ _told: set[str] = set()
 def _config(run_dir: Path) -> dict:
     path = run_dir / "config.yaml"
     try:
-        return (yaml.safe_load(path.read_text()) or {}) if path.exists() else {}
+        config = (yaml.safe_load(path.read_text()) or {}) if path.exists() else {}
     except (OSError, yaml.YAMLError):
+        return {}  # bench report lists the folder's unreadable files
+    if not isinstance(config, dict):
         return {}
+    # the parts every reader looks into are mappings or absent
+    return {k: v for k, v in config.items()
+            if k not in ("sequence", "method", "identity") or isinstance(v, dict)}
 
 
 def _rescored(run_dir: Path, raw: dict, config: dict) -> dict:
@@ -279,7 +285,10 @@ def _failed(run_dir: Path, config: dict, info: dict | None = None) -> RunResult:
     seed = config.get("seed", False if name.endswith("_noseed") else
                       (True if name.endswith("_seed") else None))
     method = (config.get("method") or {}).get("name") or re.sub(r"_(no)?seed$", "", name)
-    return RunResult(status=info.get("status") or "failed", error=info.get("error") or "",
+    status = str(info.get("status") or "failed")
+    # a failure record never reads as a finished run
+    status = "failed" if status == "done" else status
+    return RunResult(status=status, error=str(info.get("error") or ""),
                      sequence=seq.get("name") or run_dir.parent.name, method=method, seed=seed,
                      label=config.get("label"), display_name=seq.get("display_name"),
                      sensor_class=seq.get("sensor_class"))
@@ -307,21 +316,20 @@ def metrics_raw(path: Path) -> dict:
     if not isinstance(raw, dict):
         raise BrokenRecord(f"{path}: expected a JSON object (a run's record), found "
                            f"{type(raw).__name__}")
+    schema = raw.get("schema", 1)
+    if isinstance(schema, bool) or not isinstance(schema, int):
+        raise BrokenRecord(f"{path}: not a valid run record: field schema: should be an "
+                           f"integer (got {schema!r})")
     return raw
 
 
 def check_record(path: Path) -> str | None:
     """Why the metrics.json at ``path`` is broken (its message, naming the file), or None when
-    it reads as a ``RunResult``."""
+    it reads as a ``RunResult`` (an older record: once re-scored, as ``read_run`` reads it)."""
     try:
-        raw = metrics_raw(path)
-        if raw.get("schema", 1) >= 2:
-            RunResult.model_validate(raw)
+        read_run(Path(path).parent, _stale=[])
     except BrokenRecord as err:
         return str(err)
-    except ValidationError as err:
-        return (f"{path}: not a valid run record: "
-                + "; ".join(f"field {line}" for line in validation_problems(err)))
     return None
 
 
@@ -348,7 +356,14 @@ def read_run(run_dir: Path, failed: bool = False, _stale: list | None = None
             raise
         return RunRecord(run_dir, _broken(run_dir, config, str(err)), config)
     if raw.get("schema", 1) < 2:
-        new = _rescored(run_dir, raw, config)
+        try:
+            new = _rescored(run_dir, raw, config)
+        except (ArithmeticError, LookupError, TypeError, ValueError, OSError) as err:
+            problem = BrokenRecord(f"{metrics_path}: an older record that cannot be re-scored "
+                                   f"({str(err).splitlines()[0] if str(err) else err!r})")
+            if not failed:
+                raise problem from None
+            return RunRecord(run_dir, _broken(run_dir, config, str(problem)), config)
         stale = [(run_dir, new is not raw)]
         raw = new
         if _stale is not None:
