@@ -19,7 +19,8 @@ METRIC_KEYS = {"schema", "status", "error", "sequence", "method", "seed", "label
                "relative_error", "ape", "kitti", "velocity", "velocity_own", "time_ms",
                "register_ms", "wall_ms", "clock", "threads", "notes", "cpu",
                "cpu_process_to_thread", "cpu_process_to_thread_first", "clock_note",
-               "timing_outliers", "timing_clean"}
+               "timing_outliers", "timing_clean", "ci_level", "frames_replaced",
+               "frames_unconverged"}
 
 
 @pytest.fixture(scope="module")
@@ -44,7 +45,8 @@ def test_run_folder_has_every_file_and_exact_metric_keys(store, tmp_path):
     assert [r["length_m"] for r in metrics["relative_error"]] == [8.0, 16.0, 24.0, 32.0, 40.0,
                                                                    48.0]
     assert set(rel8) == {"length_m", "rot_deg_mean", "trans_m_mean", "rot_deg_median",
-                         "trans_m_median", "rot_deg_rmse", "trans_m_rmse", "n"}
+                         "trans_m_median", "rot_deg_rmse", "trans_m_rmse", "n",
+                         "rot_deg_mean_ci", "trans_m_mean_ci", "spread"}
     assert rel8["trans_m_mean"] < 0.1 and rel8["n"] > 0
     assert metrics["ape"]["requested"] == metrics["ape"]["alignment"] == "se3"
     assert metrics["kitti"]["n"] == 0 and metrics["kitti"]["too_long"][0] == 100.0  # 47 m
@@ -55,7 +57,7 @@ def test_run_folder_has_every_file_and_exact_metric_keys(store, tmp_path):
     assert {"git", "packages", "cpu", "threads", "date"} <= set(meta)
     header = (run_dir / "frames.csv").read_text().splitlines()[0]
     assert header == ("index,stamp,time_ms,register_ms,wall_ms,points,correspondences,"
-                      "iterations,converged")
+                      "iterations,converged,replaced")
     assert metrics["clock"] == "cpu" and metrics["threads"] == 1
     assert metrics["cpu"] == meta["cpu"] and 0.99 < metrics["cpu_process_to_thread"] <= 1.05
     assert metrics["timing_clean"] is True
