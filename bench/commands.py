@@ -76,10 +76,14 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
         if out is not None:
             exp.out = out
         check_external(exp, experiment)
-        job_list = plan(jobs_for_experiment(exp, console))
+        refused: list[str] = []
+        job_list = plan(jobs_for_experiment(exp, console), refused)
+        if refused and not job_list:
+            raise DataError("every run of the experiment was refused:\n" + "\n".join(refused))
         workers, results_dir = jobs or exp.jobs, exp.out_dir
         sweeps = sweep_index(exp, job_list)
     else:
+        refused = []
         if method is None or data is None:
             raise DataError("give an EXPERIMENT.yaml, or --method M --data PATH.h5 [--out DIR]")
         if seed is False and seed_option(method, False) is None:
@@ -102,7 +106,12 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
             print_sweeps(results_dir, sweeps, console)
     elif results_dir is None and outcomes and outcomes[0].run_dir is not None:
         print_run_summary(outcomes[0].run_dir, console)
-    return 1 if any(o.status not in ("done", "skipped") for o in outcomes) or \
+    for line in refused:  # pairs the experiment did not run, and what would make them run
+        console.print(f"refused {line}", markup=False, soft_wrap=True)
+    if refused:
+        console.print(f"{len(refused)} run(s) refused (recorded as failed rows, status "
+                      "refused); the others ran", markup=False)
+    return 1 if refused or any(o.status not in ("done", "skipped") for o in outcomes) or \
         any(status == "failed" for _, status, _ in external) else 0
 
 
@@ -175,6 +184,11 @@ def print_run_summary(run_dir: Path, console: Console) -> None:
         if res.fallback_text():
             parts.append(res.fallback_text() + (" [fell back]" if res.fell_back else ""))
         console.print("; ".join(parts) or "no ground truth: no errors", markup=False)
+        from bench.report.tables_ape import start_offset_note
+
+        offset = start_offset_note(run)
+        if offset:
+            console.print(f"note: APE with {offset}", markup=False)
         if parts and scored:
             console.print(f"[low, high]: {100 * res.ci_level:g} % confidence intervals "
                           "(circular block bootstrap over the trajectory)", markup=False,

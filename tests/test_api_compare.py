@@ -113,7 +113,8 @@ def test_compare_shows_the_changed_cell(store, tmp_path):
     row = dict(zip(header, next(r for r in rows if r[0] == "twist" and r[2] == "8"),
                    strict=True))
     assert row["Run"] == "(No initial guess) Doppler Correspondence (Ours)"
-    a, b = float(row["Trans. A"]), float(row["Trans. B"])
+    # each figure is followed by its interval "[low, high]"
+    a, b = float(row["Trans. A"].split()[0]), float(row["Trans. B"].split()[0])
     delta = float(row["Trans. change"].split()[0])
     assert a != b and delta == pytest.approx(b - a, abs=2e-3)
     # the per-run metrics: APE (its alignment named), KITTI drift (none on 47 m), velocity

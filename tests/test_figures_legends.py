@@ -120,3 +120,31 @@ def test_log_axes_label_at_least_two_values(lo, hi, want):
     assert len(shown) >= 2 and len(labelled) >= 2
     if want is not None:
         assert want <= {float(v) for v in shown}
+
+
+def test_div_labels_never_print_over_each_other():
+    """Exits 0-5 m and 6.5-8 m along 100 m form two clusters whose labels ("Div. (3)" at 5 m,
+    "Div. (2)" at 8 m before) overlapped: labels that would touch are merged, counts kept."""
+    import re
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bench.report.figstyle import COLUMN_IN
+
+    fig, ax = plt.subplots(figsize=(COLUMN_IN, 2.0))
+    ax.plot([0, 100], [0.01, 1.0])
+    ax.set_yscale("log")
+    exits = [(x, "C0") for x in (0.0, 3.0, 5.0, 6.5, 8.0)] + [(60.0, "C1")]
+    errors_mod.label_divergence(ax, exits, 1.0, 100.0)
+    texts = ax.texts
+    renderer = fig.canvas.get_renderer()
+    boxes = [t.get_window_extent(renderer) for t in texts]
+    assert not any(boxes[i].overlaps(boxes[j]) for i in range(len(boxes))
+                   for j in range(i + 1, len(boxes)))
+    counts = [int(m.group(1)) if (m := re.search(r"\((\d+)\)", t.get_text())) else 1
+              for t in texts]
+    assert sum(counts) == len(exits) and sorted(counts) == [1, 5]
+    plt.close(fig)

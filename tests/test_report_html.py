@@ -10,7 +10,7 @@ import pytest
 
 from bench.cli import main
 from bench.report.figures import make_figures
-from bench.report.html import _tables_in_memory, render_page, table_files
+from bench.report.html import PAGE_TABLES, render_page, table_files
 from bench.report.html_markdown import inline, markdown_html
 from bench.report.tables import write_tables
 from bench.runs.folders import write_failure
@@ -80,11 +80,11 @@ def test_the_page_renders_every_table_and_figure_in_chromium(results, capsys, mo
     dom = json.loads(seen["value"])
     assert seen["console_errors"] == []
     assert seen["requests"] == [] and seen["dialogs"] == []
-    # the four metrics' tables made for the page (with intervals), then every table file
-    assert len(_tables_in_memory(results)) == 4
+    # the four metrics' tables made for the page (PAGE_TABLES, with intervals), then every
+    # table file as written
     md_tables = sum(markdown_html(p.read_text())[1] for p in table_files(results))
     assert (results / "table.md") in table_files(results)
-    assert dom["tables"] == 4 + md_tables
+    assert dom["tables"] == len(PAGE_TABLES) + md_tables
     assert dom["marked"] >= 2  # best bold, second underlined, as in table.md
     assert len(dom["images"]) == len(pngs)
     assert all(complete and width > 100 for complete, width in dom["images"])
@@ -97,8 +97,8 @@ def test_the_page_renders_every_table_and_figure_in_chromium(results, capsys, mo
 def test_the_page_loads_nothing_and_escapes_every_name(results):
     page, counts = render_page(results)
     files = sum(markdown_html(p.read_text())[1] for p in table_files(results))
-    assert counts == {"tables": 4 + files, "figures": counts["figures"], "runs": 4,
-                      "failed": 1}
+    assert counts == {"tables": len(PAGE_TABLES) + files, "figures": counts["figures"],
+                      "runs": 4, "failed": 1, "broken": 0, "damaged": 0}
     assert EVIL not in page and "&lt;script&gt;alert(1)&lt;/script&gt;" in page
     assert "<b>bold</b>" not in page
     # nothing that loads: no script, no external URL; a policy that forbids any load
@@ -129,7 +129,7 @@ def test_a_folder_without_tables_gets_table_three_made_for_the_page(results, tmp
                                                                  "report.html"))
     assert table_files(copy) == []
     page, counts = render_page(copy)
-    assert counts["tables"] == 4 and counts["figures"] == 0  # every metric's table
+    assert counts["tables"] == len(PAGE_TABLES) and counts["figures"] == 0
     assert "made for this page" in page and "bench figures RESULTS_DIR" in page
     assert "Relative error per segment length" in page and "KITTI drift" in page
 

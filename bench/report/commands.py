@@ -16,7 +16,8 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
                   variants: bool, metric: str = "relative", marks: str = "significance",
                   ci: bool = False) -> int:
     """Print a table of ``metric`` (relative: the paper-shaped Table III; kitti; ape: methods
-    x sequences; velocity), or the pivot, and write its files; returns 0. The results folder's
+    x sequences; velocity), or the pivot, and write its files; returns 0 (1 when a run
+    record is broken: its row says "failed" and names the file). The results folder's
     own ``table.*`` (``table_<metric>.*``) is the whole table of that one folder: a filtered
     view (lengths, methods, variants, pivot) or a merged one (several folders) is written only
     to ``out``."""
@@ -24,6 +25,7 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
     from bench.report.tables import METRICS, build, select
     from bench.report.tables_ape import collect_ape
     from bench.report.tables_pivot import pivot_markdown
+    from bench.runs.folders import BROKEN, load_runs
 
     wanted = None if methods is None else {m.strip() for m in methods.split(",")}
 
@@ -57,15 +59,24 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
     else:
         texts = render(build(metric, rows, chosen, marks, ci))
     sys.stdout.write(texts["md" if pivot else format])  # unwrapped (a pipe gets valid CSV)
+    broken = [r for r in rows if r.result.status == BROKEN]
+    for r in broken:
+        status.print(f"broken run record: {r.result.error}", markup=False)
+    for d in results_dirs:  # never left out without a line
+        for r in load_runs(d, failed=True):
+            if r.result.finished and not r.result.scored:
+                status.print(f"not in the table: {r.dir} (no ground truth: nothing to score)",
+                             style="dim", markup=False)
+    code = 1 if broken else 0  # a broken record is a failed row, never a success
     if where is None:
         status.print("a filtered or merged view: not written (--out DIR writes it)",
                       style="dim", markup=False)
-        return 0
+        return code
     stem = "pivot" if pivot else ("table" if metric == "relative" else f"table_{metric}")
     for fmt, text in texts.items():
         atomic_write_text(Path(where) / f"{stem}.{fmt}", text)
     status.print(f"wrote {where}/{stem}.{{{','.join(texts)}}}", style="dim", markup=False)
-    return 0
+    return code
 
 
 def compare_command(console: Console, a: Path, b: Path, threshold: float,
@@ -83,7 +94,8 @@ def compare_command(console: Console, a: Path, b: Path, threshold: float,
 
 def figures_command(console: Console, results_dir: Path | None, out: Path | None,
                     speed_csv: Path | None, pair: tuple[Path, int] | None) -> int:
-    """Write the figures asked for and list them; returns 0."""
+    """Write the figures asked for and list them; returns 0 (1 when a run record of the
+    folder is broken: left out, with a warning naming it)."""
     from bench.report.figures import make_figures
     from bench.report.figures_pair import plot_pair
 
@@ -99,14 +111,30 @@ def figures_command(console: Console, results_dir: Path | None, out: Path | None
     for p in paths:
         if p.suffix == ".png":
             console.print(f"wrote {p} (+ .pdf)", markup=False)
+    if results_dir is not None:
+        from bench.runs.folders import BROKEN, load_runs
+
+        # the broken records were named in warnings and left out: no success
+        if any(r.result.status == BROKEN for r in load_runs(results_dir, failed=True)):
+            return 1
     return 0
 
 
 def report_command(console: Console, results_dir: Path, out: Path | None) -> int:
-    """Write the results folder's HTML page and say what it holds; returns 0."""
+    """Write the results folder's HTML page and say what it holds; returns 0, or 1 when some
+    run records are broken or run folders hold unreadable files (the page lists them; a
+    broken record is never a success)."""
     from bench.report.html import write_page
 
     path, counts = write_page(results_dir, out)
     console.print(f"wrote {path}: {counts['tables']} table(s), {counts['figures']} figure(s), "
                   f"{counts['runs']} run(s), {counts['failed']} not finished", markup=False)
-    return 0
+    if counts["broken"]:
+        console.print(f"{counts['broken']} run record(s) broken (metrics.json not a valid "
+                      "record): listed under \"Failed runs and missing data\" on the page; "
+                      "`bench run` runs them again", markup=False)
+    if counts["damaged"]:
+        console.print(f"{counts['damaged']} run folder(s) with unreadable files (config.yaml, "
+                      "meta.json or trajectory files): listed under \"Failed runs and missing "
+                      "data\" on the page", markup=False)
+    return 1 if counts["broken"] or counts["damaged"] else 0

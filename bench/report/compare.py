@@ -25,6 +25,7 @@ import pandas as pd
 
 from bench.report.dataframe import load_results
 from bench.report.names import order_key, run_label, seed_tag, sequence_key
+from bench.report.table import md_escape
 
 RUN_KEYS = ["sequence", "method", "label", "seed"]
 QUANTITIES = ("rot_deg_mean", "trans_m_mean")
@@ -224,8 +225,9 @@ def _length(x) -> str:
 
 def markdown_table(header: list[str], rows: list[list[str]], right: set[int]) -> list[str]:
     """A pipe table, every column padded to its widest cell (``right``: right-aligned column
-    indices); cells escape '|'."""
-    cells = [[str(c).replace("|", r"\|") for c in row] for row in [header, *rows]]
+    indices); the caller escapes text from data (``md_escape``); '|' is escaped in every cell."""
+    cells = [[str(c).replace(r"\|", "|").replace("|", r"\|") for c in row]
+             for row in [header, *rows]]
     widths = [max(3, *(len(row[i]) for row in cells)) for i in range(len(header))]
 
     def line(row):
@@ -247,15 +249,16 @@ def to_markdown(cells: pd.DataFrame, times: pd.DataFrame, a: Path, b: Path,
            "over the trajectory); change = B - A:", ""]
     rows = []
     for _, r in cells.iterrows():
-        row = [r["sequence"], r["run"], _length(r["length_m"])]
+        row = [md_escape(r["sequence"]), md_escape(r["run"]), _length(r["length_m"])]
         for q in QUANTITIES:
             row += [_fmt_ci(r, q, "a"), _fmt_ci(r, q, "b"), _change(r[f"{q}_a"], r[f"{q}_b"])]
-        rows.append([*row, r["note"]])
+        rows.append([*row, md_escape(r["note"])])
     out += markdown_table(["Sequence", "Run", "Length [m]", "Rot. A", "Rot. B", "Rot. change",
                            "Trans. A", "Trans. B", "Trans. change", "Note"], rows,
                           right=set(range(2, 9)))
     out += ["", "Mean time per frame [ms] (all per-frame work, `time_ms`):", ""]
-    rows = [[r["sequence"], r["run"], _fmt(r["time_ms_a"], 2), _fmt(r["time_ms_b"], 2),
+    rows = [[md_escape(r["sequence"]), md_escape(r["run"]), _fmt(r["time_ms_a"], 2),
+             _fmt(r["time_ms_b"], 2),
              _change(r["time_ms_a"], r["time_ms_b"], 2),
              f"only in {r['only_in']}" if r["only_in"] else ""] for _, r in times.iterrows()]
     out += markdown_table(["Sequence", "Run", "Time A", "Time B", "Change", "Note"],
@@ -265,7 +268,7 @@ def to_markdown(cells: pd.DataFrame, times: pd.DataFrame, a: Path, b: Path,
                           if isinstance(x, str)})
         out += ["", "Per run: APE (alignment: " + (", ".join(aligned) or "-") + "), KITTI drift "
                 "over 100-800 m and ego-velocity error (mean norm); A -> B:", ""]
-        rows = [[r["sequence"], r["run"], *(
+        rows = [[md_escape(r["sequence"]), md_escape(r["run"]), *(
             f"{_fmt(r[f'{q}_a'], d)} -> {_fmt(r[f'{q}_b'], d)}" for q, _, d in RUN_QUANTITIES),
             f"only in {r['only_in']}" if r["only_in"] else ""] for _, r in per_run.iterrows()]
         out += markdown_table(["Sequence", "Run", *(t for _, t, _ in RUN_QUANTITIES), "Note"],

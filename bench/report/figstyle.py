@@ -188,3 +188,30 @@ def run_name(run) -> str:
 def run_order(run) -> tuple:
     """Runs in the tables' row order: the paper's methods, with seed before without."""
     return (order_key(run.method), run.method, Seed.of(run.seed).rank, run.label or "")
+
+
+def div_labels(ax, items: list[tuple[float, float, str, int]], xytext: tuple[float, float],
+               fontsize: float) -> list:
+    """Draw one "Div." label per item (x, y [data], colour, count of diverged runs), "Div. (n)"
+    in dark grey for several; labels whose boxes would touch are merged into one (at the
+    first one's place, their counts added), so no two labels ever print over each other.
+    Call it after the axes' limits and the figure's size are final. Returns the labels."""
+    renderer = ax.figure.canvas.get_renderer()
+    ax.get_xlim(), ax.get_ylim()  # the pending autoscale, now
+    ax.apply_aspect()
+    groups = [list(it) for it in sorted(items, key=lambda t: (t[0], t[1]))]
+    while True:
+        labels = [ax.annotate("Div." if n == 1 else f"Div. ({n})", (x, y), xytext=xytext,
+                              textcoords="offset points", fontsize=fontsize,
+                              color=c if n == 1 else "0.25", annotation_clip=False)
+                  for x, y, c, n in groups]
+        boxes = [a.get_window_extent(renderer).padded(1.0) for a in labels]
+        clash = next(((i, j) for i in range(len(boxes)) for j in range(i + 1, len(boxes))
+                      if boxes[i].overlaps(boxes[j])), None)
+        if clash is None:
+            return labels
+        for a in labels:
+            a.remove()
+        i, j = clash
+        groups[i][3] += groups[j][3]
+        del groups[j]

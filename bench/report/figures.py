@@ -16,6 +16,7 @@ file names made of readable slugs (``figstyle.slug``).
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -25,6 +26,7 @@ from bench.report.figstyle import (
     PRIOR_NOTE,
     SMALL_PT,
     color,
+    div_labels,
     figure,
     legend_below,
     line_kwargs,
@@ -35,9 +37,11 @@ from bench.report.figstyle import (
     slug,
     use_paper_style,
 )
-from bench.report.names import sequence_key
-from bench.runs.folders import RunRecord, load_runs
+from bench.report.names import display_name, sequence_key
+from bench.report.row_keys import distinct_labels
+from bench.runs.folders import BROKEN, RunRecord, load_runs
 from loaders.se3 import inv_T
+from methods.registry import Seed
 
 #: height of the trajectory axes [in]: at least this (a straight path), at most that
 _MIN_AXES_IN, _MAX_AXES_IN = 0.8, 3.0
@@ -46,7 +50,23 @@ _SIDE_IN, _TOP_BOTTOM_IN = 0.5, 0.55
 
 
 def _runs_with_gt(results_dir: Path) -> list[RunRecord]:
-    return [r for r in load_runs(results_dir) if r.has_gt]
+    """The finished runs with ground truth; a broken record is left out with a warning naming
+    it; runs of one sequence whose legend names would be the same are told apart by what
+    differs in their configurations (``bench.report.row_keys``)."""
+    import warnings
+
+    runs = []
+    for r in load_runs(results_dir, failed=True):
+        if r.result.status == BROKEN:
+            warnings.warn(f"left out of the figures: {r.result.error}", stacklevel=2)
+        elif r.has_gt:
+            runs.append(r)
+    names = distinct_labels(runs, lambda r: r.label or display_name(r.method),
+                            lambda r: (r.display_name, Seed.of(r.seed)), lambda r: r.config,
+                            lambda r: r.dir)
+    return [r if name == (r.label or display_name(r.method)) else
+            replace(r, result=r.result.model_copy(update={"label": name}))
+            for r, name in zip(runs, names, strict=True)]
 
 
 def _aligned_xy(run: RunRecord) -> np.ndarray:
@@ -107,31 +127,31 @@ def plot_sequence(sequence: str, runs: list[RunRecord], out_dir: Path) -> list[P
                     break
             else:
                 labels.append([x, y, color(run.method), 1])
-    for x, y, c, count in labels:
-        ax.annotate("Div." if count == 1 else f"Div. ({count})", (x, y), xytext=(2, 2),
-                    textcoords="offset points", fontsize=SMALL_PT,
-                    color=c if count == 1 else "0.25")
     ax.set_xlim(lo_ax[0], hi_ax[0])
     ax.set_ylim(lo_ax[1], hi_ax[1])
     ax.set_aspect("equal", adjustable="box")  # one metre is as long in x as in y
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     set_title(ax, f"{sequence} (\u25cb start, \u25a0 end)")
-    handles, labels = ax.get_legend_handles_labels()
-    legend_below(fig, handles, labels, note=PRIOR_NOTE)
+    handles, names = ax.get_legend_handles_labels()
+    legend_below(fig, handles, names, note=PRIOR_NOTE)
     legend_in = fig.legends[0].get_window_extent(fig.canvas.get_renderer()).height / fig.dpi
     fig.set_figheight(axes_in + _TOP_BOTTOM_IN + legend_in + 0.1)
+    # labels that would touch are merged (figstyle.div_labels), drawn at the final size
+    div_labels(ax, [tuple(lab) for lab in labels], (2, 2), SMALL_PT)
     paths = save(fig, out_dir / "trajectories" / slug(sequence))
     plt.close(fig)
     return paths
 
 
-def plot_trajectories(results_dir: Path, out_dir: Path | None = None) -> list[Path]:
-    """One trajectory figure per sequence; returns the written files."""
+def plot_trajectories(results_dir: Path, out_dir: Path | None = None,
+                      runs: list[RunRecord] | None = None) -> list[Path]:
+    """One trajectory figure per sequence (of ``runs``, default the folder's runs with ground
+    truth); returns the written files."""
     use_paper_style()
     out_dir = Path(out_dir or Path(results_dir) / "figures")
     groups: dict[str, list[RunRecord]] = {}
-    for run in _runs_with_gt(results_dir):
+    for run in _runs_with_gt(results_dir) if runs is None else runs:
         if len(run.gt) >= 2:
             groups.setdefault(run.display_name, []).append(run)
     written = []
@@ -153,8 +173,8 @@ def make_figures(results_dir: Path, out_dir: Path | None = None,
     from bench.report.figures_velocity import plot_velocity_along_path
 
     out_dir = Path(out_dir or Path(results_dir) / "figures")
-    written = plot_trajectories(results_dir, out_dir)
     runs = _runs_with_gt(results_dir)
+    written = plot_trajectories(results_dir, out_dir, runs)
     written += plot_boxplots(runs, out_dir)
     written += plot_error_along_path(runs, out_dir)
     written += plot_frames(runs, out_dir)

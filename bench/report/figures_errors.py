@@ -20,6 +20,7 @@ from bench.report.figstyle import (
     PRIOR_NOTE,
     SMALL_PT,
     color,
+    div_labels,
     figure,
     fit_height,
     legend_below,
@@ -148,11 +149,9 @@ def label_divergence(ax, exits: list[tuple[float, str]], top: float, span: float
             clusters[-1].append((x, c))
         else:
             clusters.append([(x, c)])
-    for cluster in clusters:
-        x = cluster[-1][0]
-        text = "Div." if len(cluster) == 1 else f"Div. ({len(cluster)})"
-        ax.annotate(text, (x, top), xytext=(4, -7), textcoords="offset points",
-                    fontsize=SMALL_PT - 0.5, color=cluster[0][1] if len(cluster) == 1 else "0.25")
+    # clusters whose labels would still touch ("Div. (3)" next to "Div. (2)") are merged
+    div_labels(ax, [(cluster[0][0], top, cluster[0][1], len(cluster)) for cluster in clusters],
+               (4, -7), SMALL_PT - 0.5)
 
 
 def _errors_along_path(run: RunRecord) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -189,6 +188,7 @@ def plot_error_along_path(runs: list[RunRecord], out_dir: Path) -> list[Path]:
         kept = [r for r in group if not r.diverged] or group
         fig, axes = figure(2.6, 2, 1, sharex=True)
         span = max(float(np.nanmax([curves[id(r)][0].max() for r in group])), 1e-9)
+        pending = []  # (axes, exits, top): labelled once the figure's size is final
         for part, ax in zip((1, 2), axes, strict=True):
             lo, hi = _log_limits([curves[id(r)][part] for r in kept])
             exits = []
@@ -207,7 +207,7 @@ def plot_error_along_path(runs: list[RunRecord], out_dir: Path) -> list[Path]:
                 else:
                     ax.plot(dist, err, label=name,
                             **line_kwargs(run, k, len(group), points=len(dist)))
-            label_divergence(ax, exits, hi, span)
+            pending.append((ax, exits, hi))
             ax.set_yscale("log")
             ax.set_ylim(lo, hi)
             log_y(ax)
@@ -218,6 +218,8 @@ def plot_error_along_path(runs: list[RunRecord], out_dir: Path) -> list[Path]:
         handles, labels = axes[0].get_legend_handles_labels()
         legend_below(fig, handles, labels, note=PRIOR_NOTE)
         fit_height(fig, 2.3)
+        for ax, exits, top in pending:
+            label_divergence(ax, exits, top, span)
         written += save(fig, out_dir / "error-along-path" / slug(sequence))
     return written
 

@@ -29,6 +29,7 @@ from bench.report.html_markdown import esc, markdown_html
 from bench.report.html_runs import PageRun, read_json, read_page_runs
 from bench.report.summary import cross_dataset
 from bench.report.table import to_markdown
+from bench.runs.folders import BROKEN
 from bench.runs.result import REPORTED_CLOCK
 from loaders.fileio import atomic_write_text
 
@@ -91,10 +92,12 @@ def _stale_note(path: Path, newest_run: float) -> str:
 
 
 def table_files(results_dir: Path) -> list[Path]:
-    """Every markdown table in the folder: ``TABLE_FILES`` first, then any other ``*.md``."""
+    """Every markdown table in the folder: ``TABLE_FILES`` first, then any other ``*.md`` of
+    the folder, then those of its subfolders (e.g. ``bench table --out RESULTS/sub``)."""
     known = [results_dir / n for n in TABLE_FILES if (results_dir / n).exists()]
     others = sorted(p for p in results_dir.glob("*.md") if p not in known)
-    return known + others
+    nested = sorted(p for p in results_dir.rglob("*.md") if p.parent != results_dir)
+    return known + others + nested
 
 
 def _tables_section(results_dir: Path, newest_run: float) -> tuple[str, int]:
@@ -119,7 +122,7 @@ def _tables_section(results_dir: Path, newest_run: float) -> tuple[str, int]:
     for path in files:
         body, n = markdown_html(path.read_text(errors="replace"))
         count += n
-        parts.append(f'<h3 id="{esc(path.stem)}">{esc(path.name)}</h3>'
+        parts.append(f'<h3 id="{esc(path.stem)}">{esc(path.relative_to(results_dir))}</h3>'
                      f"{_stale_note(path, newest_run)}{body}")
     if not made and not files:
         parts.append("<p>No table: no finished run with ground truth.</p>")
@@ -149,8 +152,12 @@ def _tables_in_memory(results_dir: Path) -> list[tuple[str, str]]:
             table = collect_ape(results_dir, only={r.run.dir for r in rows}, ci=True).table
         else:
             table = build(metric, rows, lengths, ci=True)
-        if table.rows:
-            out.append((title, to_markdown(table)))
+        # never left out without a line: what is missing and why
+        out.append((title, to_markdown(table) if table.rows else
+                    "Not made: no run of this folder has this metric (a finished run with "
+                    "ground truth and its figure in metrics.json; runs without ground truth "
+                    "and runs that did not finish are listed under Failed runs and missing "
+                    "data)."))
     return out
 
 
@@ -237,11 +244,27 @@ def _problems_section(runs: list[PageRun], coverage: dict) -> str:
             f'<tr><td><code>{esc(r.folder)}</code></td><td class="failed">{esc(r.status)}</td>'
             f"<td>{esc((r.message or '').splitlines()[0] if r.message else '')}</td></tr>"
             for r in bad)
-        parts.append(f"<h3>Runs that did not finish ({len(bad)})</h3><table><thead><tr>"
+        broken = sum(r.status == BROKEN for r in bad)
+        what = (f"; {broken} with a broken record (its metrics.json is no valid run record: "
+                "shown as a failed row in every table, never as a result; `bench run` runs it "
+                "again)" if broken else "")
+        parts.append(f"<h3>Runs that did not finish ({len(bad)})</h3>"
+                     f'<p class="caption">{esc(what.lstrip("; "))}</p>' * bool(broken)
+                     + "<table><thead><tr>"
                      f"<th>run folder</th><th>status</th><th>error</th></tr></thead>"
                      f"<tbody>{rows}</tbody></table>")
     else:
         parts.append("<p>Every run finished.</p>")
+    damaged = [r for r in runs if r.damaged]
+    if damaged:
+        rows = "".join(f"<tr><td><code>{esc(r.folder)}</code></td><td>{esc(line)}</td></tr>"
+                       for r in damaged for line in r.damaged)
+        parts.append(f'<h3>Runs with unreadable files ({len(damaged)})</h3><p class="caption">'
+                     "A finished run keeps its row (its figures come from metrics.json), but "
+                     "without readable trajectory files its per-segment errors, and so its "
+                     "significance marks and figures, are missing.</p><table><thead><tr>"
+                     "<th>run folder</th><th>problem</th></tr></thead>"
+                     f"<tbody>{rows}</tbody></table>")
     said: dict[str, list[str]] = {}
     for r in runs:
         for w in r.meta.get("warnings") or []:
@@ -282,10 +305,11 @@ def _problems_section(runs: list[PageRun], coverage: dict) -> str:
             f"<li><code>{esc(r.folder)}</code></li>" for r in no_gt) + "</ul>")
     if coverage:
         found, missing = coverage.get("found") or [], coverage.get("missing") or []
-        parts.append(f"<h3>The paper's sequences ({esc(coverage.get('data', ''))})</h3>"
-                     f"<p>Found ({len(found)}): {esc(', '.join(found) or 'none')}</p>"
-                     f'<p class="failed">Missing ({len(missing)}): '
-                     f"{esc(', '.join(missing) or 'none')}</p>")
+        parts.append(f"<h3>The paper's sequences ({esc(coverage.get('data', ''))})</h3>")
+        if "found" in coverage or "missing" in coverage:
+            parts.append(f"<p>Found ({len(found)}): {esc(', '.join(found) or 'none')}</p>"
+                         f'<p class="failed">Missing ({len(missing)}): '
+                         f"{esc(', '.join(missing) or 'none')}</p>")
         for note in coverage.get("notes") or []:
             parts.append(f'<p class="caption">{esc(note)}</p>')
     return "\n".join(parts)
@@ -297,6 +321,9 @@ def render_page(results_dir: Path) -> tuple[str, dict]:
     runs = read_page_runs(results_dir)
     newest = max((r.mtime for r in runs), default=0.0)
     coverage = read_json(results_dir / "reproduction.json")
+    if (results_dir / "reproduction.json").exists() and not coverage:
+        coverage = {"notes": [f"{results_dir / 'reproduction.json'} is not readable (not a JSON "
+                              "object): the paper's coverage of this folder is unknown"]}
     tables, n_tables = _tables_section(results_dir, newest)
     figures, n_figures = _figures_section(results_dir / "figures", newest)
     failed = sum(r.status != "finished" for r in runs)
@@ -339,7 +366,9 @@ def render_page(results_dir: Path) -> tuple[str, dict]:
 </section>
 </body></html>
 """
-    return page, {"tables": n_tables, "figures": n_figures, "runs": len(runs), "failed": failed}
+    return page, {"tables": n_tables, "figures": n_figures, "runs": len(runs), "failed": failed,
+                  "broken": sum(r.status == BROKEN for r in runs),
+                  "damaged": sum(bool(r.damaged) for r in runs)}
 
 
 def write_page(results_dir: Path, out: Path | None = None) -> tuple[Path, dict]:
@@ -350,6 +379,12 @@ def write_page(results_dir: Path, out: Path | None = None) -> tuple[Path, dict]:
         from loaders.errors import DataError
 
         raise DataError(f"{results_dir}: no such results folder")
+    if not read_page_runs(results_dir):
+        from loaders.errors import DataError
+
+        raise DataError(f"{results_dir}: no run records in this folder (no metrics.json, "
+                        "failed.json or run config.yaml under it); expected a results folder "
+                        "of `bench run` or `bench reproduce`")
     page, counts = render_page(results_dir)
     path = Path(out) if out is not None else results_dir / PAGE_NAME
     atomic_write_text(path, page)

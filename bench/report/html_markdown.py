@@ -20,13 +20,27 @@ _CODE = re.compile(r"`([^`]+)`")
 _NUMBER = re.compile(r"^[-+]?[\d.]+(e[-+]?\d+)?( / [-+]?[\d.]+(e[-+]?\d+)?)?( \[\d+ thr\.\])?$")
 
 
+#: markdown's escapes (``bench.report.table.md_escape``): a backslash before punctuation and
+#: HTML's character entities stand for that character as text, never for a mark
+_LITERAL = re.compile(r"\\([!-/:-@\[-`{-~])|&(amp|lt|gt|quot|#39);")
+_HELD = re.compile("\x00(\\d+)\x00")
+
+
 def inline(text: str) -> str:
-    """One markdown cell or line as HTML: escaped first, then the harness's own marks (``**``
-    bold, ``<u>`` underline, backticks) turned into tags around the escaped text."""
-    out = esc(text)
+    """One markdown cell or line as HTML: markdown's escapes (``\\*``, ``&lt;``) held as literal
+    characters, everything escaped, then the harness's own marks (``**`` bold, ``<u>``
+    underline, backticks) turned into tags around the escaped text."""
+    held: list[str] = []
+
+    def hold(m: re.Match) -> str:
+        held.append(m.group(1) if m.group(1) is not None else html.unescape(m.group(0)))
+        return f"\x00{len(held) - 1}\x00"
+
+    out = esc(_LITERAL.sub(hold, str(text).replace("\x00", "")))
     out = _CODE.sub(r"<code>\1</code>", out)
     out = _BOLD.sub(r"<strong>\1</strong>", out)
-    return _UNDER.sub(r"<u>\1</u>", out)
+    out = _UNDER.sub(r"<u>\1</u>", out)
+    return _HELD.sub(lambda m: esc(held[int(m.group(1))]), out)
 
 
 def _split_row(line: str) -> list[str]:

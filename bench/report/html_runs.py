@@ -11,6 +11,8 @@ from pathlib import Path
 
 import yaml
 
+from bench.runs.folders import BROKEN, check_record
+
 
 @dataclass(frozen=True)
 class PageRun:
@@ -19,7 +21,8 @@ class PageRun:
     folder: str                    # relative to the results folder
     sequence: str                  # display name
     run: str                       # the run folder's name (method, label, seed option)
-    status: str                    # finished, failed, crashed, timeout, interrupted, unfinished
+    status: str                    # finished, failed, crashed, timeout, interrupted, unfinished,
+    #                                broken (a metrics.json that is no valid record)
     message: str = ""
     store: str | None = None
     store_sha256: str | None = None
@@ -33,13 +36,15 @@ class PageRun:
     mtime: float = 0.0
     frames_replaced: int = 0       # registered frames replaced by the motion prior
     frames_unconverged: int = 0    # registered frames that did not converge
+    damaged: tuple[str, ...] = ()  # files of the folder that cannot be read (file_problems)
 
 
 def read_json(path: Path) -> dict:
     try:
-        return json.loads(path.read_text()) if path.exists() else {}
+        data = json.loads(path.read_text()) if path.exists() else {}
     except (OSError, ValueError):
         return {}
+    return data if isinstance(data, dict) else {}
 
 
 def read_page_runs(results_dir: Path) -> list[PageRun]:
@@ -58,14 +63,21 @@ def read_page_runs(results_dir: Path) -> list[PageRun]:
                 pass
         config = config if isinstance(config, dict) else {}
         metrics, failed = read_json(d / "metrics.json"), read_json(d / "failed.json")
-        if not (metrics or failed or "run_key" in config):
+        broken = check_record(d / "metrics.json") if (d / "metrics.json").exists() else None
+        if broken:
+            metrics = {}
+        elif not (metrics or (d / "failed.json").exists() or "run_key" in config):
             continue  # a config.yaml of something else (an experiment)
-        seq = config.get("sequence") or {}
-        identity = config.get("identity") or {}
-        if metrics:
+        seq = config.get("sequence") if isinstance(config.get("sequence"), dict) else {}
+        identity = config.get("identity") if isinstance(config.get("identity"), dict) else {}
+        if broken:
+            status, message = BROKEN, broken
+        elif metrics:
             status, message = "finished", ""
         elif failed:
             status, message = failed.get("status", "failed"), failed.get("error", "")
+        elif (d / "failed.json").exists():
+            status, message = "failed", f"{d / 'failed.json'}: not a readable failure record"
         else:
             status, message = "unfinished", "no metrics.json and no failed.json"
         records = [d / n for n in ("metrics.json", "failed.json") if (d / n).exists()]
@@ -81,5 +93,34 @@ def read_page_runs(results_dir: Path) -> list[PageRun]:
             code_sha256=identity.get("code_sha256"), meta=read_json(d / "meta.json"),
             mtime=max((p.stat().st_mtime for p in records), default=0.0),
             frames_replaced=int(metrics.get("frames_replaced") or 0),
-            frames_unconverged=int(metrics.get("frames_unconverged") or 0)))
+            frames_unconverged=int(metrics.get("frames_unconverged") or 0),
+            damaged=tuple(file_problems(d, status == "finished"))))
     return runs
+
+
+def file_problems(run_dir: Path, finished: bool) -> list[str]:
+    """The run folder's files besides its record that cannot be read (config.yaml, meta.json
+    and, of a finished run, its trajectory files), each naming the file and what is wrong:
+    the page lists them, never passes over them."""
+    from loaders.posefile import read_tum
+
+    out = []
+    for name, load in (("config.yaml", yaml.safe_load), ("meta.json", json.loads)):
+        path = run_dir / name
+        if path.exists():
+            try:
+                data = load(path.read_text())
+                if not isinstance(data, dict):
+                    out.append(f"{path}: expected a mapping, found {type(data).__name__}")
+            except (OSError, ValueError, yaml.YAMLError) as err:
+                out.append(f"{path}: not readable ({str(err).splitlines()[0]})")
+    if finished:
+        for name in ("gt_tum.txt", "est_tum.txt"):
+            path = run_dir / name
+            if path.exists():
+                try:
+                    read_tum(path)
+                except (OSError, ValueError) as err:
+                    text = str(err).splitlines()[0]
+                    out.append(text if str(path) in text else f"{path}: {text}")
+    return out

@@ -157,9 +157,10 @@ def stat_text(value: float | None, ci: tuple | list | None, n_independent: int |
 # ---- renderers --------------------------------------------------------------------------------
 
 def _md_part(p: Part) -> str:
+    text = md_escape(p.text)
     if p.text == "-":
-        return p.text
-    return {BEST: f"**{p.text}**", SECOND: f"<u>{p.text}</u>"}.get(p.rank, p.text)
+        return text
+    return {BEST: f"**{text}**", SECOND: f"<u>{text}</u>"}.get(p.rank, text)
 
 
 def _tex_part(p: Part) -> str:
@@ -167,8 +168,8 @@ def _tex_part(p: Part) -> str:
                                                                                    p.text)
 
 
-def _cell_text(c: Cell, part, note) -> str:
-    text = c.status if c.status is not None else " / ".join(part(p) for p in c.parts)
+def _cell_text(c: Cell, part, note, escape=lambda s: s) -> str:
+    text = escape(c.status) if c.status is not None else " / ".join(part(p) for p in c.parts)
     return text + (note(c.note) if c.note else "")
 
 
@@ -187,18 +188,44 @@ def _shown_keys(table: Table) -> list[list[str]]:
     return out
 
 
+#: characters a markdown renderer would read as markup, and their escaped forms: HTML's own
+#: characters as entities (every renderer passes entities through as text), the rest with a
+#: backslash (CommonMark / GFM escapes)
+_MD_ENTITIES = {"&": "&amp;", "<": "&lt;", ">": "&gt;"}
+_MD_BACKSLASHED = set("\\|`*")
+
+
 def md_escape(text: str) -> str:
-    return str(text).replace("|", r"\|")
+    """Text from data (a name, a label, a message) as markdown that renders as that text in
+    any renderer: ``<img src=x onerror=alert(1)>`` stays text, a ``|`` stays in its cell,
+    ``**`` / backticks / ``[x](url)`` make no bold, code or link. Normal names stay readable:
+    an underscore is escaped only at a word's edge (``loop_1`` as is; GFM makes no emphasis
+    inside a word)."""
+    text, out = str(text), []
+    for i, ch in enumerate(text):
+        if ch in _MD_ENTITIES:
+            out.append(_MD_ENTITIES[ch])
+        elif ch in _MD_BACKSLASHED:
+            out.append("\\" + ch)
+        elif ch == "_" and not (0 < i < len(text) - 1 and text[i - 1].isalnum()
+                                and text[i + 1].isalnum()):
+            out.append("\\_")
+        elif ch == "(" and i > 0 and text[i - 1] == "]":
+            out.append("\\(")  # "[x](url)" is no link
+        else:
+            out.append(ch)
+    return "".join(out)
 
 
 def to_markdown(table: Table) -> str:
-    """A pipe table, its caption and footnotes."""
+    """A pipe table, its caption and footnotes; every text escaped (``md_escape``) and only
+    the marks (``**`` bold, ``<u>`` underlined) written as markdown."""
     lines = ["| " + " | ".join(md_escape(x) for x in [*table.keys, *table.columns]) + " |",
              "|" + "---|" * (len(table.keys) + len(table.columns))]
     for r, keys in zip(table.rows, _shown_keys(table), strict=True):
-        cells = [_cell_text(c, _md_part, lambda n: f" [{n}]") for c in r.cells]
-        lines.append("| " + " | ".join(md_escape(x) for x in [*keys, *cells]) + " |")
-    out = "\n".join(lines) + "\n\n" + table.caption + "\n"
+        cells = [_cell_text(c, _md_part, lambda n: f" [{n}]", md_escape) for c in r.cells]
+        lines.append("| " + " | ".join([*(md_escape(x) for x in keys), *cells]) + " |")
+    out = "\n".join(lines) + "\n\n" + md_escape(table.caption) + "\n"
     if table.footnotes:
         out += "\n" + "\n".join(f"[{i}] {md_escape(t)}" for i, t in
                                 enumerate(table.footnotes, 1)) + "\n"

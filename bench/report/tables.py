@@ -35,6 +35,7 @@ from bench.report.names import (
     sequence_key,
     synthetic_note,
 )
+from bench.report.row_keys import distinct_labels
 from bench.report.run_units import RunUnits
 from bench.report.table import (
     MARK_RULES,
@@ -128,6 +129,12 @@ def runs(results_dir: Path | list[Path], only: set[Path] | None = None) -> list[
                 continue  # no ground truth: nothing to tabulate
             label = run_label(run.method, run.seed, run.label, run.doppler_kind)
             out.append(RunRow(run, f"{Path(d).name}: {label}" if len(dirs) > 1 else label))
+    # two runs of one sequence under one label (e.g. differing only in --alignment): each row
+    # says what differs (bench.report.row_keys), none is merged or dropped
+    labels = distinct_labels(out, lambda r: r.label, lambda r: r.sequence,
+                             lambda r: r.run.config, lambda r: r.run.dir)
+    for row, label in zip(out, labels, strict=True):
+        row.label = label
     return sorted(out, key=RunRow.order)
 
 

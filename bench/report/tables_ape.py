@@ -17,6 +17,8 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+import numpy as np
+
 from bench.report.names import (
     SEED_NOTE,
     gt_assisted_note,
@@ -25,6 +27,7 @@ from bench.report.names import (
     sequence_key,
     synthetic_note,
 )
+from bench.report.row_keys import distinct_labels
 from bench.report.run_units import RunUnits
 from bench.report.table import MARK_RULES, Cell, Row, Table, mark_column, save_table
 from bench.report.tables import stat_part
@@ -49,6 +52,16 @@ def _runs(results_dir: Path, only: set[Path] | None) -> list[RunRecord]:
             if not r.result.finished or (r.diverged is not None and r.result.ape is not None)]
 
 
+def _first_n_words(spec: str) -> str:
+    """What ``--alignment first-N`` is recorded as, in the caption: "se3-first-N" (evo's
+    ``-a --n_to_align N``: SE(3) is the group when none is named)."""
+    a = Alignment.parse(spec)
+    if a.kind != "se3" or a.first_n is None:
+        return ""
+    return (f" (recorded as {a.name}: --alignment first-{a.first_n} asks for this same "
+            "SE(3) alignment, evo's group when none is named)")
+
+
 def collect_ape(results_dir: Path, sequences: list[str] | None = None,
                 only: set[Path] | None = None, caption: str = "",
                 marks: str = "significance", ci: bool = False) -> ApeTable:
@@ -63,9 +76,13 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
                else [names.get(s, s) for s in sequences])
     table = Table(["Method"], columns, [])
     by_row: dict[tuple, dict[str, RunRecord]] = {}
-    for r in runs:
-        key = (order_key(r.method), r.method, r.label or "", r.seed.rank, r.seed.value,
-               run_label(r.method, r.seed, r.label, r.doppler_kind))
+    # runs of one sequence under one label (e.g. differing only in --alignment) are told apart
+    # by what differs in their configuration: one row each, none dropped
+    labels = distinct_labels(runs, lambda r: run_label(r.method, r.seed, r.label,
+                                                       r.doppler_kind),
+                             lambda r: r.display_name, lambda r: r.config, lambda r: r.dir)
+    for r, label in zip(runs, labels, strict=True):
+        key = (order_key(r.method), r.method, r.label or "", r.seed.rank, r.seed.value, label)
         by_row.setdefault(key, {})[r.display_name] = r
     requested = {r.result.ape.requested for r in runs if r.result.finished}
     common = max(requested, key=lambda a: sum(r.result.finished and r.result.ape.requested == a
@@ -101,6 +118,9 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
                     flag = " [fell back]" if r.result.fell_back else ""
                     cell.note = table.note(f"{key[-1]} on {col}{flag}: "
                                            f"{r.result.fallback_text()}")
+                offset = start_offset_note(r)
+                if offset and cell.note is None:
+                    cell.note = table.note(f"{key[-1]} on {col}: {offset}")
                 cells.append(cell)
         table.rows.append(Row([key[-1]], (), cells, {"method": key[1], "label": key[2] or None,
                                                      "seed": key[4], "status": "done"}))
@@ -111,12 +131,40 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
                      + (caption or "Absolute pose error [m]: "
                      "translation RMSE") + f" after {Alignment.parse(common).description}, as "
                      f"evo_ape {Alignment.parse(common).evo_options} computes it"
+                     + _first_n_words(common)
                      + (" ([low, high]: its 95 % confidence interval, circular block bootstrap "
                         "of the aligned per-frame errors)" if ci else "") + ". "
                      + MARK_RULES[marks] + " Div. = diverged; - = not run"
                      + ("; failed = the run did not finish (reason in its footnote)" if failed
                         else "") + ". " + SEED_NOTE)
     return ApeTable(table, columns)
+
+
+#: an unaligned estimate whose first pose lies farther than this from the ground truth's
+#: first pose gets a note (its APE is mostly that offset)
+START_OFFSET_M, START_OFFSET_DEG = 0.5, 2.0
+
+
+def start_offset_note(run: RunRecord) -> str | None:
+    """A note for a run scored without alignment (``none``) whose estimate starts at its own
+    origin far from the ground truth's first pose (GT in world coordinates): its APE includes
+    that offset. None otherwise (or without trajectory files)."""
+    a = run.result.ape
+    if a is None or Alignment.parse(a.requested).kind != "none" or not run.has_gt:
+        return None
+    try:
+        gt0, est0 = run.gt[0], run.est[0]
+    except (OSError, ValueError, IndexError):
+        return None
+    offset_m = float(np.linalg.norm(gt0[:3, 3] - est0[:3, 3]))
+    cos = (np.trace(gt0[:3, :3].T @ est0[:3, :3]) - 1) / 2
+    angle_deg = float(np.degrees(np.arccos(np.clip(cos, -1.0, 1.0))))
+    if offset_m <= START_OFFSET_M and angle_deg <= START_OFFSET_DEG:
+        return None
+    return (f"no alignment, and the estimate starts {offset_m:.1f} m / {angle_deg:.1f} deg "
+            "from the ground truth's first pose (it begins at the identity, the ground "
+            "truth is in world coordinates): this APE includes that offset; "
+            "--alignment origin puts the first poses together")
 
 
 def fmt2(x: float | None) -> str:

@@ -33,10 +33,12 @@ from pathlib import Path
 
 import numpy as np
 import yaml
+from pydantic import ValidationError
 
 from bench.runs.libraries import libraries_current
 from bench.runs.provenance import run_meta
 from bench.runs.result import RunResult
+from loaders.errors import DataError, validation_problems
 from loaders.fileio import atomic_write_text
 from loaders.posefile import read_tum
 from loaders.se3 import tum_from_T
@@ -63,19 +65,21 @@ def is_finished(run_dir: Path, key: str | None = None) -> bool:
     """The run in ``run_dir`` finished (and, given ``key``, was made from the same inputs, with
     the libraries it imported still installed at the versions it ran with
     (``bench.runs.libraries``), and its timing is clean: no compilation inside a timed frame,
-    ``bench.runs.timed``)."""
+    ``bench.runs.timed``). A broken metrics.json (``check_record``) is no finished run: it runs
+    again."""
     if not (run_dir / "metrics.json").exists():
         return False
     if key is None:
-        return True
+        return check_record(run_dir / "metrics.json") is None
     try:
         config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}
         # a run with a compilation inside a timed frame is no clean timing: it runs again
         clean = json.loads((run_dir / "metrics.json").read_text()).get("timing_clean", True)
-    except (OSError, ValueError, yaml.YAMLError):
+    except (OSError, ValueError, AttributeError, yaml.YAMLError):
         return False
-    return (config.get("run_key") == key and clean is not False
-            and libraries_current(config.get("libraries")))
+    return (isinstance(config, dict) and config.get("run_key") == key and clean is not False
+            and libraries_current(config.get("libraries"))
+            and check_record(run_dir / "metrics.json") is None)
 
 
 def clear_run(run_dir: Path) -> None:
@@ -238,9 +242,14 @@ _told: set[str] = set()
 def _config(run_dir: Path) -> dict:
     path = run_dir / "config.yaml"
     try:
-        return (yaml.safe_load(path.read_text()) or {}) if path.exists() else {}
+        config = (yaml.safe_load(path.read_text()) or {}) if path.exists() else {}
     except (OSError, yaml.YAMLError):
+        return {}  # bench report lists the folder's unreadable files
+    if not isinstance(config, dict):
         return {}
+    # the parts every reader looks into are mappings or absent
+    return {k: v for k, v in config.items()
+            if k not in ("sequence", "method", "identity") or isinstance(v, dict)}
 
 
 def _rescored(run_dir: Path, raw: dict, config: dict) -> dict:
@@ -265,21 +274,72 @@ def _rescored(run_dir: Path, raw: dict, config: dict) -> dict:
                                                                   int(keep.sum()))}
 
 
-def _failed(run_dir: Path, config: dict) -> RunResult:
-    """A run that did not finish, from its failed.json and config.yaml (or its folder names)."""
-    try:
-        info = json.loads((run_dir / "failed.json").read_text())
-    except (OSError, ValueError):
-        info = {"status": "failed", "error": "unreadable failed.json"}
+def _failed(run_dir: Path, config: dict, info: dict | None = None) -> RunResult:
+    """A run that did not finish, from its failed.json (or ``info``) and config.yaml (or its
+    folder names)."""
+    if info is None:
+        try:
+            info = json.loads((run_dir / "failed.json").read_text())
+        except (OSError, ValueError):
+            info = None
+        if not isinstance(info, dict):
+            info = {"status": "failed", "error": f"{run_dir / 'failed.json'}: unreadable"}
     seq = config.get("sequence") or {}
     name = run_dir.name
     seed = config.get("seed", False if name.endswith("_noseed") else
                       (True if name.endswith("_seed") else None))
     method = (config.get("method") or {}).get("name") or re.sub(r"_(no)?seed$", "", name)
-    return RunResult(status=info.get("status") or "failed", error=info.get("error") or "",
+    status = str(info.get("status") or "failed")
+    # a failure record never reads as a finished run
+    status = "failed" if status == "done" else status
+    return RunResult(status=status, error=str(info.get("error") or ""),
                      sequence=seq.get("name") or run_dir.parent.name, method=method, seed=seed,
                      label=config.get("label"), display_name=seq.get("display_name"),
                      sensor_class=seq.get("sensor_class"))
+
+
+class BrokenRecord(DataError):
+    """A run's metrics.json that cannot be read as its record (truncated, not JSON, or a
+    field of the wrong type); the message names the file and what was expected."""
+
+
+#: the status of a run whose metrics.json is broken (shown as a failed row, never as a result)
+BROKEN = "broken"
+
+
+def metrics_raw(path: Path) -> dict:
+    """The JSON object of a run's metrics.json; BrokenRecord naming the file when it is not
+    valid JSON or not an object."""
+    try:
+        raw = json.loads(Path(path).read_text())
+    except OSError as err:
+        raise BrokenRecord(f"{path}: cannot be read ({err.strerror or err})") from None
+    except ValueError as err:
+        raise BrokenRecord(f"{path}: not valid JSON ({err}); expected the record a finished "
+                           "run writes (`bench run` runs it again)") from None
+    if not isinstance(raw, dict):
+        raise BrokenRecord(f"{path}: expected a JSON object (a run's record), found "
+                           f"{type(raw).__name__}")
+    schema = raw.get("schema", 1)
+    if isinstance(schema, bool) or not isinstance(schema, int):
+        raise BrokenRecord(f"{path}: not a valid run record: field schema: should be an "
+                           f"integer (got {schema!r})")
+    return raw
+
+
+def check_record(path: Path) -> str | None:
+    """Why the metrics.json at ``path`` is broken (its message, naming the file), or None when
+    it reads as a ``RunResult`` (an older record: once re-scored, as ``read_run`` reads it)."""
+    try:
+        read_run(Path(path).parent, _stale=[])
+    except BrokenRecord as err:
+        return str(err)
+    return None
+
+
+def _broken(run_dir: Path, config: dict, problem: str) -> RunResult:
+    """A run whose metrics.json is broken, as a run that did not finish (status ``BROKEN``)."""
+    return _failed(run_dir, config, {"status": BROKEN, "error": problem})
 
 
 def read_run(run_dir: Path, failed: bool = False, _stale: list | None = None
@@ -293,16 +353,36 @@ def read_run(run_dir: Path, failed: bool = False, _stale: list | None = None
         if failed and (run_dir / "failed.json").exists():
             return RunRecord(run_dir, _failed(run_dir, config), config)
         return None
-    raw = json.loads(metrics_path.read_text())
+    try:
+        raw = metrics_raw(metrics_path)
+    except BrokenRecord as err:
+        if not failed:
+            raise
+        return RunRecord(run_dir, _broken(run_dir, config, str(err)), config)
     if raw.get("schema", 1) < 2:
-        new = _rescored(run_dir, raw, config)
+        try:
+            new = _rescored(run_dir, raw, config)
+        except (ArithmeticError, LookupError, TypeError, ValueError, OSError) as err:
+            problem = BrokenRecord(f"{metrics_path}: an older record that cannot be re-scored "
+                                   f"({str(err).splitlines()[0] if str(err) else err!r})")
+            if not failed:
+                raise problem from None
+            return RunRecord(run_dir, _broken(run_dir, config, str(problem)), config)
         stale = [(run_dir, new is not raw)]
         raw = new
         if _stale is not None:
             _stale += stale
         else:
             _announce(stale, run_dir)
-    return RunRecord(run_dir, RunResult.model_validate(raw), config)
+    try:
+        result = RunResult.model_validate(raw)
+    except ValidationError as err:
+        problem = BrokenRecord(f"{metrics_path}: not a valid run record: "
+                               + "; ".join(f"field {line}" for line in validation_problems(err)))
+        if not failed:
+            raise problem from None
+        return RunRecord(run_dir, _broken(run_dir, config, str(problem)), config)
+    return RunRecord(run_dir, result, config)
 
 
 def _announce(stale: list[tuple[Path, bool]], where: Path) -> None:

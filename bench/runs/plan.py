@@ -15,8 +15,9 @@ from rich.console import Console
 from bench.data.advice import loader_name, option_flag
 from bench.data.synth import ensure_suite_with_progress
 from bench.runs.experiment import Experiment, SequenceEntry, expand_sequences
-from bench.runs.folders import RunRecord, read_run
+from bench.runs.folders import RunRecord, read_run, write_failure
 from bench.runs.job import Job, calibration_frames, prepare, run_job
+from bench.runs.reuse import rename_reused
 from loaders.errors import DataError
 from loaders.gt import gt_for_frames
 from loaders.scan import FrameRange
@@ -112,10 +113,15 @@ def single_job(method: str, data: Path, seed: bool, out: Path | None, params: di
                **{k: v for k, v in (scoring or {}).items() if v is not None})
 
 
-def plan(jobs: list[Job]) -> list[Job]:
+def plan(jobs: list[Job], refused: list[str] | None = None) -> list[Job]:
     """Resolve every job before any runs: the stores open, the parameters are valid, the
     output folders are writable and no two jobs share a folder. Raises one DataError listing
-    every problem; returns the jobs with their folders fixed."""
+    every problem; returns the jobs with their folders fixed.
+
+    ``refused`` (an experiment): a method that cannot run on a store's Doppler (none, or
+    ego-compensated) refuses only that pair: its reason (with the option that would make it
+    run) is appended to ``refused`` and recorded in its run folder as a ``refused``
+    failed.json (a failed row in every table), and the other pairs are planned."""
     problems, planned, owners, paths, warned = [], [], {}, {}, set()
     for job in jobs:
         try:
@@ -126,7 +132,11 @@ def plan(jobs: list[Job]) -> list[Job]:
         doppler = _doppler_problem(job, prep.sequence)
         if doppler:
             prep.sequence.close()
-            problems.append(doppler)
+            if refused is None:
+                problems.append(doppler)
+            else:
+                refused.append(f"{job.title}: {doppler}")
+                _record_refusal(prep.run_dir, prep.config, doppler)
             continue
         key = (job.store, job.frame_range)
         if key not in paths:
@@ -142,6 +152,9 @@ def plan(jobs: list[Job]) -> list[Job]:
             continue
         owners[prep.run_dir] = (job, prep.key)
         _check_writable(prep.run_dir)
+        renamed = rename_reused(prep.run_dir, prep.key, prep.config["sequence"])
+        if renamed:
+            warnings.warn(renamed, stacklevel=2)
         planned.append(replace(job, run_dir_override=prep.run_dir, run_key=prep.key,
                                store_sha256=prep.config["identity"]["store_sha256"],
                                code_sha256=prep.config["identity"]["code_sha256"]))
@@ -149,6 +162,18 @@ def plan(jobs: list[Job]) -> list[Job]:
         raise DataError("\n".join(dict.fromkeys(problems)))
     # the same run asked for twice (e.g. by two tables) runs once
     return list({j.run_dir_override: j for j in planned}.values())
+
+
+#: the status of a run an experiment did not start because its store cannot feed its method
+REFUSED = "refused"
+
+
+def _record_refusal(run_dir: Path, config: dict, reason: str) -> None:
+    """A refused pair as a run that did not finish (its folder's failed.json), unless the
+    folder holds a finished run (never lost)."""
+    if not (run_dir / "metrics.json").exists():
+        _check_writable(run_dir)
+        write_failure(run_dir, config, reason, status=REFUSED)
 
 
 def _doppler_problem(job: Job, seq) -> str | None:
@@ -168,13 +193,21 @@ def _doppler_problem(job: Job, seq) -> str | None:
                  f"{loader_name(prov)} ... {flag} NAME)" if flag else
                  "convert it from data with Doppler")
         return (f"{job.store}: {job.method} needs Doppler, but the store has no Doppler values; "
-                f"{again}, or run a method that needs none (icp-p2p, gicp, kiss-icp, ...)")
+                f"{again}, or run a method that needs none (icp-p2p, gicp, kiss-icp, ...), or "
+                f"leave this store out of {job.method} (the method's `sequences:` list in the "
+                "experiment)")
     if seq.sensor.doppler_kind == "ego-compensated":
+        prov = seq.provenance
+        flag = option_flag(prov, "reconstruct_doppler_from_gt")
+        opt_in = (f"convert it again with `bench convert {loader_name(prov)} ... {flag}` "
+                  "(results marked GT-assisted)" if flag else
+                  "reconstructing the radial velocity from the ground truth's ego motion is "
+                  "an explicit opt-in of the loader (doppler_kind 'gt-reconstructed')")
         return (f"{job.store}: {job.method} needs the raw radial Doppler velocity, but the "
                 "store's Doppler is ego-compensated (sensor doppler_kind 'ego-compensated': "
-                "static points read about 0 m/s); reconstructing the radial velocity from the "
-                "ground truth's ego motion is an explicit opt-in of the loader (doppler_kind "
-                "'gt-reconstructed'), or run a method that needs no Doppler")
+                f"static points read about 0 m/s); {opt_in}, or run a method that needs no "
+                f"Doppler, or leave this store out of {job.method} (the method's `sequences:` "
+                "list in the experiment)")
     return None
 
 
