@@ -85,8 +85,10 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
         key = (order_key(r.method), r.method, r.label or "", r.seed.rank, r.seed.value, label)
         by_row.setdefault(key, {})[r.display_name] = r
     requested = {r.result.ape.requested for r in runs if r.result.finished}
-    common = max(requested, key=lambda a: sum(r.result.finished and r.result.ape.requested == a
-                                              for r in runs)) if requested else "se3"
+    # the alignment most runs asked for (ties: by name, so the caption never depends on the
+    # order of a set)
+    common = max(sorted(requested), key=lambda a: sum(
+        r.result.finished and r.result.ape.requested == a for r in runs)) if requested else "se3"
     for key in sorted(by_row):
         cells = []
         for col in columns:
@@ -111,16 +113,18 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
                             values={"ape_trans_rmse_m": a.trans_rmse_m,
                                     "ape_trans_rmse_m_ci_low": low,
                                     "ape_trans_rmse_m_ci_high": high})
+                # one footnote per cell, saying everything that applies to it
+                said = []
                 if a.alignment and a.alignment != common:
-                    cell.note = table.note(f"{key[-1]} on {col}: aligned by {a.alignment} "
-                                           f"(the others: {common})")
-                elif r.result.fallback_text():
-                    flag = " [fell back]" if r.result.fell_back else ""
-                    cell.note = table.note(f"{key[-1]} on {col}{flag}: "
-                                           f"{r.result.fallback_text()}")
+                    said.append(f"aligned by {a.alignment} (the others: {common})")
                 offset = start_offset_note(r)
-                if offset and cell.note is None:
-                    cell.note = table.note(f"{key[-1]} on {col}: {offset}")
+                if offset:
+                    said.append(offset)
+                if r.result.fallback_text():
+                    flag = "[fell back] " if r.result.fell_back else ""
+                    said.append(flag + r.result.fallback_text())
+                if said:
+                    cell.note = table.note(f"{key[-1]} on {col}: " + "; ".join(said))
                 cells.append(cell)
         table.rows.append(Row([key[-1]], (), cells, {"method": key[1], "label": key[2] or None,
                                                      "seed": key[4], "status": "done"}))
