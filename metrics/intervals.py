@@ -9,17 +9,22 @@ the resampling draws **blocks of consecutive frames** (a circular block bootstra
 Romano 1992): ``ceil(n / b)`` blocks of ``b`` frames with uniformly drawn starts, wrapped at the
 end, the first ``n`` drawn frames kept. A unit enters a resample as often as its anchor frame
 was drawn. The statistic (a mean, or the RMSE) of each resample is the weighted statistic of
-the units; the interval is the percentile interval of ``reps`` resamples, widened about the
-observed statistic by ``t_{K-1} / z`` (the Student quantile for the ``K`` independent units
-behind it over the normal one: a percentile interval from few effectively independent pieces
-is too narrow; with ``K`` = 15 it widens it by 9 %, with ``K`` >= 60 by under 2 %). With fewer
-than two independent units there is no interval (NaN).
+the units; the interval is the percentile interval of ``reps`` resamples (what any circular
+block bootstrap with the stated block length gives). With fewer than two independent units
+there is no interval (NaN).
+
+A percentile interval from few effectively independent pieces is too narrow. Paired comparisons
+(the tables' marks) therefore widen theirs about the observed difference by ``t_{K-1} / z``
+(:func:`widen`: the Student quantile for the ``K`` independent units over the normal one; 9 %
+at ``K`` = 15, a factor 6.5 at ``K`` = 2), so that a difference resting on two 48 m segments is
+not called significant; ``unit_intervals(..., small_sample=True)`` gives the same for a figure.
 
 Coverage measured on synthetic drives with exact ground truth and known noise
-(``python -m bench.studies.coverage``; the numbers are in the manual): about 90-95 % for the
-8 m relative errors, about 90 % at 48 m (15 independent segments per 750 m), and well below
-95 % for the APE RMSE, a figure of the whole trajectory's drift of which one trajectory holds
-few independent pieces: its blocks are at least a quarter of the frames (``APE_MIN_BLOCKS``).
+(``python -m bench.studies.coverage``; the numbers are in the manual): about 90 % for the
+relative errors at 8 m and somewhat less at 48 m (15 independent segments per 750 m), and well
+below 95 % for the APE RMSE, a figure of the whole trajectory's drift of which one trajectory
+holds few independent pieces: its blocks are at least a quarter of the frames
+(``APE_MIN_BLOCKS``).
 
 Block length (:func:`block_frames`): at least the frames one unit spans (a segment's end index
 minus its start index, its median over the units) so that units sharing frames mostly fall in
@@ -206,12 +211,14 @@ def _percentiles(stats: np.ndarray, level: float) -> tuple[float, float]:
 
 def unit_intervals(n_frames: int, anchor: np.ndarray, end: np.ndarray,
                    values: dict[str, np.ndarray], rmse: bool = False, level: float = LEVEL,
-                   reps: int = REPS, seed: int = 0, block: int | None = None
-                   ) -> dict[str, Interval]:
+                   reps: int = REPS, seed: int = 0, block: int | None = None,
+                   small_sample: bool = False) -> dict[str, Interval]:
     """Intervals of the mean (``rmse``: the RMSE) of each array in ``values`` (one value per
     unit, units anchored at frame ``anchor`` and ending at frame ``end``), all resampled with
     the same blocks. The block length is :func:`block_frames` of the units' span and of the
-    most correlated of the value series, unless ``block`` is given."""
+    most correlated of the value series, unless ``block`` is given. ``small_sample``: widened
+    by :func:`widen` for the independent units behind it (else the plain percentile
+    interval)."""
     anchor = np.asarray(anchor, dtype=np.int64)
     end = np.asarray(end, dtype=np.int64)
     n_ind = independent_count(anchor, end)
@@ -234,8 +241,11 @@ def unit_intervals(n_frames: int, anchor: np.ndarray, end: np.ndarray,
             out[key] = Interval(math.nan, math.nan, level, int(block), n_ind)
             continue
         lo, hi = _percentiles(_weighted(counts, anchor, v, rmse), level)
-        observed = float(np.sqrt(np.mean(v**2))) if rmse else float(np.mean(v))
-        lo, hi = widen(observed, lo, hi, n_ind, level)
+        if small_sample:
+            observed = float(np.sqrt(np.mean(v**2))) if rmse else float(np.mean(v))
+            lo, hi = widen(observed, lo, hi, n_ind, level)
+        elif n_ind < MIN_INDEPENDENT:
+            lo, hi = math.nan, math.nan
         out[key] = Interval(lo, hi, level, int(block), n_ind)
     return out
 
@@ -255,8 +265,10 @@ def paired_interval(n_frames: int, anchor: np.ndarray, end: np.ndarray, values_a
                     values_b: np.ndarray, rmse: bool = False, level: float = LEVEL,
                     reps: int = REPS, seed: int = 0, block: int | None = None) -> Interval:
     """The interval of ``stat(values_a) - stat(values_b)`` over the same units (paired: both
-    resampled with the same blocks; ``stat`` the mean, or the RMSE when ``rmse``). The block
-    length is the largest of both series' and their difference's rule unless given."""
+    resampled with the same blocks; ``stat`` the mean, or the RMSE when ``rmse``), widened for
+    the independent units behind it (:func:`widen`: a significance call on few independent
+    segments is conservative). The block length is the largest of both series' and their
+    difference's rule unless given."""
     a = np.asarray(values_a, dtype=np.float64)
     b = np.asarray(values_b, dtype=np.float64)
     anchor = np.asarray(anchor, dtype=np.int64)

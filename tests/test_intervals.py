@@ -72,7 +72,6 @@ def test_one_frame_blocks_match_scipys_ordinary_bootstrap():
     ours = unit_intervals(n, np.arange(n), np.arange(n) + 1, {"v": v}, block=1, reps=4000)["v"]
     ref = stats.bootstrap((v,), np.mean, confidence_level=0.95, n_resamples=4000,
                           method="percentile", random_state=2).confidence_interval
-    # ours is widened by t_{K-1}/z with K = n: a factor 1.003 at n = 400
     width = ref.high - ref.low
     assert ours.low == pytest.approx(ref.low, abs=0.05 * width)
     assert ours.high == pytest.approx(ref.high, abs=0.05 * width)
@@ -83,6 +82,15 @@ def test_widen_by_the_student_quantile_of_the_independent_units():
     f = stats.t.ppf(0.975, 14) / stats.norm.ppf(0.975)
     assert (lo, hi) == pytest.approx((1.0 - 0.1 * f, 1.0 + 0.2 * f))
     assert np.isnan(widen(1.0, 0.9, 1.2, 1, 0.95)).all()
+    # a figure's interval is the plain percentile one unless asked; the paired one is widened
+    rng = np.random.default_rng(3)
+    n = 300
+    v = rng.normal(1.0, 0.2, n)
+    anchor, end = np.arange(n), np.arange(n) + 100  # about 3 independent segments
+    plain = unit_intervals(n, anchor, end, {"v": v}, block=100)["v"]
+    wide = unit_intervals(n, anchor, end, {"v": v}, block=100, small_sample=True)["v"]
+    assert plain.n_independent == 3
+    assert (wide.high - wide.low) > 2.0 * (plain.high - plain.low)
 
 
 def test_paired_interval_sees_a_shift_the_separate_intervals_cannot():
