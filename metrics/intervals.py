@@ -159,22 +159,33 @@ def block_frames(n_frames: int, span_frames: float, values: np.ndarray | None = 
     return int(max(1, min(math.ceil(b), max(1, n_frames // 2))))
 
 
+#: resamples computed together: memory is CHUNK x frames, whatever the number of resamples
+CHUNK = 100
+
+
+@lru_cache(maxsize=64)
+def _starts(n: int, b: int, reps: int, seed: int) -> np.ndarray:
+    """(reps, ceil(n / b)) the first frame of every block of every resample (read-only)."""
+    starts = np.random.default_rng(seed).integers(0, n, size=(reps, -(-n // b)))
+    starts.flags.writeable = False
+    return starts
+
+
+def _indices(n: int, b: int, starts: np.ndarray) -> np.ndarray:
+    k = starts.shape[1]
+    return (starts[:, :, None] + np.arange(b)[None, None, :]).reshape(len(starts), k * b)[:, :n] % n
+
+
+def _counts(n: int, b: int, starts: np.ndarray) -> np.ndarray:
+    idx = _indices(n, b, starts)
+    flat = (np.arange(len(starts))[:, None] * n + idx).ravel()
+    return np.bincount(flat, minlength=len(starts) * n).reshape(len(starts), n).astype(np.float64)
+
+
 def block_counts(n_frames: int, block: int, reps: int = REPS, seed: int = 0) -> np.ndarray:
-    """(reps, n_frames) how often each frame is drawn in each circular block resample
-    (read-only: resamples of the same size, block and seed are computed once)."""
-    return _block_counts(int(n_frames), max(1, int(block)), int(reps), int(seed))
-
-
-@lru_cache(maxsize=16)
-def _block_counts(n: int, b: int, reps: int, seed: int) -> np.ndarray:
-    rng = np.random.default_rng(seed)
-    k = -(-n // b)
-    starts = rng.integers(0, n, size=(reps, k))
-    idx = (starts[:, :, None] + np.arange(b)[None, None, :]).reshape(reps, k * b)[:, :n] % n
-    flat = (np.arange(reps)[:, None] * n + idx).ravel()
-    counts = np.bincount(flat, minlength=reps * n).reshape(reps, n).astype(np.float64)
-    counts.flags.writeable = False
-    return counts
+    """(reps, n_frames) how often each frame is drawn in each circular block resample."""
+    n, b = int(n_frames), max(1, int(block))
+    return _counts(n, b, _starts(n, b, int(reps), int(seed)))
 
 
 def block_indices(n_frames: int, block: int, reps: int = REPS, seed: int = 0) -> np.ndarray:
@@ -183,21 +194,25 @@ def block_indices(n_frames: int, block: int, reps: int = REPS, seed: int = 0) ->
     starts, the first ``n`` kept. For statistics that are not weighted means (a fit redone on
     every resample); the same draws as :func:`block_counts` with the same seed."""
     n, b = int(n_frames), max(1, int(block))
-    rng = np.random.default_rng(seed)
-    k = -(-n // b)
-    starts = rng.integers(0, n, size=(reps, k))
-    return (starts[:, :, None] + np.arange(b)[None, None, :]).reshape(reps, k * b)[:, :n] % n
+    return _indices(n, b, _starts(n, b, int(reps), int(seed)))
 
 
-def _weighted(counts: np.ndarray, anchor: np.ndarray, values: np.ndarray, rmse: bool
-              ) -> np.ndarray:
-    w = counts[:, anchor]
-    total = w.sum(axis=1)
-    v = values**2 if rmse else values
-    with np.errstate(invalid="ignore", divide="ignore"):
-        stat = (w @ v) / total
-    stat[total == 0] = np.nan
-    return np.sqrt(stat) if rmse else stat
+def _resampled(n: int, b: int, reps: int, seed: int, anchor: np.ndarray,
+               series: list[np.ndarray], rmse: bool) -> list[np.ndarray]:
+    """Per series, the statistic (mean, or RMSE) of each resample: the units weighted by how
+    often their anchor frame was drawn; computed ``CHUNK`` resamples at a time."""
+    starts = _starts(n, b, reps, seed)
+    powered = [v**2 if rmse else v for v in series]
+    out = [np.empty(reps) for _ in series]
+    for c0 in range(0, reps, CHUNK):
+        w = _counts(n, b, starts[c0:c0 + CHUNK])[:, anchor]
+        total = w.sum(axis=1)
+        for o, v in zip(out, powered, strict=True):
+            with np.errstate(invalid="ignore", divide="ignore"):
+                stat = (w @ v) / total
+            stat[total == 0] = np.nan
+            o[c0:c0 + len(w)] = np.sqrt(stat) if rmse else stat
+    return out
 
 
 def _percentiles(stats: np.ndarray, level: float) -> tuple[float, float]:
@@ -234,13 +249,15 @@ def unit_intervals(n_frames: int, anchor: np.ndarray, end: np.ndarray,
             block = max(block, -(-n_frames // APE_MIN_BLOCKS))
     if span <= 1.0:  # single frames: the independent pieces are the blocks themselves
         n_ind = min(n_ind, max(1, n_frames // int(block)))
-    counts = block_counts(n_frames, block, reps, seed)
+    keys = [k for k, v in finite.items() if np.all(np.isfinite(v))]
+    stats = dict(zip(keys, _resampled(n_frames, int(block), reps, seed, anchor,
+                                      [finite[k] for k in keys], rmse), strict=True))
     out = {}
     for key, v in finite.items():
-        if not np.all(np.isfinite(v)):
+        if key not in stats:
             out[key] = Interval(math.nan, math.nan, level, int(block), n_ind)
             continue
-        lo, hi = _percentiles(_weighted(counts, anchor, v, rmse), level)
+        lo, hi = _percentiles(stats[key], level)
         if small_sample:
             observed = float(np.sqrt(np.mean(v**2))) if rmse else float(np.mean(v))
             lo, hi = widen(observed, lo, hi, n_ind, level)
@@ -285,8 +302,8 @@ def paired_interval(n_frames: int, anchor: np.ndarray, end: np.ndarray, values_a
             block = max(block, -(-n_frames // APE_MIN_BLOCKS))
     if span <= 1.0:
         n_ind = min(n_ind, max(1, n_frames // int(block)))
-    counts = block_counts(n_frames, block, reps, seed)
-    diff = _weighted(counts, anchor, a, rmse) - _weighted(counts, anchor, b, rmse)
+    stat_a, stat_b = _resampled(n_frames, int(block), reps, seed, anchor, [a, b], rmse)
+    diff = stat_a - stat_b
     lo, hi = _percentiles(diff, level)
     stat = (lambda x: float(np.sqrt(np.mean(x**2)))) if rmse else (lambda x: float(np.mean(x)))
     lo, hi = widen(stat(a) - stat(b), lo, hi, n_ind, level)

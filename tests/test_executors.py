@@ -206,8 +206,9 @@ def test_piped_output_is_plain_and_keeps_units(store, tmp_path):
     assert header.startswith("sequence,sensor_class,method") and "\x1b[" not in out
     assert len(out.splitlines()[1]) > 80  # not wrapped at 80 columns
     rows = list(csv.reader(io.StringIO(out)))  # stdout is the CSV alone: status on stderr
-    # long format: one line per value (rotation, translation, segments per length; the time)
-    assert len(rows) == 1 + 6 * 3 + 1 and {len(r) for r in rows} == {len(header.split(","))}
+    # long format: one line per value (per length: rotation, translation, segments,
+    # independent segments and both intervals' ends; the time)
+    assert len(rows) == 1 + 6 * 8 + 1 and {len(r) for r in rows} == {len(header.split(","))}
     assert "wrote" in err
     proc = _bench(["run", "--help"])
     help_text, _ = proc.communicate(timeout=60)

@@ -197,9 +197,10 @@ def test_a_run_with_a_compilation_in_a_timed_frame_is_not_reused(tmp_path):
     run = tmp_path / "run"
     run.mkdir()
     (run / "config.yaml").write_text("run_key: abc\n")
-    (run / "metrics.json").write_text(json.dumps({"timing_clean": True}))
+    record = {"sequence": "s", "method": "doppler"}
+    (run / "metrics.json").write_text(json.dumps({**record, "timing_clean": True}))
     assert is_finished(run, "abc")
-    (run / "metrics.json").write_text(json.dumps({"timing_clean": False}))
+    (run / "metrics.json").write_text(json.dumps({**record, "timing_clean": False}))
     assert is_finished(run) and not is_finished(run, "abc")
 
 
