@@ -205,3 +205,12 @@ def test_the_table_prints_c_per_fold_and_the_decision(tmp_path, monkeypatch):
     assert "**chosen**: qualifies" in text
     line = next(ln for ln in text.splitlines() if ln.startswith("chosen"))
     assert "replaces the reference" in line and line.endswith("agrees")
+
+
+def test_a_significant_but_smaller_gain_than_min_gain_keeps_the_reference():
+    # point 2: 0.5 % better on both halves, every segment alike: significant, but below 1 %
+    errors = _sweep({"A": [1, 1.3, 0.995, 1.4], "B": [1, 1.3, 0.995, 1.4]}, noise=0.0)
+    d = decide(POINTS, errors, 0, FOLDS, [], LENGTHS, reps=200)
+    assert d.chosen == 2  # without a least gain the rule takes it
+    d = decide(POINTS, errors, 0, FOLDS, [], LENGTHS, reps=200, min_gain=0.01)
+    assert d.chosen == 0 and "less than 1 % better on A" in d.verdicts[2].why

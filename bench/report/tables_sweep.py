@@ -199,7 +199,8 @@ def rule_decision(results_dir: Path, sweep: dict, seed, criterion: dict) -> Deci
     folds = [(f["tuning"], f["validation"]) for f in criterion["folds"]]
     return decide([p["point"] for p in sweep["points"]], errors,
                   _reference_index(sweep, criterion), folds, criterion.get("domain", []),
-                  lengths, criterion.get("level", 0.95), criterion.get("reps", 1000))
+                  lengths, criterion.get("level", 0.95), criterion.get("reps", 1000),
+                  min_gain=criterion.get("min_gain", 0.0))
 
 
 def _decisions(results_dir: Path, index: dict) -> dict:

@@ -173,9 +173,10 @@ class Criterion(_Strict):
     bench/runs/tuning_rule.py): ``C`` = the mean over ``lengths_m`` and over both errors of
     the point's mean relative error divided by the ``reference`` point's (the library's or
     paper's value; keys not given: the method's default), with block-bootstrap intervals at
-    ``level`` (``reps`` draws); a point replaces the reference only when significant on every
-    fold's tuning sequences, not reversed on its validation sequences and not significantly
-    worse on the ``domain`` sequences; a best point on the grid's edge asks for a wider grid.
+    ``level`` (``reps`` draws); a point replaces the reference only when significant and at
+    least ``min_gain`` better on every fold's tuning sequences, not reversed on its validation
+    sequences and not significantly worse on the ``domain`` sequences; a best point on the
+    grid's edge asks for a wider grid.
 
     Legacy (``error`` given instead of ``folds``; the LiDAR sweeps and the independent
     references, not yet re-decided by the rule): the lowest mean of ``error`` (rotation [deg],
@@ -189,6 +190,7 @@ class Criterion(_Strict):
     reference: dict = Field(default_factory=dict)
     level: float = Field(0.95, gt=0, lt=1)
     reps: int = Field(1000, ge=100)
+    min_gain: float = Field(0.0, ge=0, lt=1)  # least improvement of C on a tuning half
     error: Literal["rotation", "translation", "both"] | None = None
     tie_within: float = Field(0.0, ge=0, lt=1)
     keep_default_within: float = Field(0.0, ge=0, lt=1)

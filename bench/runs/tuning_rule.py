@@ -15,7 +15,9 @@ settings, so the comparison is paired; blocks as long as the longest length's se
 sequences; the percentile interval at ``level``.
 
 The decision (:func:`decide`): a point *qualifies* when in every fold its ``C`` on the fold's
-tuning sequences is significantly below 1 (the interval's top below 1), its ``C`` on the fold's
+tuning sequences is significantly below 1 (the interval's top below 1) and by at least
+``min_gain`` (``C <= 1 - min_gain``: a gain smaller than the bench reproduces between rounds
+is no reason to leave a library's value), its ``C`` on the fold's
 validation sequences is below 1 (the improvement does not reverse), and on the ``domain``
 sequences (a second domain, e.g. synthetic) its ``C`` is not significantly above 1. Of the
 qualifying points the one with the lowest ``C`` over every fold's sequences is chosen; none
@@ -165,11 +167,12 @@ def _edges(points: list[dict], index: int) -> list[str]:
 
 def decide(points: list[dict], errors: list[dict[str, RunErrors] | None], reference: int,
            folds: list[tuple[list[str], list[str]]], domain: list[str], lengths_m,
-           level: float = 0.95, reps: int = 1000, seed: int = 0) -> Decision:
+           level: float = 0.95, reps: int = 1000, seed: int = 0, min_gain: float = 0.0
+           ) -> Decision:
     """The rule of this module over a sweep's ``points`` (their swept values), ``errors``
     (per point: sequence name -> RunErrors; None when a run is missing), the ``reference``
     point's index, the ``folds`` ((tuning names, validation names) each) and the ``domain``
-    sequences."""
+    sequences; ``min_gain`` the least improvement on a tuning half that counts."""
     ref = errors[reference]
     if ref is None:
         return Decision(reference, None, [Verdict(p) for p in points],
@@ -200,6 +203,9 @@ def decide(points: list[dict], errors: list[dict[str, RunErrors] | None], refere
                 reasons.append(f"fold {k}: no better on {', '.join(tune)} (C {t})")
             elif not t.better:
                 reasons.append(f"fold {k}: not significant on {', '.join(tune)} (C {t})")
+            elif t.value > 1.0 - min_gain:
+                reasons.append(f"fold {k}: less than {100 * min_gain:g} % better on "
+                               f"{', '.join(tune)} (C {t})")
             elif w.value >= 1.0:
                 reasons.append(f"fold {k}: reverses on {', '.join(val)} (C {w.value:.3f})")
         if domain:
