@@ -214,3 +214,15 @@ def test_a_significant_but_smaller_gain_than_min_gain_keeps_the_reference():
     assert d.chosen == 2  # without a least gain the rule takes it
     d = decide(POINTS, errors, 0, FOLDS, [], LENGTHS, reps=200, min_gain=0.01)
     assert d.chosen == 0 and "less than 1 % better on A" in d.verdicts[2].why
+
+
+def test_an_edge_shared_with_the_reference_is_not_where_the_gain_came_from():
+    # a 2 x 3 grid: voxel (0.25 = the reference's, at the axis' edge) x gate; the best
+    # point keeps the reference's voxel and moves the gate inside its axis
+    points = [{"voxel_m": v, "gate_m": g} for v in (0.25, 1.0) for g in (1.0, 2.0, 3.0)]
+    refs = {s: _noisy(10 + k, 1.0, 0.0) for k, s in enumerate("AB")}
+    factors = [1.0, 0.8, 0.9, 1.2, 1.2, 1.2]
+    errors = [{s: refs[s] if i == 0 else _noisy(50 + i, f, 0.05, refs[s]) for s in "AB"}
+              for i, f in enumerate(factors)]
+    d = decide(points, errors, 0, FOLDS, [], LENGTHS, reps=200, min_gain=0.01)
+    assert d.chosen == 1 and not d.extend

@@ -22,7 +22,8 @@ validation sequences is below 1 (the improvement does not reverse), and on the `
 sequences (a second domain, e.g. synthetic) its ``C`` is not significantly above 1. Of the
 qualifying points the one with the lowest ``C`` over every fold's sequences is chosen; none
 qualifying, the reference stays. A chosen point on the edge of its grid (the first or last
-value of a swept axis) is not believed: the decision is "extend the grid".
+value of a swept axis along which it leaves the reference) is not believed: the decision is
+"extend the grid".
 """
 
 from __future__ import annotations
@@ -150,10 +151,14 @@ class Decision:
     extend: bool = False
 
 
-def _edges(points: list[dict], index: int) -> list[str]:
-    """The swept values of point ``index`` that are the first or last of their axis."""
+def _edges(points: list[dict], index: int, reference: int) -> list[str]:
+    """The swept values of point ``index`` that are the first or last of their axis, on the
+    axes along which it leaves the ``reference`` point (an axis it shares with the reference
+    is not where the grid found its gain)."""
     out = []
     for key, value in points[index].items():
+        if value == points[reference][key]:
+            continue
         axis = list(dict.fromkeys(p[key] for p in points))
         try:
             ordered = sorted(axis)
@@ -224,7 +229,7 @@ def decide(points: list[dict], errors: list[dict[str, RunErrors] | None], refere
         return Decision(reference, reference, verdicts,
                         "the reference stays: no point qualifies")
     best = min(qualified, key=lambda i: verdicts[i].overall)
-    edges = _edges(points, best)
+    edges = _edges(points, best, reference)
     if edges:
         return Decision(reference, None, verdicts,
                         f"EXTEND THE GRID: the best qualifying point lies on its edge "
