@@ -10,13 +10,14 @@ rounded up to the next 10 m, when the run starts (one-time set-up, before the fi
 kiss-icp's range crop keeps whole scans and its local map keeps what the sensor sees. The old
 fixed 100 m (kiss-icp's default, set when the synthetic radar scans reached 99.4 m) threw away
 4-35 % of each real Oculii Eagle scan of NTU4DRadLM, which reaches 140-260 m. A value given
-explicitly is used as it is. The voxel size stays kiss-icp's rule at its default range,
-max_range / 100 = 1.0 m (``voxel_size_m``, 1.0 m by default; not tied to the data's range):
-kiss-icp registers a 1.5 x voxel subsample of each scan and maps a 0.5 x voxel subsample, which
-keeps most of a radar scan (its points are metres apart). Measured on the synthetic Loop1_0 /
-Campus1 radar sequences (APE RMSE, median registration time): voxel 0.5 m 2.1 / 9.2 cm at 70 /
-22 ms, 1.0 m 2.9 / 12.1 cm at 29 / 10 ms, 2.0 m 5.3 / 18.6 cm: the published rule is kept (not
-tuned on the benchmark's own data).
+explicitly is used as it is. The voxel size follows kiss-icp's own rule (its config loader:
+``voxel_size = max_range / 100``) at the range actually used: ``voxel_size_m`` None (default)
+is ``max_range / range_per_voxel`` with ``range_per_voxel`` 100 (kiss-icp's), so a real Eagle
+run whose first scan reaches 200 m maps with 2.0 m voxels. kiss-icp registers a 1.5 x voxel
+subsample of each scan and maps a 0.5 x voxel subsample. ``range_per_voxel`` stays kiss-icp's
+100: the cross-validated sweep configs/tuning/kiss-icp-radar-voxel.yaml (the rule of
+configs/splits.yaml) decides whether another ratio may replace it. A ``voxel_size_m`` given
+explicitly is used as it is.
 
 Deskewing needs per-point times (``scan.fields['time_offset_s']``) that vary within each scan;
 with constant times the library aborts the whole process (SIGABRT), so every scan is checked
@@ -61,8 +62,11 @@ class KissParams(MethodParams):
         None, gt=0, description="farthest point used [m] (kiss-icp's crop and map range); "
         "None: the first scan's farthest point, rounded up to 10 m (keeps whole scans)")
     min_range_m: float = Field(0.0, ge=0, description="nearest point used [m] (kiss-icp)")
-    voxel_size_m: float = Field(1.0, gt=0, description="map voxel [m] (kiss-icp's rule "
-                                "max_range / 100 at its default 100 m range)")
+    voxel_size_m: float | None = Field(
+        None, gt=0, description="map voxel [m]; None: kiss-icp's rule, the range used / "
+        "range_per_voxel")
+    range_per_voxel: float = Field(100.0, gt=0, description="kiss-icp's config loader: "
+                                   "voxel_size = max_range / 100")
     deskew: bool | None = Field(None, description="None: when scans carry per-point times")
     max_points_per_voxel: int = Field(20, ge=1, description="kiss-icp default")
     num_threads: int = Field(1, ge=1, description="kiss-icp threads (1: reproducible)")
@@ -91,6 +95,14 @@ def data_range_m(scan: Scan) -> float:
     """The range that keeps all of ``scan``: its farthest point, rounded up to the next 10 m."""
     far = float(np.sqrt((scan.points**2).sum(axis=1).max())) if len(scan) else 0.0
     return max(10.0, 10.0 * np.floor(far / 10.0) + 10.0)
+
+
+def voxel_size_m(params: KissParams, max_range_m: float) -> float:
+    """The map voxel [m]: ``params.voxel_size_m`` when given, else kiss-icp's rule
+    ``max_range_m / params.range_per_voxel``."""
+    if params.voxel_size_m is not None:
+        return float(params.voxel_size_m)
+    return float(max_range_m) / params.range_per_voxel
 
 
 class _TimedRegistration:
@@ -142,7 +154,7 @@ class KissIcp(Odometry):
         config.data.max_range = max_range_m
         config.data.min_range = p.min_range_m
         config.data.deskew = deskew
-        config.mapping.voxel_size = p.voxel_size_m
+        config.mapping.voxel_size = voxel_size_m(p, max_range_m)
         config.mapping.max_points_per_voxel = p.max_points_per_voxel
         config.registration.max_num_threads = p.num_threads
         if not _process_threads:

@@ -94,7 +94,8 @@ def test_default_preprocessing_is_a_voxel_grid_chosen_by_sensor_kind(method):
         kept = np.asarray(prepared.cloud.points())[:, :3]
         assert len(np.unique(np.floor(kept / defaults.voxel_downsample_m), axis=0)) == occupied
         sizes[sensor.kind] = len(prepared)
-    assert sizes["radar"] < sizes["lidar"] < len(scan)
+    # radar and LiDAR share small_gicp's 0.25 m grid (configs/tuning/*-radar.yaml kept it)
+    assert sizes["radar"] == sizes["lidar"] < len(scan)
 
 
 def test_values_given_are_kept_for_every_sensor_and_unconfigured_is_radar():
@@ -279,6 +280,6 @@ def test_no_seed_runs_get_a_gate_valid_without_the_motion_prior(method):
     assert make_method(method, {"max_correspondence_m": 0.7}, LIDAR, seed=False) \
         .params.max_correspondence_m == 0.7
     radar = make_method(method, {}, RADAR, seed=True).params.max_correspondence_m
-    assert radar == {"icp-p2plane": 5.0, "gicp": 3.0}[method]
+    assert radar == {"icp-p2plane": 3.0, "gicp": 1.0}[method]
     assert make_method(method, {}, RADAR, seed=False).params.max_correspondence_m == radar
     assert make_method("vgicp", {}, LIDAR, seed=False).params.max_correspondence_m == 1.0

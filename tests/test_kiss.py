@@ -43,7 +43,8 @@ def _sequence(n_frames=12, twist=(8.0, 0.0, 0.0, 0.0, 0.0, 0.05), dt=0.1, times=
 def test_noise_free_sequence_is_recovered():
     seq = _sequence()
     method = make_method("kiss-icp", {}, seq.sensor)
-    assert method.params.voxel_size_m == 1.0  # kiss-icp's rule at its default 100 m range
+    assert method.params.voxel_size_m is None  # kiss-icp's rule: the range used / 100
+    assert method.params.range_per_voxel == 100.0
     result = method.run(seq, seed=True)
     E = inv_T(seq.ground_truth.poses[-1]) @ result.poses[-1]
     assert np.linalg.norm(E[:3, 3]) < 1e-3 and rotation_angle_deg(E[:3, :3]) < 0.05, E
@@ -155,11 +156,12 @@ def test_the_range_comes_from_the_data_and_keeps_whole_scans(monkeypatch):
     far = np.linalg.norm(first.points, axis=1).max()
     assert (np.linalg.norm(first.points, axis=1) > 100).mean() > 0.2  # what 100 m dropped
     assert far < data_range_m(first) <= far + 10 and data_range_m(first) % 10 == 0
-    seen = []
+    seen, voxels = [], []
     original = KissICP.__init__
 
     def spy(self, config):
         seen.append(config.data.max_range)
+        voxels.append(config.mapping.voxel_size)
         original(self, config)
 
     monkeypatch.setattr(KissICP, "__init__", spy)
@@ -168,6 +170,13 @@ def test_the_range_comes_from_the_data_and_keeps_whole_scans(monkeypatch):
     pair = MemorySequence(seq.name, seq.sensor, [seq[0], seq[1]], None)
     make_method("kiss-icp", {}, seq.sensor).run(pair, seed=True)
     assert seen == [data_range_m(first)]
-    seen.clear()
+    # kiss-icp's own voxel rule (its config loader: max_range / 100) at the range used
+    assert voxels == [pytest.approx(data_range_m(first) / 100.0)]
+    seen.clear(), voxels.clear()
     make_method("kiss-icp", {"max_range_m": 50.0}, seq.sensor).run(pair, seed=True)
     assert seen == [50.0]  # an explicit range is used as given
+    assert voxels == [pytest.approx(0.5)]
+    voxels.clear()
+    make_method("kiss-icp", {"voxel_size_m": 1.0, "range_per_voxel": 50.0},
+                seq.sensor).run(pair, seed=True)
+    assert voxels == [pytest.approx(1.0)]  # an explicit voxel is used as given

@@ -55,15 +55,15 @@ def test_every_default_names_its_source(name):
 def test_tuned_defaults_name_a_declared_split():
     """A tuned default names one of the splits of configs/splits.yaml (never reported data)."""
     splits = yaml.safe_load((CONFIGS.parent / "splits.yaml").read_text())
-    assert splits["real"]["tuning"] == {"start": 0, "frames": 125}
-    assert splits["real"]["validation"]["start"] >= 125  # disjoint from the tuning frames
+    halves = splits["real"]["halves"]
+    assert halves["A"] == {"start": 0, "frames": 125}
+    assert halves["B"]["start"] >= halves["A"]["start"] + halves["A"]["frames"]  # disjoint
     assert min(splits["synthetic"]["tuning_seeds"]) >= 1000
     for path in CONFIGS.glob("*.yaml"):
         for line in _param_lines(path.read_text()):
             comment = line.partition("#")[2]
             if "tuning" in comment:
                 assert "tuning: real" in comment or "tuning: synthetic" in comment, line
-                assert "validation" not in comment.replace("validation split", ""), line
 
 
 def test_reported_suites_never_use_tuning_seeds():

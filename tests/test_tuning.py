@@ -1,8 +1,10 @@
 """configs/tuning/*.yaml: every tuned default of configs/methods/*.yaml has a sweep anyone can
-replay (`bench run configs/tuning/<x>.yaml`), run on the declared tuning split only
-(configs/splits.yaml), that can choose the default; and the cheapest sweeps are replayed here,
-end to end, and must choose the default (or the YAML says why not, ``default_differs``).
-The other sweeps print their choice beside the default in the same way (README, "Tuning")."""
+replay (`bench run configs/tuning/<x>.yaml`), run on the declared tuning data only
+(configs/splits.yaml), that can choose the default. Every radar sweep decides by the tuning
+rule of configs/splits.yaml (cross-validation over both halves of the real sample, the
+synthetic radar domain, C against the library's or paper's reference value; bench/runs/
+tuning_rule.py); each records its decision (``decided:``), and the method's default must be it.
+The cheapest sweep is replayed here, end to end, and must reach that decision again."""
 
 from pathlib import Path
 
@@ -20,9 +22,9 @@ from methods.registry import make_method
 ROOT = Path(__file__).resolve().parents[1]
 TUNING = sorted((ROOT / "configs" / "tuning").glob("*.yaml"))
 SPLITS = yaml.safe_load((ROOT / "configs" / "splits.yaml").read_text())
-#: replayed by this test, end to end (the cheapest: 3 vgicp runs, 2 doppler-ego runs of 125
-#: frames); the others by `bench run configs/tuning/<x>.yaml`
-CHEAPEST = ("vgicp-radar-gate", "doppler-ego-neighbours")
+#: replayed by this test, end to end (kiss-icp is the cheapest method: 20 runs); the others by
+#: `bench run configs/tuning/<x>.yaml`
+CHEAPEST = ("kiss-icp-radar-voxel",)
 
 
 def _tuned_keys() -> dict[tuple[str, str], set[str]]:
@@ -48,11 +50,12 @@ def _sweeps() -> dict[tuple[str, str], set[str]]:
     swept = {}
     for path in TUNING:
         exp = load_experiment(path)
-        split = "synthetic" if exp.synthetic else "real"
+        splits = {"real"} if exp.sequences else set()
+        splits |= {"synthetic"} if exp.synthetic else set()
         for m in exp.methods:
             for v in m.variants():
                 for key in v.point:
-                    swept.setdefault((m.name, key), set()).add(split)
+                    swept.setdefault((m.name, key), set()).update(splits)
     return swept
 
 
@@ -63,36 +66,82 @@ def test_every_tuned_default_has_a_sweep_on_its_split():
         assert splits <= swept.get(key, set()), f"{key}: tuned on {splits}, no sweep replays it"
 
 
+def _half(seq) -> str:
+    """The half of the real sample (configs/splits.yaml) a sequence entry runs."""
+    for name, half in SPLITS["real"]["halves"].items():
+        if (seq.start, seq.frames) == (half["start"], half["frames"]):
+            return name
+    raise AssertionError(f"{seq.name}: frames {seq.start}+{seq.frames} are not a declared half")
+
+
+def _defaults(exp, m, keys) -> list[dict]:
+    """The method's resolved default for ``keys`` on each kind of sensor the sweep runs on."""
+    store = ROOT / SPLITS["real"]["store"]
+    sensors = ([StoreSequence(store).sensor] if exp.sequences else []) + [
+        SensorInfo(kind, 0.1) for kind in {_kind(s.sensor) for s in exp.synthetic}]
+    fixed = {k: v for k, v in m.variants()[0].params.items() if k not in keys}
+    seed = (m.seeds or [True])[0]  # a no-seed sweep holds the no-seed default
+    out = []
+    for sensor in sensors:
+        params = make_method(m.name, fixed, sensor, seed).params
+        out.append({k: getattr(params, k) for k in keys})
+    return out
+
+
 @pytest.mark.parametrize("path", TUNING, ids=[p.stem for p in TUNING])
-def test_tuning_sweeps_run_on_the_tuning_split_only_and_can_choose_the_default(path):
+def test_tuning_sweeps_run_on_the_declared_data_by_the_rule_and_can_choose_the_default(path):
     exp = load_experiment(path)
     assert exp.name == f"tune-{path.stem}"
     assert exp.criterion is not None, "a tuning sweep states its criterion"
     assert exp.suite is None  # the reported suites are never tuned on
-    real = SPLITS["real"]
-    store = (ROOT / real["store"]).resolve()
-    tuning_stop = real["tuning"]["start"] + real["tuning"]["frames"]
+    store = (ROOT / SPLITS["real"]["store"]).resolve()
+    halves = {}
     for s in exp.sequences:
         assert Path(s.path).resolve() == store
-        assert s.frames is not None and s.start + s.frames <= tuning_stop
-        assert s.start >= real["tuning"]["start"]
+        halves[s.name] = _half(s)
     for s in exp.synthetic:
         assert s.seed in SPLITS["synthetic"]["tuning_seeds"]
     assert exp.sequences or exp.synthetic
-    sensors = [StoreSequence(store).sensor] if exp.sequences else [
-        SensorInfo(kind, 0.1) for kind in {_kind(s.sensor) for s in exp.synthetic}]
+    c = exp.criterion
+    if exp.sequences:  # a radar default on the real sample: the rule of configs/splits.yaml
+        rule = SPLITS["rule"]
+        assert c.cross_validated, f"{path.name}: a radar sweep decides by the tuning rule"
+        assert c.lengths_m == rule["lengths_m"] and c.level == rule["level"]
+        assert c.reps == rule["reps"] and c.min_gain == rule["min_gain"]
+        assert [{"tuning": [halves[n] for n in f.tuning],
+                 "validation": [halves[n] for n in f.validation]}
+                for f in c.folds] == rule["folds"]
+        domain = SPLITS["synthetic"]["radar_domain"]
+        by_name = {s.name: s for s in exp.synthetic}
+        assert sorted(by_name[n].seed for n in c.domain) == domain["seeds"]
+        for n in c.domain:
+            s = by_name[n]
+            assert (s.scene, s.sensor, s.frames) == (domain["scene"], domain["sensor"],
+                                                     domain["frames"])
+            assert "gt" not in s.options  # the clean suite: exact ground truth
+    elif not c.cross_validated:  # legacy: only the LiDAR sweeps, on synthetic seeds only
+        assert all(_kind(s.sensor) == "lidar" for s in exp.synthetic), path.name
     sweeps = [m for m in exp.methods if any(v.point for v in m.variants())]
-    assert sweeps, "a tuning experiment sweeps something"
-    for m in sweeps:
-        variants = m.variants()
-        keys = list(variants[0].point)
-        for sensor in sensors:
-            fixed = {k: v for k, v in variants[0].params.items() if k not in keys}
-            seed = (m.seeds or [True])[0]  # a no-seed sweep holds the no-seed default
-            params = make_method(m.name, fixed, sensor, seed).params
-            default = {k: getattr(params, k) for k in keys}
-            assert any(all(format_value(v.point[k]) == format_value(default[k]) for k in keys)
-                       for v in variants), f"{path.name}: the default {default} is not swept"
+    assert len(sweeps) == 1, "a tuning experiment sweeps one method entry"
+    (m,) = sweeps
+    variants = m.variants()
+    keys = list(variants[0].point)
+    swept = [{k: format_value(v.point[k]) for k in keys} for v in variants]
+    for default in _defaults(exp, m, keys):
+        assert {k: format_value(default[k]) for k in keys} in swept, \
+            f"{path.name}: the default {default} is not swept"
+        if c.cross_validated:
+            reference = {k: format_value(c.reference.get(k, default[k])) for k in keys}
+            assert reference in swept, f"{path.name}: the reference {reference} is not swept"
+            assert exp.decided is not None, f"{path.name}: no recorded decision"
+            assert {k: format_value(default[k]) for k in keys} == {
+                k: format_value(v) for k, v in exp.decided.items()}, \
+                f"{path.name}: the default {default} is not the rule's decision {exp.decided}"
+            # along every axis where the decision leaves the reference, it is inside the grid
+            for k, v in exp.decided.items():
+                if format_value(v) != reference[k]:
+                    axis = sorted({p[k] for p in (x.point for x in variants)})
+                    assert axis[0] < v < axis[-1], f"{path.name}: {k}={v} on the grid's edge"
 
 
 def _kind(sensor: str) -> str:
@@ -102,13 +151,14 @@ def _kind(sensor: str) -> str:
 
 
 @pytest.mark.parametrize("name", CHEAPEST)
-def test_the_cheapest_sweeps_choose_the_defaults(name, tmp_path):
+def test_the_cheapest_sweep_replays_its_decision(name, tmp_path):
     path = ROOT / "configs" / "tuning" / f"{name}.yaml"
     result = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path)])
     assert result.exit_code == 0, result.output
     chosen = [ln for ln in result.output.splitlines() if ln.startswith("chosen")]
     assert chosen, result.output
     assert (tmp_path / "sweep.md").exists() and (tmp_path / "sweeps.json").exists()
-    differs = load_experiment(path).default_differs
+    decided = " ".join(f"{k}={format_value(v)}"
+                       for k, v in load_experiment(path).decided.items())
     for line in chosen:
-        assert "agrees" in line or (differs and "DIFFERS" in line), line
+        assert "agrees" in line and decided in line, line

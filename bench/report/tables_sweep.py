@@ -1,7 +1,10 @@
 """The table of a parameter sweep (``bench table RESULTS --sweep``, and printed by ``bench run``
 for an experiment with sweeps): one row per sweep point, the mean relative error per segment
 length over the sweep's sequences (rotation [deg] / translation [m]), the best point per length
-in bold, and the point the experiment's criterion chooses beside the method's default.
+in bold, and the point the experiment's criterion chooses beside the method's default. Under
+the tuning rule of configs/splits.yaml (bench/runs/tuning_rule.py) each row also shows the
+point's criterion ``C`` with its interval per fold (tuning and validation sequences) and on the
+second domain, and why it qualifies or not; the decision follows the table.
 
 The sweep's layout comes from ``<results>/sweeps.json`` (bench/runs/sweep.py)."""
 
@@ -12,6 +15,8 @@ from pathlib import Path
 
 from bench.runs.folders import read_run
 from bench.runs.sweep import format_value, read_sweep_index
+from bench.runs.tuning_rule import Decision, RunErrors, decide, run_errors
+from loaders.errors import DataError
 
 UNITS = {"rotation": "deg", "translation": "m", "both": "(relative to the points' mean)"}
 
@@ -28,6 +33,7 @@ class Choice:
     default: dict | None        # the method's default for the swept keys (None: differs by
     #                             sequence)
     missing: list[str]          # labels of points with a run missing (failed or not run)
+    decision: Decision | None = None  # the tuning rule's decision (cross-validated criterion)
 
     @property
     def agrees(self) -> bool:
@@ -35,6 +41,8 @@ class Choice:
             _same(self.point[k], self.default.get(k)) for k in self.point)
 
     def describe(self, criterion: dict) -> str:
+        if criterion.get("folds") is not None:
+            return self._describe_rule()
         if self.point is None:
             return f"{self.group}: no point has every run finished"
         point = " ".join(f"{k}={format_value(v)}" for k, v in self.point.items())
@@ -51,6 +59,22 @@ class Choice:
             text += (f"; the default stays unless beaten by more than "
                      f"{100 * criterion['keep_default_within']:g} %")
         text += ")"
+        if self.default is None:
+            return text + "; the default differs by sequence"
+        default = " ".join(f"{k}={format_value(v)}" for k, v in self.default.items())
+        text += f"; default {default}: " + ("agrees" if self.agrees else "DIFFERS")
+        if self.missing:
+            text += f"; not finished: {', '.join(self.missing)}"
+        return text
+
+
+    def _describe_rule(self) -> str:
+        seed = {True: " (with seed)", False: " (no seed)", None: ""}[self.seed]
+        d = self.decision
+        point = ("undecided" if self.point is None else
+                 self.method + " " + " ".join(f"{k}={format_value(v)}"
+                                              for k, v in self.point.items()))
+        text = f"chosen{seed}: {point} (the tuning rule of configs/splits.yaml: {d.text})"
         if self.default is None:
             return text + "; the default differs by sequence"
         default = " ".join(f"{k}={format_value(v)}" for k, v in self.default.items())
@@ -142,7 +166,52 @@ def _default(sweep: dict) -> dict | None:
     return values[0] if values and all(v == values[0] for v in values) else None
 
 
-def sweep_choices(results_dir: Path) -> list[Choice]:
+def _run_errors(results_dir: Path, sweep: dict, seed, lengths) -> list[dict | None]:
+    """Per point: sequence name -> RunErrors of its run (None when a run is missing)."""
+    out = []
+    for p in sweep["points"]:
+        runs = {r["sequence"]: read_run(results_dir / r["dir"]) for r in p["runs"]
+                if r["seed"] == seed}
+        if not runs or any(r is None for r in runs.values()):
+            out.append(None)
+            continue
+        out.append({name: run_errors(r.gt, r.est, lengths) for name, r in runs.items()})
+    return out
+
+
+def _reference_index(sweep: dict, criterion: dict) -> int:
+    """The index of the rule's reference point: the criterion's ``reference`` values, the
+    method's default for the keys it does not give."""
+    default = _default(sweep) or {}
+    want = {k: criterion.get("reference", {}).get(k, default.get(k)) for k in sweep["keys"]}
+    for i, p in enumerate(sweep["points"]):
+        if all(_same(v, want[k]) for k, v in p["point"].items()):
+            return i
+    text = " ".join(f"{k}={format_value(v)}" for k, v in want.items())
+    raise DataError(f"sweep {sweep['group']}: its reference point {text} (the criterion's "
+                    "reference, else the method's default) is not a point of the grid")
+
+
+def rule_decision(results_dir: Path, sweep: dict, seed, criterion: dict) -> Decision:
+    """The tuning rule's decision over one sweep and seed option."""
+    lengths = [float(x) for x in criterion["lengths_m"]]
+    errors: list[dict[str, RunErrors] | None] = _run_errors(results_dir, sweep, seed, lengths)
+    folds = [(f["tuning"], f["validation"]) for f in criterion["folds"]]
+    return decide([p["point"] for p in sweep["points"]], errors,
+                  _reference_index(sweep, criterion), folds, criterion.get("domain", []),
+                  lengths, criterion.get("level", 0.95), criterion.get("reps", 1000),
+                  min_gain=criterion.get("min_gain", 0.0))
+
+
+def _decisions(results_dir: Path, index: dict) -> dict:
+    criterion = index.get("criterion")
+    if not criterion or criterion.get("folds") is None:
+        return {}
+    return {(sweep["group"], seed): rule_decision(results_dir, sweep, seed, criterion)
+            for sweep in index["sweeps"] for seed in _seeds(sweep)}
+
+
+def sweep_choices(results_dir: Path, decisions: dict | None = None) -> list[Choice]:
     """The point each sweep's criterion chooses (per seed option), with the default beside it;
     empty when the experiment names no criterion."""
     results_dir = Path(results_dir)
@@ -150,9 +219,20 @@ def sweep_choices(results_dir: Path) -> list[Choice]:
     criterion = index.get("criterion")
     if criterion is None:
         return []
+    if decisions is None:
+        decisions = _decisions(results_dir, index)
     choices = []
     for sweep in index["sweeps"]:
         for seed in _seeds(sweep):
+            if criterion.get("folds") is not None:
+                d = decisions[(sweep["group"], seed)]
+                missing = [p["label"] for p, v in zip(sweep["points"], d.verdicts, strict=True)
+                           if v.overall is None]
+                point = None if d.chosen is None else sweep["points"][d.chosen]["point"]
+                value = None if d.chosen is None else d.verdicts[d.chosen].overall
+                choices.append(Choice(sweep["method"], sweep["group"], seed, point, value,
+                                      _default(sweep), missing, d))
+                continue
             rows, _ = _errors(index, results_dir, sweep, seed)
             values = _criterion_values(rows, criterion)
             best = _choose(values, criterion, _default_index(sweep))
@@ -171,7 +251,8 @@ def sweep_markdown(results_dir: Path) -> str:
     results_dir = Path(results_dir)
     index = read_sweep_index(results_dir)
     criterion = index.get("criterion")
-    choices = {(c.group, c.seed): c for c in sweep_choices(results_dir)}
+    decisions = _decisions(results_dir, index)
+    choices = {(c.group, c.seed): c for c in sweep_choices(results_dir, decisions)}
     out = []
     for sweep in index["sweeps"]:
         sequences = sorted({r["sequence"] for p in sweep["points"] for r in p["runs"]})
@@ -181,8 +262,13 @@ def sweep_markdown(results_dir: Path) -> str:
             seed_text = {True: "with seed", False: "no seed", None: "no initial guess"}[seed]
             out.append(f"### {sweep['group']}: sweep of {', '.join(sweep['keys'])} "
                        f"({seed_text}; mean over {', '.join(sequences)})\n")
+            decision = decisions.get((sweep["group"], seed))
+            groups = [] if decision is None else list(dict.fromkeys(
+                g for v in decision.verdicts for g in v.estimates))
             head = ["Point"] + [f"{x:g} m" for x in lengths]
-            if criterion:
+            if decision is not None:
+                head += [f"C {g}" for g in groups] + ["C all folds", "Verdict"]
+            elif criterion:
                 head.append(f"Criterion ({criterion['error']}, "
                             f"{', '.join(f'{x:g}' for x in criterion['lengths_m'])} m)")
             out.append("| " + " | ".join(head) + " |")
@@ -190,12 +276,15 @@ def sweep_markdown(results_dir: Path) -> str:
             best = {(x, i): min((c[x][i] for c in rows if c and x in c), default=None)
                     for x in lengths for i in (0, 1)}
             choice = choices.get((sweep["group"], seed))
-            values = _criterion_values(rows, criterion) if criterion else [None] * len(rows)
-            for p, cells, v in zip(sweep["points"], rows, values, strict=True):
+            values = (_criterion_values(rows, criterion) if criterion and decision is None
+                      else [None] * len(rows))
+            for n, (p, cells, v) in enumerate(zip(sweep["points"], rows, values, strict=True)):
                 name = " ".join(f"{k}={format_value(v)}" for k, v in p["point"].items())
                 if default is not None and all(_same(v, default.get(k))
                                                for k, v in p["point"].items()):
                     name += " (default)"
+                if decision is not None and n == decision.reference:
+                    name += " (reference)"
                 row = [name]
                 for x in lengths:
                     if not cells or x not in cells:
@@ -205,7 +294,16 @@ def sweep_markdown(results_dir: Path) -> str:
                     parts = [f"**{t}**" if cells[x][i] == best[(x, i)] else t
                              for i, t in enumerate(parts)]
                     row.append(" / ".join(parts))
-                if criterion:
+                if decision is not None:
+                    verdict = decision.verdicts[n]
+                    row += [str(verdict.estimates[g]) if g in verdict.estimates else "-"
+                            for g in groups]
+                    row.append("-" if verdict.overall is None else f"{verdict.overall:.3f}")
+                    why = verdict.why
+                    if choice and choice.point == p["point"]:
+                        why = f"**chosen**: {why}"
+                    row.append(why)
+                elif criterion:
                     text = "failed or not run" if cells is None else (
                         "-" if v is None else f"{v:.4f}")
                     if choice and choice.point == p["point"]:
@@ -216,6 +314,12 @@ def sweep_markdown(results_dir: Path) -> str:
             out.append("Each cell: mean rotation [deg] / translation [m] relative error per "
                        "segment length, averaged over the sweep's sequences; best per length "
                        "in bold.")
+            if decision is not None:
+                lengths_text = ", ".join(f"{x:g}" for x in criterion["lengths_m"])
+                out.append(f"C: mean over {lengths_text} m and both errors of the error "
+                           "divided by the reference point's (1 = the reference, lower is "
+                           f"better), {100 * criterion.get('level', 0.95):g} % block-bootstrap "
+                           "interval in brackets (configs/splits.yaml).")
             if choice is not None:
                 out.append("")
                 out.append(choice.describe(criterion))

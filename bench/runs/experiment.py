@@ -41,8 +41,9 @@ any parameter listed under ``sweep:`` (``sweep: {voxel_m: [0.25, 0.5], map_secon
 expands to one labelled variant per point of the grid over those keys, labelled
 ``"<label or method> key=value ..."``. A parameter whose value is itself a list (e.g.
 ``angle_noise_deg: [0.4, 2.6]``) is that value in ``params``: sweep it under ``sweep:`` (a list
-of its values). An experiment with sweeps may name its ``criterion`` (the error and the lengths
-whose mean picks a sweep's best point); ``bench run`` then prints the sweep's table and choice.
+of its values). An experiment with sweeps may name its ``criterion`` (``Criterion``: the tuning
+rule of configs/splits.yaml, folds of sequences and a reference point); ``bench run`` then
+prints the sweep's table, each point's criterion with its interval and the decision.
 ``default_differs`` says why a method's default is not the sweep's choice, where it is not
 (configs/tuning/*.yaml; tests/test_tuning.py holds every tuned default to its sweep).
 """
@@ -163,20 +164,59 @@ class MethodEntry(_Strict):
         return seed_options(self.name, self.seeds)
 
 
-class Criterion(_Strict):
-    """How a sweep's best point is chosen: the lowest mean of ``error`` (rotation [deg] or
-    translation [m], mean relative error) over ``lengths_m`` and over the sweep's sequences;
-    ``both``: rotation and translation, each divided by its mean over the sweep's points, then
-    averaged (for a parameter that moves both). Points within ``tie_within`` (a fraction) of
-    the best count as equal and the first of them in the sweep's order wins (list the cheaper
-    or simpler values first). ``keep_default_within``: the method's default stays chosen
-    unless the chosen point beats it by more than this fraction (a default changes only on a
-    difference the sweep resolves)."""
+class Fold(_Strict):
+    """One fold of the tuning rule: the sequences a point must improve on significantly
+    (``tuning``) and those on which the improvement must not reverse (``validation``)."""
 
-    error: Literal["rotation", "translation", "both"]
+    tuning: list[str] = Field(min_length=1)
+    validation: list[str] = Field(min_length=1)
+
+
+class Criterion(_Strict):
+    """How a sweep decides. The tuning rule of configs/splits.yaml (``folds`` given;
+    bench/runs/tuning_rule.py): ``C`` = the mean over ``lengths_m`` and over both errors of
+    the point's mean relative error divided by the ``reference`` point's (the library's or
+    paper's value; keys not given: the method's default), with block-bootstrap intervals at
+    ``level`` (``reps`` draws); a point replaces the reference only when significant and at
+    least ``min_gain`` better on every fold's tuning sequences, not reversed on its validation
+    sequences and not significantly worse on the ``domain`` sequences; a best point on the
+    grid's edge asks for a wider grid.
+
+    Legacy (``error`` given instead of ``folds``; the LiDAR sweeps and the independent
+    references, not yet re-decided by the rule): the lowest mean of ``error`` (rotation [deg],
+    translation [m] or ``both``, each over the points' mean) over ``lengths_m``; points within
+    ``tie_within`` of the best tie (the first listed wins); the default stays unless beaten by
+    more than ``keep_default_within``."""
+
     lengths_m: list[float] = Field(min_length=1)
+    folds: list[Fold] | None = None
+    domain: list[str] = Field(default_factory=list)
+    reference: dict = Field(default_factory=dict)
+    level: float = Field(0.95, gt=0, lt=1)
+    reps: int = Field(1000, ge=100)
+    min_gain: float = Field(0.0, ge=0, lt=1)  # least improvement of C on a tuning half
+    error: Literal["rotation", "translation", "both"] | None = None
     tie_within: float = Field(0.0, ge=0, lt=1)
     keep_default_within: float = Field(0.0, ge=0, lt=1)
+
+    @model_validator(mode="after")
+    def _one_rule(self) -> Criterion:
+        if (self.folds is None) == (self.error is None):
+            raise ValueError("a criterion gives either 'folds' (the tuning rule of "
+                             "configs/splits.yaml) or a legacy 'error'")
+        if self.folds is not None and (self.tie_within or self.keep_default_within):
+            raise ValueError("'tie_within' / 'keep_default_within' belong to the legacy "
+                             "'error' criterion, not to the tuning rule")
+        return self
+
+    @property
+    def cross_validated(self) -> bool:
+        return self.folds is not None
+
+    def sequence_names(self) -> list[str]:
+        """Every sequence the rule names (folds, then domain)."""
+        names = [n for f in self.folds or () for n in f.tuning + f.validation] + self.domain
+        return list(dict.fromkeys(names))
 
 
 class ExternalEntry(_Strict):
@@ -224,6 +264,9 @@ class Experiment(_Strict):
     out: Path | None = None
     criterion: Criterion | None = None  # picks each sweep's best point
     default_differs: str | None = None  # why a method's default is not the sweep's choice
+    #: the point the tuning rule chose when the sweep was last replayed (configs/tuning/;
+    #: tests/test_tuning.py holds the method's default to it)
+    decided: dict | None = None
 
     @field_validator("lengths_m", "kitti_lengths_m")
     @classmethod
@@ -257,6 +300,11 @@ class Experiment(_Strict):
             missing = set(self.criterion.lengths_m) - set(self.lengths_m)
             if missing:
                 raise ValueError(f"criterion lengths {sorted(missing)} are not among lengths_m")
+            known = {s.name for s in self.sequences if s.name} | {s.name for s in self.synthetic}
+            unknown = [n for n in self.criterion.sequence_names() if n not in known]
+            if unknown:
+                raise ValueError(f"criterion names sequences {unknown} that the experiment "
+                                 f"does not declare (named: {', '.join(sorted(known))})")
         return self
 
     def resolved(self, base: Path) -> Experiment:
@@ -295,8 +343,8 @@ def load_experiment(path: str | Path) -> Experiment:
 def _known_keys(loc: tuple) -> list[str] | None:
     """The keys of the experiment model at ``loc`` (for "did you mean")."""
     model = {(): Experiment, ("sequences",): SequenceEntry, ("methods",): MethodEntry,
-             ("criterion",): Criterion, ("synthetic",): SyntheticEntry,
-             ("external",): ExternalEntry}.get(
+             ("criterion",): Criterion, ("criterion", "folds"): Fold,
+             ("synthetic",): SyntheticEntry, ("external",): ExternalEntry}.get(
         tuple(x for x in loc if not isinstance(x, int)))
     return list(model.model_fields) if model else None
 
