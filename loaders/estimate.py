@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from loaders.errors import DataError
+from loaders.posefile import numeric_rows
 from loaders.se3 import T_from_tum, make_T
 from loaders.trajectory import Trajectory
 
@@ -41,40 +42,6 @@ class Estimate:
 
     trajectory: Trajectory
     frame_times_ms: np.ndarray | None = None
-
-
-def _numeric_rows(path: Path, widths: tuple[int, ...], expected: str) -> tuple[np.ndarray, list]:
-    """The numeric rows of a text file (all with the same width, one of ``widths``) and their
-    line numbers."""
-    rows, lines = [], []
-    with open(path) as f:
-        for lineno, line in enumerate(f, start=1):
-            text = line.strip()
-            if not text or text.startswith("#"):
-                continue
-            parts = text.replace(",", " ").split()
-            try:
-                values = [float(v) for v in parts]
-            except ValueError:
-                if not rows:  # a header line
-                    continue
-                raise DataError(f"{path}, line {lineno}: expected numbers ({expected}), got "
-                                f"{text!r}") from None
-            if len(values) not in widths or (rows and len(values) != len(rows[0])):
-                want = len(rows[0]) if rows else " or ".join(map(str, widths))
-                raise DataError(f"{path}, line {lineno}: expected {want} values ({expected}), "
-                                f"got {len(values)}")
-            rows.append(values)
-            lines.append(lineno)
-    if not rows:
-        raise DataError(f"{path}: no pose rows found; expected {expected}")
-    data = np.array(rows, dtype=np.float64)
-    bad = ~np.isfinite(data)
-    if bad.any():
-        r = int(np.flatnonzero(bad.any(axis=1))[0])
-        raise DataError(f"{path}, line {lines[r]}: non-finite value (NaN or inf); expected "
-                        f"finite numbers ({expected})")
-    return data, lines
 
 
 def check_stamps(stamps: np.ndarray, where: str, lines: list | None = None) -> None:
@@ -109,7 +76,7 @@ def poses_from_tum(xyz: np.ndarray, quat_xyzw: np.ndarray, where: str,
 
 def read_tum_estimate(path: Path) -> Estimate:
     """TUM rows, with an optional 9th column: the method's time of the frame [ms]."""
-    data, lines = _numeric_rows(path, (8, 9), "t x y z qx qy qz qw [time_ms]")
+    data, lines = numeric_rows(path, (8, 9), "t x y z qx qy qz qw [time_ms]")
     check_stamps(data[:, 0], str(path), lines)
     poses = poses_from_tum(data[:, 1:4], data[:, 4:8], str(path), lines)
     times = data[:, 8].copy() if data.shape[1] == 9 else None
@@ -122,7 +89,7 @@ def read_tum_estimate(path: Path) -> Estimate:
 
 def read_stamps(path: Path) -> np.ndarray:
     """One stamp [s] per line (KITTI's times.txt)."""
-    data, lines = _numeric_rows(path, (1,), "one stamp [s] a line")
+    data, lines = numeric_rows(path, (1,), "one stamp [s] a line")
     check_stamps(data[:, 0], str(path), lines)
     return data[:, 0]
 
@@ -132,7 +99,7 @@ def read_kitti_estimate(path: Path, stamps_file: Path | None) -> Estimate:
     if stamps_file is None:
         raise DataError(f"{path}: a KITTI pose file has no stamps; give its stamps file "
                         "(--stamps times.txt: one stamp [s] per pose row)")
-    data, lines = _numeric_rows(path, (12,), "12 values: the 3x4 pose row-major")
+    data, lines = numeric_rows(path, (12,), "12 values: the 3x4 pose row-major")
     stamps = read_stamps(Path(stamps_file))
     if len(stamps) != len(data):
         raise DataError(f"{path}: {len(data)} pose rows but {stamps_file} has {len(stamps)} "
@@ -198,7 +165,7 @@ def read_estimate(path: str | Path, fmt: str = "auto", stamps: str | Path | None
     else:
         est = read_tum_estimate(path)
     if frame_times is not None:
-        data, lines = _numeric_rows(Path(frame_times), (1,), "one time [ms] a line")
+        data, lines = numeric_rows(Path(frame_times), (1,), "one time [ms] a line")
         if len(data) != len(est.trajectory):
             raise DataError(f"{frame_times}: {len(data)} times but {path} has "
                             f"{len(est.trajectory)} poses; expected one time [ms] per pose")

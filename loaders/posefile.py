@@ -22,13 +22,16 @@ from loaders.se3 import T_from_tum, make_T, tum_from_T
 from loaders.trajectory import Trajectory
 
 
-def read_tum(path: str | Path) -> Trajectory:
-    """Read TUM rows ``t x y z qx qy qz qw``; '#' comments and one leading header line that
-    is not numeric are skipped."""
+def numeric_rows(path: str | Path, widths: tuple[int, ...], expected: str
+                 ) -> tuple[np.ndarray, list[int]]:
+    """The numeric rows of a text file (all of one width, one of ``widths``) and their line
+    numbers: '#' comments, blank lines and one leading header line that is not numeric are
+    skipped, commas count as spaces; one ``DataError`` naming the file and the line for a row
+    that is not numbers, of another width, or not finite (``expected`` says what a row holds)."""
     path = Path(path)
     check_file_size(path, str(path))
     rows: list[list[float]] = []
-    linenos: list[int] = []
+    lines: list[int] = []
     with open(path, errors="replace") as f:
         for lineno, line in enumerate(f, start=1):
             text = line.strip()
@@ -40,19 +43,30 @@ def read_tum(path: str | Path) -> Trajectory:
             except ValueError:
                 if not rows:  # a header line such as "timestamp x y z ..."
                     continue
-                raise DataError(
-                    f"{path}, line {lineno}: expected 8 numbers, got {text!r}"
-                ) from None
-            if len(values) != 8:
-                raise DataError(
-                    f"{path}, line {lineno}: expected 8 values (t x y z qx qy qz qw), "
-                    f"got {len(values)}"
-                )
+                want = " or ".join(map(str, widths))
+                raise DataError(f"{path}, line {lineno}: expected {want} numbers ({expected}), "
+                                f"got {text!r}") from None
+            if len(values) not in widths or (rows and len(values) != len(rows[0])):
+                want = len(rows[0]) if rows else " or ".join(map(str, widths))
+                raise DataError(f"{path}, line {lineno}: expected {want} values ({expected}), "
+                                f"got {len(values)}")
             rows.append(values)
-            linenos.append(lineno)
+            lines.append(lineno)
     if not rows:
-        raise DataError(f"{path}: no TUM pose rows found")
-    data = np.array(rows)
+        raise DataError(f"{path}: no pose rows found; expected {expected}")
+    data = np.array(rows, dtype=np.float64)
+    bad = ~np.isfinite(data).all(axis=1)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{path}, line {lines[k]}: non-finite value (NaN or inf); expected "
+                        f"finite numbers ({expected})")
+    return data, lines
+
+
+def read_tum(path: str | Path) -> Trajectory:
+    """Read TUM rows ``t x y z qx qy qz qw``; '#' comments and one leading header line that
+    is not numeric are skipped."""
+    data, linenos = numeric_rows(path, (8,), "t x y z qx qy qz qw")
     quat = check_quaternions(data[:, 4:8], path, linenos, finite=data)
     return Trajectory(data[:, 0], T_from_tum(data[:, 1:4], quat))
 
