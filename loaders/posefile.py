@@ -22,7 +22,7 @@ from loaders.se3 import T_from_tum, make_T, tum_from_T
 from loaders.trajectory import Trajectory
 
 
-def numeric_rows(path: str | Path, widths: tuple[int, ...], expected: str
+def numeric_rows(path: str | Path, widths: tuple[int, ...], expected: str, kind: str = "pose"
                  ) -> tuple[np.ndarray, list[int]]:
     """The numeric rows of a text file (all of one width, one of ``widths``) and their line
     numbers: '#' comments, blank lines and one leading header line that is not numeric are
@@ -53,7 +53,7 @@ def numeric_rows(path: str | Path, widths: tuple[int, ...], expected: str
             rows.append(values)
             lines.append(lineno)
     if not rows:
-        raise DataError(f"{path}: no pose rows found; expected {expected}")
+        raise DataError(f"{path}: no {kind} rows found; expected {expected}")
     data = np.array(rows, dtype=np.float64)
     bad = ~np.isfinite(data).all(axis=1)
     if bad.any():
@@ -66,7 +66,7 @@ def numeric_rows(path: str | Path, widths: tuple[int, ...], expected: str
 def read_tum(path: str | Path) -> Trajectory:
     """Read TUM rows ``t x y z qx qy qz qw``; '#' comments and one leading header line that
     is not numeric are skipped."""
-    data, linenos = numeric_rows(path, (8,), "t x y z qx qy qz qw")
+    data, linenos = numeric_rows(path, (8,), "t x y z qx qy qz qw", kind="TUM pose")
     quat = check_quaternions(data[:, 4:8], path, linenos, finite=data)
     return Trajectory(data[:, 0], T_from_tum(data[:, 1:4], quat))
 

@@ -224,6 +224,22 @@ def _percentiles(stats: np.ndarray, level: float) -> tuple[float, float]:
     return float(lo), float(hi)
 
 
+def _block_rule(n_frames: int, anchor: np.ndarray, end: np.ndarray, series: list[np.ndarray],
+                block: int | None, n_independent: int) -> tuple[int, int]:
+    """(block length, independent units): the block is the largest of ``block_frames`` over
+    ``series`` (ordered by anchor), for single-frame units at least ``n / APE_MIN_BLOCKS``,
+    unless given; single-frame units count the whole blocks as their independent pieces."""
+    span = float(np.median(end - anchor))
+    if block is None:
+        order = np.argsort(anchor, kind="stable")
+        block = max(block_frames(n_frames, span, v[order]) for v in series)
+        if span <= 1.0:
+            block = max(block, -(-n_frames // APE_MIN_BLOCKS))
+    if span <= 1.0:  # single frames: the independent pieces are the blocks themselves
+        n_independent = min(n_independent, max(1, n_frames // int(block)))
+    return int(block), n_independent
+
+
 def unit_intervals(n_frames: int, anchor: np.ndarray, end: np.ndarray,
                    values: dict[str, np.ndarray], rmse: bool = False, level: float = LEVEL,
                    reps: int = REPS, seed: int = 0, block: int | None = None,
@@ -241,14 +257,7 @@ def unit_intervals(n_frames: int, anchor: np.ndarray, end: np.ndarray,
     finite = {k: np.asarray(v, dtype=np.float64) for k, v in values.items()}
     if anchor.size == 0 or n_frames < 2:
         return {k: nan for k in finite}
-    order = np.argsort(anchor, kind="stable")
-    span = float(np.median(end - anchor))
-    if block is None:
-        block = max(block_frames(n_frames, span, v[order]) for v in finite.values())
-        if span <= 1.0:
-            block = max(block, -(-n_frames // APE_MIN_BLOCKS))
-    if span <= 1.0:  # single frames: the independent pieces are the blocks themselves
-        n_ind = min(n_ind, max(1, n_frames // int(block)))
+    block, n_ind = _block_rule(n_frames, anchor, end, list(finite.values()), block, n_ind)
     keys = [k for k, v in finite.items() if np.all(np.isfinite(v))]
     stats = dict(zip(keys, _resampled(n_frames, int(block), reps, seed, anchor,
                                       [finite[k] for k in keys], rmse), strict=True))
@@ -294,14 +303,7 @@ def paired_interval(n_frames: int, anchor: np.ndarray, end: np.ndarray, values_a
     if anchor.size == 0 or n_frames < 2 or not (np.all(np.isfinite(a))
                                                  and np.all(np.isfinite(b))):
         return Interval(math.nan, math.nan, level, 0, n_ind)
-    span = float(np.median(end - anchor))
-    if block is None:
-        order = np.argsort(anchor, kind="stable")
-        block = max(block_frames(n_frames, span, x[order]) for x in (a, b, a - b))
-        if span <= 1.0:
-            block = max(block, -(-n_frames // APE_MIN_BLOCKS))
-    if span <= 1.0:
-        n_ind = min(n_ind, max(1, n_frames // int(block)))
+    block, n_ind = _block_rule(n_frames, anchor, end, [a, b, a - b], block, n_ind)
     stat_a, stat_b = _resampled(n_frames, int(block), reps, seed, anchor, [a, b], rmse)
     diff = stat_a - stat_b
     lo, hi = _percentiles(diff, level)

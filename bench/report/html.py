@@ -138,7 +138,6 @@ PAGE_TABLES = (("Relative error per segment length (Table III)", "relative"),
 def _tables_in_memory(results_dir: Path) -> list[tuple[str, str]]:
     """(title, markdown) of every metric's table of the folder's runs, with intervals (none
     when there is no finished run with ground truth)."""
-    from bench.report.table import to_markdown
     from bench.report.tables import build, select
     from bench.report.tables_ape import collect_ape
 

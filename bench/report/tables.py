@@ -196,10 +196,6 @@ def _row(table: Table, rr: RunRow, cells: list[Cell]) -> Row:
                 ("diverged" if rr.diverged else "done")})
 
 
-def fmt(x: float | None, digits: int = 3) -> str:
-    return "-" if x is None or not math.isfinite(x) else f"{x:.{digits}f}"
-
-
 def fmt_time(x: float | None, threads: int = 1) -> str:
     x = nan(x)
     text = "-" if not math.isfinite(x) else (f"{x:.2f}" if x < 10 else f"{x:.1f}")

@@ -13,7 +13,6 @@ shows "Div." and is not ranked, as in the paper's Table V; a run that did not fi
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -169,10 +168,6 @@ def start_offset_note(run: RunRecord) -> str | None:
             "from the ground truth's first pose (it begins at the identity, the ground "
             "truth is in world coordinates): this APE includes that offset; "
             "--alignment origin puts the first poses together")
-
-
-def fmt2(x: float | None) -> str:
-    return "-" if x is None or not math.isfinite(x) else f"{x:.2f}"
 
 
 def write_ape_tables(results_dir: Path, out_dir: Path | None = None,

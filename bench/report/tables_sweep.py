@@ -58,7 +58,11 @@ class Choice:
         if criterion.get("keep_default_within"):
             text += (f"; the default stays unless beaten by more than "
                      f"{100 * criterion['keep_default_within']:g} %")
-        text += ")"
+        return self._against_default(text + ")")
+
+    def _against_default(self, text: str) -> str:
+        """``text`` followed by how the choice stands against the method's default and which
+        points are not finished."""
         if self.default is None:
             return text + "; the default differs by sequence"
         default = " ".join(f"{k}={format_value(v)}" for k, v in self.default.items())
@@ -66,7 +70,6 @@ class Choice:
         if self.missing:
             text += f"; not finished: {', '.join(self.missing)}"
         return text
-
 
     def _describe_rule(self) -> str:
         seed = {True: " (with seed)", False: " (no seed)", None: ""}[self.seed]
@@ -74,14 +77,8 @@ class Choice:
         point = ("undecided" if self.point is None else
                  self.method + " " + " ".join(f"{k}={format_value(v)}"
                                               for k, v in self.point.items()))
-        text = f"chosen{seed}: {point} (the tuning rule of configs/splits.yaml: {d.text})"
-        if self.default is None:
-            return text + "; the default differs by sequence"
-        default = " ".join(f"{k}={format_value(v)}" for k, v in self.default.items())
-        text += f"; default {default}: " + ("agrees" if self.agrees else "DIFFERS")
-        if self.missing:
-            text += f"; not finished: {', '.join(self.missing)}"
-        return text
+        return self._against_default(
+            f"chosen{seed}: {point} (the tuning rule of configs/splits.yaml: {d.text})")
 
 
 def _same(a, b) -> bool:
