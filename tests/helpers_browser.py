@@ -119,7 +119,8 @@ def open_page(page: Path, expression: str, timeout_s: float = 60.0) -> dict:
     exe = chromium_path()
     cmd_r, cmd_w = _high_pipe()
     out_r, out_w = _high_pipe()
-    with tempfile.TemporaryDirectory(prefix="chromium-") as profile:
+    # chromium's helper processes may still write the profile while it is removed
+    with tempfile.TemporaryDirectory(prefix="chromium-", ignore_cleanup_errors=True) as profile:
         script = f'exec "$0" "$@" 3<&{cmd_r} 4>&{out_w} {cmd_r}<&- {out_w}>&-'
         proc = subprocess.Popen(
             ["bash", "-c", script, exe, *CHROMIUM_FLAGS, f"--user-data-dir={profile}",
