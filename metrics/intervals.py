@@ -20,17 +20,17 @@ at ``K`` = 15, a factor 6.5 at ``K`` = 2), so that a difference resting on two 4
 not called significant; ``unit_intervals(..., small_sample=True)`` gives the same for a figure.
 
 Coverage measured on synthetic drives with exact ground truth and known noise
-(``python -m bench.studies.coverage``; the numbers are in the manual): about 90 % for the
-relative errors at 8 m and somewhat less at 48 m (15 independent segments per 750 m), and well
-below 95 % for the APE RMSE, a figure of the whole trajectory's drift of which one trajectory
-holds few independent pieces: its blocks are at least a quarter of the frames
-(``APE_MIN_BLOCKS``).
+(``python -m bench.studies.coverage``; the numbers are in the manual): about 91-92 % for the
+relative errors at 8 m and 87-88 % at 48 m (15 independent segments per 750 m). The APE RMSE,
+a figure of the whole trajectory's drift, is not resampled here: its per-frame errors form a
+random walk (blocks of them covered the long-run mean in about 40 % of trials);
+``metrics.drift_intervals`` resamples the estimate's frame-to-frame errors instead.
 
 Block length (:func:`block_frames`): at least the frames one unit spans (a segment's end index
 minus its start index, its median over the units) so that units sharing frames mostly fall in
 one block, and at least the automatic block length of Politis & White (2004) for the unit
 values ordered by anchor (:func:`correlation_length`); never more than half the frames; for
-single-frame units (APE) at least ``n / APE_MIN_BLOCKS``. Every interval records its block
+single-frame units at least ``n / APE_MIN_BLOCKS``. Every interval records its block
 length.
 
 Paired comparison (:func:`paired_interval`): two estimates scored on the same segments (the
@@ -195,6 +195,17 @@ def block_indices(n_frames: int, block: int, reps: int = REPS, seed: int = 0) ->
     every resample); the same draws as :func:`block_counts` with the same seed."""
     n, b = int(n_frames), max(1, int(block))
     return _indices(n, b, _starts(n, b, int(reps), int(seed)))
+
+
+def block_index_chunks(n_frames: int, block: int, reps: int = REPS, seed: int = 0,
+                       chunk: int = CHUNK):
+    """:func:`block_indices` ``chunk`` resamples at a time: yields (first resample, (rows,
+    n_frames) indices), so memory stays ``chunk x n_frames`` whatever the number of
+    resamples."""
+    n, b = int(n_frames), max(1, int(block))
+    starts = _starts(n, b, int(reps), int(seed))
+    for c0 in range(0, int(reps), max(1, int(chunk))):
+        yield c0, _indices(n, b, starts[c0:c0 + max(1, int(chunk))])
 
 
 def _resampled(n: int, b: int, reps: int, seed: int, anchor: np.ndarray,

@@ -4,7 +4,9 @@ A figure of a table is a statistic (a mean, or for APE an RMSE) over units: rela
 segments (``metrics.relative``), KITTI segments (``metrics.kitti``), aligned per-frame errors
 (``metrics.ape``), velocity windows (``metrics.velocity``). Each unit starts at frame
 ``anchor`` and ends at frame ``end`` (``anchor + 1`` for a single frame); ``metrics.intervals``
-resamples blocks of frames and takes every unit whose anchor was drawn. Two runs scored on the
+resamples blocks of frames and takes every unit whose anchor was drawn. APE, a figure of the
+accumulated drift, is resampled by its frame-to-frame errors instead
+(``metrics.drift_intervals``; ``Units.drift``). Two runs scored on the
 same frames have the same units, so their per-unit differences can be paired.
 
 The statistic of each ``Units`` reproduces the figure of the metric's summary exactly (tested):
@@ -20,6 +22,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from metrics.ape import ape_errors
+from metrics.drift_intervals import Drift
 from metrics.kitti import KITTI_LENGTHS_M, STEP_FRAMES, kitti_segments
 from metrics.relative import segment_errors
 from metrics.velocity import DEFAULT_WINDOW_S, own_velocity_series, velocity_series
@@ -29,12 +32,14 @@ from metrics.velocity import DEFAULT_WINDOW_S, own_velocity_series, velocity_ser
 class Units:
     """Per-unit errors of one metric: unit k starts at frame ``anchor[k]`` and ends at frame
     ``end[k]``; ``values`` maps a quantity to its per-unit values; the statistic is the RMSE
-    when ``rmse`` else the mean."""
+    when ``rmse`` else the mean. ``drift`` (APE): the figure's interval comes from resampling
+    the estimate's frame-to-frame errors, not the units."""
 
     anchor: np.ndarray
     end: np.ndarray
     values: dict[str, np.ndarray]
     rmse: bool = False
+    drift: Drift | None = None
 
     def statistic(self, key: str) -> float:
         v = self.values[key]
@@ -64,10 +69,11 @@ def kitti_units(gt_poses: np.ndarray, est_poses: np.ndarray, lengths_m=KITTI_LEN
 
 def ape_units(gt_poses: np.ndarray, est_poses: np.ndarray, alignment="se3") -> Units:
     """Per-frame APE after ``alignment`` (fitted once on the whole trajectory): ``trans_m``,
-    ``rot_deg``; the statistic is the RMSE."""
+    ``rot_deg``; the statistic is the RMSE; resampled by its drift."""
     trans, rot = ape_errors(gt_poses, est_poses, alignment)
     anchor = np.arange(trans.size)
-    return Units(anchor, anchor + 1, {"trans_m": trans, "rot_deg": rot}, rmse=True)
+    return Units(anchor, anchor + 1, {"trans_m": trans, "rot_deg": rot}, rmse=True,
+                 drift=Drift(gt_poses, est_poses, alignment))
 
 
 def velocity_units(gt_poses: np.ndarray, est_poses: np.ndarray, stamps: np.ndarray,

@@ -7,7 +7,9 @@ contender whose difference to the leader is not significant shares the leader's 
 The best of the rest and its ties are underlined. Nothing else is marked.
 
 "Significant": the 95 % interval of the paired difference (the same segments of both runs,
-resampled with the same blocks of frames: ``metrics.intervals.paired_interval``) excludes zero.
+resampled with the same blocks of frames: ``metrics.intervals.paired_interval``; for APE both
+estimates' frame-to-frame errors resampled with the same blocks:
+``metrics.drift_intervals.paired_ape_interval``) excludes zero.
 Two figures without common segments (other frames scored) are significantly different only when
 their own intervals do not overlap; figures without intervals (the time per frame) by value.
 """
@@ -20,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from metrics.drift_intervals import paired_ape_interval
 from metrics.intervals import paired_interval
 
 #: a part's mark: bold, underlined, none
@@ -78,6 +81,9 @@ def worse(a: Stat, b: Stat) -> bool:
     ua = a.units() if a.units is not None else None
     ub = b.units() if b.units is not None else None
     if ua is not None and ub is not None:
+        drift = _paired_drift(ua, ub)
+        if drift is not None:
+            return bool(drift.low > 0.0)
         common = _common(ua, ub)
         if common is not None:
             n_frames, anchor, end, va, vb, rmse = common
@@ -85,6 +91,16 @@ def worse(a: Stat, b: Stat) -> bool:
     if a.ci is not None and b.ci is not None:
         return bool(a.ci[0] > b.ci[1])
     return a.value > b.value
+
+
+def _paired_drift(ua: tuple, ub: tuple):
+    """The paired APE interval (``metrics.drift_intervals``) when both figures are APE of the
+    same quantity on the same GT frames with the same alignment; else None."""
+    (_, units_a, key_a, _), (_, units_b, key_b, _) = ua, ub
+    da, db = units_a.drift, units_b.drift
+    if da is None or db is None or key_a != key_b or not da.same_frames(db):
+        return None
+    return paired_ape_interval(da, db, key_a)
 
 
 def _common(ua: tuple, ub: tuple):

@@ -14,7 +14,7 @@ trajectory files.
 from __future__ import annotations
 
 import math
-from typing import Any
+from typing import Any, Literal
 
 from pydantic import (
     BaseModel,
@@ -67,13 +67,17 @@ Ci = list[Num] | None  # a confidence interval [low, high] of the statistic besi
 
 
 class Spread(_Model):
-    """How sure a figure is (``metrics.intervals``): its intervals come from a circular block
-    bootstrap with blocks of ``block_frames`` frames at ``RunResult.ci_level``; behind it stand
-    ``n_independent`` non-overlapping units (segments, windows, blocks of frames). A figure
-    with fewer than two is never ranked."""
+    """How sure a figure is: its intervals come from a circular block bootstrap with blocks of
+    ``block_frames`` frames at ``RunResult.ci_level``; behind it stand ``n_independent``
+    independent pieces. ``resampled``: "units" - the figure's segments or windows, drawn by the
+    frame they start at (``metrics.intervals``; the pieces are non-overlapping units); "step
+    errors" (APE) - the estimate's frame-to-frame errors, re-chained along the GT path and
+    scored again (``metrics.drift_intervals``; the pieces are whole blocks). A figure with
+    fewer than two pieces is never ranked."""
 
     block_frames: int | None = None
     n_independent: int | None = None
+    resampled: Literal["units", "step errors"] | None = None
 
 
 class RelativeError(_Model):

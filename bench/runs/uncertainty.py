@@ -7,8 +7,9 @@ independent (non-overlapping) units behind it:
 - relative error per length: the rotation and translation means, blocks at least one segment's
   span (``metrics.intervals.block_frames``);
 - KITTI drift: the translation [%] and rotation [deg/100 m] means over every segment;
-- APE: the translation and rotation RMSE, the alignment fitted once on the whole trajectory
-  (the resampling is of the aligned per-frame errors);
+- APE: the translation and rotation RMSE, from trajectories re-chained from blocks of the
+  estimate's frame-to-frame errors along the same path and aligned as the figure
+  (``metrics.drift_intervals``);
 - velocity error: the mean error norm over the windows.
 
 The resampling is seeded (``SEED``): the same trajectory gives the same interval, and two runs
@@ -21,6 +22,7 @@ from __future__ import annotations
 import numpy as np
 
 from bench.runs.result import Spread, num
+from metrics.drift_intervals import ape_intervals
 from metrics.intervals import LEVEL, REPS, Interval, unit_intervals
 from metrics.units import Units
 
@@ -38,11 +40,15 @@ def intervals(units: Units, n_frames: int, keys: dict[str, str]) -> dict:
     of one figure's units over ``n_frames`` scored frames."""
     if len(units) == 0:
         return {field: None for field in keys.values()} | {"spread": Spread(n_independent=0)}
-    ivs = unit_intervals(n_frames, units.anchor, units.end,
-                         {k: units.values[k] for k in keys}, rmse=units.rmse, level=LEVEL,
-                         reps=REPS, seed=SEED)
+    if units.drift is not None:
+        ivs = ape_intervals(units.drift, level=LEVEL, reps=REPS, seed=SEED)
+    else:
+        ivs = unit_intervals(n_frames, units.anchor, units.end,
+                             {k: units.values[k] for k in keys}, rmse=units.rmse, level=LEVEL,
+                             reps=REPS, seed=SEED)
     first = next(iter(ivs.values()))
     out = {field: _ci(ivs[key]) for key, field in keys.items()}
     out["spread"] = Spread(block_frames=first.block_frames or None,
-                           n_independent=first.n_independent)
+                           n_independent=first.n_independent,
+                           resampled="step errors" if units.drift is not None else "units")
     return out

@@ -79,6 +79,7 @@ FIGURES = {
     "relative 48 m rotation": (lambda g, e: relative_units(g, e, 48.0), "rot_deg"),
     "relative 48 m translation": (lambda g, e: relative_units(g, e, 48.0), "trans_m"),
     "APE translation RMSE": (lambda g, e: ape_units(g, e, "se3"), "trans_m"),
+    "APE rotation RMSE": (lambda g, e: ape_units(g, e, "se3"), "rot_deg"),
 }
 
 
