@@ -294,3 +294,16 @@ def test_correlation_length_agrees_with_an_independent_implementation():
                                         (0.7, 120, 1227, 16.44), (0.5, 2000, 4, 14.77)):
         x = lfilter([1.0], [1.0, -phi], np.random.default_rng(seed).normal(size=n))
         assert abs(correlation_length(x) - arch_circular) < 1.0, (phi, n, seed)
+
+
+def test_a_scored_figures_interval_is_the_95_percent_one():
+    from bench.runs.uncertainty import intervals
+
+    gt, est, _ = _drive(600, seed=7)
+    u = relative_units(gt, est, 8.0)
+    out = intervals(u, len(gt), {"trans_m": "trans_m_mean_ci"})
+    ivs = {level: unit_intervals(len(gt), u.anchor, u.end, {"t": u.values["trans_m"]},
+                                 level=level)["t"] for level in (0.9, 0.95)}
+    assert out["trans_m_mean_ci"] == pytest.approx([ivs[0.95].low, ivs[0.95].high])
+    assert ivs[0.9].high - ivs[0.9].low < ivs[0.95].high - ivs[0.95].low
+    assert out["spread"].n_independent == ivs[0.95].n_independent
