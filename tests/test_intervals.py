@@ -307,3 +307,16 @@ def test_a_scored_figures_interval_is_the_95_percent_one():
     assert out["trans_m_mean_ci"] == pytest.approx([ivs[0.95].low, ivs[0.95].high])
     assert ivs[0.9].high - ivs[0.9].low < ivs[0.95].high - ivs[0.95].low
     assert out["spread"].n_independent == ivs[0.95].n_independent
+
+
+def test_a_weak_correlation_of_a_short_series_still_lengthens_the_block():
+    """Lags 1 .. K_N each below the significance band (m = 0) still leave M = 2, so the lag-one
+    correlation counts. Known answers of arch 8.0 (``optimal_block_length``, circular) on
+    seeded AR(1) series, computed once offline; with M = 1 the flat-top window gave lag one
+    no weight and every such series a block of 1."""
+    from scipy.signal import lfilter
+
+    for phi, n, seed, arch_circular in ((0.3, 60, 6, 3.04), (0.3, 100, 2, 2.30),
+                                        (0.2, 100, 1, 1.85)):
+        x = lfilter([1.0], [1.0, -phi], np.random.default_rng(seed).normal(size=n))
+        assert abs(correlation_length(x) - arch_circular) < 1.0, (phi, n, seed)
