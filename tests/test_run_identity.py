@@ -482,3 +482,19 @@ def test_this_machines_cpu_model_holds_its_whole_model_name_line():
     name = next(x for x in lines if x.startswith("model name")).split(":", 1)[1].strip()
     family = next(x for x in lines if x.startswith("cpu family")).split(":", 1)[1].strip()
     assert cpu_model().startswith(name + " (") and f"family {family} " in cpu_model()
+
+
+def test_renaming_a_module_changes_the_key(code_copy):
+    """The key holds every file's path beside its content: the same bytes under another module
+    name are other code (imports resolve by name)."""
+    from bench.runs import identity
+
+    before = identity.code_identity(code_copy)
+    old = code_copy / "metrics" / "timing.py"
+    new = code_copy / "metrics" / "timing_renamed.py"
+    old.rename(new)
+    try:
+        assert identity.code_identity(code_copy) != before
+    finally:
+        new.rename(old)
+    assert identity.code_identity(code_copy) == before
