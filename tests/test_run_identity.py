@@ -498,3 +498,25 @@ def test_renaming_a_module_changes_the_key(code_copy):
     finally:
         new.rename(old)
     assert identity.code_identity(code_copy) == before
+
+
+def test_a_librarys_requirements_leave_out_those_of_its_extras():
+    """pydantic requires pydantic-core always, email-validator only for its ``email`` extra:
+    a run that loaded pydantic records the one, never the other (even if something else loaded
+    it)."""
+    from bench.runs.libraries import _requirements
+
+    required = _requirements("pydantic")
+    assert "pydantic-core" in required and "annotated-types" in required
+    assert "email-validator" not in required and "tzdata" not in required
+    assert _requirements("no-such-dist-xyz") == []
+
+
+def test_another_python_version_counts_as_a_changed_library():
+    import platform
+
+    from bench.runs.libraries import changed_libraries, libraries_current
+
+    now = platform.python_version()
+    assert libraries_current({"python": now})
+    assert changed_libraries({"python": "2.7.18"}) == {"python": ("2.7.18", now)}
