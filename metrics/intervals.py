@@ -110,8 +110,8 @@ def correlation_length(values: np.ndarray) -> int:
     White 2009) for the circular block bootstrap of the mean of ``values``: from the sample
     autocovariances up to the lag ``M`` where the autocorrelation stops being significant,
     ``b = (2 G^2 / D)^(1/3) n^(1/3)`` with ``G = sum lambda(k/M) |k| R(k)``,
-    ``D = 4/3 g(0)^2``, ``g(0) = sum lambda(k/M) R(k)`` and the flat-top window ``lambda``.
-    1 for a series too short or constant."""
+    ``D = 4/3 g(0)^2``, ``g(0) = sum lambda(k/M) R(k)`` and the flat-top window ``lambda``;
+    ``M = 2 m`` and at least 2. 1 for a series too short or constant."""
     x = np.asarray(values, dtype=np.float64)
     x = x[np.isfinite(x)]
     n = x.size
@@ -135,7 +135,9 @@ def correlation_length(values: np.ndarray) -> int:
             break
     if m is None:
         m = n // 2
-    big_m = int(min(max(2 * m, 1), n // 2 - 1)) if n // 2 > 1 else 1
+    # M = 2 m at least 2 (as in Patton's and arch's implementations): M = 1 would give lag 1
+    # no weight (lambda(1) = 0), G = 0 and a block of 1 whatever the correlation
+    big_m = int(min(max(2 * m, 2), n // 2 - 1)) if n // 2 > 1 else 1
     lags = np.arange(-big_m, big_m + 1)
     t = np.abs(lags) / big_m
     lam = np.where(t <= 0.5, 1.0, np.where(t <= 1.0, 2.0 * (1.0 - t), 0.0))

@@ -196,3 +196,35 @@ def test_t_interval_of_a_block_bootstrapped_mean():
     assert spread.low_deg[0] == pytest.approx(x.mean() - half, rel=1e-9)
     assert spread.high_deg[0] == pytest.approx(x.mean() + half, rel=1e-9)
     assert spread.resamples == 300 and spread.sd_deg[1] == 0.0
+
+
+def test_residual_series_are_ordered_by_frame_whatever_the_row_order():
+    """Rows given out of frame order: each residual series is in frame order (the correlation
+    length is of the series along the drive). fitted = x, target = x turned by a_i about z:
+    the residual on z is sin(a_i)."""
+    from bench.data.rotation_bootstrap import residual_series
+
+    frames = np.array([3, 0, 4, 1, 2])
+    angles = 0.01 * (frames + 1.0)
+    fitted = np.tile([1.0, 0.0, 0.0], (5, 1))
+    target = np.stack([np.cos(angles), np.sin(angles), np.zeros(5)], axis=1)
+    (z,) = residual_series(fitted, target, np.array([False, False, True]), frames)
+    np.testing.assert_allclose(z, np.sin(0.01 * np.arange(1, 6)), rtol=1e-12)
+
+
+def test_resamples_that_cannot_be_fitted_give_no_interval_quietly():
+    import warnings
+
+    from bench.data.rotation_bootstrap import BlockChoice, bootstrap_angles
+
+    calls = []
+
+    def fit(idx):  # only the first resample can be fitted
+        calls.append(1)
+        return np.zeros(3) if len(calls) == 1 else None
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        spread = bootstrap_angles(40, BlockChoice(5, 0.5, 5, ()), 20, 0, fit, np.zeros(3))
+    assert spread.resamples == 1
+    assert np.isnan(spread.sd_deg).all() and np.isnan(spread.low_deg).all()

@@ -189,3 +189,137 @@ def test_intervals_cover_the_long_run_mean_about_95_percent_of_the_time():
     assert 0.84 <= rows["relative 8 m translation"].coverage <= 1.0
     assert 0.80 <= rows["relative 48 m rotation"].coverage <= 1.0
     assert rows["relative 48 m rotation"].median_independent >= 10
+
+
+# --- mutation review: edges of the rules ------------------------------------------------------
+
+def test_an_interval_touching_zero_does_not_exclude_it_and_two_units_are_rankable():
+    from metrics.intervals import Interval
+
+    assert not Interval(0.0, 1.0, 0.95, 5, 10).excludes_zero  # [0, 1] holds zero
+    assert not Interval(-1.0, 0.0, 0.95, 5, 10).excludes_zero
+    assert Interval(1e-9, 1.0, 0.95, 5, 10).excludes_zero
+    assert Interval(-1.0, -1e-9, 0.95, 5, 10).excludes_zero
+    assert not Interval(np.nan, -1.0, 0.95, 5, 10).excludes_zero
+    assert Interval(0.1, 0.2, 0.95, 5, 2).rankable  # MIN_INDEPENDENT = 2 is ranked
+    assert not Interval(0.1, 0.2, 0.95, 5, 1).rankable
+
+
+def test_correlation_length_of_an_ar1_series_approaches_the_theoretical_optimum():
+    """For AR(1) ``x_t = phi x_{t-1} + e_t`` the autocovariances are ``phi^|k| s2`` and the
+    circular block bootstrap's optimal block (Politis & White 2004, with Patton et al.'s
+    correction: ``(2 G^2 / D)^(1/3) n^(1/3)``, ``D = 4/3 g(0)^2``) is
+    ``(6 phi^2 / (1 - phi^2)^2)^(1/3) n^(1/3)``. The estimate from a long series lands near it."""
+    from scipy.signal import lfilter
+
+    n = 100_000
+    for phi in (0.5, 0.8):
+        theory = (6 * phi**2 / (1 - phi**2) ** 2) ** (1 / 3) * n ** (1 / 3)
+        got = [correlation_length(lfilter([1.0], [1.0, -phi],
+                                          np.random.default_rng(seed).normal(size=n)))
+               for seed in range(3)]
+        assert np.mean(got) == pytest.approx(theory, rel=0.08), (phi, got, theory)
+
+
+def test_block_frames_takes_the_larger_of_span_and_correlation_capped_at_half():
+    from metrics.intervals import block_frames
+
+    white = np.random.default_rng(0).normal(size=400)
+    assert correlation_length(white) < 10
+    assert block_frames(400, 50.0, white) == 50  # the span wins over a short correlation
+    assert block_frames(400, 2.5) == 3  # whole frames, rounded up
+    assert block_frames(40, 30.0) == 20  # never more than half the frames
+    assert block_frames(3, 30.0) == 1
+
+
+def test_the_block_is_at_least_the_median_span_of_the_units():
+    # 60 units: 40 spanning 20 frames, 20 spanning 2; white values (correlation length small)
+    n = 200
+    anchor = np.arange(60) * 3
+    end = anchor + np.where(np.arange(60) % 3 == 0, 2, 20)
+    v = np.random.default_rng(2).normal(1.0, 0.1, 60)
+    iv = unit_intervals(n, anchor, end, {"v": v}, reps=200)["v"]
+    assert iv.block_frames == 20
+
+
+def test_a_constant_paired_shift_has_an_interval_of_exactly_that_shift():
+    # every resample's difference is the shift; widening about it changes nothing
+    rng = np.random.default_rng(5)
+    n = 300
+    b = np.abs(rng.normal(1.0, 0.3, n))
+    anchor, end = np.arange(n), np.arange(n) + 40  # few independent segments: f well above 1
+    d = paired_interval(n, anchor, end, b + 0.25, b)
+    assert d.n_independent < 10
+    assert (d.low, d.high) == pytest.approx((0.25, 0.25), abs=1e-12)
+    d = paired_interval(n, anchor, end, b, b + 0.25)
+    assert (d.low, d.high) == pytest.approx((-0.25, -0.25), abs=1e-12)
+
+
+def test_the_paired_block_follows_the_correlation_of_the_difference():
+    # a and b share a large white component; their difference is a slow AR(1): the block
+    # must follow the difference's correlation, not the two series' (short) ones
+    from scipy.signal import lfilter
+
+    from metrics.intervals import block_frames
+
+    rng = np.random.default_rng(6)
+    n = 2000
+    common = rng.normal(0.0, 10.0, n)
+    slow = lfilter([1.0], [1.0, -0.95], rng.normal(0.0, 0.1, n))
+    a, b = 20.0 + common + slow, 20.0 + common - slow
+    anchor, end = np.arange(n), np.arange(n) + 2  # units of two frames (not APE's single)
+    want = block_frames(n, 2.0, a - b)
+    assert want > 2 * max(block_frames(n, 2.0, a), block_frames(n, 2.0, b))
+    assert paired_interval(n, anchor, end, a, b, block=None, reps=200).block_frames >= want
+
+
+def test_velocity_units_per_axis_reproduce_the_metrics_axis_means():
+    gt, est, stamps = _drive()
+    v = velocity_errors(gt, est, stamps, 1.0)
+    u = velocity_units(gt, est, stamps, 1.0)
+    for k, axis in enumerate(("x_abs_mps", "y_abs_mps", "z_abs_mps")):
+        assert np.mean(u.values[axis]) == pytest.approx(v.axis_mean_mps[k], rel=1e-12)
+    from metrics.units import Units
+
+    empty = Units(np.array([], int), np.array([], int), {"e": np.array([])})
+    assert np.isnan(empty.statistic("e"))
+
+
+def test_correlation_length_agrees_with_an_independent_implementation():
+    """Known answers: the circular-bootstrap block length of ``arch`` 8.0
+    (``arch.bootstrap.optimal_block_length``, Kevin Sheppard's implementation of Politis &
+    White with Patton et al.'s correction) on seeded AR(1) series, computed once offline.
+    ``correlation_length`` rounds up; arch caps its lag window at sqrt(n) + K_N, which does not
+    bind on these series, so both agree to within one frame."""
+    from scipy.signal import lfilter
+
+    for phi, n, seed, arch_circular in ((0.7, 600, 1125, 29.38), (0.7, 120, 1218, 14.42),
+                                        (0.7, 120, 1227, 16.44), (0.5, 2000, 4, 14.77)):
+        x = lfilter([1.0], [1.0, -phi], np.random.default_rng(seed).normal(size=n))
+        assert abs(correlation_length(x) - arch_circular) < 1.0, (phi, n, seed)
+
+
+def test_a_scored_figures_interval_is_the_95_percent_one():
+    from bench.runs.uncertainty import intervals
+
+    gt, est, _ = _drive(600, seed=7)
+    u = relative_units(gt, est, 8.0)
+    out = intervals(u, len(gt), {"trans_m": "trans_m_mean_ci"})
+    ivs = {level: unit_intervals(len(gt), u.anchor, u.end, {"t": u.values["trans_m"]},
+                                 level=level)["t"] for level in (0.9, 0.95)}
+    assert out["trans_m_mean_ci"] == pytest.approx([ivs[0.95].low, ivs[0.95].high])
+    assert ivs[0.9].high - ivs[0.9].low < ivs[0.95].high - ivs[0.95].low
+    assert out["spread"].n_independent == ivs[0.95].n_independent
+
+
+def test_a_weak_correlation_of_a_short_series_still_lengthens_the_block():
+    """Lags 1 .. K_N each below the significance band (m = 0) still leave M = 2, so the lag-one
+    correlation counts. Known answers of arch 8.0 (``optimal_block_length``, circular) on
+    seeded AR(1) series, computed once offline; with M = 1 the flat-top window gave lag one
+    no weight and every such series a block of 1."""
+    from scipy.signal import lfilter
+
+    for phi, n, seed, arch_circular in ((0.3, 60, 6, 3.04), (0.3, 100, 2, 2.30),
+                                        (0.2, 100, 1, 1.85)):
+        x = lfilter([1.0], [1.0, -phi], np.random.default_rng(seed).normal(size=n))
+        assert abs(correlation_length(x) - arch_circular) < 1.0, (phi, n, seed)

@@ -95,3 +95,19 @@ def test_an_old_metrics_json_without_trajectories_is_read_as_it_is(tmp_path, cap
     assert run.result.relative(8.0).trans_m_mean == 0.5 and run.result.ape.requested == "se3"
     assert run.seed is Seed.WITH and run.result.kitti is None
     assert "1 read as they are" in capsys.readouterr().err
+
+
+def test_fell_back_is_more_than_five_percent_of_the_registered_frames():
+    def run(frames, replaced=0, unconverged=0, seed=True):
+        return RunResult(sequence="s", method="m", seed=seed, frames=frames,
+                         frames_replaced=replaced, frames_unconverged=unconverged)
+
+    # 21 frames are 20 registrations: 1 of them is exactly 5 %, not more
+    assert run(21, 1).fallback_share == pytest.approx(0.05) and not run(21, 1).fell_back
+    assert run(20, 1).fell_back  # 1 of 19
+    assert run(20, 0, 1).fell_back  # a frame not converged counts as well
+    assert run(41, 1, 1).fallback_share == pytest.approx(2 / 40)
+    assert run(1).fallback_share == 0.0 and not run(1).fell_back
+    assert run(20, 1, seed=False).fallback_text() == (
+        "1 of 19 frames replaced by the identity (no usable registration)")
+    assert run(20, 0, 2).fallback_text() == "2 of 19 frames not converged (last iterate kept)"

@@ -482,3 +482,41 @@ def test_this_machines_cpu_model_holds_its_whole_model_name_line():
     name = next(x for x in lines if x.startswith("model name")).split(":", 1)[1].strip()
     family = next(x for x in lines if x.startswith("cpu family")).split(":", 1)[1].strip()
     assert cpu_model().startswith(name + " (") and f"family {family} " in cpu_model()
+
+
+def test_renaming_a_module_changes_the_key(code_copy):
+    """The key holds every file's path beside its content: the same bytes under another module
+    name are other code (imports resolve by name)."""
+    from bench.runs import identity
+
+    before = identity.code_identity(code_copy)
+    old = code_copy / "metrics" / "timing.py"
+    new = code_copy / "metrics" / "timing_renamed.py"
+    old.rename(new)
+    try:
+        assert identity.code_identity(code_copy) != before
+    finally:
+        new.rename(old)
+    assert identity.code_identity(code_copy) == before
+
+
+def test_a_librarys_requirements_leave_out_those_of_its_extras():
+    """pydantic requires pydantic-core always, email-validator only for its ``email`` extra:
+    a run that loaded pydantic records the one, never the other (even if something else loaded
+    it)."""
+    from bench.runs.libraries import _requirements
+
+    required = _requirements("pydantic")
+    assert "pydantic-core" in required and "annotated-types" in required
+    assert "email-validator" not in required and "tzdata" not in required
+    assert _requirements("no-such-dist-xyz") == []
+
+
+def test_another_python_version_counts_as_a_changed_library():
+    import platform
+
+    from bench.runs.libraries import changed_libraries, libraries_current
+
+    now = platform.python_version()
+    assert libraries_current({"python": now})
+    assert changed_libraries({"python": "2.7.18"}) == {"python": ("2.7.18", now)}

@@ -139,3 +139,79 @@ def test_units_of_a_run_folder_equal_the_metrics_json_figure(results):
     assert units.statistic(quantity) == pytest.approx(rr.result.relative(8.0).rot_deg_mean,
                                                       rel=1e-9)
     assert np.array_equal(units.anchor, relative_units(rr.run.gt, rr.run.est, 8.0).anchor)
+
+
+# --- mutation review: contenders and the fall-backs of ``worse`` ------------------------------
+
+def _base(seed=0, n=800):
+    rng = np.random.default_rng(seed)
+    anchor = np.arange(n - 20)
+    return anchor, np.abs(np.cumsum(rng.normal(size=anchor.size))) * 0.01 + 0.5
+
+
+def test_a_methods_better_row_represents_it_and_labelled_variants_are_apart():
+    n = 800
+    anchor, base = _base()
+    rows = [Row(["a seed"], (), [], {"method": "a"}), Row(["a no seed"], (), [], {"method": "a"}),
+            Row(["b"], (), [], {"method": "b"})]
+    parts = [Part("", stat=_stat(base * 2.0, anchor, n)), Part("", stat=_stat(base, anchor, n)),
+             Part("", stat=_stat(base * 1.2, anchor, n))]
+    assert mark_significant(rows, parts) == [OTHER, BEST, SECOND]
+    # two labelled variants of one method are two contenders, each marked on its own
+    rows = [Row(["a x"], (), [], {"method": "a", "label": "x"}),
+            Row(["a y"], (), [], {"method": "a", "label": "y"})]
+    parts = [Part("", stat=_stat(base, anchor, n)), Part("", stat=_stat(base * 1.5, anchor, n))]
+    assert mark_significant(rows, parts) == [BEST, SECOND]
+
+
+def _rows(k):
+    return [Row([str(i)], (), [], {"method": str(i)}) for i in range(k)]
+
+
+def test_without_common_segments_overlapping_intervals_tie_and_plain_values_tie_when_equal():
+    # own intervals only: a difference is significant when they do not overlap
+    parts = [Part("", stat=Stat(1.0, (0.8, 1.2))), Part("", stat=Stat(1.1, (0.9, 1.3))),
+             Part("", stat=Stat(2.0, (1.25, 2.5)))]
+    assert mark_significant(_rows(3), parts) == [BEST, BEST, SECOND]
+    # no interval at all (a time per frame): by value, equal values share the mark
+    parts = [Part("", stat=Stat(5.0)), Part("", stat=Stat(5.0)), Part("", stat=Stat(6.0))]
+    assert mark_significant(_rows(3), parts) == [BEST, BEST, SECOND]
+
+
+def test_runs_over_other_frames_are_not_paired_and_partly_shared_segments_are():
+    from metrics.units import Units
+
+    anchor, base = _base()
+
+    def stat(values, anchor, n_frames):
+        units = Units(anchor, anchor + 20, {"e": values})
+        return Stat(float(np.mean(values)), (0.0, 10.0), 10,
+                    lambda: (n_frames, units, "e", False))
+
+    # b 50 % worse on the same segments, but scored on other frames (800 vs 900): only the
+    # (overlapping) own intervals may be compared: a tie
+    parts = [Part("", stat=stat(base, anchor, 800)),
+             Part("", stat=stat(base * 1.5, anchor, 900))]
+    assert mark_significant(_rows(2), parts) == [BEST, BEST]
+    # b lacks a's first 10 segments: the 770 both have are paired, and b is worse on them
+    parts = [Part("", stat=stat(base, anchor, 800)),
+             Part("", stat=stat(base[10:] * 1.5, anchor[10:], 800))]
+    assert mark_significant(_rows(2), parts) == [BEST, SECOND]
+
+
+def test_only_the_shared_segments_are_compared_and_each_with_its_own_twin():
+    from metrics.units import Units
+
+    # errors rising along the path; b is a on every segment both have but lacks a's first 10
+    # (its mean is higher only because of that): paired on the same segments, a tie. Paired
+    # with the wrong segments (a's first 770) b would be 10 steps of the rise above a.
+    anchor = np.arange(780)
+    a = np.linspace(0.5, 1.5, 780)
+
+    def stat(values, anchor):
+        units = Units(anchor, anchor + 20, {"e": values})
+        return Stat(float(np.mean(values)), (0.0, 10.0), 10, lambda: (800, units, "e", False))
+
+    parts = [Part("", stat=stat(a, anchor)), Part("", stat=stat(a[10:], anchor[10:]))]
+    assert parts[1].stat.value > parts[0].stat.value
+    assert mark_significant(_rows(2), parts) == [BEST, BEST]

@@ -60,3 +60,25 @@ def test_relative_table_caption_carries_the_synthetic_notice(tmp_path):
     ).dump())
     tex = to_latex(relative_table(runs(tmp_path), [8.0]))
     assert "\\caption{SYNTHETIC DATA:" in tex
+
+
+def test_stat_text_states_the_interval_and_too_few_segments():
+    from bench.report.table import stat_text
+
+    assert stat_text(1.23456, None, 2) == "1.235"  # two independent segments: nothing added
+    assert stat_text(1.0, None, 1) == "1.000 (1 segment)"
+    assert stat_text(1.0, None, 0) == "1.000 (0 segments)"
+    assert stat_text(1.0, [0.5, 1.5], 5, show_ci=True) == "1.000 [0.500, 1.500]"
+    assert stat_text(1.0, [None, None], 5, show_ci=True) == "1.000"  # no interval
+    assert stat_text(1.0, [0.5, 1.5], 5) == "1.000"
+    assert stat_text(float("nan"), None, 5) == "-"
+
+
+def test_the_value_rule_leaves_a_figure_on_one_segment_unmarked():
+    from bench.report.significance import BEST, OTHER, SECOND, Stat
+    from bench.report.table import mark_column
+
+    rows = [Row([k], (), [Cell([Part(k, stat=Stat(v, None, n))])])
+            for k, v, n in (("a", 0.1, 1), ("b", 0.5, 10), ("c", 0.7, 10), ("d", 0.9, 10))]
+    mark_column(rows, 0, 0, marks="value")
+    assert [r.cells[0].parts[0].rank for r in rows] == [OTHER, BEST, SECOND, OTHER]

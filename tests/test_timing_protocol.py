@@ -259,3 +259,19 @@ def test_a_compilation_in_a_timed_frame_marks_the_run_unclean_and_it_runs_again(
         metrics = json.loads((first.run_dir / "metrics.json").read_text())
         assert metrics["timing_clean"] is (cls is OnTime)
         assert run_job(job).status == second
+
+
+def test_a_frame_exactly_at_the_outlier_factor_is_not_flagged():
+    """"Over OUTLIER_FACTOR x the median": a frame at exactly 10x is not flagged, above it is;
+    the median is the middle frame's time (a single far frame does not move it)."""
+    from methods.base import FrameRecord
+    from methods.timing import OUTLIER_FACTOR, timing_outliers
+
+    def frame(i, ms):
+        return FrameRecord(i, i * 0.1, ms, 100, 50, 3, True, ms / 2, ms, ms, ms, 0)
+
+    frames = [frame(i, 1.0) for i in range(1, 20)]
+    frames[4] = frame(5, OUTLIER_FACTOR * 1.0)
+    assert timing_outliers(frames) == {}
+    frames[4] = frame(5, OUTLIER_FACTOR * 1.0 + 0.01)
+    assert list(timing_outliers(frames)) == [5]

@@ -237,3 +237,21 @@ def test_numba_imported_and_running_before_bench_is_limited_at_run_time(tmp_path
         assert out[method] == {"frames": 12, "threads": 1}
     assert out["late"] == 2
     assert out["start"] == "spawn" and out["process"] == ["done"]
+
+
+def test_a_users_setting_of_one_is_no_override_and_a_numba_limited_at_run_time_records_one(
+        monkeypatch):
+    """``overridden_settings`` keeps only values the pinning changed (a user's 1 is not one);
+    with numba's pool found running (limited at run time, its variable left alone) the thread
+    settings still say numba runs one thread."""
+    from bench import threads
+
+    monkeypatch.setattr(threads, "overridden_settings", {})
+    monkeypatch.setenv("OMP_NUM_THREADS", "1")
+    monkeypatch.setenv("MKL_NUM_THREADS", "3")
+    threads.pin_threads()
+    assert threads.overridden_settings == {"MKL_NUM_THREADS": "3"}
+    assert os.environ["MKL_NUM_THREADS"] == "1"
+    monkeypatch.setattr(threads, "_numba_limited_at_run_time", [True])
+    monkeypatch.delenv("NUMBA_NUM_THREADS", raising=False)
+    assert threads.thread_settings()["NUMBA_NUM_THREADS"] == "1"

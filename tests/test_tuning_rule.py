@@ -226,3 +226,59 @@ def test_an_edge_shared_with_the_reference_is_not_where_the_gain_came_from():
               for i, f in enumerate(factors)]
     d = decide(points, errors, 0, FOLDS, [], LENGTHS, reps=200, min_gain=0.01)
     assert d.chosen == 1 and not d.extend
+
+
+# --- mutation review: the rule's edges ----------------------------------------------------
+
+def test_better_and_worse_are_about_the_interval_not_the_value():
+    from bench.runs.tuning_rule import Estimate
+
+    assert Estimate(0.95, 0.90, 0.99, 0.95).better
+    assert not Estimate(0.95, 0.90, 1.01, 0.95).better  # lower, not significantly
+    assert Estimate(1.10, 1.01, 1.20, 0.95).worse
+    assert not Estimate(1.05, 0.98, 1.12, 0.95).worse  # higher, not significantly
+    assert not Estimate(0.9, float("nan"), float("nan"), 0.95).better
+
+
+def test_a_gain_of_exactly_min_gain_qualifies():
+    # every error of point 2 exactly half the reference's: C = 0.5 = 1 - min_gain
+    errors = _sweep({"A": [1, 1.3, 0.5, 1.4], "B": [1, 1.3, 0.5, 1.4]}, noise=0.0)
+    d = decide(POINTS, errors, 0, FOLDS, [], LENGTHS, reps=100, min_gain=0.5)
+    assert d.verdicts[2].estimates["fold 1 tune (A)"].value == 0.5
+    assert d.chosen == 2 and d.verdicts[2].qualifies
+
+
+def test_a_validation_just_above_one_reverses():
+    errors = _sweep({"A": [1, 1.3, 0.8, 1.4], "B": [1, 1.3, 1.02, 1.4]}, noise=0.0)
+    d = decide(POINTS, errors, 0, FOLDS, [], LENGTHS, reps=100)
+    assert d.chosen == 0 and "fold 1: reverses on B (C 1.020)" in d.verdicts[2].why
+
+
+def test_sequences_are_resampled_independently_so_more_of_them_narrow_the_interval():
+    # the same sequence twice: independent draws average to an interval about 1/sqrt(2) as
+    # wide as one sequence's (the same draws twice would leave it as wide)
+    ref = _noisy(1, 1.0, 0.0)
+    point = _noisy(2, 0.9, 0.3, ref)
+    one = estimate([(point, ref)], LENGTHS, reps=400)
+    two = estimate([(point, ref), (point, ref)], LENGTHS, reps=400)
+    assert two.value == pytest.approx(one.value)
+    assert (two.high - two.low) < 0.85 * (one.high - one.low)
+
+
+def test_the_interval_is_the_central_percentile_interval_of_the_averaged_draws():
+    ref_a, ref_b = _noisy(1, 1.0, 0.0), _noisy(2, 1.0, 0.0)
+    pairs = [(_noisy(3, 0.9, 0.3, ref_a), ref_a), (_noisy(4, 1.1, 0.3, ref_b), ref_b)]
+    e = estimate(pairs, LENGTHS, level=0.9, reps=300, seed=5)
+    draws = np.mean([sequence_draws(p, r, LENGTHS, 300, 5 + k)[1]
+                     for k, (p, r) in enumerate(pairs)], axis=0)
+    assert (e.low, e.high) == pytest.approx(tuple(np.quantile(draws, [0.05, 0.95])))
+
+
+def test_a_best_point_on_the_grid_s_smallest_value_asks_for_a_wider_grid_too():
+    refs = {s: _noisy(10 + k, 1.0, 0.0) for k, s in enumerate("AB")}
+    factors = [0.7, 0.85, 1.0, 1.2]  # the reference is gate 3.0; gate 1.0 is the best
+    errors = [{s: refs[s] if i == 2 else _noisy(60 + i, f, 0.05, refs[s]) for s in "AB"}
+              for i, f in enumerate(factors)]
+    d = decide(POINTS, errors, 2, FOLDS, [], LENGTHS, reps=200)
+    assert d.chosen is None and d.extend
+    assert "gate_m=1.0 is the grid's smallest" in d.text
