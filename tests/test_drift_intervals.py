@@ -127,3 +127,42 @@ def test_ape_intervals_cover_the_long_run_mean_where_blocks_of_frame_errors_do_n
         frame_blocks.append(old["trans_m"].low <= truth <= old["trans_m"].high)
     assert np.mean(hits) >= 0.85
     assert np.mean(frame_blocks) < 0.7
+
+
+def test_a_mirrored_estimate_is_aligned_by_a_rotation_not_a_reflection_as_evo():
+    gt = ground_truth(200)
+    est = noisy_estimate(gt, NoiseModel(0.05, 0.01), seed=8)
+    est[:, 1, 3] *= -1.0  # positions mirrored: the best orthogonal map would be a reflection
+    est[:, 2, 3] += np.linspace(0.0, 1.0, len(est))  # and not planar
+    reference = ape(gt, est, "se3")
+    observed = Drift(gt, est, "se3").observed
+    assert observed["trans_m"] == pytest.approx(reference.trans_rmse_m, rel=1e-9)
+    assert observed["rot_deg"] == pytest.approx(reference.rot_rmse_deg, rel=1e-7)
+
+
+def test_fewer_than_two_whole_blocks_give_no_interval_and_pairs_are_widened_for_them():
+    from scipy.stats import norm
+    from scipy.stats import t as student_t
+
+    from metrics.drift_intervals import _pivot
+
+    gt = ground_truth(401)
+    a = Drift(gt, noisy_estimate(gt, NoiseModel(0.05, 0.01), seed=5))
+    b = Drift(gt, noisy_estimate(gt, NoiseModel(0.15, 0.03), seed=5))
+    assert np.isnan(ape_intervals(a, reps=100, block=400)["trans_m"].low)  # one block
+    two = ape_intervals(a, reps=100, block=200)["trans_m"]
+    assert two.n_independent == 2 and np.isfinite(two.low)
+    # two blocks: the paired interval is the pivotal one widened by t_1 / z about the difference
+    diff = b.observed["trans_m"] - a.observed["trans_m"]
+    lo, hi = _pivot(diff, b.draws(200, 100)["trans_m"] - a.draws(200, 100)["trans_m"], 0.95)
+    paired = paired_ape_interval(b, a, "trans_m", reps=100, block=200)
+    factor = student_t.ppf(0.975, 1) / norm.ppf(0.975)
+    assert paired.high - diff == pytest.approx((hi - diff) * factor, rel=1e-9)
+    assert diff - paired.low == pytest.approx((diff - lo) * factor, rel=1e-9)
+
+
+def test_estimates_aligned_differently_are_not_paired():
+    gt = ground_truth(300)
+    est = noisy_estimate(gt, NoiseModel(), seed=1)
+    assert np.isnan(paired_ape_interval(Drift(gt, est, "se3"), Drift(gt, est, "sim3"),
+                                        reps=50).low)
