@@ -44,6 +44,7 @@ from loaders.synthetic.scenes import (
     WALL,
     Scene,
 )
+from loaders.synthetic.sensors import detection_margin_deg
 
 # per-material sampling: face density [1/m^2], face RCS mean/std [dBsm], edge spacing [m],
 # edge RCS mean/std [dBsm]
@@ -364,12 +365,12 @@ OCCLUSION_TOL = 0.15  # [m] a scatterer is visible when the first hit is at most
 
 def visible(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec) -> dict[str, np.ndarray]:
     """Scatterers seen from the sensor at ``o`` (world) with orientation ``R`` (world <- sensor)
-    in the scene frozen as ``geom``: inside the field of view and range limits, facing the
-    sensor and not occluded (the ray cast towards the scatterer first hits a surface no closer
-    than ``OCCLUSION_TOL`` before it). Returns the ids, sensor-frame points, world velocities
-    of the points (zero for static ones), primitive ids, the RCS towards the sensor (with
-    aspect loss and lobe) [dBsm], the incidence cosine, material, dynamic flag, Swerling case
-    and angle bias."""
+    in the scene frozen as ``geom``: inside the field of view (widened, see ``candidates``)
+    and range limits, facing the sensor and not occluded (the ray cast towards the scatterer
+    first hits a surface no closer than ``OCCLUSION_TOL`` before it). Returns the ids,
+    sensor-frame points, world velocities of the points (zero for static ones), primitive ids,
+    the RCS towards the sensor (with aspect loss and lobe) [dBsm], the incidence cosine,
+    material, dynamic flag, Swerling case and angle bias."""
     from loaders.synthetic.raycast import cast
 
     cand = candidates(sc, geom, o, R, spec)
@@ -379,12 +380,18 @@ def visible(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec) -> dict[st
 
 
 def candidates(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec) -> dict:
-    """Scatterers inside the field of view and range limits that face the sensor (before the
-    occlusion test): ids, world and sensor-frame points, range, incidence cosine, RCS towards
-    the sensor [dBsm] and primitive id."""
+    """Scatterers inside the field of view widened by ``sensors.detection_margin_deg`` and
+    inside the range limits that face the sensor (before the occlusion test): ids, world and
+    sensor-frame points, range, incidence cosine, RCS towards the sensor [dBsm] and primitive
+    id."""
     reach = spec.max_range + 1.0
     heading = float(np.arctan2(R[1, 0], R[0, 0]))
-    ids = [sc.static_in_sector(o[:2], heading, np.radians(spec.az_half_deg) + 0.05, reach)]
+    # a scatterer just outside the field of view is detected inside it through its neighbouring
+    # resolution cells and its angle errors: candidates reach that far beyond (the sensor
+    # model reports only the detections whose measured angles fall inside)
+    az_half, el_half = np.radians(np.array([spec.az_half_deg, spec.el_half_deg])
+                                  + detection_margin_deg(spec))
+    ids = [sc.static_in_sector(o[:2], heading, az_half + 0.05, reach)]
     P, Nrm, yaw_of = [sc.pos[ids[0]]], [sc.normal[ids[0]]], [np.zeros(len(ids[0]))]
     prim = [sc.prim[ids[0]]]
     for k, pid in enumerate(geom.mover_pid):
@@ -416,8 +423,8 @@ def candidates(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec) -> dict
     r_safe = np.maximum(r, 1e-9)
     cos_n = np.einsum("ij,ij->i", Nrm, o - P) / r_safe
     ok = ((r >= spec.min_range) & (r <= spec.max_range) & (cos_n > sc.cos_min[ids])
-          & (np.abs(np.arctan2(ps[:, 1], ps[:, 0])) <= np.radians(spec.az_half_deg))
-          & (np.abs(ps[:, 2]) <= r * np.sin(np.radians(spec.el_half_deg))))
+          & (np.abs(np.arctan2(ps[:, 1], ps[:, 0])) <= az_half)
+          & (np.abs(ps[:, 2]) <= r * np.sin(el_half)))
     ids, P, ps, r, cos_n, yaw_of, prim = (a[ok] for a in (ids, P, ps, r, cos_n, yaw_of, prim))
     # RCS towards the sensor: incidence loss and aspect lobe (viewing azimuth in the owner frame)
     view_az = np.arctan2(o[1] - P[:, 1], o[0] - P[:, 0]) - yaw_of

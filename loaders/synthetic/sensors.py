@@ -6,19 +6,20 @@ Doppler) to the exact values, then points are converted back to Cartesian; point
 measurement falls outside the field of view or the range limits are not reported.
 
 Radar: detections come mostly from the scene's persistent scattering centres (see
-scatterers.py: world-fixed, or fixed in a mover's body frame) that are in the field of view,
-face the sensor and are not occluded; each is detected when its SNR (point-target radar
-equation: RCS, aspect, r^-4 range loss, antenna taper and per-frame Swerling 1/3 fading)
-exceeds a threshold, so detections flicker but most persist. A semi-dense sensor also reports
-a strong scatterer in its neighbouring resolution cells (``resolution``, ``spread_loss_db``).
-A smaller share of diffuse surface returns comes from random rays (uniform in the FoV,
-per-frame RNG; patch reflectivity by material, incidence, r^-2 range loss, Swerling 1). Then
-random dropouts, multipath ghosts and clutter are applied and the strongest ``max_points``
-detections are kept. Radar noise follows the SNR (~1/sqrt(SNR), ``sigma_*`` at ``snr_ref_db``,
-floored at ``noise_floor``) and each scatterer has a persistent angle bias
-(``sigma_bias_deg``), plus an SNR-independent angular accuracy (``angle_accuracy_deg``). LiDAR:
-a fixed scan pattern (patterns.py: a uniform grid, or Aeva's 64-line CARLA pattern; density
-falls with range), a weak-return cut-off and random dropouts.
+scatterers.py: world-fixed, or fixed in a mover's body frame) that are in the field of view
+(widened by ``detection_margin_deg``: one just outside is detected inside through its
+neighbouring cells and angle errors), face the sensor and are not occluded; each is detected
+when its SNR (point-target radar equation: RCS, aspect, r^-4 range loss, antenna taper and
+per-frame Swerling 1/3 fading) exceeds a threshold, so detections flicker but most persist.
+A semi-dense sensor also reports a strong scatterer in its neighbouring resolution cells
+(``resolution``, ``spread_loss_db``). A smaller share of diffuse surface returns comes from
+random rays (uniform in the FoV, per-frame RNG; patch reflectivity by material, incidence,
+r^-2 range loss, Swerling 1). Then random dropouts, multipath ghosts and clutter are applied
+and the strongest ``max_points`` detections are kept. Radar noise follows the SNR
+(~1/sqrt(SNR), ``sigma_*`` at ``snr_ref_db``, floored at ``noise_floor``) and each scatterer
+has a persistent angle bias (``sigma_bias_deg``), plus an SNR-independent angular accuracy
+(``angle_accuracy_deg``). LiDAR: a fixed scan pattern (patterns.py: a uniform grid, or Aeva's
+64-line CARLA pattern; density falls with range), a weak-return cut-off and random dropouts.
 
 Per-point fields: radar ``power`` [dB], ``rcs`` [dBsm], ``snr`` [dB]; LiDAR ``intensity``
 [0..1]; both ``gt_label`` (0 static, 1 moving object, 2 clutter/ghost: ground truth, not a
@@ -222,6 +223,24 @@ def point_snr_db(spec: SensorSpec, rcs_db, r, az, el) -> np.ndarray:
     """Mean SNR [dB] of point scatterers (before fading): radar equation, SNR ~ RCS / r^4."""
     return (rcs_db - 40 * np.log10(np.maximum(r, 0.5) / 10.0) + spec.point_gain_db
             + antenna_db(spec, az, el))
+
+
+def detection_margin_deg(spec: SensorSpec) -> np.ndarray:
+    """How far beyond the field of view (azimuth, elevation) [deg] a radar scatterer can lie and
+    still be reported inside it: one resolution cell (its neighbouring-cell detections,
+    ``_spread``) plus 3 sigma of the angle error of a strong detection (persistent bias, noise
+    at the floor of the SNR scale, angular accuracy). LiDAR: 0 (fixed ray pattern).
+
+    The field of view is a cut on measured angles, so the detections near its edge come from
+    scatterers on both sides of it. Sampling only the scatterers inside it left the edge bands
+    with detections displaced inwards and none displaced outwards: the dense upper edge of the
+    loop scene (buildings) then tilted the Doppler ego velocity up by about 0.05 deg (the
+    pitch bias of ``bench calibrate-coverage``, docs/doppler-ego.md)."""
+    if spec.kind != "radar":
+        return np.zeros(2)
+    cell = np.array(spec.resolution[1:] if spec.resolution else (0.0, 0.0), float)
+    noise = np.array([spec.sigma_az_deg, spec.sigma_el_deg]) * spec.noise_floor
+    return cell + 3.0 * np.sqrt(spec.sigma_bias_deg**2 + noise**2 + spec.angle_accuracy_deg**2)
 
 
 def antenna_db(spec: SensorSpec, az: np.ndarray, el: np.ndarray) -> np.ndarray:
