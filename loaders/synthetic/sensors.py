@@ -233,9 +233,10 @@ def detection_margin_deg(spec: SensorSpec) -> np.ndarray:
 
     The field of view is a cut on measured angles, so the detections near its edge come from
     scatterers on both sides of it. Sampling only the scatterers inside it left the edge bands
-    with detections displaced inwards and none displaced outwards: the dense upper edge of the
-    loop scene (buildings) then tilted the Doppler ego velocity up by about 0.05 deg (the
-    pitch bias of ``bench calibrate-coverage``, docs/doppler-ego.md)."""
+    with detections displaced towards the edge and none coming in from beyond it: at the dense
+    upper edge of the loop scene (buildings) the detections a cell above their scatterer, with
+    its Doppler, tilted the Doppler ego velocity up by about 0.05 deg (the pitch bias of
+    ``bench calibrate-coverage``, docs/doppler-ego.md)."""
     if spec.kind != "radar":
         return np.zeros(2)
     cell = np.array(spec.resolution[1:] if spec.resolution else (0.0, 0.0), float)
