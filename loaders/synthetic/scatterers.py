@@ -363,7 +363,8 @@ def _tunnel(b: _Builder, tun) -> None:
 OCCLUSION_TOL = 0.15  # [m] a scatterer is visible when the first hit is at most this closer
 
 
-def visible(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec) -> dict[str, np.ndarray]:
+def visible(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec, edge_band: bool = False
+            ) -> dict[str, np.ndarray]:
     """Scatterers seen from the sensor at ``o`` (world) with orientation ``R`` (world <- sensor)
     in the scene frozen as ``geom``: inside the field of view (widened, see ``candidates``)
     and range limits, facing the sensor and not occluded (the ray cast towards the scatterer
@@ -373,24 +374,25 @@ def visible(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec) -> dict[st
     material, dynamic flag, Swerling case and angle bias."""
     from loaders.synthetic.raycast import cast
 
-    cand = candidates(sc, geom, o, R, spec)
+    cand = candidates(sc, geom, o, R, spec, edge_band)
     D_s = cand["points_s"] / cand["range"][:, None]
     t, _, _ = cast(geom, o, D_s @ R.T, D_s, R, spec.max_range, cand["range"] - OCCLUSION_TOL)
     return finish(sc, geom, o, cand, t)
 
 
-def candidates(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec) -> dict:
-    """Scatterers inside the field of view widened by ``sensors.detection_margin_deg`` and
-    inside the range limits that face the sensor (before the occlusion test): ids, world and
-    sensor-frame points, range, incidence cosine, RCS towards the sensor [dBsm] and primitive
-    id."""
+def candidates(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec,
+               edge_band: bool = False) -> dict:
+    """Scatterers inside the field of view (``edge_band``: widened by
+    ``sensors.detection_margin_deg``) and inside the range limits that face the sensor (before
+    the occlusion test): ids, world and sensor-frame points, range, incidence cosine, RCS
+    towards the sensor [dBsm] and primitive id."""
     reach = spec.max_range + 1.0
     heading = float(np.arctan2(R[1, 0], R[0, 0]))
     # a scatterer just outside the field of view is detected inside it through its neighbouring
     # resolution cells and its angle errors: candidates reach that far beyond (the sensor
     # model reports only the detections whose measured angles fall inside)
-    az_half, el_half = np.radians(np.array([spec.az_half_deg, spec.el_half_deg])
-                                  + detection_margin_deg(spec))
+    margin = detection_margin_deg(spec) if edge_band else np.zeros(2)
+    az_half, el_half = np.radians(np.array([spec.az_half_deg, spec.el_half_deg]) + margin)
     ids = [sc.static_in_sector(o[:2], heading, az_half + 0.05, reach)]
     P, Nrm, yaw_of = [sc.pos[ids[0]]], [sc.normal[ids[0]]], [np.zeros(len(ids[0]))]
     prim = [sc.prim[ids[0]]]
