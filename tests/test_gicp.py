@@ -270,13 +270,13 @@ def test_compiled_step_update_refuses_a_singular_system():
 
 @pytest.mark.parametrize("method", ["icp-p2plane", "gicp"])
 def test_no_seed_runs_get_a_gate_valid_without_the_motion_prior(method):
-    """The 0.5 m LiDAR gate needs the seed (a frame's motion is often longer): a no-seed run
-    takes 1.0 m (point-to-plane) or 2.0 m (GICP); an explicit gate is kept either way; radar
-    and VGICP do not change."""
+    """The seeded 0.75 m LiDAR gate needs the motion prior: a no-seed run takes small_gicp's
+    1.0 m (both by the tuning rule, configs/tuning/*-lidar-gate*.yaml); an explicit gate is
+    kept either way; radar and VGICP do not change."""
     seeded = make_method(method, {}, LIDAR, seed=True)
     unseeded = make_method(method, {}, LIDAR, seed=False)
-    assert seeded.params.max_correspondence_m == 0.5
-    assert unseeded.params.max_correspondence_m == {"icp-p2plane": 1.0, "gicp": 2.0}[method]
+    assert seeded.params.max_correspondence_m == 0.75
+    assert unseeded.params.max_correspondence_m == 1.0
     assert make_method(method, {"max_correspondence_m": 0.7}, LIDAR, seed=False) \
         .params.max_correspondence_m == 0.7
     radar = make_method(method, {}, RADAR, seed=True).params.max_correspondence_m

@@ -44,25 +44,70 @@ def test_plugin_registers_every_reference_through_the_environment():
     assert all(m in registry.METHODS for b in independent.BASELINES for m in [b.method])
 
 
-def test_experiments_run_ours_at_defaults_and_tune_on_the_tuning_frames_only(registered):
-    """The tuning YAML sweeps every reference on store frames 0-124 only; the validation YAML
-    runs on frames 125-249, ours without any parameter (their defaults) and every reference
-    once, all with seed."""
+def test_references_are_tuned_by_the_rule_over_both_halves_and_ours_run_at_defaults(
+        registered):
+    """The tuning YAML sweeps every reference on both halves of the real sample and the
+    synthetic radar domain and decides by the tuning rule of configs/splits.yaml (its lengths,
+    folds A -> B and B -> A, level, draws, least gain; the radar domain), against each
+    reference's own default, which is a point of its grid; the ours YAML runs ours at their
+    defaults on both halves, all with seed."""
+    import yaml
+
     from bench.runs.experiment import load_experiment
+    from bench.runs.sweep import format_value
+    from methods.registry import make_method
+
+    splits = yaml.safe_load((ROOT / "configs" / "splits.yaml").read_text())
+    rule, halves = splits["rule"], splits["real"]["halves"]
+    tuning = load_experiment(independent.TUNING)
+    ours = load_experiment(independent.OURS)
+    half_of = {s.name: next(h for h, v in halves.items()
+                            if (v["start"], v["frames"]) == (s.start, s.frames))
+               for s in tuning.sequences}
+    assert sorted(half_of.values()) == ["A", "B"]
+    c = tuning.criterion
+    assert c.cross_validated and c.reference == {}
+    assert c.lengths_m == rule["lengths_m"] and c.level == rule["level"]
+    assert c.reps == rule["reps"] and c.min_gain == rule["min_gain"]
+    assert [{"tuning": [half_of[n] for n in f.tuning],
+             "validation": [half_of[n] for n in f.validation]} for f in c.folds] == rule["folds"]
+    domain = splits["synthetic"]["radar_domain"]
+    by_name = {s.name: s for s in tuning.synthetic}
+    assert sorted(by_name[n].seed for n in c.domain) == domain["seeds"]
+    assert all((by_name[n].scene, by_name[n].sensor, by_name[n].frames)
+               == (domain["scene"], domain["sensor"], domain["frames"]) for n in c.domain)
+    assert {m.name for m in tuning.methods} == set(REFERENCES)
+    for m in tuning.methods:
+        assert m.sweep and m.seeds == [True]
+        default = make_method(m.name, {}, None, True).params
+        points = [{k: format_value(v) for k, v in p.point.items()} for p in m.variants()]
+        assert {k: format_value(getattr(default, k)) for k in m.sweep} in points, \
+            f"{m.name}: its own default is not a point of its grid"
+    assert [(s.start, s.frames) for s in ours.sequences] == sorted(
+        (h["start"], h["frames"]) for h in halves.values())
+    assert [s.name for s in ours.sequences] == [s.name for s in tuning.sequences]
+    assert sorted(m.name for m in ours.methods) == sorted(
+        {b.method for b in independent.BASELINES})
+    for m in ours.methods:
+        assert m.seeds == [True] and m.label is None and not m.sweep
+        assert m.params == {}, f"{m.name} must run at its defaults"
+
+
+def test_recorded_decisions_name_a_grid_point_for_every_reference_and_half(registered):
+    """``decided:`` of the tuning YAML: per reference the rule's decision over both folds and
+    each half's own choice, each a point of the reference's grid."""
+    from bench.runs.experiment import load_experiment
+    from bench.runs.sweep import format_value
 
     tuning = load_experiment(independent.TUNING)
-    validation = load_experiment(independent.VALIDATION)
-    assert [(s.start, s.frames) for s in tuning.sequences] == [(0, 125)]
-    assert [(s.start, s.frames) for s in validation.sequences] == [(125, 125)]
-    assert {m.name for m in tuning.methods} == set(REFERENCES)
-    assert all(m.sweep and m.seeds == [True] for m in tuning.methods)
-    assert tuning.criterion.error == "translation" and tuning.criterion.lengths_m == [8, 48]
-    names = [m.name for m in validation.methods]
-    assert sorted(names) == sorted({b.method for b in independent.BASELINES} | set(REFERENCES))
-    for m in validation.methods:
-        assert m.seeds == [True] and m.label is None and not m.sweep
-        if not m.name.startswith("ref-"):
-            assert m.params == {}, f"{m.name} must run at its defaults"
+    assert tuning.decided is not None
+    keys = {independent.RULE} | {f.tuning[0] for f in tuning.criterion.folds}
+    for m in tuning.methods:
+        recorded = tuning.decided[m.name]
+        assert set(recorded) == keys, m.name
+        points = [{k: format_value(v) for k, v in p.point.items()} for p in m.variants()]
+        for key, point in recorded.items():
+            assert {k: format_value(v) for k, v in point.items()} in points, (m.name, key)
 
 
 def _room_pair(frames: int = 3) -> tuple[MemorySequence, np.ndarray]:
@@ -186,28 +231,98 @@ def test_comparison_table_computes_ours_over_reference_and_the_limit():
     assert "NOT the same algorithm" in text  # doppler-icp's reference says what it is
 
 
-def test_stale_choices_names_a_validation_setting_that_is_not_the_tuning_choice(
-        registered, monkeypatch):
-    """The driver stops when the validation YAML does not run a reference at its tuning
-    choice (here: every choice as the YAML runs it, then one gate changed, one sweep with no
-    finished point)."""
-    from bench.report import tables_sweep
-    from bench.runs.experiment import load_experiment
+def _tuned(factor_a: float, factor_b: float):
+    """A reference sweep of three points (the default, gate 1.0; 3.0; 5.0) on halves A, B
+    and a domain S: gate 3.0 has ``factor_a`` / ``factor_b`` times the default's errors, 5.0
+    1.3 times everywhere."""
+    from bench.runs.tuning_rule import RunErrors
+    from metrics.units import Units
 
-    entries = [m for m in load_experiment(independent.VALIDATION).methods
-               if m.name.startswith("ref-")]
-    choices = [tables_sweep.Choice(m.name, m.name, True, dict(m.params), 1.0, None, [])
-               for m in entries]
-    monkeypatch.setattr(tables_sweep, "sweep_choices", lambda _: choices)
-    assert independent.stale_choices(Path("unused"), independent.VALIDATION) == []
-    p2plane = next(c for c in choices if c.method == "ref-open3d-p2plane")
-    gate = p2plane.point["max_correspondence_m"]
-    p2plane.point["max_correspondence_m"] = gate + 1.0
-    choices.append(tables_sweep.Choice("ref-kiss-icp", "ref-kiss-icp", True, None, None, None,
-                                       []))
-    stale = independent.stale_choices(Path("unused"), independent.VALIDATION)
+    rng = np.random.default_rng(3)
+
+    def errors(factor: float) -> RunErrors:
+        units = {}
+        for length, span in ((8.0, 10), (48.0, 60)):
+            anchor = np.arange(200 - span)
+            base = {k: np.abs(1 + 0.2 * rng.standard_normal(anchor.size)) for k in
+                    ("rot_deg", "trans_m")}
+            units[length] = Units(anchor, anchor + span, base)
+        return RunErrors(200, units)
+
+    ref = {n: errors(1.0) for n in ("A", "B", "S")}
+
+    def scaled(e, f):
+        return RunErrors(e.n_frames, {x: Units(u.anchor, u.end, {k: v * f for k, v in
+                                                                 u.values.items()})
+                                      for x, u in e.units.items()})
+
+    point = {"A": scaled(ref["A"], factor_a), "B": scaled(ref["B"], factor_b), "S": ref["S"]}
+    worse = {n: scaled(e, 1.3) for n, e in ref.items()}
+    criterion = {"lengths_m": [8, 48], "folds": [{"tuning": ["A"], "validation": ["B"]},
+                                                 {"tuning": ["B"], "validation": ["A"]}],
+                 "domain": ["S"], "reps": 200, "min_gain": 0.01}
+    points = [{"gate": 1.0}, {"gate": 3.0}, {"gate": 5.0}]
+    return independent.Tuned("ref-x", points, [{}, {}, {}], independent.half_choices(
+        points, [ref, point, worse], 0, criterion))
+
+
+def test_each_half_chooses_alone_and_the_rule_needs_both():
+    """Gate 3.0 is 20 % better on A and 5 % worse on B: A's own choice is 3.0, B's the
+    default, and the rule over both folds keeps the default (it reverses on B). Better on
+    both: every decision takes 3.0. A decision that asks for a wider grid leaves the default
+    in use; an undecided one, nothing."""
+    from bench.runs.tuning_rule import Decision
+
+    t = _tuned(0.8, 1.05)
+    assert t.setting("A") == {"gate": 3.0} and t.setting("B") == {"gate": 1.0}
+    assert t.setting(independent.RULE) == {"gate": 1.0}
+    assert "reverses on B" in t.decisions[independent.RULE].verdicts[1].why
+    both = _tuned(0.8, 0.8)
+    assert all(both.setting(k) == {"gate": 3.0} for k in ("A", "B", independent.RULE))
+    extend = Decision(0, None, [], "EXTEND THE GRID", extend=True)
+    assert independent.effective(extend, t.points) == {"gate": 1.0}
+    assert independent.effective(Decision(0, None, [], "undecided"), t.points) is None
+
+
+def test_stale_decisions_name_a_recorded_setting_the_runs_do_not_decide():
+    t = _tuned(0.8, 1.05)
+    good = {"ref-x": {"rule": {"gate": 1.0}, "A": {"gate": 3.0}, "B": {"gate": 1.0}}}
+    assert independent.stale_decisions({"ref-x": t}, good) == []
+    bad = {"ref-x": {"rule": {"gate": 1.0}, "A": {"gate": 1.0}}}
+    stale = independent.stale_decisions({"ref-x": t}, bad)
     assert len(stale) == 2
-    assert stale[0].startswith("ref-open3d-p2plane: ")
-    assert f"runs max_correspondence_m={gate} but the tuning sweep chose " \
-        f"max_correspondence_m={gate + 1.0}" in stale[0]
-    assert "no point of the tuning sweep finished" in stale[1]
+    assert stale[0].startswith("ref-x (A): decided records gate=1.0 but the runs decide gate=3.0")
+    assert stale[1].startswith("ref-x (B): decided records - but")
+
+
+def test_cross_fitted_rows_score_each_half_against_the_other_half_s_choice(tmp_path,
+                                                                         monkeypatch):
+    """Each half's row uses the reference's run at the setting chosen on the other half."""
+    from types import SimpleNamespace
+
+    t = _tuned(0.8, 1.05)  # A chooses gate 3.0, B the default 1.0
+    t.runs = [{"A": tmp_path / "d1-A", "B": tmp_path / "d1-B"},
+              {"A": tmp_path / "d3-A", "B": tmp_path / "d3-B"}, {}]
+    values = {"d1-A": 2.0, "d1-B": 3.0, "d3-A": 4.0, "d3-B": 5.0}
+
+    def read_run(path):
+        v = values[Path(path).name]
+        rel = [SimpleNamespace(length_m=x, n=5, rot_deg_mean=v, trans_m_mean=10 * v)
+               for x in (8.0, 48.0)]
+        return SimpleNamespace(result=SimpleNamespace(relative_error=rel))
+
+    from bench.runs import folders
+
+    monkeypatch.setattr(folders, "read_run", read_run)
+    monkeypatch.setattr(independent, "errors_by_method", lambda _d, _l, half: {
+        "ours-x": {8.0: (1.0, 10.0), 48.0: (1.0, 10.0)}})
+    baseline = independent.Baseline("ours-x", "ref-x", "a test reference")
+    rows = independent.cross_fitted({"ref-x": t}, tmp_path, ["A", "B"], [baseline])
+    by_half = {c.half: c for c in rows}
+    # half A is scored against B's choice (1.0): d1-A; half B against A's (3.0): d3-B
+    assert by_half["A"].tuned_on == "B" and by_half["A"].setting == {"gate": 1.0}
+    assert by_half["A"].ratio(8.0, 0) == pytest.approx(1.0 / 2.0)
+    assert by_half["B"].tuned_on == "A" and by_half["B"].setting == {"gate": 3.0}
+    assert by_half["B"].ratio(48.0, 1) == pytest.approx(10.0 / 50.0)
+    text = independent.table_markdown(rows)
+    assert "| `ours-x` | `ref-x` | B | gate=3.0 (A) |" in text

@@ -1,9 +1,11 @@
 """configs/tuning/*.yaml: every tuned default of configs/methods/*.yaml has a sweep anyone can
 replay (`bench run configs/tuning/<x>.yaml`), run on the declared tuning data only
-(configs/splits.yaml), that can choose the default. Every radar sweep decides by the tuning
-rule of configs/splits.yaml (cross-validation over both halves of the real sample, the
-synthetic radar domain, C against the library's or paper's reference value; bench/runs/
-tuning_rule.py); each records its decision (``decided:``), and the method's default must be it.
+(configs/splits.yaml), that can choose the default. Every sweep decides by the tuning rule of
+configs/splits.yaml (C against the library's or paper's reference value; bench/runs/
+tuning_rule.py): a radar sweep by cross-validation over both halves of the real sample with
+the synthetic radar as a second domain, a LiDAR sweep (synthetic only) by folds over the
+four tuning seeds with the tunnel scene as a second domain; each records its decision
+(``decided:``), and the method's default must be it.
 The cheapest sweep is replayed here, end to end, and must reach that decision again."""
 
 from pathlib import Path
@@ -119,8 +121,10 @@ def test_tuning_sweeps_run_on_the_declared_data_by_the_rule_and_can_choose_the_d
             assert (s.scene, s.sensor, s.frames) == (domain["scene"], domain["sensor"],
                                                      domain["frames"])
             assert "gt" not in s.options  # the clean suite: exact ground truth
-    elif not c.cross_validated:  # legacy: only the LiDAR sweeps, on synthetic seeds only
+    else:  # a LiDAR default on synthetic LiDAR only: the same rule, folds over tuning seeds
         assert all(_kind(s.sensor) == "lidar" for s in exp.synthetic), path.name
+        _assert_lidar_rule(path, exp)
+    assert c.cross_validated, f"{path.name}: every sweep decides by the tuning rule"
     sweeps = [m for m in exp.methods if any(v.point for v in m.variants())]
     assert len(sweeps) == 1, "a tuning experiment sweeps one method entry"
     (m,) = sweeps
@@ -142,6 +146,30 @@ def test_tuning_sweeps_run_on_the_declared_data_by_the_rule_and_can_choose_the_d
                 if format_value(v) != reference[k]:
                     axis = sorted({p[k] for p in (x.point for x in variants)})
                     assert axis[0] < v < axis[-1], f"{path.name}: {k}={v} on the grid's edge"
+
+
+def _assert_lidar_rule(path: Path, exp) -> None:
+    """A LiDAR sweep states the rule of configs/splits.yaml with its LiDAR folds: the same
+    lengths, level, draws and least gain; both folds over the declared scene's four tuning
+    seeds (two tune, the other two validate, both ways); the declared second domain."""
+    c, rule, lidar = exp.criterion, SPLITS["rule"], SPLITS["synthetic"]["lidar"]
+    assert c.cross_validated, f"{path.name}: a LiDAR sweep decides by the tuning rule"
+    assert c.lengths_m == rule["lengths_m"] and c.level == rule["level"]
+    assert c.reps == rule["reps"] and c.min_gain == rule["min_gain"]
+    by_name = {s.name: s for s in exp.synthetic}
+    seeds = [{"tuning": [by_name[n].seed for n in f.tuning],
+              "validation": [by_name[n].seed for n in f.validation]} for f in c.folds]
+    assert seeds == SPLITS["lidar_rule"]["folds"], path.name
+    for f in c.folds:
+        assert not set(f.tuning) & set(f.validation)
+        for n in f.tuning + f.validation:
+            s = by_name[n]
+            assert (s.scene, s.sensor, s.frames) == (lidar["scene"], lidar["sensor"],
+                                                     lidar["frames"]), n
+    assert sorted(by_name[n].seed for n in c.domain) == lidar["domain_seeds"]
+    assert {by_name[n].scene for n in c.domain} == {lidar["domain_scene"]}
+    # one LiDAR density per sweep: every sequence generated with the same options
+    assert len({tuple(sorted(s.options.items())) for s in exp.synthetic}) == 1
 
 
 def _kind(sensor: str) -> str:

@@ -152,6 +152,36 @@ def test_a_missing_reference_run_decides_nothing():
     assert d.chosen is None and "missing" in d.text
 
 
+def test_a_fold_without_validation_is_one_half_s_own_choice():
+    """A fold with no validation sequences (``bench.studies.independent``'s cross-fit: the
+    choice on one half, scored on the other elsewhere) has no reversal check: point 2, 20 %
+    better on A and 10 % worse on B, is A's own choice though it reverses on B."""
+    errors = _sweep({"A": [1, 1.3, 0.8, 1.4], "B": [1, 1.3, 1.1, 1.4], "S": [1, 1, 1, 1]})
+    on_a = decide(POINTS, errors, 0, [(["A"], [])], ["S"], LENGTHS, reps=300)
+    assert on_a.chosen == 2 and on_a.verdicts[2].qualifies
+    assert not any("validate" in k for k in on_a.verdicts[2].estimates)
+    assert on_a.verdicts[2].overall == pytest.approx(
+        on_a.verdicts[2].estimates["fold 1 tune (A)"].value)  # over A alone
+    on_b = decide(POINTS, errors, 0, [(["B"], [])], ["S"], LENGTHS, reps=300)
+    assert on_b.chosen == 0 and "no point qualifies" in on_b.text
+
+
+def test_second_domain_runs_are_needed_only_where_the_folds_admit_a_point():
+    """The domain only vetoes: a point that fails on the folds needs no domain runs; one the
+    folds admit without them leaves the decision open when it could be the choice, not when a
+    qualifying point is better."""
+    errors = _sweep({"A": [1, 1.3, 0.8, 0.9], "B": [1, 1.3, 0.8, 0.9], "S": [1, 1, 1, 1]})
+    del errors[1]["S"]  # fails on the folds anyway
+    d = decide(POINTS, errors, 0, FOLDS, ["S"], LENGTHS, reps=300)
+    assert d.chosen == 2 and "no better" in d.verdicts[1].why
+    del errors[3]["S"]  # admitted by the folds, but worse than point 2 over both halves
+    d = decide(POINTS, errors, 0, FOLDS, ["S"], LENGTHS, reps=300)
+    assert d.chosen == 2 and "second-domain runs are missing" in d.verdicts[3].why
+    del errors[2]["S"]  # the best admitted point unvetted: undecided
+    d = decide(POINTS, errors, 0, FOLDS, ["S"], LENGTHS, reps=300)
+    assert d.chosen is None and not d.extend and "undecided" in d.text
+
+
 # --- the sweep table ----------------------------------------------------------------------
 
 def _trajectories(drift: float, seed: int, n: int = 120):

@@ -182,8 +182,9 @@ class Criterion(_Strict):
     sequences and not significantly worse on the ``domain`` sequences; a best point on the
     grid's edge asks for a wider grid.
 
-    Legacy (``error`` given instead of ``folds``; the LiDAR sweeps and the independent
-    references, not yet re-decided by the rule): the lowest mean of ``error`` (rotation [deg],
+    Legacy (``error`` given instead of ``folds``; no sweep of configs/ uses it since the
+    LiDAR sweeps and the independent references moved to the rule, kept for experiments of
+    one's own): the lowest mean of ``error`` (rotation [deg],
     translation [m] or ``both``, each over the points' mean) over ``lengths_m``; points within
     ``tie_within`` of the best tie (the first listed wins); the default stays unless beaten by
     more than ``keep_default_within``."""

@@ -19,7 +19,11 @@ tuning sequences is significantly below 1 (the interval's top below 1) and by at
 ``min_gain`` (``C <= 1 - min_gain``: a gain smaller than the bench reproduces between rounds
 is no reason to leave a library's value), its ``C`` on the fold's
 validation sequences is below 1 (the improvement does not reverse), and on the ``domain``
-sequences (a second domain, e.g. synthetic) its ``C`` is not significantly above 1. Of the
+sequences (a second domain, e.g. synthetic) its ``C`` is not significantly above 1 (the
+domain only vetoes, so its runs are needed only for the points the folds admit: a point the
+folds admit without them leaves the decision open if it could be the choice; a fold
+without validation sequences, one half's own choice that is scored on the held-out half
+elsewhere, as ``bench.studies.independent`` cross-fits, has no reversal check). Of the
 qualifying points the one with the lowest ``C`` over every fold's sequences is chosen; none
 qualifying, the reference stays. A chosen point on the edge of its grid (the first or last
 value of a swept axis along which it leaves the reference) is not believed: the decision is
@@ -176,7 +180,8 @@ def decide(points: list[dict], errors: list[dict[str, RunErrors] | None], refere
            ) -> Decision:
     """The rule of this module over a sweep's ``points`` (their swept values), ``errors``
     (per point: sequence name -> RunErrors; None when a run is missing), the ``reference``
-    point's index, the ``folds`` ((tuning names, validation names) each) and the ``domain``
+    point's index, the ``folds`` ((tuning names, validation names) each; validation may be
+    empty) and the ``domain``
     sequences; ``min_gain`` the least improvement on a tuning half that counts."""
     ref = errors[reference]
     if ref is None:
@@ -188,7 +193,7 @@ def decide(points: list[dict], errors: list[dict[str, RunErrors] | None], refere
         return estimate([(errors[i][n], ref[n]) for n in names], lengths_m, level, reps,
                         seed, names)
 
-    verdicts = []
+    verdicts, pending = [], []
     for i, p in enumerate(points):
         v = Verdict(p)
         verdicts.append(v)
@@ -201,9 +206,10 @@ def decide(points: list[dict], errors: list[dict[str, RunErrors] | None], refere
             continue
         reasons = []
         for k, (tune, val) in enumerate(folds, 1):
-            t, w = est(i, tune), est(i, val)
+            t, w = est(i, tune), est(i, val) if val else None
             v.estimates[f"fold {k} tune ({', '.join(tune)})"] = t
-            v.estimates[f"fold {k} validate ({', '.join(val)})"] = w
+            if w is not None:
+                v.estimates[f"fold {k} validate ({', '.join(val)})"] = w
             if t.value >= 1.0:
                 reasons.append(f"fold {k}: no better on {', '.join(tune)} (C {t})")
             elif not t.better:
@@ -211,17 +217,27 @@ def decide(points: list[dict], errors: list[dict[str, RunErrors] | None], refere
             elif t.value > 1.0 - min_gain:
                 reasons.append(f"fold {k}: less than {100 * min_gain:g} % better on "
                                f"{', '.join(tune)} (C {t})")
-            elif w.value >= 1.0:
+            elif w is not None and w.value >= 1.0:
                 reasons.append(f"fold {k}: reverses on {', '.join(val)} (C {w.value:.3f})")
-        if domain:
+        if domain and not all(n in errors[i] and n in ref for n in domain):
+            # the domain can only veto: its runs matter only for a point the folds admit
+            if not reasons:
+                pending.append(i)
+                reasons.append("qualifies on the folds; its second-domain runs are missing")
+        elif domain:
             d = est(i, domain)
             v.estimates[f"domain ({', '.join(domain)})"] = d
             if d.worse:
                 reasons.append(f"the second domain contradicts it (C {d})")
         v.qualifies = not reasons
-        v.why = "; ".join(reasons) if reasons else "qualifies: significant in every fold, " \
-            "holds on validation" + (", not contradicted by the second domain" if domain else "")
+        v.why = "; ".join(reasons) if reasons else "qualifies: significant in every fold" + (
+            ", holds on validation" if any(val for _, val in folds) else "") + (
+            ", not contradicted by the second domain" if domain else "")
     qualified = [i for i, v in enumerate(verdicts) if v.qualifies]
+    best_c = min((verdicts[i].overall for i in qualified), default=math.inf)
+    if any(verdicts[i].overall < best_c for i in pending):
+        return Decision(reference, None, verdicts, "undecided: a point the folds admit, "
+                        "better than every qualifying one, has no second-domain runs")
     if not qualified:
         missing = [i for i, v in enumerate(verdicts) if v.overall is None]
         if missing:

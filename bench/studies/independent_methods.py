@@ -3,10 +3,12 @@ documentation drives it, as methods the harness runs like any other (a plugin, n
 registered in the package):
 
     DOPPLER_BENCH_METHODS=bench.studies.independent_methods bench run \
-        configs/experiments/independent-real-validation.yaml
+        configs/experiments/independent-real-tuning.yaml
 
-``python -m bench.studies.independent`` chooses each one's settings on the real tuning frames
-and compares it with its counterpart on the validation frames (bench/studies/independent.py).
+``python -m bench.studies.independent`` decides each one's settings by the tuning rule of
+configs/splits.yaml (the rule our defaults are decided by: both halves of the real sample,
+the synthetic radar as a veto) and compares it with its counterpart on each half at the
+setting chosen on the other half (bench/studies/independent.py).
 
 ========================  ===============  ==================================================
 reference                 counterpart      the library's pipeline
@@ -32,8 +34,8 @@ reference                 counterpart      the library's pipeline
 
 The Open3D and small_gicp pipelines are ``bench.studies.speed_reference``'s (the ones
 ``bench speed --reference`` times), built from this method's own parameters: each reference
-has its own settings (defaults from the library's documentation where it has one), chosen on
-the tuning frames by a sweep of its own, not ours.
+has its own settings (defaults from the library's documentation where it has one: the rule's
+reference point), decided by a sweep of its own, not ours.
 
 ``doppler-icp`` (the paper's Algorithm 1: fixed Doppler correspondences + closest points,
 point-to-point Huber Gauss-Newton) has no library implementation. Its reference is Open3D's
@@ -84,7 +86,8 @@ COUNTERPARTS = {"ref-open3d-p2plane": ("icp-p2plane",), "ref-open3d-gicp": ("gic
 
 class Open3dIcpParams(MethodParams):
     """Open3D's ICP pipeline. Open3D documents no scale for radar: the voxel and the gate are
-    swept on the tuning frames (configs/experiments/independent-real-tuning.yaml)."""
+    swept from these defaults (the rule's reference point) on both real halves
+    (configs/experiments/independent-real-tuning.yaml)."""
 
     voxel_downsample_m: float = Field(1.0, gt=0, description="voxel_down_sample size [m]")
     neighbours: int = Field(30, ge=3, description="estimate_normals KNN (Open3D's "
@@ -99,7 +102,8 @@ class Open3dIcpParams(MethodParams):
 class SmallGicpVgicpParams(MethodParams):
     """small_gicp's VGICP pipeline (defaults of ``preprocess_points`` / ``align`` /
     ``GaussianVoxelMap`` in small_gicp 1.0.1, made for automotive LiDAR: 0.25 m voxel grid,
-    1 m Gaussian voxels and gate; on radar these are swept on the tuning frames)."""
+    1 m Gaussian voxels and gate; on radar these are swept from these values, the rule's
+    reference point)."""
 
     voxel_downsample_m: float = Field(0.25, gt=0, description="preprocess_points "
                                       "downsampling_resolution [m] (small_gicp: 0.25)")
@@ -200,9 +204,10 @@ class Open3dDicpParams(DicpParams):
 
 class Open3dDicp(Dicp):
     """``methods.dicp`` with ``backend=open3d``: Open3D's own Doppler ICP on the scans
-    ``methods.dicp`` prepares (``methods.dicp_open3d``), its settings its own (swept on the
-    tuning frames). The reference of ``dicp`` and, as the closest independent Doppler ICP, of
-    ``doppler-icp`` (a different algorithm, see the module docstring)."""
+    ``methods.dicp`` prepares (``methods.dicp_open3d``), its settings its own (swept from the
+    authors' values on both real halves). The reference of ``dicp`` and, as the closest
+    independent Doppler ICP, of ``doppler-icp`` (a different algorithm, see the module
+    docstring)."""
 
     name = "ref-open3d-dicp"
     description = ("reference for dicp (and, as the closest independent Doppler ICP, for "
