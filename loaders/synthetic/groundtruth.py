@@ -34,9 +34,12 @@ from loaders.scan import Trajectory
 from loaders.se3 import inv_T, make_T
 
 #: NTU4DRadLM: rotation of the GT body frame against the radar, R_gt_sensor = Rz(yaw) Ry(pitch)
-#: Rx(roll) [deg], measured with ``bench calibrate`` on the vendored real loop-1 sample's tuning
-#: split (store frames 0-124: pitch from the Doppler ego velocity, roll from the road plane;
-#: bootstrap sd 0.06 / 0.19 / 0.04 deg); shared/REFERENCE.md: "pitched about 1.9 deg".
+#: Rx(roll) [deg], measured with ``bench calibrate`` on the vendored real loop-1 sample's frames
+#: 0-124 (pitch and yaw from the Doppler ego velocity, roll from the road plane) before its
+#: block bootstrap and its second-order fix; the same frames give today roll -1.26 [-2.58,
+#: +0.07], pitch -2.58 [-2.95, -2.20], yaw -0.28 [-0.41, -0.15] deg (95 %, docs/doppler-ego.md),
+#: which contain these values. Kept so the synthetic suites' data do not change;
+#: shared/REFERENCE.md: "pitched about 1.9 deg".
 NTU_R_GT_SENSOR_DEG = {"roll": -1.24, "pitch": -2.58, "yaw": -0.19}
 #: NTU4DRadLM: the radar's origin in the GT body frame [m] (configs/datasets/Loop1_0.yaml,
 #: T_gtbody_radar, from public SLAM code; unconfirmed)
