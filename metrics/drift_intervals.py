@@ -22,8 +22,8 @@ errors are drawn with the same blocks and the interval is that of the difference
 The number of independent pieces behind the figure is the number of whole blocks of step
 errors. The alignment of every resample is a batched Umeyama (1991) fit, the same fit as
 ``metrics.ape`` (evo's) up to rounding; degenerate resamples (positions on one line) are
-aligned by ``metrics.ape.align`` one by one. Memory is bounded: resamples are chained in chunks
-of at most ``CHUNK_POSES`` poses.
+aligned by ``metrics.ape.align`` one by one. Memory is bounded: resamples are chained ``CHUNK`` at a
+time.
 """
 
 from __future__ import annotations
@@ -46,8 +46,9 @@ from metrics.intervals import (
 )
 from metrics.relative import check_pose_pair, inverse_se3
 
-#: poses chained together at most (resamples x frames): about 40 MB of 4x4 matrices
-CHUNK_POSES = 300_000
+#: resamples chained together: memory about 100 bytes x frames x CHUNK, flat in the number of
+#: resamples and a small share of a scan per frame
+CHUNK = 32
 #: the APE quantities: translation [m] and rotation [deg]
 QUANTITIES = ("trans_m", "rot_deg")
 
@@ -216,8 +217,7 @@ class Drift:
             gt_steps = inverse_se3(gt[:-1]) @ gt[1:]
             gt_rot = np.ascontiguousarray(gt[:, :3, :3])
             out = {q: np.empty(reps) for q in QUANTITIES}
-            chunk = max(1, min(reps, CHUNK_POSES // n))
-            for c0, rows in block_index_chunks(n - 1, block, reps, seed, chunk):
+            for c0, rows in block_index_chunks(n - 1, block, reps, seed, CHUNK):
                 pos, rel = np.empty((len(rows), n, 3)), np.empty((len(rows), n, 3, 3))
                 _chain_kernel(self.est[0], gt_steps, gt_rot, self.errors, rows, pos, rel)
                 t_rmse, r_rmse = ape_rmse_batch(gt, pos, rel, self.alignment)
