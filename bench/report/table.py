@@ -35,7 +35,8 @@ from loaders.fileio import atomic_write_text
 MARK_RULES = {
     "significance": ("Bold: the best per sequence and every method not significantly "
                      "different from it (paired block-bootstrap comparison on the same "
-                     "segments, 95 % interval of the difference containing zero); underlined: "
+                     "segments, for APE on the same frames' resampled step errors; 95 % "
+                     "interval of the difference containing zero); underlined: "
                      "the best of the rest and its ties. The seed and no-seed rows of a method "
                      "are one contender (its better row is marked). A figure resting on fewer "
                      "than 2 independent segments is not ranked."),
