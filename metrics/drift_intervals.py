@@ -22,8 +22,8 @@ errors are drawn with the same blocks and the interval is that of the difference
 The number of independent pieces behind the figure is the number of whole blocks of step
 errors. The alignment of every resample is a batched Umeyama (1991) fit, the same fit as
 ``metrics.ape`` (evo's) up to rounding; degenerate resamples (positions on one line) are
-aligned by ``metrics.ape.align`` one by one. Memory is bounded: resamples are chained ``CHUNK`` at a
-time.
+aligned by their orientations one by one, as ``metrics.ape.align`` does. Memory is bounded:
+resamples are chained ``CHUNK`` at a time.
 """
 
 from __future__ import annotations
