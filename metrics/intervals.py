@@ -1,10 +1,10 @@
 """Confidence intervals for statistics of errors measured along one trajectory.
 
 Errors along a trajectory are not independent: relative-error segments that start a few frames
-apart share most of their frames, a drifting estimate makes neighbouring APE errors alike, and
-consecutive velocity windows overlap. Resampling single segments or frames would treat them as
-independent and give intervals far too narrow. Here every error is a *unit* anchored at the
-frame it starts at (a segment's start pose, an APE frame, a velocity window's first frame), and
+apart share most of their frames, and consecutive velocity windows overlap. Resampling single
+segments or frames would treat them as independent and give intervals far too narrow. Here
+every error is a *unit* anchored at the frame it starts at (a segment's start pose, a velocity
+window's first frame; a single frame for per-frame errors), and
 the resampling draws **blocks of consecutive frames** (a circular block bootstrap, Politis &
 Romano 1992): ``ceil(n / b)`` blocks of ``b`` frames with uniformly drawn starts, wrapped at the
 end, the first ``n`` drawn frames kept. A unit enters a resample as often as its anchor frame
@@ -62,8 +62,9 @@ LEVEL = 0.95
 REPS = 1000
 #: fewer independent units than this: the figure is not ranked
 MIN_INDEPENDENT = 2
-#: single-frame units (APE after an alignment fitted on the whole trajectory): at most this
-#: many blocks, i.e. blocks of at least a quarter of the frames
+#: single-frame units (per-frame errors, e.g. per-frame APE paired where the step errors of
+#: ``metrics.drift_intervals`` cannot be): at most this many blocks, i.e. blocks of at least a
+#: quarter of the frames
 APE_MIN_BLOCKS = 4
 
 
