@@ -298,9 +298,9 @@ def table(
         help="the experiment's parameter sweeps: one row per point, the best per length in "
         "bold, the criterion's choice beside the default")] = False,
     marks: Annotated[str, typer.Option(
-        help="significance (default: bold = the best and every method not significantly "
-        "different from it, paired comparisons on the same segments) or value (the paper's "
-        "plain by-value style)")] = "significance",
+        help="intervals (default: bold = every figure at or below the smallest upper end of "
+        "the printed 95 % intervals in its column, so a reader can check each mark) or value "
+        "(the paper's plain by-value style)")] = "intervals",
     ci: Annotated[bool, typer.Option(
         "--ci/--no-ci", help="show each figure's 95 % confidence interval [low, high] in the "
         "cells (the CSV always has them)")] = False,
@@ -479,17 +479,20 @@ def reproduce(
     alignment: Annotated[str | None, typer.Option(
         help="APE alignment of Tables IV/V (default se3)")] = None,
     marks: Annotated[str, typer.Option(
-        help="significance (default: bold only where a paired comparison is significant) or "
-        "value (the paper's by-value style)")] = "significance",
+        help="intervals (default: bold = every figure at or below the smallest upper end of "
+        "the printed 95 % intervals in its column) or value (the paper's by-value style)")
+    ] = "intervals",
 ) -> None:
     """Reproduce the paper's Tables III, IV and V (configs/experiments/table3-5.yaml) on the
     paper's sequences: real stores under DATA_DIR/real when present, else the synthetic suite."""
     from bench.commands import scoring_options
-    from bench.report.table import MARK_RULES
+    from bench.report.table import MARK_RULES, rule_name
     from bench.studies.reproduce import reproduce_table
 
-    if marks not in MARK_RULES:
-        raise DataError(f"--marks {marks!r}: choose from {', '.join(MARK_RULES)}")
+    try:
+        marks = rule_name(marks)
+    except ValueError:
+        raise DataError(f"--marks {marks!r}: choose from {', '.join(MARK_RULES)}") from None
     if reproduce_table(out, data_dir, jobs, force, synthetic_only, console, executor,
                        scheduler, job_timeout,
                        scoring_options(lengths, kitti_lengths, alignment), marks):

@@ -13,7 +13,7 @@ from loaders.fileio import atomic_write_text
 
 def table_command(console: Console, status: Console, results_dirs: list[Path], format: str,
                   out: Path | None, lengths: str | None, pivot: bool, methods: str | None,
-                  variants: bool, metric: str = "relative", marks: str = "significance",
+                  variants: bool, metric: str = "relative", marks: str = "intervals",
                   ci: bool = False) -> int:
     """Print a table of ``metric`` (relative: the paper-shaped Table III; kitti; ape: methods
     x sequences; velocity), or the pivot, and write its files; returns 0 (1 when a run
@@ -21,7 +21,7 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
     own ``table.*`` (``table_<metric>.*``) is the whole table of that one folder: a filtered
     view (lengths, methods, variants, pivot) or a merged one (several folders) is written only
     to ``out``."""
-    from bench.report.table import MARK_RULES, RENDERERS, render
+    from bench.report.table import MARK_RULES, RENDERERS, render, rule_name
     from bench.report.tables import METRICS, build, select
     from bench.report.tables_ape import collect_ape
     from bench.report.tables_pivot import pivot_markdown
@@ -36,8 +36,10 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
         raise DataError(f"unknown table format {format!r}; choose from {', '.join(RENDERERS)}")
     if metric not in METRICS:
         raise DataError(f"unknown metric {metric!r}; choose from {', '.join(METRICS)}")
-    if marks not in MARK_RULES:
-        raise DataError(f"--marks {marks!r}: choose from {', '.join(MARK_RULES)}")
+    try:
+        marks = rule_name(marks)
+    except ValueError:
+        raise DataError(f"--marks {marks!r}: choose from {', '.join(MARK_RULES)}") from None
     try:
         lengths_m = None if lengths is None else [float(x) for x in lengths.split(",")]
     except ValueError:

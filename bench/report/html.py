@@ -1,8 +1,8 @@
 """``bench report RESULTS_DIR``: one self-contained HTML page of a results folder.
 
 The page holds the tables of the folder's runs made for it (relative error, KITTI drift, APE,
-velocity error: every figure with its 95 % confidence interval, marks only where a difference
-is significant), then every table the harness wrote into the folder (every ``*.md`` of the
+velocity error: every figure with its 95 % confidence interval, marks read from the printed
+intervals: ``bench.report.significance``), then every table the harness wrote into the folder (every ``*.md`` of the
 folder: ``table*.md`` of any metric, ``pivot.md``, ``fidelity.md`` ...) as written, every
 figure under ``figures/`` embedded as a base64 PNG with its caption, the provenance of the runs
 (code version, store hashes, machine, how times were taken), the failed runs, the runs whose
@@ -106,8 +106,8 @@ def _tables_section(results_dir: Path, newest_run: float) -> tuple[str, int]:
     if made:
         parts.append("<p>Tables of the folder's finished runs, made for this page: every "
                      "figure with its 95 % confidence interval [low, high]; bold / underlined "
-                     "only where the difference is significant (the caption states the "
-                     "rule).</p>")
+                     "read from the printed intervals alone (the caption states the rule: "
+                     "check any mark against the cells).</p>")
     for title, text in made:
         body, n = markdown_html(text)
         count += n
