@@ -304,6 +304,10 @@ def table(
     ci: Annotated[bool, typer.Option(
         "--ci/--no-ci", help="show each figure's 95 % confidence interval [low, high] in the "
         "cells (the CSV always has them)")] = False,
+    stability: Annotated[bool, typer.Option(
+        help="score each half of every sequence on its own and say how many marks hold on "
+        "both halves; a cell whose mark differs on a half is flagged with a dagger (relative "
+        "error only)")] = False,
 ) -> None:
     """Print a table (by default the paper-shaped Table III) and write table.md / .tex / .csv
     (table_<metric>.* for another metric)."""
@@ -318,7 +322,7 @@ def table(
         raise typer.Exit(0)
 
     raise typer.Exit(table_command(console, status, list(results_dirs), format, out, lengths,
-                                   pivot, methods, variants, metric, marks, ci))
+                                   pivot, methods, variants, metric, marks, ci, stability))
 
 
 @app.command(short_help="two result folders side by side")

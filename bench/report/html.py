@@ -138,6 +138,7 @@ PAGE_TABLES = (("Relative error per segment length (Table III)", "relative"),
 def _tables_in_memory(results_dir: Path) -> list[tuple[str, str]]:
     """(title, markdown) of every metric's table of the folder's runs, with intervals (none
     when there is no finished run with ground truth)."""
+    from bench.report.stability import with_stability
     from bench.report.tables import build, select
     from bench.report.tables_ape import collect_ape
 
@@ -151,6 +152,8 @@ def _tables_in_memory(results_dir: Path) -> list[tuple[str, str]]:
             table = collect_ape(results_dir, only={r.run.dir for r in rows}, ci=True).table
         else:
             table = build(metric, rows, lengths, ci=True)
+            if metric == "relative":  # do the marks hold on both halves of each sequence?
+                with_stability(rows, lengths, table)
         # never left out without a line: what is missing and why
         out.append((title, to_markdown(table) if table.rows else
                     "Not made: no run of this folder has this metric (a finished run with "
