@@ -80,7 +80,7 @@ def _blocks_line(cal: CalibrationResult) -> list[str]:
             f"  {ax}: its residuals stay correlated over {max(b.correlation, default=1)} "
             f"frames, so its blocks are {b.frames} of the {n} frames: {n / b.frames:.1f} "
             f"blocks, {b.dof(n):.1f} degrees of freedom{asked}. Its interval is wide because "
-            f"the fit's error wanders along the range (see the pieces), not because the "
+            f"the fit's error wanders along the range, not because the "
             f"{cal.source[ax]} leaves {ax} free")
     return lines
 
