@@ -113,7 +113,7 @@ def calibrate(
     bootstrap: Annotated[int, typer.Option(min=10, help="bootstrap resamples")] = 200,
     max_width: Annotated[float, typer.Option(
         help="--write applies only the angles whose 95 % interval is narrower than this "
-        "[deg]; it names the others and leaves them alone")] = 1.0,
+        "[deg]; it names the others and leaves them alone")] = 2.0,
     force: Annotated[bool, typer.Option(
         help="let --write replace a store bench calibrate wrote (never the input store, "
         "never another file)")] = False,

@@ -59,7 +59,10 @@ def test_inspect_check_and_corrected_store(loop, tmp_path):
     assert warning is not None and "pitch" in warning
     assert rotation_check(short)[1] is None  # a correct GT frame raises no warning
     src = write_store(rotated_gt(short), tmp_path / "rot.h5")
-    cal = calibrate_store(src, tmp_path / "fixed.h5", bootstrap=10, frames=25, hand_eye=False)
+    # every angle applied (25 frames can leave roll's interval wider than the default bound:
+    # test_write_applies_only_the_angles_narrower_than_the_bound)
+    cal = calibrate_store(src, tmp_path / "fixed.h5", bootstrap=10, frames=25, hand_eye=False,
+                          max_width_deg=90.0)
     fixed = StoreSequence(tmp_path / "fixed.h5")
     # the corrected GT is the sensor's own: calibrating it again finds (almost) nothing
     again = calibrate_sequence(fixed, bootstrap=10)
@@ -447,3 +450,11 @@ def test_calibrate_says_no_scan_has_ground_truth(loop, tmp_path, monkeypatch, ca
     assert code == 2, text
     assert f"{src}: no scan of frames 0-29 has ground truth" in text
     assert "1000.000" in text and "faster than" not in text and "Traceback" not in text
+
+
+@pytest.mark.parametrize("width", [0.0, -1.0, float("nan"), float("inf")])
+def test_max_width_must_be_a_positive_number(width, tmp_path):
+    from loaders.errors import DataError
+
+    with pytest.raises(DataError, match="--max-width"):
+        calibrate_store(tmp_path / "any.h5", max_width_deg=width)

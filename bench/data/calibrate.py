@@ -61,27 +61,23 @@ def _angle_line(ax: str, angle: float, interval: tuple[float, float], sd: float,
     return (head + f"{100 * level:.0f} % [{lo:+.3f}, {hi:+.3f}]  sd {sd:.3f}  ({source})")
 
 
-def _blocks_line(cal: CalibrationResult) -> list[str]:
-    """How each angle was resampled, and for each angle whose block leaves fewer than
-    ``MIN_DOF`` degrees of freedom (or was capped at half the frames) what that means."""
-    n = cal.frames_total
-    parts = [f"{ax} {b.frames} frames ({b.seconds:.1f} s, {b.dof(n):.1f} degrees of freedom)"
-             for ax, b in cal.blocks.items()]
-    lines = [f"  uncertainty: circular block bootstrap, {cal.resamples} resamples, each "
-             "refitted with its own outlier cut; each angle's block twice the correlation "
-             "length of its own per-frame residuals (at least 3 frames): " + ", ".join(parts)
-             + "; intervals estimate +- t * sd * sqrt(n / (n - b))"]
-    for ax, b in cal.blocks.items():
-        if b.dof(n) >= MIN_DOF and not b.capped:
-            continue
-        asked = (f"; the rule asked for {b.wanted} frames, more than half of them, so even "
-                 "this interval may be too narrow" if b.capped else "")
-        lines.append(
-            f"  {ax}: its residuals stay correlated over {max(b.correlation, default=1)} "
-            f"frames, so its blocks are {b.frames} of the {n} frames: {n / b.frames:.1f} "
-            f"blocks, {b.dof(n):.1f} degrees of freedom{asked}. Its interval is wide because "
-            f"the fit's error wanders along the range, not because the "
-            f"{cal.source[ax]} leaves {ax} free")
+def _blocks_lines(cal: CalibrationResult) -> list[str]:
+    """How the frames were resampled and, when the block leaves fewer than ``MIN_DOF`` degrees
+    of freedom or was capped at half the frames, which residuals made it so long and what that
+    means for the intervals."""
+    b, n = cal.block, cal.frames_total
+    lines = ["  uncertainty: " + b.describe(cal.resamples, n,
+                                            "each refitted with its own outlier cut")]
+    if b.dof(n) >= MIN_DOF and not b.capped:
+        return lines
+    lengths = dict(zip(cal.fitted, b.correlation, strict=False))
+    longest = max(lengths, key=lengths.get) if lengths else "the"
+    lines.append(
+        f"  few blocks: the {longest} residuals stay correlated over "
+        f"{lengths.get(longest, b.wanted // 2)} frames, so the blocks are {b.frames} of the "
+        f"{n} frames ({n / b.frames:.1f} blocks, {b.dof(n):.1f} degrees of freedom) and every "
+        "interval is wide: the fit's error wanders along the range (the pieces show how far), "
+        "it does not mean an angle is unobservable; each is printed with its estimate")
     return lines
 
 
@@ -92,8 +88,8 @@ def format_result(cal: CalibrationResult) -> list[str]:
         lines.append(_angle_line(ax, cal.angles_deg[ax], cal.interval_deg[ax], cal.std_deg[ax],
                                  cal.level, cal.source[ax], cal.reasons.get(ax, ""),
                                  cal.resamples))
-    if cal.blocks:
-        lines += _blocks_line(cal)
+    if cal.block is not None:
+        lines += _blocks_lines(cal)
     if cal.not_observable:
         lines.append(f"  not observable: {', '.join(cal.not_observable)} (held at 0 in the "
                      "fit; --write leaves them alone)")
