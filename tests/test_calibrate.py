@@ -458,3 +458,28 @@ def test_max_width_must_be_a_positive_number(width, tmp_path):
 
     with pytest.raises(DataError, match="--max-width"):
         calibrate_store(tmp_path / "any.h5", max_width_deg=width)
+
+
+def test_hand_eye_prints_no_number_for_an_angle_it_does_not_observe():
+    """An angle neither the turn axes nor the displacements fix was printed as "+0.000 deg
+    95 % [+0.000, +0.000] sd 0.000": now its reason and no number; the others as before."""
+    from types import SimpleNamespace
+
+    from bench.data.calibrate import format_hand_eye
+    from bench.data.hand_eye import HandEyeResult
+
+    angles = {"roll": 0.0, "pitch": -1.7, "yaw": 0.2}
+    he = HandEyeResult(np.eye(3), angles, {"roll": 0.0, "pitch": 0.1, "yaw": 0.05},
+                       {"roll": False, "pitch": True, "yaw": True}, 40, "kiss-icp",
+                       {"pitch": "turn axes", "yaw": "displacement directions"},
+                       {"roll": (0.0, 0.0), "pitch": (-1.9, -1.5), "yaw": (0.1, 0.3)})
+    cal = SimpleNamespace(angles_deg={"roll": 0.5, "pitch": -1.6, "yaw": 0.1},
+                          not_observable=[], R_gt_sensor=np.eye(3),
+                          interval_deg={a: (-9.0, 9.0) for a in angles})
+    lines = format_hand_eye(he, cal)
+    (roll,) = [line for line in lines if line.strip().startswith("roll")]
+    assert roll.split() == ["roll", "not", "observable:", "neither", "the", "turn", "axes",
+                            "nor", "the", "displacement", "directions", "spread", "around",
+                            "it"]
+    (pitch,) = [line for line in lines if line.strip().startswith("pitch")]
+    assert "[-1.900, -1.500]" in pitch and "difference to Doppler -0.100 deg" in pitch
