@@ -111,13 +111,21 @@ def calibrate(
         help="the estimate --write applies: doppler or hand-eye")] = "doppler",
     min_speed: Annotated[float, typer.Option(help="use frames faster than this [m/s]")] = 2.0,
     bootstrap: Annotated[int, typer.Option(min=10, help="bootstrap resamples")] = 200,
+    max_width: Annotated[float, typer.Option(
+        help="--write applies only the angles whose 95 % interval is narrower than this "
+        "[deg]; it names the others and leaves them alone")] = 2.0,
+    force: Annotated[bool, typer.Option(
+        help="let --write replace a store bench calibrate wrote (never the input store, "
+        "never another file)")] = False,
 ) -> None:
     """Estimate the rotation between the sensor frame and the ground truth's body frame on a
     range of frames, twice: from the Doppler ego velocity (and road plane), and without Doppler
-    by hand-eye alignment of KISS-ICP's trajectory; print both and their difference."""
+    by hand-eye alignment of KISS-ICP's trajectory; print both, their difference, and the
+    Doppler estimate of pieces of the range (and whether they agree)."""
     from bench.data.calibrate import calibrate_store
 
-    calibrate_store(store, write, console, min_speed, bootstrap, start, frames, apply)
+    calibrate_store(store, write, console, min_speed, bootstrap, start, frames, apply,
+                    max_width_deg=max_width, force=force)
 
 
 @app.command("calibrate-coverage", short_help="how often bench calibrate's intervals cover a "
