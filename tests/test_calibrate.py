@@ -89,6 +89,25 @@ def test_bench_inspect_warns_and_plots_the_doppler_speed(loop, tmp_path):
     assert res.exit_code == 0 and "consistent within 0.5 deg" in res.output
 
 
+def test_inspect_calls_consistent_only_the_angles_known_that_well():
+    from bench.data.calibration import CalibrationResult, rotation_consistent_text
+
+    def cal(sd, source):
+        return CalibrationResult(np.eye(3), {"roll": 0.1, "pitch": -0.2, "yaw": 0.05},
+                                 dict(zip(("roll", "pitch", "yaw"), sd, strict=True)),
+                                 dict(zip(("roll", "pitch", "yaw"), source, strict=True)), 100)
+
+    tight = rotation_consistent_text(cal((0.1, 0.1, 0.1), ["velocity"] * 3))
+    assert "roll, pitch, yaw consistent within 0.5 deg" in tight and "loosely" not in tight
+    # pitch at sd 0.2 (3 sd = 0.6 > 0.5): named as loosely known, not as consistent
+    loose = rotation_consistent_text(cal((0.1, 0.2, 0.1), ["velocity"] * 3))
+    assert "roll, yaw consistent within 0.5 deg" in loose
+    assert "known only loosely, none found off: pitch +-0.20 deg" in loose
+    unseen = rotation_consistent_text(cal((float("nan"), 2.0, 2.0),
+                                          ["not observable", "velocity", "velocity"]))
+    assert "no angle fixed to 0.5 deg" in unseen and "not observable: roll" in unseen
+
+
 def test_hand_eye_alignment_recovers_the_rotation_without_doppler(loop):
     """KISS-ICP's trajectory (no Doppler) against the GT over the same frames: roll and pitch
     from the turn axes, yaw from the displacement directions, each within its stated (block

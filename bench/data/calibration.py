@@ -495,6 +495,25 @@ class CorrectedSequence(Sequence):
         return self.base.stamps
 
 
+def rotation_consistent_text(cal: CalibrationResult, limit_deg: float = 0.5) -> str:
+    """What ``bench inspect`` says when no angle is off: consistent within ``limit_deg`` only
+    for the angles known that well (3 sd within it); the others are named with their sd, or
+    as not observable."""
+    loose = [f"{ax} +-{cal.std_deg[ax]:.2f} deg (sd)" for ax in ANGLES
+             if cal.source[ax] != "not observable" and 3 * cal.std_deg[ax] > limit_deg]
+    unseen = [ax for ax in ANGLES if cal.source[ax] == "not observable"]
+    tight = [ax for ax in ANGLES if ax not in unseen
+             and not 3 * cal.std_deg[ax] > limit_deg]
+    text = "sensor-to-GT rotation (Doppler ego velocity vs GT velocity): "
+    text += (f"{', '.join(tight)} consistent within {limit_deg:g} deg" if tight
+             else f"no angle fixed to {limit_deg:g} deg")
+    if loose:
+        text += f"; known only loosely, none found off: {', '.join(loose)}"
+    if unseen:
+        text += f"; not observable: {', '.join(unseen)}"
+    return text + ("; see `bench calibrate`" if loose or unseen else "")
+
+
 def rotation_check(sequence: Sequence, limit_deg: float = 0.5) -> tuple[CalibrationResult | None,
                                                                         str | None]:
     """For ``bench inspect``: the calibration (None when it cannot be made: no GT, no Doppler,
