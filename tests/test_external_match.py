@@ -92,7 +92,7 @@ def test_poses_of_another_frame_are_moved_to_the_sensor():
     ({"tolerance_s": float("inf")}, "--tolerance inf: expected a finite tolerance"),
     ({"tolerance_s": float("nan")}, "--tolerance nan: expected a finite tolerance"),
     ({"max_gap_s": -1}, "--max-gap -1: expected a finite gap > 0 s"),
-    ({"max_gap_s": 0.0}, "--max-gap 0.0: expected a finite gap > 0 s"),
+    ({"max_gap_s": 0.0}, "--max-gap 0: expected a finite gap > 0 s"),
     ({"max_gap_s": float("nan")}, "--max-gap nan: expected a finite gap"),
     ({"time_offset_s": float("nan")}, "--time-offset nan: expected a finite number of seconds"),
     ({"time_offset_s": float("-inf")}, "--time-offset -inf: expected a finite number"),

@@ -13,12 +13,13 @@ The contract (each breach one ``DataError`` naming the estimate, exit 2 on the c
 
 - the options are finite (``external_match.check_options``; ``min_coverage`` in [0, 1]);
 - its clock fits the scans' (unless ``trust_clock``): stamps that look like ms / us / ns are
-  refused naming the ``--stamp-unit`` that fits; a speed profile that lines up with the ground
-  truth's only when shifted by more than half a scan period (and fits clearly better there:
-  ``clock_misfit``) is refused naming the ``--time-offset`` that fits, even when every stamp
-  matches (an estimate a whole number of scan periods off); ``bench.runs.external_clock``;
-- no scan within the tolerance: refused with the offset that fits (the speed profile's, or
-  ``loaders.gt.offset_hint``);
+  refused naming the ``--stamp-unit`` that fits; a motion profile (speed and turn rate) that
+  lines up with the ground truth's only when shifted by more than half a scan period (and
+  fits clearly better there: ``clock_misfit``) is refused naming the ``--time-offset`` that
+  fits, even when every stamp matches (an estimate a whole number of scan periods off);
+  ``bench.runs.external_clock``;
+- no scan within the tolerance: refused with the offset that fits (the motion profile's, or
+  ``loaders.gt.offset_hint``'s guess);
 - it covers at least ``min_coverage`` (``DEFAULT_MIN_COVERAGE``) of the scans that have ground
   truth (and are not calibration frames); too short to score at all is said of the estimate;
 - its ``name`` is one path component, not a harness method's name nor a harness run folder's
@@ -39,14 +40,14 @@ from __future__ import annotations
 
 import hashlib
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 
 from bench.runs.evaluate import Scoring, evaluate_run, timing_part
-from bench.runs.external_clock import ClockFit, fit_clock, stamp_unit
+from bench.runs.external_clock import ClockFit, aligned_offset, fit_clock, stamp_unit
 from bench.runs.external_defaults import DEFAULT_MIN_COVERAGE, DEFAULT_TOLERANCE_S
 from bench.runs.external_match import check_options, match_to_scans
 from bench.runs.folders import RUN_RECORDS, clear_run, is_finished, run_dir_name, write_run
@@ -150,9 +151,10 @@ def check_name(name: str) -> str:
     for method in METHODS:
         for seed in (Seed.WITH, Seed.WITHOUT):
             if name == method + seed.suffix:
+                how = "with" if seed is Seed.WITH else "without"
                 raise DataError(f"--name {name!r} is the run folder of the harness's {method} "
-                                f"run {seed.suffix.strip('_')}; an external run needs a name of "
-                                f"its own (e.g. {name}-ext), so it never replaces that run")
+                                f"run {how} its seed; an external run needs a name of its own "
+                                f"(e.g. {name}-ext), so it never replaces that run")
     return name
 
 
@@ -160,7 +162,7 @@ def check_options_of(spec: ExternalSpec) -> None:
     """The association options (``external_match.check_options``) and ``min_coverage``."""
     check_options(spec.time_offset_s, spec.tolerance_s, spec.max_gap_s)
     if not (np.isfinite(spec.min_coverage) and 0 <= spec.min_coverage <= 1):
-        raise DataError(f"--min-coverage {spec.min_coverage}: expected a share in [0, 1] of the "
+        raise DataError(f"--min-coverage {spec.min_coverage:g}: expected a share in [0, 1] of the "
                         "scans with ground truth")
 
 
@@ -332,14 +334,13 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
 def check_clock(est, T_frame_sensor: np.ndarray, gt, scan_stamps: np.ndarray,
                 spec: ExternalSpec, where: str, store: str) -> tuple[ClockFit | None, str]:
     """The estimate's clock against the ground truth's (``bench.runs.external_clock``):
-    stamps in another unit are refused here; returns the speed-profile fit (None with
+    stamps in another unit are refused here; returns the motion-profile fit (None with
     ``trust_clock``) and a line saying what was found."""
     if spec.trust_clock:
         return None, "not checked (--trust-clock)"
-    est_xyz = (est.poses @ T_frame_sensor)[:, :3, 3]
+    est_poses = est.poses @ T_frame_sensor
     est_stamps = est.stamps + spec.time_offset_s
-    gt_xyz = gt.poses[:, :3, 3]
-    unit = stamp_unit(est_stamps, est_xyz, gt.stamps, gt_xyz)
+    unit = stamp_unit(est_stamps, est_poses[:, :3, 3], gt.stamps, gt.poses[:, :3, 3])
     if unit is not None:
         name, est_speed, gt_speed = unit
         raise DataError(
@@ -348,15 +349,19 @@ def check_clock(est, T_frame_sensor: np.ndarray, gt, scan_stamps: np.ndarray,
             f"{gt_speed:.3g} m/s; score it with --stamp-unit {name} (or --trust-clock to score "
             "it as it is)")
     period = float(np.median(np.diff(scan_stamps))) if len(scan_stamps) > 1 else 0.0
-    fit = fit_clock(est_stamps, est_xyz, gt.stamps, gt_xyz, period)
+    fit = fit_clock(est_stamps, est_poses, gt.stamps, gt.poses, period)
+    if fit.offset_s is not None:  # suggest an offset that lines the stamps up too
+        fit = replace(fit, suggested_s=spec.time_offset_s + aligned_offset(
+            est_stamps, scan_stamps, fit.offset_s, period))
     if fit.offset_s is None:
         return fit, f"inconclusive: {fit.why}"
-    return fit, (f"speed profile fits best shifted by {fit.offset_s:+.4f} s (correlation "
-                 f"{fit.correlation:.3f}; {fit.correlation_at_zero:.3f} unshifted)")
+    shift = round(fit.offset_s, 4) + 0.0
+    return fit, (f"speed and turn-rate profile fits best shifted by {shift:+.4f} s (correlation"
+                 f" {fit.correlation:.3f}; {fit.correlation_at_zero:.3f} unshifted)")
 
 
 def clock_misfit(fit: ClockFit, period_s: float) -> bool:
-    """The speed profiles line up at a shift beyond ``CLOCK_SLACK_PERIODS`` scan periods and
+    """The motion profiles line up at a shift beyond ``CLOCK_SLACK_PERIODS`` scan periods and
     clearly better there than unshifted (see the constants)."""
     if fit.offset_s is None or abs(fit.offset_s) <= CLOCK_SLACK_PERIODS * period_s:
         return False
@@ -366,16 +371,12 @@ def clock_misfit(fit: ClockFit, period_s: float) -> bool:
         + CLOCK_FIT_FLOOR
 
 
-def _suggested_offset(fit: ClockFit, spec: ExternalSpec) -> float:
-    return spec.time_offset_s + fit.offset_s
-
-
 def _fit_hint(fit: ClockFit | None, spec: ExternalSpec) -> str | None:
     """What fits when no scan is covered (None: ``loaders.gt.offset_hint``'s guess)."""
     if fit is None or fit.offset_s is None:
         return None
-    return (f"its speed profile lines up with the ground truth's with --time-offset "
-            f"{_suggested_offset(fit, spec):.4f} (correlation {fit.correlation:.3f}; "
+    return (f"its speed and turn-rate profile lines up with the ground truth's with "
+            f"--time-offset {fit.suggested_s:.4f} (correlation {fit.correlation:.3f}; "
             "est_stamp + offset = sensor clock)")
 
 
@@ -385,11 +386,12 @@ def refuse_misfit(fit: ClockFit, spec: ExternalSpec, where: str, store: str,
         unshifted = ("no overlap" if not np.isfinite(fit.correlation_at_zero)
                      else f"{fit.correlation_at_zero:.3f}")
         raise DataError(
-            f"{where}: its clock does not fit the scans of {store}: its speed profile lines up "
-            f"with the ground truth's only shifted by {fit.offset_s:+.4f} s (correlation "
+            f"{where}: its clock does not fit the scans of {store}: its speed and turn-rate "
+            f"profile lines up with the ground truth's only shifted by {fit.offset_s:+.4f} s "
+            f"(correlation "
             f"{fit.correlation:.3f}, against {unshifted} as it is, with --time-offset "
             f"{spec.time_offset_s:g}); score it with --time-offset "
-            f"{_suggested_offset(fit, spec):.4f} (est_stamp + offset = sensor clock), or "
+            f"{fit.suggested_s:.4f} (est_stamp + offset = sensor clock), or "
             "--trust-clock to score it as it is")
 
 

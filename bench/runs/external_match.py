@@ -50,12 +50,12 @@ def check_options(time_offset_s: float, tolerance_s: float, max_gap_s: float | N
     """``DataError`` naming the option for a non-finite offset, a negative or non-finite
     tolerance, a gap that is not a positive finite number."""
     if not np.isfinite(time_offset_s):
-        raise DataError(f"--time-offset {time_offset_s}: expected a finite number of seconds "
+        raise DataError(f"--time-offset {time_offset_s:g}: expected a finite number of seconds "
                         "(est_stamp + offset = the scans' clock)")
     if not (np.isfinite(tolerance_s) and tolerance_s >= 0):
-        raise DataError(f"--tolerance {tolerance_s}: expected a finite tolerance >= 0 s")
+        raise DataError(f"--tolerance {tolerance_s:g}: expected a finite tolerance >= 0 s")
     if max_gap_s is not None and not (np.isfinite(max_gap_s) and max_gap_s > 0):
-        raise DataError(f"--max-gap {max_gap_s}: expected a finite gap > 0 s (or no --max-gap: "
+        raise DataError(f"--max-gap {max_gap_s:g}: expected a finite gap > 0 s (or no --max-gap: "
                         "no interpolation)")
 
 
