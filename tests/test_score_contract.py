@@ -99,6 +99,20 @@ def test_the_profile_fit_is_finer_than_its_grid(sample, tmp_path):
     assert float(fit[0]) == pytest.approx(0.37, abs=FIT_S)
 
 
+@pytest.mark.parametrize("shift_s, refused", [(0.05, False), (0.1, True)])
+def test_a_copy_of_the_ground_truth_a_little_off(sample, tmp_path, shift_s, refused):
+    """Interpolated (--max-gap): 0.05 s off passes (1 - correlation 0.008 unshifted: within
+    the floor), 0.1 s off is refused (0.022)."""
+    path = write_tum(tmp_path / "off.tum", sample.stamps - shift_s, sample.poses)
+    spec = ExternalSpec(path, "off", max_gap_s=0.2)
+    if refused:
+        with pytest.raises(DataError, match="its clock does not fit") as err:
+            score_external(SAMPLE, spec, tmp_path / "r")
+        assert suggested(str(err.value)) == pytest.approx(shift_s, abs=EXACT_S)
+    else:
+        assert score_external(SAMPLE, spec, tmp_path / "r").coverage["scored"] == 250
+
+
 @pytest.mark.parametrize("shift_s", [5.0, -5.0])
 def test_whole_scan_periods_off_match_every_stamp_yet_are_refused(sample, tmp_path, shift_s):
     """GT shifted by 60 scan periods: stamp matching (evo's rule) pairs 190 of the 250 scans,
@@ -157,6 +171,12 @@ def test_stamps_in_another_unit_are_refused_naming_it(sample, tmp_path, unit, fa
     if unit == "ms":
         out = score_external(SAMPLE, ExternalSpec(path, unit, stamp_unit="ms"), tmp_path / "r")
         assert out.coverage["matched"] == 250
+        # an estimate of another scale (x 3) in ms is still told: speeds within 10x of the unit
+        scaled = sample.poses.copy()
+        scaled[:, :3, 3] *= 3.0
+        path = write_tum(tmp_path / "scaled.tum", sample.stamps * factor, scaled)
+        with pytest.raises(DataError, match="score it with --stamp-unit ms"):
+            score_external(SAMPLE, ExternalSpec(path, unit), tmp_path / "r")
 
 
 def _partial_gt_store(tmp_path: Path, with_gt: int = 40) -> tuple[Path, Trajectory]:
