@@ -110,7 +110,8 @@ def test_a_copy_of_the_ground_truth_a_little_off(sample, tmp_path, shift_s, refu
             score_external(SAMPLE, spec, tmp_path / "r")
         assert suggested(str(err.value)) == pytest.approx(shift_s, abs=EXACT_S)
     else:
-        assert score_external(SAMPLE, spec, tmp_path / "r").coverage["scored"] == 250
+        # every scan but the last (beyond the estimate, which ends 0.05 s early)
+        assert score_external(SAMPLE, spec, tmp_path / "r").coverage["scored"] == 249
 
 
 @pytest.mark.parametrize("shift_s", [5.0, -5.0])
