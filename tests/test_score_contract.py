@@ -101,8 +101,8 @@ def test_the_profile_fit_is_finer_than_its_grid(sample, tmp_path):
 
 @pytest.mark.parametrize("shift_s, refused", [(0.05, False), (0.1, True)])
 def test_a_copy_of_the_ground_truth_a_little_off(sample, tmp_path, shift_s, refused):
-    """Interpolated (--max-gap): 0.05 s off passes (1 - correlation 0.008 unshifted: within
-    the floor), 0.1 s off is refused (0.022)."""
+    """Interpolated (--max-gap): 0.05 s off passes (the correlation unshifted 0.008 below the
+    best: within the margin of 0.01), 0.1 s off is refused (0.022 below)."""
     path = write_tum(tmp_path / "off.tum", sample.stamps - shift_s, sample.poses)
     spec = ExternalSpec(path, "off", max_gap_s=0.2)
     if refused:
