@@ -74,6 +74,12 @@ def test_a_clock_off_by_a_fraction_of_a_period_is_refused_with_the_offset(sample
     offset = suggested(str(err.value))
     assert offset == pytest.approx(0.37, abs=EXACT_S)
     assert not (tmp_path / "r").exists()
+    # on another clock, with an offset given that is 0.37 s short: the suggestion is the whole
+    other = write_tum(tmp_path / "other.tum", sample.stamps - 1000.37, sample.poses)
+    with pytest.raises(DataError, match="no scan has a pose within") as err:
+        score_external(SAMPLE, ExternalSpec(other, "late", time_offset_s=1000.0),
+                       tmp_path / "r")
+    assert suggested(str(err.value)) == pytest.approx(1000.37, abs=EXACT_S)
     out = score_external(SAMPLE, ExternalSpec(path, "late", time_offset_s=offset),
                          tmp_path / "r")
     res = read_run(out.run_dir).result
