@@ -220,9 +220,11 @@ def read_estimate(path: str | Path, fmt: str = "auto", stamps: str | Path | None
     if fmt == "bag":
         est = read_bag_estimate(path, topic)
     elif fmt == "boreas":
-        from loaders.estimate_boreas import read_boreas_estimate
+        from loaders.estimate_boreas import read_boreas
 
-        est = read_boreas_estimate(path)
+        traj, lines = read_boreas(path)
+        check_stamps(traj.stamps * 1e-6, str(path), lines)  # (its message in seconds)
+        est = Estimate(traj, None)
     elif fmt == "kitti":
         est = read_kitti_estimate(path, None if stamps is None else Path(stamps))
     else:

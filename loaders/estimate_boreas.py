@@ -28,10 +28,9 @@ from loaders.trajectory import Trajectory
 DET_TOLERANCE = 1e-3
 
 
-def read_boreas_estimate(path: Path):
-    """The poses ``T_i_k`` (inverses of the file's ``T_k_i``) at the file's stamps [us]."""
-    from loaders.estimate import Estimate, check_stamps
-
+def read_boreas(path: Path) -> tuple[Trajectory, list[int]]:
+    """The poses ``T_i_k`` (inverses of the file's ``T_k_i``) at the file's stamps [us], and
+    the line number of each row (``loaders.estimate`` checks that the stamps increase)."""
     path = Path(path)
     data, lines = numeric_rows(path, (13,), "13 values: stamp [us] and the 3x4 T_k_i row-major")
     stamps = data[:, 0]
@@ -40,7 +39,6 @@ def read_boreas_estimate(path: Path):
         r = int(frac[0])
         raise DataError(f"{path}, line {lines[r]}: stamp {stamps[r]!r} is not a whole number; "
                         "expected a Boreas row: an integer stamp [us] then 12 values")
-    check_stamps(stamps * 1e-6, str(path), lines)  # (its message in seconds)
     M = data[:, 1:].reshape(-1, 3, 4)
     R = M[:, :, :3]
     det = np.linalg.det(R)
@@ -51,4 +49,4 @@ def read_boreas_estimate(path: Path):
                         f"(determinant {det[r]:.4f}); expected a rigid transform")
     U, _, Vt = np.linalg.svd(R)  # the nearest rotation (rows printed with few digits)
     T_k_i = make_T(U @ Vt, M[:, :, 3])
-    return Estimate(Trajectory(stamps, inv_T(T_k_i)), None)
+    return Trajectory(stamps, inv_T(T_k_i)), lines
