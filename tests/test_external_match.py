@@ -145,3 +145,14 @@ def test_a_pose_is_matched_to_one_scan_at_most():
     used = [np.flatnonzero(np.all(m.poses[m.matched] == p, axis=(1, 2))) for p in
             straight(t_est)]
     assert all(len(u) == 1 for u in used)
+
+
+def test_a_non_finite_offset_gets_a_message_not_a_valueerror():
+    """loaders.gt.offset_hint rounded a NaN clock difference (a ValueError traceback); the
+    ground truth's association with a NaN offset is one DataError too."""
+    from loaders.gt import associate, offset_hint
+
+    assert "not finite" in offset_hint(np.array([np.nan]), SCANS)
+    assert "not finite" in offset_hint(SCANS + np.inf, SCANS)
+    with pytest.raises(DataError, match="a stamp or the time offset is not finite"):
+        associate(Trajectory(SCANS, straight(SCANS)), SCANS, offset_s=float("nan"))
