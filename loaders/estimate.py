@@ -239,6 +239,10 @@ def read_estimate(path: str | Path, fmt: str = "auto", stamps: str | Path | None
             raise DataError(f"{frame_times}, line {lines[int(neg[0])]}: negative time; "
                             "expected a time per frame [ms] >= 0")
         est = Estimate(est.trajectory, data[:, 0].copy())
+    finite = np.isfinite(est.trajectory.poses).all(axis=(1, 2))
+    if not finite.all():  # (text rows are checked by line; a bag's poses here)
+        raise DataError(f"{path}: pose {int(np.flatnonzero(~finite)[0])} is not finite "
+                        f"({int((~finite).sum())} such poses); expected finite poses")
     if len(est.trajectory) < 2:
         raise DataError(f"{path}: the estimate has {len(est.trajectory)} pose; expected a "
                         "trajectory of at least 2 poses")
