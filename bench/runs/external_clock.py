@@ -189,14 +189,15 @@ def fit_clock(est_stamps: np.ndarray, est_poses: np.ndarray, gt_stamps: np.ndarr
     if np.isfinite(gt_speed).sum() < 8 or np.isfinite(est_speed).sum() < 8:
         return ClockFit(None, why="too short for a speed profile")
     channels = []
-    spread = float(np.nanstd(gt_speed))
+    spread, turns = float(np.nanstd(gt_speed)), float(np.nanstd(gt_rate))
     if spread >= MIN_SPEED_STD_MPS:
         channels.append(_ncc(gt_speed, est_speed))
-    if USE_TURN_RATE and float(np.nanstd(gt_rate)) >= MIN_TURN_STD_RADPS:
+    if USE_TURN_RATE and turns >= MIN_TURN_STD_RADPS:
         channels.append(_ncc(gt_rate, est_rate))
     if not channels:
-        return ClockFit(None, why=f"the ground truth's speed hardly varies (standard deviation "
-                                  f"{spread:.2f} m/s) nor does it turn")
+        return ClockFit(None, why=f"the ground truth's speed and turn rate hardly vary "
+                                  f"(standard deviations {spread:.2f} m/s, {turns:.3f} rad/s): "
+                                  "a constant motion shows no clock")
     k = channels[0][0]
     r = np.mean([c[1] for c in channels], axis=0)
     best = int(np.argmax(r))
