@@ -17,7 +17,7 @@ The contract (each breach one ``DataError`` naming the estimate, exit 2 on the c
   lines up with the ground truth's only when shifted by more than ``CLOCK_MAX_SHIFT_S`` (or
   fits clearly better at another shift than unshifted: ``clock_misfit``) is refused naming
   the ``--time-offset`` that fits, even when every stamp matches (an estimate a whole number
-  of scan periods off); ``bench.runs.external_clock``;
+  of scan periods off); ``bench.runs.external_clock_check``;
 - no scan within the tolerance: refused with the offset that fits (the motion profile's, or
   ``loaders.gt.offset_hint``'s guess);
 - it covers at least ``min_coverage`` (``DEFAULT_MIN_COVERAGE``) of the scans that have ground
@@ -25,7 +25,7 @@ The contract (each breach one ``DataError`` naming the estimate, exit 2 on the c
 - its ``name`` is one path component, not a harness method's name nor a harness run folder's
   (``icp-p2p_seed``), and an existing folder of that name that holds another kind of run (a
   harness run) is replaced only with ``replace_run``, and then with a warning; a folder that
-  holds no run is never written into.
+  holds no run is never written into (``bench.runs.external_names``).
 
 Timing: "not timed" (``time_ms`` empty, ``clock_note`` says so) unless the method reported its
 per-frame times (a 9th TUM column or a file), which are then recorded with ``clock`` "reported
@@ -33,24 +33,26 @@ by the method" and never ranked against the harness's own clock.
 
 Identity (``config.yaml``'s ``run_key``): the SHA-256 of the trajectory file (of every file of
 a bag folder), of its stamps / times files, the store's content, the association and scoring
-settings and the scoring code (``bench.runs.identity.code_identity`` and this module's source).
+settings and the scoring code (``bench.runs.identity.code_identity`` and the sources of the
+``bench.runs.external*`` modules).
 """
 
 from __future__ import annotations
 
 import hashlib
 import warnings
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 
 from bench.runs.evaluate import Scoring, evaluate_run, timing_part
-from bench.runs.external_clock import ClockFit, aligned_offset, fit_clock, stamp_unit
+from bench.runs.external_clock_check import check_clock, fit_hint, refuse_misfit
 from bench.runs.external_defaults import DEFAULT_MIN_COVERAGE, DEFAULT_TOLERANCE_S
 from bench.runs.external_match import check_options, match_to_scans
-from bench.runs.folders import RUN_RECORDS, clear_run, is_finished, run_dir_name, write_run
+from bench.runs.external_names import EXTERNAL, check_name, check_run_folder
+from bench.runs.folders import clear_run, is_finished, run_dir_name, write_run
 from bench.runs.identity import code_identity, run_key, store_identity
 from bench.runs.job import calibration_frames, sequence_folder, sequence_labels
 from bench.runs.result import EXTERNAL_MARK, REPORTED_CLOCK
@@ -60,22 +62,11 @@ from loaders.gt import gt_for_frames, time_span
 from loaders.posefile import parse_extrinsic
 from loaders.store import StoreSequence
 from methods.base import FrameRecord, OdometryResult
-from methods.registry import METHODS, Seed
 
-#: the label mark of an external run, and its clocks
-EXTERNAL = "external"
+#: the clock note of an external run without per-frame times
 NOT_TIMED = ("not timed: the trajectory was made outside the harness and came without "
              "per-frame times")
 DEFAULT_OUT = Path("results/external")
-#: a shift beyond this [s] is a misfit whatever the correlations (the profiles of a real
-#: odometry are broad: on the NTU sample its own runs fit within 0.07 s of no shift, and their
-#: correlation unshifted is within 0.02 of the best for shifts up to 0.4 s)
-CLOCK_MAX_SHIFT_S = 0.2
-#: below that, a misfit only where the best correlation exceeds the one unshifted by more
-#: than this (on the NTU sample a copy of its ground truth 0.05 s off: by 0.008, passes; 0.1 s
-#: off: by 0.022, refused; the harness's own runs: by < 0.001)
-CLOCK_FIT_MARGIN = 0.01
-UNIT_NAMES = {"ms": "milliseconds", "us": "microseconds", "ns": "nanoseconds"}
 
 
 @dataclass(frozen=True)
@@ -133,31 +124,10 @@ def file_sha256(path: Path | None) -> str | None:
 
 def _own_code() -> str:
     h = hashlib.sha256()
-    for module in ("external.py", "external_match.py"):
+    for module in ("external.py", "external_match.py", "external_clock.py",
+                   "external_clock_check.py", "external_names.py", "external_defaults.py"):
         h.update((Path(__file__).with_name(module)).read_bytes())
     return h.hexdigest()[:16]
-
-
-def check_name(name: str) -> str:
-    """The run's name: one path component (its folder), not a harness method's name nor a
-    harness run folder's (``<method>_seed`` / ``<method>_noseed``)."""
-    if not name or not name.strip():
-        raise DataError("--name: give the external method a name (e.g. --name my-odometry)")
-    if any(c in name for c in "/\\\0") or name in (".", "..") or name != name.strip():
-        raise DataError(f"--name {name!r}: expected one path component (no '/', '\\', "
-                        "surrounding spaces, '.' or '..'): the run's folder under "
-                        "RESULTS_DIR/SEQUENCE/")
-    if name in METHODS:
-        raise DataError(f"--name {name!r} is a method of the harness; an external run needs a "
-                        f"name of its own (e.g. {name}-ext), so it never replaces that run")
-    for method in METHODS:
-        for seed in (Seed.WITH, Seed.WITHOUT):
-            if name == method + seed.suffix:
-                how = "with" if seed is Seed.WITH else "without"
-                raise DataError(f"--name {name!r} is the run folder of the harness's {method} "
-                                f"run {how} its seed; an external run needs a name of its own "
-                                f"(e.g. {name}-ext), so it never replaces that run")
-    return name
 
 
 def check_options_of(spec: ExternalSpec) -> None:
@@ -166,42 +136,6 @@ def check_options_of(spec: ExternalSpec) -> None:
     if not (np.isfinite(spec.min_coverage) and 0 <= spec.min_coverage <= 1):
         raise DataError(f"--min-coverage {spec.min_coverage:g}: expected a share in [0, 1] of the "
                         "scans with ground truth")
-
-
-def check_run_folder(run_dir: Path, replace_run: bool) -> str:
-    """"" when ``run_dir`` is free or holds an external run (``bench score``'s own), else what
-    it holds: a run of another kind is refused unless ``replace_run`` (then its records are
-    cleared before the external run is written, with a warning saying what it replaced); a
-    folder with files but no run is always refused."""
-    if not run_dir.is_dir() or not any(run_dir.iterdir()):
-        return ""
-    config = _config(run_dir)
-    is_run = config is not None or any((run_dir / n).exists() for n in RUN_RECORDS)
-    if not is_run:
-        raise DataError(f"{run_dir} holds files that are no run; bench score writes only into "
-                        "a new folder or one of its own runs: choose another --name or --out")
-    kind = (config or {}).get("identity", {}).get("kind") if isinstance(config, dict) else None
-    if kind == EXTERNAL or isinstance((config or {}).get("external"), dict):
-        return ""
-    method = ((config or {}).get("method") or {}).get("name", "?")
-    what = f"a harness run (method {method})"
-    if not replace_run:
-        raise DataError(f"{run_dir} holds {what}; bench score does not replace it: choose "
-                        "another --name (or --replace-run to replace that run)")
-    return what
-
-
-def _config(run_dir: Path) -> dict | None:
-    import yaml
-
-    path = run_dir / "config.yaml"
-    if not path.exists():
-        return None
-    try:
-        config = yaml.safe_load(path.read_text())
-    except (OSError, yaml.YAMLError):
-        return {}
-    return config if isinstance(config, dict) else {}
 
 
 def frame_transform(spec: ExternalSpec, T_body_sensor: np.ndarray) -> tuple[np.ndarray, str]:
@@ -238,14 +172,14 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         T_frame_sensor, how = frame_transform(spec, seq.sensor.T_body_sensor)
         stamps = seq.stamps
         where = f"{spec.trajectory}" + (f":{spec.topic}" if spec.topic else "")
-        fit, clock = check_clock(est.trajectory, T_frame_sensor, seq.ground_truth, stamps, spec,
-                                 where, str(store))
+        fit, clock = check_clock(est.trajectory, T_frame_sensor, seq.ground_truth, stamps,
+                                 spec.time_offset_s, spec.trust_clock, where, str(store))
         m = match_to_scans(est.trajectory, stamps, time_offset_s=spec.time_offset_s,
                            tolerance_s=spec.tolerance_s, max_gap_s=spec.max_gap_s,
                            T_frame_sensor=T_frame_sensor, est_name=where, scan_name=str(store),
-                           hint=_fit_hint(fit, spec))
+                           hint=fit_hint(fit))
         if fit is not None:
-            refuse_misfit(fit, spec, where, str(store))
+            refuse_misfit(fit, spec.time_offset_s, where, str(store))
         _, has_gt = gt_for_frames(seq.ground_truth, stamps, name=str(store))
         calibrated = calibration_frames(seq)
         with_gt = has_gt if calibrated is None else has_gt & ~calibrated
@@ -331,68 +265,6 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         return ExternalOutcome(run_dir, "done", coverage, how, clock)
     finally:
         seq.close()
-
-
-def check_clock(est, T_frame_sensor: np.ndarray, gt, scan_stamps: np.ndarray,
-                spec: ExternalSpec, where: str, store: str) -> tuple[ClockFit | None, str]:
-    """The estimate's clock against the ground truth's (``bench.runs.external_clock``):
-    stamps in another unit are refused here; returns the motion-profile fit (None with
-    ``trust_clock``) and a line saying what was found."""
-    if spec.trust_clock:
-        return None, "not checked (--trust-clock)"
-    est_poses = est.poses @ T_frame_sensor
-    est_stamps = est.stamps + spec.time_offset_s
-    unit = stamp_unit(est_stamps, est_poses[:, :3, 3], gt.stamps, gt.poses[:, :3, 3])
-    if unit is not None:
-        name, est_speed, gt_speed = unit
-        raise DataError(
-            f"{where}: its stamps look like {UNIT_NAMES[name]}, not seconds: it moves "
-            f"{est_speed:.3g} m per stamp unit where the ground truth of {store} moves "
-            f"{gt_speed:.3g} m/s; score it with --stamp-unit {name} (or --trust-clock to score "
-            "it as it is)")
-    period = float(np.median(np.diff(scan_stamps))) if len(scan_stamps) > 1 else 0.0
-    fit = fit_clock(est_stamps, est_poses, gt.stamps, gt.poses, period)
-    if fit.offset_s is not None:  # suggest an offset that lines the stamps up too
-        fit = replace(fit, suggested_s=spec.time_offset_s + aligned_offset(
-            est_stamps, scan_stamps, fit.offset_s, period))
-    if fit.offset_s is None:
-        return fit, f"inconclusive: {fit.why}"
-    shift = round(fit.offset_s, 4) + 0.0
-    return fit, (f"speed and turn-rate profile fits best shifted by {shift:+.4f} s (correlation"
-                 f" {fit.correlation:.3f}; {fit.correlation_at_zero:.3f} unshifted)")
-
-
-def clock_misfit(fit: ClockFit) -> bool:
-    """The motion profiles line up at a shift beyond ``CLOCK_MAX_SHIFT_S``, or clearly better
-    at another shift than unshifted (see the constants)."""
-    if fit.offset_s is None:
-        return False
-    if abs(fit.offset_s) > CLOCK_MAX_SHIFT_S or not np.isfinite(fit.correlation_at_zero):
-        return True
-    return fit.correlation - fit.correlation_at_zero > CLOCK_FIT_MARGIN
-
-
-def _fit_hint(fit: ClockFit | None, spec: ExternalSpec) -> str | None:
-    """What fits when no scan is covered (None: ``loaders.gt.offset_hint``'s guess)."""
-    if fit is None or fit.offset_s is None:
-        return None
-    return (f"its speed and turn-rate profile lines up with the ground truth's with "
-            f"--time-offset {fit.suggested_s:.4f} (correlation {fit.correlation:.3f}; "
-            "est_stamp + offset = sensor clock)")
-
-
-def refuse_misfit(fit: ClockFit, spec: ExternalSpec, where: str, store: str) -> None:
-    if clock_misfit(fit):
-        unshifted = ("no overlap" if not np.isfinite(fit.correlation_at_zero)
-                     else f"{fit.correlation_at_zero:.3f}")
-        raise DataError(
-            f"{where}: its clock does not fit the scans of {store}: its speed and turn-rate "
-            f"profile lines up with the ground truth's only shifted by {fit.offset_s:+.4f} s "
-            f"(correlation "
-            f"{fit.correlation:.3f}, against {unshifted} as it is, with --time-offset "
-            f"{spec.time_offset_s:g}); score it with --time-offset "
-            f"{fit.suggested_s:.4f} (est_stamp + offset = sensor clock), or "
-            "--trust-clock to score it as it is")
 
 
 def _evaluate(gt, result, scoring: Scoring, with_gt: np.ndarray, idx: np.ndarray,
