@@ -51,11 +51,13 @@ DEFAULT_UNITS = {"tum": "s", "kitti": "s", "bag": "s", "boreas": "us"}
 
 @dataclass(frozen=True)
 class Estimate:
-    """The estimated poses ``T_world_frame`` at their stamps [s], and the method's own time of
-    each row [ms] (None when it reported none)."""
+    """The estimated poses ``T_world_frame`` at their stamps [s], the method's own time of
+    each row [ms] (None when it reported none) and the unit the stamps were read in."""
 
     trajectory: Trajectory
     frame_times_ms: np.ndarray | None = None
+    #: the unit the stamps were read in (they are returned in seconds)
+    stamp_unit: str = "s"
 
 
 def check_stamps(stamps: np.ndarray, where: str, lines: list | None = None) -> None:
@@ -247,8 +249,6 @@ def read_estimate(path: str | Path, fmt: str = "auto", stamps: str | Path | None
         raise DataError(f"{path}: the estimate has {len(est.trajectory)} pose; expected a "
                         "trajectory of at least 2 poses")
     unit = stamp_unit or DEFAULT_UNITS[fmt]
-    if unit != "s":
-        traj = est.trajectory
-        est = Estimate(Trajectory(traj.stamps * STAMP_UNITS[unit], traj.poses),
-                       est.frame_times_ms)
-    return est
+    traj = est.trajectory
+    return Estimate(Trajectory(traj.stamps * STAMP_UNITS[unit], traj.poses), est.frame_times_ms,
+                    unit)

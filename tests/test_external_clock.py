@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from bench.runs.external_clock import aligned_offset, fit_clock, motion_profiles, stamp_unit
+from bench.runs.external_clock import aligned_offset, fit_clock, motion_profiles, stamp_scale
 from loaders.se3 import make_T
 
 T = np.arange(0, 30, 0.1)
@@ -54,11 +54,13 @@ def test_a_constant_speed_straight_drive_is_inconclusive():
 def test_stamp_units_by_speed():
     poses = drive(T)
     xyz = poses[:, :3, 3]
-    assert stamp_unit(T, xyz, T, xyz) is None
-    unit, est_speed, gt_speed = stamp_unit(T * 1e3, xyz, T, xyz)
-    assert unit == "ms" and est_speed == pytest.approx(gt_speed / 1e3)
-    assert stamp_unit(T * 1e6, xyz, T, xyz)[0] == "us"
-    assert stamp_unit(T * 30, xyz, T, xyz) is None  # 30x: no unit
+    assert stamp_scale(T, xyz, T, xyz) is None
+    factor, est_speed, gt_speed = stamp_scale(T * 1e3, xyz, T, xyz)  # ms read as s
+    assert factor == 1e3 and est_speed == pytest.approx(gt_speed / 1e3)
+    assert stamp_scale(T * 1e6, xyz, T, xyz)[0] == 1e6
+    assert stamp_scale(T * 1e-9, xyz, T, xyz)[0] == 1e-9  # s read as ns
+    assert stamp_scale(T * 30, xyz, T, xyz) is None  # 30x: no unit
+    assert stamp_scale(T * 1e12, xyz, T, xyz) is None  # beyond s vs ns
 
 
 def test_the_aligned_offset_lines_the_stamps_up():

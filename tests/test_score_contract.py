@@ -172,8 +172,8 @@ def test_a_real_odometry_on_its_clock_passes_and_shifted_is_refused(doppler_run,
 @pytest.mark.parametrize("unit, factor", [("ms", 1e3), ("us", 1e6), ("ns", 1e9)])
 def test_stamps_in_another_unit_are_refused_naming_it(sample, tmp_path, unit, factor):
     path = write_tum(tmp_path / f"{unit}.tum", sample.stamps * factor, sample.poses)
-    with pytest.raises(DataError, match=rf"{unit}.tum: its stamps look like \w+, not seconds: .*"
-                                        rf"score it with --stamp-unit {unit}"):
+    with pytest.raises(DataError, match=rf"{unit}.tum: its stamps read in seconds move it at "
+                                        rf".* stamps in \w+\? score it with --stamp-unit {unit}"):
         score_external(SAMPLE, ExternalSpec(path, unit), tmp_path / "r")
     if unit == "ms":
         out = score_external(SAMPLE, ExternalSpec(path, unit, stamp_unit="ms"), tmp_path / "r")
@@ -184,6 +184,11 @@ def test_stamps_in_another_unit_are_refused_naming_it(sample, tmp_path, unit, fa
         path = write_tum(tmp_path / "scaled.tum", sample.stamps * factor, scaled)
         with pytest.raises(DataError, match="score it with --stamp-unit ms"):
             score_external(SAMPLE, ExternalSpec(path, unit), tmp_path / "r")
+        # the other way: seconds read as nanoseconds
+        path = write_tum(tmp_path / "s.tum", sample.stamps, sample.poses)
+        with pytest.raises(DataError, match=r"s.tum: its stamps read in nanoseconds move it .*"
+                                            r"stamps in seconds\? score it with --stamp-unit s "):
+            score_external(SAMPLE, ExternalSpec(path, "s", stamp_unit="ns"), tmp_path / "r")
 
 
 def _partial_gt_store(tmp_path: Path, with_gt: int = 40) -> tuple[Path, Trajectory]:
@@ -289,6 +294,7 @@ def _bench(args, capsys, monkeypatch) -> tuple[int, str]:
 
 
 @pytest.mark.parametrize("extra, message", [
+    (["--time-offset", "1e300"], "--time-offset 1e+300: the stamps of"),
     (["--time-offset", "nan"], "--time-offset nan: expected a finite number of seconds"),
     (["--max-gap", "-1"], "--max-gap -1: expected a finite gap > 0 s"),
     (["--tolerance", "-1"], "--tolerance -1: expected a finite tolerance >= 0 s"),

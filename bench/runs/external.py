@@ -173,7 +173,8 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         stamps = seq.stamps
         where = f"{spec.trajectory}" + (f":{spec.topic}" if spec.topic else "")
         fit, clock = check_clock(est.trajectory, T_frame_sensor, seq.ground_truth, stamps,
-                                 spec.time_offset_s, spec.trust_clock, where, str(store))
+                                 spec.time_offset_s, spec.trust_clock, where, str(store),
+                                 est.stamp_unit)
         m = match_to_scans(est.trajectory, stamps, time_offset_s=spec.time_offset_s,
                            tolerance_s=spec.tolerance_s, max_gap_s=spec.max_gap_s,
                            T_frame_sensor=T_frame_sensor, est_name=where, scan_name=str(store),

@@ -7,9 +7,9 @@ does not depend on the world frame, the start point or the scale of an estimate 
 second, the same for any frame on the body), so two trajectories of one drive on one clock have
 motion profiles that line up at zero shift. Two checks (``bench.runs.external`` applies them):
 
-- ``stamp_unit``: the estimate's stamps in another unit (ms, us, ns) move it 10^3, 10^6, 10^9
-  times more slowly per stamp unit than the ground truth moves per second (its path over its
-  span against the ground truth's);
+- ``stamp_scale``: the estimate's stamps in another unit (ms, us, ns read as s, or s read as
+  ns ...) move it 10^3, 10^6, 10^9 times more slowly (or faster) per second than the ground
+  truth (its path over its span against the ground truth's);
 - ``fit_clock``: the shift ``tau`` [s] that, added to the estimate's stamps, best lines up its
   speed profile with the ground truth's (the normalised cross-correlation of the two profiles,
   both sampled every ``period / GRID_STEPS_PER_PERIOD`` over windows of +/- ``HALF_WINDOW_S``,
@@ -51,8 +51,6 @@ MIN_SPEED_STD_MPS = 0.2
 MIN_CORRELATION = 0.5
 #: the unit check needs the ground truth to move at least this fast on average [m/s]
 MIN_MEAN_SPEED_MPS = 0.1
-#: stamp units other than seconds: name -> seconds per unit
-UNITS = {"ms": 1e-3, "us": 1e-6, "ns": 1e-9}
 
 
 @dataclass(frozen=True)
@@ -76,20 +74,21 @@ def path_speed(stamps: np.ndarray, positions: np.ndarray) -> float:
     return float(steps.sum() / span) if span > 0 else 0.0
 
 
-def stamp_unit(est_stamps: np.ndarray, est_xyz: np.ndarray, gt_stamps: np.ndarray,
-               gt_xyz: np.ndarray) -> tuple[str, float, float] | None:
-    """The unit the estimate's stamps look to be in ("ms", "us", "ns") with the two speeds
-    (the estimate's per stamp unit, the ground truth's [m/s]), or None when they look like
-    seconds or the ground truth hardly moves."""
+def stamp_scale(est_stamps: np.ndarray, est_xyz: np.ndarray, gt_stamps: np.ndarray,
+                gt_xyz: np.ndarray) -> tuple[float, float, float] | None:
+    """How many times too long the estimate's seconds look: 10^(3k) (k = -3 .. 3, not 0) when
+    it moves that many times more slowly per second (within 10x) than the ground truth (e.g.
+    1000: its stamps are milliseconds read as seconds; 1e-9: seconds read as nanoseconds), with
+    the two speeds [m/s]; None when they look alike or the ground truth hardly moves."""
     gt_speed = path_speed(gt_stamps, gt_xyz)
     est_speed = path_speed(est_stamps, est_xyz)
     if gt_speed < MIN_MEAN_SPEED_MPS or est_speed <= 0:
         return None
-    decades = np.log10(est_speed / gt_speed)
-    for unit, seconds in UNITS.items():
-        if abs(decades - np.log10(seconds)) <= 1.0:  # within 10x of the unit's ratio
-            return unit, est_speed, gt_speed
-    return None
+    decades = float(np.log10(gt_speed / est_speed))
+    k = int(np.round(decades / 3))
+    if k == 0 or abs(k) > 3 or abs(decades - 3 * k) > 1.0:  # within 10x of a unit's ratio
+        return None
+    return 10.0 ** (3 * k), est_speed, gt_speed
 
 
 def motion_profiles(stamps: np.ndarray, poses: np.ndarray, h: float, half_window_s: float,

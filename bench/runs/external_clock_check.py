@@ -1,7 +1,9 @@
 """The clock checks of ``bench score`` (``bench.runs.external``): what is refused and what is
 said to fit, from the motion profiles of ``bench.runs.external_clock``.
 
-- stamps that look like ms / us / ns: refused naming the ``--stamp-unit`` that fits;
+- stamps that look like another unit (ms / us / ns read as s, s read as ms ...): refused
+  naming the ``--stamp-unit`` that fits;
+- stamps that no longer increase once offset (an offset too large for their precision);
 - a misfit (``clock_misfit``): the profiles line up only shifted by more than
   ``CLOCK_MAX_SHIFT_S``, or fit more than ``CLOCK_FIT_MARGIN`` better at another shift than
   unshifted: refused naming the ``--time-offset`` that fits (``aligned_offset``: one that lines
@@ -15,8 +17,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from bench.runs.external_clock import ClockFit, aligned_offset, fit_clock, stamp_unit
+from bench.runs.external_clock import ClockFit, aligned_offset, fit_clock, stamp_scale
 from loaders.errors import DataError
+from loaders.estimate import STAMP_UNITS
 from loaders.trajectory import Trajectory
 
 #: a shift beyond this [s] is a misfit whatever the correlations (the profiles of a real
@@ -27,27 +30,36 @@ CLOCK_MAX_SHIFT_S = 0.2
 #: than this (on the NTU sample a copy of its ground truth 0.05 s off: by 0.008, passes; 0.1 s
 #: off: by 0.022, refused; the harness's own runs: by < 0.001)
 CLOCK_FIT_MARGIN = 0.01
-UNIT_NAMES = {"ms": "milliseconds", "us": "microseconds", "ns": "nanoseconds"}
+UNIT_NAMES = {"s": "seconds", "ms": "milliseconds", "us": "microseconds",
+              "ns": "nanoseconds"}
 
 
 def check_clock(est: Trajectory, T_frame_sensor: np.ndarray, gt: Trajectory,
                 scan_stamps: np.ndarray, time_offset_s: float, trust_clock: bool, where: str,
-                store: str) -> tuple[ClockFit | None, str]:
+                store: str, unit: str = "s") -> tuple[ClockFit | None, str]:
     """The estimate's clock against the ground truth's (``bench.runs.external_clock``):
-    stamps in another unit are refused here; returns the motion-profile fit (None with
-    ``trust_clock``) and a line saying what was found."""
+    stamps in another unit (``unit``: the one they were read in) are refused here; returns the
+    motion-profile fit (None with ``trust_clock``) and a line saying what was found."""
+    est_stamps = est.stamps + time_offset_s
+    if not np.all(np.diff(est_stamps) > 0):
+        raise DataError(f"--time-offset {time_offset_s:g}: the stamps of {where} no longer "
+                        "increase once offset (an offset too large for their precision); "
+                        "expected an offset of the size of the clocks' difference")
     if trust_clock:
         return None, "not checked (--trust-clock)"
     est_poses = est.poses @ T_frame_sensor
-    est_stamps = est.stamps + time_offset_s
-    unit = stamp_unit(est_stamps, est_poses[:, :3, 3], gt.stamps, gt.poses[:, :3, 3])
-    if unit is not None:
-        name, est_speed, gt_speed = unit
+    scale = stamp_scale(est_stamps, est_poses[:, :3, 3], gt.stamps, gt.poses[:, :3, 3])
+    if scale is not None:
+        factor, est_speed, gt_speed = scale
+        seconds = STAMP_UNITS[unit] / factor  # what one raw stamp unit looks to be
+        fits = next((u for u, s in STAMP_UNITS.items() if np.isclose(s, seconds)), None)
+        advice = (f"score it with --stamp-unit {fits}" if fits else
+                  f"its seconds look {factor:g} times too long")
         raise DataError(
-            f"{where}: its stamps look like {UNIT_NAMES[name]}, not seconds: it moves "
-            f"{est_speed:.3g} m per stamp unit where the ground truth of {store} moves "
-            f"{gt_speed:.3g} m/s; score it with --stamp-unit {name} (or --trust-clock to score "
-            "it as it is)")
+            f"{where}: its stamps read in {UNIT_NAMES[unit]} move it at {est_speed:.3g} m/s "
+            f"where the ground truth of {store} moves at {gt_speed:.3g} m/s: stamps in "
+            f"{UNIT_NAMES.get(fits, 'another unit')}? {advice} (or --trust-clock to score it "
+            "as it is)")
     period = float(np.median(np.diff(scan_stamps))) if len(scan_stamps) > 1 else 0.0
     fit = fit_clock(est_stamps, est_poses, gt.stamps, gt.poses, period)
     if fit.offset_s is not None:  # suggest an offset that lines the stamps up too
