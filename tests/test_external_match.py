@@ -156,3 +156,13 @@ def test_a_non_finite_offset_gets_a_message_not_a_valueerror():
     assert "not finite" in offset_hint(SCANS + np.inf, SCANS)
     with pytest.raises(DataError, match="a stamp or the time offset is not finite"):
         associate(Trajectory(SCANS, straight(SCANS)), SCANS, offset_s=float("nan"))
+
+
+def test_a_scan_keeps_the_index_of_the_pose_it_took():
+    """Scan 0's nearest pose (0.06 s) goes to scan 1 (0.04 s from it); scan 0 takes the pose at
+    -0.2 s (within 0.3 s): the pose index says which (the reported time follows it)."""
+    scans = np.array([0.0, 0.1])
+    t_est = np.array([-0.2, 0.06])
+    m = match_to_scans(Trajectory(t_est, straight(t_est)), scans, tolerance_s=0.3)
+    np.testing.assert_array_equal(m.pose_index, [0, 1])
+    np.testing.assert_array_equal(m.poses, straight(t_est))

@@ -221,8 +221,7 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         if is_finished(run_dir, key) and not force and not replaced:
             return ExternalOutcome(run_dir, "skipped", coverage, how, clock)
         idx = np.flatnonzero(m.covered)
-        row_times = _frame_times(est.frame_times_ms, est.trajectory.stamps + spec.time_offset_s,
-                                 stamps, m)
+        row_times = _frame_times(est.frame_times_ms, len(stamps), m)
         frames = [FrameRecord(index=int(i), stamp=float(stamps[i]), time_ms=float(row_times[i]),
                               points=0, correspondences=0, iterations=0, converged=True)
                   for i in idx]
@@ -291,16 +290,12 @@ def _str(path: Path | None) -> str | None:
     return None if path is None else str(path)
 
 
-def _frame_times(times_ms: np.ndarray | None, est_stamps: np.ndarray, scan_stamps: np.ndarray,
-                 m) -> np.ndarray:
+def _frame_times(times_ms: np.ndarray | None, n_scans: int, m) -> np.ndarray:
     """Per scan: the reported time of the pose it matched [ms] (NaN when interpolated or not
     reported)."""
-    out = np.full(len(scan_stamps), np.nan)
+    out = np.full(n_scans, np.nan)
     if times_ms is not None and m.matched.any():
-        from loaders.gt import nearest_indices
-
-        near, _ = nearest_indices(est_stamps, scan_stamps[m.matched])
-        out[m.matched] = times_ms[near]
+        out[m.matched] = times_ms[m.pose_index[m.matched]]
     return out
 
 

@@ -37,13 +37,15 @@ from loaders.trajectory import Trajectory
 
 @dataclass(frozen=True)
 class Matched:
-    """``T_world_sensor`` (N, 4, 4) estimated at each of the N scans (NaN where none) and the
-    association's report (counts, tolerance, gap, offset)."""
+    """``T_world_sensor`` (N, 4, 4) estimated at each of the N scans (NaN where none), which
+    scans are covered and matched, the pose each matched scan took (``pose_index``, -1 for
+    the others) and the association's report (counts, tolerance, gap, offset)."""
 
     poses: np.ndarray
     covered: np.ndarray
     matched: np.ndarray
     report: dict = field(default_factory=dict)
+    pose_index: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=int))
 
 
 def check_options(time_offset_s: float, tolerance_s: float, max_gap_s: float | None) -> None:
@@ -108,4 +110,4 @@ def match_to_scans(est: Trajectory, scan_stamps: np.ndarray, *, time_offset_s: f
             f"{len(q)} scans span {time_span(q)}; different clocks? "
             + (hint or offset_hint(s, q).replace("gt_stamp", "est_stamp")
                .replace("the ground truth's clock", "the estimate's clock")))
-    return Matched(out, covered, matched, report)
+    return Matched(out, covered, matched, report, np.where(matched, near, -1))
