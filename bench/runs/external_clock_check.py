@@ -99,8 +99,7 @@ def refuse_misfit(fit: ClockFit, time_offset_s: float, where: str, store: str) -
         raise DataError(
             f"{where}: its clock does not fit the scans of {store}: its speed and turn-rate "
             f"profile lines up with the ground truth's only shifted by {fit.offset_s:+.4f} s "
-            f"(correlation "
-            f"{fit.correlation:.3f}, against {unshifted} as it is, with --time-offset "
-            f"{time_offset_s:g}); score it with --time-offset "
-            f"{fit.suggested_s:.4f} (est_stamp + offset = sensor clock), or "
-            "--trust-clock to score it as it is")
+            f"(correlation {fit.correlation:.3f}, against {unshifted} as it is, with "
+            f"--time-offset {time_offset_s:g}); score it with --time-offset "
+            f"{fit.suggested_s:.4f} (est_stamp + offset = sensor clock), or --trust-clock to "
+            "score it as it is")
