@@ -19,6 +19,7 @@ from rich.markup import escape
 # (bench/__init__.py, bench.threads), the same in every executor mode
 from bench.console import make_console
 from bench.data.convert import convert_app
+from bench.runs.external_defaults import DEFAULT_MIN_COVERAGE, DEFAULT_TOLERANCE_S
 from loaders.errors import DataError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
@@ -200,16 +201,20 @@ def run(
 @app.command(short_help="score a trajectory made elsewhere as a run")
 def score(
     trajectory: Annotated[Path, typer.Argument(
-        help="TUM file (t x y z qx qy qz qw [time_ms]), KITTI pose file (with --stamps) or a "
-        "bag (ROS1 .bag, ROS2 folder, .db3, .mcap) with an Odometry / PoseStamped topic")],
+        help="TUM file (t x y z qx qy qz qw [time_ms]), KITTI pose file (with --stamps), Boreas "
+        "odometry submission (13 columns: stamp [us], T_k_i 3x4) or a bag (ROS1 .bag, ROS2 "
+        "folder, .db3, .mcap) with an Odometry / PoseStamped topic")],
     store: Annotated[Path, typer.Option(help="the store whose ground truth it is scored "
                                              "against")],
-    name: Annotated[str, typer.Option(help="the run's name (its folder and row label)")],
+    name: Annotated[str, typer.Option(help="the run's name: its folder (one path component) and "
+                                           "row label")],
     out: Annotated[Path, typer.Option(
         metavar="RESULTS_DIR", help="results root: the run goes to RESULTS_DIR/SEQUENCE/NAME")]
     = Path("results/external"),
-    format: Annotated[str, typer.Option("--format", metavar="auto|tum|kitti|bag",
-                                        help="the trajectory's format")] = "auto",
+    format: Annotated[str, typer.Option(
+        "--format", metavar="auto|tum|kitti|boreas|bag", help="the trajectory's format (auto: "
+        "a bag by its suffix or folder, else by the first row's width: 12 kitti, 13 boreas, "
+        "else tum)")] = "auto",
     stamps: Annotated[Path | None, typer.Option(
         help="KITTI: the stamps file, one stamp [s] per pose row")] = None,
     topic: Annotated[str | None, typer.Option(
@@ -219,12 +224,21 @@ def score(
         "the method; without it the run is not timed)")] = None,
     time_offset: Annotated[float, typer.Option(
         help="est_stamp + offset = the store's scan clock [s]")] = 0.0,
+    stamp_unit: Annotated[str | None, typer.Option(
+        metavar="s|ms|us|ns", help="the unit of the trajectory's stamps (default: s; boreas: "
+        "us)")] = None,
     tolerance: Annotated[float, typer.Option(
-        metavar="SECONDS", help="a scan within this of an estimated pose takes that pose [s]; "
-        "the others are interpolated")] = 1e-4,
+        metavar="SECONDS", help="a scan within this (<=) of an estimated pose takes that pose, "
+        "one scan a pose (as evo's --t_max_diff) [s]")] = DEFAULT_TOLERANCE_S,
     max_gap: Annotated[float | None, typer.Option(
-        help="largest gap between estimated poses interpolated across [s] (default: 3 median "
-        "steps of the estimate)")] = None,
+        metavar="SECONDS", help="interpolate the scans between two poses at most this far "
+        "apart [s] (default: no interpolation)")] = None,
+    min_coverage: Annotated[float, typer.Option(
+        metavar="SHARE", help="refuse an estimate covering less than this share of the scans "
+        "with ground truth (0 to 1)")] = DEFAULT_MIN_COVERAGE,
+    trust_clock: Annotated[bool, typer.Option(
+        "--trust-clock", help="skip the clock checks (stamp unit, speed-profile offset)")]
+    = False,
     pose_frame: Annotated[str, typer.Option(
         help="the frame the poses are given in: sensor, or body (the store's T_body_sensor "
         "moves them to the sensor)")] = "sensor",
@@ -232,6 +246,9 @@ def score(
         help="T_frame_sensor: the sensor in the frame of the poses, 'x y z qx qy qz qw' or 16 "
         "numbers (overrides --pose-frame)")] = None,
     force: Annotated[bool, typer.Option(help="score again even when unchanged")] = False,
+    replace_run: Annotated[bool, typer.Option(
+        "--replace-run", help="replace a harness run of the same name in "
+        "RESULTS_DIR/SEQUENCE/NAME (refused without it; replaced with a warning)")] = False,
     lengths: Annotated[str | None, typer.Option(
         help="relative-error segment lengths [m], comma separated (default 8,16,...,48)")] = None,
     kitti_lengths: Annotated[str | None, typer.Option(
@@ -241,12 +258,16 @@ def score(
 ) -> None:
     """Score a trajectory estimated elsewhere (another odometry, a ROS node) against a store's
     ground truth, as a run of its own: the same metrics as `bench run`, in an ordinary run
-    folder that every table, figure, compare, regress and report shows."""
+    folder that every table, figure, compare, regress and report shows. Refused (exit 2): a
+    clock that does not fit the scans (no pose within --tolerance, stamps in another unit, a
+    speed profile that lines up only shifted; the message says the --time-offset or
+    --stamp-unit that fits), a coverage below --min-coverage."""
     from bench.commands import score_command, scoring_options
     from bench.runs.external import ExternalSpec
 
     spec = ExternalSpec(trajectory, name, format, stamps, topic, frame_times, time_offset,
-                        tolerance, max_gap, pose_frame, extrinsic)
+                        tolerance, max_gap, pose_frame, extrinsic, stamp_unit, min_coverage,
+                        trust_clock, replace_run)
     raise typer.Exit(score_command(console, store, spec, out, force,
                                    scoring_options(lengths, kitti_lengths, alignment)))
 
