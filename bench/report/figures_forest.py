@@ -16,6 +16,7 @@ drawn grey and hollow; a diverged run is named, not drawn. One paper column wide
 from __future__ import annotations
 
 import math
+import textwrap
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -30,7 +31,6 @@ from bench.report.figstyle import (
     prior_style,
     run_name,
     save,
-    set_title,
     slug,
     use_paper_style,
 )
@@ -228,7 +228,9 @@ def draw_panel(ax, panel: Panel) -> None:
             label.set_fontweight("bold")
     ax.grid(axis="y", visible=False)
     ax.set_xlabel(f"mean relative {panel.error} error [{panel.unit}]")
-    set_title(ax, f"{panel.sequence}: {panel.error}, {panel.length_m:g} m segments")
+    # ended at the axes' right edge: a long title runs over the labels, never off the figure
+    ax.set_title("\n".join(textwrap.wrap(f"{panel.sequence}, {panel.length_m:g} m segments",
+                                          52)), loc="right")
 
 
 NOTE = ("Bar: the 95 % interval the table prints, dot: the figure. Dashed line U: the smallest "
