@@ -184,3 +184,21 @@ def test_a_diverged_run_is_named_not_ranked(results, tmp_path):
         assert any(t.get_text() == "Div." for t in fig.axes[0].texts)
     finally:
         (bad / "metrics.json").write_text(json.dumps(data))
+
+
+def test_the_legend_is_below_and_nothing_runs_off_the_figure(results):
+    panels = dict(forest_panels(table_rows(results)))["drive-translation"]
+    for p in panels:  # a long sequence name, as real ones are
+        p.sequence = "Baker-Barry Tunnel (Vehicles) (synthetic), GT calibrated on frames 0-124"
+    fig = draw_forest(panels)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    page = fig.bbox
+    assert fig.legends
+    for ax in fig.axes:
+        assert ax.get_legend() is None
+        for legend in fig.legends:
+            assert not ax.get_window_extent(renderer).overlaps(legend.get_window_extent(renderer))
+        for text in (ax.title, *ax.get_yticklabels()):
+            box = text.get_window_extent(renderer)
+            assert box.x0 >= page.x0 - 1 and box.x1 <= page.x1 + 1, text.get_text()
