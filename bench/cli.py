@@ -476,12 +476,32 @@ def speed(
     store: Annotated[Path | None, typer.Option(
         help="with --harness: measure on this store, and time a whole `bench run` on it")]
     = None,
+    scale: Annotated[bool, typer.Option(
+        "--scale", help="only the harness at dataset scale: scoring, table and report per pose "
+        "and their peak memory at --poses, and an experiment's cost per frame on the process "
+        "and dask executors, beside doppler's time on the real sample (scale.csv)")] = False,
+    poses: Annotated[str, typer.Option(help="with --scale: drive lengths in poses, comma "
+                                            "separated")] = "2500,10000,40000",
+    scale_frames: Annotated[int, typer.Option(
+        min=2, help="with --scale: frames of each of the experiment's 3 sequences")] = 2000,
 ) -> None:
     """Time every method on the same synthetic scan pairs (total per-frame work and the
     registration call); print ratios to `doppler`, each method's peak memory and the harness's
     own cost per frame."""
     from bench.studies.speed import run_speed
 
+    if scale:
+        from bench.studies.scale import MIN_POSES, run_scale
+
+        try:
+            counts = tuple(int(x) for x in poses.split(","))
+        except ValueError:
+            counts = ()
+        if not counts or min(counts) < MIN_POSES:
+            raise DataError(f"--poses {poses!r}: expected pose counts of at least {MIN_POSES} "
+                            "(a drive with 48 m segments), comma separated, e.g. 2500,40000")
+        run_scale(out, console, counts, scale_frames)
+        return
     if harness:
         from bench.studies.harness import run_harness
 

@@ -47,6 +47,9 @@ FIGURE_KINDS = {
                         "run is drawn to the top and marked Div.",
     "boxplots": "Relative error per segment length for each sensor class (log axis); "
                 "diverged runs are named, not drawn.",
+    "forest": "Every method's mean relative error on its 95 % interval at the shortest and "
+              "longest length; bold / underlined as in the tables (dashed line U: the smallest "
+              "upper end among the ranked figures; bold = every ranked figure at or below it).",
     "frames": "Time per frame and the number of correspondences per frame.",
     "drift": "Drift per axis (roll / pitch / yaw, along / across / vertical) against distance.",
     "speed": "Scaling of the per-frame time with the number of points (bench speed).",
