@@ -7,10 +7,10 @@ order. The marks are the table's, decided from these intervals alone (``interval
 the smallest upper end among the ranked figures, is drawn as a dashed line, and every ranked
 figure at or below it is bold (its label bold, its bar thick), so every bold bar crosses the
 line; the same rule among the rest gives the underlined ones (label underlined, a dotted line
-at their U). A figure that is not ranked (fewer than 2 independent segments, no interval, or the
-method's other seed row is the better one: one contender per method, as in the tables) is
-drawn grey and hollow; a diverged run is named, not drawn. One paper column wide, written as
-``forest/<sequence-slug>-<error>.{pdf,png}``.
+at their U): the tables' own rule on the figures as printed (``bench.report.significance``),
+so a plot and its table never disagree. A figure that is not ranked (fewer than 2 independent
+segments) is drawn grey and hollow; a diverged run is named, not drawn. One paper column wide,
+written as ``forest/<sequence-slug>-<error>.{pdf,png}``.
 """
 
 from __future__ import annotations
@@ -34,6 +34,8 @@ from bench.report.figstyle import (
     slug,
     use_paper_style,
 )
+from bench.report.significance import Stat
+from bench.report.significance import interval_marks as significance_marks
 
 #: a figure's mark: bold, underlined, none (the tables' ``bench.report.table`` ranks)
 BOLD, UNDERLINED, UNMARKED = 0, 1, 2
@@ -45,29 +47,25 @@ _ROW_IN, _PANEL_EXTRA_IN = 0.15, 0.5  # height of a method's row, a panel's titl
 
 
 def interval_tiers(values: Sequence[float], lows: Sequence[float | None],
-                   highs: Sequence[float | None], rankable: Sequence[bool]
-                   ) -> tuple[list[int], list[float]]:
-    """The marks (``BOLD``, ``UNDERLINED``, ``UNMARKED``) of one table column and the bound U
-    of each tier that has members (bold first). Among the ranked figures (``rankable`` and a
-    finite value), U is the smallest upper interval end; every ranked figure whose value is at
-    most U is bold; then the same among the rest gives the underlined ones. An interval is taken
-    to hold its own value (a missing one is the value alone), so every bold interval contains
-    U: no two figures marked alike have disjoint intervals, and equal values get equal marks."""
+                   highs: Sequence[float | None], rankable: Sequence[bool],
+                   digits: int = 3) -> tuple[list[int], list[float]]:
+    """The marks (``BOLD``, ``UNDERLINED``, ``UNMARKED``) of one table column, by the tables'
+    one rule (``bench.report.significance.interval_marks`` on the figures as printed with
+    ``digits``), and the bound U of each tier that has members (bold first): the smallest
+    printed upper end among the figures left for that tier."""
     n = len(values)
     if not len(lows) == len(highs) == len(rankable) == n:
         raise ValueError(f"interval_tiers: {n} values but {len(lows)} lows, {len(highs)} highs "
                          f"and {len(rankable)} rankable flags")
-    marks, bounds = [UNMARKED] * n, []
-    left = [i for i in range(n) if rankable[i] and math.isfinite(values[i])]
+    stats = [Stat(float(v), _ci(lo, hi), None if ok else 1, digits) if math.isfinite(v)
+             else None for v, lo, hi, ok in zip(values, lows, highs, rankable, strict=True)]
+    marks = significance_marks(stats)
+    bounds = []
     for tier in (BOLD, UNDERLINED):
-        if not left:
-            break
-        u = min(_high(values[i], highs[i]) for i in left)
-        chosen = [i for i in left if values[i] <= u]
-        for i in chosen:
-            marks[i] = tier
-        bounds.append(u)
-        left = [i for i in left if i not in chosen]
+        left = [s.shown()[2] for s, m in zip(stats, marks, strict=True)
+                if s is not None and s.rankable and m >= tier]
+        if any(m == tier for m in marks):
+            bounds.append(min(left))
     return marks, bounds
 
 
@@ -78,11 +76,10 @@ def interval_marks(values: Sequence[float], lows: Sequence[float | None],
     return interval_tiers(values, lows, highs, rankable)[0]
 
 
-def _high(value: float, high: float | None) -> float:
-    """An upper interval end that holds the value (a missing or non-finite one: the value)."""
-    if high is None or not math.isfinite(high):
-        return value
-    return max(value, high)
+def _ci(low: float | None, high: float | None) -> tuple[float, float] | None:
+    if low is None or high is None or not (math.isfinite(low) and math.isfinite(high)):
+        return None
+    return float(low), float(high)
 
 
 @dataclass
@@ -128,22 +125,8 @@ def _entry(rr, name: str, key: str, length_m: float) -> Entry:
     if ci is not None and None not in ci:
         e.low, e.high = float(ci[0]), float(ci[1])
     n_ind = rel.spread.n_independent
-    e.rankable = (n_ind is None or n_ind >= 2) and math.isfinite(e.high)
+    e.rankable = n_ind is None or n_ind >= 2
     return e
-
-
-def _one_per_contender(entries: list[Entry], rows) -> None:
-    """A method's seed and no-seed rows are one contender (as in the tables): only its better
-    ranked row stays ranked."""
-    best: dict[tuple, int] = {}
-    for i, (e, rr) in enumerate(zip(entries, rows, strict=True)):
-        if not e.rankable:
-            continue
-        key = (rr.method, rr.run.label)
-        if key not in best or e.value < entries[best[key]].value:
-            best[key] = i
-    for i, e in enumerate(entries):
-        e.rankable = e.rankable and i in best.values()
 
 
 def forest_panels(rows) -> list[tuple[str, list[Panel]]]:
@@ -173,7 +156,6 @@ def forest_panels(rows) -> list[tuple[str, list[Panel]]]:
                 entries = [_entry(rr, name, key, length)
                            for rr, name in zip(members, names_of[(klass, sequence)],
                                                strict=True)]
-                _one_per_contender(entries, members)
                 marks, bounds = interval_tiers([e.value for e in entries],
                                                [e.low for e in entries],
                                                [e.high for e in entries],
