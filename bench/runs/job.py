@@ -173,6 +173,8 @@ def prepare(job: Job) -> Prepared:
             "sequence": {"name": name, "display_name": display, "sensor_class": klass,
                          "store": str(job.store), "frames": len(seq),
                          "frame_range": list(job.frame_range) if job.frame_range else None,
+                         # the frames of its source the store holds (bench convert --start ...)
+                         "store_frame_range": store.provenance.get("frame_range"),
                          "sensor_kind": seq.sensor.kind, "sensor_model": seq.sensor.model,
                          "period_s": seq.sensor.period_s,
                          # gt-reconstructed: every table / figure row is marked GT-assisted

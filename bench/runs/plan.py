@@ -145,10 +145,14 @@ def plan(jobs: list[Job], refused: list[str] | None = None) -> list[Job]:
         problems += _lengths_problems(job, paths[key], warned)
         other = owners.get(prep.run_dir)
         if other is not None and other[1] != prep.key:
+            same = other[0].store.resolve() == job.store.resolve()
+            what = (f"{other[0].title} and {job.title}" if same else
+                    f"{other[0].title} of {other[0].store} and {job.title} of {job.store}: two "
+                    "stores of different content under one sequence name")
             problems.append(
-                f"{prep.run_dir}: two runs would share this folder ({other[0].title} and "
-                f"{job.title}); give the sequences distinct names or the method variants "
-                "distinct 'label:'s")
+                f"{prep.run_dir}: two runs would share this folder ({what}); give the "
+                "sequences distinct names (an experiment's sequences: name:) or the method "
+                "variants distinct 'label:'s")
             continue
         owners[prep.run_dir] = (job, prep.key)
         _check_writable(prep.run_dir)

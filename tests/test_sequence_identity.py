@@ -1,0 +1,166 @@
+"""Sequences known by their content (bench.runs.sequence_identity): two stores of different
+content under one sequence name are told apart in every table, figure, summary and the report,
+never paired as one sequence; loaders name a cut or a day's run distinctly."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from typer.testing import CliRunner
+
+from bench.report.summary import summary_table
+from bench.report.tables import build, select
+from bench.runs.evaluate import evaluate_run
+from bench.runs.folders import load_runs, write_run
+from bench.runs.sequence_identity import frames_text, sequence_tags
+from bench.studies.coverage import NoiseModel, ground_truth, noisy_estimate
+from helpers_public import synthetic_frames, write_vod
+from loaders.trajectory import Trajectory
+from methods.base import FrameRecord, OdometryResult
+
+
+def _config(sha, frames, store="data1.h5", cut=None, own=None, kind="radial"):
+    return {"identity": {"store_sha256": sha, "frame_range": own},
+            "sequence": {"name": "data1", "display_name": "data1", "frames": frames,
+                         "store": store, "store_frame_range": cut, "doppler_kind": kind,
+                         "sensor_class": "Semi-Dense 4D Radar"}}
+
+
+def test_tags_name_what_tells_contents_apart_and_nothing_when_one_content():
+    full = _config("a" * 64, 400)
+    cut = _config("b" * 64, 190, cut={"start": 60, "frames": 190, "stride": 1})
+    assert sequence_tags(["data1"] * 3, [full, cut, full]) == \
+        ["frames 0-399", "frames 60-249", "frames 0-399"]
+    # one content under the name (two runs of it): no tag
+    assert sequence_tags(["data1", "data1"], [full, full]) == ["", ""]
+    # a run's own frame range composes with the store's cut (start 60 + 10 * stride 2)
+    strided = _config("c" * 64, 5, cut={"start": 60, "frames": 100, "stride": 2}, own=[10, 5])
+    assert frames_text(strided) == "frames 80-88, stride 2"
+    # same frames, other Doppler (VoD radial / compensated): the Doppler kind tells
+    comp = _config("d" * 64, 400, kind="ego-compensated")
+    assert sequence_tags(["data1", "data1"], [full, comp]) == \
+        ["radial Doppler", "ego-compensated Doppler"]
+    # nothing but the bytes differ (a store rewritten in place): its SHA-256 prefix
+    again = _config("e" * 64, 400)
+    assert sequence_tags(["data1", "data1"], [full, again]) == \
+        [f"store {'a' * 12}", f"store {'e' * 12}"]
+    # content not recorded (an older run) keeps its name
+    assert sequence_tags(["data1", "data1"], [{"sequence": {}}, full]) == ["", ""]
+
+
+def _write(root, folder, config, method, seed, gt, est):
+    n = len(gt)
+    stamps = np.arange(n) / 10.0
+    frames = [FrameRecord(i, stamps[i], 1.0, 100, 50, 3, True) for i in range(n)]
+    result = OdometryResult(stamps, est, frames)
+    ev = evaluate_run(Trajectory(stamps, gt), result, lengths_m=(8.0, 48.0))
+    write_run(root / folder, result, ev.gt, {**config, "method": method, "seed": seed},
+              {**ev.metrics, "sequence": "data1", "method": method, "seed": seed,
+               "frames": n, "status": "done"})
+
+
+@pytest.fixture(scope="module")
+def clashing(tmp_path_factory):
+    """Two stores named data1 (the bag in full and cut at frame 60), each run by two methods
+    written in two results folders under one root: doppler is the better method on the full
+    store, icp-p2p on the cut."""
+    root = tmp_path_factory.mktemp("clash")
+    gt = ground_truth(700)
+    good = noisy_estimate(gt, NoiseModel(), 1)
+    bad = noisy_estimate(gt, NoiseModel(0.3, 0.06), 2)
+    full = _config("a" * 64, 700)
+    cut = _config("b" * 64, 700, store="data1_cut.h5",
+                  cut={"start": 60, "frames": 700, "stride": 1})
+    _write(root, "full/data1/doppler", full, "doppler", None, gt, good)
+    _write(root, "full/data1/icp-p2p_seed", full, "icp-p2p", True, gt, bad)
+    _write(root, "cut/data1/doppler", cut, "doppler", None, gt, bad)
+    _write(root, "cut/data1/icp-p2p_seed", cut, "icp-p2p", True, gt, good)
+    return root
+
+
+def test_tables_and_summary_keep_two_contents_of_one_name_apart(clashing):
+    runs = load_runs(clashing)
+    assert sorted({r.display_name for r in runs}) == ["data1 [frames 0-699]",
+                                                      "data1 [frames 60-759]"]
+    assert sorted({r.sequence for r in runs}) == ["data1 [frames 0-699]",
+                                                  "data1 [frames 60-759]"]
+    rows, lengths = select(clashing)
+    table = build("relative", rows, lengths, ci=True)
+    groups = {r.group for r in table.rows}
+    assert groups == {("Semi-Dense 4D Radar", "data1 [frames 0-699]"),
+                      ("Semi-Dense 4D Radar", "data1 [frames 60-759]")}
+    # within each group the better method is marked, each against its own sequence's rival:
+    # paired, doppler would be better everywhere or nowhere
+    summary = summary_table(rows)
+    by = {r.keys[1]: r for r in summary.rows}
+    assert by["doppler"].cells[0].values["sequences"] == 2
+    assert by["icp-p2p"].cells[0].values["sequences"] == 2
+    assert by["doppler"].cells[1].values["mean_rank"] == 1.5
+    assert by["icp-p2p"].cells[1].values["mean_rank"] == 1.5
+
+
+def test_several_results_folders_are_told_apart_across_folders(clashing):
+    rows, _ = select([clashing / "full", clashing / "cut"])
+    assert sorted({r.sequence for r in rows}) == ["data1 [frames 0-699]",
+                                                  "data1 [frames 60-759]"]
+
+
+def test_the_report_shows_each_content_under_its_own_label(clashing):
+    from bench.report.html import render_page
+
+    page, _ = render_page(clashing)
+    assert "data1 [frames 0-699]" in page and "data1 [frames 60-759]" in page
+
+
+@pytest.fixture(scope="module")
+def vod_stores(tmp_path_factory):
+    """One VoD folder converted twice with the default name: radial and compensated."""
+    from bench.cli import app
+
+    tmp = tmp_path_factory.mktemp("vodclash")
+    stamps, points, doppler, poses = synthetic_frames(frames=30)
+    comp = [np.zeros_like(d) for d in doppler]
+    root = write_vod(tmp / "vod", points, doppler, poses, compensated=comp)
+    runner = CliRunner()
+    stores = {}
+    for kind in ("v_r", "v_r_compensated"):
+        stores[kind] = tmp / f"{kind}.h5"
+        res = runner.invoke(app, ["convert", "vod", str(root), "--doppler", kind,
+                                  "--out", str(stores[kind])])
+        assert res.exit_code == 0, res.output
+    return tmp, stores
+
+
+def test_vod_radial_and_compensated_stores_are_two_sequences_in_a_table(vod_stores):
+    from bench.api import run_method
+    from loaders.store import StoreSequence
+
+    tmp, stores = vod_stores
+    names = {k: StoreSequence(p).name for k, p in stores.items()}
+    assert names["v_r"] == names["v_r_compensated"] == "vod_00000-00029"  # the clash
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for kind, store in stores.items():
+            run_method("icp-p2p", store, out=tmp / "results" / kind / "icp-p2p_seed")
+    found = {r.display_name for r in load_runs(tmp / "results")}
+    assert found == {"vod_00000-00029 [radial Doppler]",
+                     "vod_00000-00029 [ego-compensated Doppler]"}
+
+
+def test_convert_names_a_cut_by_its_frames(vod_stores, tmp_path):
+    from bench.cli import app
+    from loaders.store import StoreSequence
+
+    tmp, _ = vod_stores
+    out = tmp_path / "cut.h5"
+    res = CliRunner().invoke(app, ["convert", "vod", str(tmp / "vod"), "--out", str(out),
+                                   "--start", "5", "--frames", "10"])
+    assert res.exit_code == 0, res.output
+    assert StoreSequence(out).name == "vod_00000-00029_frames5-14"
+    named = tmp_path / "named.h5"
+    res = CliRunner().invoke(app, ["convert", "vod", str(tmp / "vod"), "--out", str(named),
+                                   "--start", "5", "--stride", "2", "--name", "mine"])
+    assert res.exit_code == 0, res.output
+    assert StoreSequence(named).name == "mine"  # --name wins
