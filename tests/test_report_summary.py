@@ -74,3 +74,127 @@ def test_the_page_across_datasets_has_a_table_per_dataset_with_intervals(two_dat
     page, counts = render_page(two_datasets)
     assert "Across datasets" in page and "needs raw (radial) Doppler" in page
     assert counts["tables"] >= 4
+
+
+def _write_failed(root, seq, cls, method, seed):
+    from bench.runs.folders import write_failure
+
+    config = {"method": {"name": method}, "seed": seed,
+              "sequence": {"name": seq, "display_name": seq, "sensor_class": cls,
+                           "doppler_kind": "radial", "dataset": "DsA"}}
+    write_failure(root / seq / f"{method}_seed", config, "boom: the method raised")
+
+
+def _write_short(root, seq, cls, kind, folder, method, seed, gt, est, dataset, label=None,
+                 **extra):
+    """A run scored at 2 and 4 m only (``extra``: metrics overrides, e.g. diverged)."""
+    n = len(gt)
+    stamps = np.arange(n) / 10.0
+    frames = [FrameRecord(i, stamps[i], 1.0, 100, 50, 3, True) for i in range(n)]
+    result = OdometryResult(stamps, est, frames)
+    ev = evaluate_run(Trajectory(stamps, gt), result, lengths_m=(2.0, 4.0))
+    config = {"method": method, "seed": seed, "label": label,
+              "sequence": {"name": seq, "display_name": seq, "sensor_class": cls,
+                           "doppler_kind": kind, "dataset": dataset}}
+    write_run(root / seq / folder, result, ev.gt, config,
+              {**ev.metrics, "sequence": seq, "method": method, "seed": seed, "frames": n,
+               "status": "done", **extra})
+
+
+RADAR, LIDAR = "Semi-Dense 4D Radar", "Dense 4D LiDAR"
+
+
+@pytest.fixture(scope="module")
+def mixed(tmp_path_factory):
+    """Two datasets scored at 2 and 4 m only. Radar (DsA): six sequences, doppler good and
+    icp-p2p bad with and without seed on each; gicp diverged on S1, vgicp fell back on S2
+    (60 of 299 frames replaced), kiss-icp failed on S3. LiDAR (DsB): two sequences, icp-p2p
+    good on L1 and bad on L2, and an external trajectory (bench score) good on both, on this
+    class only."""
+    root = tmp_path_factory.mktemp("mixed")
+    gt = ground_truth(300, speed_mps=2.0)
+    good = noisy_estimate(gt, NoiseModel(0.02, 0.002), 1)
+    bad = noisy_estimate(gt, NoiseModel(0.6, 0.06), 2)
+    worse = noisy_estimate(gt, NoiseModel(0.9, 0.09), 3)
+    for k in range(1, 7):
+        seq = f"S{k}"
+        _write_short(root, seq, RADAR, "radial", "doppler", "doppler", None, gt, good, "DsA")
+        _write_short(root, seq, RADAR, "radial", "icp-p2p_seed", "icp-p2p", True, gt, bad,
+                     "DsA")
+        _write_short(root, seq, RADAR, "radial", "icp-p2p_noseed", "icp-p2p", False, gt,
+                     worse, "DsA")
+    _write_short(root, "S1", RADAR, "radial", "gicp_seed", "gicp", True, gt, bad, "DsA",
+                 diverged=True)
+    _write_short(root, "S2", RADAR, "radial", "vgicp_seed", "vgicp", True, gt, bad, "DsA",
+                 frames_replaced=60)
+    _write_failed(root, "S3", RADAR, "kiss-icp", True)
+    _write_short(root, "L1", LIDAR, "ego-compensated", "icp-p2p_seed", "icp-p2p", True, gt,
+                 good, "DsB")
+    _write_short(root, "L2", LIDAR, "ego-compensated", "icp-p2p_seed", "icp-p2p", True, gt,
+                 bad, "DsB")
+    for seq in ("L1", "L2"):
+        _write_short(root, seq, LIDAR, "ego-compensated", "kiss-ext", "kiss-ext", None, gt,
+                     good, "DsB", label="kiss-ext (external)")
+    return root
+
+
+def test_summary_columns_count_sequences_failures_divergence_and_fallback(mixed):
+    rows, _ = select(mixed)
+    table = summary_table(rows)
+    by = {(r.keys[0], r.keys[1]): r for r in table.rows}
+    col = {name: i for i, name in enumerate(table.columns)}
+
+    def cell(cls, name, column):
+        return by[(cls, name)].cells[col[column]]
+
+    # six sequences, not twelve runs (the seed / no-seed pair is one sequence)
+    assert cell(RADAR, "icp-p2p", "Sequences").values["sequences"] == 6
+    assert cell(RADAR, "doppler", "Sequences").values["sequences"] == 6
+    assert cell(RADAR, "gicp", "Diverged").values["diverged"] == 1
+    assert cell(RADAR, "gicp", "Failed").values["failed"] == 0
+    assert cell(RADAR, "vgicp", "Fell back").values["fell_back"] == 1
+    assert cell(RADAR, "vgicp", "Diverged").values["diverged"] == 0
+    assert cell(RADAR, "kiss-icp", "Failed").values["failed"] == 1
+    assert cell(RADAR, "kiss-icp", "Sequences").values["sequences"] == 0  # never scored
+    assert cell(RADAR, "doppler", "Failed").values["failed"] == 0
+    assert cell(RADAR, "doppler", "Fell back").values["fell_back"] == 0
+    # ranked at the lengths the runs have (2 and 4 m), not "-" for want of 8 / 48 m
+    assert cell(RADAR, "doppler", "Mean rank").values["mean_rank"] == 1.0
+    assert cell(RADAR, "icp-p2p", "Mean rank").values["mean_rank"] > 1.0
+    assert "relative error at 2 m and 4 m" in table.caption
+    # an external trajectory scored on one class only: its row on the other says so
+    assert "external trajectory" in cell(RADAR, "kiss-ext (external)", "Sequences").status
+    assert cell(LIDAR, "kiss-ext (external)", "Sequences").values["sequences"] == 2
+
+
+def test_pairwise_verdicts_count_sequences_and_test_them(mixed):
+    from bench.report.summary_pairwise import pairwise_table, sign_test_p
+
+    assert sign_test_p(6, 0) == pytest.approx(2 / 64)
+    assert sign_test_p(5, 1) == pytest.approx(2 * 7 / 64)
+    assert sign_test_p(0, 0) == 1.0 and sign_test_p(3, 3) == 1.0
+    rows, _ = select(mixed)
+    table = pairwise_table(rows)
+    col = {name: i for i, name in enumerate(table.columns)}
+    by = {(r.keys[0], r.keys[1]): r for r in table.rows}
+    a_b = by[(RADAR, "doppler")].cells[col["icp-p2p"]]
+    assert a_b.values["better"] == 6 and a_b.values["sequences"] == 6
+    assert a_b.parts[0].text == "6/6, p 0.031" and a_b.parts[0].rank == 0  # holds: bold
+    b_a = by[(RADAR, "icp-p2p")].cells[col["doppler"]]
+    assert b_a.values["better"] == 0 and b_a.parts[0].rank != 0
+    # two LiDAR sequences: the external run better on L2, tied on L1: 1 of 2, no verdict
+    ext = by[(LIDAR, "kiss-ext (external)")].cells[col["icp-p2p"]]
+    assert (ext.values["better"], ext.values["tied"], ext.values["sequences"]) == (1, 1, 2)
+    assert ext.values["p"] == 1.0 and ext.parts[0].rank != 0
+
+
+def test_report_on_two_datasets_with_an_external_run_on_one_class(mixed):
+    from typer.testing import CliRunner
+
+    from bench.cli import app
+
+    res = CliRunner().invoke(app, ["report", str(mixed), "--out", str(mixed / "page.html")])
+    assert res.exit_code == 0, res.output
+    page = (mixed / "page.html").read_text()
+    assert "Across sequences: pairwise verdicts" in page and "6/6, p 0.031" in page
+    assert "relative error at 2 m and 4 m" in page

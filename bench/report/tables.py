@@ -31,6 +31,7 @@ from bench.report.names import (
     gt_assisted_note,
     hosts_note,
     order_key,
+    overrides_note,
     run_label,
     sequence_key,
     synthetic_note,
@@ -128,7 +129,8 @@ def runs(results_dir: Path | list[Path], only: set[Path] | None = None) -> list[
     tagged = with_sequence_tags([run for _, run in found])
     out = []
     for (d, _), run in zip(found, tagged, strict=True):
-        label = run_label(run.method, run.seed, run.label, run.doppler_kind)
+        label = (run_label(run.method, run.seed, run.label, run.doppler_kind)
+                 + overrides_note(run.config))  # -p max_iterations=3 is no default row
         out.append(RunRow(run, f"{Path(d).name}: {label}" if len(dirs) > 1 else label))
     # two runs of one sequence under one label (e.g. differing only in --alignment): each row
     # says what differs (bench.report.row_keys), none is merged or dropped

@@ -195,6 +195,9 @@ def prepare(job: Job) -> Prepared:
             raise error from None
         params = getattr(method, "params", None)
         config["method"]["params"] = params.model_dump(mode="json") if params is not None else {}
+        # the parameters asked for (bench run -p, an experiment's params:), as given: a row
+        # label names them (bench.report.names.overrides_note)
+        config["method"]["given"] = {str(k): v for k, v in (job.params or {}).items()}
         if extrinsic_from_gt(seq, cls, job.params):
             # the method consumes the store's extrinsic, which bench calibrate fitted to the GT
             config["method"]["extrinsic_from_gt"] = True
