@@ -198,3 +198,56 @@ def test_report_on_two_datasets_with_an_external_run_on_one_class(mixed):
     page = (mixed / "page.html").read_text()
     assert "Across sequences: pairwise verdicts" in page and "6/6, p 0.031" in page
     assert "relative error at 2 m and 4 m" in page
+
+
+def test_sources_name_the_vendored_sample_from_its_own_metadata(tmp_path):
+    """The sample store was made by the generic NumPy-frame loader; its provenance says it is
+    NTU4DRadLM (MIT): the sources table says so, not "NumPy frames ... licence: yours"."""
+    from bench.paths import ROOT
+    from bench.report.summary import sources
+
+    gt = ground_truth(120)
+    _write(tmp_path, "loop1", "Semi-Dense 4D Radar", "radial", "doppler", "doppler", None, gt,
+           gt)
+    config = tmp_path / "loop1" / "doppler" / "config.yaml"
+    import yaml
+
+    data = yaml.safe_load(config.read_text())
+    data["sequence"].pop("dataset")
+    data["sequence"]["store"] = str(ROOT / "samples" / "ntu4dradlm-loop1.h5")
+    config.write_text(yaml.safe_dump(data))
+    rows, _ = select(tmp_path)
+    (found,) = sources(rows)
+    assert found["dataset"] == "NTU4DRadLM loop 1"
+    assert found["licence"] == "MIT"
+    assert found["loader"] == "npy-frames"
+
+
+def test_parameter_overrides_are_in_the_row_label(tmp_path):
+    """A run with -p max_iterations=3 is no default row: its label names the override; a
+    labelled variant's label already says what it changes; and the job records what was
+    given."""
+    import yaml
+
+    from bench.paths import ROOT
+    from bench.runs.job import Job, prepare
+
+    gt = ground_truth(120)
+    _write(tmp_path, "seq", "Semi-Dense 4D Radar", "radial", "icp-p2p_seed", "icp-p2p", True,
+           gt, gt)
+    _write(tmp_path, "seq", "Semi-Dense 4D Radar", "radial", "mine_seed", "icp-p2p", True,
+           gt, gt)
+    for folder, extra in (("icp-p2p_seed", {}), ("mine_seed", {"label": "mine"})):
+        path = tmp_path / "seq" / folder / "config.yaml"
+        data = yaml.safe_load(path.read_text())
+        data.update({"method": {"name": "icp-p2p", "given": {"max_iterations": 3}}, **extra})
+        path.write_text(yaml.safe_dump(data))
+    rows, _ = select(tmp_path)
+    labels = sorted(r.label for r in rows)
+    assert labels[0].endswith("ICP point-to-point [max_iterations=3]"), labels
+    assert labels[1].endswith("mine"), labels
+    prep = prepare(Job(store=ROOT / "samples" / "ntu4dradlm-loop1.h5", method="icp-p2p",
+                       seed=True, out_root=tmp_path, params={"max_iterations": 3}))
+    prep.sequence.close()
+    assert prep.config["method"]["given"] == {"max_iterations": 3}
+    assert prep.config["method"]["params"]["max_iterations"] == 3
