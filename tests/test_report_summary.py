@@ -198,6 +198,16 @@ def test_report_on_two_datasets_with_an_external_run_on_one_class(mixed):
     page = (mixed / "page.html").read_text()
     assert "Across sequences: pairwise verdicts" in page and "6/6, p 0.031" in page
     assert "relative error at 2 m and 4 m" in page
+    # the long shared notes of the captions are shown once on the page, then referred to
+    from bench.report.html_markdown import _SENTENCE, inline
+    from bench.report.table import md_escape
+    from bench.report.tables import build
+
+    rows, lengths = select(mixed)
+    caption = build("relative", rows, lengths, ci=True).caption
+    shared = [s for s in _SENTENCE.split(md_escape(caption)) if len(s) > 80]
+    assert shared and all(page.count(inline(s)) == 1 for s in shared)
+    assert page.count("The other notes of this caption are given once, under") >= 3
 
 
 def test_sources_name_the_vendored_sample_from_its_own_metadata(tmp_path):
@@ -251,3 +261,38 @@ def test_parameter_overrides_are_in_the_row_label(tmp_path):
     prep.sequence.close()
     assert prep.config["method"]["given"] == {"max_iterations": 3}
     assert prep.config["method"]["params"]["max_iterations"] == 3
+
+
+def test_a_fresh_report_draws_the_figures_it_shows(two_datasets, tmp_path):
+    """`bench report` on a folder without figures draws them (a fresh report is complete);
+    once they are newer than every run record it does not draw them again."""
+    import os
+    import shutil
+
+    from typer.testing import CliRunner
+
+    from bench.cli import app
+
+    root = tmp_path / "r"
+    shutil.copytree(two_datasets, root)
+    shutil.rmtree(root / "figures", ignore_errors=True)
+    res = CliRunner().invoke(app, ["report", str(root)])
+    assert res.exit_code == 0, res.output
+    pngs = sorted((root / "figures").rglob("*.png"))
+    assert pngs and "drew" in res.output
+    assert "<img" in (root / "report.html").read_text()
+    stamps = {p: p.stat().st_mtime_ns for p in pngs}
+    res = CliRunner().invoke(app, ["report", str(root)])
+    assert res.exit_code == 0 and "drew" not in res.output
+    assert {p: p.stat().st_mtime_ns for p in pngs} == stamps
+    # a run newer than the figures: they are drawn again
+    record = next(root.rglob("metrics.json"))
+    later = max(stamps.values()) / 1e9 + 10
+    os.utime(record, (later, later))
+    res = CliRunner().invoke(app, ["report", str(root)])
+    assert res.exit_code == 0 and "drew" in res.output
+    # a folder without runs: no figure drawn, the report's own refusal (exit 2 from `bench`)
+    (tmp_path / "empty").mkdir()
+    res = CliRunner().invoke(app, ["report", str(tmp_path / "empty")])
+    assert res.exit_code == 2 or type(res.exception).__name__ == "DataError", res.output
+    assert not (tmp_path / "empty" / "figures").exists()
