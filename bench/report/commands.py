@@ -144,9 +144,13 @@ def report_command(console: Console, results_dir: Path, out: Path | None,
     if figures and not figures_current(results_dir):
         from bench.report.figures import make_figures
 
-        with warnings.catch_warnings():  # a broken record: the page lists it
-            warnings.simplefilter("ignore")
-            drawn = [p for p in make_figures(results_dir) if p.suffix == ".png"]
+        try:
+            with warnings.catch_warnings():  # a broken record: the page lists it
+                warnings.simplefilter("ignore")
+                drawn = [p for p in make_figures(results_dir) if p.suffix == ".png"]
+        except (DataError, OSError, ValueError) as err:  # an unreadable run file: the page
+            drawn = []                                     # lists it; the tables still show
+            console.print(f"figures not drawn: {str(err).splitlines()[0]}", markup=False)
         if drawn:
             console.print(f"drew {len(drawn)} figure(s) into {Path(results_dir) / 'figures'}",
                           markup=False)

@@ -2,7 +2,7 @@
 than another, and whether that verdict holds across the sequences, not only a mean rank.
 
 On one sequence, method A ranks better than B when A's mean significance-aware rank
-(``bench.report.summary.figure_ranks``: 1 + the number of methods significantly better) over
+(``bench.report.summary_ranks.figure_ranks``: 1 + the number of methods significantly better) over
 the figures both are ranked on (the mean rotation and translation relative error at the
 summary's lengths) is lower than B's; equal means tie. Over the n sequences of a class where
 both are ranked, A is better on k, B on l, n - k - l tie. Whether the verdict holds across
@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 
-from bench.report.summary import contender_name, figure_ranks, ranked_lengths
+from bench.report.summary_ranks import contender_name, figure_ranks, ranked_lengths
 from bench.report.table import BEST, OTHER, Cell, Part, Row, Table
 from bench.report.tables import RunRow
 from loaders.sensor_classes import class_rank
