@@ -164,3 +164,33 @@ def test_convert_names_a_cut_by_its_frames(vod_stores, tmp_path):
                                    "--start", "5", "--stride", "2", "--name", "mine"])
     assert res.exit_code == 0, res.output
     assert StoreSequence(named).name == "mine"  # --name wins
+
+
+def test_a_run_of_another_store_of_the_same_name_is_refused_naming_both(vod_stores):
+    """`bench run` of the compensated store into the folder holding the radial store's run
+    (both vod_00000-00029) would silently replace it: refused, naming both stores; and one
+    plan of both stores (an experiment) is refused the same way."""
+    from bench.api import run_method
+    from bench.runs.job import Job
+    from bench.runs.plan import plan
+    from loaders.errors import DataError
+
+    tmp, stores = vod_stores
+    out = tmp / "same" / "vod_00000-00029" / "icp-p2p_seed"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        run_method("icp-p2p", stores["v_r"], out=out)
+        with pytest.raises(DataError) as err:
+            run_method("icp-p2p", stores["v_r_compensated"], out=out)
+    text = str(err.value)
+    assert str(stores["v_r"]) in text and str(stores["v_r_compensated"]) in text
+    assert "another store of that name" in text
+    assert (out / "metrics.json").exists()  # the first run is still there
+    jobs = [Job(store=s, method="icp-p2p", seed=True, out_root=tmp / "exp")
+            for s in stores.values()]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(DataError) as err:
+            plan(jobs)
+    text = str(err.value)
+    assert str(stores["v_r"]) in text and str(stores["v_r_compensated"]) in text
