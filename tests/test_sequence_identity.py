@@ -194,3 +194,47 @@ def test_a_run_of_another_store_of_the_same_name_is_refused_naming_both(vod_stor
             plan(jobs)
     text = str(err.value)
     assert str(stores["v_r"]) in text and str(stores["v_r_compensated"]) in text
+
+
+def test_snail_bag_in_full_and_cut_never_one_sequence(tmp_path):
+    """The issue's case: one Snail-Radar bag converted in full and with --start / --frames.
+    By default the two stores have distinct names (day_run, and the cut's frames); forced
+    under one --name, their runs are still two sequences in the tables (their frames)."""
+    from bench.api import run_method
+    from bench.cli import app
+    from helpers_bags import Motion, make_truth, write_gt_tum
+    from helpers_snail import radar_array, write_snail_bag
+    from loaders.se3 import inv_T
+    from loaders.snail_radar import T_BODY_XT32, body_T_oculii
+    from loaders.store import StoreSequence
+
+    truth = make_truth(Motion(T_body_sensor=inv_T(T_BODY_XT32) @ body_T_oculii()), frames=30,
+                       points=60, period=0.1)
+    rng = np.random.default_rng(0)
+    day = tmp_path / "20240123"
+    day.mkdir()
+    bag = write_snail_bag(day / "data1.bag", {"/radar_enhanced_pcl2": [
+        (t, radar_array("eagle", p, d, rng))
+        for t, p, d in zip(truth.stamps, truth.points, truth.doppler, strict=True)]})
+    gt = tmp_path / "gt.txt"
+    write_gt_tum(gt, truth.motion, truth.stamps[0] - 0.5, truth.stamps[-1] + 0.5, step=0.05)
+    runner = CliRunner()
+
+    def convert(out, *extra):
+        res = runner.invoke(app, ["convert", "snail-radar", str(bag), "--gt", str(gt),
+                                  "--out", str(out), *extra])
+        assert res.exit_code == 0, res.output
+        return StoreSequence(out).name
+
+    assert convert(tmp_path / "full.h5") == "20240123_data1"
+    assert convert(tmp_path / "cut.h5", "--start", "3", "--frames", "15") == \
+        "20240123_data1_frames3-17"
+    convert(tmp_path / "full_named.h5", "--name", "data1")
+    convert(tmp_path / "cut_named.h5", "--start", "3", "--frames", "15", "--name", "data1")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for which in ("full_named", "cut_named"):
+            run_method("icp-p2p", tmp_path / f"{which}.h5",
+                       out=tmp_path / "results" / which / "data1" / "icp-p2p_seed")
+    names = sorted(r.display_name for r in load_runs(tmp_path / "results"))
+    assert names == ["data1 [frames 0-29]", "data1 [frames 3-17]"]
