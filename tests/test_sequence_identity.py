@@ -238,3 +238,26 @@ def test_snail_bag_in_full_and_cut_never_one_sequence(tmp_path):
                        out=tmp_path / "results" / which / "data1" / "icp-p2p_seed")
     names = sorted(r.display_name for r in load_runs(tmp_path / "results"))
     assert names == ["data1 [frames 0-29]", "data1 [frames 3-17]"]
+
+
+def test_helipr_and_vod_names_stay_distinct_across_a_release(tmp_path):
+    """HeLiPR: the sequence folder names the sequence (from its root or its LiDAR/Aeva
+    folder), so two sequences' stores never share a name; VoD: the frame range does."""
+    from helpers_public import write_helipr
+    from loaders.helipr import HeliprSequence
+    from loaders.vod import VodSequence
+
+    stamps, points, doppler, poses = synthetic_frames("tunnel", "lidar-aeva", frames=4, seed=2)
+    ns = np.round((stamps + 1.7e9) * 1e9).astype(np.int64)
+    names = set()
+    for seq in ("Roundabout01", "Town02"):
+        root = write_helipr(tmp_path / seq, ns, points, doppler, ns, poses)
+        names.add(HeliprSequence(root).name)
+        assert HeliprSequence(root / "LiDAR" / "Aeva").name == seq
+    assert names == {"Roundabout01", "Town02"}
+    _, vpoints, vdoppler, vposes = synthetic_frames(frames=6)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        early = VodSequence(write_vod(tmp_path / "vod_a", vpoints, vdoppler, vposes, first=0))
+        late = VodSequence(write_vod(tmp_path / "vod_b", vpoints, vdoppler, vposes, first=40))
+    assert (early.name, late.name) == ("vod_00000-00005", "vod_00040-00045")
