@@ -418,17 +418,21 @@ def report(
     results_dir: Annotated[Path, typer.Argument(help="results folder")],
     out: Annotated[Path | None, typer.Option(help="page to write (default "
                                              "RESULTS_DIR/report.html)")] = None,
+    figures: Annotated[bool, typer.Option(
+        "--figures/--no-figures", help="draw the figures into RESULTS_DIR/figures first "
+        "(as `bench figures`), unless they are newer than every run record")] = True,
 ) -> None:
     """One self-contained HTML page of a results folder: its tables (every metric's, made for
     the page with intervals and significance marks, then every *.md table the folder holds),
-    its figures embedded, the failed runs (broken run records and unreadable files named)
-    and missing data, and the provenance (code version, store hashes, machine, how times were
-    taken). Readable offline; it loads nothing from the network. Exit 0; 1 when a run record
-    is broken or a run folder holds unreadable files (the page is written and lists them); 2
-    when the folder holds no run."""
+    its figures embedded (drawn first when missing or older than a run record), the failed
+    runs (broken run records and unreadable files named) and missing data, and the
+    provenance (code version, store hashes, machine, how times were taken). Readable
+    offline; it loads nothing from the network. Exit 0; 1 when a run record is broken or a
+    run folder holds unreadable files (the page is written and lists them); 2 when the folder
+    holds no run."""
     from bench.report.commands import report_command
 
-    raise typer.Exit(report_command(console, results_dir, out))
+    raise typer.Exit(report_command(console, results_dir, out, figures))
 
 
 @app.command(short_help="a rerun recording of a store and a run")

@@ -281,8 +281,24 @@ def _all_on(values: np.ndarray, stamps: np.ndarray) -> bool:
 
 
 def select_frames(seq: Sequence, start: int = 0, frames: int | None = None,
-                  stride: int = 1) -> Sequence:
-    """``seq`` itself for the full range, else a ``FrameRange`` view of it."""
+                  stride: int = 1, rename: bool = False) -> Sequence:
+    """``seq`` itself for the full range, else a ``FrameRange`` view of it; with ``rename``
+    the view is named by the frames it keeps (``range_name``), so a cut of a sequence never
+    carries the name of the whole."""
     if start == 0 and frames is None and stride == 1:
         return seq
-    return FrameRange(seq, start, frames, stride)
+    cut = FrameRange(seq, start, frames, stride)
+    if rename:
+        cut.name = range_name(seq.name, cut.indices)
+        if cut.provenance.get("display_name"):
+            cut.provenance["display_name"] = range_name(cut.provenance["display_name"],
+                                                        cut.indices)
+    return cut
+
+
+def range_name(name: str, indices: np.ndarray) -> str:
+    """The name of frames ``indices`` of sequence ``name``: ``data1_frames60-249`` (with a
+    stride: ``data1_frames60-438_every2``)."""
+    step = int(indices[1] - indices[0]) if len(indices) > 1 else 1
+    text = f"{name}_frames{int(indices[0])}-{int(indices[-1])}"
+    return text + (f"_every{step}" if step > 1 else "")

@@ -244,6 +244,16 @@ def find_gt_file(path: Path) -> Path | None:
 _GROUP = re.compile(r"^(\d{8})(_aft|_eve)?$")
 
 
+def sequence_name(path: Path) -> str:
+    """A sequence's default name: its day folder and run, ``20231105_aft_data4`` for
+    ``.../20231105_aft/data4.bag`` or the folder ``.../20231105_aft/data4`` (or one of its
+    sensor folders), so the runs of different days (every day has a ``data1``) never share a
+    name; the run alone when no day folder is above it."""
+    seq = _sequence_folder(path.resolve())
+    day = seq.parent.name
+    return f"{day}_{seq.name}" if _GROUP.match(day) else seq.name
+
+
 def date_from_path(path: Path) -> float | None:
     """The date value of ``convert_seqname_to_dateval.m`` from the group folder in ``path``
     (``.../20231105_aft/data4`` -> 20231105.5); None when no part of the path is a group."""
@@ -401,8 +411,7 @@ class SnailRadarSequence(Sequence, OpensFromOptions):
             self._src = _FolderFrames(folder)
         else:
             self._src = _BagFrames(path, topic, o.stamp)
-        self.name = o.name or (path.stem if path.is_file()
-                               else "_".join(path.resolve().parts[-2:]))
+        self.name = o.name or sequence_name(path)
         self.date = o.date if o.date is not None else date_from_path(path)
         T_body_radar = self._extrinsic(path)
         T_gtbody_radar = (inv_T(T_BODY_XT32) @ T_body_radar if o.gt_frame == "xt32"

@@ -531,5 +531,27 @@ def test_convert_without_gt_says_where_the_gt_came_from_or_warns(released, data,
     store.close()
     # no GT anywhere (the fixture's bag has its TUM file in the day folder, not searched)
     code, out = bench("convert", "snail-radar", data["bag"], "--out", tmp_path / "b.h5")
-    assert code == 0 and "warning: data3: no ground truth found" in out, out
+    assert code == 0 and "warning: 20240123_data3: no ground truth found" in out, out
     assert "scores none (give it with --gt)" in out
+
+
+def test_default_names_carry_the_day_so_two_days_data3_differ(data, tmp_path):
+    """Every Snail-Radar day has a data1, data2 ...: the default name is day_run for the bag,
+    the extracted folder and a sensor folder inside it; a bag outside any day folder keeps its
+    run name; another day's data3 gets another name."""
+    import shutil
+
+    from loaders.snail_radar import sequence_name
+
+    assert sequence_name(data["bag"]) == "20240123_data3"
+    assert sequence_name(data["folder"]) == "20240123_data3"
+    assert sequence_name(data["folder"] / "eagleg7" / "enhanced") == "20240123_data3"
+    other = tmp_path / "20231105_aft"
+    other.mkdir()
+    shutil.copy(data["bag"], other / "data3.bag")
+    loose = tmp_path / "data3.bag"
+    shutil.copy(data["bag"], loose)
+    assert sequence_name(other / "data3.bag") == "20231105_aft_data3"
+    assert sequence_name(loose) == "data3"
+    seq = SnailRadarSequence(data["bag"], gt=data["gt"])
+    assert seq.name == "20240123_data3"

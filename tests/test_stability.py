@@ -13,7 +13,6 @@ import pytest
 from typer.testing import CliRunner
 
 from bench.cli import app
-from loaders.errors import DataError
 from bench.report.significance import BEST, OTHER
 from bench.report.stability import CHANGED, half, stability, with_stability
 from bench.report.table import to_markdown
@@ -21,6 +20,7 @@ from bench.report.tables import build, relative_table, select
 from bench.runs.evaluate import evaluate_run
 from bench.runs.folders import write_run
 from bench.studies.coverage import NoiseModel, ground_truth, noisy_estimate
+from loaders.errors import DataError
 from loaders.trajectory import Trajectory
 from methods.base import FrameRecord, OdometryResult
 

@@ -264,7 +264,9 @@ def loader_command(entry: LoaderEntry):
         paths = list(inputs) if many else [inputs]
         sequence = Loader.open(paths, options)
         report_ground_truth(sequence, gt_flags(flags))
-        write_with_progress(select_frames(sequence, start, frames, stride), out)
+        # a cut is named by its frames unless --name says otherwise: never the whole's name
+        write_with_progress(select_frames(sequence, start, frames, stride,
+                                          rename="name" not in given), out)
 
     doc = (f"{entry.description}.\n\nINPUT: {Loader.inputs}."
            + (f"\n\nLayout: {entry.layout}." if entry.layout else ""))

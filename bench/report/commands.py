@@ -131,12 +131,40 @@ def figures_command(console: Console, results_dir: Path | None, out: Path | None
     return 0
 
 
-def report_command(console: Console, results_dir: Path, out: Path | None) -> int:
+def figures_current(results_dir: Path) -> bool:
+    """The folder's figures (RESULTS/figures/**.png) exist and none is older than its newest
+    run record (metrics.json / failed.json)."""
+    figures = list((Path(results_dir) / "figures").rglob("*.png"))
+    records = [p for n in ("metrics.json", "failed.json") for p in Path(results_dir).rglob(n)]
+    if not figures:
+        return False
+    newest = max((p.stat().st_mtime for p in records), default=0.0)
+    return min(p.stat().st_mtime for p in figures) >= newest
+
+
+def report_command(console: Console, results_dir: Path, out: Path | None,
+                   figures: bool = True) -> int:
     """Write the results folder's HTML page and say what it holds; returns 0, or 1 when some
     run records are broken or run folders hold unreadable files (the page lists them; a
-    broken record is never a success)."""
+    broken record is never a success). With ``figures`` the figures the page shows are drawn
+    first (``bench figures``) unless they are newer than every run record."""
+    import warnings
+
     from bench.report.html import write_page
 
+    if figures and not figures_current(results_dir):
+        from bench.report.figures import make_figures
+
+        try:
+            with warnings.catch_warnings():  # a broken record: the page lists it
+                warnings.simplefilter("ignore")
+                drawn = [p for p in make_figures(results_dir) if p.suffix == ".png"]
+        except (DataError, OSError, ValueError) as err:  # an unreadable run file: the page
+            drawn = []                                     # lists it; the tables still show
+            console.print(f"figures not drawn: {str(err).splitlines()[0]}", markup=False)
+        if drawn:
+            console.print(f"drew {len(drawn)} figure(s) into {Path(results_dir) / 'figures'}",
+                          markup=False)
     path, counts = write_page(results_dir, out)
     console.print(f"wrote {path}: {counts['tables']} table(s), {counts['figures']} figure(s), "
                   f"{counts['runs']} run(s), {counts['failed']} not finished", markup=False)

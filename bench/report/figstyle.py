@@ -10,7 +10,7 @@ import math
 import re
 from pathlib import Path
 
-from bench.report.names import display_name, is_gt_assisted, order_key
+from bench.report.names import display_name, is_gt_assisted, order_key, overrides_note
 from loaders.fileio import atomic_path
 from methods.registry import Seed
 from methods.registry import color as _method_color
@@ -179,7 +179,7 @@ def run_name(run) -> str:
     tag is left out because a method's other priors are fixed by the method (no initial guess,
     own model) and with seed is the default (``PRIOR_NOTE``): a legend of short names fits two
     columns and takes a third of the height it took with the tables' full row names."""
-    name = run.label or display_name(run.method)
+    name = (run.label or display_name(run.method)) + overrides_note(getattr(run, "config", {}))
     if is_gt_assisted(getattr(run, "doppler_kind", None)):
         name += " [GT-assisted]"
     return f"{name} (no seed)" if Seed.of(run.seed) is Seed.WITHOUT else name

@@ -2,12 +2,12 @@
 
 The page holds the tables of the folder's runs made for it (relative error, KITTI drift, APE,
 velocity error: every figure with its 95 % confidence interval, marks read from the printed
-intervals: ``bench.report.significance``), then every table the harness wrote into the folder (every ``*.md`` of the
-folder: ``table*.md`` of any metric, ``pivot.md``, ``fidelity.md`` ...) as written, every
-figure under ``figures/`` embedded as a base64 PNG with its caption, the provenance of the runs
-(code version, store hashes, machine, how times were taken), the failed runs, the runs whose
-frames fell back and the missing data
-(runs without ground truth, paper sequences a reproduction did not find: ``reproduction.json``).
+intervals: ``bench.report.significance``), then every table the harness wrote into the folder
+(every ``*.md`` of the folder: ``table*.md`` of any metric, ``pivot.md``, ``fidelity.md`` ...)
+as written, every figure under ``figures/`` embedded as a base64 PNG with its caption, the
+provenance of the runs (code version, store hashes, machine, how times were taken), the failed
+runs, the runs whose frames fell back and the missing data (runs without ground truth, paper
+sequences a reproduction did not find: ``reproduction.json``).
 
 It is readable offline and loads nothing: no script, no external style, font or image; its
 Content-Security-Policy forbids any load but the embedded ``data:`` images. Every string that
@@ -25,7 +25,7 @@ from collections import Counter
 from datetime import UTC, datetime
 from pathlib import Path
 
-from bench.report.html_markdown import esc, markdown_html
+from bench.report.html_markdown import PageNotes, esc, markdown_html
 from bench.report.html_runs import PageRun, read_json, read_page_runs
 from bench.report.summary import cross_dataset
 from bench.report.table import to_markdown
@@ -105,6 +105,7 @@ def table_files(results_dir: Path) -> list[Path]:
 
 def _tables_section(results_dir: Path, newest_run: float) -> tuple[str, int]:
     parts, count = [], 0
+    notes = PageNotes()  # the shared caption notes once per page
     made = _tables_in_memory(results_dir)
     if made:
         parts.append("<p>Tables of the folder's finished runs, made for this page: every "
@@ -112,18 +113,19 @@ def _tables_section(results_dir: Path, newest_run: float) -> tuple[str, int]:
                      "read from the printed intervals alone (the caption states the rule: "
                      "check any mark against the cells).</p>")
     for title, text in made:
-        body, n = markdown_html(text)
+        body, n = markdown_html(text, notes, title)
         count += n
         parts.append(f"<h3>{esc(title)}</h3>{body}")
     for title, table in cross_dataset(results_dir):
-        body, n = markdown_html(to_markdown(table))
+        body, n = markdown_html(to_markdown(table), notes, title)
         count += n
         parts.append(f"<h3>{esc(title)}</h3>{body}")
     files = table_files(results_dir)
     if files:
         parts.append("<p>Tables written into this folder, as written:</p>")
     for path in files:
-        body, n = markdown_html(path.read_text(errors="replace"))
+        body, n = markdown_html(path.read_text(errors="replace"), notes,
+                                str(path.relative_to(results_dir)))
         count += n
         parts.append(f'<h3 id="{esc(path.stem)}">{esc(path.relative_to(results_dir))}</h3>'
                      f"{_stale_note(path, newest_run)}{body}")

@@ -63,9 +63,53 @@ def _td(cell: str) -> str:
     return f"<td{num}>{inline(cell)}</td>"
 
 
-def markdown_html(text: str) -> tuple[str, int]:
+#: a sentence (or clause) boundary in a caption: a period or semicolon, then a space and a
+#: capital or an opening mark
+_SENTENCE = re.compile(r"(?<=[.;])\s+(?=[A-Z\[(\"*])")
+#: caption sentences shorter than this are said again (they are specific, not shared notes)
+_SHARED_MIN_CHARS = 40
+
+
+class PageNotes:
+    """The caption sentences already shown on one page, each with the title of the table it
+    was first shown under: a later caption keeps its own sentences and refers to the first
+    table for the shared ones (the marking rule, the time, seed and interval notes), so the
+    long shared notes are read once per page, not under every table."""
+
+    def __init__(self) -> None:
+        self.first: dict[str, str] = {}
+
+    def shorten(self, text: str, where: str) -> str:
+        """``text`` (a caption paragraph of the table titled ``where``) without the sentences
+        an earlier table of the page showed, and one sentence saying where they are."""
+        if re.match(r"^\[\d+\] ", text):
+            return text  # a footnote: always specific to its table
+        keep, shown_under = [], []
+        for sentence in _SENTENCE.split(text):
+            key = " ".join(sentence.split())
+            earlier = self.first.get(key)
+            if len(key) >= _SHARED_MIN_CHARS and earlier is not None and earlier != where:
+                shown_under.append(earlier)
+                continue
+            self.first.setdefault(key, where)
+            keep.append(sentence)
+        if shown_under:
+            titles = ", ".join(f'"{_md_text(t)}"' for t in dict.fromkeys(shown_under))
+            keep.append(f"The other notes of this caption are given once, under {titles} "
+                        "above.")
+        return " ".join(keep)
+
+
+def _md_text(text: str) -> str:
+    return re.sub(r"([\\`*_\[\]<>|])", r"\\\1", str(text))
+
+
+def markdown_html(text: str, notes: PageNotes | None = None,
+                  where: str = "") -> tuple[str, int]:
     """A markdown report (the harness's tables, captions, headings and lists) as HTML, and
-    the number of tables in it."""
+    the number of tables in it; with ``notes`` (one per page), a caption sentence an earlier
+    table of the page showed is referred to, not repeated (``PageNotes``); ``where`` is this
+    text's title."""
     lines, out, i, tables = text.splitlines(), [], 0, 0
     while i < len(lines):
         line = lines[i]
@@ -98,6 +142,9 @@ def markdown_html(text: str) -> tuple[str, int]:
                     ("|", "#", "- ", "* ")):
                 i += 1
                 para.append(lines[i].strip())
-            out.append(f'<p class="caption">{inline(" ".join(para))}</p>')
+            joined = " ".join(para)
+            if notes is not None:
+                joined = notes.shorten(joined, where)
+            out.append(f'<p class="caption">{inline(joined)}</p>')
         i += 1
     return "\n".join(out), tables

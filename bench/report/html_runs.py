@@ -6,12 +6,13 @@ folders' reader changes (a typed result), only this module follows."""
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import yaml
 
 from bench.runs.folders import BROKEN, check_record
+from bench.runs.sequence_identity import sequence_tags, tagged
 
 
 @dataclass(frozen=True)
@@ -53,7 +54,7 @@ def read_page_runs(results_dir: Path) -> list[PageRun]:
     results_dir = Path(results_dir)
     folders = sorted({p.parent for name in ("metrics.json", "failed.json", "config.yaml")
                       for p in results_dir.rglob(name)})
-    runs = []
+    runs, configs = [], []
     for d in folders:
         config = {}
         if (d / "config.yaml").exists():
@@ -95,7 +96,10 @@ def read_page_runs(results_dir: Path) -> list[PageRun]:
             frames_replaced=int(metrics.get("frames_replaced") or 0),
             frames_unconverged=int(metrics.get("frames_unconverged") or 0),
             damaged=tuple(file_problems(d, status == "finished"))))
-    return runs
+        configs.append(config)
+    # two contents under one name are two sequences here too (bench.runs.sequence_identity)
+    tags = sequence_tags([r.sequence for r in runs], configs)
+    return [replace(r, sequence=tagged(r.sequence, t)) for r, t in zip(runs, tags, strict=True)]
 
 
 def file_problems(run_dir: Path, finished: bool) -> list[str]:

@@ -14,7 +14,7 @@ from bench.runs.result import EXTERNAL_MARK
 from methods.registry import SEED_NOTE, Seed, display_name, order_key
 
 __all__ = ["GT_ASSISTED", "SEED_NOTE", "display_name", "gt_assisted_note", "hosts_note",
-           "is_gt_assisted", "order_key", "run_label", "seed_tag", "sequence_key",
+           "is_gt_assisted", "order_key", "overrides_note", "run_label", "seed_tag", "sequence_key",
            "synthetic_note"]
 
 #: the paper's sequences in the order of its tables (Table III: sparse radar, semi-dense radar,
@@ -82,6 +82,27 @@ def run_label(method: str, seed, label: str | None = None,
     if label and label.endswith(EXTERNAL_MARK):  # no motion prior of the harness's to name
         return f"{label}{mark}"
     return f"({seed_tag(method, seed)}) {label or display_name(method)}{mark}"
+
+
+def overrides_note(config: dict) -> str:
+    """The parameters a run was asked to change from its method's defaults (config.yaml's
+    ``method.given``: ``bench run -p``, an experiment's ``params:``) as a label suffix,
+    " [max_iterations=3]"; "" when none were given, when the run has a variant ``label`` of its
+    own (which names what it changes), or for a run made before they were recorded."""
+    method = config.get("method") if isinstance(config.get("method"), dict) else {}
+    given = method.get("given")
+    if not isinstance(given, dict) or not given or config.get("label"):
+        return ""
+    text = ", ".join(f"{k}={_param_text(v)}" for k, v in sorted(given.items()))
+    return f" [{text}]"
+
+
+def _param_text(value) -> str:
+    if isinstance(value, float):
+        return f"{value:g}"
+    if isinstance(value, list | tuple):
+        return ",".join(_param_text(v) for v in value)
+    return str(value)
 
 
 def sequence_key(name: str) -> tuple:

@@ -1,15 +1,20 @@
 """One page across datasets: how each method fares over every sequence of a results folder.
 
 Per sensor class (the paper's order) one row per method: the sequences it was scored on, its
-**mean rank** over the sequences with significance-aware ties, and how many of its runs failed,
+**mean rank** over the sequences with interval-aware ties, and how many of its runs failed,
 diverged or fell back. A method's rank on one figure of one sequence (the mean rotation and the
-mean translation relative error at each ``lengths_m``) is one plus the number of methods
-distinguishably better than it there (its printed interval wholly below, as the tables' marks
-read them: ``bench.report.significance``): methods that tie share a rank, and a method beaten by nobody
+mean translation relative error at the shortest and the longest length the runs have,
+``ranked_lengths``) is one plus the number of methods distinguishably better than it there
+(its printed interval wholly below, as the tables' marks read them:
+``bench.report.significance``): methods that tie share a rank, and a method beaten by nobody
 ranks 1 even when its value is not the lowest. A method's seed and no-seed rows are one
 contender (its better row), as in the tables. A figure resting on fewer than two independent
 segments is not ranked. A method run in the folder but not on a sensor class says why (a Doppler
-method on stores without raw Doppler; otherwise: not run on that class).
+method on stores without raw Doppler; an external trajectory (``bench score``) not scored on
+that class's stores; otherwise: not run on that class). "Sequences" counts the sequences a
+method has a finished run on (its seed and no-seed runs of one sequence are one sequence).
+Across sequences, pairwise (``bench.report.summary_pairwise``): on how many sequences each
+method ranks better than another and whether that holds (an exact sign test).
 
 ``sources``: every sequence's store with its dataset, licence and loader options (the store's
 provenance and ``loaders.registry``), for the page.
@@ -19,45 +24,26 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from collections import defaultdict
 from pathlib import Path
 
 from bench.report.names import order_key
-from bench.report.significance import contender, worse
+from bench.report.summary_pairwise import pairwise_table
+from bench.report.summary_ranks import contender_name, figure_ranks, ranked_lengths
 from bench.report.table import Cell, Part, Row, Table
-from bench.report.tables import RunRow, stat_part
+from bench.report.tables import RunRow
+from bench.runs.result import EXTERNAL_MARK
 from loaders.sensor_classes import class_rank
-from methods.registry import get_method
+from methods.registry import METHODS, get_method
 
 
-def _ranks(rows: list[RunRow], length_m: float, quantity: str) -> dict[tuple, dict[str, int]]:
-    """sequence -> contender -> significance-aware rank of ``quantity`` at ``length_m``."""
-    by_seq: dict[str, list[tuple[tuple, object]]] = defaultdict(list)
-    for rr in rows:
-        if rr.failed or rr.diverged:
-            continue
-        rel = rr.result.relative(length_m)
-        if rel is None or not rel.n:
-            continue
-        value = rel.rot_deg_mean if quantity == "rot_deg" else rel.trans_m_mean
-        ci = rel.rot_deg_mean_ci if quantity == "rot_deg" else rel.trans_m_mean_ci
-        part = stat_part(value, ci, rel.spread.n_independent)
-        if not part.stat.rankable:
-            continue
-        key = contender(Row([rr.label], (), [], {"method": rr.method, "label": rr.run.label}))
-        by_seq[rr.sequence].append((key, part.stat))
-    out: dict[str, dict[tuple, int]] = {}
-    for seq, entries in by_seq.items():
-        best: dict[tuple, object] = {}
-        for key, stat in entries:  # a method's better row
-            if key not in best or stat.value < best[key].value:
-                best[key] = stat
-        out[seq] = {k: 1 + sum(worse(s, o) for o in best.values() if o is not s)
-                    for k, s in best.items()}
-    return out
-
-
-def _why_not(method: str, class_rows: list[RunRow]) -> str:
+def _why_not(method: str, label: str, class_rows: list[RunRow]) -> str:
+    if label.endswith(EXTERNAL_MARK) or method not in METHODS:
+        # a trajectory made elsewhere (bench score) or a plugin not loaded now: no registry
+        return ("not scored on this class (an external trajectory: `bench score` it on these "
+                "stores)" if label.endswith(EXTERNAL_MARK) else
+                "not run on this class (the experiment did not ask for it)")
     cls = get_method(method)
     kinds = {rr.run.doppler_kind for rr in class_rows}
     if getattr(cls, "needs_doppler", False) and "radial" not in kinds:
@@ -66,10 +52,12 @@ def _why_not(method: str, class_rows: list[RunRow]) -> str:
     return "not run on this class (the experiment did not ask for it)"
 
 
-def summary_table(rows: list[RunRow], lengths_m: tuple[float, ...] = (8.0, 48.0)) -> Table:
-    """The cross-dataset summary (see the module docstring)."""
-    usable = [L for L in lengths_m if any(rr.result.relative(L) is not None for rr in rows)]
-    ranks = {(L, q): _ranks(rows, L, q) for L in usable for q in ("rot_deg", "trans_m")}
+def summary_table(rows: list[RunRow], lengths_m: tuple[float, ...] | None = None) -> Table:
+    """The cross-dataset summary (see the module docstring); ranked at ``lengths_m``, by
+    default the shortest and the longest length the runs have (``ranked_lengths``)."""
+    usable = [L for L in (ranked_lengths(rows) if lengths_m is None else lengths_m)
+              if any(rr.result.relative(L) is not None for rr in rows)]
+    ranks = {(L, q): figure_ranks(rows, L, q) for L in usable for q in ("rot_deg", "trans_m")}
     table = Table(["Sensor class", "Method"],
                   ["Sequences", "Mean rank", "Failed", "Diverged", "Fell back"], [])
     classes = sorted({rr.sensor_class for rr in rows}, key=lambda c: (class_rank(c), c))
@@ -80,25 +68,27 @@ def summary_table(rows: list[RunRow], lengths_m: tuple[float, ...] = (8.0, 48.0)
         for method, label in methods:
             mine = [rr for rr in class_rows if rr.method == method
                     and (rr.run.label or "") == label]
-            name = method + (f" [{label}]" if label else "")
+            name = contender_name(method, label)
             if not mine:
                 table.rows.append(Row([cls_name, name], (cls_name,),
-                                      [Cell(status=_why_not(method, class_rows))]
+                                      [Cell(status=_why_not(method, label, class_rows))]
                                       + [Cell(status="") for _ in range(4)],
                                       {"method": method, "label": label or None}))
                 continue
             key = (method, label or None)
-            seqs = sorted({rr.sequence for rr in mine})
+            seqs = sorted({rr.sequence for rr in mine if not rr.failed})  # scored on
             got = [per_q[seq][key] for per_q in ranks.values() for seq in seqs
                    if key in per_q.get(seq, {})]
             mean = sum(got) / len(got) if got else math.nan
+            failed = sum(rr.failed for rr in mine)
+            diverged = sum(not rr.failed and rr.diverged for rr in mine)
+            fell_back = sum(not rr.failed and rr.result.fell_back for rr in mine)
             cells = [Cell([Part(str(len(seqs)))], values={"sequences": len(seqs)}),
                      Cell([Part(f"{mean:.2f}" if got else "-")],
                           values={"mean_rank": mean, "ranked_figures": len(got)}),
-                     Cell([Part(str(sum(rr.failed for rr in mine)))]),
-                     Cell([Part(str(sum(not rr.failed and rr.diverged for rr in mine)))]),
-                     Cell([Part(str(sum(not rr.failed and rr.result.fell_back
-                                        for rr in mine)))])]
+                     Cell([Part(str(failed))], values={"failed": failed}),
+                     Cell([Part(str(diverged))], values={"diverged": diverged}),
+                     Cell([Part(str(fell_back))], values={"fell_back": fell_back})]
             table.rows.append(Row([cls_name, name], (cls_name,), cells,
                                   {"method": method, "label": label or None}))
     # within a class, the lowest mean rank in bold (a summary of ranks: by value, said so)
@@ -111,9 +101,12 @@ def summary_table(rows: list[RunRow], lengths_m: tuple[float, ...] = (8.0, 48.0)
                 if r.cells[1].values["mean_rank"] == low:
                     r.cells[1].parts[0].rank = 0
     lengths = " and ".join(f"{L:g} m" for L in usable)
+    where = (f"the mean rotation and the mean translation relative error at {lengths}, the "
+             "shortest and the longest length the runs have" if usable else
+             "no run has segments at any length: nothing is ranked")
     table.caption = (
         "Across datasets, per sensor class: the sequences each method was scored on and its mean "
-        f"rank over them (the mean rotation and the mean translation relative error at {lengths};"
+        f"rank over them ({where};"
         " on each figure a method's rank is 1 + the number of methods whose printed 95 % "
         "interval lies wholly below its own, so overlapping intervals share a rank; the "
         "seed and no-seed rows of a method count as one, its better row; figures on fewer than "
@@ -137,13 +130,36 @@ def sources(rows: list[RunRow]) -> list[dict]:
         loader = prov.get("loader") or seq.get("sensor_model")
         entry = entries.get(loader)
         options = {k: v for k, v in (prov.get("options") or {}).items() if v is not None}
+        dataset, licence = _dataset_and_licence(seq, prov, entry)
         seen[rr.sequence] = {
             "sequence": rr.sequence, "sensor_class": rr.sensor_class, "store": store,
-            "dataset": seq.get("dataset") or (entry.dataset if entry else "")
-            or prov.get("source") or "",
-            "licence": entry.licence if entry else "",
+            "dataset": dataset, "licence": licence,
             "loader": loader or "", "options": options, "source": prov.get("source", "")}
     return sorted(seen.values(), key=lambda s: (class_rank(s["sensor_class"]), s["sequence"]))
+
+
+#: a licence named in parentheses in a store's ``source`` text ("... (MIT); see ...")
+_LICENCE = re.compile(r"\((MIT|BSD[^)]*|Apache[^)]*|L?GPL[^)]*|CC[ -]BY[^)]*|CC0[^)]*"
+                      r"|ODbL[^)]*|MPL[^)]*)\)")
+#: the licence of the loader table's generic routes (any recording of the user's)
+_YOURS = "yours"
+
+
+def _dataset_and_licence(seq: dict, prov: dict, entry) -> tuple[str, str]:
+    """A sequence's dataset and licence from the store's own metadata first (its provenance's
+    ``dataset`` / ``licence``, else what its ``source`` text names: the vendored sample says
+    "NTU4DRadLM loop 1 ... (MIT)"), then the run's configuration, then the loader table, whose
+    generic routes (NumPy frames, any ROS bag) know no dataset or licence of their own."""
+    source = str(prov.get("source") or "")
+    generic = entry is None or entry.licence == _YOURS
+    named = _LICENCE.search(source)
+    licence = (prov.get("licence") or (named.group(1) if named else None)
+               or (entry.licence if not generic else None)
+               or ("not recorded (your own data)" if source or entry is not None else ""))
+    dataset = (seq.get("dataset") or prov.get("dataset")
+               or (re.split(r" \(|, |; ", source)[0] if generic and source else None)
+               or (entry.dataset if entry else "") or source)
+    return str(dataset), str(licence)
 
 
 def _provenance(store: str | None, run_dir: Path) -> dict:
@@ -194,8 +210,11 @@ def cross_dataset(results_dir: Path) -> list[tuple[str, Table]]:
         by_dataset[names.get(rr.sequence) or "dataset not recorded"].append(rr)
     if len([d for d in by_dataset if d != "dataset not recorded"]) < 2:
         return []  # one dataset (or none recorded): the ordinary tables say it all
-    out = [("Across datasets: mean rank per method", summary_table(rows)),
-           ("Sources of the sequences", sources_table(rows))]
+    out = [("Across datasets: mean rank per method", summary_table(rows))]
+    pairwise = pairwise_table(rows)
+    if pairwise.rows:  # a class with two or more sequences
+        out.append(("Across sequences: pairwise verdicts (k/n, sign test)", pairwise))
+    out.append(("Sources of the sequences", sources_table(rows)))
     for dataset in sorted(by_dataset):
         out.append((f"Dataset: {dataset}", build("relative", by_dataset[dataset], lengths,
                                                  ci=True)))

@@ -31,6 +31,7 @@ from bench.report.names import (
     gt_assisted_note,
     hosts_note,
     order_key,
+    overrides_note,
     run_label,
     sequence_key,
     synthetic_note,
@@ -38,17 +39,17 @@ from bench.report.names import (
 from bench.report.row_keys import distinct_labels
 from bench.report.table import (
     MARK_RULES,
-    rule_name,
     Cell,
     Part,
     Row,
     Stat,
     Table,
     mark_column,
+    rule_name,
     save_table,
     stat_text,
 )
-from bench.runs.folders import RunRecord, load_runs
+from bench.runs.folders import RunRecord, load_runs, with_sequence_tags
 from bench.runs.result import FALLBACK_LIMIT, REPORTED_CLOCK, RunResult, nan
 from loaders.sensor_classes import class_rank
 from methods.registry import Seed
@@ -119,13 +120,15 @@ def runs(results_dir: Path | list[Path], only: set[Path] | None = None) -> list[
     folders in ``only``), in the paper's order; of several results folders, each row labelled
     with its folder's name."""
     dirs = results_dir if isinstance(results_dir, list) else [results_dir]
+    found = [(d, run) for d in dirs for run in load_runs(d, only, failed=True)
+             if not (run.result.finished and not run.result.scored)]  # no GT: nothing to show
+    # different content under one sequence name, across the folders too: never one sequence
+    tagged = with_sequence_tags([run for _, run in found])
     out = []
-    for d in dirs:
-        for run in load_runs(d, only, failed=True):
-            if run.result.finished and not run.result.scored:
-                continue  # no ground truth: nothing to tabulate
-            label = run_label(run.method, run.seed, run.label, run.doppler_kind)
-            out.append(RunRow(run, f"{Path(d).name}: {label}" if len(dirs) > 1 else label))
+    for (d, _), run in zip(found, tagged, strict=True):
+        label = (run_label(run.method, run.seed, run.label, run.doppler_kind)
+                 + overrides_note(run.config))  # -p max_iterations=3 is no default row
+        out.append(RunRow(run, f"{Path(d).name}: {label}" if len(dirs) > 1 else label))
     # two runs of one sequence under one label (e.g. differing only in --alignment): each row
     # says what differs (bench.report.row_keys), none is merged or dropped
     labels = distinct_labels(out, lambda r: r.label, lambda r: r.sequence,

@@ -31,8 +31,8 @@ def pivot_tables(rows: list[RunRow], lengths: list[float], marks: str = "interva
             t.rows.append(Row([label], (), cells))
         if col < len(lengths):
             t.caption = (f"Each cell: mean rotation [deg] / translation [m] relative error over "
-                         f"{title} segments. {MARK_RULES[rule_name(marks)]} Div. = diverged; empty = "
-                         "not run.")
+                         f"{title} segments. {MARK_RULES[rule_name(marks)]} Div. = diverged; "
+                         "empty = not run.")
         else:
             t.caption = (TIME_NOTE + " " + hosts_note(r.result.cpu for r in rows
                                                       if r.result.finished

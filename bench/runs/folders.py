@@ -26,7 +26,7 @@ import io
 import json
 import re
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import UTC, datetime
 from functools import cached_property
 from pathlib import Path
@@ -38,6 +38,7 @@ from pydantic import ValidationError
 from bench.runs.libraries import libraries_current
 from bench.runs.provenance import run_meta
 from bench.runs.result import RunResult
+from bench.runs.sequence_identity import sequence_tags, tagged
 from loaders.errors import DataError, validation_problems
 from loaders.fileio import atomic_write_text
 from loaders.posefile import read_tum
@@ -165,15 +166,26 @@ class RunRecord:
     dir: Path
     result: RunResult
     config: dict
+    #: what tells this run's sequence content apart from another content under the same name
+    #: ("frames 60-249"; ``bench.runs.sequence_identity``), "" when no other does
+    sequence_tag: str = ""
 
     @property
     def sequence(self) -> str:
-        return self.result.sequence
+        """The sequence's name, with its content tag when another content has that name."""
+        return tagged(self.result.sequence, self.sequence_tag)
+
+    @property
+    def base_display_name(self) -> str:
+        """The display name recorded with the run (no content tag)."""
+        return (self.result.display_name or (self.config.get("sequence") or {})
+                .get("display_name") or self.result.sequence)
 
     @property
     def display_name(self) -> str:
-        return (self.result.display_name or (self.config.get("sequence") or {})
-                .get("display_name") or self.sequence)
+        """The sequence's display name, with its content tag when another content of the runs
+        read together has that name (``with_sequence_tags``)."""
+        return tagged(self.base_display_name, self.sequence_tag)
 
     @property
     def sensor_class(self) -> str:
@@ -417,4 +429,13 @@ def load_runs(results_dir: Path, only: set[Path] | None = None,
             if run is not None:
                 runs.append(run)
     _announce(stale, Path(results_dir))
-    return runs
+    return with_sequence_tags(runs)
+
+
+def with_sequence_tags(runs: list[RunRecord]) -> list[RunRecord]:
+    """``runs`` read together, each whose sequence name another content shares tagged with
+    what tells its content apart (``bench.runs.sequence_identity``), so no table, figure or
+    summary pairs different content as one sequence."""
+    tags = sequence_tags([r.base_display_name for r in runs], [r.config for r in runs])
+    return [r if r.sequence_tag == tag else replace(r, sequence_tag=tag)
+            for r, tag in zip(runs, tags, strict=True)]

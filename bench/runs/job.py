@@ -173,6 +173,8 @@ def prepare(job: Job) -> Prepared:
             "sequence": {"name": name, "display_name": display, "sensor_class": klass,
                          "store": str(job.store), "frames": len(seq),
                          "frame_range": list(job.frame_range) if job.frame_range else None,
+                         # the frames of its source the store holds (bench convert --start ...)
+                         "store_frame_range": store.provenance.get("frame_range"),
                          "sensor_kind": seq.sensor.kind, "sensor_model": seq.sensor.model,
                          "period_s": seq.sensor.period_s,
                          # gt-reconstructed: every table / figure row is marked GT-assisted
@@ -193,6 +195,9 @@ def prepare(job: Job) -> Prepared:
             raise error from None
         params = getattr(method, "params", None)
         config["method"]["params"] = params.model_dump(mode="json") if params is not None else {}
+        # the parameters asked for (bench run -p, an experiment's params:), as given: a row
+        # label names them (bench.report.names.overrides_note)
+        config["method"]["given"] = {str(k): v for k, v in (job.params or {}).items()}
         if extrinsic_from_gt(seq, cls, job.params):
             # the method consumes the store's extrinsic, which bench calibrate fitted to the GT
             config["method"]["extrinsic_from_gt"] = True

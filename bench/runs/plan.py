@@ -10,6 +10,7 @@ from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
+import yaml
 from rich.console import Console
 
 from bench.data.advice import loader_name, option_flag
@@ -145,13 +146,22 @@ def plan(jobs: list[Job], refused: list[str] | None = None) -> list[Job]:
         problems += _lengths_problems(job, paths[key], warned)
         other = owners.get(prep.run_dir)
         if other is not None and other[1] != prep.key:
+            same = other[0].store.resolve() == job.store.resolve()
+            what = (f"{other[0].title} and {job.title}" if same else
+                    f"{other[0].title} of {other[0].store} and {job.title} of {job.store}: two "
+                    "stores of different content under one sequence name")
             problems.append(
-                f"{prep.run_dir}: two runs would share this folder ({other[0].title} and "
-                f"{job.title}); give the sequences distinct names or the method variants "
-                "distinct 'label:'s")
+                f"{prep.run_dir}: two runs would share this folder ({what}); give the "
+                "sequences distinct names (an experiment's sequences: name:) or the method "
+                "variants distinct 'label:'s")
             continue
         owners[prep.run_dir] = (job, prep.key)
         _check_writable(prep.run_dir)
+        other_store = _other_content(prep.run_dir, job.store,
+                                     prep.config["identity"]["store_sha256"])
+        if other_store:
+            problems.append(other_store)
+            continue
         renamed = rename_reused(prep.run_dir, prep.key, prep.config["sequence"])
         if renamed:
             warnings.warn(renamed, stacklevel=2)
@@ -256,6 +266,31 @@ def _lengths_problems(job: Job, path_m: float | None, warned: set[str]) -> list[
                          len(job.kitti_lengths_m) else "KITTI drift leaves out "
                          f"{', '.join(f'{L:g}' for L in kitti_short)} m"), stacklevel=3)
     return []
+
+
+def _other_content(run_dir: Path, store: Path, sha256: str) -> str | None:
+    """Why ``run_dir`` must not take a run of ``store``: it holds a run of another store (at
+    another path, of other content) under the same sequence name, which a new run would
+    silently replace (two stores named ``data1``: the bag in full and a cut of it). None when
+    it holds no run, a run of this store (re-converted in place: it runs again), or of the
+    same content."""
+    try:
+        config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}
+    except (OSError, ValueError, yaml.YAMLError):
+        return None
+    if not isinstance(config, dict):
+        return None
+    seq = config.get("sequence") if isinstance(config.get("sequence"), dict) else {}
+    identity = config.get("identity") if isinstance(config.get("identity"), dict) else {}
+    old_store, old_sha = seq.get("store"), identity.get("store_sha256")
+    if not old_store or not old_sha or old_sha == sha256:
+        return None
+    if Path(str(old_store)).resolve() == Path(store).resolve():
+        return None
+    return (f"{run_dir}: holds a run of sequence {seq.get('name')!r} from {old_store} (SHA-256 "
+            f"{str(old_sha)[:12]}); {store} (SHA-256 {sha256[:12]}) is another store of that "
+            "name and would replace it: name it apart (bench convert --name, an experiment's "
+            "name:) or give the run another --out")
 
 
 def _check_writable(run_dir: Path) -> None:
