@@ -51,7 +51,7 @@ from methods.base import (
     RegistrationResult,
     uniform_downsample,
 )
-from methods.rigid import fit_rigid_t, rigid_from_sums
+from methods.rigid import fit_rigid_t
 
 
 class DopplerParams(MethodParams):
@@ -210,10 +210,9 @@ def register_numba(kernel, source: DopplerScan, target: DopplerScan, tau_spatial
     if pool is not None:
         pending.result()
     # the source's feature scratch (read by its sort only) holds the pairs of the match
-    n, sum_p, sum_q, sum_pq = kernel.match_sorted_into(*src_arrays[3:], *tgt_arrays[3:],
-                                                       tau_spatial_m**2, tau_doppler,
-                                                       src_arrays[0].view(np.int32))
-    return (rigid_from_sums(n, sum_p, sum_q, sum_pq) if n >= 3 else None), n
+    n, T, fitted = kernel.match_fit_into(*src_arrays[3:], *tgt_arrays[3:], tau_spatial_m**2,
+                                         tau_doppler, src_arrays[0].view(np.int32))
+    return (T if fitted else None), n
 
 
 def ransac_rigid(P: np.ndarray, Q: np.ndarray, iterations: int, threshold_m: float,
