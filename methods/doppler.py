@@ -194,22 +194,28 @@ def register_numba(kernel, source: DopplerScan, target: DopplerScan, tau_spatial
                    ) -> tuple[np.ndarray | None, int]:
     """The same step with the compiled kernel (``methods.doppler_kernel``, imported once by
     the method, outside the timed call): each scan's features sorted with its points (into the
-    two ``workspaces``, one per scan, reused from call to call), then one merge pass. With a
-    ``pool`` (one worker), the source's half runs on a second thread."""
+    two ``workspaces``, one per scan, reused from call to call), then the matching and the fit.
+    On one thread the two sorts share the first workspace's scratch (features, keys): the
+    second sort finds it in the cache. With a ``pool`` (one worker), the source's half runs
+    on a second thread, each with its own scratch."""
     dt_s = target.stamp - source.stamp
     if workspaces is None:
         workspaces = (kernel.SortWorkspace(), kernel.SortWorkspace())
+    if pool is None:  # grown first, so that the views below all see the same arrays
+        workspaces[0].arrays(max(len(source), len(target)))
     src_arrays = workspaces[0].arrays(len(source))
     tgt_arrays = workspaces[1].arrays(len(target))
     if pool is None:
         kernel.sorted_scan_into(source.points_t, source.doppler, dt_s, 1.0, *src_arrays)
+        scratch = workspaces[0].arrays(len(target))[:3]
+        kernel.sorted_scan_into(target.points_t, target.doppler, dt_s, -1.0, *scratch,
+                                *tgt_arrays[3:])
     else:
         pending = pool.submit(kernel.sorted_scan_into, source.points_t, source.doppler, dt_s,
                               1.0, *src_arrays)
-    kernel.sorted_scan_into(target.points_t, target.doppler, dt_s, -1.0, *tgt_arrays)
-    if pool is not None:
+        kernel.sorted_scan_into(target.points_t, target.doppler, dt_s, -1.0, *tgt_arrays)
         pending.result()
-    # the source's feature scratch (read by its sort only) holds the pairs of the match
+    # the source's feature scratch (read by the sorts only) holds the pairs of the match
     n, T, fitted = kernel.match_fit_into(*src_arrays[3:], *tgt_arrays[3:], tau_spatial_m**2,
                                          tau_doppler, src_arrays[0].view(np.int32))
     return (T if fitted else None), n

@@ -293,11 +293,12 @@ def _count_at_most(gs, x):  # pragma: no cover - compiled
 
 
 @nb.njit(cache=True, nogil=True, inline="always")
-def _merge_step(fs, gs, m, last, i, j, rank):  # pragma: no cover - compiled
+def _merge_step(fs, gs, i, j, rank):  # pragma: no cover - compiled
     """One step of the branch-free merge: rank[i] = j, then j advances past gs[j] when it is
-    <= fs[i], else i advances (rank[i] is final once i moves on). Unsigned counters: no
-    negative-index wraparound in the chain."""
-    t = np.uint64((j < m) & (gs[min(j, last)] <= fs[i]))
+    <= fs[i], else i advances (rank[i] is final once i moves on). Only for an f below the
+    last g (j then stays below len(gs)). Unsigned counters: no negative-index wraparound in
+    the chain."""
+    t = np.uint64(gs[j] <= fs[i])
     rank[i] = j
     return i + np.uint64(1) - t, j + t
 
@@ -305,21 +306,24 @@ def _merge_step(fs, gs, m, last, i, j, rank):  # pragma: no cover - compiled
 @nb.njit(cache=True, nogil=True)
 def rank_sorted(fs, gs, rank):
     """``rank[i]``: the number of values of ``gs`` that are <= ``fs[i]`` (both sorted in
-    ascending order; the count the merge of ``pair_sorted`` reaches for each f). A merge
-    without data-dependent branches (a mispredicted branch per pair cost more than the rest of
-    the matching), as four independent merges of four quarters of ``fs`` interleaved step by
-    step (one merge is a chain of dependent loads; four overlap), each started at its first
-    f's count by a binary search, then each finished alone."""
+    ascending order; the count the merge of ``pair_sorted`` reaches for each f). The f's at
+    or above the last g count them all; the others by a merge without data-dependent
+    branches (a mispredicted branch per pair cost more than the rest of the matching), as
+    four independent merges of four quarters of them interleaved step by step (one merge is
+    a chain of dependent loads; four overlap), each started at its first f's count by a
+    binary search, then each finished alone."""
     n, m = len(fs), len(gs)
     if m == 0:
         rank[:n] = 0
         return
-    um = np.uint64(m)
-    last = um - np.uint64(1)
-    starts = np.array([0, n // 4, n // 2, 3 * n // 4, n], dtype=np.uint64)
+    below = n  # the f's below the last g: fs[:below]
+    while below > 0 and fs[below - 1] >= gs[m - 1]:
+        below -= 1
+    rank[below:n] = m
+    starts = np.array([0, below // 4, below // 2, 3 * below // 4, below], dtype=np.uint64)
     i = starts[:4].copy()
     j = np.zeros(4, dtype=np.uint64)
-    steps = np.uint64(n)  # the common steps: the fewest of any quarter (0 if one is empty)
+    steps = np.uint64(below)  # the common steps: the fewest of any quarter (0 if one is empty)
     for q in range(4):
         if starts[q + 1] > i[q]:
             j[q] = _count_at_most(gs, fs[i[q]])
@@ -331,16 +335,16 @@ def rank_sorted(fs, gs, rank):
     i0, i1, i2, i3 = i[0], i[1], i[2], i[3]
     j0, j1, j2, j3 = j[0], j[1], j[2], j[3]
     for _ in range(steps):
-        i0, j0 = _merge_step(fs, gs, um, last, i0, j0, rank)
-        i1, j1 = _merge_step(fs, gs, um, last, i1, j1, rank)
-        i2, j2 = _merge_step(fs, gs, um, last, i2, j2, rank)
-        i3, j3 = _merge_step(fs, gs, um, last, i3, j3, rank)
+        i0, j0 = _merge_step(fs, gs, i0, j0, rank)
+        i1, j1 = _merge_step(fs, gs, i1, j1, rank)
+        i2, j2 = _merge_step(fs, gs, i2, j2, rank)
+        i3, j3 = _merge_step(fs, gs, i3, j3, rank)
     i[0], i[1], i[2], i[3] = i0, i1, i2, i3
     j[0], j[1], j[2], j[3] = j0, j1, j2, j3
     for q in range(4):
         iq, jq = i[q], j[q]
         while iq < starts[q + 1]:
-            iq, jq = _merge_step(fs, gs, um, last, iq, jq, rank)
+            iq, jq = _merge_step(fs, gs, iq, jq, rank)
 
 
 @nb.njit(cache=True, nogil=True)
@@ -357,17 +361,18 @@ def pair_sorted(ps, fs, qs, gs, tau_spatial2, tau_doppler, pair):
         pair[:] = -1
         return
     rank_sorted(fs, gs, pair)
-    last = m - 1
+    last = np.uint64(m - 1)
+    one = np.uint64(1)
     for i in range(len(fs)):
         fi = fs[i]
-        j = np.int64(pair[i])
-        lo = max(j - 1, 0)
+        j = np.uint64(pair[i])  # unsigned indices: no negative-index wraparound
+        lo = j - one if j > 0 else j
         hi = min(j, last)
-        nearer_hi = np.int64(_f32_bits((gs[hi] - fi) - (fi - gs[lo])) >> np.uint32(31))
+        nearer_hi = np.uint64(_f32_bits((gs[hi] - fi) - (fi - gs[lo])) >> np.uint32(31))
         k = lo + (nearer_hi & (hi - lo))  # the nearer; the lower one on a tie
         dx, dy, dz = ps[0, i] - qs[0, k], ps[1, i] - qs[1, k], ps[2, i] - qs[2, k]
         keep = (abs(fi - gs[k]) <= tau_doppler) & (dx * dx + dy * dy + dz * dz <= tau_spatial2)
-        pair[i] = np.int32((k + 1) * np.int64(keep) - 1)
+        pair[i] = np.int32(np.int64(k + one) * np.int64(keep) - 1)
 
 
 @nb.njit(cache=True, nogil=True, fastmath={"reassoc", "nsz", "contract"})
