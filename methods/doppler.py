@@ -23,9 +23,11 @@ RANSAC works on the pairs of the reference matching (``doppler_pairs``) with eit
 
 Two interchangeable backends compute the same step: ``numpy`` (the reference below, readable
 array code) and ``numba`` (``methods.doppler_kernel``: the same order by a compiled radix sort,
-then one compiled merge pass; the default, about 10x faster). Both use float32 features and the
-same tie rules, so they find the same correspondences. ``num_threads`` 2 (numba backend) sorts
-the source's and the target's features on two threads; the default is 1. ``preprocess`` only
+then a branch-free merge, the pick and the gates, the sums and the fit, all compiled; the
+default, about 10x faster). Both use float32 features and the same tie rules, so they find the
+same correspondences (the compiled pairs against a plain NumPy statement of the rule:
+tests/test_doppler_pairs_reference.py). ``num_threads`` 2 (numba backend) sorts the source's
+and the target's features on two threads; the default is 1. ``preprocess`` only
 puts the points in the (3, N) float32 layout both work on; ranges, features, matching, masks
 and the fit are all inside ``register``.
 Timing (``methods.base``): ``time_ms`` = that layout + ``register``; ``register_ms`` =
