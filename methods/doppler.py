@@ -23,9 +23,11 @@ RANSAC works on the pairs of the reference matching (``doppler_pairs``) with eit
 
 Two interchangeable backends compute the same step: ``numpy`` (the reference below, readable
 array code) and ``numba`` (``methods.doppler_kernel``: the same order by a compiled radix sort,
-then one compiled merge pass; the default, about 10x faster). Both use float32 features and the
-same tie rules, so they find the same correspondences. ``num_threads`` 2 (numba backend) sorts
-the source's and the target's features on two threads; the default is 1. ``preprocess`` only
+then a branch-free merge, the pick and the gates, the sums and the fit, all compiled; the
+default, about 10x faster). Both use float32 features and the same tie rules, so they find the
+same correspondences (the compiled pairs against a plain NumPy statement of the rule:
+tests/test_doppler_pairs_reference.py). ``num_threads`` 2 (numba backend) sorts the source's
+and the target's features on two threads; the default is 1. ``preprocess`` only
 puts the points in the (3, N) float32 layout both work on; ranges, features, matching, masks
 and the fit are all inside ``register``.
 Timing (``methods.base``): ``time_ms`` = that layout + ``register``; ``register_ms`` =
@@ -51,7 +53,7 @@ from methods.base import (
     RegistrationResult,
     uniform_downsample,
 )
-from methods.rigid import fit_rigid_t, rigid_from_sums
+from methods.rigid import fit_rigid_t
 
 
 class DopplerParams(MethodParams):
@@ -194,26 +196,31 @@ def register_numba(kernel, source: DopplerScan, target: DopplerScan, tau_spatial
                    ) -> tuple[np.ndarray | None, int]:
     """The same step with the compiled kernel (``methods.doppler_kernel``, imported once by
     the method, outside the timed call): each scan's features sorted with its points (into the
-    two ``workspaces``, one per scan, reused from call to call), then one merge pass. With a
-    ``pool`` (one worker), the source's half runs on a second thread."""
+    two ``workspaces``, one per scan, reused from call to call), then the matching and the fit.
+    On one thread the two sorts share the first workspace's scratch (features, keys): the
+    second sort finds it in the cache. With a ``pool`` (one worker), the source's half runs
+    on a second thread, each with its own scratch."""
     dt_s = target.stamp - source.stamp
     if workspaces is None:
         workspaces = (kernel.SortWorkspace(), kernel.SortWorkspace())
+    if pool is None:  # grown first, so that the views below all see the same arrays
+        workspaces[0].arrays(max(len(source), len(target)))
     src_arrays = workspaces[0].arrays(len(source))
     tgt_arrays = workspaces[1].arrays(len(target))
     if pool is None:
         kernel.sorted_scan_into(source.points_t, source.doppler, dt_s, 1.0, *src_arrays)
+        scratch = workspaces[0].arrays(len(target))[:3]
+        kernel.sorted_scan_into(target.points_t, target.doppler, dt_s, -1.0, *scratch,
+                                *tgt_arrays[3:])
     else:
         pending = pool.submit(kernel.sorted_scan_into, source.points_t, source.doppler, dt_s,
                               1.0, *src_arrays)
-    kernel.sorted_scan_into(target.points_t, target.doppler, dt_s, -1.0, *tgt_arrays)
-    if pool is not None:
+        kernel.sorted_scan_into(target.points_t, target.doppler, dt_s, -1.0, *tgt_arrays)
         pending.result()
-    # the source's feature scratch (read by its sort only) holds the pairs of the match
-    n, sum_p, sum_q, sum_pq = kernel.match_sorted_into(*src_arrays[3:], *tgt_arrays[3:],
-                                                       tau_spatial_m**2, tau_doppler,
-                                                       src_arrays[0].view(np.int32))
-    return (rigid_from_sums(n, sum_p, sum_q, sum_pq) if n >= 3 else None), n
+    # the source's feature scratch (read by the sorts only) holds the pairs of the match
+    n, T, fitted = kernel.match_fit_into(*src_arrays[3:], *tgt_arrays[3:], tau_spatial_m**2,
+                                         tau_doppler, src_arrays[0].view(np.int32))
+    return (T if fitted else None), n
 
 
 def ransac_rigid(P: np.ndarray, Q: np.ndarray, iterations: int, threshold_m: float,
