@@ -30,6 +30,10 @@ sensor frame [m]. Facts of the authors' implementation followed here:
   optional dynamic-outlier rejection (|Doppler error| > 2 m/s from iteration 2, off by
   default: such a point then has neither residual); one Gauss-Newton step (Open3D's pose
   vector, applied on the left: T = update @ T);
+- no pair left (at the start or after a step): not converged, and the answer is the identity,
+  as Open3D's (whose evaluation then resets the transformation); returning the drifted
+  transform instead put a no-seed step of ci-sparse 47 deg off where Open3D's is the
+  identity;
 - converged when fitness and inlier RMSE both change by < 1e-5, at most 100 iterations
   (``iterations`` counts the Gauss-Newton steps, as Open3D's per-iteration callback does):
   as Open3D 0.20 does (measured through its callback against ``evaluate_registration``), the
@@ -252,7 +256,10 @@ class Dicp(Registration):
                 idx[~(sq <= gate_sq)] = -1
             n = int((idx >= 0).sum())
             if n == 0:
-                return T, 0, iteration, False
+                # as Open3D: no pair left, the answer is the identity (not the start or the
+                # drifted transform), and the step that lost them is not counted (its
+                # callback is not called)
+                return np.eye(4), 0, max(iteration - 1, 0), False
             fitness, rmse = n / len(moved), float(np.sqrt(sq[idx >= 0].sum() / n))
             # Open3D 0.20's test after each step, made here with the next iteration's pairs:
             # fitness and RMSE at the transform after ``iteration`` steps against those
