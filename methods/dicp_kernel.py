@@ -141,7 +141,11 @@ def _smallest_eigenvector(c00, c01, c02, c11, c12, c22, out):  # pragma: no cove
 @nb.njit(cache=True, nogil=True)
 def _normal(points, neighbours, sq_dists, count, radius_sq, out):  # pragma: no cover
     """The normal of one neighbourhood: ``neighbours[:count]`` (indices into points, -1 for
-    none) with ``sq_dists``; those within the radius count (zero normal when fewer than 3)."""
+    none) with ``sq_dists``; those within the radius count. Fewer than 3 of them, or all at
+    one place: (0, 0, 1), as Open3D's ``EstimateNormals`` gives (its covariance is then the
+    identity, or zero, and it falls back to +z), so such a target point still constrains the
+    height of a pair (a zero normal left it out, and the two implementations' steps differed
+    whenever a source point paired with an isolated far target point)."""
     m = 0
     mx = my = mz = 0.0
     for k in range(count):
@@ -151,7 +155,8 @@ def _normal(points, neighbours, sq_dists, count, radius_sq, out):  # pragma: no 
             my += points[j, 1]
             mz += points[j, 2]
             m += 1
-    out[0] = out[1] = out[2] = 0.0
+    out[0] = out[1] = 0.0
+    out[2] = 1.0
     if m < 3:
         return
     mx /= m
@@ -168,13 +173,16 @@ def _normal(points, neighbours, sq_dists, count, radius_sq, out):  # pragma: no 
             c11 += dy * dy
             c12 += dy * dz
             c22 += dz * dz
+    if c00 == 0.0 and c11 == 0.0 and c22 == 0.0:
+        return  # every neighbour at one place: no plane (Open3D: +z too)
     _smallest_eigenvector(c00 / m, c01 / m, c02 / m, c11 / m, c12 / m, c22 / m, out)
 
 
 @nb.njit(cache=True, nogil=True)
 def normals_from_neighbours(points, neighbours, sq_dists, radius_sq):  # pragma: no cover
     """Unit normals: the smallest-eigenvalue eigenvector of the covariance of each point's
-    neighbours within the radius (zero when fewer than 3); neighbours (N, k), -1 for none."""
+    neighbours within the radius ((0, 0, 1) when fewer than 3, as Open3D); neighbours (N, k),
+    -1 for none."""
     n = points.shape[0]
     normals = np.zeros((n, 3))
     for i in range(n):

@@ -136,3 +136,21 @@ def test_tracked_nearest_equals_a_fresh_search_as_the_queries_move(track_m, gate
         # a small rigid motion (rotation about z and a shift), as an ICP step
         c, s = np.cos(step / 20), np.sin(step / 20)
         queries = queries @ np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]]).T + step
+
+
+def test_a_point_without_a_plane_gets_open3ds_fallback_normal():
+    """Fewer than 3 points within the radius (the point itself counts), or all of them at one
+    place: (0, 0, 1), as Open3D's EstimateNormals gives (a zero normal dropped such a pair's
+    geometric term in DICP, where Open3D keeps a height term)."""
+    rng = np.random.default_rng(3)
+    plane = np.column_stack([rng.uniform(-1, 1, 40), rng.uniform(-1, 1, 40),
+                             0.3 * rng.uniform(-1, 1, 40)]) @ np.linalg.qr(
+        rng.normal(size=(3, 3)))[0].T
+    isolated = np.array([[50.0, 0, 0], [-50.0, 0, 0], [0, 50.0, 0.0], [0, 50.5, 0.0]])
+    stack = np.tile([0.0, -50.0, 3.0], (3, 1))  # three coincident points
+    pts = np.vstack([plane, isolated, stack])
+    for normals in (neighbourhood_normals(*KdTree(pts, 4).arrays, 30, 4.0),
+                    normals_from_neighbours(pts, *(lambda d, i: (i.astype(np.int64), d**2))(
+                        *cKDTree(pts).query(pts, 30, distance_upper_bound=np.inf)), 4.0)):
+        np.testing.assert_array_equal(normals[len(plane):], np.tile([0.0, 0.0, 1.0], (7, 1)))
+        assert np.all(np.abs(normals[:len(plane), 2]) < 0.999)  # the plane's own, not +z

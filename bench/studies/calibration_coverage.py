@@ -6,8 +6,9 @@ every angle it observes we count whether its stated interval contains the truth.
 of a level-95 % interval should be about 95 %; with ``n`` sequences its own standard error is
 ``sqrt(0.95 * 0.05 / n)`` (2.2 % at 100). The mean error and the mean stated standard
 deviation per angle show whether a miss comes from a bias (error beside a small sd) or from too
-narrow an interval. The sequences are generated with the option ``edge_band`` (the field of
-view's edge cuts measured angles, so scatterers just beyond it are detected too); without it
+narrow an interval. The sequences are generated with the option ``edge_band`` (the
+generator's default, stated here as this study depends on it: the field of view's edge cuts
+measured angles, so scatterers just beyond it are detected too); without it
 the loop's Doppler ego velocity is tilted up by about 0.05 deg, a bias of the generator that
 no interval of the estimator should cover.
 """

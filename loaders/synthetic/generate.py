@@ -68,10 +68,9 @@ OPTIONS = {
     "gt": "ground-truth pipeline (groundtruth.py): exact (default), ntu4dradlm or campus",
     "edge_band": "radar: scatterers up to one resolution cell plus 3 sigma of angle error "
                  "beyond the field of view are detected too (its edge cuts measured angles; "
-                 "sensors.detection_margin_deg). Without it the edge bands hold detections "
-                 "from inside only, which tilts the loop's Doppler ego velocity up by about "
-                 "0.05 deg; default False (the reported suites and their CI baseline keep the "
-                 "previous cut until re-reviewed), on in bench calibrate-coverage",
+                 "sensors.detection_margin_deg); default True. False: the previous cut (the "
+                 "edge bands hold detections from inside only, which tilts the loop's Doppler "
+                 "ego velocity up by about 0.05 deg), kept to reproduce older stores",
 }
 
 
@@ -239,7 +238,7 @@ class SyntheticSequence(Sequence):
         cand = None
         if self.scatterers is not None:  # one cast for the random rays and the scatterers
             cand = candidates(self.scatterers, geom, o, R, spec,
-                              bool(self.options.get("edge_band", False)))
+                              bool(self.options.get("edge_band", True)))
             # this frame's fading first: only the scatterers above the detection threshold
             # need the occlusion test (the same SNR as in sensors.measure)
             D_c = cand["points_s"] / cand["range"][:, None]

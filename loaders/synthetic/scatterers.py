@@ -363,7 +363,7 @@ def _tunnel(b: _Builder, tun) -> None:
 OCCLUSION_TOL = 0.15  # [m] a scatterer is visible when the first hit is at most this closer
 
 
-def visible(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec, edge_band: bool = False
+def visible(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec, edge_band: bool = True
             ) -> dict[str, np.ndarray]:
     """Scatterers seen from the sensor at ``o`` (world) with orientation ``R`` (world <- sensor)
     in the scene frozen as ``geom``: inside the field of view (widened, see ``candidates``)
@@ -381,7 +381,7 @@ def visible(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec, edge_band:
 
 
 def candidates(sc: Scatterers, geom, o: np.ndarray, R: np.ndarray, spec,
-               edge_band: bool = False) -> dict:
+               edge_band: bool = True) -> dict:
     """Scatterers inside the field of view (``edge_band``: widened by
     ``sensors.detection_margin_deg``) and inside the range limits that face the sensor (before
     the occlusion test): ids, world and sensor-frame points, range, incidence cosine, RCS

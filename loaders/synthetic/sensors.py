@@ -7,7 +7,7 @@ measurement falls outside the field of view or the range limits are not reported
 
 Radar: detections come mostly from the scene's persistent scattering centres (see
 scatterers.py: world-fixed, or fixed in a mover's body frame) that are in the field of view
-(with the generator option ``edge_band`` widened by ``detection_margin_deg``: one just outside
+(widened by ``detection_margin_deg``, the generator option ``edge_band``: one just outside
 is detected inside through its neighbouring cells and angle errors), face the sensor and are
 not occluded; each is detected when its SNR (point-target radar equation: RCS, aspect, r^-4
 range loss, antenna taper and per-frame Swerling 1/3 fading) exceeds a threshold, so
@@ -237,9 +237,9 @@ def detection_margin_deg(spec: SensorSpec) -> np.ndarray:
     with detections displaced towards the edge and none coming in from beyond it: at the dense
     upper edge of the loop scene (buildings) the detections a cell above their scatterer, with
     its Doppler, tilted the Doppler ego velocity up by about 0.05 deg (the pitch bias of
-    ``bench calibrate-coverage``, docs/doppler-ego.md). Applied with the generator option
-    ``edge_band`` (loaders/synthetic/generate.py: off by default until the reported suites'
-    CI baseline is re-reviewed on the new data; on in the calibration coverage study)."""
+    ``bench calibrate-coverage``, docs/doppler-ego.md). Applied unless the generator option
+    ``edge_band`` is False (loaders/synthetic/generate.py; on by default, so in every suite and
+    the CI baseline, since issue 40)."""
     if spec.kind != "radar":
         return np.zeros(2)
     cell = np.array(spec.resolution[1:] if spec.resolution else (0.0, 0.0), float)
