@@ -252,6 +252,7 @@ class VodSequence(OpensFromOptions, Sequence):
                             "option period)",
             "period_s": opts.period,
             "world": f"{opts.world} ({key})",
+            "body_frame": "camera",
             "T_body_sensor": "T_camera_radar from calib/NNNNN.txt Tr_velo_to_cam; GT = "
                              f"T_{opts.world}_camera @ T_camera_radar",
             "doppler_column": opts.doppler,
