@@ -130,11 +130,12 @@ def run_kind(folder: Path) -> str | None:
     return EXTERNAL if "external" in config or identity.get("kind") == EXTERNAL else HARNESS
 
 
-def replaceable(out: Path, force: bool, own: Callable[[Path], bool], what: str,
+def replaceable(out: Path, force: bool | None, own: Callable[[Path], bool], what: str,
                 option: str = "--out", inputs: Iterable[Path | None] = ()) -> bool:
     """Check ``out`` before writing: not an input; when it exists, ``force`` given and ``own``
-    recognising it as ``what`` (e.g. "a ROS1 bag") this command wrote. True when it exists
-    (and may be replaced), False when it is new."""
+    recognising it as ``what`` (e.g. "a ROS1 bag") this command wrote (``force`` None: the
+    command has no --force, an existing ``out`` is never replaced). True when it exists (and
+    may be replaced), False when it is new."""
     out = Path(out)
     not_an_input(out, inputs, option)
     if not os.path.lexists(out):
@@ -145,8 +146,9 @@ def replaceable(out: Path, force: bool, own: Callable[[Path], bool], what: str,
                         f"wrote; it is left as it is{' (--force replaces only that)' * force}"
                         f": choose another {option}")
     if not force:
-        raise DataError(f"{option} {out}: exists ({what}); give another {option} or --force "
-                        "to replace it")
+        raise DataError(f"{option} {out}: exists ({what}); give another {option}"
+                        + (" or --force to replace it" if force is False else
+                           " (it is not replaced)"))
     return True
 
 

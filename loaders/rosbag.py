@@ -22,8 +22,7 @@
   T_body_sensor``. A gap in the GT longer than ``max_gap_s`` is never interpolated across.
 - A bag ``bench export`` wrote carries its description (``DESCRIPTION_TOPIC``, JSON): the
   options not given take its values (scan and GT topics, extrinsic, sensor kind and model,
-  Doppler kind, ``doppler_field none`` when it has no Doppler, the sequence name), and its
-  ``stamp_offset_s`` (added to a clock that started at 0 s) is subtracted from every stamp, so
+  Doppler kind, ``doppler_field none`` when it has no Doppler, the sequence name), so
   ``bench convert rosbag BAG --out S.h5`` alone reads it back to the store it came from.
 - ``doppler_field none``: the scans carry no Doppler (``x y z`` and other fields only).
 - Streaming: an index pass reads only the stamps; ``scan(i)`` then reads one message (ROS1: a
@@ -397,7 +396,6 @@ class RosbagSequence(Sequence, OpensFromOptions):
         description = read_description(paths)
         o = self.options = described_options(o, description, bag_topics(paths)) \
             if description else o
-        offset = float(description.get("stamp_offset_s") or 0.0) if description else 0.0
         if o.gt is not None and o.gt_topic is not None:
             raise DataError("give the ground truth either as a file (gt) or as a topic "
                             "(gt_topic), not both")
@@ -412,8 +410,7 @@ class RosbagSequence(Sequence, OpensFromOptions):
             raise DataError(f"{paths[0]}: topic {topic} has no messages")
         self.msgtype = self._index.msgtype
         label = ", ".join(map(str, paths))
-        stamps = topic_stamps(self._index, o.stamp, label) - offset
-        self.stamp_offset_s = offset
+        stamps = topic_stamps(self._index, o.stamp, label)
         if not np.all(np.isfinite(stamps)):
             bad = int(np.flatnonzero(~np.isfinite(stamps))[0])
             raise DataError(f"{self._index.where(bad)}: message too short for a std_msgs/Header "
@@ -435,7 +432,6 @@ class RosbagSequence(Sequence, OpensFromOptions):
             "T_body_sensor": T.tolist(),
             "nan_points_dropped": 0,
             "description": DESCRIPTION_TOPIC if description else None,
-            "stamp_offset_s": offset,
         }
         self.ground_truth = None
         gt, gt_label, mode = self._ground_truth(stamps[order])
@@ -464,10 +460,8 @@ class RosbagSequence(Sequence, OpensFromOptions):
     def _ground_truth(self, scan_stamps: np.ndarray):
         o = self.options
         if o.gt_topic is not None:
-            gt = read_gt_topic(self.bags, o.gt_topic)
-            if self.stamp_offset_s:
-                gt = Trajectory(gt.stamps - self.stamp_offset_s, gt.poses)
-            return gt, f"{self.bags[0]}:{o.gt_topic}", "interpolate"
+            return read_gt_topic(self.bags, o.gt_topic), f"{self.bags[0]}:{o.gt_topic}", \
+                "interpolate"
         if o.gt is None:
             return None, None, None
         if not Path(o.gt).is_file():

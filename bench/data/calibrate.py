@@ -124,6 +124,7 @@ def calibrate_store(path: str | Path, write_to: Path | None = None, console=None
     """Estimate on the store's frames ``start`` .. (default: its first half), print both
     estimates to ``console`` and, given ``write_to``, write the store with its ground truth
     corrected by the ``apply`` estimate and the frames used recorded."""
+    from bench import guard
     from loaders.store import StoreSequence, write_store
 
     if apply not in ESTIMATES:
@@ -156,6 +157,7 @@ def calibrate_store(path: str | Path, write_to: Path | None = None, console=None
             details = {"applied_estimate": apply, "doppler_rpy_deg": list(cal.angles_deg.values())}
             if he is not None:
                 details["hand_eye_rpy_deg"] = list(he.angles_deg.values())
+            guard.replaceable(write_to, None, guard.is_store, "a store", "--write", [path])
             write_store(CorrectedSequence(seq, R, (first, stop), details), write_to)
             say(f"wrote {write_to} (ground truth and extrinsic corrected by the {apply} "
                 f"estimate, points unchanged; frames {first}-{stop - 1} are not scored)")

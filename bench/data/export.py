@@ -16,10 +16,11 @@ One uniform form for every dataset the harness loads, to feed a ROS node:
 - ``/doppler_bench/description`` ``std_msgs/String``: a JSON text stating the fields, the
   Doppler sign and kind, the frames, the sensor and the store it came from.
 
-Stamps: the scan's stamp rounded to the nanosecond. A ROS stamp of 0 s means "no time", so a
-store whose clock starts before ``MIN_STAMP_S`` (a View-of-Delft store is stamped index x
-period from 0 s; synthetic stores from 0 s) is exported shifted by a whole number of seconds,
-``stamp_offset_s`` in the description, which ``loaders.rosbag`` subtracts on reading it back.
+Stamps: the store's stamps, rounded to the nanosecond, never shifted: a trajectory an
+odometry makes from the bag is on the store's clock and scores against it unchanged. A store
+whose clock starts at 0 s (View-of-Delft publishes no stamps: its frames are index x period;
+synthetic stores) keeps it, and the export says so: ROS tools may read a 0 s stamp as "no
+time" (``zero_clock_note``).
 
 A store without Doppler exports ``x y z`` and its other fields (no ``doppler``); the description
 says so and the read-back command carries ``--doppler-field none``.
@@ -73,8 +74,7 @@ POINTS_TOPIC = "/points"
 GT_TOPIC = "/ground_truth"
 TF_TOPIC = "/tf_static"
 INFO_TOPIC = DESCRIPTION_TOPIC
-#: a store clock starting below this is exported shifted by whole seconds (ROS: 0 s = no time)
-MIN_STAMP_S = 1.0
+
 #: the Doppler sign of the exported field (the harness's: positive = receding)
 DOPPLER_SIGN = ("doppler [m/s]: radial velocity of the point relative to the sensor, positive "
                 "when the point recedes (moves away from the sensor); a static point ahead of "
@@ -112,17 +112,18 @@ def body_frame(seq: StoreSequence) -> str:
     return str(name) if name else BODY_FRAME
 
 
-def stamp_offset(stamps: np.ndarray) -> float:
-    """Whole seconds added to the store's stamps in the bag: 0 unless its clock starts
-    before ``MIN_STAMP_S`` (ROS reads a stamp of 0 s as no time)."""
-    first = float(stamps[0]) if len(stamps) else MIN_STAMP_S
-    return 0.0 if first >= MIN_STAMP_S else float(np.ceil(MIN_STAMP_S - first))
+def zero_clock_note(first_stamp_s: float) -> str | None:
+    """What the export says when the store's clock starts at (or before) 0 s, else None."""
+    if first_stamp_s > 0:
+        return None
+    return (f"the store's clock starts at {first_stamp_s:g} s (its dataset publishes no "
+            "stamps, or it is synthetic), kept as it is so that a trajectory made from the bag "
+            "scores against the store unchanged; ROS tools may read a 0 s stamp as 'no time'")
 
 
-def description(seq: StoreSequence, store: Path, fields: list[str],
-                offset_s: float = 0.0) -> dict:
+def description(seq: StoreSequence, store: Path, fields: list[str]) -> dict:
     """The bag's description (``INFO_TOPIC``): fields, Doppler sign and kind, frames, sensor,
-    the stamp offset. ``loaders.rosbag`` reads it back (``bench convert rosbag BAG``)."""
+    the clock. ``loaders.rosbag`` reads it back (``bench convert rosbag BAG``)."""
     body = body_frame(seq)
     return {
         "exported_by": "doppler-bench (bench export)", "store": str(store),
@@ -137,10 +138,8 @@ def description(seq: StoreSequence, store: Path, fields: list[str],
         "ground_truth": f"nav_msgs/Odometry: T_world_body ({body}) at the scans with "
                         "ground truth; the sensor pose is T_world_body @ T_body_sensor "
                         f"({TF_TOPIC})",
-        "stamp_offset_s": offset_s,
-        "stamps": (f"the store's stamps + {offset_s:g} s (its clock starts at "
-                   f"{float(seq.stamps[0]):g} s; ROS reads 0 s as no time)" if offset_s else
-                   "the store's stamps, rounded to the nanosecond"),
+        "stamps": zero_clock_note(float(seq.stamps[0])) or
+        "the store's stamps, rounded to the nanosecond",
         "T_body_sensor": np.asarray(seq.sensor.T_body_sensor).tolist(),
     }
 
@@ -155,22 +154,21 @@ def write_bag(seq: StoreSequence, store: Path, path: Path, fmt: str,
         gt = seq.ground_truth
         fields = (["doppler"] if seq.has_doppler else []) + list(seq.fields)
         body = body_frame(seq)
-        offset = stamp_offset(stamps)
         cloud = bag.connection(POINTS_TOPIC, CLOUD)
         tf = bag.connection(TF_TOPIC, TF, latched=True)
         info = bag.connection(INFO_TOPIC, STRING, latched=True)
         odom = bag.connection(GT_TOPIC, ODOM) if gt is not None else None
-        t0 = float(stamps[0]) + offset
+        t0 = float(stamps[0])
         bag.write(tf, t0, tf_static_msg(bag, t0, T_bs, body))
-        text = json.dumps(description(seq, store, fields, offset), indent=1)
+        text = json.dumps(description(seq, store, fields), indent=1)
         bag.write(info, t0, bag.store.types[STRING](data=text))
         gt_stamps = gt.stamps if gt is not None else np.zeros(0)
         T_sb = inv_T(T_bs)
         g = 0
         for i in range(len(seq)):
-            t = float(stamps[i]) + offset
-            while g < len(gt_stamps) and gt_stamps[g] <= stamps[i]:  # in time order with scans
-                tg = float(gt_stamps[g]) + offset
+            t = float(stamps[i])
+            while g < len(gt_stamps) and gt_stamps[g] <= t:  # GT in time order with the scans
+                tg = float(gt_stamps[g])
                 bag.write(odom, tg, odometry_msg(bag, tg, gt.poses[g] @ T_sb, body))
                 g += 1
             scan = seq.scan(i)
@@ -180,7 +178,7 @@ def write_bag(seq: StoreSequence, store: Path, path: Path, fmt: str,
             if progress:
                 progress(i)
         for k in range(g, len(gt_stamps)):
-            tg = float(gt_stamps[k]) + offset
+            tg = float(gt_stamps[k])
             bag.write(odom, tg, odometry_msg(bag, tg, gt.poses[k] @ T_sb, body))
     finally:
         bag.close()
@@ -259,6 +257,7 @@ def export_command(console, store: Path, fmt: str, out: Path | None, force: bool
         back = reimport_command(summary, seq.name, seq.sensor.kind, seq.sensor.model,
                                 seq.sensor.doppler_kind, seq.sensor.T_body_sensor)
     finally:
+        first = float(seq.stamps[0])
         seq.close()
     doppler = (DOPPLER_SIGN if "doppler" in summary.fields else
                "no Doppler field: the store has no Doppler (methods that need it cannot run "
@@ -268,4 +267,7 @@ def export_command(console, store: Path, fmt: str, out: Path | None, force: bool
         f"(fields {' '.join(['x', 'y', 'z', *summary.fields])}), {summary.gt_poses} "
         f"ground-truth poses on {GT_TOPIC}, the extrinsic on {TF_TOPIC}, the description on "
         f"{INFO_TOPIC}; {doppler}", markup=False)
+    note = zero_clock_note(first)
+    if note:
+        console.print(f"note: {note}", markup=False)
     console.print(f"read it back with: {back}", markup=False)

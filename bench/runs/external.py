@@ -26,6 +26,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from bench import guard
 from bench.runs.evaluate import Scoring, evaluate_run, timing_part
 from bench.runs.external_match import match_to_scans
 from bench.runs.folders import is_finished, run_dir_name, write_run
@@ -103,6 +104,7 @@ def _own_code() -> str:
 def check_name(name: str) -> str:
     if not name or not name.strip():
         raise DataError("--name: give the external method a name (e.g. --name my-odometry)")
+    guard.one_component(name)
     if name in METHODS:
         raise DataError(f"--name {name!r} is a method of the harness; an external run needs a "
                         f"name of its own (e.g. {name}-ext), so it never replaces that run")
@@ -137,6 +139,8 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         given = {"name": None, "display_name": None, "sensor_class": None, **(names or {})}
         seq_name, display, klass = sequence_labels(seq, SimpleNamespace(**given))
         run_dir = Path(out or DEFAULT_OUT) / sequence_folder(seq_name) / run_dir_name(name, None)
+        guard.run_folder(run_dir, guard.EXTERNAL, force, [spec.trajectory, spec.stamps,
+                         spec.frame_times, store], _warn, Path(out or DEFAULT_OUT))
         T_frame_sensor, how = frame_transform(spec, seq.sensor.T_body_sensor)
         stamps = seq.stamps
         where = f"{spec.trajectory}" + (f":{spec.topic}" if spec.topic else "")
@@ -209,6 +213,12 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         return ExternalOutcome(run_dir, "done", coverage, how)
     finally:
         seq.close()
+
+
+def _warn(message: str) -> None:
+    import warnings
+
+    warnings.warn(message, stacklevel=3)
 
 
 def _str(path: Path | None) -> str | None:

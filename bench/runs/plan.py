@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 from rich.console import Console
 
+from bench import guard
 from bench.data.advice import loader_name, option_flag
 from bench.data.synth import ensure_suite_with_progress
 from bench.runs.experiment import Experiment, SequenceEntry, expand_sequences
@@ -151,7 +152,7 @@ def plan(jobs: list[Job], refused: list[str] | None = None) -> list[Job]:
                 "distinct 'label:'s")
             continue
         owners[prep.run_dir] = (job, prep.key)
-        _check_writable(prep.run_dir)
+        _check_writable(prep.run_dir, job.store)
         renamed = rename_reused(prep.run_dir, prep.key, prep.config["sequence"])
         if renamed:
             warnings.warn(renamed, stacklevel=2)
@@ -258,7 +259,11 @@ def _lengths_problems(job: Job, path_m: float | None, warned: set[str]) -> list[
     return []
 
 
-def _check_writable(run_dir: Path) -> None:
+def _check_writable(run_dir: Path, store: Path | None = None) -> None:
+    """The run folder can be written: its first existing folder is writable, and the output
+    guard lets a harness run in (``bench.guard.run_folder``: no input inside it, not a folder
+    of other files, not a run of ``bench score``)."""
+    guard.run_folder(run_dir, guard.HARNESS, None, [store])
     parent = run_dir
     while not parent.exists():
         parent = parent.parent
