@@ -142,9 +142,9 @@ def replaceable(out: Path, force: bool | None, own: Callable[[Path], bool], what
         return False
     if not own(out):
         kind = "a folder" if out.is_dir() else "a file"
+        only = " (--force replaces only that)" if force else ""
         raise DataError(f"{option} {out}: exists and is {kind} that is not {what} this command "
-                        f"wrote; it is left as it is{' (--force replaces only that)' * force}"
-                        f": choose another {option}")
+                        f"wrote; it is left as it is{only}: choose another {option}")
     if not force:
         raise DataError(f"{option} {out}: exists ({what}); give another {option}"
                         + (" or --force to replace it" if force is False else
