@@ -207,6 +207,30 @@ def test_run_never_writes_into_a_folder_of_other_files_or_onto_its_store(
     assert code == 2 and "holds an input of this command" in text, text
 
 
+def test_an_experiment_never_replaces_a_score_nor_writes_into_a_folder_of_other_files(
+        twist, tmp_path, monkeypatch, capsys):
+    """The experiment's run folders RESULTS/twist/doppler: a `bench score` run there is not
+    replaced (with or without --force: bench run has no such choice); a folder of other files
+    there is left as it is; exit 2 naming the folder."""
+    store, results, tum = twist
+    out = tmp_path / "exp_results"
+    exp = tmp_path / "exp.yaml"
+    exp.write_text(f"name: x\nout: {out}\nsequences: [{{path: {store}}}]\n"
+                   "methods: [{name: doppler}]\n")
+    scored = _run_folder(out / "twist" / "doppler", external=True)
+    before = digest(scored)
+    for extra in ([], ["--force"]):
+        code, text = bench_main(monkeypatch, capsys, "run", exp, "--executor", "local", *extra)
+        assert code == 2 and "holds a run made by bench score (external)" in text, text
+    assert digest(scored) == before
+    shutil.rmtree(scored)
+    scored.mkdir()
+    (scored / "plot.png").write_bytes(b"mine")
+    code, text = bench_main(monkeypatch, capsys, "run", exp, "--executor", "local")
+    assert code == 2 and "holds files that are not a run's" in text, text
+    assert (scored / "plot.png").read_bytes() == b"mine"
+
+
 def test_calibrate_write_never_overwrites_its_input_or_another_file(
         tmp_path, monkeypatch, capsys):
     store = shutil.copy(SAMPLE_STORE, tmp_path / "S.h5")

@@ -198,7 +198,7 @@ def export_store(store: Path, fmt: str, out: Path | None = None, force: bool = F
     if fmt == "ros1":
         replaceable(out, force, is_ros1_bag, "a ROS1 bag", inputs=[store])
     else:
-        replaceable(out, force, is_rosbag2_folder, "a rosbag2 folder (metadata.yaml and its "
+        replaceable(out, force, _rosbag2_or_empty, "a rosbag2 folder (metadata.yaml and its "
                     "storage files only)", inputs=[store])
     seq = StoreSequence(store)
     try:
@@ -222,6 +222,10 @@ def export_store(store: Path, fmt: str, out: Path | None = None, force: bool = F
         return replace(summary, path=out)
     finally:
         seq.close()
+
+
+def _rosbag2_or_empty(path: Path) -> bool:
+    return is_rosbag2_folder(path) or (path.is_dir() and not any(path.iterdir()))
 
 
 def reimport_command(summary: ExportSummary, seq_name: str, sensor_kind: str, model: str,
