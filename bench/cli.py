@@ -19,6 +19,7 @@ from rich.markup import escape
 # (bench/__init__.py, bench.threads), the same in every executor mode
 from bench.console import make_console
 from bench.data.convert import convert_app
+from bench.runs.external_defaults import DEFAULT_MIN_COVERAGE, DEFAULT_TOLERANCE_S
 from loaders.errors import DataError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
@@ -111,13 +112,21 @@ def calibrate(
         help="the estimate --write applies: doppler or hand-eye")] = "doppler",
     min_speed: Annotated[float, typer.Option(help="use frames faster than this [m/s]")] = 2.0,
     bootstrap: Annotated[int, typer.Option(min=10, help="bootstrap resamples")] = 200,
+    max_width: Annotated[float, typer.Option(
+        help="--write applies only the angles whose 95 % interval is narrower than this "
+        "[deg]; it names the others and leaves them alone")] = 2.0,
+    force: Annotated[bool, typer.Option(
+        help="let --write replace a store bench calibrate wrote (never the input store, "
+        "never another file)")] = False,
 ) -> None:
     """Estimate the rotation between the sensor frame and the ground truth's body frame on a
     range of frames, twice: from the Doppler ego velocity (and road plane), and without Doppler
-    by hand-eye alignment of KISS-ICP's trajectory; print both and their difference."""
+    by hand-eye alignment of KISS-ICP's trajectory; print both, their difference, and the
+    Doppler estimate of pieces of the range (and whether they agree)."""
     from bench.data.calibrate import calibrate_store
 
-    calibrate_store(store, write, console, min_speed, bootstrap, start, frames, apply)
+    calibrate_store(store, write, console, min_speed, bootstrap, start, frames, apply,
+                    max_width_deg=max_width, force=force)
 
 
 @app.command("calibrate-coverage", short_help="how often bench calibrate's intervals cover a "
@@ -192,16 +201,20 @@ def run(
 @app.command(short_help="score a trajectory made elsewhere as a run")
 def score(
     trajectory: Annotated[Path, typer.Argument(
-        help="TUM file (t x y z qx qy qz qw [time_ms]), KITTI pose file (with --stamps) or a "
-        "bag (ROS1 .bag, ROS2 folder, .db3, .mcap) with an Odometry / PoseStamped topic")],
+        help="TUM file (t x y z qx qy qz qw [time_ms]), KITTI pose file (with --stamps), Boreas "
+        "odometry submission (13 columns: stamp [us], T_k_i 3x4) or a bag (ROS1 .bag, ROS2 "
+        "folder, .db3, .mcap) with an Odometry / PoseStamped topic")],
     store: Annotated[Path, typer.Option(help="the store whose ground truth it is scored "
                                              "against")],
-    name: Annotated[str, typer.Option(help="the run's name (its folder and row label)")],
+    name: Annotated[str, typer.Option(help="the run's name: its folder (one path component) and "
+                                           "row label")],
     out: Annotated[Path, typer.Option(
         metavar="RESULTS_DIR", help="results root: the run goes to RESULTS_DIR/SEQUENCE/NAME")]
     = Path("results/external"),
-    format: Annotated[str, typer.Option("--format", metavar="auto|tum|kitti|bag",
-                                        help="the trajectory's format")] = "auto",
+    format: Annotated[str, typer.Option(
+        "--format", metavar="auto|tum|kitti|boreas|bag", help="the trajectory's format (auto: "
+        "a bag by its suffix or folder, else by the first row's width: 12 kitti, 13 boreas, "
+        "else tum)")] = "auto",
     stamps: Annotated[Path | None, typer.Option(
         help="KITTI: the stamps file, one stamp [s] per pose row")] = None,
     topic: Annotated[str | None, typer.Option(
@@ -211,12 +224,21 @@ def score(
         "the method; without it the run is not timed)")] = None,
     time_offset: Annotated[float, typer.Option(
         help="est_stamp + offset = the store's scan clock [s]")] = 0.0,
+    stamp_unit: Annotated[str | None, typer.Option(
+        metavar="s|ms|us|ns", help="the unit of the trajectory's stamps (default: s; boreas: "
+        "us)")] = None,
     tolerance: Annotated[float, typer.Option(
-        metavar="SECONDS", help="a scan within this of an estimated pose takes that pose [s]; "
-        "the others are interpolated")] = 1e-4,
+        metavar="SECONDS", help="a scan within this (<=) of an estimated pose takes that pose, "
+        "one scan a pose (as evo's --t_max_diff) [s]")] = DEFAULT_TOLERANCE_S,
     max_gap: Annotated[float | None, typer.Option(
-        help="largest gap between estimated poses interpolated across [s] (default: 3 median "
-        "steps of the estimate)")] = None,
+        metavar="SECONDS", help="interpolate the scans between two poses at most this far "
+        "apart [s] (default: no interpolation)")] = None,
+    min_coverage: Annotated[float, typer.Option(
+        metavar="SHARE", help="refuse an estimate covering less than this share of the scans "
+        "with ground truth (0 to 1)")] = DEFAULT_MIN_COVERAGE,
+    trust_clock: Annotated[bool, typer.Option(
+        "--trust-clock", help="skip the clock checks (stamp unit, speed-profile offset)")]
+    = False,
     pose_frame: Annotated[str, typer.Option(
         help="the frame the poses are given in: sensor, or body (the store's T_body_sensor "
         "moves them to the sensor)")] = "sensor",
@@ -224,6 +246,9 @@ def score(
         help="T_frame_sensor: the sensor in the frame of the poses, 'x y z qx qy qz qw' or 16 "
         "numbers (overrides --pose-frame)")] = None,
     force: Annotated[bool, typer.Option(help="score again even when unchanged")] = False,
+    replace_run: Annotated[bool, typer.Option(
+        "--replace-run", help="replace a harness run of the same name in "
+        "RESULTS_DIR/SEQUENCE/NAME (refused without it; replaced with a warning)")] = False,
     lengths: Annotated[str | None, typer.Option(
         help="relative-error segment lengths [m], comma separated (default 8,16,...,48)")] = None,
     kitti_lengths: Annotated[str | None, typer.Option(
@@ -233,12 +258,16 @@ def score(
 ) -> None:
     """Score a trajectory estimated elsewhere (another odometry, a ROS node) against a store's
     ground truth, as a run of its own: the same metrics as `bench run`, in an ordinary run
-    folder that every table, figure, compare, regress and report shows."""
+    folder that every table, figure, compare, regress and report shows. Refused (exit 2): a
+    clock that does not fit the scans (no pose within --tolerance, stamps in another unit, a
+    speed profile that lines up only shifted; the message says the --time-offset or
+    --stamp-unit that fits), a coverage below --min-coverage."""
     from bench.commands import score_command, scoring_options
     from bench.runs.external import ExternalSpec
 
     spec = ExternalSpec(trajectory, name, format, stamps, topic, frame_times, time_offset,
-                        tolerance, max_gap, pose_frame, extrinsic)
+                        tolerance, max_gap, pose_frame, extrinsic, stamp_unit, min_coverage,
+                        trust_clock, replace_run)
     raise typer.Exit(score_command(console, store, spec, out, force,
                                    scoring_options(lengths, kitti_lengths, alignment)))
 
@@ -298,12 +327,16 @@ def table(
         help="the experiment's parameter sweeps: one row per point, the best per length in "
         "bold, the criterion's choice beside the default")] = False,
     marks: Annotated[str, typer.Option(
-        help="significance (default: bold = the best and every method not significantly "
-        "different from it, paired comparisons on the same segments) or value (the paper's "
-        "plain by-value style)")] = "significance",
+        help="intervals (default: bold = every figure at or below the smallest upper end of "
+        "the printed 95 % intervals in its column, so a reader can check each mark) or value "
+        "(the paper's plain by-value style)")] = "intervals",
     ci: Annotated[bool, typer.Option(
         "--ci/--no-ci", help="show each figure's 95 % confidence interval [low, high] in the "
         "cells (the CSV always has them)")] = False,
+    stability: Annotated[bool, typer.Option(
+        help="score each half of every sequence on its own and say how many marks hold on "
+        "both halves; a cell whose mark differs on a half is flagged with a dagger (relative "
+        "error only)")] = False,
 ) -> None:
     """Print a table (by default the paper-shaped Table III) and write table.md / .tex / .csv
     (table_<metric>.* for another metric)."""
@@ -318,7 +351,7 @@ def table(
         raise typer.Exit(0)
 
     raise typer.Exit(table_command(console, status, list(results_dirs), format, out, lengths,
-                                   pivot, methods, variants, metric, marks, ci))
+                                   pivot, methods, variants, metric, marks, ci, stability))
 
 
 @app.command(short_help="two result folders side by side")
@@ -443,12 +476,32 @@ def speed(
     store: Annotated[Path | None, typer.Option(
         help="with --harness: measure on this store, and time a whole `bench run` on it")]
     = None,
+    scale: Annotated[bool, typer.Option(
+        "--scale", help="only the harness at dataset scale: scoring, table and report per pose "
+        "and their peak memory at --poses, and an experiment's cost per frame on the process "
+        "and dask executors, beside doppler's time on the real sample (scale.csv)")] = False,
+    poses: Annotated[str, typer.Option(help="with --scale: drive lengths in poses, comma "
+                                            "separated")] = "2500,10000,40000",
+    scale_frames: Annotated[int, typer.Option(
+        min=2, help="with --scale: frames of each of the experiment's 3 sequences")] = 2000,
 ) -> None:
     """Time every method on the same synthetic scan pairs (total per-frame work and the
     registration call); print ratios to `doppler`, each method's peak memory and the harness's
     own cost per frame."""
     from bench.studies.speed import run_speed
 
+    if scale:
+        from bench.studies.scale import MIN_POSES, run_scale
+
+        try:
+            counts = tuple(int(x) for x in poses.split(","))
+        except ValueError:
+            counts = ()
+        if not counts or min(counts) < MIN_POSES:
+            raise DataError(f"--poses {poses!r}: expected pose counts of at least {MIN_POSES} "
+                            "(a drive with 48 m segments), comma separated, e.g. 2500,40000")
+        run_scale(out, console, counts, scale_frames)
+        return
     if harness:
         from bench.studies.harness import run_harness
 
@@ -479,17 +532,20 @@ def reproduce(
     alignment: Annotated[str | None, typer.Option(
         help="APE alignment of Tables IV/V (default se3)")] = None,
     marks: Annotated[str, typer.Option(
-        help="significance (default: bold only where a paired comparison is significant) or "
-        "value (the paper's by-value style)")] = "significance",
+        help="intervals (default: bold = every figure at or below the smallest upper end of "
+        "the printed 95 % intervals in its column) or value (the paper's by-value style)")
+    ] = "intervals",
 ) -> None:
     """Reproduce the paper's Tables III, IV and V (configs/experiments/table3-5.yaml) on the
     paper's sequences: real stores under DATA_DIR/real when present, else the synthetic suite."""
     from bench.commands import scoring_options
-    from bench.report.table import MARK_RULES
+    from bench.report.table import MARK_RULES, rule_name
     from bench.studies.reproduce import reproduce_table
 
-    if marks not in MARK_RULES:
-        raise DataError(f"--marks {marks!r}: choose from {', '.join(MARK_RULES)}")
+    try:
+        marks = rule_name(marks)
+    except ValueError:
+        raise DataError(f"--marks {marks!r}: choose from {', '.join(MARK_RULES)}") from None
     if reproduce_table(out, data_dir, jobs, force, synthetic_only, console, executor,
                        scheduler, job_timeout,
                        scoring_options(lengths, kitti_lengths, alignment), marks):

@@ -206,11 +206,14 @@ def score_command(console: Console, store: Path, spec, out: Path, force: bool,
     given = {k: v for k, v in scoring.items() if v is not None}
     outcome = score_external(store, spec, out, Scoring(**given), force)
     c = outcome.coverage
+    gap = ("no interpolation" if c["max_gap_s"] is None else
+           f"{c['interpolated']} interpolated across gaps up to {c['max_gap_s']:g} s")
     console.print(f"{spec.name}: {c['scored']} of the {c['scans_with_gt']} scans with ground "
                   f"truth scored ({100 * c['share_scored']:.1f} %; {c['matched']} matched within "
-                  f"{c['tolerance_s']:g} s, {c['interpolated']} interpolated)"
+                  f"{c['tolerance_s']:g} s, {gap})"
                   + (" (unchanged: not scored again; --force to)" if outcome.status == "skipped"
                      else ""), markup=False)
+    console.print(f"clock check: {outcome.clock}", markup=False)
     console.print(f"poses moved to the sensor frame by T_frame_sensor = {outcome.frame}",
                   markup=False)
     run = read_run(outcome.run_dir)

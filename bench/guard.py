@@ -154,11 +154,11 @@ def replaceable(out: Path, force: bool | None, own: Callable[[Path], bool], what
 
 def run_folder(run_dir: Path, kind: str, force: bool | None = False,
                inputs: Iterable[Path | None] = (), say: Callable[[str], None] | None = None,
-               root: Path | None = None) -> None:
+               root: Path | None = None, ask: str = "--force") -> None:
     """Check a run folder before ``RUN_MAKERS[kind]`` writes into it: inside ``root``, holding
     no input; new, empty or a run of the same ``kind``; a run of another kind only with
-    ``force`` (and ``say`` tells it is replaced; None: the command has no such option); never
-    a folder of other files (a run writes its own files' names only)."""
+    ``force`` (the option ``ask``; ``say`` tells it is replaced; None: the command has no such
+    option); never a folder of other files (a run writes its own files' names only)."""
     run_dir = Path(run_dir)
     if root is not None and not inside(run_dir, root):
         raise DataError(f"{run_dir}: outside the results root {root}; a run's name is one "
@@ -178,9 +178,9 @@ def run_folder(run_dir: Path, kind: str, force: bool | None = False,
         if not force:
             raise DataError(f"{run_dir}: holds a run made by {RUN_MAKERS[found]} ({found}); "
                             f"{RUN_MAKERS[kind]} does not replace it: choose another name"
-                            + (", or --force to replace that run" if force is False else ""))
+                            + (f", or {ask} to replace that run" if force is False else ""))
         if say is not None:
-            say(f"replacing the {found} run in {run_dir} ({RUN_MAKERS[found]}'s), as --force "
+            say(f"replacing the {found} run in {run_dir} ({RUN_MAKERS[found]}'s), as {ask} "
                 "asks")
 
 

@@ -118,8 +118,14 @@ TIME_ZONE_SLACK_S = 600.0
 def offset_hint(gt_stamps: np.ndarray, scan_stamps: np.ndarray) -> str:
     """The time offset to try when ground truth and scans do not overlap (gt_stamp + offset =
     sensor clock): a whole number of hours when the clocks differ by about that (a time zone,
-    e.g. GT in UTC+8: --time-offset -28800), else the offset that lines up the first stamps."""
+    e.g. GT in UTC+8: --time-offset -28800), else the offset that lines up the first stamps;
+    nothing to suggest when either has no stamps or a stamp is not finite."""
+    if not (len(gt_stamps) and len(scan_stamps)):
+        return "one of them has no stamps"
     diff = float(scan_stamps[0] - gt_stamps[0])
+    if not np.isfinite(diff):
+        return (f"a stamp or the time offset is not finite ({diff}); expected finite stamps and "
+                "offset [s]")
     hours = round(diff / 3600.0)
     if hours and abs(diff - hours * 3600.0) <= TIME_ZONE_SLACK_S:
         side = "ahead of" if hours < 0 else "behind"

@@ -9,7 +9,9 @@ against ``max_frame_bytes()`` before reading it:
   read hold a few MB: a dense FMCW LiDAR frame of 120,000 points x 29 bytes is 3.5 MB), so a
   conversion's memory stays within a few times that;
 - raise it for a genuine larger frame with the environment variable ``BENCH_MAX_FRAME_MB``
-  (e.g. ``BENCH_MAX_FRAME_MB=2048 bench convert ...``).
+  in MB = 10^6 bytes, not MiB (e.g. ``BENCH_MAX_FRAME_MB=2048 bench convert ...``);
+  ``BENCH_MAX_FRAME_MB=inf`` lifts the limit (``NO_LIMIT``); zero, a negative number or NaN is
+  one ``DataError``.
 
 Numbers in file names (frame indices, nanosecond stamps) are parsed by ``file_number``: at most
 19 digits (below 2^63, what an int64 stamp holds), so a stray file named with 30 digits is one
@@ -27,10 +29,13 @@ DEFAULT_MAX_FRAME_MB = 256
 ENV_VAR = "BENCH_MAX_FRAME_MB"
 #: the largest number a frame file's name may carry (int64)
 MAX_FILE_NUMBER = 2**63 - 1
+#: the limit [bytes] when ``BENCH_MAX_FRAME_MB=inf``: none (no file or frame is larger)
+NO_LIMIT = 2**63 - 1
 
 
 def max_frame_bytes() -> int:
-    """The per-frame limit [bytes]: ``BENCH_MAX_FRAME_MB`` (MB = 10^6 bytes) or 256 MB."""
+    """The per-frame limit [bytes]: ``BENCH_MAX_FRAME_MB`` (MB = 10^6 bytes; ``inf``: no limit,
+    ``NO_LIMIT``) or 256 MB."""
     text = os.environ.get(ENV_VAR, "").strip()
     if not text:
         return DEFAULT_MAX_FRAME_MB * 1_000_000
@@ -39,14 +44,17 @@ def max_frame_bytes() -> int:
     except ValueError:
         raise DataError(f"{ENV_VAR}={text!r}: expected a number of megabytes") from None
     if not mb > 0:
-        raise DataError(f"{ENV_VAR}={text!r}: expected a positive number of megabytes")
+        raise DataError(f"{ENV_VAR}={text!r}: expected a positive number of megabytes (or inf: "
+                        "no limit)")
+    if mb * 1_000_000 >= NO_LIMIT:  # inf, or more than any file can hold
+        return NO_LIMIT
     return int(mb * 1_000_000)
 
 
 def check_frame_bytes(nbytes: int, where: str, what: str = "the frame") -> None:
     """``DataError`` when ``nbytes`` (what reading the frame would hold) exceeds the limit."""
     limit = max_frame_bytes()
-    if nbytes > limit:
+    if limit < NO_LIMIT and nbytes > limit:
         raise DataError(
             f"{where}: {what} would take {nbytes / 1e6:,.0f} MB, above the per-frame limit of "
             f"{limit / 1e6:,.0f} MB (real frames hold a few MB: a corrupt or foreign file?); "

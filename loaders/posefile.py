@@ -11,6 +11,7 @@
 
 from __future__ import annotations
 
+import io
 import re
 from pathlib import Path
 
@@ -30,6 +31,9 @@ def numeric_rows(path: str | Path, widths: tuple[int, ...], expected: str, kind:
     that is not numbers, of another width, or not finite (``expected`` says what a row holds)."""
     path = Path(path)
     check_file_size(path, str(path))
+    plain = _plain_rows(path, widths)
+    if plain is not None:
+        return plain
     rows: list[list[float]] = []
     lines: list[int] = []
     with open(path, errors="replace") as f:
@@ -61,6 +65,26 @@ def numeric_rows(path: str | Path, widths: tuple[int, ...], expected: str, kind:
         raise DataError(f"{path}, line {lines[k]}: non-finite value (NaN or inf); expected "
                         f"finite numbers ({expected})")
     return data, lines
+
+
+def _plain_rows(path: Path, widths: tuple[int, ...]) -> tuple[np.ndarray, list[int]] | None:
+    """``numeric_rows`` of a file of nothing but rows of finite numbers of one allowed width
+    (as the harness writes them), parsed by NumPy: a 40,000-pose TUM file in about half the
+    time of a ``float()`` per value. None for anything else (a header, a comment, a blank line,
+    commas, a bad value): the line-by-line reader then reads it or names the line."""
+    with open(path, errors="replace") as f:
+        text = f.read()
+    if not text.strip():
+        return None
+    lines = text.count("\n") + (not text.endswith("\n"))
+    try:
+        data = np.loadtxt(io.StringIO(text), dtype=np.float64, comments=None, ndmin=2)
+    except ValueError:
+        return None
+    if (len(data) != lines or not len(data) or data.shape[1] not in widths
+            or not np.isfinite(data).all()):
+        return None
+    return data, list(range(1, lines + 1))
 
 
 def read_tum(path: str | Path) -> Trajectory:

@@ -180,6 +180,41 @@ def test_compare_marks_regressions_and_runs_on_one_side_only(tmp_path):
     assert res.exit_code == 0 and "0 regressions" in res.output
 
 
+def _with_intervals(root: Path, half_width: float) -> None:
+    """Give every relative-error figure of the fake runs an interval of +- ``half_width``."""
+    for m in root.rglob("metrics.json"):
+        data = json.loads(m.read_text())
+        for rel in data["relative_error"].values():
+            for q in ("rot_deg_mean", "trans_m_mean"):
+                if rel["n"]:
+                    rel[f"{q}_ci"] = [rel[q] - half_width, rel[q] + half_width]
+        m.write_text(json.dumps(data))
+
+
+def test_compare_says_whether_a_change_lies_beyond_the_printed_intervals(tmp_path):
+    # B is 20 % worse: 1.0 -> 1.2 deg and 0.5 -> 0.6 m at 8 m
+    a, b = _fake_results(tmp_path / "a"), _fake_results(tmp_path / "b", scale=1.2)
+    _with_intervals(a, 0.08)
+    _with_intervals(b, 0.08)  # 8 m rotation [0.92, 1.08] vs [1.12, 1.28]: apart; 0.6 vs 0.5 not
+    res = CliRunner().invoke(app, ["compare", str(a), str(b)])
+    (header, rows), _, _ = _tables(res.output)
+    notes = {(r[1], r[2]): r[-1] for r in rows}
+    assert notes[("(With Seed) ICP point-to-point", "8")] == \
+        "! regression; rotation worse beyond the intervals"
+    wide_a, wide_b = _fake_results(tmp_path / "wa"), _fake_results(tmp_path / "wb", scale=1.2)
+    _with_intervals(wide_a, 0.5)
+    _with_intervals(wide_b, 0.5)
+    res = CliRunner().invoke(app, ["compare", str(wide_a), str(wide_b)])
+    (header, rows), _, _ = _tables(res.output)
+    notes = {(r[1], r[2]): r[-1] for r in rows}
+    assert notes[("(With Seed) ICP point-to-point", "8")] == "! regression (within the intervals)"
+    # and the other way round: an improvement beyond the intervals is named
+    res = CliRunner().invoke(app, ["compare", str(b), str(a)])
+    (header, rows), _, _ = _tables(res.output)
+    notes = {(r[1], r[2]): r[-1] for r in rows}
+    assert notes[("(With Seed) ICP point-to-point", "8")] == "rotation better beyond the intervals"
+
+
 def test_compare_of_an_empty_folder_is_a_clear_error(tmp_path):
     a = _fake_results(tmp_path / "a")
     (tmp_path / "empty").mkdir()

@@ -59,7 +59,10 @@ def test_inspect_check_and_corrected_store(loop, tmp_path):
     assert warning is not None and "pitch" in warning
     assert rotation_check(short)[1] is None  # a correct GT frame raises no warning
     src = write_store(rotated_gt(short), tmp_path / "rot.h5")
-    cal = calibrate_store(src, tmp_path / "fixed.h5", bootstrap=10, frames=25, hand_eye=False)
+    # every angle applied (25 frames can leave roll's interval wider than the default bound:
+    # test_write_applies_only_the_angles_narrower_than_the_bound)
+    cal = calibrate_store(src, tmp_path / "fixed.h5", bootstrap=10, frames=25, hand_eye=False,
+                          max_width_deg=90.0)
     fixed = StoreSequence(tmp_path / "fixed.h5")
     # the corrected GT is the sensor's own: calibrating it again finds (almost) nothing
     again = calibrate_sequence(fixed, bootstrap=10)
@@ -84,6 +87,25 @@ def test_bench_inspect_warns_and_plots_the_doppler_speed(loop, tmp_path):
     ok = write_store(short, tmp_path / "ok.h5")
     res = CliRunner().invoke(app, ["inspect", str(ok), "--plot", "-"])
     assert res.exit_code == 0 and "consistent within 0.5 deg" in res.output
+
+
+def test_inspect_calls_consistent_only_the_angles_known_that_well():
+    from bench.data.calibration import CalibrationResult, rotation_consistent_text
+
+    def cal(sd, source):
+        return CalibrationResult(np.eye(3), {"roll": 0.1, "pitch": -0.2, "yaw": 0.05},
+                                 dict(zip(("roll", "pitch", "yaw"), sd, strict=True)),
+                                 dict(zip(("roll", "pitch", "yaw"), source, strict=True)), 100)
+
+    tight = rotation_consistent_text(cal((0.1, 0.1, 0.1), ["velocity"] * 3))
+    assert "roll, pitch, yaw consistent within 0.5 deg" in tight and "loosely" not in tight
+    # pitch at sd 0.2 (3 sd = 0.6 > 0.5): named as loosely known, not as consistent
+    loose = rotation_consistent_text(cal((0.1, 0.2, 0.1), ["velocity"] * 3))
+    assert "roll, yaw consistent within 0.5 deg" in loose
+    assert "known only loosely, none found off: pitch +-0.20 deg" in loose
+    unseen = rotation_consistent_text(cal((float("nan"), 2.0, 2.0),
+                                          ["not observable", "velocity", "velocity"]))
+    assert "no angle fixed to 0.5 deg" in unseen and "not observable: roll" in unseen
 
 
 def test_hand_eye_alignment_recovers_the_rotation_without_doppler(loop):
@@ -264,8 +286,10 @@ def test_calibrate_apply_writes_the_chosen_estimate(loop, tmp_path):
     written = {}
     for choice in ("doppler", "hand-eye"):
         out = tmp_path / f"{choice}.h5"
+        # a bound no interval reaches: every observed angle of the chosen estimate is applied
         res = CliRunner().invoke(app, ["calibrate", str(src), "--frames", "60", "--bootstrap",
-                                       "10", "--apply", choice, "--write", str(out)])
+                                       "10", "--apply", choice, "--write", str(out),
+                                       "--max-width", "1000"])
         assert res.exit_code == 0, res.output
         assert f"corrected by the {choice} estimate" in res.output
         fixed = StoreSequence(out)
@@ -283,8 +307,198 @@ def test_calibrate_apply_writes_the_chosen_estimate(loop, tmp_path):
     seq = StoreSequence(src)
     doppler = calibrate_sequence(FrameRange(seq, 0, 60), bootstrap=10).R_gt_sensor
     seq.close()
-    np.testing.assert_allclose(written["doppler"], doppler, atol=1e-12)
+    np.testing.assert_allclose(written["doppler"], doppler, atol=1e-9)
     apart = np.degrees(Rotation.from_matrix(written["hand-eye"] @ doppler.T).magnitude())
     assert apart > 0.01  # the two estimates are distinguishable here
     rpy = Rotation.from_matrix(written["hand-eye"]).as_euler("ZYX", degrees=True)[::-1]
     np.testing.assert_allclose(rpy, details["hand_eye_rpy_deg"], atol=1e-9)
+
+
+class _Lines:
+    """A console that keeps what bench calibrate prints."""
+
+    def __init__(self) -> None:
+        self.lines: list[str] = []
+
+    def print(self, line, highlight=False) -> None:
+        self.lines.append(str(line))
+
+    @property
+    def text(self) -> str:
+        return "\n".join(self.lines)
+
+
+def _tilt_step(seq, step_deg: float):
+    """``seq`` with its GT frame rotated by R_gt_sensor of roll / pitch / yaw ROLL, PITCH, YAW
+    up to the middle of the drive and pitch ``step_deg`` more after it."""
+    from loaders.trajectory import Trajectory
+
+    gt = seq.ground_truth
+    middle = 0.5 * (seq.stamps[0] + seq.stamps[-1])
+    poses = gt.poses.copy()
+    for k, t in enumerate(gt.stamps):
+        pitch = PITCH + (step_deg if t > middle else 0.0)
+        T = np.eye(4)
+        T[:3, :3] = Rotation.from_euler("ZYX", [YAW, pitch, ROLL], degrees=True).as_matrix().T
+        poses[k] = poses[k] @ T
+    return MemorySequence("tilted", seq.sensor, list(seq), Trajectory(gt.stamps, poses), {})
+
+
+def test_bench_calibrate_reports_a_tilt_that_changes_half_way(loop, tmp_path):
+    """Known answer through `bench calibrate`: the GT frame's pitch 1 deg higher from the
+    middle of the 150 frames on: the two pieces (frames 0-74, 75-149) disagree in pitch and
+    their estimates are near 2 and 3 deg; the same drive with a constant tilt: they agree."""
+    import re
+
+    step = write_store(_tilt_step(loop, 1.0), tmp_path / "step.h5")
+    out = _Lines()
+    calibrate_store(step, console=out, frames=150, bootstrap=30, hand_eye=False)
+    assert "THE ROTATION CHANGES ALONG THE RANGE" in out.text, out.text
+    found = re.search(r"pitch ([-+.\d]+) \(frames 0-74\) vs ([-+.\d]+) \(frames 75-149\)",
+                      out.text)
+    assert found, out.text
+    assert float(found[1]) == pytest.approx(PITCH, abs=0.15)
+    assert float(found[2]) == pytest.approx(PITCH + 1.0, abs=0.15)
+    same = write_store(_tilt_step(loop, 0.0), tmp_path / "same.h5")
+    out = _Lines()
+    calibrate_store(same, console=out, frames=150, bootstrap=30, hand_eye=False)
+    assert "CHANGES" not in out.text and "the pieces agree" in out.text, out.text
+
+
+def test_write_applies_only_the_angles_narrower_than_the_bound(loop, tmp_path):
+    """With a bound between the widest interval and the next, --write applies the two
+    narrower angles, leaves the widest at 0 and says so; the written GT is turned by exactly
+    the applied angles. The CLI's default bound is the module's."""
+    import inspect
+
+    from bench.cli import calibrate as calibrate_command
+    from bench.data.calibration import ANGLES, euler_matrix
+    from bench.data.calibration_write import WRITE_MAX_WIDTH_DEG
+
+    assert inspect.signature(calibrate_command).parameters["max_width"].default == \
+        WRITE_MAX_WIDTH_DEG
+    src = write_store(rotated_gt(MemorySequence("s", loop.sensor, [loop[i] for i in range(75)],
+                                                loop.ground_truth, {})), tmp_path / "rot.h5")
+    cal = calibrate_store(src, frames=75, bootstrap=20, hand_eye=False)
+    width = {ax: hi - lo for ax, (lo, hi) in cal.interval_deg.items()}
+    widest, second = sorted(ANGLES, key=width.get, reverse=True)[:2]
+    assert width[widest] > 1.2 * width[second] > 0, width
+    bound = 0.5 * (width[widest] + width[second])
+    out = _Lines()
+    calibrate_store(src, tmp_path / "fixed.h5", out, frames=75, bootstrap=20, hand_eye=False,
+                    max_width_deg=bound)
+    assert f"narrower than {bound:g} deg" in out.text
+    assert f"left alone (0 in the written rotation): {widest} (interval" in out.text, out.text
+    fixed = StoreSequence(tmp_path / "fixed.h5")
+    prov = fixed.provenance["calibration"]
+    assert prov["applied_rpy_deg"] == [0.0 if ax == widest else cal.angles_deg[ax]
+                                       for ax in ANGLES]
+    assert list(prov["left_alone"]) == [widest]
+    R = euler_matrix(np.radians(prov["applied_rpy_deg"]))
+    np.testing.assert_allclose(prov["R_gt_sensor"], R, atol=1e-12)
+    original = StoreSequence(src)
+    np.testing.assert_allclose(fixed.ground_truth.poses[5][:3, :3],
+                               original.ground_truth.poses[5][:3, :3] @ R, atol=1e-9)
+    original.close()
+    fixed.close()
+
+
+def test_select_angles_at_the_bound():
+    from bench.data.calibration_write import select_angles
+
+    angles = {"roll": 1.0, "pitch": 2.0, "yaw": -1.5}
+    fitted = {"roll": True, "pitch": True, "yaw": True}
+    applied, left = select_angles(angles, {"roll": (0.0, 1.0), "pitch": (1.5, 2.49),
+                                           "yaw": (-2.0, -1.0 + 1e-9)}, fitted, 1.0)
+    assert applied == {"pitch": 2.0} and set(left) == {"roll", "yaw"}  # width 1.0 is not < 1.0
+    applied, left = select_angles(angles, {"roll": (0.5, 1.5), "pitch": (np.nan, np.nan),
+                                           "yaw": (-1.6, -1.4)}, {**fitted, "roll": False}, 1.0)
+    assert applied == {"yaw": -1.5}
+    assert left == {"roll": "not observable", "pitch": "no interval"}
+
+
+def _bench(monkeypatch, capsys, *args) -> tuple[int, str]:
+    from bench.cli import main
+
+    monkeypatch.setattr("sys.argv", ["bench", *map(str, args)])
+    with pytest.raises(SystemExit) as exit_:
+        main()
+    out = capsys.readouterr()
+    return exit_.value.code, " ".join((out.out + out.err).split())
+
+
+def test_calibrate_never_writes_onto_its_input(loop, tmp_path, monkeypatch, capsys):
+    """`--write` onto the input store (by any spelling) is refused with and without --force;
+    an existing store bench calibrate wrote is replaced only with --force; another file never."""
+    short = MemorySequence("s", loop.sensor, [loop[i] for i in range(30)], loop.ground_truth,
+                           {})
+    src = write_store(rotated_gt(short), tmp_path / "S.h5")
+    before = src.read_bytes()
+    alias = tmp_path / "sub" / ".." / "S.h5"
+    (tmp_path / "sub").mkdir()
+    for target, force in ((src, []), (alias, ["--force"])):
+        code, text = _bench(monkeypatch, capsys, "calibrate", src, "--frames", 30,
+                            "--bootstrap", 10, "--write", target, *force)
+        assert code == 2 and "never writes onto its own input" in text, text
+        assert "Traceback" not in text
+    assert src.read_bytes() == before
+    made = tmp_path / "made.h5"
+    calibrate_store(src, made, frames=30, bootstrap=10, hand_eye=False)
+    code, text = _bench(monkeypatch, capsys, "calibrate", src, "--frames", 30, "--bootstrap",
+                        10, "--write", made)
+    assert code == 2 and "exists" in text and "--force" in text, text
+    calibrate_store(src, made, frames=30, bootstrap=10, hand_eye=False, force=True)
+    other = tmp_path / "notes.txt"
+    other.write_text("mine")
+    code, text = _bench(monkeypatch, capsys, "calibrate", src, "--frames", 30, "--bootstrap",
+                        10, "--write", other, "--force")
+    assert code == 2 and "not a store bench calibrate wrote" in text, text
+    assert other.read_text() == "mine"
+
+
+def test_calibrate_says_no_scan_has_ground_truth(loop, tmp_path, monkeypatch, capsys):
+    """GT 1000 s off the scans: the store is named and the message says no scan has ground
+    truth (not "only 0 frames faster than 2.0 m/s"), exit 2, no traceback."""
+    from loaders.trajectory import Trajectory
+
+    gt = loop.ground_truth
+    short = MemorySequence("s", loop.sensor, [loop[i] for i in range(30)],
+                           Trajectory(gt.stamps + 1000.0, gt.poses), {})
+    src = write_store(short, tmp_path / "late.h5")
+    code, text = _bench(monkeypatch, capsys, "calibrate", src, "--frames", 30)
+    assert code == 2, text
+    assert f"{src}: no scan of frames 0-29 has ground truth" in text
+    assert "1000.000" in text and "faster than" not in text and "Traceback" not in text
+
+
+@pytest.mark.parametrize("width", [0.0, -1.0, float("nan"), float("inf")])
+def test_max_width_must_be_a_positive_number(width, tmp_path):
+    from loaders.errors import DataError
+
+    with pytest.raises(DataError, match="--max-width"):
+        calibrate_store(tmp_path / "any.h5", max_width_deg=width)
+
+
+def test_hand_eye_prints_no_number_for_an_angle_it_does_not_observe():
+    """An angle neither the turn axes nor the displacements fix was printed as "+0.000 deg
+    95 % [+0.000, +0.000] sd 0.000": now its reason and no number; the others as before."""
+    from types import SimpleNamespace
+
+    from bench.data.calibrate import format_hand_eye
+    from bench.data.hand_eye import HandEyeResult
+
+    angles = {"roll": 0.0, "pitch": -1.7, "yaw": 0.2}
+    he = HandEyeResult(np.eye(3), angles, {"roll": 0.0, "pitch": 0.1, "yaw": 0.05},
+                       {"roll": False, "pitch": True, "yaw": True}, 40, "kiss-icp",
+                       {"pitch": "turn axes", "yaw": "displacement directions"},
+                       {"roll": (0.0, 0.0), "pitch": (-1.9, -1.5), "yaw": (0.1, 0.3)})
+    cal = SimpleNamespace(angles_deg={"roll": 0.5, "pitch": -1.6, "yaw": 0.1},
+                          not_observable=[], R_gt_sensor=np.eye(3),
+                          interval_deg={a: (-9.0, 9.0) for a in angles})
+    lines = format_hand_eye(he, cal)
+    (roll,) = [line for line in lines if line.strip().startswith("roll")]
+    assert roll.split() == ["roll", "not", "observable:", "neither", "the", "turn", "axes",
+                            "nor", "the", "displacement", "directions", "spread", "around",
+                            "it"]
+    (pitch,) = [line for line in lines if line.strip().startswith("pitch")]
+    assert "[-1.900, -1.500]" in pitch and "difference to Doppler -0.100 deg" in pitch

@@ -38,13 +38,49 @@ def test_tum_rows_and_the_reported_times_column(tmp_path):
     np.testing.assert_allclose(timed.frame_times_ms, [1.5, 2, 3, 4, 5.5])
 
 
-def test_a_quaternion_off_unit_length_is_normalised(tmp_path):
+def test_a_quaternion_off_unit_length_is_refused(tmp_path):
+    """Slightly off unit length (printed with few digits): normalised; beyond the tolerance
+    (0.01): refused naming the line, never normalised silently."""
     text = tum_text(header=False).splitlines()
     parts = text[2].split()
-    parts[4:8] = [str(2.0 * float(v)) for v in parts[4:8]]
+    parts[4:8] = [str(1.009 * float(v)) for v in parts[4:8]]
     text[2] = " ".join(parts)
     est = read_estimate(write(tmp_path, "\n".join(text) + "\n"))
     np.testing.assert_allclose(est.trajectory.poses[2, :3, :3], R[2].as_matrix(), atol=1e-12)
+    parts[4:8] = [str(1.011 / 1.009 * float(v)) for v in parts[4:8]]
+    text[2] = " ".join(parts)
+    with pytest.raises(DataError, match=r"est.txt, line 3: quaternion \(qx qy qz qw\) = .* has "
+                                        r"norm 1.011 .*expected a unit quaternion"):
+        read_estimate(write(tmp_path, "\n".join(text) + "\n"))
+
+
+def test_an_index_column_is_refused_not_taken_for_stamps(tmp_path):
+    rows = [f"{k} {row}" for k, row in enumerate(tum_text(header=False).splitlines())]
+    path = write(tmp_path, "\n".join(rows) + "\n", "indexed.txt")
+    with pytest.raises(DataError, match=r"indexed.txt: 9 columns whose first is an integer index "
+                                        r"\(0, 1, \.\.\.\) .*drop the index column"):
+        read_estimate(path)
+    # integer stamps with a 9th column of times are no index column: read as they are
+    whole = "".join(f"{k + 100} {k} 0 0 0 0 0 1 {2.5 + k}\n" for k in range(5))
+    est = read_estimate(write(tmp_path, whole, "whole.txt"))
+    np.testing.assert_allclose(est.trajectory.stamps, 100 + np.arange(5))
+    np.testing.assert_allclose(est.frame_times_ms, 2.5 + np.arange(5))
+
+
+def test_one_pose_is_no_trajectory(tmp_path):
+    path = write(tmp_path, tum_text().splitlines()[1] + "\n", "one.txt")
+    with pytest.raises(DataError, match="one.txt: the estimate has 1 pose; expected a trajectory "
+                                        "of at least 2 poses"):
+        read_estimate(path)
+
+
+def test_stamp_units_are_converted_to_seconds(tmp_path):
+    rows = tum_text(header=False).splitlines()
+    ms = [" ".join([f"{1000 * float(r.split()[0]):.17g}", *r.split()[1:]]) for r in rows]
+    est = read_estimate(write(tmp_path, "\n".join(ms) + "\n"), stamp_unit="ms")
+    np.testing.assert_allclose(est.trajectory.stamps, STAMPS, rtol=1e-15)
+    with pytest.raises(DataError, match="--stamp-unit 'min': expected one of s, ms, us, ns"):
+        read_estimate(write(tmp_path, tum_text()), stamp_unit="min")
 
 
 @pytest.mark.parametrize("edit, message", [
@@ -160,3 +196,33 @@ def test_a_bag_pose_topic_sorted_by_header_stamp(tmp_path, storage, msgtype):
     with pytest.raises(DataError, match="estimated pose topic /chatter has type "
                                         "std_msgs/msg/String; expected one of"):
         read_estimate(path, topic="/chatter")
+
+
+def boreas_text(stamps_us, poses) -> str:
+    """Boreas submission rows: int stamp [us], the upper 3x4 of T_k_i = inverse of the pose
+    (np.linalg.inv: not the harness's inverse)."""
+    rows = []
+    for t, T in zip(stamps_us, poses, strict=True):
+        T_k_i = np.linalg.inv(T)
+        rows.append(f"{int(t)} " + " ".join(f"{v:.17g}" for v in T_k_i[:3, :].ravel()))
+    return "\n".join(rows) + "\n"
+
+
+def test_a_boreas_submission_is_the_inverse_of_the_poses_in_microseconds(tmp_path):
+    poses = make_T(R.as_matrix(), XYZ)
+    stamps_us = np.round(STAMPS * 1e6).astype(np.int64) + 1_616_000_000_000_000
+    path = write(tmp_path, boreas_text(stamps_us, poses), "boreas-2021-08-05-13-34.txt")
+    for fmt in ("auto", "boreas"):  # 13 columns: detected by its content
+        est = read_estimate(path, fmt)
+        np.testing.assert_allclose(est.trajectory.stamps, stamps_us * 1e-6, rtol=0, atol=1e-6)
+        np.testing.assert_allclose(est.trajectory.poses, poses, atol=1e-12)
+    # the poses as written (T_k_i, not inverted) differ: the translation is not the position
+    assert not np.allclose(np.linalg.inv(poses)[:, :3, 3], XYZ, atol=0.1)
+    frac = write(tmp_path, boreas_text(stamps_us, poses).replace(str(stamps_us[2]),
+                                                                 f"{stamps_us[2]}.5"), "f.txt")
+    with pytest.raises(DataError, match=r"f.txt, line 3: stamp .* is not a whole number"):
+        read_estimate(frac)
+    skew = poses.copy()
+    skew[1, :3, :3] *= 1.01
+    with pytest.raises(DataError, match=r"line 2: the 3x3 block of T_k_i is no rotation"):
+        read_estimate(write(tmp_path, boreas_text(stamps_us, skew), "s.txt"))

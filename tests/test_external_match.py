@@ -32,21 +32,31 @@ def test_matched_stamps_take_the_pose_as_it_is():
     assert m.report["matched"] == 40 and m.report["interpolated"] == 0
 
 
-def test_another_rate_is_interpolated_to_the_scan_stamps():
+def test_another_rate_is_interpolated_only_when_asked():
     t_est = np.arange(0, 3.95, 0.037)  # 27 Hz, ends before the last scans
-    m = match_to_scans(Trajectory(t_est, straight(t_est)), SCANS)
+    est = Trajectory(t_est, straight(t_est))
+    near = np.min(np.abs(SCANS[:, None] - t_est[None, :]), axis=1) <= 0.01  # evo's rule
+    # by default (as evo): only the scans with a pose within 0.01 s, taken as they are
+    m = match_to_scans(est, SCANS)
+    np.testing.assert_array_equal(m.covered, near)
+    np.testing.assert_array_equal(m.matched, near)
+    assert m.report["interpolated"] == 0 and m.report["max_gap_s"] is None
+    assert 2 < near.sum() < (SCANS <= t_est[-1]).sum() - 2  # both kinds of scans
+    # asked (--max-gap): every scan inside the span, interpolated exactly on this motion
+    m = match_to_scans(est, SCANS, max_gap_s=3 * 0.037)
     inside = SCANS <= t_est[-1]
     np.testing.assert_array_equal(m.covered, inside)
-    np.testing.assert_allclose(m.poses[inside], straight(SCANS[inside]), atol=1e-12)
+    np.testing.assert_allclose(m.poses[inside & ~near], straight(SCANS[inside & ~near]),
+                               atol=1e-12)
     assert np.isnan(m.poses[~inside]).all()
-    # only 0.0 (and 3.7) lie on the 27 Hz grid: matched; the others interpolated
-    assert m.report["matched"] == 2 and m.report["interpolated"] == inside.sum() - 2
+    assert m.report["matched"] == near.sum()
+    assert m.report["interpolated"] == inside.sum() - near.sum()
     assert m.report["max_gap_s"] == pytest.approx(3 * 0.037)
 
 
 def test_a_gap_longer_than_max_gap_is_never_bridged():
     t_est = np.concatenate([np.arange(0, 1.0, 0.05), np.arange(2.0, 3.0, 0.05)])
-    m = match_to_scans(Trajectory(t_est, straight(t_est)), SCANS)
+    m = match_to_scans(Trajectory(t_est, straight(t_est)), SCANS, max_gap_s=0.15)
     in_gap = (SCANS > t_est[19] + 1e-9) & (SCANS < 2.0 - 1e-9)
     assert not m.covered[in_gap].any() and m.covered[SCANS <= 0.95].all()
     wide = match_to_scans(Trajectory(t_est, straight(t_est)), SCANS, max_gap_s=1.1)
@@ -77,6 +87,82 @@ def test_poses_of_another_frame_are_moved_to_the_sensor():
     np.testing.assert_allclose(m.poses, body @ T_frame_sensor, atol=1e-15)
 
 
-def test_negative_tolerance_is_an_error():
-    with pytest.raises(DataError, match="--tolerance -1"):
-        match_to_scans(Trajectory(SCANS, straight(SCANS)), SCANS, tolerance_s=-1)
+@pytest.mark.parametrize("option, message", [
+    ({"tolerance_s": -1}, "--tolerance -1: expected a finite tolerance >= 0 s"),
+    ({"tolerance_s": float("inf")}, "--tolerance inf: expected a finite tolerance"),
+    ({"tolerance_s": float("nan")}, "--tolerance nan: expected a finite tolerance"),
+    ({"max_gap_s": -1}, "--max-gap -1: expected a finite gap > 0 s"),
+    ({"max_gap_s": 0.0}, "--max-gap 0: expected a finite gap > 0 s"),
+    ({"max_gap_s": float("nan")}, "--max-gap nan: expected a finite gap"),
+    ({"time_offset_s": float("nan")}, "--time-offset nan: expected a finite number of seconds"),
+    ({"time_offset_s": float("-inf")}, "--time-offset -inf: expected a finite number"),
+])
+def test_a_negative_or_non_finite_option_is_an_error(option, message):
+    with pytest.raises(DataError) as err:
+        match_to_scans(Trajectory(SCANS, straight(SCANS)), SCANS, **option)
+    assert str(err.value).startswith(message), str(err.value)
+
+
+# binary fractions: the distances below are exact, so the boundary is the boundary
+GRID = np.arange(16) * 0.25
+
+
+def test_the_tolerance_is_inclusive_at_its_boundary():
+    # every pose exactly 0.125 s after a scan (and before the next: a tie, to the earlier)
+    est = Trajectory(GRID + 0.125, straight(GRID))
+    m = match_to_scans(est, GRID, tolerance_s=0.125)
+    assert m.matched.all() and m.report["matched"] == 16  # |d| <= tolerance
+    np.testing.assert_array_equal(m.poses, est.poses)
+    with pytest.raises(DataError, match="no scan has a pose within 0.125 s"):
+        match_to_scans(est, GRID, tolerance_s=np.nextafter(0.125, 0))
+
+
+def test_tolerance_zero_matches_equal_stamps_only():
+    m = match_to_scans(Trajectory(GRID, straight(GRID)), GRID, tolerance_s=0.0)
+    assert m.matched.all() and m.report["matched"] == 16
+    off = Trajectory(GRID + 2.0 ** -20, straight(GRID))
+    with pytest.raises(DataError, match="no scan has a pose within 0 s"):
+        match_to_scans(off, GRID, tolerance_s=0.0)
+
+
+def test_a_large_tolerance_never_copies_a_pose_beyond_the_estimate():
+    """An estimate over the first half of the scans with --tolerance 100: the second half takes
+    no pose (the last pose is matched to its own scan only): 50 % covered, not 100 %."""
+    est = Trajectory(SCANS[:20], straight(SCANS[:20]))
+    m = match_to_scans(est, SCANS, tolerance_s=100.0)
+    np.testing.assert_array_equal(m.covered, np.arange(40) < 20)
+    assert m.report["covered"] == 20 and np.isnan(m.poses[20:]).all()
+    np.testing.assert_array_equal(m.poses[:20], est.poses)
+
+
+def test_a_pose_is_matched_to_one_scan_at_most():
+    """5 Hz poses halfway between the scans of an 8 Hz grid, within the tolerance of two scans
+    each: each pose goes to one scan, never copied onto its neighbour."""
+    scans = np.arange(32) * 0.125
+    t_est = np.arange(8) * 0.5 + 0.0625
+    m = match_to_scans(Trajectory(t_est, straight(t_est)), scans, tolerance_s=0.07)
+    assert m.report["matched"] == 8
+    used = [np.flatnonzero(np.all(m.poses[m.matched] == p, axis=(1, 2))) for p in
+            straight(t_est)]
+    assert all(len(u) == 1 for u in used)
+
+
+def test_a_non_finite_offset_gets_a_message_not_a_valueerror():
+    """loaders.gt.offset_hint rounded a NaN clock difference (a ValueError traceback); the
+    ground truth's association with a NaN offset is one DataError too."""
+    from loaders.gt import associate, offset_hint
+
+    assert "not finite" in offset_hint(np.array([np.nan]), SCANS)
+    assert "not finite" in offset_hint(SCANS + np.inf, SCANS)
+    with pytest.raises(DataError, match="a stamp or the time offset is not finite"):
+        associate(Trajectory(SCANS, straight(SCANS)), SCANS, offset_s=float("nan"))
+
+
+def test_a_scan_keeps_the_index_of_the_pose_it_took():
+    """Scan 0's nearest pose (0.06 s) goes to scan 1 (0.04 s from it); scan 0 takes the pose at
+    -0.2 s (within 0.3 s): the pose index says which (the reported time follows it)."""
+    scans = np.array([0.0, 0.1])
+    t_est = np.array([-0.2, 0.06])
+    m = match_to_scans(Trajectory(t_est, straight(t_est)), scans, tolerance_s=0.3)
+    np.testing.assert_array_equal(m.pose_index, [0, 1])
+    np.testing.assert_array_equal(m.poses, straight(t_est))

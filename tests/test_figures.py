@@ -27,7 +27,8 @@ from loaders.store import write_store
 from loaders.trajectory import Trajectory
 
 SLUG = re.compile(r"[a-z0-9]+(-[a-z0-9]+)*")
-KINDS = ("trajectories", "boxplots", "error-along-path", "frames", "pairs", "velocity")
+KINDS = ("trajectories", "boxplots", "error-along-path", "frames", "pairs", "velocity",
+         "forest")
 
 
 @pytest.fixture(scope="module")

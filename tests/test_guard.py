@@ -104,8 +104,8 @@ def test_run_kinds_and_the_run_folder_rule(tmp_path):
                        "score does not replace it: choose another name, or --force"):
         guard.run_folder(harness, guard.EXTERNAL, False)
     said = []
-    guard.run_folder(harness, guard.EXTERNAL, True, say=said.append)
-    assert said and "replacing the harness run" in said[0]
+    guard.run_folder(harness, guard.EXTERNAL, True, say=said.append, ask="--replace-run")
+    assert said and "replacing the harness run" in said[0] and "--replace-run" in said[0]
     with pytest.raises(DataError, match=r"bench run does not replace it: choose another name$"):
         guard.run_folder(ext, guard.HARNESS, None)  # bench run has no such option
     guard.run_folder(ext, guard.EXTERNAL, False)  # its own kind: the command decides
@@ -166,18 +166,25 @@ def test_score_names_stay_inside_the_results_root_and_never_replace_a_harness_ru
     before = digest(results)
     code, text = bench_main(monkeypatch, capsys, "score", tum, "--store", store, "--name",
                             "../../outside-results", "--out", results)
-    assert code == 2 and "expected one folder name" in text and "Traceback" not in text, text
+    assert code == 2 and "one path component" in text and "Traceback" not in text, text
     assert not (results.parent.parent / "outside-results").exists()
     code, text = bench_main(monkeypatch, capsys, "score", tum, "--store", store, "--name",
                             "icp-p2p_seed", "--out", results)
-    assert code == 2 and "holds a run made by bench run (harness)" in text, text
+    assert code == 2 and "run folder of the harness's icp-p2p run" in text, text
     assert digest(results) == before  # the ICP run and everything else as it was
     work = tmp_path / "results"
     shutil.copytree(results, work)
+    shutil.copytree(work / "twist" / "doppler", work / "twist" / "custom")  # a harness run
+    harness = digest(work / "twist" / "custom")
+    for extra in ([], ["--force"]):
+        code, text = bench_main(monkeypatch, capsys, "score", tum, "--store", store, "--name",
+                                "custom", "--out", work, *extra)
+        assert code == 2 and "holds a harness run" in text, text
+    assert digest(work / "twist" / "custom") == harness
     code, text = bench_main(monkeypatch, capsys, "score", tum, "--store", store, "--name",
-                            "icp-p2p_seed", "--out", work, "--force")
-    assert code == 0 and "replacing the harness run" in text, text
-    assert guard.run_kind(work / "twist" / "icp-p2p_seed") == guard.EXTERNAL
+                            "custom", "--out", work, "--replace-run")
+    assert code == 0 and "replac" in text, text
+    assert guard.run_kind(work / "twist" / "custom") == guard.EXTERNAL
     # scoring a run's own trajectory file into that run's folder: its input, refused
     own = work / "twist" / "mine"
     code, _ = bench_main(monkeypatch, capsys, "score", tum, "--store", store, "--name", "mine",

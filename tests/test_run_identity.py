@@ -425,6 +425,12 @@ def test_another_cpu_or_thread_setting_reruns_the_job(store, tmp_path, monkeypat
     assert run_job(job).status == "skipped"
     monkeypatch.setattr(identity, "thread_settings", lambda: {"OMP_NUM_THREADS": "4"})
     assert run_job(job).status == "done"
+    assert run_job(job).status == "skipped"
+    # the same model name with other instruction-set flags (numba compiles for them): rerun
+    assert config["identity"]["host"]["cpu_flags"] == identity.cpu_flags_digest()
+    monkeypatch.setattr(identity, "cpu_flags_digest", lambda: "another-flags-digest")
+    assert run_job(job).status == "done"
+    assert run_job(job).status == "skipped"
 
 
 def test_a_table_of_times_from_two_cpus_says_so(store, tmp_path):

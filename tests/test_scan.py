@@ -64,6 +64,33 @@ def test_tum_header_line_is_skipped_and_bad_rows_named(tmp_path):
         read_tum(p)
 
 
+def test_plain_pose_files_read_as_the_line_by_line_reader_reads_them(tmp_path, monkeypatch):
+    import loaders.posefile as posefile
+
+    rng = np.random.default_rng(3)
+    rows = np.column_stack([np.arange(200) * 0.1, rng.normal(0, 1e3, (200, 3)),
+                            Rotation.random(200, random_state=4).as_quat()])
+    p = tmp_path / "plain.txt"
+    np.savetxt(p, rows, fmt="%.17g")  # as the harness writes run folders
+    fast, fast_lines = posefile.numeric_rows(p, (8,), "t x y z qx qy qz qw")
+    monkeypatch.setattr(posefile, "_plain_rows", lambda *a: None)
+    slow, slow_lines = posefile.numeric_rows(p, (8,), "t x y z qx qy qz qw")
+    assert np.array_equal(fast, slow) and fast_lines == slow_lines == list(range(1, 201))
+    monkeypatch.undo()
+    # a blank line: the line numbers of later rows still count it (line 4, not 3)
+    p.write_text("0 0 0 0 0 0 0 1\n\n0.1 1 0 0 0 0 0 1\n0.2 2 0 0 0 0 0.5 0.5\n")
+    with pytest.raises(DataError, match="line 4: quaternion"):
+        read_tum(p)
+    p.write_text("0 0 0 0 0 0 0 1\n0.1 1 0 0 0 0 0 1\n0.2 2 0 0 0 0 0.5 0.5")  # no final \n
+    with pytest.raises(DataError, match="line 3: quaternion"):
+        read_tum(p)
+    p.write_text("0 0 0 0 0 0 0 1\n0.1 1_0 0 0 0 0 0 1\n")  # float() reads 1_0 as 10
+    assert read_tum(p).poses[1, 0, 3] == 10.0
+    p.write_text("")
+    with pytest.raises(DataError, match="no TUM pose rows found"):
+        read_tum(p)
+
+
 def test_interpolation_matches_scipy_slerp():
     traj = _traj()
     q = np.array([0.05, 1.234, 3.3333, 4.89])

@@ -92,7 +92,8 @@ def test_the_tum_file_of_a_harness_run_scores_the_same(data, tmp_path):
 
 def test_resampled_on_another_clock_agrees_within_the_stated_tolerance(data, tmp_path):
     """The run's trajectory resampled at 27 Hz (every scan stamp but the first between two
-    poses) on a clock 12.345 s behind: scored with --time-offset, the relative errors agree
+    poses) on a clock 12.345 s behind: scored with --time-offset and --max-gap (interpolation
+    is asked for, never the default), the relative errors agree
     within 2 % at 8 m and 0.5 % from 16 m (resampling twice smooths the frame-to-frame jitter
     of the estimate, which the shortest segments feel most: 1.2 % in rotation at 8 m); evo
     computes the same numbers from the external run folder."""
@@ -102,9 +103,11 @@ def test_resampled_on_another_clock_agrees_within_the_stated_tolerance(data, tmp
     grid = np.append(grid, est.stamps[-1]) if grid[-1] < est.stamps[-1] - 1e-9 else grid
     path = write_tum(tmp_path / "resampled.tum", grid - 12.345,
                      resample(est.stamps, est.poses, grid))
-    out = score_external(store, ExternalSpec(path, "doppler-27hz", time_offset_s=12.345),
-                         tmp_path / "r")
-    assert out.coverage["share_scored"] == 1.0 and out.coverage["interpolated"] >= 50
+    out = score_external(store, ExternalSpec(path, "doppler-27hz", time_offset_s=12.345,
+                                             max_gap_s=3 / 27), tmp_path / "r")
+    c = out.coverage
+    assert c["share_scored"] == 1.0 and c["matched"] + c["interpolated"] == 60
+    assert c["interpolated"] >= 20  # the scans without a pose within 0.01 s
     own, ext = read_run(doppler_dir).result, read_run(out.run_dir).result
     for ra, rb in zip(own.relative_error, ext.relative_error, strict=True):
         tol = 0.02 if ra.length_m < 16 else 0.005  # measured: 1.2 % at 8 m, <= 0.4 % beyond
@@ -139,7 +142,11 @@ def test_a_partial_estimate_reports_its_share_and_scores_only_those_scans(data, 
     store, results, doppler_dir = data
     est = read_tum(doppler_dir / "est_tum.txt")
     path = write_tum(tmp_path / "half.tum", est.stamps[:30], est.poses[:30])
-    out = score_external(store, ExternalSpec(path, "half"), tmp_path / "r")
+    with pytest.raises(DataError, match=r"half.tum covers 30 of the 60 scans of .*twist.h5 with "
+                                        r"ground truth \(50.0 %\), below --min-coverage 0.9"):
+        score_external(store, ExternalSpec(path, "half"), tmp_path / "r")
+    assert not (tmp_path / "r").exists()
+    out = score_external(store, ExternalSpec(path, "half", min_coverage=0.5), tmp_path / "r")
     assert out.coverage["scored"] == 30 and out.coverage["share_scored"] == pytest.approx(0.5)
     run = read_run(out.run_dir)
     assert run.result.frames_scored == 30 and len(read_tum(out.run_dir / "gt_tum.txt")) == 30

@@ -312,3 +312,14 @@ def test_a_best_point_on_the_grid_s_smallest_value_asks_for_a_wider_grid_too():
     d = decide(POINTS, errors, 2, FOLDS, [], LENGTHS, reps=200)
     assert d.chosen is None and d.extend
     assert "gate_m=1.0 is the grid's smallest" in d.text
+
+
+def test_a_validation_above_one_reverses_even_when_not_significantly_worse():
+    # B at 1.01 with noisy segments: its interval holds 1 (not significantly worse), and the
+    # point still reverses there (a rule counting only significant reversals would admit it)
+    errors = _sweep({"A": [1, 1.3, 0.7, 1.4], "B": [1, 1.3, 1.01, 1.4]}, noise=0.6)
+    d = decide(POINTS, errors, 0, FOLDS, [], LENGTHS, reps=200)
+    val = d.verdicts[2].estimates["fold 1 validate (B)"]
+    assert val.value > 1.0 and val.low < 1.0 and not val.worse
+    assert d.verdicts[2].estimates["fold 1 tune (A)"].better
+    assert d.chosen == 0 and "fold 1: reverses on B" in d.verdicts[2].why

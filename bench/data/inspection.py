@@ -104,14 +104,13 @@ def inspect_path(path: Path, period_s: float | None, console: Console,
     compensated = kind is not None and kind.measured == "ego-compensated"
     if seq.ground_truth is not None and len(seq) and seq[0].doppler is not None \
             and not compensated:  # compensated Doppler carries no ego velocity to compare
-        from bench.data.calibration import rotation_check
+        from bench.data.calibration import rotation_check, rotation_consistent_text
 
         cal, warning = rotation_check(seq)
         if warning:
             console.print(f"[yellow]warning:[/] {escape(warning)}")
         elif cal is not None:
-            console.print("sensor-to-GT rotation: consistent within 0.5 deg (Doppler ego "
-                          "velocity vs GT velocity)", highlight=False)
+            console.print(rotation_consistent_text(cal), highlight=False, markup=False)
         for style, line in clock_offset_lines(seq, speed_from_doppler(seq)):
             console.print(f"[{style}]{escape(line)}[/]", highlight=False)
         if plot is not None:

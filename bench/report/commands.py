@@ -14,15 +14,16 @@ from loaders.fileio import atomic_write_text
 
 def table_command(console: Console, status: Console, results_dirs: list[Path], format: str,
                   out: Path | None, lengths: str | None, pivot: bool, methods: str | None,
-                  variants: bool, metric: str = "relative", marks: str = "significance",
-                  ci: bool = False) -> int:
+                  variants: bool, metric: str = "relative", marks: str = "intervals",
+                  ci: bool = False, stability: bool = False) -> int:
     """Print a table of ``metric`` (relative: the paper-shaped Table III; kitti; ape: methods
     x sequences; velocity), or the pivot, and write its files; returns 0 (1 when a run
     record is broken: its row says "failed" and names the file). The results folder's
     own ``table.*`` (``table_<metric>.*``) is the whole table of that one folder: a filtered
     view (lengths, methods, variants, pivot) or a merged one (several folders) is written only
-    to ``out``."""
-    from bench.report.table import MARK_RULES, RENDERERS, render
+    to ``out``. ``stability``: each half of every sequence scored on its own, and the cells
+    whose mark differs on a half flagged (``bench.report.stability``)."""
+    from bench.report.table import MARK_RULES, RENDERERS, render, rule_name
     from bench.report.tables import METRICS, build, select
     from bench.report.tables_ape import collect_ape
     from bench.report.tables_pivot import pivot_markdown
@@ -37,8 +38,13 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
         raise DataError(f"unknown table format {format!r}; choose from {', '.join(RENDERERS)}")
     if metric not in METRICS:
         raise DataError(f"unknown metric {metric!r}; choose from {', '.join(METRICS)}")
-    if marks not in MARK_RULES:
-        raise DataError(f"--marks {marks!r}: choose from {', '.join(MARK_RULES)}")
+    if stability and (metric != "relative" or pivot):
+        raise DataError("--stability: for the relative-error table (Table III) only, not "
+                        f"{'--pivot' if pivot else '--metric ' + metric}")
+    try:
+        marks = rule_name(marks)
+    except ValueError:
+        raise DataError(f"--marks {marks!r}: choose from {', '.join(MARK_RULES)}") from None
     try:
         lengths_m = None if lengths is None else [float(x) for x in lengths.split(",")]
     except ValueError:
@@ -58,7 +64,12 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
         only = {r.run.dir for r in rows}
         texts = render(collect_ape(results_dirs[0], only=only, marks=marks, ci=ci).table)
     else:
-        texts = render(build(metric, rows, chosen, marks, ci))
+        made = build(metric, rows, chosen, marks, ci)
+        if stability:
+            from bench.report.stability import with_stability
+
+            with_stability(rows, chosen, made, marks)
+        texts = render(made)
     sys.stdout.write(texts["md" if pivot else format])  # unwrapped (a pipe gets valid CSV)
     broken = [r for r in rows if r.result.status == BROKEN]
     for r in broken:

@@ -6,7 +6,10 @@ shows the mean rotation [deg] and translation [m] relative error of A and B, eac
 confidence interval "[low, high]", and the change B - A; a length at which neither has
 segments is no cell. A cell whose error grew by more than
 ``threshold`` (relative) is a regression, and so is every cell of a run that diverges in B but
-not in A. A second table gives each run's mean time per frame ``time_ms`` (all per-frame work,
+not in A. Whether a change is more than noise is read from the printed intervals alone, as the
+tables' marks are (``bench.report.significance``): a note says "worse" / "better" for a
+quantity whose A and B intervals, as printed, do not meet, and a regression within them says
+so. A second table gives each run's mean time per frame ``time_ms`` (all per-frame work,
 ``methods.timing``) in A and B and its change, and a third its per-run metrics: APE [m] (with
 its alignment), KITTI drift [%, deg/100 m] and ego-velocity error [m/s]. Two run folders (each
 with a metrics.json) are compared by sequence and length whatever their methods.
@@ -25,6 +28,7 @@ import pandas as pd
 
 from bench.report.dataframe import load_results
 from bench.report.names import order_key, run_label, seed_tag, sequence_key
+from bench.report.significance import Stat, shown_interval, worse
 from bench.report.table import md_escape
 
 RUN_KEYS = ["sequence", "method", "label", "seed"]
@@ -97,7 +101,7 @@ def compare(a: Path, b: Path, threshold: float = 0.10) -> pd.DataFrame:
             grew |= _finite(delta) and va > 0 and delta / va > threshold
         row["regression"] = newly_diverged or grew
         row["has_data"] = any(_finite(row[f"{q}_{s}"]) for q in QUANTITIES for s in "ab")
-        row["note"] = _note(row, grew, newly_diverged, r)
+        row["note"] = _note(row, grew, newly_diverged, r, _apart(row))
         rows.append(row)
     df = pd.DataFrame(rows)
     if df.empty:
@@ -133,10 +137,34 @@ def _any_data(df: pd.DataFrame, run_keys: list[str]) -> pd.Series:
     return df.groupby(run_keys, dropna=False)["has_data"].transform("any")
 
 
-def _note(row: dict, grew: bool, newly_diverged: bool, r) -> str:
+def _stat(row: dict, q: str, side: str) -> Stat | None:
+    value = row[f"{q}_{side}"]
+    low, high = row.get(f"{q}_ci_low_{side}"), row.get(f"{q}_ci_high_{side}")
+    if not (_finite(value) and _finite(low) and _finite(high)):
+        return None
+    return Stat(float(value), (float(low), float(high)))
+
+
+def _apart(row: dict) -> dict[str, str]:
+    """quantity -> "worse" / "better" where B's and A's printed intervals do not meet, "" where
+    they meet (quantities without both intervals are left out)."""
+    out = {}
+    for q in QUANTITIES:
+        a, b = _stat(row, q, "a"), _stat(row, q, "b")
+        if a is not None and b is not None:
+            out[q] = "worse" if worse(b, a) else "better" if worse(a, b) else ""
+    return out
+
+
+_WORDS = {"rot_deg_mean": "rotation", "trans_m_mean": "translation"}
+
+
+def _note(row: dict, grew: bool, newly_diverged: bool, r, apart: dict[str, str]) -> str:
     notes = []
     if grew:
-        notes.append("! regression")
+        within = apart and not any(v == "worse" for v in apart.values())
+        notes.append("! regression" + (" (within the intervals)" if within else ""))
+    notes += [f"{_WORDS[q]} {v} beyond the intervals" for q, v in apart.items() if v]
     if newly_diverged:
         notes.append("! newly diverged")
     elif _true(r.get("diverged_a")) and _true(r.get("diverged_b")):
@@ -204,9 +232,11 @@ def _fmt(x, digits: int = 3) -> str:
 
 def _fmt_ci(r, q: str, side: str, digits: int = 3) -> str:
     """The value of quantity ``q`` on ``side`` with its interval: "0.697 [0.523, 0.889]"."""
-    text = _fmt(r[f"{q}_{side}"], digits)
+    value = r[f"{q}_{side}"]
+    text = _fmt(value, digits)
     low, high = r.get(f"{q}_ci_low_{side}"), r.get(f"{q}_ci_high_{side}")
     if text != "-" and _finite(low) and _finite(high):
+        low, high = shown_interval(float(value), (float(low), float(high)))
         text += f" [{low:.{digits}f}, {high:.{digits}f}]"
     return text
 
@@ -245,8 +275,9 @@ def to_markdown(cells: pd.DataFrame, times: pd.DataFrame, a: Path, b: Path,
     per-run metrics (APE, KITTI drift, velocity error) and a one-line summary, as markdown."""
     out = [f"A = `{a}`, B = `{b}`", "",
            "Mean relative error over the segments of each length: rotation [deg], translation "
-           "[m], each with its 95 % confidence interval [low, high] (circular block bootstrap "
-           "over the trajectory); change = B - A:", ""]
+           "[m], each with its 95 % confidence interval [low, high] (block bootstrap along the "
+           "trajectory); change = B - A; \"worse\" / \"better\" beyond the intervals: A's and "
+           "B's printed intervals do not meet:", ""]
     rows = []
     for _, r in cells.iterrows():
         row = [md_escape(r["sequence"]), md_escape(r["run"]), _length(r["length_m"])]

@@ -8,6 +8,8 @@
   diverge; a diverged run is drawn up to where it leaves them and labelled "Div.".
 - ``velocity/<sequence-slug>``: the ego-velocity error along the path
   (``bench.report.figures_velocity``);
+- ``forest/<sequence-slug>-<error>``: every method's figure on its 95 % interval at the
+  shortest and longest length, marked as the tables mark them (``bench.report.figures_forest``);
 - the error figures of ``bench.report.figures_errors`` (box plots per length, error along the
   path, per-frame time and correspondences) and, given a ``bench speed`` CSV, its scaling curves.
 Every figure is written as PDF and PNG, one paper column (3.5 in) wide, legends below the axes,
@@ -170,7 +172,9 @@ def make_figures(results_dir: Path, out_dir: Path | None = None,
         plot_frames,
         plot_speed_csv,
     )
+    from bench.report.figures_forest import plot_forest
     from bench.report.figures_velocity import plot_velocity_along_path
+    from bench.report.tables import runs as table_rows
 
     out_dir = Path(out_dir or Path(results_dir) / "figures")
     runs = _runs_with_gt(results_dir)
@@ -180,6 +184,7 @@ def make_figures(results_dir: Path, out_dir: Path | None = None,
     written += plot_frames(runs, out_dir)
     written += plot_drift(runs, out_dir)
     written += plot_velocity_along_path(runs, out_dir)
+    written += plot_forest(table_rows(results_dir), out_dir)
     if speed_csv is not None and Path(speed_csv).exists():
         written += plot_speed_csv(Path(speed_csv), out_dir)
     return written

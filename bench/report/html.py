@@ -1,8 +1,8 @@
 """``bench report RESULTS_DIR``: one self-contained HTML page of a results folder.
 
 The page holds the tables of the folder's runs made for it (relative error, KITTI drift, APE,
-velocity error: every figure with its 95 % confidence interval, marks only where a difference
-is significant), then every table the harness wrote into the folder (every ``*.md`` of the
+velocity error: every figure with its 95 % confidence interval, marks read from the printed
+intervals: ``bench.report.significance``), then every table the harness wrote into the folder (every ``*.md`` of the
 folder: ``table*.md`` of any metric, ``pivot.md``, ``fidelity.md`` ...) as written, every
 figure under ``figures/`` embedded as a base64 PNG with its caption, the provenance of the runs
 (code version, store hashes, machine, how times were taken), the failed runs, the runs whose
@@ -47,6 +47,9 @@ FIGURE_KINDS = {
                         "run is drawn to the top and marked Div.",
     "boxplots": "Relative error per segment length for each sensor class (log axis); "
                 "diverged runs are named, not drawn.",
+    "forest": "Every method's mean relative error on its 95 % interval at the shortest and "
+              "longest length; bold / underlined as in the tables (dashed line U: the smallest "
+              "upper end among the ranked figures; bold = every ranked figure at or below it).",
     "frames": "Time per frame and the number of correspondences per frame.",
     "drift": "Drift per axis (roll / pitch / yaw, along / across / vertical) against distance.",
     "speed": "Scaling of the per-frame time with the number of points (bench speed).",
@@ -106,8 +109,8 @@ def _tables_section(results_dir: Path, newest_run: float) -> tuple[str, int]:
     if made:
         parts.append("<p>Tables of the folder's finished runs, made for this page: every "
                      "figure with its 95 % confidence interval [low, high]; bold / underlined "
-                     "only where the difference is significant (the caption states the "
-                     "rule).</p>")
+                     "read from the printed intervals alone (the caption states the rule: "
+                     "check any mark against the cells).</p>")
     for title, text in made:
         body, n = markdown_html(text)
         count += n
@@ -138,6 +141,7 @@ PAGE_TABLES = (("Relative error per segment length (Table III)", "relative"),
 def _tables_in_memory(results_dir: Path) -> list[tuple[str, str]]:
     """(title, markdown) of every metric's table of the folder's runs, with intervals (none
     when there is no finished run with ground truth)."""
+    from bench.report.stability import with_stability
     from bench.report.tables import build, select
     from bench.report.tables_ape import collect_ape
 
@@ -151,6 +155,8 @@ def _tables_in_memory(results_dir: Path) -> list[tuple[str, str]]:
             table = collect_ape(results_dir, only={r.run.dir for r in rows}, ci=True).table
         else:
             table = build(metric, rows, lengths, ci=True)
+            if metric == "relative":  # do the marks hold on both halves of each sequence?
+                with_stability(rows, lengths, table)
         # never left out without a line: what is missing and why
         out.append((title, to_markdown(table) if table.rows else
                     "Not made: no run of this folder has this metric (a finished run with "

@@ -1,127 +1,114 @@
-"""Marks that hold within the noise: which figures of a table column are the best.
+"""Marks a reader can check with a ruler: decided from the figures and intervals as printed.
 
-Per group (a sequence) and column, the contenders are the methods (a method's seed and no-seed
-rows are one contender, represented by its better row); a figure resting on fewer than two
-independent segments takes no part. The contender with the lowest value leads; every other
-contender whose difference to the leader is not significant shares the leader's mark (bold).
-The best of the rest and its ties are underlined. Nothing else is marked.
+One rule, for every table, figure and page of the harness (``interval_marks``):
 
-"Significant": the 95 % interval of the paired difference (the same segments of both runs,
-resampled with the same blocks of frames: ``metrics.intervals.paired_interval``; for APE both
-estimates' frame-to-frame errors resampled with the same blocks:
-``metrics.drift_intervals.paired_ape_interval``) excludes zero.
-Two figures without common segments (other frames scored) are significantly different only when
-their own intervals do not overlap; figures without intervals (the time per frame) by value.
+    In each column (per sequence), let U be the smallest upper end of the printed 95 %
+    intervals; **bold**: every figure printed at or below U. Among the rest, the same rule
+    again: **underlined**.
+
+Every bold interval therefore contains U (its low end <= its value <= U <= its high end), so no
+two figures marked alike have disjoint intervals; the figure with the lowest value is always
+bold; and since the rule reads only the printed numbers (rounded to the digits shown), equal
+printed values always carry equal marks. A figure without an interval (the time per frame) is
+its own interval: such a column is marked by value (the lowest printed value bold, the next
+underlined). A figure resting on fewer than ``MIN_INDEPENDENT`` independent segments ("(1
+segment)") is shown but never marked.
+
+The interval printed beside a figure is its own interval from ``metrics.json`` (the run's
+scoring: ``bench.runs.uncertainty``), widened only so that it contains the figure's value
+(``shown``); nothing else decides a mark, so the caption's one sentence (``RULE``) states all
+of it. Each row is marked on its own (a method's seed and no-seed rows are two figures).
 """
 
 from __future__ import annotations
 
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
 
-import numpy as np
-
-from metrics.drift_intervals import paired_ape_interval
-from metrics.intervals import paired_interval
+from metrics.intervals import MIN_INDEPENDENT
 
 #: a part's mark: bold, underlined, none
 BEST, SECOND, OTHER = 0, 1, 2
 
+#: the rule as every caption states it
+RULE = ("Marks are read from the printed numbers: in each column and sequence, bold = every "
+        "figure at or below the smallest upper end U of the printed 95 % intervals (so every "
+        "bold interval contains U), underlined = the same rule among the rest; a figure without "
+        "an interval counts as its own interval; a figure on fewer than "
+        f"{MIN_INDEPENDENT} independent segments is not marked.")
+
 
 @dataclass
 class Stat:
-    """What a figure stands on: its ``value``, its confidence interval ``ci`` (low, high),
-    the independent units behind it, and ``units()`` -> (scored frames, ``metrics.units.Units``,
-    quantity, rmse) for a paired comparison (None: not available)."""
+    """What a figure stands on: its ``value``, its confidence interval ``ci`` (low, high), the
+    independent units behind it and the ``digits`` it is printed with."""
 
     value: float
     ci: tuple[float, float] | None = None
     n_independent: int | None = None
-    units: Callable[[], tuple | None] | None = None
+    digits: int = 3
 
     @property
     def rankable(self) -> bool:
         return math.isfinite(self.value) and (self.n_independent is None
-                                               or self.n_independent >= 2)
+                                               or self.n_independent >= MIN_INDEPENDENT)
+
+    def shown(self) -> tuple[float, float, float]:
+        """(value, low, high) as printed: rounded to ``digits``, the interval widened to hold
+        the value (no interval: the value itself)."""
+        return shown(self.value, self.ci, self.digits)
 
 
-def contender(row) -> tuple:
-    """A row's contender: its method and variant label (seed options merged)."""
-    if row.meta.get("method"):
-        return (row.meta.get("method"), row.meta.get("label"))
-    return tuple(row.keys)
+def _printed(x: float, digits: int) -> float:
+    return float(f"{x:.{digits}f}")
 
 
-def mark_significant(rows: list, parts: list) -> list[int]:
-    """The mark (``BEST``, ``SECOND``, ``OTHER``) of each part (``bench.report.table.Part``,
-    one per ``Row``, same column)."""
-    ranks = [OTHER] * len(parts)
-    lead_of: dict[tuple, int] = {}
-    for i, (row, part) in enumerate(zip(rows, parts, strict=True)):
-        if part.stat is None or not part.stat.rankable:
-            continue
-        key = contender(row)
-        if key not in lead_of or part.stat.value < parts[lead_of[key]].stat.value:
-            lead_of[key] = i
-    order = sorted(lead_of.values(), key=lambda i: parts[i].stat.value)
+def shown_interval(value: float, ci) -> tuple[float, float] | None:
+    """The interval as printed beside ``value``: ``ci`` widened to contain the value (a
+    percentile interval of a skewed statistic may, rarely, miss its own value); None without
+    a finite interval."""
+    if ci is None or None in ci:
+        return None
+    low, high = float(ci[0]), float(ci[1])
+    if not (math.isfinite(low) and math.isfinite(high)):
+        return None
+    return min(low, value), max(high, value)
+
+
+def shown(value: float, ci, digits: int = 3) -> tuple[float, float, float]:
+    """(value, low, high) rounded to ``digits`` as printed; without an interval low = high =
+    value."""
+    interval = shown_interval(value, ci) if math.isfinite(value) else None
+    low, high = interval if interval is not None else (value, value)
+    return _printed(value, digits), _printed(low, digits), _printed(high, digits)
+
+
+def interval_marks(stats: list[Stat | None]) -> list[int]:
+    """The mark (``BEST``, ``SECOND``, ``OTHER``) of each figure of one column and group, by
+    the module's rule; None and unrankable figures are ``OTHER``."""
+    marks = [OTHER] * len(stats)
+    left = {i: s.shown() for i, s in enumerate(stats) if s is not None and s.rankable}
     for tier in (BEST, SECOND):
-        if not order:
+        if not left:
             break
-        lead = parts[order[0]].stat
-        ties = [i for i in order if i == order[0] or not worse(parts[i].stat, lead)]
-        for i in ties:
-            ranks[i] = tier
-        order = [i for i in order if i not in ties]
-    return ranks
+        upper = min(high for _, _, high in left.values())
+        tied = [i for i, (value, _, _) in left.items() if value <= upper]
+        for i in tied:
+            marks[i] = tier
+            del left[i]
+    return marks
 
 
 def worse(a: Stat, b: Stat) -> bool:
-    """Is ``a`` significantly above ``b`` (see the module docstring)?"""
-    ua = a.units() if a.units is not None else None
-    ub = b.units() if b.units is not None else None
-    if ua is not None and ub is not None:
-        drift = _paired_drift(ua, ub)
-        if drift is not None:
-            return bool(drift.low > 0.0)
-        common = _common(ua, ub)
-        if common is not None:
-            n_frames, anchor, end, va, vb, rmse = common
-            return bool(paired_interval(n_frames, anchor, end, va, vb, rmse=rmse).low > 0.0)
-    if a.ci is not None and b.ci is not None:
-        return bool(a.ci[0] > b.ci[1])
-    return a.value > b.value
+    """Is ``a`` distinguishably above ``b`` by their printed intervals (a's low end above b's
+    high end; without intervals, a's printed value above b's)?"""
+    _, low_a, _ = a.shown()
+    _, _, high_b = b.shown()
+    return low_a > high_b
 
 
-def _paired_drift(ua: tuple, ub: tuple):
-    """The paired APE interval (``metrics.drift_intervals``) when both figures are APE of the
-    same quantity on the same GT frames with the same alignment; else None."""
-    (_, units_a, key_a, _), (_, units_b, key_b, _) = ua, ub
-    da, db = units_a.drift, units_b.drift
-    if da is None or db is None or key_a != key_b or not da.same_frames(db):
-        return None
-    return paired_ape_interval(da, db, key_a)
-
-
-def _common(ua: tuple, ub: tuple):
-    """(frames, anchor, end, values a, values b, rmse) on the units both runs have."""
-    (na, units_a, key_a, rmse), (nb, units_b, key_b, _) = ua, ub
-    if na != nb:
-        return None
-    if np.array_equal(units_a.anchor, units_b.anchor) and np.array_equal(units_a.end,
-                                                                         units_b.end):
-        return na, units_a.anchor, units_a.end, units_a.values[key_a], units_b.values[key_b], \
-            rmse
-    pairs_b = {(int(s), int(e)): k for k, (s, e) in enumerate(zip(units_b.anchor, units_b.end,
-                                                                   strict=True))}
-    ia, ib = [], []
-    for k, (s, e) in enumerate(zip(units_a.anchor, units_a.end, strict=True)):
-        j = pairs_b.get((int(s), int(e)))
-        if j is not None:
-            ia.append(k)
-            ib.append(j)
-    if len(ia) < 2:
-        return None
-    ia, ib = np.array(ia), np.array(ib)
-    return (na, units_a.anchor[ia], units_a.end[ia], units_a.values[key_a][ia],
-            units_b.values[key_b][ib], rmse)
+def contender(row) -> tuple:
+    """A row's method and variant label (seed options merged), for summaries across rows."""
+    if row.meta.get("method"):
+        return (row.meta.get("method"), row.meta.get("label"))
+    return tuple(row.keys)

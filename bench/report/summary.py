@@ -4,8 +4,8 @@ Per sensor class (the paper's order) one row per method: the sequences it was sc
 **mean rank** over the sequences with significance-aware ties, and how many of its runs failed,
 diverged or fell back. A method's rank on one figure of one sequence (the mean rotation and the
 mean translation relative error at each ``lengths_m``) is one plus the number of methods
-significantly better than it there (paired block-bootstrap comparisons on the same segments,
-``bench.report.significance``): methods that tie share a rank, and a method beaten by nobody
+distinguishably better than it there (its printed interval wholly below, as the tables' marks
+read them: ``bench.report.significance``): methods that tie share a rank, and a method beaten by nobody
 ranks 1 even when its value is not the lowest. A method's seed and no-seed rows are one
 contender (its better row), as in the tables. A figure resting on fewer than two independent
 segments is not ranked. A method run in the folder but not on a sensor class says why (a Doppler
@@ -41,8 +41,7 @@ def _ranks(rows: list[RunRow], length_m: float, quantity: str) -> dict[tuple, di
             continue
         value = rel.rot_deg_mean if quantity == "rot_deg" else rel.trans_m_mean
         ci = rel.rot_deg_mean_ci if quantity == "rot_deg" else rel.trans_m_mean_ci
-        part = stat_part(value, ci, rel.spread.n_independent,
-                         lambda u=rr.units, q=quantity: u.relative(length_m, q))
+        part = stat_part(value, ci, rel.spread.n_independent)
         if not part.stat.rankable:
             continue
         key = contender(Row([rr.label], (), [], {"method": rr.method, "label": rr.run.label}))
@@ -115,8 +114,8 @@ def summary_table(rows: list[RunRow], lengths_m: tuple[float, ...] = (8.0, 48.0)
     table.caption = (
         "Across datasets, per sensor class: the sequences each method was scored on and its mean "
         f"rank over them (the mean rotation and the mean translation relative error at {lengths};"
-        " on each figure a method's rank is 1 + the number of methods significantly better than "
-        "it, paired block-bootstrap comparisons on the same segments, so ties share a rank; the "
+        " on each figure a method's rank is 1 + the number of methods whose printed 95 % "
+        "interval lies wholly below its own, so overlapping intervals share a rank; the "
         "seed and no-seed rows of a method count as one, its better row; figures on fewer than "
         "2 independent segments are not ranked). The lowest mean rank of a class is bold. "
         "Failed / Diverged: runs that did not finish / diverged; Fell back: runs with more "

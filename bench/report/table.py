@@ -9,9 +9,9 @@ status ("Div.", "failed", "-" for no value, "" for not run), and the values behi
 CSV.
 
 Marks (``mark_column``) follow one of two rules, stated in every caption (``MARK_RULES``):
-"significance" (the default: ``bench.report.significance``, paired comparisons on the same
-segments, ties share a mark, the seed and no-seed rows of a method are one contender) or
-"value" (the paper's plain style: the lowest value bold, the next underlined).
+"intervals" (the default: ``bench.report.significance``, decided from the printed figures and
+their printed intervals alone, so a reader can check every mark) or "value" (the paper's plain
+style: the lowest value bold, the next underlined).
 
 Every table of the harness is built as a ``Table`` (``bench.report.tables``) and written by
 ``save_table``: ``to_markdown`` (pipe table + caption + footnotes), ``to_latex`` (a booktabs
@@ -28,18 +28,21 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from bench.report.significance import BEST, OTHER, SECOND, Stat, mark_significant  # noqa: F401
+from bench.report.significance import (  # noqa: F401
+    BEST,
+    OTHER,
+    RULE,
+    SECOND,
+    Stat,
+    interval_marks,
+    shown_interval,
+)
 from loaders.fileio import atomic_write_text
 
-#: the marking rules and how a caption states them
+#: the marking rules and how a caption states them ("significance", the name of the rule before
+#: marks were read from the printed intervals, is accepted for "intervals": ``rule_name``)
 MARK_RULES = {
-    "significance": ("Bold: the best per sequence and every method not significantly "
-                     "different from it (paired block-bootstrap comparison on the same "
-                     "segments, for APE on the same frames' resampled step errors; 95 % "
-                     "interval of the difference containing zero); underlined: "
-                     "the best of the rest and its ties. The seed and no-seed rows of a method "
-                     "are one contender (its better row is marked). A figure resting on fewer "
-                     "than 2 independent segments is not ranked."),
+    "intervals": RULE,
     "value": ("Best value per sequence in bold, second underlined (by value alone, the "
               "paper's style: differences may lie within the noise)."),
 }
@@ -118,17 +121,29 @@ def _groups(rows: list[Row], col: int, part: int) -> dict[tuple, list[Row]]:
     return groups
 
 
-def mark_column(rows: list[Row], col: int, part: int, marks: str = "significance") -> None:
-    """Mark part ``part`` of column ``col`` within each group by the rule ``marks`` (see
-    ``MARK_RULES``) from each part's ``Stat``; a part without one is ranked by value."""
+def rule_name(marks: str) -> str:
+    """The key of ``MARK_RULES`` that ``marks`` names (its old name accepted)."""
+    marks = "intervals" if marks == "significance" else marks
     if marks not in MARK_RULES:
         raise ValueError(f"unknown marking rule {marks!r}: one of {', '.join(MARK_RULES)}")
+    return marks
+
+
+def mark_column(rows: list[Row], col: int, part: int, marks: str = "intervals") -> None:
+    """Mark part ``part`` of column ``col`` within each group by the rule ``marks`` (see
+    ``MARK_RULES``) from each part's ``Stat``; a part without one is its printed value."""
+    marks = rule_name(marks)
     for members in _groups(rows, col, part).values():
         parts = [r.cells[col].parts[part] for r in members]
         ranks = (rank_values([_value(p) for p in parts]) if marks == "value"
-                 else mark_significant(members, parts))
+                 else interval_marks([_stat(p) for p in parts]))
         for p, rank in zip(parts, ranks, strict=True):
             p.rank = rank
+
+
+def _stat(p: Part) -> Stat:
+    """The statistic a part is marked on: its own, or its printed number."""
+    return p.stat if p.stat is not None else Stat(_value(p))
 
 
 def _value(p: Part) -> float:
@@ -143,13 +158,15 @@ def _value(p: Part) -> float:
 
 def stat_text(value: float | None, ci: tuple | list | None, n_independent: int | None,
               digits: int = 3, show_ci: bool = False) -> str:
-    """A figure's text: the value, with ``show_ci`` its interval "[low, high]", and "(1
-    segment)" when fewer than two independent units stand behind it."""
+    """A figure's text: the value, with ``show_ci`` its interval "[low, high]" (as the marks
+    read it: ``significance.shown_interval``), and "(1 segment)" when fewer than two
+    independent units stand behind it."""
     if value is None or not math.isfinite(value):
         return "-"
     text = f"{value:.{digits}f}"
-    if show_ci and ci is not None and None not in ci:
-        text += f" [{ci[0]:.{digits}f}, {ci[1]:.{digits}f}]"
+    interval = shown_interval(value, ci)
+    if show_ci and interval is not None:
+        text += f" [{interval[0]:.{digits}f}, {interval[1]:.{digits}f}]"
     if n_independent is not None and n_independent < 2:
         text += f" ({n_independent} segment{'' if n_independent == 1 else 's'})"
     return text

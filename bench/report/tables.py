@@ -10,8 +10,8 @@ class and sequence, one row per method and seed option (``runs``), and one table
 The APE table (methods x sequences, the paper's Tables IV/V) is ``bench.report.tables_ape``.
 Every figure carries its confidence interval and independent-segment count (``metrics.json``,
 ``bench.runs.uncertainty``), shown with ``ci=True`` and always in the CSV; marks follow
-``marks`` (``bench.report.table.MARK_RULES``: by default only significant differences, from
-paired comparisons of the runs' per-segment errors, ``bench.report.run_units``); a diverged run
+``marks`` (``bench.report.table.MARK_RULES``: by default read from the printed intervals alone,
+``bench.report.significance``); a diverged run
 shows "Div." and is not ranked; a run that did not finish stays as a "failed" row with its
 reason in a footnote; a run whose frames fell back (replaced by the motion prior, or not
 converged) carries a footnote saying how many, and is flagged when more than
@@ -36,9 +36,9 @@ from bench.report.names import (
     synthetic_note,
 )
 from bench.report.row_keys import distinct_labels
-from bench.report.run_units import RunUnits
 from bench.report.table import (
     MARK_RULES,
+    rule_name,
     Cell,
     Part,
     Row,
@@ -73,9 +73,6 @@ class RunRow:
 
     run: RunRecord
     label: str
-
-    def __post_init__(self) -> None:
-        self.units = RunUnits(self.run)
 
     @property
     def result(self) -> RunResult:
@@ -202,29 +199,30 @@ def fmt_time(x: float | None, threads: int = 1) -> str:
     return text if threads == 1 else f"{text} [{threads} thr.]"
 
 
-def _caption(rows: list[RunRow], text: str, marks: str = "significance",
+def _caption(rows: list[RunRow], text: str, marks: str = "intervals",
              ci: bool = False) -> str:
     failed = FAILED_NOTE + " " if any(r.failed for r in rows) else ""
     fell = (f"[fell back] = more than {100 * FALLBACK_LIMIT:g} % of the run's frames were "
             "replaced by the motion prior or did not converge (counts in the footnotes). "
             if any(not r.failed and r.result.fell_back for r in rows) else "")
     level = next((r.result.ci_level for r in rows if r.result.finished), 0.95)
-    shown = (f"[low, high] = the {100 * level:g} % confidence interval (circular block "
-             "bootstrap over the trajectory, blocks at least one segment long). " if ci else "")
+    shown = (f"[low, high] = the {100 * level:g} % confidence interval (block bootstrap "
+             "along the trajectory; docs/metrics.md). " if ci else "")
     return (synthetic_note(r.sequence for r in rows) + gt_assisted_note(r.label for r in rows)
             + text + " " + shown + hosts_note(r.result.cpu for r in rows
                                               if r.result.finished and r.result.timed_by_harness)
-            + MARK_RULES[marks] + " Div. = diverged; " + failed + fell + SEED_NOTE)
+            + MARK_RULES[rule_name(marks)] + " Div. = diverged; " + failed + fell + SEED_NOTE)
 
 
 def _ci(ci) -> tuple[float, float] | None:
     return None if ci is None or None in ci else (float(ci[0]), float(ci[1]))
 
 
-def stat_part(value: float | None, ci, n_independent: int | None, units=None,
-              digits: int = 3, show_ci: bool = False) -> Part:
-    """A figure as a table part with the ``Stat`` its marks are decided on."""
-    stat = Stat(nan(value), _ci(ci), n_independent, units)
+def stat_part(value: float | None, ci, n_independent: int | None, digits: int = 3,
+              show_ci: bool = False) -> Part:
+    """A figure as a table part with the ``Stat`` its marks are decided on (the numbers it
+    prints: ``bench.report.significance``)."""
+    stat = Stat(nan(value), _ci(ci), n_independent, digits)
     return Part(stat_text(value, ci, n_independent, digits, show_ci), stat=stat)
 
 
@@ -249,7 +247,7 @@ def _ci_values(name: str, ci) -> dict:
     return {f"{name}_ci_low": ci[0] if ci else None, f"{name}_ci_high": ci[1] if ci else None}
 
 
-def relative_table(rows: list[RunRow], lengths: list[float], marks: str = "significance",
+def relative_table(rows: list[RunRow], lengths: list[float], marks: str = "intervals",
                    ci: bool = False) -> Table:
     """The paper's Table III: "rotation / translation" per length and the time per frame."""
     table = Table(["Sensor", "Sequence", "Method"],
@@ -268,12 +266,9 @@ def relative_table(rows: list[RunRow], lengths: list[float], marks: str = "signi
             if rr.diverged:
                 cells.append(Cell(status="Div.", values=values))
                 continue
-            u = rr.units
             cells.append(Cell([
-                stat_part(rot, rel.rot_deg_mean_ci if ok else None, n_ind,
-                          lambda L=L, u=u: u.relative(L, "rot_deg"), show_ci=ci),
-                stat_part(trans, rel.trans_m_mean_ci if ok else None, n_ind,
-                          lambda L=L, u=u: u.relative(L, "trans_m"), show_ci=ci)],
+                stat_part(rot, rel.rot_deg_mean_ci if ok else None, n_ind, show_ci=ci),
+                stat_part(trans, rel.trans_m_mean_ci if ok else None, n_ind, show_ci=ci)],
                 values=values))
         table.rows.append(_row(table, rr, [*cells, _time_cell(rr)]))
     for i in range(len(lengths)):
@@ -321,33 +316,31 @@ def kitti_segments_text(rows: list[RunRow]) -> str:
     return text
 
 
-def kitti_table(rows: list[RunRow], marks: str = "significance", ci: bool = False) -> Table:
+def kitti_table(rows: list[RunRow], marks: str = "intervals", ci: bool = False) -> Table:
     """KITTI drift: translation [%] and rotation [deg/100 m] per run."""
     table = Table(["Sensor", "Sequence", "Method"],
-                  ["Trans. drift (%)", "Rot. drift (deg/100 m)", "Segments"], [])
+                  ["Trans. drift (%)", "Rot. drift (deg/100 m)", "Segments (independent)"], [])
     for rr in rows:
         k = rr.result.kitti
         t, r, n = (k.trans_pct, k.rot_deg_per_100m, k.n) if k else (None, None, 0)
         n_ind = k.spread.n_independent if k else None
         values = {"trans_pct": t, "rot_deg_per_100m": r}
+        # every segment, and in brackets the independent (non-overlapping) ones the interval
+        # and a cell's "(1 segment)" count
+        segments = Cell([Part(f"{n} ({n_ind})" if n_ind is not None else str(n))],
+                        values={"segments": n, "independent_segments": n_ind})
         if rr.diverged:
-            cells = [Cell(status="Div.", values=values), Cell(status="Div."),
-                     Cell([Part(str(n))], values={"segments": n})]
+            cells = [Cell(status="Div.", values=values), Cell(status="Div."), segments]
         else:
-            u, lengths = rr.units, tuple(k.lengths_m) if k else ()
-            step = k.step_frames if k else 10
-            cells = [Cell([stat_part(t, k.trans_pct_ci if k else None, n_ind,
-                                     lambda u=u, ls=lengths, s=step: u.kitti(ls, s, "trans_pct"),
-                                     digits=2, show_ci=ci)],
+            cells = [Cell([stat_part(t, k.trans_pct_ci if k else None, n_ind, digits=2,
+                                     show_ci=ci)],
                           values={"trans_pct": t, **_ci_values("trans_pct",
                                                                k.trans_pct_ci if k else None)}),
-                     Cell([stat_part(r, k.rot_deg_per_100m_ci if k else None, n_ind,
-                                     lambda u=u, ls=lengths, s=step:
-                                     u.kitti(ls, s, "rot_deg_per_100m"), digits=2, show_ci=ci)],
+                     Cell([stat_part(r, k.rot_deg_per_100m_ci if k else None, n_ind, digits=2,
+                                     show_ci=ci)],
                           values={"rot_deg_per_100m": r, **_ci_values(
                               "rot_deg_per_100m", k.rot_deg_per_100m_ci if k else None)}),
-                     Cell([Part(str(n))], values={"segments": n,
-                                                  "independent_segments": n_ind})]
+                     segments]
         table.rows.append(_row(table, rr, cells))
     for col in (0, 1):
         mark_column(table.rows, col, 0, marks)
@@ -356,7 +349,8 @@ def kitti_table(rows: list[RunRow], marks: str = "significance", ci: bool = Fals
                              "and ends at the first frame beyond its length; translation error "
                              "in % of the length, rotation error in deg per 100 m, averaged "
                              "over every segment); - = the path is shorter than the shortest "
-                             "length.", marks, ci)
+                             "length. Segments: every segment, in brackets the independent "
+                             "(non-overlapping) ones behind the interval.", marks, ci)
     return table
 
 
@@ -365,24 +359,22 @@ VELOCITY_COLUMNS = (("x_mean_mps", "x_abs_mps", False), ("y_mean_mps", "y_abs_mp
                     ("norm_rmse_mps", "norm_mps", True))
 
 
-def _velocity_cells(v, diverged: bool, units: RunUnits | None, ci: bool) -> list[Cell]:
+def _velocity_cells(v, diverged: bool, ci: bool) -> list[Cell]:
     if v is None or diverged:
         status = "Div." if diverged else "-"
         return [Cell(status=status) for _ in range(5)]
     values = [*v.axis_mean_mps, v.norm_mean_mps, v.norm_rmse_mps]
     n_ind = v.spread.n_independent
     cells = []
-    for (name, quantity, rmse), x in zip(VELOCITY_COLUMNS, values, strict=True):
+    for (name, _, _), x in zip(VELOCITY_COLUMNS, values, strict=True):
         interval = v.norm_mean_mps_ci if name == "norm_mean_mps" else None
-        source = None if units is None else (
-            lambda q=quantity, rm=rmse, w=v.window_s: units.velocity(w, q, rm))
-        cells.append(Cell([stat_part(x, interval, n_ind, source, show_ci=ci)],
+        cells.append(Cell([stat_part(x, interval, n_ind, show_ci=ci)],
                           values={name: x, **(_ci_values(name, interval) if interval
                                               else {})}))
     return cells
 
 
-def velocity_table(rows: list[RunRow], marks: str = "significance", ci: bool = False) -> Table:
+def velocity_table(rows: list[RunRow], marks: str = "intervals", ci: bool = False) -> Table:
     """Ego-velocity error per run (and a "Doppler ego velocity" row for a method that
     measures its own)."""
     table = Table(["Sensor", "Sequence", "Method"],
@@ -392,10 +384,10 @@ def velocity_table(rows: list[RunRow], marks: str = "significance", ci: bool = F
         v = rr.result.velocity
         if v is not None:
             windows.add(v.window_s)
-        table.rows.append(_row(table, rr, _velocity_cells(v, rr.diverged, rr.units, ci)))
+        table.rows.append(_row(table, rr, _velocity_cells(v, rr.diverged, ci)))
         own = rr.result.velocity_own
         if own is not None and not rr.failed:
-            row = _row(table, rr, _velocity_cells(own, False, None, ci))
+            row = _row(table, rr, _velocity_cells(own, False, ci))
             row.keys[-1] = f"{rr.label} [Doppler ego velocity]"
             row.meta["status"] = "doppler"
             row.meta["label"] = f"{rr.run.label or ''} [Doppler ego velocity]"
@@ -411,7 +403,8 @@ def velocity_table(rows: list[RunRow], marks: str = "significance", ci: bool = F
         f"window, not frame to frame: a GT nearest-matched to the scans (NTU4DRadLM: 10 Hz "
         "poses at 12 Hz scans) makes frame-to-frame GT velocities mostly artefact. [Doppler ego "
         f"velocity] rows: the method's own instantaneous Doppler estimate against the GT "
-        f"velocity over a {w} s window centred on the frame."), marks, ci)
+        f"velocity over a {w} s window centred on the frame. Only the norm mean has an "
+        "interval: the other columns are marked by value."), marks, ci)
     return table
 
 
@@ -419,7 +412,7 @@ TABLES = {"relative": relative_table, "kitti": kitti_table, "velocity": velocity
 
 
 def build(metric: str, rows: list[RunRow], lengths: list[float] | None = None,
-          marks: str = "significance", ci: bool = False) -> Table:
+          marks: str = "intervals", ci: bool = False) -> Table:
     """The table of ``metric`` (one of ``TABLES``) for ``rows``, marked by ``marks``, with
     the intervals in the cells when ``ci``."""
     if metric == "relative":
@@ -432,7 +425,7 @@ def write_tables(results_dir: Path | list[Path], out_dir: Path | None = None,
                  only: set[Path] | None = None, stem: str = "table",
                  lengths_m: list[float] | None = None,
                  keep: Callable[[RunRow], bool] | None = None,
-                 metric: str = "relative", marks: str = "significance",
+                 metric: str = "relative", marks: str = "intervals",
                  ci: bool = False) -> dict[str, str]:
     """Write <stem>.md, .tex and .csv of ``metric``'s table of the selected rows; return the
     texts by format."""

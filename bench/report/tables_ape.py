@@ -6,7 +6,7 @@ sequence; each cell is the translation APE [m] (``metrics.json``'s ``ape.trans_r
 evo_ape computes it) after the alignment the runs were scored with (``ape.requested``, stated
 in the caption; a cell whose alignment fell back to the orientations, or differs from the
 others, carries a footnote), with its confidence interval (``ci``) and marks by ``marks``
-(``bench.report.table.MARK_RULES``: by default only significant differences); a diverged run
+(``bench.report.table.MARK_RULES``: by default read from the printed intervals); a diverged run
 shows "Div." and is not ranked, as in the paper's Table V; a run that did not finish shows
 "failed" with its reason in a footnote.
 """
@@ -27,8 +27,7 @@ from bench.report.names import (
     synthetic_note,
 )
 from bench.report.row_keys import distinct_labels
-from bench.report.run_units import RunUnits
-from bench.report.table import MARK_RULES, Cell, Row, Table, mark_column, save_table
+from bench.report.table import MARK_RULES, Cell, Row, Table, mark_column, rule_name, save_table
 from bench.report.tables import stat_part
 from bench.runs.folders import RunRecord, load_runs
 from metrics.ape import Alignment
@@ -63,7 +62,7 @@ def _first_n_words(spec: str) -> str:
 
 def collect_ape(results_dir: Path, sequences: list[str] | None = None,
                 only: set[Path] | None = None, caption: str = "",
-                marks: str = "significance", ci: bool = False) -> ApeTable:
+                marks: str = "intervals", ci: bool = False) -> ApeTable:
     """The APE table of every finished run with ground truth (and every run that did not
     finish) under ``results_dir``.
 
@@ -103,12 +102,9 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
                                                          r.result.ape.trans_rmse_m}))
             else:
                 a = r.result.ape
-                u = RunUnits(r)
                 low, high = a.trans_rmse_m_ci or (None, None)
                 cell = Cell([stat_part(a.trans_rmse_m, a.trans_rmse_m_ci,
-                                       a.spread.n_independent,
-                                       lambda u=u, al=a.requested: u.ape(al, "trans_m"),
-                                       digits=2, show_ci=ci)],
+                                       a.spread.n_independent, digits=2, show_ci=ci)],
                             values={"ape_trans_rmse_m": a.trans_rmse_m,
                                     "ape_trans_rmse_m_ci_low": low,
                                     "ape_trans_rmse_m_ci_high": high})
@@ -135,9 +131,10 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
                      "translation RMSE") + f" after {Alignment.parse(common).description}, as "
                      f"evo_ape {Alignment.parse(common).evo_options} computes it"
                      + _first_n_words(common)
-                     + (" ([low, high]: its 95 % confidence interval, circular block bootstrap "
-                        "of the aligned per-frame errors)" if ci else "") + ". "
-                     + MARK_RULES[marks] + " Div. = diverged; - = not run"
+                     + (" ([low, high]: its 95 % confidence interval, from blocks of the "
+                        "estimate's frame-to-frame errors resampled, chained along the ground "
+                        "truth and aligned as the figure; docs/metrics.md)" if ci else "") + ". "
+                     + MARK_RULES[rule_name(marks)] + " Div. = diverged; - = not run"
                      + ("; failed = the run did not finish (reason in its footnote)" if failed
                         else "") + ". " + SEED_NOTE)
     return ApeTable(table, columns)
@@ -173,7 +170,7 @@ def start_offset_note(run: RunRecord) -> str | None:
 def write_ape_tables(results_dir: Path, out_dir: Path | None = None,
                      sequences: list[str] | None = None, stem: str = "table_ape",
                      caption: str = "", only: set[Path] | None = None,
-                     marks: str = "significance", ci: bool = False) -> dict[str, str]:
+                     marks: str = "intervals", ci: bool = False) -> dict[str, str]:
     """Write ``<stem>.{md,tex,csv}`` and return the texts by format."""
     ape = collect_ape(results_dir, sequences, only, caption, marks, ci)
     if not ape.table.rows:

@@ -8,11 +8,11 @@ so a cell reads exactly as in the main table."""
 from __future__ import annotations
 
 from bench.report.names import hosts_note, order_key
-from bench.report.table import MARK_RULES, Cell, Row, Table, to_markdown
+from bench.report.table import MARK_RULES, Cell, Row, Table, rule_name, to_markdown
 from bench.report.tables import TIME_NOTE, RunRow, relative_table
 
 
-def pivot_tables(rows: list[RunRow], lengths: list[float], marks: str = "significance"
+def pivot_tables(rows: list[RunRow], lengths: list[float], marks: str = "intervals"
                  ) -> list[Table]:
     """One table per length and one of the times."""
     main = relative_table(rows, lengths, marks)
@@ -31,7 +31,7 @@ def pivot_tables(rows: list[RunRow], lengths: list[float], marks: str = "signifi
             t.rows.append(Row([label], (), cells))
         if col < len(lengths):
             t.caption = (f"Each cell: mean rotation [deg] / translation [m] relative error over "
-                         f"{title} segments. {MARK_RULES[marks]} Div. = diverged; empty = "
+                         f"{title} segments. {MARK_RULES[rule_name(marks)]} Div. = diverged; empty = "
                          "not run.")
         else:
             t.caption = (TIME_NOTE + " " + hosts_note(r.result.cpu for r in rows
@@ -43,7 +43,7 @@ def pivot_tables(rows: list[RunRow], lengths: list[float], marks: str = "signifi
     return tables
 
 
-def pivot_markdown(rows: list[RunRow], lengths: list[float], marks: str = "significance"
+def pivot_markdown(rows: list[RunRow], lengths: list[float], marks: str = "intervals"
                    ) -> str:
     """``pivot.md``: one table per segment length, then the times."""
     return "\n".join(to_markdown(t) for t in pivot_tables(rows, lengths, marks))

@@ -112,6 +112,18 @@ def _kitti(gt_s: np.ndarray, est_s: np.ndarray, scoring: Scoring) -> dict:
         too_long=list(k.too_long), **spread).model_dump()
 
 
+def relative_part(gt_s: np.ndarray, est_s: np.ndarray, rel: dict) -> list[RelativeError]:
+    """The relative-error figures with their intervals, from ``metrics.relative_errors`` of
+    the scored frames' GT and estimate (``rel``: length -> its statistics)."""
+    return [RelativeError(
+        length_m=length, rot_deg_mean=num(s.rot_deg_mean), rot_deg_median=num(s.rot_deg_median),
+        rot_deg_rmse=num(s.rot_deg_rmse), trans_m_mean=num(s.trans_m_mean),
+        trans_m_median=num(s.trans_m_median), trans_m_rmse=num(s.trans_m_rmse), n=int(s.n),
+        **intervals(relative_units(gt_s, est_s, length), len(gt_s),
+                    {"rot_deg": "rot_deg_mean_ci", "trans_m": "trans_m_mean_ci"}),
+    ) for length, s in rel.items()]
+
+
 def score(gt_poses: np.ndarray, est_poses: np.ndarray, times_ms: np.ndarray,
           lengths_m=DEFAULT_LENGTHS_M, scored: np.ndarray | None = None,
           name: str = "ground truth", timings: dict | None = None,
@@ -134,13 +146,7 @@ def score(gt_poses: np.ndarray, est_poses: np.ndarray, times_ms: np.ndarray,
     except MetricError as err:
         raise DataError(f"{name}: {err} ({len(idx)} frames with ground truth)") from err
     diverged = bool(is_diverged(est_poses, rel))
-    relative = [RelativeError(
-        length_m=length, rot_deg_mean=num(s.rot_deg_mean), rot_deg_median=num(s.rot_deg_median),
-        rot_deg_rmse=num(s.rot_deg_rmse), trans_m_mean=num(s.trans_m_mean),
-        trans_m_median=num(s.trans_m_median), trans_m_rmse=num(s.trans_m_rmse), n=int(s.n),
-        **intervals(relative_units(gt_s, est_s, length), len(idx),
-                    {"rot_deg": "rot_deg_mean_ci", "trans_m": "trans_m_mean_ci"}),
-    ).model_dump() for length, s in rel.items()]
+    relative = [r.model_dump() for r in relative_part(gt_s, est_s, rel)]
     finite = bool(np.all(np.isfinite(est_poses)))
     if finite and len(idx) >= 2:
         a = ape(gt_s, est_s, alignment=scoring.alignment)

@@ -59,6 +59,7 @@ from typing import TYPE_CHECKING, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
+from bench.runs.external_defaults import DEFAULT_MIN_COVERAGE, DEFAULT_TOLERANCE_S
 from loaders.errors import DataError, did_you_mean, validation_problems
 from methods.registry import METHODS, get_method, seed_options
 from metrics.ape import Alignment
@@ -228,15 +229,19 @@ class ExternalEntry(_Strict):
     name: str
     trajectory: Path
     store: Path
-    format: Literal["auto", "tum", "kitti", "bag"] = "auto"
+    format: Literal["auto", "tum", "kitti", "boreas", "bag"] = "auto"
     stamps: Path | None = None
     topic: str | None = None
     frame_times: Path | None = None
-    time_offset_s: float = 0.0
-    tolerance_s: float = Field(1e-4, ge=0)
-    max_gap_s: float | None = Field(None, gt=0)
+    time_offset_s: float = Field(0.0, allow_inf_nan=False)
+    tolerance_s: float = Field(DEFAULT_TOLERANCE_S, ge=0, allow_inf_nan=False)
+    #: None: no interpolation (as ``bench score`` without --max-gap)
+    max_gap_s: float | None = Field(None, gt=0, allow_inf_nan=False)
     pose_frame: Literal["sensor", "body"] = "sensor"
     extrinsic: str | None = None
+    stamp_unit: Literal["s", "ms", "us", "ns"] | None = None
+    min_coverage: float = Field(DEFAULT_MIN_COVERAGE, ge=0, le=1)
+    trust_clock: bool = False
 
     @field_validator("name")
     @classmethod

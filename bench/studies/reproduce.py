@@ -195,7 +195,7 @@ def _remove_stale(out: Path, stem: str, console: Console) -> None:
 def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic_only: bool,
                     console: Console, executor: str = "process", scheduler: str | None = None,
                     job_timeout_s: float | None = None, scoring: dict | None = None,
-                    marks: str = "significance") -> list[str]:
+                    marks: str = "intervals") -> list[str]:
     """Run and write the tables that have rows (and the KITTI-drift and velocity tables of
     Table III's runs); returns the failed runs' messages (empty on success). Says which paper
     sequences it found and which are missing, writes ``reproduction.json`` (what was used,

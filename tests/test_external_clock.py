@@ -1,0 +1,70 @@
+"""bench.runs.external_clock on analytic motions: the profiles' values (speed [m/s], turn rate
+[rad/s]), the fit's shift and sign, and when a fit is inconclusive."""
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from bench.runs.external_clock import aligned_offset, fit_clock, motion_profiles, stamp_scale
+from loaders.se3 import make_T
+
+T = np.arange(0, 30, 0.1)
+
+
+def drive(t, speed=lambda t: 2.0 + 0 * t, yaw_rate=0.3):
+    """Planar motion along the heading, speed ``speed(t)`` [m/s], constant yaw rate."""
+    t = np.asarray(t, dtype=np.float64)
+    fine = np.arange(t[0] - 1, t[-1] + 1, 1e-3)
+    yaw = yaw_rate * fine
+    v = speed(fine)
+    xy = np.cumsum(np.column_stack([v * np.cos(yaw), v * np.sin(yaw)]), axis=0) * 1e-3
+    x, y = np.interp(t, fine, xy[:, 0]), np.interp(t, fine, xy[:, 1])
+    R = Rotation.from_euler("z", yaw_rate * t[:, None]).as_matrix()
+    return make_T(R, np.column_stack([x, y, np.zeros_like(t)]))
+
+
+def test_the_profiles_are_speed_and_turn_rate():
+    poses = drive(T, yaw_rate=0.1)
+    speed, rate = motion_profiles(T, poses, 0.05, 1.0, 0.3)
+    ok = np.isfinite(speed)
+    assert ok.sum() > 400 and np.isnan(speed[:10]).all()  # the window leaves the span
+    # the chord of a circle of radius 20 m (2 m/s at 0.1 rad/s) over 2 s, per 2 s:
+    # 2 * 20 sin(0.1) / 2 = 1.99667 m/s (positions interpolated between the 0.1 s poses)
+    np.testing.assert_allclose(speed[ok], 20 * np.sin(0.1), rtol=1e-4)
+    np.testing.assert_allclose(rate[ok], 0.1, rtol=1e-9)
+
+
+def test_the_fit_finds_the_shift_and_its_sign():
+    def speed(t):
+        return 5 + 3 * np.sin(0.7 * t) + 2 * np.sin(1.9 * t)
+
+    poses = drive(T, speed, yaw_rate=0.05)
+    fit = fit_clock(T - 0.37, poses, T, poses, 0.1)  # est_stamp + 0.37 = the scans' clock
+    assert fit.offset_s == pytest.approx(0.37, abs=1e-3)
+    assert fit.correlation == pytest.approx(1.0, abs=1e-6) and fit.correlation_at_zero < 0.99
+    assert fit_clock(T + 2.0, poses, T, poses, 0.1).offset_s == pytest.approx(-2.0, abs=1e-3)
+
+
+def test_a_constant_speed_straight_drive_is_inconclusive():
+    poses = drive(T, yaw_rate=0.0)
+    fit = fit_clock(T - 0.37, poses, T, poses, 0.1)
+    assert fit.offset_s is None and "speed and turn rate hardly vary" in fit.why
+
+
+def test_stamp_units_by_speed():
+    poses = drive(T)
+    xyz = poses[:, :3, 3]
+    assert stamp_scale(T, xyz, T, xyz) is None
+    factor, est_speed, gt_speed = stamp_scale(T * 1e3, xyz, T, xyz)  # ms read as s
+    assert factor == 1e3 and est_speed == pytest.approx(gt_speed / 1e3)
+    assert stamp_scale(T * 1e6, xyz, T, xyz)[0] == 1e6
+    assert stamp_scale(T * 1e-9, xyz, T, xyz)[0] == 1e-9  # s read as ns
+    assert stamp_scale(T * 30, xyz, T, xyz) is None  # 30x: no unit
+    assert stamp_scale(T * 1e12, xyz, T, xyz) is None  # beyond s vs ns
+
+
+def test_the_aligned_offset_lines_the_stamps_up():
+    scans = np.arange(100) * 0.1
+    est = scans - 0.37
+    assert aligned_offset(est, scans, 0.36, 0.1) == pytest.approx(0.37, abs=1e-12)
+    assert aligned_offset(est, scans, 0.30, 0.1) == pytest.approx(0.27, abs=1e-12)

@@ -1,0 +1,204 @@
+"""Forest plots and the interval rule behind their marks (bench.report.figures_forest).
+
+The rule: U = the smallest upper interval end among the ranked figures; bold = every ranked
+figure whose value is at most U; the same among the rest gives underlined. Checked on cases
+where other plausible rules differ (the best's interval overlapping a figure; a figure outside
+its own interval; ties in value), on random columns for its two promises (no two figures marked
+alike with disjoint intervals, equal values marked alike), and on run folders with known
+intervals: the figure is written and what it draws (bold / underlined labels, the U lines)
+follows the rule."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from bench.report.figures_forest import (
+    BOLD,
+    UNDERLINED,
+    UNMARKED,
+    draw_forest,
+    forest_panels,
+    interval_marks,
+    interval_tiers,
+    plot_forest,
+)
+from bench.report.tables import runs as table_rows
+from bench.runs.evaluate import evaluate_run
+from bench.runs.folders import write_run
+from bench.studies.coverage import NoiseModel, ground_truth, noisy_estimate
+from loaders.trajectory import Trajectory
+from methods.base import FrameRecord, OdometryResult
+
+
+def test_bold_is_every_figure_at_or_below_the_smallest_upper_end():
+    # the best's interval [0.7, 1.3] overlaps the third's [1.1, 2.0], but 1.5 > U = 1.3: the
+    # third is not bold (an "overlaps the best" rule would bold it), it is the rest's best
+    values, lows, highs = [1.0, 1.2, 1.5], [0.7, 1.0, 1.1], [1.3, 1.4, 2.0]
+    marks, bounds = interval_tiers(values, lows, highs, [True] * 3)
+    assert marks == [BOLD, BOLD, UNDERLINED]
+    assert bounds == [1.3, 2.0]
+
+
+def test_the_smallest_upper_end_need_not_be_the_best_value():
+    # the narrow interval of 1.1 sets U = 1.15; the wide 0.9 [0.2, 3.0] is below it: both bold,
+    # 1.2 is not (it lies above U although its interval overlaps both)
+    marks = interval_marks([0.9, 1.1, 1.2], [0.2, 1.05, 1.0], [3.0, 1.15, 1.4], [True] * 3)
+    assert marks == [BOLD, BOLD, UNDERLINED]
+
+
+def test_unranked_figures_take_no_part_and_no_mark():
+    # the unranked 0.1 would set U = 0.2 and leave the others unmarked
+    marks = interval_marks([0.1, 1.0, 2.0, math.nan], [0.0, 0.9, 1.9, math.nan],
+                           [0.2, 1.1, 2.1, math.nan], [False, True, True, True])
+    assert marks == [UNMARKED, BOLD, UNDERLINED, UNMARKED]
+
+
+def test_a_figure_outside_its_interval_and_figures_without_one():
+    # the interval is taken to hold its value: a lone figure above its interval is still bold
+    assert interval_marks([2.0], [1.0], [1.5], [True]) == [BOLD]
+    # no intervals (times): by value, ties sharing
+    assert interval_marks([3.0, 1.0, 2.0, 1.0], [None] * 4, [None] * 4, [True] * 4) == \
+        [UNMARKED, BOLD, UNDERLINED, BOLD]
+
+
+def test_lists_of_different_lengths_are_refused():
+    with pytest.raises(ValueError, match="3 values but 2 lows"):
+        interval_marks([1.0, 2.0, 3.0], [0.0, 1.0], [2.0, 3.0, 4.0], [True] * 3)
+
+
+def test_random_columns_keep_both_promises():
+    rng = np.random.default_rng(4)
+    for _ in range(400):
+        n = int(rng.integers(2, 9))
+        values = np.round(rng.uniform(0.5, 2.0, n), 1)  # rounded: ties in value occur
+        lows = values - rng.uniform(0.0, 0.4, n)
+        highs = values + rng.uniform(0.0, 0.4, n)
+        rankable = rng.random(n) > 0.15
+        marks = interval_marks(values.tolist(), lows.tolist(), highs.tolist(),
+                               rankable.tolist())
+        ranked = np.flatnonzero(rankable)
+        if len(ranked):
+            # the figure with the smallest upper end is always bold
+            assert marks[ranked[np.argmin(highs[ranked])]] == BOLD
+        for i in range(n):
+            assert rankable[i] or marks[i] == UNMARKED
+            for j in range(n):
+                if marks[i] == marks[j] != UNMARKED:
+                    assert lows[i] <= highs[j] and lows[j] <= highs[i], (values, i, j)
+                if rankable[i] and rankable[j] and values[i] == values[j]:
+                    assert marks[i] == marks[j]
+
+
+# ---- run folders with known intervals ---------------------------------------------------------
+
+#: (folder, method, seed, {length: (rotation mean, low, high)}) written into metrics.json
+KNOWN = [("icp-p2p_seed", "icp-p2p", True, {8.0: (0.60, 0.55, 0.66), 48.0: (1.6, 1.3, 2.0)}),
+         ("icp-p2p_noseed", "icp-p2p", False, {8.0: (0.30, 0.25, 0.35), 48.0: (2.0, 1.8, 2.2)}),
+         ("gicp_seed", "gicp", True, {8.0: (0.33, 0.31, 0.36), 48.0: (0.95, 0.84, 1.08)}),
+         ("doppler", "doppler", None, {8.0: (0.38, 0.36, 0.41), 48.0: (0.79, 0.64, 0.96)}),
+         ("vgicp_seed", "vgicp", True, {8.0: (0.38, 0.37, 0.40), 48.0: (0.68, 0.59, 0.78)})]
+
+
+@pytest.fixture(scope="module")
+def results(tmp_path_factory):
+    root = tmp_path_factory.mktemp("forest")
+    gt = ground_truth(700)
+    stamps = np.arange(len(gt)) / 10.0
+    for k, (name, method, seed, known) in enumerate(KNOWN):
+        est = noisy_estimate(gt, NoiseModel(), seed=k)
+        frames = [FrameRecord(i, stamps[i], 1.0, 100, 50, 3, True) for i in range(len(gt))]
+        result = OdometryResult(stamps, est, frames)
+        ev = evaluate_run(Trajectory(stamps, gt), result, lengths_m=(8.0, 16.0, 48.0))
+        config = {"method": method, "seed": seed, "label": None,
+                  "sequence": {"name": "drive", "display_name": "drive",
+                               "sensor_class": "Semi-Dense 4D Radar"}}
+        metrics = {**ev.metrics, "sequence": "drive", "method": method, "seed": seed,
+                   "frames": len(gt), "status": "done"}
+        for rel in metrics["relative_error"]:  # the known figures and intervals
+            if rel["length_m"] in known:
+                value, low, high = known[rel["length_m"]]
+                rel.update(rot_deg_mean=value, rot_deg_mean_ci=[low, high])
+                rel["spread"] = {**rel["spread"], "n_independent": 8}
+        write_run(root / "drive" / name, result, ev.gt, config, metrics)
+    return root
+
+
+def _expected(length):
+    """The marks of the rotation column by the rule, one contender per method (icp-p2p's
+    better row only)."""
+    rows = {name: v[length] for name, _, _, v in KNOWN}
+    better = "icp-p2p_noseed" if rows["icp-p2p_noseed"][0] < rows["icp-p2p_seed"][0] \
+        else "icp-p2p_seed"
+    names = [n for n in rows if not n.startswith("icp-p2p") or n == better]
+    u = min(rows[n][2] for n in names)
+    bold = {n for n in names if rows[n][0] <= u}
+    rest = [n for n in names if n not in bold]
+    u2 = min(rows[n][2] for n in rest)
+    return u, u2, bold, {n for n in rest if rows[n][0] <= u2}
+
+
+def test_the_figure_is_written_and_draws_the_rule(results, tmp_path):
+    rows = table_rows(results)
+    written = plot_forest(rows, tmp_path)
+    names = sorted(p.name for p in written)
+    assert names == ["drive-rotation.pdf", "drive-rotation.png", "drive-translation.pdf",
+                     "drive-translation.png"]
+    assert all(p.stat().st_size > 1000 for p in written)
+    figures = dict(forest_panels(rows))
+    panels = figures["drive-rotation"]
+    assert [p.length_m for p in panels] == [8.0, 48.0]  # the shortest and the longest
+    folder_of = {e.run.dir.name: e for e in panels[0].entries}
+    assert list(folder_of) == [r.run.dir.name for r in rows]  # the table's order
+    fig = draw_forest(panels)
+    for ax, panel in zip(fig.axes, panels, strict=True):
+        u, u2, bold, underlined = _expected(panel.length_m)
+        lines = sorted(ln.get_xdata()[0] for ln in ax.get_lines()
+                       if ln.get_linestyle() != "None" and len(set(ln.get_xdata())) == 1)
+        assert lines == pytest.approx(sorted([u, u2]))  # the two U lines, where the rule says
+        labels = ax.get_yticklabels()
+        for label, entry in zip(labels, panel.entries, strict=True):
+            folder = entry.run.dir.name
+            assert (label.get_fontweight() == "bold") == (folder in bold), (panel.length_m,
+                                                                           folder)
+            assert label.get_text().startswith(r"$\underline") == (folder in underlined)
+    # 8 m: vgicp and doppler share 0.38; the rule marks them alike
+    at8 = {e.run.dir.name: e.mark for e in panels[0].entries}
+    assert at8["vgicp_seed"] == at8["doppler"]
+    # the no-seed ICP row is icp-p2p's better one at 8 m: the seed row is not ranked
+    assert at8["icp-p2p_noseed"] == BOLD and at8["icp-p2p_seed"] == UNMARKED
+
+
+def test_a_diverged_run_is_named_not_ranked(results, tmp_path):
+    bad = results / "drive" / "gicp_seed"
+    data = json.loads((bad / "metrics.json").read_text())
+    (bad / "metrics.json").write_text(json.dumps({**data, "diverged": True}))
+    try:
+        panels = dict(forest_panels(table_rows(results)))["drive-rotation"]
+        gicp = next(e for e in panels[0].entries if e.run.method == "gicp")
+        assert gicp.status == "Div." and gicp.mark == UNMARKED
+        fig = draw_forest(panels)
+        assert any(t.get_text() == "Div." for t in fig.axes[0].texts)
+    finally:
+        (bad / "metrics.json").write_text(json.dumps(data))
+
+
+def test_the_legend_is_below_and_nothing_runs_off_the_figure(results):
+    panels = dict(forest_panels(table_rows(results)))["drive-translation"]
+    for p in panels:  # a long sequence name, as real ones are
+        p.sequence = "Baker-Barry Tunnel (Vehicles) (synthetic), GT calibrated on frames 0-124"
+    fig = draw_forest(panels)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    page = fig.bbox
+    assert fig.legends
+    for ax in fig.axes:
+        assert ax.get_legend() is None
+        for legend in fig.legends:
+            assert not ax.get_window_extent(renderer).overlaps(legend.get_window_extent(renderer))
+        for text in (ax.title, *ax.get_yticklabels()):
+            box = text.get_window_extent(renderer)
+            assert box.x0 >= page.x0 - 1 and box.x1 <= page.x1 + 1, text.get_text()
