@@ -243,13 +243,16 @@ def test_calibrate_write_never_overwrites_its_input_or_another_file(
     store = shutil.copy(SAMPLE_STORE, tmp_path / "S.h5")
     before = digest(store)
     args = ["calibrate", store, "--frames", "30", "--bootstrap", "10"]
-    code, text = bench_main(monkeypatch, capsys, *args, "--write", store)
-    assert code == 2 and "is an input of this command" in text, text
+    for extra in ([], ["--force"]):
+        code, text = bench_main(monkeypatch, capsys, *args, "--write", store, *extra)
+        assert code == 2 and "never writes onto its own input" in text, text
     assert digest(store) == before
     notes = tmp_path / "notes.h5"
     notes.write_text("mine")
     code, text = bench_main(monkeypatch, capsys, *args, "--write", notes)
-    assert code == 2 and "not a store this command wrote" in text, text
+    assert code == 2 and "exists; give another path, or --force" in text, text
+    code, text = bench_main(monkeypatch, capsys, *args, "--write", notes, "--force")
+    assert code == 2 and "not a store bench calibrate wrote" in text, text
     assert notes.read_text() == "mine"
 
 
