@@ -267,6 +267,10 @@ def test_a_store_without_doppler_and_an_out_without_extension_read_back_as_print
     plain = tmp_path / "plain.h5"
     res = CliRunner().invoke(app, ["convert", "rosbag", str(bag), "--out", str(plain)])
     assert res.exit_code == 0, res.output
+    named = tmp_path / "named.h5"  # an option given wins over the description
+    res = CliRunner().invoke(app, ["convert", "rosbag", str(bag), "--name", "other",
+                                   "--out", str(named)])
+    assert res.exit_code == 0 and StoreSequence(named).name == "other", res.output
     for path in (tmp_path / "radar_run.h5", plain):
         back = StoreSequence(path)
         assert not back.has_doppler and back.name == "radar_run"

@@ -104,3 +104,23 @@ def test_every_public_layout_of_the_real_sample_reads_the_road_below(frames, tmp
         else:
             assert -0.8 < z["dominant_layer_z_m"] < -0.4, (name, z)
             assert "road below the sensor" in row and "mirrored" not in row, (name, row)
+
+
+def test_the_estimate_is_per_frame_not_pooled_points(frames):
+    """The ground is the height most frames agree on, not the densest layer of all their
+    points pooled: the rolled sample with its frames whose densest layer is +1.4 m (original
+    frames 200-229) 30 times as dense (each point repeated, as a much denser sensor mode would
+    give) still reads the road below; pooled, those frames' points outvote the road."""
+    from loaders.doppler_check import _densest_layer
+
+    stamps, points, doppler, _ = frames
+    dense = [np.tile(p, (30, 1)) if 10 <= k < 40 else p for k, p in enumerate(points)]
+    seq = MemorySequence("dense", SensorInfo("radar", PERIOD_S),
+                         [Scan(t, p, np.zeros(len(p))) for t, p in zip(stamps, dense,
+                                                                          strict=True)],
+                         None, {})
+    idx = np.unique(np.linspace(0, 249, 60).round().astype(int))
+    near = [dense[i][np.hypot(dense[i][:, 0], dense[i][:, 1]) <= 30, 2] for i in idx]
+    assert _densest_layer(np.concatenate(near)) > 0.5  # pooling would call it mirrored
+    z = low_points_median_z(seq)
+    assert -0.8 < z["dominant_layer_z_m"] < -0.4 and "road below" in z["verdict"]
