@@ -379,3 +379,22 @@ def test_export_never_writes_onto_its_store_nor_deletes_a_folders_other_files(
     bag = export_store(store, "mcap", tmp_path / "m").path
     export_store(store, "mcap", bag, force=True)  # its own bag: replaced
     assert (bag / "metadata.yaml").exists()
+
+
+def test_a_doppler_kind_the_loader_does_not_take_is_noted_beside_a_command_that_runs(
+        tmp_path, monkeypatch):
+    """GT-reconstructed Doppler: the note is its own line, the printed command stays one a
+    shell runs (no remark inside it) and reads the bag back (as radial)."""
+    from dataclasses import replace as dc_replace
+
+    seq = radar_sequence()
+    seq.sensor = dc_replace(seq.sensor, doppler_kind="gt-reconstructed")
+    store = write_store(seq, tmp_path / "rec.h5")
+    res = CliRunner().invoke(app, ["export", str(store), "--format", "ros1", "--out",
+                                   str(tmp_path / "rec")])
+    assert res.exit_code == 0, res.output
+    assert "note: this store's Doppler is gt-reconstructed" in res.output
+    (line,) = [x for x in res.output.splitlines() if x.startswith("read it back with: ")]
+    assert "(" not in line.split("--T-body-sensor")[0] and not line.rstrip().endswith(")")
+    _run_printed(res.output, tmp_path, monkeypatch)
+    assert StoreSequence(tmp_path / "radar_run.h5").sensor.doppler_kind == "radial"

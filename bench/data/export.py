@@ -247,10 +247,17 @@ def reimport_command(summary: ExportSummary, seq_name: str, sensor_kind: str, mo
     text = (f"bench convert rosbag {quote(str(summary.path))} --topic {POINTS_TOPIC}{gt} "
             f"--T-body-sensor '{ext}' --sensor-kind {sensor_kind}{model_opt}{doppler} "
             f"--name {quote(seq_name)} --out {quote(seq_name + '.h5')}")
-    if has_doppler and doppler_kind not in ("radial", "ego-compensated"):
-        text += (f" (this store's Doppler is {doppler_kind}, which the rosbag loader does not "
-                 "take: results from its bag are not independent of the ground truth)")
     return text
+
+
+def doppler_kind_note(summary: ExportSummary, doppler_kind: str) -> str | None:
+    """A line said beside the read-back command (never inside it: the command stays one a
+    shell runs) when the store's Doppler kind is one the rosbag loader does not take."""
+    if "doppler" not in summary.fields or doppler_kind in ("radial", "ego-compensated"):
+        return None
+    return (f"this store's Doppler is {doppler_kind}, which the rosbag loader does not take "
+            "(read back as radial): results from its bag are not independent of the ground "
+            "truth")
 
 
 def export_command(console, store: Path, fmt: str, out: Path | None, force: bool) -> None:
@@ -261,7 +268,7 @@ def export_command(console, store: Path, fmt: str, out: Path | None, force: bool
         back = reimport_command(summary, seq.name, seq.sensor.kind, seq.sensor.model,
                                 seq.sensor.doppler_kind, seq.sensor.T_body_sensor)
     finally:
-        first = float(seq.stamps[0])
+        first, kind = float(seq.stamps[0]), seq.sensor.doppler_kind
         seq.close()
     doppler = (DOPPLER_SIGN if "doppler" in summary.fields else
                "no Doppler field: the store has no Doppler (methods that need it cannot run "
@@ -271,7 +278,7 @@ def export_command(console, store: Path, fmt: str, out: Path | None, force: bool
         f"(fields {' '.join(['x', 'y', 'z', *summary.fields])}), {summary.gt_poses} "
         f"ground-truth poses on {GT_TOPIC}, the extrinsic on {TF_TOPIC}, the description on "
         f"{INFO_TOPIC}; {doppler}", markup=False)
-    note = zero_clock_note(first)
-    if note:
-        console.print(f"note: {note}", markup=False)
+    for note in (zero_clock_note(first), doppler_kind_note(summary, kind)):
+        if note:
+            console.print(f"note: {note}", markup=False)
     console.print(f"read it back with: {back}", markup=False)
