@@ -87,15 +87,15 @@ def inspect(
     path: Annotated[Path, typer.Argument(help="a store (.h5) or a NumPy frame folder")],
     period: Annotated[float | None, typer.Option(help="scan period [s] for frame folders")] = None,
     plot: Annotated[Path | None, typer.Option(
-        help="PNG of the speed from Doppler against GT speed (default: "
-             "results/inspect/NAME_speed.png; '-' for none)")] = None,
+        help="PNG of the speed from Doppler against GT speed (default: NAME_speed.png next "
+             "to the store or folder; '-' for none)")] = None,
 ) -> None:
     """Print frames, points per frame, period, duration, GT figures, a Doppler-sign check and
     a sensor-to-GT rotation check; plot the speed from Doppler against the GT speed."""
-    from bench.data.inspection import inspect_path
+    from bench.data.inspection import default_plot, inspect_path
 
     if plot is None:
-        plot = Path("results/inspect") / f"{path.stem}_speed.png"
+        plot = default_plot(path)
     inspect_path(path, period, console, None if str(plot) == "-" else plot)
 
 

@@ -231,7 +231,7 @@ class ColoradarSequence(OpensFromOptions, Sequence):
         self.doppler_sign = float(opts.doppler_sign)
         self.name = opts.name or self.root.name
         self.sensor = SensorInfo("radar", median_period(self._stamps, NOMINAL_PERIOD_S), T,
-                                 "TI AWR1843 single-chip (ColoRadar)")
+                                 "radar-sparse (TI AWR1843 single-chip, ColoRadar)")
         self.provenance = {
             "loader": "coloradar",
             "root": str(self.root),

@@ -143,37 +143,54 @@ def _densest_layer(z: np.ndarray) -> float:
     return float(np.median(z[(z >= edges[k]) & (z <= edges[k + 1])]))
 
 
-def low_points_median_z(sequence: Sequence, frames: int = 50, quantile: float = 0.1,
+#: the height check samples this many frames evenly across the whole sequence: a stretch of
+#: frames can have its densest near layer above the sensor (the real NTU4DRadLM sample's frames
+#: 200-229: +1.4 m, a wall or vehicle beside the road), so no check reads only the first frames
+HEIGHT_FRAMES = 60
+#: a sampled frame with fewer near-field points than this gives no layer of its own
+MIN_FRAME_POINTS = 20
+
+
+def low_points_median_z(sequence: Sequence, frames: int = HEIGHT_FRAMES, quantile: float = 0.1,
                         near_field_m: float = NEAR_FIELD_M) -> dict:
-    """Elevation-sign check over the first ``frames`` scans, on the near field: the points
-    within ``near_field_m`` (horizontal range) of the sensor, where the densest 0.25 m height
-    layer is the road surface (with fewer than ``MIN_NEAR_POINTS`` there, every point, said in
-    ``basis``). Reported: that layer's z, the median z of the lowest ``quantile`` of the points
-    and the share of points above the sensor. With the right ``elevation_sign`` the road comes
-    out BELOW the sensor (about minus the mounting height, e.g. -0.5 m for a bumper radar);
-    mirrored, it comes out above. The densest layer over all ranges is reported beside it
-    (``all_ranges_layer_z_m``): far away, buildings and trees can outnumber the road."""
-    pts = []
-    for i in range(min(frames, len(sequence))):
-        pts.append(sequence.scan(i).points)
-    if not pts:
+    """Elevation-sign check on up to ``frames`` scans sampled evenly across the whole sequence,
+    on the near field: the points within ``near_field_m`` (horizontal range) of the sensor
+    (with fewer than ``MIN_NEAR_POINTS`` there over the sampled frames, every point, said in
+    ``basis``). Each sampled frame gives the z of its densest 0.25 m layer (the road surface,
+    mostly); the ground estimate (``dominant_layer_z_m``) is the height most frames agree on:
+    the densest layer of those per-frame heights, so a stretch of frames where a wall or a
+    vehicle outnumbers the road does not decide it. With the right ``elevation_sign`` the road
+    comes out BELOW the sensor (about minus the mounting height, e.g. -0.5 m for a bumper
+    radar); mirrored, it comes out above. Also reported: the share of frames whose own layer is
+    below the sensor, the median z of the lowest ``quantile`` of the points, the share of
+    points above the sensor and the densest layer of every point over all ranges
+    (``all_ranges_layer_z_m``: far away, buildings and trees can outnumber the road)."""
+    n = len(sequence)
+    if n == 0:
         raise DataError(f"{sequence.name}: no frames to check")
-    p = np.concatenate(pts)
-    z = p[:, 2]
-    near = np.hypot(p[:, 0], p[:, 1]) <= near_field_m
-    if near.sum() >= MIN_NEAR_POINTS:
-        zn, basis = z[near], f"points within {near_field_m:g} m"
+    idx = np.unique(np.linspace(0, n - 1, min(frames, n)).round().astype(int))
+    pts = [np.asarray(sequence.scan(int(i)).points, dtype=np.float64) for i in idx]
+    near = [np.hypot(p[:, 0], p[:, 1]) <= near_field_m for p in pts]
+    if sum(int(k.sum()) for k in near) >= MIN_NEAR_POINTS:
+        zs, basis = [p[k, 2] for p, k in zip(pts, near, strict=True)], \
+            f"points within {near_field_m:g} m"
     else:
-        zn, basis = z, (f"all points (only {int(near.sum())} within {near_field_m:g} m, fewer "
-                        f"than {MIN_NEAR_POINTS})")
+        zs = [p[:, 2] for p in pts]
+        basis = (f"all points (only {sum(int(k.sum()) for k in near)} within "
+                 f"{near_field_m:g} m, fewer than {MIN_NEAR_POINTS})")
+    zn = np.concatenate(zs)
+    per_frame = np.array([_densest_layer(z) for z in zs if len(z) >= MIN_FRAME_POINTS])
+    layer = _densest_layer(per_frame) if len(per_frame) else _densest_layer(zn)
+    z = np.concatenate([p[:, 2] for p in pts])
     low = zn[zn <= np.quantile(zn, quantile)]
-    layer = _densest_layer(zn)
     return {
-        "frames": min(frames, len(sequence)),
+        "frames": int(len(idx)),
+        "frames_with_layer": int(len(per_frame)),
         "points": int(len(zn)),
         "basis": basis,
         "low_points_median_z_m": float(np.median(low)),
         "dominant_layer_z_m": layer,
+        "frames_below_sensor": float((per_frame < 0).mean()) if len(per_frame) else float("nan"),
         "all_ranges_layer_z_m": _densest_layer(z),
         "median_z_m": float(np.median(zn)),
         "share_above_sensor": float((zn > 0).mean()),

@@ -254,7 +254,7 @@ class HeliprSequence(OpensFromOptions, Sequence):
         self.name = opts.name or self.root.name
         kind = "gt-reconstructed" if opts.reconstruct_doppler_from_gt else "ego-compensated"
         self.sensor = SensorInfo("lidar", median_period(self._stamps, NOMINAL_PERIOD_S), T,
-                                 "Aeva Aeries II FMCW (HeLiPR)", doppler_kind=kind)
+                                 "lidar-fmcw (Aeva Aeries II, HeLiPR)", doppler_kind=kind)
 
     def __len__(self) -> int:
         return len(self._keep)

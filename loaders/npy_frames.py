@@ -39,9 +39,14 @@ def find_frames(folder: Path) -> tuple[Path, list[Path]]:
 
 
 def find_tum(folder: Path) -> Path | None:
-    """The single TUM-like .txt file in ``folder``, if there is exactly one."""
+    """The single TUM-like .txt file in ``folder`` (None when there is none); several: a
+    DataError naming them and asking for ``--gt`` (never "no ground truth found")."""
     candidates = sorted(folder.glob("*.txt"))
-    return candidates[0] if len(candidates) == 1 else None
+    if len(candidates) > 1:
+        raise DataError(f"{folder}: {len(candidates)} .txt files beside the frames "
+                        f"({', '.join(p.name for p in candidates)}); name the ground truth "
+                        "with --gt FILE (option gt)")
+    return candidates[0] if candidates else None
 
 
 class Options(LoaderOptions):

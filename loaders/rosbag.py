@@ -20,6 +20,11 @@
   by ``header.stamp``), giving ``T_world_body``; ``T_body_sensor`` (the sensor in the GT body
   frame, default identity) moves it to the sensor: ``T_world_sensor = T_world_body @
   T_body_sensor``. A gap in the GT longer than ``max_gap_s`` is never interpolated across.
+- A bag ``bench export`` wrote carries its description (``DESCRIPTION_TOPIC``, JSON): the
+  options not given take its values (scan and GT topics, extrinsic, sensor kind and model,
+  Doppler kind, ``doppler_field none`` when it has no Doppler, the sequence name), so
+  ``bench convert rosbag BAG --out S.h5`` alone reads it back to the store it came from.
+- ``doppler_field none``: the scans carry no Doppler (``x y z`` and other fields only).
 - Streaming: an index pass reads only the stamps; ``scan(i)`` then reads one message (ROS1: a
   file seek, ``loaders.ros1.BagTopic``; ROS2: a read positioned by record time, continuing the
   previous read when frames are taken in order), so memory holds a few frames at most.
@@ -27,7 +32,9 @@
 
 from __future__ import annotations
 
+import json
 import struct
+import warnings
 from pathlib import Path
 from typing import Literal
 
@@ -51,13 +58,20 @@ CLOUD_TYPES = (POINTCLOUD2, POINTCLOUD)
 POSE_TYPES = ("nav_msgs/msg/Odometry", "geometry_msgs/msg/PoseStamped",
               "geometry_msgs/msg/PoseWithCovarianceStamped")
 DEFAULT_PERIOD_S = 0.1
+#: the topic of the JSON description ``bench export`` writes into every bag
+DESCRIPTION_TOPIC = "/doppler_bench/description"
+#: ``doppler_field`` of scans without Doppler
+NO_DOPPLER = "none"
+#: the body frame a pose topic is of when the description names none
+BODY_FRAME = "base_link"
 
 
 class Options(LoaderOptions):
     topic: str | None = Field(None, description="PointCloud2 / PointCloud topic of the scans "
                               "(default: the bag's only such topic)")
     doppler_field: str = Field("doppler", description="name of the Doppler field (PointCloud2) "
-                               "or channel (PointCloud) [m/s]")
+                               f"or channel (PointCloud) [m/s]; '{NO_DOPPLER}': the scans have "
+                               "no Doppler")
     doppler_sign: float = Field(
         1.0, description="+1 when the field is positive for a receding point, -1 when positive "
         "means approaching")
@@ -287,6 +301,58 @@ def read_gt_topic(paths: list[Path], topic: str, what: str = "ground-truth") -> 
                       T_from_tum(np.asarray(xyz)[order], q / norms[:, None]))
 
 
+# -- the description of a bag bench export wrote ----------------------------------------------
+
+def read_description(paths: list[Path]) -> dict | None:
+    """The JSON object on ``DESCRIPTION_TOPIC`` (its first message), None when the bag has no
+    such topic; a description that is not a JSON object is ignored with a warning."""
+    reader = _any_reader(paths)
+    try:
+        conns = [c for c in reader.connections if c.topic == DESCRIPTION_TOPIC]
+        if not conns:
+            return None
+        for conn, _, raw in reader.messages(connections=conns):
+            text = getattr(reader.deserialize(raw, conn.msgtype), "data", "")
+            break
+        else:
+            return None
+    finally:
+        reader.close()
+    try:
+        found = json.loads(text)
+    except (TypeError, ValueError):
+        found = None
+    if not isinstance(found, dict):
+        warnings.warn(f"{paths[0]}: {DESCRIPTION_TOPIC} is not a JSON object; ignored",
+                      stacklevel=3)
+        return None
+    return found
+
+
+def described_options(o: Options, d: dict, topics: dict[str, str]) -> Options:
+    """``o`` with every option not given taken from the bag's description ``d``."""
+    values: dict = {}
+    if d.get("points_topic") in topics:
+        values["topic"] = d["points_topic"]
+    if d.get("ground_truth_topic") in topics and "gt" not in o.model_fields_set:
+        values["gt_topic"] = d["ground_truth_topic"]
+    T = d.get("T_body_sensor")
+    if isinstance(T, list) and np.asarray(T).shape == (4, 4):
+        values["T_body_sensor"] = " ".join(f"{float(v):.17g}" for v in np.ravel(T))
+    if d.get("sensor_kind") in ("radar", "lidar"):
+        values["sensor_kind"] = d["sensor_kind"]
+    if isinstance(d.get("sensor_model"), str):
+        values["model"] = d["sensor_model"]
+    if d.get("doppler_kind") in ("radial", "ego-compensated"):
+        values["doppler_kind"] = d["doppler_kind"]
+    if isinstance(d.get("fields"), list):
+        values["doppler_field"] = "doppler" if "doppler" in d["fields"] else NO_DOPPLER
+    if isinstance(d.get("sequence"), str) and d["sequence"]:
+        values["name"] = d["sequence"]
+    values = {k: v for k, v in values.items() if k not in o.model_fields_set}
+    return _options(o, values) if values else o
+
+
 # -- the sequence ------------------------------------------------------------------------------
 
 def _options(options: Options | None, overrides: dict) -> Options:
@@ -294,7 +360,8 @@ def _options(options: Options | None, overrides: dict) -> Options:
 
     try:
         o = options or Options()
-        return Options.model_validate({**o.model_dump(), **overrides}) if overrides else o
+        return Options.model_validate({**o.model_dump(exclude_unset=True), **overrides}) \
+            if overrides else o
     except ValidationError as err:
         raise DataError(f"rosbag options: {err}") from None
 
@@ -310,7 +377,7 @@ class RosbagSequence(Sequence, OpensFromOptions):
 
     @classmethod
     def open(cls, paths: list[Path], options: LoaderOptions) -> RosbagSequence:
-        return cls(paths, Options.model_validate(options.model_dump()))
+        return cls(paths, Options.model_validate(options.model_dump(exclude_unset=True)))
 
     def __init__(self, bags, options: Options | None = None, **overrides) -> None:
         o = _options(options, overrides)
@@ -326,6 +393,9 @@ class RosbagSequence(Sequence, OpensFromOptions):
         if not self.ros1 and len(paths) != 1:
             raise DataError(f"{', '.join(map(str, paths))}: give several ROS1 .bag files or "
                             "exactly one ROS2 bag")
+        description = read_description(paths)
+        o = self.options = described_options(o, description, bag_topics(paths)) \
+            if description else o
         if o.gt is not None and o.gt_topic is not None:
             raise DataError("give the ground truth either as a file (gt) or as a topic "
                             "(gt_topic), not both")
@@ -361,6 +431,7 @@ class RosbagSequence(Sequence, OpensFromOptions):
             "repeated_stamps_dropped": dropped,
             "T_body_sensor": T.tolist(),
             "nan_points_dropped": 0,
+            "description": DESCRIPTION_TOPIC if description else None,
         }
         self.ground_truth = None
         gt, gt_label, mode = self._ground_truth(stamps[order])
@@ -436,12 +507,13 @@ class RosbagSequence(Sequence, OpensFromOptions):
         if missing:
             raise DataError(f"{where}: no {', '.join(missing)} field(s); fields are "
                             f"{' '.join(cols)}")
-        if dname not in cols:
+        if dname != NO_DOPPLER and dname not in cols:
             raise DataError(f"{where}: no Doppler field {dname!r}; the {self.msgtype} has "
                             f"{' '.join(cols)} (name it with --doppler-field, option "
-                            "doppler_field)")
+                            f"doppler_field; --doppler-field {NO_DOPPLER}: scans without Doppler)")
         points = np.column_stack([cols["x"], cols["y"], cols["z"]]).astype(np.float64)
-        doppler = cols[dname].astype(np.float64) * self.options.doppler_sign
+        doppler = None if dname == NO_DOPPLER else \
+            cols[dname].astype(np.float64) * self.options.doppler_sign
         fields = {}
         for name, values in cols.items():
             if name in ("x", "y", "z", dname):

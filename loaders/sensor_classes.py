@@ -13,7 +13,11 @@ CLASS_ORDER = (SPARSE_RADAR, SEMI_DENSE_RADAR, DENSE_LIDAR)
 #: sensor model -> class: the synthetic sensors' names and the real loaders' models, which
 #: name the device after the class ("radar-semidense (Oculii Eagle)", "lidar-fmcw (CARLA)")
 BY_MODEL = {"radar-sparse": SPARSE_RADAR, "radar-semidense": SEMI_DENSE_RADAR,
-            "lidar-dense": DENSE_LIDAR, "lidar-fmcw": DENSE_LIDAR}
+            "lidar-dense": DENSE_LIDAR, "lidar-fmcw": DENSE_LIDAR,
+            # the device names of stores converted before their models named the class
+            # (View-of-Delft, ColoRadar, HeLiPR): the class `bench datasets` states for them
+            "ZF FRGen21": SPARSE_RADAR, "TI AWR1843 single-chip": SPARSE_RADAR,
+            "Aeva Aeries II FMCW": DENSE_LIDAR}
 
 
 def sensor_class(sensor: SensorInfo) -> str:

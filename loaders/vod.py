@@ -240,8 +240,8 @@ class VodSequence(OpensFromOptions, Sequence):
         self.name = opts.name or f"vod_{self._files[0].stem}-{self._files[-1].stem}"
         self.doppler_column = opts.doppler
         kind = "radial" if opts.doppler == "v_r" else "ego-compensated"
-        self.sensor = SensorInfo("radar", opts.period, T_camera_radar, "ZF FRGen21 (VoD)",
-                                 doppler_kind=kind)
+        self.sensor = SensorInfo("radar", opts.period, T_camera_radar,
+                                 "radar-sparse (ZF FRGen21, VoD)", doppler_kind=kind)
         self.provenance = {
             "loader": "vod",
             "root": str(self.root),
@@ -252,6 +252,7 @@ class VodSequence(OpensFromOptions, Sequence):
                             "option period)",
             "period_s": opts.period,
             "world": f"{opts.world} ({key})",
+            "body_frame": "camera",
             "T_body_sensor": "T_camera_radar from calib/NNNNN.txt Tr_velo_to_cam; GT = "
                              f"T_{opts.world}_camera @ T_camera_radar",
             "doppler_column": opts.doppler,

@@ -255,7 +255,8 @@ def build_cases(tmp: Path) -> dict[str, Case]:
 
 def run_bench(args: list[str]) -> subprocess.CompletedProcess:
     env = {**os.environ, "COLUMNS": "200", "OMP_NUM_THREADS": "1"}
-    # in the session's temporary working folder: default outputs (results/inspect/...) go there
+    # in the session's temporary working folder: default outputs (results/...) go there; the
+    # inspect plot goes next to its store (in the temporary folder too)
     return subprocess.run([*BENCH, *args], capture_output=True, text=True, cwd=Path.cwd(),
                           env=env, timeout=120)
 

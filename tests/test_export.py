@@ -7,6 +7,7 @@ import tracemalloc
 
 import numpy as np
 import pytest
+from helpers_cli import bench_main
 from typer.testing import CliRunner
 
 from bench.cli import app
@@ -33,18 +34,19 @@ T_BS = parse_extrinsic(EXTRINSIC)
 
 
 def radar_sequence(frames: int = 12, points: int = 300, t0: float = 1654232000.25,
-                   gt_every: int = 1) -> MemorySequence:
+                   gt_every: int = 1, doppler: bool = True,
+                   provenance: dict | None = None) -> MemorySequence:
     """A radar-like sequence with an extrinsic, intensity and power fields, epoch stamps, GT on
-    every ``gt_every``-th scan."""
+    every ``gt_every``-th scan (without Doppler when not ``doppler``)."""
     base = constant_twist_sequence(n_frames=frames, n_points=points, max_range_m=70, seed=3)
     rng = np.random.default_rng(1)
-    scans = [Scan(t0 + s.stamp, s.points, s.doppler,
+    scans = [Scan(t0 + s.stamp, s.points, s.doppler if doppler else None,
                   {"intensity": rng.uniform(0, 50, len(s)), "power": s.fields["power"]})
              for s in base]
     keep = np.arange(frames)[::gt_every]
     gt = Trajectory(t0 + base.ground_truth.stamps[keep], base.ground_truth.poses[keep])
     return MemorySequence("radar_run", SensorInfo("radar", 0.1, T_BS, "radar-semidense"),
-                          scans, gt, {"loader": "test"})
+                          scans, gt, provenance or {"loader": "test"})
 
 
 @pytest.fixture(scope="module")
@@ -138,7 +140,7 @@ def test_scans_without_ground_truth_stay_unscored_after_the_round_trip(tmp_path)
 def test_existing_output_is_refused_without_force_and_bad_format(store, tmp_path):
     out = tmp_path / "x.bag"
     export_store(store, "ros1", out)
-    with pytest.raises(DataError, match="exists; give another --out or --force"):
+    with pytest.raises(DataError, match=r"exists \(a ROS1 bag\); give another --out or --force"):
         export_store(store, "ros1", out)
     first = out.stat().st_mtime_ns
     export_store(store, "ros1", out, force=True)
@@ -230,3 +232,169 @@ def test_the_vendored_real_sample_round_trips(tmp_path):
         np.testing.assert_array_equal(b.doppler, a.doppler)
     np.testing.assert_allclose(back.ground_truth.poses, src.ground_truth.poses, atol=1e-9)
     np.testing.assert_allclose(back.ground_truth.stamps, src.ground_truth.stamps, atol=1e-6)
+
+
+def _run_printed(output: str, cwd, monkeypatch) -> None:
+    """Run the `bench convert rosbag ...` command `bench export` printed, as a shell would
+    split it, in ``cwd``."""
+    import shlex
+
+    (line,) = [x for x in output.splitlines() if x.startswith("read it back with: ")]
+    args = shlex.split(line.removeprefix("read it back with: "))
+    assert args[:3] == ["bench", "convert", "rosbag"]
+    monkeypatch.chdir(cwd)
+    res = CliRunner().invoke(app, args[1:])
+    assert res.exit_code == 0, res.output
+
+
+@pytest.mark.parametrize("fmt", ["ros1", "ros2", "mcap"])
+def test_a_store_without_doppler_and_an_out_without_extension_read_back_as_printed(
+        tmp_path, monkeypatch, fmt):
+    """A Doppler-less store exported to ``--out NAME`` (no extension): a ROS1 bag gets
+    ``.bag``; the message lists x y z and the stored fields only and says there is no Doppler
+    (no Doppler sign); the printed read-back command runs and gives the same store (no
+    Doppler), and so does plain `bench convert rosbag BAG --out S.h5` (the description)."""
+    store = write_store(radar_sequence(doppler=False), tmp_path / "nodop.h5")
+    res = CliRunner().invoke(app, ["export", str(store), "--format", fmt, "--out",
+                                   str(tmp_path / "NAME")])
+    assert res.exit_code == 0, res.output
+    bag = tmp_path / ("NAME.bag" if fmt == "ros1" else "NAME")
+    assert bag.exists() and not (fmt == "ros1" and (tmp_path / "NAME").exists())
+    assert "(fields x y z intensity power)" in res.output
+    assert "no Doppler field" in res.output and "recedes" not in res.output
+    _run_printed(res.output, tmp_path, monkeypatch)
+    src = StoreSequence(store)
+    plain = tmp_path / "plain.h5"
+    res = CliRunner().invoke(app, ["convert", "rosbag", str(bag), "--out", str(plain)])
+    assert res.exit_code == 0, res.output
+    named = tmp_path / "named.h5"  # an option given wins over the description
+    res = CliRunner().invoke(app, ["convert", "rosbag", str(bag), "--name", "other",
+                                   "--out", str(named)])
+    assert res.exit_code == 0 and StoreSequence(named).name == "other", res.output
+    for path in (tmp_path / "radar_run.h5", plain):
+        back = StoreSequence(path)
+        assert not back.has_doppler and back.name == "radar_run"
+        assert sorted(back.fields) == ["intensity", "power"]
+        np.testing.assert_array_equal(back.scan(5).points, src.scan(5).points)
+        np.testing.assert_allclose(back.stamps, src.stamps, rtol=0, atol=1e-6)
+        np.testing.assert_allclose(back.ground_truth.poses, src.ground_truth.poses, atol=1e-9)
+        np.testing.assert_allclose(back.sensor.T_body_sensor, T_BS, atol=1e-12)
+
+
+@pytest.mark.parametrize("fmt", ["ros1", "mcap"])
+def test_the_printed_command_of_a_doppler_store_runs_and_plain_convert_agrees(
+        store, tmp_path, monkeypatch, fmt):
+    res = CliRunner().invoke(app, ["export", str(store), "--format", fmt, "--out",
+                                   str(tmp_path / "b")])
+    assert res.exit_code == 0, res.output
+    assert "positive when the point recedes" in res.output
+    _run_printed(res.output, tmp_path, monkeypatch)
+    bag = tmp_path / ("b.bag" if fmt == "ros1" else "b")
+    assert CliRunner().invoke(app, ["convert", "rosbag", str(bag), "--out", "plain.h5"]
+                              ).exit_code == 0
+    src = StoreSequence(store)
+    for path in (tmp_path / "radar_run.h5", tmp_path / "plain.h5"):
+        back = StoreSequence(path)
+        assert (back.sensor.model, back.sensor.doppler_kind) == ("radar-semidense", "radial")
+        np.testing.assert_array_equal(back.scan(3).doppler, src.scan(3).doppler)
+        np.testing.assert_allclose(back.ground_truth.poses, src.ground_truth.poses, atol=1e-9)
+
+
+def test_stamps_are_rounded_to_the_nanosecond_not_truncated(tmp_path):
+    """Stamps whose exact binary value lies more than half a nanosecond above a whole
+    nanosecond (x.0000000017 s: truncating gives ...001, rounding ...002): the header stamps
+    and record times are the nearest nanosecond of the exact value, compared to 1 ns."""
+    from fractions import Fraction
+
+    from rosbags.highlevel import AnyReader
+
+    base = radar_sequence(frames=12, t0=0.0)
+    stamps = 5.0 + 0.1 * np.arange(12) + np.array([1.7e-9, 2.6e-9, 0.6e-9, 7.9e-9] * 3)
+    scans = [Scan(t, s.points, s.doppler, s.fields) for t, s in zip(stamps, base, strict=True)]
+    seq = MemorySequence("ns", base.sensor, scans, Trajectory(stamps, base.ground_truth.poses))
+    out = export_store(write_store(seq, tmp_path / "ns.h5"), "ros1", tmp_path / "ns.bag").path
+    want = [int(round(Fraction(float(t)) * 10**9)) for t in stamps]
+    assert want != [int(Fraction(float(t)) * 10**9) for t in stamps]  # truncation differs
+    with AnyReader([out]) as reader:
+        conns = [c for c in reader.connections if c.topic == POINTS_TOPIC]
+        got, logged = [], []
+        for c, t, raw in reader.messages(connections=conns):
+            st = reader.deserialize(raw, c.msgtype).header.stamp
+            got.append(st.sec * 10**9 + st.nanosec)
+            logged.append(t)
+    assert got == want and logged == want
+
+
+def test_a_clock_from_zero_is_kept_and_said_and_a_vod_body_is_the_camera(
+        tmp_path, monkeypatch, capsys):
+    """A store stamped from 0 s (View-of-Delft: index x period): the bag keeps the store's
+    clock (a trajectory made from the bag scores against the store unchanged) and the export
+    says that ROS may read 0 s as no time; a View-of-Delft store's GT is of the camera, named
+    so on /ground_truth, /tf_static and in the description."""
+    seq = radar_sequence(t0=0.0, provenance={"loader": "vod"})
+    store = write_store(seq, tmp_path / "vod.h5")
+    code, text = bench_main(monkeypatch, capsys, "export", store, "--out", tmp_path / "vod_mcap")
+    assert code == 0 and "clock starts at 0 s" in text and "'no time'" in text, text
+    out = tmp_path / "vod_mcap"
+    clouds = _topic_messages(out, POINTS_TOPIC)
+    assert (clouds[0].header.stamp.sec, clouds[0].header.stamp.nanosec) == (0, 0)
+    (info,) = _topic_messages(out, INFO_TOPIC)
+    assert json.loads(info.data)["frames"]["body"] == "camera"
+    assert _topic_messages(out, GT_TOPIC)[0].child_frame_id == "camera"
+    (tf,) = _topic_messages(out, TF_TOPIC)
+    assert tf.transforms[0].header.frame_id == "camera"
+    back = RosbagSequence([out])
+    np.testing.assert_allclose(back.stamps, StoreSequence(store).stamps, rtol=0, atol=1e-9)
+    # a store with an epoch clock says nothing of it
+    code, text = bench_main(monkeypatch, capsys, "export", write_store(
+        radar_sequence(), tmp_path / "epoch.h5"), "--out", tmp_path / "epoch_mcap")
+    assert code == 0 and "clock starts" not in text
+
+
+def test_export_never_writes_onto_its_store_nor_deletes_a_folders_other_files(
+        store, tmp_path, monkeypatch, capsys):
+    """--out the store itself, or a folder holding it: refused with or without --force; a
+    folder of other files: refused even with --force, every file kept; a bag the export made:
+    replaced with --force."""
+    for out, fmt in ((store, "mcap"), (store, "ros2"), (store.parent, "mcap")):
+        for force in (False, True):
+            with pytest.raises(DataError, match="input of this command"):
+                export_store(store, fmt, out, force=force)
+    assert StoreSequence(store).name == "radar_run"
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    (folder / "notes.txt").write_text("keep me")
+    (folder / "metadata.yaml").write_text("not a bag of mine\n")
+    for force in (False, True):
+        code, text = bench_main(monkeypatch, capsys, "export", store, "--format", "mcap",
+                                "--out", folder, *(["--force"] if force else []))
+        assert code == 2 and "is a folder that is not a rosbag2 folder" in text, text
+        assert "Traceback" not in text
+    assert sorted(p.name for p in folder.iterdir()) == ["metadata.yaml", "notes.txt"]
+    text = tmp_path / "t.bag"
+    text.write_text("a file of my own")
+    with pytest.raises(DataError, match="not a ROS1 bag this command wrote"):
+        export_store(store, "ros1", text, force=True)
+    assert text.read_text() == "a file of my own"
+    bag = export_store(store, "mcap", tmp_path / "m").path
+    export_store(store, "mcap", bag, force=True)  # its own bag: replaced
+    assert (bag / "metadata.yaml").exists()
+
+
+def test_a_doppler_kind_the_loader_does_not_take_is_noted_beside_a_command_that_runs(
+        tmp_path, monkeypatch):
+    """GT-reconstructed Doppler: the note is its own line, the printed command stays one a
+    shell runs (no remark inside it) and reads the bag back (as radial)."""
+    from dataclasses import replace as dc_replace
+
+    seq = radar_sequence()
+    seq.sensor = dc_replace(seq.sensor, doppler_kind="gt-reconstructed")
+    store = write_store(seq, tmp_path / "rec.h5")
+    res = CliRunner().invoke(app, ["export", str(store), "--format", "ros1", "--out",
+                                   str(tmp_path / "rec")])
+    assert res.exit_code == 0, res.output
+    assert "note: this store's Doppler is gt-reconstructed" in res.output
+    (line,) = [x for x in res.output.splitlines() if x.startswith("read it back with: ")]
+    assert "(" not in line.split("--T-body-sensor")[0] and not line.rstrip().endswith(")")
+    _run_printed(res.output, tmp_path, monkeypatch)
+    assert StoreSequence(tmp_path / "radar_run.h5").sensor.doppler_kind == "radial"

@@ -13,7 +13,8 @@ PACKAGES = ("loaders", "methods", "metrics", "bench")
 TOP_LAYERS = {"loaders": 0, "methods": 1, "metrics": 1, "bench": 2}
 
 #: inside bench/: a module's layer is that of its folder, or of the top-level module
-BENCH_LAYERS = {"bench": 0, "bench.paths": 0, "bench.threads": 0, "bench.console": 0,
+BENCH_LAYERS = {"bench": 0, "bench.paths": 0, "bench.guard": 0, "bench.threads": 0,
+                "bench.console": 0,
                 "bench.data": 1, "bench.runs": 2, "bench.report": 3, "bench.studies": 4,
                 "bench.commands": 5, "bench.cli": 5, "bench.api": 5, "bench.docs_cli": 5}
 

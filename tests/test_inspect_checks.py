@@ -120,7 +120,7 @@ def test_height_check_on_the_vendored_sample_and_on_it_mirrored():
     bad = low_points_median_z(_mirrored(seq))
     assert 0.5 < bad["dominant_layer_z_m"] < 0.9 and "looks mirrored" in bad["verdict"]
     rows = dict(inspect_sequence(_mirrored(seq, 20))["rows"])
-    assert "(points within 30 m): densest layer above the sensor" in rows["height check"]
+    assert "points within 30 m): densest layer above the sensor" in rows["height check"]
     assert "ntu4dradlm takes no elevation-sign option" in rows["height check"]
 
 

@@ -125,3 +125,23 @@ def test_time_association_bridges_a_gt_gap_of_at_most_three_steps(tmp_path, gap_
     assert len(seq) == n and in_gap.sum() >= 7
     assert scored[in_gap].all() == bridged and scored[in_gap].any() == bridged
     assert scored[~in_gap & (seq.stamps <= t[-1])].all()
+
+
+def test_two_txt_files_beside_the_frames_are_named_and_gt_asked_for(tmp_path, monkeypatch,
+                                                                    capsys):
+    """Two .txt files: neither is taken and the message is not "no ground truth found": it
+    names both and asks for --gt; with --gt the named one is the ground truth."""
+    from helpers_cli import bench_main
+
+    (tmp_path / "f").mkdir()
+    folder = _write_folder(tmp_path / "f")
+    (folder / "notes.txt").write_text("a note, not a trajectory\n")
+    with pytest.raises(DataError, match=r"2 \.txt files beside the frames \(gt\.txt, "
+                       r"notes\.txt\); name the ground truth with --gt"):
+        NpyFramesSequence(folder, period_s=0.1)
+    code, text = bench_main(monkeypatch, capsys, "convert", "npy-frames", folder, "--period",
+                            "0.1", "--out", tmp_path / "s.h5")
+    assert code == 2 and "name the ground truth with --gt" in text, text
+    assert "no ground truth found" not in text
+    seq = NpyFramesSequence(folder, period_s=0.1, gt=folder / "gt.txt")
+    assert len(seq.ground_truth) == 4

@@ -16,6 +16,8 @@ WORLD_FRAME, BODY_FRAME, SENSOR_FRAME = "world", "base_link", "sensor"
 
 
 def _sec_nsec(t: float) -> tuple[int, int]:
+    """(sec, nanosec) of ``t`` [s], rounded to the nearest nanosecond (never truncated: a
+    stamp 0.3 s is 0.29999999999999999 as a float)."""
     sec = int(np.floor(t))
     nsec = int(round((t - sec) * 1e9))
     return (sec + 1, nsec - 1_000_000_000) if nsec >= 1_000_000_000 else (sec, nsec)
@@ -100,24 +102,24 @@ def _pose(T, pose: np.ndarray):
                                                       w=float(qw)))
 
 
-def odometry_msg(bag: BagWriter, t: float, T_world_body: np.ndarray):
+def odometry_msg(bag: BagWriter, t: float, T_world_body: np.ndarray, body: str = BODY_FRAME):
     T = bag.store.types
     cov = np.zeros(36)
     zero = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
     return T[ODOM](
-        header=bag.header(t, WORLD_FRAME), child_frame_id=BODY_FRAME,
+        header=bag.header(t, WORLD_FRAME), child_frame_id=body,
         pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=_pose(T, T_world_body),
                                                        covariance=cov),
         twist=T["geometry_msgs/msg/TwistWithCovariance"](
             twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=cov))
 
 
-def tf_static_msg(bag: BagWriter, t: float, T_body_sensor: np.ndarray):
+def tf_static_msg(bag: BagWriter, t: float, T_body_sensor: np.ndarray, body: str = BODY_FRAME):
     T = bag.store.types
     xyz, quat = tum_from_T(np.asarray(T_body_sensor, dtype=np.float64)[None])
     (x, y, z), (qx, qy, qz, qw) = xyz[0], quat[0]
     tf = T["geometry_msgs/msg/TransformStamped"](
-        header=bag.header(t, BODY_FRAME), child_frame_id=SENSOR_FRAME,
+        header=bag.header(t, body), child_frame_id=SENSOR_FRAME,
         transform=T["geometry_msgs/msg/Transform"](
             translation=T["geometry_msgs/msg/Vector3"](x=float(x), y=float(y), z=float(z)),
             rotation=T["geometry_msgs/msg/Quaternion"](x=float(qx), y=float(qy), z=float(qz),

@@ -196,6 +196,7 @@ def calibrate_store(path: str | Path, write_to: Path | None = None, console=None
     input; an existing store bench calibrate wrote only with ``force``), write the store with
     its ground truth corrected by the angles of the ``apply`` estimate whose interval is
     narrower than ``max_width_deg``, and the frames used recorded."""
+    from bench import guard
     from loaders.store import StoreSequence, write_store
 
     if apply not in ESTIMATES:
@@ -248,6 +249,7 @@ def calibrate_store(path: str | Path, write_to: Path | None = None, console=None
                    "left_alone": left, "max_width_deg": float(max_width_deg)}
         if he is not None:
             details["hand_eye_rpy_deg"] = list(he.angles_deg.values())
+        guard.replaceable(write_to, force, guard.is_store, "a store", "--write", [path])
         write_store(CorrectedSequence(seq, applied_rotation(applied), (first, stop), details),
                     write_to)
         say(f"wrote {write_to} (ground truth and extrinsic corrected by the {apply} "

@@ -221,6 +221,8 @@ def _frame_parameters() -> list[inspect.Parameter]:
             "--frames", min=1, metavar="N", help="number of frames (default: all)")]),
         inspect.Parameter("stride", kw, default=1, annotation=Annotated[int, typer.Option(
             "--stride", min=1, metavar="K", help="keep every k-th frame (period scaled by k)")]),
+        inspect.Parameter("force", kw, default=False, annotation=Annotated[bool, typer.Option(
+            "--force", help="replace an existing store (only a store: never another file)")]),
     ]
 
 
@@ -256,12 +258,16 @@ def loader_command(entry: LoaderEntry):
         annotation=Annotated[list[Path] if many else Path, typer.Argument(
             metavar="INPUT..." if many else "INPUT", show_default=False)])
 
-    def run(inputs, out: Path, start: int, frames: int | None, stride: int, **values) -> None:
+    def run(inputs, out: Path, start: int, frames: int | None, stride: int, force: bool,
+            **values) -> None:
+        from bench import guard
         from loaders.scan import select_frames
 
         given = {k: v for k, v in values.items() if v is not None}
         options = validate_options(Loader.Options, given, flags, f"bench convert {entry.name}")
         paths = list(inputs) if many else [inputs]
+        guard.replaceable(out, force, guard.is_store, "a store", "--out",
+                          [*paths, *(v for v in given.values() if isinstance(v, Path))])
         sequence = Loader.open(paths, options)
         report_ground_truth(sequence, gt_flags(flags))
         # a cut is named by its frames unless --name says otherwise: never the whole's name

@@ -21,6 +21,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.markup import escape
 
+from bench import guard
 from bench.data.datasets import DatasetConfig, select_configs
 from loaders.errors import DataError
 
@@ -117,6 +118,10 @@ def plan_conversions(configs: list[DatasetConfig], data_dir: Path, raw_dir: Path
                           "--force converts again)", markup=False, soft_wrap=True)
             current += 1
             continue
+        # a store this command converted (it carries its key) is replaced; any other file at
+        # the destination only when it is a store and --force is given (bench.guard)
+        guard.replaceable(dest, force or stored_key(dest) is not None, guard.is_store,
+                          "a store", "--out", [cfg.raw_root(raw_dir)])
         jobs.append(ConvertJob(cfg.model_dump(mode="json"), raw_dir, dest, key))
     return jobs, current
 

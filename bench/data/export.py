@@ -7,21 +7,35 @@ One uniform form for every dataset the harness loads, to feed a ROS node:
   harness's sign (``DOPPLER_SIGN``: positive when the point recedes from the sensor; a static
   point ahead of a forward-moving sensor reads negative), then every per-point field of the
   store (``intensity``, ``power``, ``rcs``, ...) by its name;
-- ``/ground_truth`` ``nav_msgs/Odometry`` (frame ``world``, child ``base_link``): the GT body
-  pose ``T_world_body = T_world_sensor @ inv(T_body_sensor)`` at each scan that has GT (twist
-  zero: not given);
-- ``/tf_static`` ``tf2_msgs/TFMessage``: ``base_link`` -> ``sensor``, the store's
+- ``/ground_truth`` ``nav_msgs/Odometry`` (frame ``world``, child: the body frame, ``base_link``
+  or the frame the dataset's poses are of, e.g. ``camera`` for View-of-Delft,
+  ``body_frame``): the GT body pose ``T_world_body = T_world_sensor @ inv(T_body_sensor)`` at
+  each scan that has GT (twist zero: not given);
+- ``/tf_static`` ``tf2_msgs/TFMessage``: body frame -> ``sensor``, the store's
   ``T_body_sensor``;
 - ``/doppler_bench/description`` ``std_msgs/String``: a JSON text stating the fields, the
   Doppler sign and kind, the frames, the sensor and the store it came from.
 
-Formats: ``ros1`` (one ``.bag`` file), ``ros2`` (a rosbag2 folder, sqlite3 storage) and
-``mcap`` (a rosbag2 folder, mcap storage), written with ``rosbags``. Streaming: one scan is
-read from the store, serialised and written at a time, so memory stays flat in the sequence
-length. Atomic: the bag is written beside its destination under a temporary name and renamed
-when complete. ``bench convert rosbag`` reads it back to the same store contents
-(``reimport_command`` prints the exact command). The messages and the writer over rosbags'
-formats: ``bench.data.bag_messages``.
+Stamps: the store's stamps, rounded to the nanosecond, never shifted: a trajectory an
+odometry makes from the bag is on the store's clock and scores against it unchanged. A store
+whose clock starts at 0 s (View-of-Delft publishes no stamps: its frames are index x period;
+synthetic stores) keeps it, and the export says so: ROS tools may read a 0 s stamp as "no
+time" (``zero_clock_note``).
+
+A store without Doppler exports ``x y z`` and its other fields (no ``doppler``); the description
+says so and the read-back command carries ``--doppler-field none``.
+
+Formats: ``ros1`` (one ``.bag`` file: an ``--out`` without the extension gets ``.bag``),
+``ros2`` (a rosbag2 folder, sqlite3 storage) and ``mcap`` (a rosbag2 folder, mcap storage),
+written with ``rosbags``. The output is checked by the output guard (``bench.guard``): never
+the store itself or a folder holding it; an existing bag replaced only with ``--force`` and
+only when it is a bag (a ROS1 bag file, a rosbag2 folder of nothing but its metadata and
+storage files), never a folder of other files. Streaming: one scan is read from the store,
+serialised and written at a time, so memory stays flat in the sequence length. Atomic: the bag
+is written beside its destination under a temporary name and renamed when complete. ``bench
+convert rosbag`` reads it back to the same store contents (``reimport_command`` prints the
+exact command; ``bench convert rosbag BAG`` alone reads the same options from the bag's
+description). The messages and the writer over rosbags' formats: ``bench.data.bag_messages``.
 """
 
 from __future__ import annotations
@@ -48,8 +62,10 @@ from bench.data.bag_messages import (
     odometry_msg,
     tf_static_msg,
 )
+from bench.guard import is_ros1_bag, is_rosbag2_folder, replaceable
 from loaders.errors import DataError
 from loaders.fileio import atomic_path
+from loaders.rosbag import DESCRIPTION_TOPIC, NO_DOPPLER
 from loaders.se3 import inv_T, tum_from_T
 from loaders.store import StoreSequence
 
@@ -57,7 +73,8 @@ FORMATS = ("ros1", "ros2", "mcap")
 POINTS_TOPIC = "/points"
 GT_TOPIC = "/ground_truth"
 TF_TOPIC = "/tf_static"
-INFO_TOPIC = "/doppler_bench/description"
+INFO_TOPIC = DESCRIPTION_TOPIC
+
 #: the Doppler sign of the exported field (the harness's: positive = receding)
 DOPPLER_SIGN = ("doppler [m/s]: radial velocity of the point relative to the sensor, positive "
                 "when the point recedes (moves away from the sensor); a static point ahead of "
@@ -80,20 +97,49 @@ def default_out(store: Path, fmt: str) -> Path:
         store.with_name(f"{store.stem}_{fmt}")
 
 
+def bag_path(out: Path, fmt: str) -> Path:
+    """``out`` as the bag is written: a ROS1 bag always ends in ``.bag`` (rosbags' reader,
+    kiss-icp and ``bench convert rosbag`` recognise a ROS1 bag by it)."""
+    out = Path(out)
+    return out if fmt != "ros1" or out.suffix == ".bag" else out.with_name(out.name + ".bag")
+
+
+def body_frame(seq: StoreSequence) -> str:
+    """The frame the store's ground-truth poses are of (its loader's ``body_frame``; the
+    View-of-Delft poses are the camera's), ``base_link`` when the loader names none."""
+    prov = getattr(seq, "provenance", {}) or {}
+    name = prov.get("body_frame") or ("camera" if prov.get("loader") == "vod" else None)
+    return str(name) if name else BODY_FRAME
+
+
+def zero_clock_note(first_stamp_s: float) -> str | None:
+    """What the export says when the store's clock starts at (or before) 0 s, else None."""
+    if first_stamp_s > 0:
+        return None
+    return (f"the store's clock starts at {first_stamp_s:g} s (its dataset publishes no "
+            "stamps, or it is synthetic), kept as it is so that a trajectory made from the bag "
+            "scores against the store unchanged; ROS tools may read a 0 s stamp as 'no time'")
+
+
 def description(seq: StoreSequence, store: Path, fields: list[str]) -> dict:
-    """The bag's description (``INFO_TOPIC``): fields, Doppler sign and kind, frames, sensor."""
+    """The bag's description (``INFO_TOPIC``): fields, Doppler sign and kind, frames, sensor,
+    the clock. ``loaders.rosbag`` reads it back (``bench convert rosbag BAG``)."""
+    body = body_frame(seq)
     return {
         "exported_by": "doppler-bench (bench export)", "store": str(store),
         "sequence": seq.name, "points_topic": POINTS_TOPIC, "ground_truth_topic": GT_TOPIC,
         "fields": ["x", "y", "z", *fields],
         "units": "x y z [m] in the sensor frame; doppler [m/s]; other fields as stored",
         "doppler": DOPPLER_SIGN if seq.has_doppler else "none (the store has no Doppler)",
-        "doppler_kind": seq.sensor.doppler_kind, "sensor_kind": seq.sensor.kind,
+        "doppler_kind": seq.sensor.doppler_kind if seq.has_doppler else NO_DOPPLER,
+        "sensor_kind": seq.sensor.kind,
         "sensor_model": seq.sensor.model, "period_s": seq.sensor.period_s,
-        "frames": {"world": WORLD_FRAME, "body": BODY_FRAME, "sensor": SENSOR_FRAME},
-        "ground_truth": f"nav_msgs/Odometry: T_world_body ({BODY_FRAME}) at the scans with "
+        "frames": {"world": WORLD_FRAME, "body": body, "sensor": SENSOR_FRAME},
+        "ground_truth": f"nav_msgs/Odometry: T_world_body ({body}) at the scans with "
                         "ground truth; the sensor pose is T_world_body @ T_body_sensor "
                         f"({TF_TOPIC})",
+        "stamps": zero_clock_note(float(seq.stamps[0])) or
+        "the store's stamps, rounded to the nanosecond",
         "T_body_sensor": np.asarray(seq.sensor.T_body_sensor).tolist(),
     }
 
@@ -107,12 +153,13 @@ def write_bag(seq: StoreSequence, store: Path, path: Path, fmt: str,
         T_bs = np.asarray(seq.sensor.T_body_sensor, dtype=np.float64)
         gt = seq.ground_truth
         fields = (["doppler"] if seq.has_doppler else []) + list(seq.fields)
+        body = body_frame(seq)
         cloud = bag.connection(POINTS_TOPIC, CLOUD)
         tf = bag.connection(TF_TOPIC, TF, latched=True)
         info = bag.connection(INFO_TOPIC, STRING, latched=True)
         odom = bag.connection(GT_TOPIC, ODOM) if gt is not None else None
         t0 = float(stamps[0])
-        bag.write(tf, t0, tf_static_msg(bag, t0, T_bs))
+        bag.write(tf, t0, tf_static_msg(bag, t0, T_bs, body))
         text = json.dumps(description(seq, store, fields), indent=1)
         bag.write(info, t0, bag.store.types[STRING](data=text))
         gt_stamps = gt.stamps if gt is not None else np.zeros(0)
@@ -121,8 +168,8 @@ def write_bag(seq: StoreSequence, store: Path, path: Path, fmt: str,
         for i in range(len(seq)):
             t = float(stamps[i])
             while g < len(gt_stamps) and gt_stamps[g] <= t:  # GT in time order with the scans
-                bag.write(odom, float(gt_stamps[g]),
-                          odometry_msg(bag, float(gt_stamps[g]), gt.poses[g] @ T_sb))
+                tg = float(gt_stamps[g])
+                bag.write(odom, tg, odometry_msg(bag, tg, gt.poses[g] @ T_sb, body))
                 g += 1
             scan = seq.scan(i)
             values = {} if scan.doppler is None else {"doppler": scan.doppler}
@@ -131,8 +178,8 @@ def write_bag(seq: StoreSequence, store: Path, path: Path, fmt: str,
             if progress:
                 progress(i)
         for k in range(g, len(gt_stamps)):
-            bag.write(odom, float(gt_stamps[k]),
-                      odometry_msg(bag, float(gt_stamps[k]), gt.poses[k] @ T_sb))
+            tg = float(gt_stamps[k])
+            bag.write(odom, tg, odometry_msg(bag, tg, gt.poses[k] @ T_sb, body))
     finally:
         bag.close()
     return ExportSummary(path, fmt, len(seq), len(gt_stamps), fields)
@@ -140,14 +187,19 @@ def write_bag(seq: StoreSequence, store: Path, path: Path, fmt: str,
 
 def export_store(store: Path, fmt: str, out: Path | None = None, force: bool = False,
                  progress: Callable[[int], None] | None = None) -> ExportSummary:
-    """Export ``store`` as a ``fmt`` bag to ``out`` (default ``default_out``); an existing
-    ``out`` is replaced only with ``force``. Written under a temporary name, then renamed."""
+    """Export ``store`` as a ``fmt`` bag to ``out`` (default ``default_out``; a ROS1 bag gets
+    ``.bag``, ``bag_path``); an existing ``out`` is replaced only with ``force`` and only when
+    it is a bag of that format (``bench.guard``). Written under a temporary name, then
+    renamed."""
     if fmt not in FORMATS:
         raise DataError(f"--format {fmt!r}: expected one of {', '.join(FORMATS)}")
     store = Path(store)
-    out = Path(out) if out is not None else default_out(store, fmt)
-    if out.exists() and not force:
-        raise DataError(f"{out}: exists; give another --out or --force to replace it")
+    out = bag_path(out, fmt) if out is not None else default_out(store, fmt)
+    if fmt == "ros1":
+        replaceable(out, force, is_ros1_bag, "a ROS1 bag", inputs=[store])
+    else:
+        replaceable(out, force, _rosbag2_or_empty, "a rosbag2 folder (metadata.yaml and its "
+                    "storage files only)", inputs=[store])
     seq = StoreSequence(store)
     try:
         if fmt == "ros1":
@@ -162,8 +214,8 @@ def export_store(store: Path, fmt: str, out: Path | None = None, force: bool = F
         work.mkdir(parents=True)
         try:
             summary = write_bag(seq, store, work / out.name, fmt, progress)
-            if out.exists():
-                shutil.rmtree(out) if out.is_dir() else out.unlink()
+            if out.exists():  # a rosbag2 folder and nothing else (checked above)
+                shutil.rmtree(out)
             os.replace(work / out.name, out)
         finally:
             shutil.rmtree(work, ignore_errors=True)
@@ -172,20 +224,40 @@ def export_store(store: Path, fmt: str, out: Path | None = None, force: bool = F
         seq.close()
 
 
+def _rosbag2_or_empty(path: Path) -> bool:
+    return is_rosbag2_folder(path) or (path.is_dir() and not any(path.iterdir()))
+
+
 def reimport_command(summary: ExportSummary, seq_name: str, sensor_kind: str, model: str,
                      doppler_kind: str, T_body_sensor: np.ndarray) -> str:
-    """The ``bench convert rosbag`` command that reads the bag back to the same store."""
+    """The ``bench convert rosbag`` command that reads the bag back to the same store (every
+    option spelled out, quoted for a POSIX shell; ``bench convert rosbag BAG`` alone takes the
+    same values from the bag's description). A store without Doppler (no ``doppler`` among
+    ``summary.fields``): ``--doppler-field none``."""
+    from shlex import quote
+
     xyz, quat = tum_from_T(np.asarray(T_body_sensor, dtype=np.float64)[None])
     ext = " ".join(f"{v:.17g}" for v in [*xyz[0], *quat[0]])
     gt = f" --gt-topic {GT_TOPIC}" if summary.gt_poses else ""
-    model_opt = f" --model {model}" if model else ""
-    text = (f"bench convert rosbag {summary.path} --topic {POINTS_TOPIC}{gt} "
-            f"--T-body-sensor '{ext}' --sensor-kind {sensor_kind}{model_opt} "
-            f"--doppler-kind {doppler_kind} --name {seq_name} --out {seq_name}.h5")
-    if doppler_kind not in ("radial", "ego-compensated"):
-        text += (f" (this store's Doppler is {doppler_kind}, which the rosbag loader does not "
-                 "take: results from its bag are not independent of the ground truth)")
+    model_opt = f" --model {quote(model)}" if model else ""
+    has_doppler = "doppler" in summary.fields
+    doppler = (f" --doppler-kind {doppler_kind}" if has_doppler and doppler_kind in
+               ("radial", "ego-compensated") else "" if has_doppler else
+               f" --doppler-field {NO_DOPPLER}")
+    text = (f"bench convert rosbag {quote(str(summary.path))} --topic {POINTS_TOPIC}{gt} "
+            f"--T-body-sensor '{ext}' --sensor-kind {sensor_kind}{model_opt}{doppler} "
+            f"--name {quote(seq_name)} --out {quote(seq_name + '.h5')}")
     return text
+
+
+def doppler_kind_note(summary: ExportSummary, doppler_kind: str) -> str | None:
+    """A line said beside the read-back command (never inside it: the command stays one a
+    shell runs) when the store's Doppler kind is one the rosbag loader does not take."""
+    if "doppler" not in summary.fields or doppler_kind in ("radial", "ego-compensated"):
+        return None
+    return (f"this store's Doppler is {doppler_kind}, which the rosbag loader does not take "
+            "(read back as radial): results from its bag are not independent of the ground "
+            "truth")
 
 
 def export_command(console, store: Path, fmt: str, out: Path | None, force: bool) -> None:
@@ -196,10 +268,17 @@ def export_command(console, store: Path, fmt: str, out: Path | None, force: bool
         back = reimport_command(summary, seq.name, seq.sensor.kind, seq.sensor.model,
                                 seq.sensor.doppler_kind, seq.sensor.T_body_sensor)
     finally:
+        first, kind = float(seq.stamps[0]), seq.sensor.doppler_kind
         seq.close()
+    doppler = (DOPPLER_SIGN if "doppler" in summary.fields else
+               "no Doppler field: the store has no Doppler (methods that need it cannot run "
+               "on this bag)")
     console.print(
         f"wrote {summary.path} ({summary.format}): {summary.frames} scans on {POINTS_TOPIC} "
-        f"(fields x y z {' '.join(summary.fields)}), {summary.gt_poses} ground-truth poses on "
-        f"{GT_TOPIC}, the extrinsic on {TF_TOPIC}, the description on {INFO_TOPIC}; "
-        f"{DOPPLER_SIGN}", markup=False)
+        f"(fields {' '.join(['x', 'y', 'z', *summary.fields])}), {summary.gt_poses} "
+        f"ground-truth poses on {GT_TOPIC}, the extrinsic on {TF_TOPIC}, the description on "
+        f"{INFO_TOPIC}; {doppler}", markup=False)
+    for note in (zero_clock_note(first), doppler_kind_note(summary, kind)):
+        if note:
+            console.print(f"note: {note}", markup=False)
     console.print(f"read it back with: {back}", markup=False)

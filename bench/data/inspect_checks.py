@@ -182,8 +182,14 @@ def clock_offset_lines(seq: Sequence, speeds: dict) -> list[tuple[str, str]]:
 def height_advice(seq: Sequence, z: dict) -> str:
     """The height check's line (``loaders.doppler_check.low_points_median_z``), its advice
     naming only an option the store's loader has."""
-    basis = f" ({z['basis']})" if z.get("basis") else ""
-    line = f"densest layer at z = {z['dominant_layer_z_m']:+.2f} m{basis}: {z['verdict']}"
+    basis = f"; {z['basis']}" if z.get("basis") else ""
+    share = z.get("frames_below_sensor")
+    below = (f", {100 * share:.0f} % of them with their own layer below" if share is not None
+             and np.isfinite(share) else "")
+    frames = (f"the height most of {z['frames']} frames across the sequence agree on{below}"
+              f"{basis}" if z.get("frames") else z.get("basis", ""))
+    line = (f"densest layer at z = {z['dominant_layer_z_m']:+.2f} m"
+            + (f" ({frames})" if frames else "") + f": {z['verdict']}")
     if z["dominant_layer_z_m"] < 0:
         return line
     flag = option_flag(seq.provenance, "elevation_sign")

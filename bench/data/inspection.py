@@ -10,6 +10,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from bench import guard
 from bench.data.inspect_checks import clock_offset_lines, height_advice
 from loaders.doppler_check import (
     SignCheck,
@@ -66,10 +67,21 @@ def open_sequence(path: Path, period_s: float | None = None) -> Sequence:
     return StoreSequence(path)
 
 
+def default_plot(path: Path) -> Path:
+    """The speed plot's default: ``NAME_speed.png`` next to the store (or frame folder), never
+    inside the current folder's results/."""
+    path = Path(path)
+    return path.parent / f"{path.stem if path.is_file() else path.name}_speed.png"
+
+
 def inspect_path(path: Path, period_s: float | None, console: Console,
                  plot: Path | None = None) -> dict:
     """Print the figures of a store or frame folder; with GT and Doppler also the
-    sensor-to-GT rotation check and (``plot``) a PNG of Doppler speed against GT speed."""
+    sensor-to-GT rotation check and (``plot``) a PNG of Doppler speed against GT speed. The
+    plot is checked by the output guard first: not the input, an existing file only when it is
+    a plot this command wrote (its PNG metadata carries ``bench.guard.MARK``)."""
+    if plot is not None:
+        guard.regenerated_file(plot, guard.has_mark, "a speed plot", "--plot", [path])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         seq = open_sequence(path, period_s)
@@ -176,6 +188,7 @@ def plot_speed(sequence: Sequence, path: str | Path) -> Path:
     fig.tight_layout()
     path = Path(path)
     with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120, format="png")
+        fig.savefig(tmp, dpi=120, format="png",
+                    metadata={"Software": f"{guard.MARK} (bench inspect)"})
     plt.close(fig)
     return path

@@ -39,8 +39,10 @@ def synth_command(console: Console, scene: str | None, sensor: str, frames: int,
                                           **options)
     except (ValueError, KeyError) as err:
         raise DataError(f"bench synth: {err}") from err
+    from bench import guard
     from bench.data.convert import write_with_progress
 
+    guard.regenerated_file(out, guard.is_store, "a store")  # a store is made again, nothing else
     write_with_progress(seq, out)
     return 0
 

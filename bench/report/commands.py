@@ -7,6 +7,7 @@ from pathlib import Path
 
 from rich.console import Console
 
+from bench import guard
 from loaders.errors import DataError
 from loaders.fileio import atomic_write_text
 
@@ -84,6 +85,7 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
                       style="dim", markup=False)
         return code
     stem = "pivot" if pivot else ("table" if metric == "relative" else f"table_{metric}")
+    guard.output_folder(Path(where))  # a folder, never a run's own
     for fmt, text in texts.items():
         atomic_write_text(Path(where) / f"{stem}.{fmt}", text)
     status.print(f"wrote {where}/{stem}.{{{','.join(texts)}}}", style="dim", markup=False)
@@ -111,6 +113,8 @@ def figures_command(console: Console, results_dir: Path | None, out: Path | None
     from bench.report.figures_pair import plot_pair
 
     paths = []
+    if out is not None:
+        guard.output_folder(out)  # a folder, never a run's own
     if pair is not None:
         paths += plot_pair(pair[0], pair[1], out or Path("results/figures"))
     if results_dir is not None:

@@ -393,6 +393,9 @@ def write_page(results_dir: Path, out: Path | None = None) -> tuple[Path, dict]:
                         "failed.json or run config.yaml under it); expected a results folder "
                         "of `bench run` or `bench reproduce`")
     page, counts = render_page(results_dir)
+    from bench import guard
+
     path = Path(out) if out is not None else results_dir / PAGE_NAME
+    guard.regenerated_file(path, guard.has_mark, "a report page")  # only a page of ours
     atomic_write_text(path, page)
     return path, counts

@@ -47,6 +47,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from bench import guard
 from bench.runs.evaluate import Scoring, evaluate_run, timing_part
 from bench.runs.external_clock_check import check_clock, fit_hint, refuse_misfit
 from bench.runs.external_defaults import DEFAULT_MIN_COVERAGE, DEFAULT_TOLERANCE_S
@@ -218,6 +219,9 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
             "code_sha256": code_identity(), "external_code_sha256": _own_code()}
         key = run_key(identity)
         replaced = check_run_folder(run_dir, spec.replace_run)
+        guard.run_folder(run_dir, guard.EXTERNAL, spec.replace_run, [
+            spec.trajectory, spec.stamps, spec.frame_times, store], root=Path(out or DEFAULT_OUT),
+            ask="--replace-run")
         if is_finished(run_dir, key) and not force and not replaced:
             return ExternalOutcome(run_dir, "skipped", coverage, how, clock)
         idx = np.flatnonzero(m.covered)

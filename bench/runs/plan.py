@@ -13,6 +13,7 @@ import numpy as np
 import yaml
 from rich.console import Console
 
+from bench import guard
 from bench.data.advice import loader_name, option_flag
 from bench.data.synth import ensure_suite_with_progress
 from bench.runs.experiment import Experiment, SequenceEntry, expand_sequences
@@ -156,7 +157,7 @@ def plan(jobs: list[Job], refused: list[str] | None = None) -> list[Job]:
                 "variants distinct 'label:'s")
             continue
         owners[prep.run_dir] = (job, prep.key)
-        _check_writable(prep.run_dir)
+        _check_writable(prep.run_dir, job.store)
         other_store = _other_content(prep.run_dir, job.store,
                                      prep.config["identity"]["store_sha256"])
         if other_store:
@@ -293,7 +294,11 @@ def _other_content(run_dir: Path, store: Path, sha256: str) -> str | None:
             "name:) or give the run another --out")
 
 
-def _check_writable(run_dir: Path) -> None:
+def _check_writable(run_dir: Path, store: Path | None = None) -> None:
+    """The run folder can be written: its first existing folder is writable, and the output
+    guard lets a harness run in (``bench.guard.run_folder``: no input inside it, not a folder
+    of other files, not a run of ``bench score``)."""
+    guard.run_folder(run_dir, guard.HARNESS, None, [store])
     parent = run_dir
     while not parent.exists():
         parent = parent.parent

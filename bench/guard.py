@@ -1,0 +1,210 @@
+"""The output guard every command that writes calls before it opens its output: nothing lost
+to a flag, nothing written where it should not be.
+
+Rules (each a ``DataError``: exit 2, one message naming the path):
+
+- never onto an input of the same command: the output is not the same file as an input
+  (resolved paths, ``os.path.samefile``) and not a folder that holds one (``not_an_input``);
+- an existing output is replaced only with ``force`` and only when it is what that command
+  makes, recognised by its signature (``is_store``, ``is_ros1_bag``, ``is_rosbag2_folder``,
+  ``run_kind``, ``has_mark``): a folder's other files are never deleted (``replaceable``);
+- a name that becomes a folder is one path component: no separator, not ``.`` or ``..``, not
+  empty (``one_component``); the path it makes stays inside its root (``inside``);
+- a run folder is written only over a run of the same kind (a harness run by ``bench run``,
+  an external one by ``bench score``); another kind is replaced only when asked, and said
+  (``run_folder``).
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable, Iterable
+from pathlib import Path
+
+from loaders.errors import DataError
+
+#: the first bytes of an HDF5 file (a store) and of a ROS1 bag
+HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
+ROS1_MAGIC = b"#ROSBAG V2.0\n"
+#: the text every figure and page the harness writes carries (PNG metadata, an HTML comment)
+MARK = "doppler-bench"
+#: the kinds of run folder and the command that makes each
+HARNESS, EXTERNAL = "harness", "external"
+RUN_MAKERS = {HARNESS: "bench run", EXTERNAL: "bench score"}
+
+
+def one_component(name: str, option: str = "--name") -> str:
+    """``name`` when it is one path component (a folder name); else a DataError."""
+    bad = (not name or not name.strip() or name in (".", "..") or "/" in name
+           or "\\" in name or os.sep in name or (os.altsep and os.altsep in name)
+           or "\0" in name)
+    if bad:
+        raise DataError(f"{option} {name!r}: expected one folder name (no '/', '\\', '.' or "
+                        "'..', not empty); it names a folder inside the results root")
+    return name
+
+
+def _resolved(path: Path) -> Path:
+    return Path(os.path.realpath(os.path.abspath(path)))
+
+
+def inside(path: Path, root: Path) -> bool:
+    """``path`` (resolved) is ``root`` or lies under it."""
+    return _resolved(path).is_relative_to(_resolved(root))
+
+
+def same_file(a: Path, b: Path) -> bool:
+    """``a`` and ``b`` are one file or folder (hard links and symlinks included)."""
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return _resolved(a) == _resolved(b)
+
+
+def not_an_input(out: Path, inputs: Iterable[Path | None], option: str = "--out") -> None:
+    """Refuse ``out`` when it is an input of the command or a folder holding one."""
+    for given in inputs:
+        if given is None:
+            continue
+        if same_file(out, given):
+            raise DataError(f"{option} {out}: is an input of this command ({given}); write "
+                            "to another path, the input is never overwritten")
+        if inside(given, out) and _resolved(out) != _resolved(given):
+            raise DataError(f"{option} {out}: holds an input of this command ({given}); "
+                            "write to another path, the input is never overwritten")
+
+
+def _head(path: Path, n: int) -> bytes:
+    try:
+        with open(path, "rb") as f:
+            return f.read(n)
+    except OSError:
+        return b""
+
+
+def is_store(path: Path) -> bool:
+    """An HDF5 file (what ``bench convert`` / ``calibrate --write`` write) by its signature."""
+    return Path(path).is_file() and _head(path, 8) == HDF5_MAGIC
+
+
+def is_ros1_bag(path: Path) -> bool:
+    return Path(path).is_file() and _head(path, len(ROS1_MAGIC)) == ROS1_MAGIC
+
+
+def is_rosbag2_folder(path: Path) -> bool:
+    """A rosbag2 folder: metadata.yaml and storage files (.db3 / .mcap) and nothing else."""
+    path = Path(path)
+    if not path.is_dir() or not (path / "metadata.yaml").is_file():
+        return False
+    storage = (".db3", ".mcap", ".db3-shm", ".db3-wal")
+    return all(p.name == "metadata.yaml" or (p.is_file() and p.name.endswith(storage))
+               for p in path.iterdir())
+
+
+def has_mark(path: Path, size: int = 65536) -> bool:
+    """A file the harness wrote with its ``MARK`` near the top (a page, a figure's metadata)."""
+    return Path(path).is_file() and MARK.encode() in _head(path, size)
+
+
+def run_kind(folder: Path) -> str | None:
+    """``HARNESS`` or ``EXTERNAL`` for a run folder (a config.yaml of a run, or a run record:
+    metrics.json / failed.json), None for anything else."""
+    import yaml
+
+    folder = Path(folder)
+    if not folder.is_dir():
+        return None
+    names = {p.name for p in folder.iterdir()}
+    if not names & {"config.yaml", "metrics.json", "failed.json"}:
+        return None
+    config = {}
+    if "config.yaml" in names:
+        try:
+            config = yaml.safe_load((folder / "config.yaml").read_text()) or {}
+        except (OSError, yaml.YAMLError):
+            config = None
+        if not isinstance(config, dict) or not (config.keys() & {"method", "run_key"}
+                                                or names & {"metrics.json", "failed.json"}):
+            return None
+    identity = config.get("identity") if isinstance(config.get("identity"), dict) else {}
+    return EXTERNAL if "external" in config or identity.get("kind") == EXTERNAL else HARNESS
+
+
+def replaceable(out: Path, force: bool | None, own: Callable[[Path], bool], what: str,
+                option: str = "--out", inputs: Iterable[Path | None] = ()) -> bool:
+    """Check ``out`` before writing: not an input; when it exists, ``force`` given and ``own``
+    recognising it as ``what`` (e.g. "a ROS1 bag") this command wrote (``force`` None: the
+    command has no --force, an existing ``out`` is never replaced). True when it exists (and
+    may be replaced), False when it is new."""
+    out = Path(out)
+    not_an_input(out, inputs, option)
+    if not os.path.lexists(out):
+        return False
+    if not own(out):
+        kind = "a folder" if out.is_dir() else "a file"
+        only = " (--force replaces only that)" if force else ""
+        raise DataError(f"{option} {out}: exists and is {kind} that is not {what} this command "
+                        f"wrote; it is left as it is{only}: choose another {option}")
+    if not force:
+        raise DataError(f"{option} {out}: exists ({what}); give another {option}"
+                        + (" or --force to replace it" if force is False else
+                           " (it is not replaced)"))
+    return True
+
+
+def run_folder(run_dir: Path, kind: str, force: bool | None = False,
+               inputs: Iterable[Path | None] = (), say: Callable[[str], None] | None = None,
+               root: Path | None = None, ask: str = "--force") -> None:
+    """Check a run folder before ``RUN_MAKERS[kind]`` writes into it: inside ``root``, holding
+    no input; new, empty or a run of the same ``kind``; a run of another kind only with
+    ``force`` (the option ``ask``; ``say`` tells it is replaced; None: the command has no such
+    option); never a folder of other files (a run writes its own files' names only)."""
+    run_dir = Path(run_dir)
+    if root is not None and not inside(run_dir, root):
+        raise DataError(f"{run_dir}: outside the results root {root}; a run's name is one "
+                        "folder name")
+    not_an_input(run_dir, inputs, "run folder")
+    if not run_dir.exists():
+        return
+    if not run_dir.is_dir():
+        raise DataError(f"{run_dir}: is a file, expected a run folder; it is left as it is")
+    found = run_kind(run_dir)
+    if found is None:
+        if any(run_dir.iterdir()):
+            raise DataError(f"{run_dir}: holds files that are not a run's; it is left as it "
+                            "is: choose another name or folder")
+        return
+    if found != kind:
+        if not force:
+            raise DataError(f"{run_dir}: holds a run made by {RUN_MAKERS[found]} ({found}); "
+                            f"{RUN_MAKERS[kind]} does not replace it: choose another name"
+                            + (f", or {ask} to replace that run" if force is False else ""))
+        if say is not None:
+            say(f"replacing the {found} run in {run_dir} ({RUN_MAKERS[found]}'s), as {ask} "
+                "asks")
+
+
+def regenerated_file(out: Path, own: Callable[[Path], bool], what: str,
+                     option: str = "--out", inputs: Iterable[Path | None] = ()) -> None:
+    """Check a derived file (a page, a plot: made again from the same inputs on every call)
+    before writing it: not an input; an existing file only when ``own`` recognises it as
+    ``what`` this command wrote (replaced without ``--force``), never a folder."""
+    out = Path(out)
+    not_an_input(out, inputs, option)
+    if out.is_dir():
+        raise DataError(f"{option} {out}: is a folder; expected the file name of {what}")
+    if os.path.lexists(out) and not own(out):
+        raise DataError(f"{option} {out}: exists and is not {what} this command wrote; it is "
+                        f"left as it is: choose another {option}")
+
+
+def output_folder(out: Path, option: str = "--out", inputs: Iterable[Path | None] = ()) -> None:
+    """Check a folder that derived files (tables, figures) go into: not an input's folder, not
+    a file, not a run folder (whose files are a run's own)."""
+    out = Path(out)
+    not_an_input(out, inputs, option)
+    if os.path.lexists(out) and not out.is_dir():
+        raise DataError(f"{option} {out}: is a file; expected a folder to write into")
+    if run_kind(out) is not None:
+        raise DataError(f"{option} {out}: is a run folder; its files are the run's: choose "
+                        "another folder")
