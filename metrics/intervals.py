@@ -39,11 +39,11 @@ constant:
    ``low <= value <= high`` always holds.
 
 The factor 2 and the batch-means widening were chosen from that bias argument and
-measurements on the study's synthetic drives (``bench.studies.coverage``, noise seeds 10000-10599
-and 50000-90299, white and step-correlated noise) and checked on other seeds (10000-11199 with
-400 drives per noise model, 20000-20599); the coverage table is in the manual. Paired
-comparisons (:func:`paired_interval`) keep blocks of one span / correlation length and are
-widened by ``t_{K-1} / z`` for the ``K`` independent units.
+measurements on the study's synthetic drives (``bench.studies.coverage``, white and
+step-correlated noise; noise seeds 10000-10599 and 50000-90299); the manual's table (400 drives
+per noise model, seeds 10000-10799) overlaps those seeds, the check on seeds 20000-20599 does
+not (both are in the manual). Paired comparisons (:func:`paired_interval`) keep blocks of one
+span / correlation length and are widened by ``t_{K-1} / z`` for the ``K`` independent units.
 
 **Cost.** A resample's statistic needs only the sums of the per-frame unit counts and values
 over its blocks (:func:`block_sums`): from a prefix sum over the frames twice round, each

@@ -213,7 +213,7 @@ def test_the_draws_memory_is_one_path_whatever_the_number_of_resamples():
 
     gt = ground_truth(2000)
     drift = Drift(gt, noisy_estimate(gt, NoiseModel(), seed=2))
-    drift.errors  # computed once, outside the measurement
+    assert len(drift.errors) == 1999  # computed once, outside the measurement
     drift.draws(7, 5, seed=9)  # compiled outside the measurement
     peaks = {}
     for reps in (50, 800):
