@@ -19,11 +19,22 @@ percentiles, the interval of the long-run APE is the pivotal one, ``[X - (q_hi -
 X - (q_lo - m*)]`` around the observed ``X`` (clipped at 0). Paired: both estimates' step
 errors are drawn with the same blocks and the interval is that of the difference.
 
-The number of independent pieces behind the figure is the number of whole blocks of step
-errors. The alignment of every resample is a batched Umeyama (1991) fit, the same fit as
-``metrics.ape`` (evo's) up to rounding; degenerate resamples (positions on one line) are
-aligned by their orientations one by one, as ``metrics.ape.align`` does. Memory is bounded:
-resamples are chained ``CHUNK`` at a time.
+The figure's interval follows the three steps of ``metrics.intervals``: blocks of
+``BLOCK_FACTOR`` (2) times the Politis-White length of the step errors' six components (at most
+half the steps), the pivotal interval widened about ``X`` by ``t_{K-1} / z`` for the ``K``
+whole blocks, and stretched to hold ``X``. The number of independent pieces behind the figure
+is the number of whole blocks of step errors. A paired comparison keeps blocks of one
+Politis-White length.
+
+**Cost.** A resample is chained, aligned and scored one at a time by a compiled kernel
+(``_draw_kernel``) that keeps one path in memory, never the resamples' paths: each step's
+error index is computed from the block starts, what the Umeyama (1991) fit needs
+(the cross-covariance with the GT positions, the positions' mean and variance) is summed while
+chaining, the 3 x 3 fit solved, and the aligned errors summed in a second pass over the one
+path. It gives the draws of the batched computation (``draws_batched``: every path of a chunk
+materialised, then ``ape_rmse_batch``, the same fit as ``metrics.ape``, evo's, up to rounding)
+to rounding. Degenerate resamples (positions on one line) are aligned by their orientations,
+as ``metrics.ape.align`` does, through the batched computation.
 """
 
 from __future__ import annotations
@@ -34,6 +45,7 @@ from functools import cached_property
 import numba as nb
 import numpy as np
 
+from metrics import intervals as _iv
 from metrics.ape import Alignment, orientation_alignment
 from metrics.intervals import (
     LEVEL,
@@ -41,12 +53,16 @@ from metrics.intervals import (
     REPS,
     Interval,
     block_index_chunks,
+    block_indices_of,
+    block_start_chunks,
+    contain,
     correlation_length,
     widen,
 )
 from metrics.relative import check_pose_pair, inverse_se3
 
-#: resamples chained together: memory about 100 bytes x frames x CHUNK, flat in the number of
+#: resamples chained together by the reference :func:`draws_batched`: memory about 100 bytes x
+#: frames x CHUNK, flat in the number of
 #: resamples and a small share of a scan per frame
 CHUNK = 32
 #: the APE quantities: translation [m] and rotation [deg]
@@ -111,6 +127,181 @@ def _chain_kernel(first, gt_steps, gt_rot, errors, idx, pos, rel):  # pragma: no
                     new[i, j] = (rot[i, 0] * step_r[0, j] + rot[i, 1] * step_r[1, j]
                                  + rot[i, 2] * step_r[2, j])
             rot[:, :] = new
+
+
+#: alignment kinds as the draw kernel's codes
+_KIND_CODE = {"none": 0, "origin": 1, "se3": 2, "sim3": 3}
+
+
+@nb.njit(cache=True, fastmath={"contract", "reassoc", "nsz", "arcp"})
+def _chain_one(first, gt_steps, gt_rot, errors, starts_r, block, pos, rel, xd, m_fit,
+               sums):  # pragma: no cover - numba
+    """One resample's path (module docstring): ``P_0 = first``, ``P_k+1 = P_k gt_steps[k]
+    errors[i_k]``, ``i_k = (starts_r[k // block] + k % block) mod (n - 1)``; positions into
+    ``pos`` (n, 3) and ``R(P_k) R(G_k)^T`` into ``rel`` (n, 9, row-major). Over the first
+    ``m_fit`` poses it accumulates what the Umeyama fit needs into ``sums`` (13,): ``sum xd_k
+    p_k^T`` (9; ``xd`` (n + 1, 3): the GT positions less their mean ``c = xd[n]``, so that this
+    is ``m`` times the cross-covariance), ``sum p_k - c`` (3) and ``sum |p_k - c|^2`` (for the
+    positions' variance). Scalar locals (registers), no allocation."""
+    n = pos.shape[0]
+    c0, c1, c2 = xd[n, 0], xd[n, 1], xd[n, 2]
+    for i in range(sums.size):
+        sums[i] = 0.0
+    m = n - 1
+    r00, r01, r02 = first[0, 0], first[0, 1], first[0, 2]
+    r10, r11, r12 = first[1, 0], first[1, 1], first[1, 2]
+    r20, r21, r22 = first[2, 0], first[2, 1], first[2, 2]
+    p0, p1, p2 = first[0, 3], first[1, 3], first[2, 3]
+    for k in range(n):
+        pos[k, 0] = p0
+        pos[k, 1] = p1
+        pos[k, 2] = p2
+        if k < m_fit:
+            x0, x1, x2 = xd[k, 0], xd[k, 1], xd[k, 2]
+            sums[0] += x0 * p0
+            sums[1] += x0 * p1
+            sums[2] += x0 * p2
+            sums[3] += x1 * p0
+            sums[4] += x1 * p1
+            sums[5] += x1 * p2
+            sums[6] += x2 * p0
+            sums[7] += x2 * p1
+            sums[8] += x2 * p2
+            d0, d1, d2 = p0 - c0, p1 - c1, p2 - c2
+            sums[9] += d0
+            sums[10] += d1
+            sums[11] += d2
+            sums[12] += d0 * d0 + d1 * d1 + d2 * d2
+        g = gt_rot[k]  # R(P_k) R(G_k)^T
+        rel[k, 0] = r00 * g[0, 0] + r01 * g[0, 1] + r02 * g[0, 2]
+        rel[k, 1] = r00 * g[1, 0] + r01 * g[1, 1] + r02 * g[1, 2]
+        rel[k, 2] = r00 * g[2, 0] + r01 * g[2, 1] + r02 * g[2, 2]
+        rel[k, 3] = r10 * g[0, 0] + r11 * g[0, 1] + r12 * g[0, 2]
+        rel[k, 4] = r10 * g[1, 0] + r11 * g[1, 1] + r12 * g[1, 2]
+        rel[k, 5] = r10 * g[2, 0] + r11 * g[2, 1] + r12 * g[2, 2]
+        rel[k, 6] = r20 * g[0, 0] + r21 * g[0, 1] + r22 * g[0, 2]
+        rel[k, 7] = r20 * g[1, 0] + r21 * g[1, 1] + r22 * g[1, 2]
+        rel[k, 8] = r20 * g[2, 0] + r21 * g[2, 1] + r22 * g[2, 2]
+        if k == m:
+            break
+        s = gt_steps[k]
+        e = errors[(starts_r[k // block] + k % block) % m]
+        # the step s e: rotation a, translation t
+        t0 = s[0, 0] * e[0, 3] + s[0, 1] * e[1, 3] + s[0, 2] * e[2, 3] + s[0, 3]
+        t1 = s[1, 0] * e[0, 3] + s[1, 1] * e[1, 3] + s[1, 2] * e[2, 3] + s[1, 3]
+        t2 = s[2, 0] * e[0, 3] + s[2, 1] * e[1, 3] + s[2, 2] * e[2, 3] + s[2, 3]
+        a00 = s[0, 0] * e[0, 0] + s[0, 1] * e[1, 0] + s[0, 2] * e[2, 0]
+        a01 = s[0, 0] * e[0, 1] + s[0, 1] * e[1, 1] + s[0, 2] * e[2, 1]
+        a02 = s[0, 0] * e[0, 2] + s[0, 1] * e[1, 2] + s[0, 2] * e[2, 2]
+        a10 = s[1, 0] * e[0, 0] + s[1, 1] * e[1, 0] + s[1, 2] * e[2, 0]
+        a11 = s[1, 0] * e[0, 1] + s[1, 1] * e[1, 1] + s[1, 2] * e[2, 1]
+        a12 = s[1, 0] * e[0, 2] + s[1, 1] * e[1, 2] + s[1, 2] * e[2, 2]
+        a20 = s[2, 0] * e[0, 0] + s[2, 1] * e[1, 0] + s[2, 2] * e[2, 0]
+        a21 = s[2, 0] * e[0, 1] + s[2, 1] * e[1, 1] + s[2, 2] * e[2, 1]
+        a22 = s[2, 0] * e[0, 2] + s[2, 1] * e[1, 2] + s[2, 2] * e[2, 2]
+        p0 += r00 * t0 + r01 * t1 + r02 * t2
+        p1 += r10 * t0 + r11 * t1 + r12 * t2
+        p2 += r20 * t0 + r21 * t1 + r22 * t2
+        r00, r01, r02 = (r00 * a00 + r01 * a10 + r02 * a20, r00 * a01 + r01 * a11 + r02 * a21,
+                         r00 * a02 + r01 * a12 + r02 * a22)
+        r10, r11, r12 = (r10 * a00 + r11 * a10 + r12 * a20, r10 * a01 + r11 * a11 + r12 * a21,
+                         r10 * a02 + r11 * a12 + r12 * a22)
+        r20, r21, r22 = (r20 * a00 + r21 * a10 + r22 * a20, r20 * a01 + r21 * a11 + r22 * a21,
+                         r20 * a02 + r21 * a12 + r22 * a22)
+
+
+@nb.njit(cache=True, fastmath={"contract", "reassoc", "nsz", "arcp"})
+def _draw_kernel(first, gt_steps, gt_rot, gt_pos, errors, starts, block, kind, m_fit,
+                 out_t, out_r, degenerate, pos, rel):  # pragma: no cover - numba
+    """For every resample r (row of ``starts``: the first step error of each block): its path
+    (``_chain_one``) into the buffers ``pos`` (n, 3) and ``rel`` (n, 9), aligned (``kind``:
+    0 none, 1 origin, 2 se3, 3 sim3; Umeyama on the first ``m_fit`` poses as
+    ``_umeyama_batch``), its translation RMSE [m] and rotation RMSE [deg] written into
+    ``out_t[r]``, ``out_r[r]``. A resample whose positions do not fix the alignment is flagged
+    in ``degenerate`` (its RMSE left NaN). One path in memory, never the resamples' paths."""
+    n = gt_pos.shape[0]
+    reps = starts.shape[0]
+    # the GT positions of the fit less their mean c (row n: c)
+    xd = np.empty((n + 1, 3))
+    c = np.zeros(3)
+    for k in range(m_fit):
+        for i in range(3):
+            c[i] += gt_pos[k, i] / m_fit
+    for k in range(n):
+        for i in range(3):
+            xd[k, i] = gt_pos[k, i] - c[i]
+    xd[n] = c
+    sums = np.empty(13)
+    r_al = np.empty((3, 3))
+    t_al = np.empty(3)
+    cov = np.empty((3, 3))
+    mu_s = np.empty(3)
+    mu_d = np.empty(3)
+    eps = np.finfo(np.float64).eps
+    for r in range(reps):
+        _chain_one(first, gt_steps, gt_rot, errors, starts[r], block, pos, rel, xd,
+                   m_fit if kind >= 2 else 0, sums)
+        scale = 1.0
+        for i in range(3):
+            t_al[i] = 0.0
+            for j in range(3):
+                r_al[i, j] = 1.0 if i == j else 0.0
+        if kind == 1:  # G_0 inv(P_0)
+            for i in range(3):
+                for j in range(3):
+                    r_al[i, j] = rel[0, 3 * j + i]
+            for i in range(3):
+                t_al[i] = gt_pos[0, i] - (r_al[i, 0] * pos[0, 0] + r_al[i, 1] * pos[0, 1]
+                                          + r_al[i, 2] * pos[0, 2])
+        elif kind >= 2:
+            for i in range(3):
+                mu_s[i] = c[i] + sums[9 + i] / m_fit
+                mu_d[i] = c[i]
+                for j in range(3):
+                    cov[i, j] = sums[3 * i + j] / m_fit
+            var = sums[12] / m_fit - ((sums[9] / m_fit) ** 2 + (sums[10] / m_fit) ** 2
+                                      + (sums[11] / m_fit) ** 2)
+            u, d, vt = np.linalg.svd(cov)
+            rank = 0
+            for i in range(3):
+                if d[i] > eps * max(1.0, d[0]):
+                    rank += 1
+            if rank < 2 or m_fit < 3:
+                degenerate[r] = True
+                out_t[r] = np.nan
+                out_r[r] = np.nan
+                continue
+            sign = -1.0 if np.linalg.det(u) * np.linalg.det(vt) < 0.0 else 1.0
+            for i in range(3):
+                for j in range(3):
+                    r_al[i, j] = (u[i, 0] * vt[0, j] + u[i, 1] * vt[1, j]
+                                  + sign * u[i, 2] * vt[2, j])
+            if kind == 3:
+                scale = (d[0] + d[1] + sign * d[2]) / var
+            for i in range(3):
+                t_al[i] = mu_d[i] - scale * (r_al[i, 0] * mu_s[0] + r_al[i, 1] * mu_s[1]
+                                             + r_al[i, 2] * mu_s[2])
+        s00, s01, s02 = scale * r_al[0, 0], scale * r_al[0, 1], scale * r_al[0, 2]
+        s10, s11, s12 = scale * r_al[1, 0], scale * r_al[1, 1], scale * r_al[1, 2]
+        s20, s21, s22 = scale * r_al[2, 0], scale * r_al[2, 1], scale * r_al[2, 2]
+        q00, q01, q02 = r_al[0, 0], r_al[0, 1], r_al[0, 2]
+        q10, q11, q12 = r_al[1, 0], r_al[1, 1], r_al[1, 2]
+        q20, q21, q22 = r_al[2, 0], r_al[2, 1], r_al[2, 2]
+        u0, u1, u2 = t_al[0], t_al[1], t_al[2]
+        t_sum = 0.0
+        r_sum = 0.0
+        for k in range(n):
+            x0 = s00 * pos[k, 0] + s01 * pos[k, 1] + s02 * pos[k, 2] + u0 - gt_pos[k, 0]
+            x1 = s10 * pos[k, 0] + s11 * pos[k, 1] + s12 * pos[k, 2] + u1 - gt_pos[k, 1]
+            x2 = s20 * pos[k, 0] + s21 * pos[k, 1] + s22 * pos[k, 2] + u2 - gt_pos[k, 2]
+            t_sum += x0 * x0 + x1 * x1 + x2 * x2
+            cos = 0.5 * (rel[k, 0] * q00 + rel[k, 1] * q10 + rel[k, 2] * q20
+                         + rel[k, 3] * q01 + rel[k, 4] * q11 + rel[k, 5] * q21
+                         + rel[k, 6] * q02 + rel[k, 7] * q12 + rel[k, 8] * q22 - 1.0)
+            ang = np.arccos(min(1.0, max(-1.0, cos)))
+            r_sum += ang * ang
+        out_t[r] = np.sqrt(t_sum / n)
+        out_r[r] = np.degrees(np.sqrt(r_sum / n))
 
 
 def _umeyama_batch(src: np.ndarray, dst: np.ndarray, with_scale: bool
@@ -210,21 +401,54 @@ class Drift:
 
     def draws(self, block: int, reps: int = REPS, seed: int = 0) -> dict[str, np.ndarray]:
         """{quantity: (reps,) RMSE} of the trajectories re-chained from ``block``-step blocks
-        of the step errors (seeded: two estimates of the same frames draw the same blocks)."""
+        of the step errors (seeded: two estimates of the same frames draw the same blocks).
+        One resample at a time in a compiled kernel (``_draw_kernel``): memory is one path,
+        whatever the number of resamples; a resample whose positions do not fix the alignment
+        is re-chained and aligned by its orientations (as ``metrics.ape.align``)."""
         key = (int(block), int(reps), int(seed))
         if key not in self._draws:
             gt, n = self.gt, len(self.gt)
-            gt_steps = inverse_se3(gt[:-1]) @ gt[1:]
+            b = max(1, int(block))
+            gt_steps = np.ascontiguousarray(inverse_se3(gt[:-1]) @ gt[1:])
             gt_rot = np.ascontiguousarray(gt[:, :3, :3])
-            out = {q: np.empty(reps) for q in QUANTITIES}
-            for c0, rows in block_index_chunks(n - 1, block, reps, seed, CHUNK):
-                pos, rel = np.empty((len(rows), n, 3)), np.empty((len(rows), n, 3, 3))
-                _chain_kernel(self.est[0], gt_steps, gt_rot, self.errors, rows, pos, rel)
-                t_rmse, r_rmse = ape_rmse_batch(gt, pos, rel, self.alignment)
-                out["trans_m"][c0:c0 + len(rows)] = t_rmse
-                out["rot_deg"][c0:c0 + len(rows)] = r_rmse
-            self._draws[key] = out
+            gt_pos = np.ascontiguousarray(gt[:, :3, 3])
+            a = Alignment.parse(self.alignment)
+            m_fit = n if a.first_n is None else min(a.first_n, n)
+            out_t, out_r = np.empty(reps), np.empty(reps)
+            pos, rel = np.empty((n, 3)), np.empty((n, 9))
+            first, errors = np.ascontiguousarray(self.est[0]), np.ascontiguousarray(self.errors)
+            for c0, starts in block_start_chunks(n - 1, b, reps, seed):
+                c = len(starts)
+                degenerate = np.zeros(c, dtype=np.bool_)
+                _draw_kernel(first, gt_steps, gt_rot, gt_pos, errors, starts, b,
+                             _KIND_CODE[a.kind], m_fit, out_t[c0:c0 + c], out_r[c0:c0 + c],
+                             degenerate, pos, rel)
+                for r in np.flatnonzero(degenerate):  # rare: the batched path, one row
+                    rows = block_indices_of(n - 1, b, starts[r:r + 1])
+                    p1, r1 = np.empty((1, n, 3)), np.empty((1, n, 3, 3))
+                    _chain_kernel(self.est[0], gt_steps, gt_rot, self.errors, rows, p1, r1)
+                    t_rmse, r_rmse = ape_rmse_batch(gt, p1, r1, self.alignment)
+                    out_t[c0 + r], out_r[c0 + r] = t_rmse[0], r_rmse[0]
+            self._draws[key] = {"trans_m": out_t, "rot_deg": out_r}
         return self._draws[key]
+
+
+def draws_batched(drift: Drift, block: int, reps: int = REPS, seed: int = 0
+                  ) -> dict[str, np.ndarray]:
+    """:meth:`Drift.draws` the straightforward way (the reference the kernel is tested
+    against): ``CHUNK`` resamples' paths chained together, then aligned and scored by
+    :func:`ape_rmse_batch`."""
+    gt, n = drift.gt, len(drift.gt)
+    gt_steps = inverse_se3(gt[:-1]) @ gt[1:]
+    gt_rot = np.ascontiguousarray(gt[:, :3, :3])
+    out = {q: np.empty(reps) for q in QUANTITIES}
+    for c0, rows in block_index_chunks(n - 1, block, reps, seed, CHUNK):
+        pos, rel = np.empty((len(rows), n, 3)), np.empty((len(rows), n, 3, 3))
+        _chain_kernel(drift.est[0], gt_steps, gt_rot, drift.errors, rows, pos, rel)
+        t_rmse, r_rmse = ape_rmse_batch(gt, pos, rel, drift.alignment)
+        out["trans_m"][c0:c0 + len(rows)] = t_rmse
+        out["rot_deg"][c0:c0 + len(rows)] = r_rmse
+    return out
 
 
 def ape_intervals(drift: Drift, level: float = LEVEL, reps: int = REPS, seed: int = 0,
@@ -233,13 +457,19 @@ def ape_intervals(drift: Drift, level: float = LEVEL, reps: int = REPS, seed: in
     NaN with fewer than two whole blocks or a non-finite estimate."""
     if not drift.usable:
         return {q: Interval(math.nan, math.nan, level, 0, 0) for q in QUANTITIES}
-    block = drift_block([drift.errors]) if block is None else int(block)
-    n_ind = len(drift.errors) // block
+    n_steps = len(drift.errors)
+    if block is None:
+        block = max(1, min(math.ceil(_iv.BLOCK_FACTOR * drift_block([drift.errors])),
+                           max(1, n_steps // 2)))
+    block = int(block)
+    n_ind = n_steps // block
     out = {}
     for q in QUANTITIES:
         lo, hi = math.nan, math.nan
         if n_ind >= MIN_INDEPENDENT:
-            lo, hi = _pivot(drift.observed[q], drift.draws(block, reps, seed)[q], level)
+            x = drift.observed[q]
+            lo, hi = _pivot(x, drift.draws(block, reps, seed)[q], level)
+            lo, hi = contain(x, *widen(x, lo, hi, n_ind, level, True))
             lo = max(0.0, lo)  # an RMSE
         out[q] = Interval(lo, hi, level, block, n_ind)
     return out

@@ -9,29 +9,56 @@ the resampling draws **blocks of consecutive frames** (a circular block bootstra
 Romano 1992): ``ceil(n / b)`` blocks of ``b`` frames with uniformly drawn starts, wrapped at the
 end, the first ``n`` drawn frames kept. A unit enters a resample as often as its anchor frame
 was drawn. The statistic (a mean, or the RMSE) of each resample is the weighted statistic of
-the units; the interval is the percentile interval of ``reps`` resamples (what any circular
-block bootstrap with the stated block length gives). With fewer than two independent units
-there is no interval (NaN).
+the units. With fewer than two independent units there is no interval (NaN).
 
-A percentile interval from few effectively independent pieces is too narrow. Paired comparisons
-(the tables' marks) therefore widen theirs about the observed difference by ``t_{K-1} / z``
-(:func:`widen`: the Student quantile for the ``K`` independent units over the normal one; 9 %
-at ``K`` = 15, a factor 6.5 at ``K`` = 2), so that a difference resting on two 48 m segments is
-not called significant; ``unit_intervals(..., small_sample=True)`` gives the same for a figure.
+**A figure's interval** (:func:`unit_intervals`, what a run's ``metrics.json`` stores and the
+tables print) is built so that it covers its stated level, by a rule with one declared
+constant:
 
-Coverage measured on synthetic drives with exact ground truth and known noise
-(``python -m bench.studies.coverage``; the numbers are in the manual): about 91-92 % for the
-relative errors at 8 m and 87-88 % at 48 m (15 independent segments per 750 m). The APE RMSE,
-a figure of the whole trajectory's drift, is not resampled here: its per-frame errors form a
-random walk (blocks of them covered the long-run mean in about 40 % of trials);
-``metrics.drift_intervals`` resamples the estimate's frame-to-frame errors instead.
+1. *Block length*: :data:`BLOCK_FACTOR` (2) times the larger of the frames one unit spans and
+   the Politis-White length of the unit values (:func:`block_frames`), at most half the frames.
+   Why: a block bootstrap's variance of a mean keeps the autocovariance at lag ``k`` with
+   weight ``1 - k / b`` and loses everything beyond ``b`` (Kunsch 1989). Overlapping units of
+   span ``L`` are correlated out to lag ``L`` (about linearly in their overlap), so a block of
+   one span misses about a third of the variance, a block of two spans about a sixth; the
+   Politis-White length, chosen for the variance's mean squared error rather than for
+   coverage, has the same bias. Longer blocks lose more to step 2's ``b / n``: measured on
+   the study's drives (variance of the resampled mean against the variance of the figure over
+   drives), blocks of 1, 2 and 3 spans kept 57-64 %, 60-70 % and 56-69 % of the variance at
+   48 m with the plain percentile interval, and steps 1 and 2 together cover at the stated
+   level.
+2. *Few pieces*: the percentile interval is widened about the figure by
+   ``t_{K-1} / z * sqrt(K / (K - 1))`` (:func:`widen` with ``batch_means``) with ``K`` the
+   whole blocks of the resample (``n // b``, at most the independent units): the factor of
+   the batch-means t interval from ``K`` pieces. A bootstrap over ``K`` blocks estimates the
+   variance about the sample's own mean with divisor ``K`` (biased low by ``(K - 1) / K``, the
+   share ``b / n`` every block bootstrap loses), and a variance from ``K`` pieces needs the
+   Student quantile. 13 % at ``K`` = 15, 36 % at ``K`` = 7, a factor 9.2 at ``K`` = 2.
+3. *The figure inside*: the interval is stretched to hold the figure itself (:func:`contain`;
+   a percentile interval of a skewed statistic from few blocks can miss it), so
+   ``low <= value <= high`` always holds.
+
+The factor 2 and the batch-means widening were chosen from that bias argument and
+measurements on the study's synthetic drives (``bench.studies.coverage``, white and
+step-correlated noise; noise seeds 10000-10599 and 50000-90299); the manual's table (400 drives
+per noise model, seeds 10000-10799) overlaps those seeds, the check on seeds 20000-20599 does
+not (both are in the manual). Paired comparisons (:func:`paired_interval`) keep blocks of one
+span / correlation length and are widened by ``t_{K-1} / z`` for the ``K`` independent units.
+
+**Cost.** A resample's statistic needs only the sums of the per-frame unit counts and values
+over its blocks (:func:`block_sums`): from a prefix sum over the frames twice round, each
+resample costs its number of blocks, not its number of frames, and memory is ``CHUNK`` times
+the blocks, whatever the number of resamples.
 
 Block length (:func:`block_frames`): at least the frames one unit spans (a segment's end index
 minus its start index, its median over the units) so that units sharing frames mostly fall in
 one block, and at least the automatic block length of Politis & White (2004) for the unit
 values ordered by anchor (:func:`correlation_length`); never more than half the frames; for
 single-frame units at least ``n / APE_MIN_BLOCKS``. Every interval records its block
-length.
+length. The APE RMSE, a figure of the whole trajectory's drift, is not resampled here: its
+per-frame errors form a random walk (blocks of them covered the long-run mean in about 40 % of
+trials); ``metrics.drift_intervals`` resamples the estimate's frame-to-frame errors instead,
+with the same three steps.
 
 Paired comparison (:func:`paired_interval`): two estimates scored on the same segments (the
 same GT, the same scored frames) are resampled with the same blocks and the difference of their
@@ -66,6 +93,9 @@ MIN_INDEPENDENT = 2
 #: ``metrics.drift_intervals`` cannot be): at most this many blocks, i.e. blocks of at least a
 #: quarter of the frames
 APE_MIN_BLOCKS = 4
+#: a figure's block is this many times the span / correlation rule of :func:`block_frames`
+#: (the module docstring: halves the variance the blocks miss)
+BLOCK_FACTOR = 2.0
 
 
 @dataclass(frozen=True)
@@ -162,16 +192,42 @@ def block_frames(n_frames: int, span_frames: float, values: np.ndarray | None = 
     return int(max(1, min(math.ceil(b), max(1, n_frames // 2))))
 
 
-#: resamples computed together: memory is CHUNK x frames, whatever the number of resamples
+#: resamples computed together: memory is CHUNK x blocks (CHUNK x frames where the frames'
+#: indices themselves are asked for), whatever the number of resamples
 CHUNK = 100
 
 
-@lru_cache(maxsize=64)
+@lru_cache(maxsize=8)
 def _starts(n: int, b: int, reps: int, seed: int) -> np.ndarray:
     """(reps, ceil(n / b)) the first frame of every block of every resample (read-only)."""
     starts = np.random.default_rng(seed).integers(0, n, size=(reps, -(-n // b)))
     starts.flags.writeable = False
     return starts
+
+
+def block_starts(n_frames: int, block: int, reps: int = REPS, seed: int = 0) -> np.ndarray:
+    """(reps, ceil(n / block)) the first frame of every block of every resample: the draws
+    behind :func:`block_counts`, :func:`block_indices` and :func:`block_sums` with the same
+    seed (read-only)."""
+    return _starts(int(n_frames), max(1, int(block)), int(reps), int(seed))
+
+
+def block_start_chunks(n_frames: int, block: int, reps: int = REPS, seed: int = 0,
+                       chunk: int = CHUNK):
+    """:func:`block_starts` ``chunk`` resamples at a time, drawn as they are needed and not
+    kept: yields (first resample, (rows, ceil(n / block)) starts). The same draws as
+    :func:`block_starts` with the same seed (the generator draws row after row; tested), in
+    memory ``chunk`` rows at a time whatever the number of resamples."""
+    n, b = int(n_frames), max(1, int(block))
+    rng = np.random.default_rng(int(seed))
+    k = -(-n // b)
+    for c0 in range(0, int(reps), max(1, int(chunk))):
+        yield c0, rng.integers(0, n, size=(min(max(1, int(chunk)), int(reps) - c0), k))
+
+
+def block_indices_of(n_frames: int, block: int, starts: np.ndarray) -> np.ndarray:
+    """(rows, n_frames) the frames drawn by the rows of :func:`block_starts`."""
+    return _indices(int(n_frames), max(1, int(block)), np.asarray(starts))
 
 
 def _indices(n: int, b: int, starts: np.ndarray) -> np.ndarray:
@@ -211,21 +267,44 @@ def block_index_chunks(n_frames: int, block: int, reps: int = REPS, seed: int = 
         yield c0, _indices(n, b, starts[c0:c0 + max(1, int(chunk))])
 
 
+def block_sums(n_frames: int, block: int, per_frame: np.ndarray, reps: int = REPS,
+               seed: int = 0) -> np.ndarray:
+    """(reps, ...) the sum of ``per_frame`` (n_frames, ...) over the frames drawn in each
+    circular block resample (the draws of :func:`block_counts` with the same seed, so equal to
+    ``block_counts(...) @ per_frame`` up to rounding): from a prefix sum over the frames
+    twice round, each resample costs its number of blocks, not its number of frames."""
+    n, b = int(n_frames), max(1, int(block))
+    x = np.asarray(per_frame, dtype=np.float64)
+    k = -(-n // b)
+    lengths = np.full(k, b, dtype=np.int64)
+    lengths[-1] = n - (k - 1) * b  # the first n drawn frames are kept
+    prefix = np.zeros((2 * n + 1,) + x.shape[1:])
+    np.cumsum(np.concatenate([x, x]), axis=0, out=prefix[1:])
+    out = np.empty((int(reps),) + x.shape[1:])
+    for c0, s in block_start_chunks(n, b, reps, seed):
+        out[c0:c0 + len(s)] = (prefix[s + lengths] - prefix[s]).sum(axis=1)
+    return out
+
+
 def _resampled(n: int, b: int, reps: int, seed: int, anchor: np.ndarray,
                series: list[np.ndarray], rmse: bool) -> list[np.ndarray]:
     """Per series, the statistic (mean, or RMSE) of each resample: the units weighted by how
-    often their anchor frame was drawn; computed ``CHUNK`` resamples at a time."""
-    starts = _starts(n, b, reps, seed)
-    powered = [v**2 if rmse else v for v in series]
-    out = [np.empty(reps) for _ in series]
-    for c0 in range(0, reps, CHUNK):
-        w = _counts(n, b, starts[c0:c0 + CHUNK])[:, anchor]
-        total = w.sum(axis=1)
-        for o, v in zip(out, powered, strict=True):
-            with np.errstate(invalid="ignore", divide="ignore"):
-                stat = (w @ v) / total
-            stat[total == 0] = np.nan
-            o[c0:c0 + len(w)] = np.sqrt(stat) if rmse else stat
+    often their anchor frame was drawn, from the block sums (:func:`block_sums`) of the
+    per-frame unit counts and value sums."""
+    per_frame = np.zeros((n, len(series) + 1))
+    np.add.at(per_frame[:, 0], anchor, 1.0)
+    for j, v in enumerate(series):
+        np.add.at(per_frame[:, j + 1], anchor, v**2 if rmse else v)
+    sums = block_sums(n, b, per_frame, reps, seed)
+    total = sums[:, 0]
+    out = []
+    for j in range(len(series)):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            stat = sums[:, j + 1] / total
+        stat[total < 0.5] = np.nan  # no unit drawn (counts are whole numbers)
+        if rmse:
+            stat = np.sqrt(np.maximum(stat, 0.0))
+        out.append(stat)
     return out
 
 
@@ -239,31 +318,43 @@ def _percentiles(stats: np.ndarray, level: float) -> tuple[float, float]:
 
 
 def _block_rule(n_frames: int, anchor: np.ndarray, end: np.ndarray, series: list[np.ndarray],
-                block: int | None, n_independent: int) -> tuple[int, int]:
-    """(block length, independent units): the block is the largest of ``block_frames`` over
-    ``series`` (ordered by anchor), for single-frame units at least ``n / APE_MIN_BLOCKS``,
-    unless given; single-frame units count the whole blocks as their independent pieces."""
+                block: int | None, n_independent: int, factor: float = 1.0) -> tuple[int, int]:
+    """(block length, independent units): the block is ``factor`` times the largest of
+    ``block_frames`` over ``series`` (ordered by anchor), for single-frame units at least
+    ``n / APE_MIN_BLOCKS``, at most half the frames, unless given; single-frame units count the
+    whole blocks as their independent pieces."""
     span = float(np.median(end - anchor))
     if block is None:
         order = np.argsort(anchor, kind="stable")
         block = max(block_frames(n_frames, span, v[order]) for v in series)
         if span <= 1.0:
             block = max(block, -(-n_frames // APE_MIN_BLOCKS))
+        block = max(1, min(math.ceil(factor * block), max(1, n_frames // 2)))
     if span <= 1.0:  # single frames: the independent pieces are the blocks themselves
         n_independent = min(n_independent, max(1, n_frames // int(block)))
     return int(block), n_independent
 
 
+def contain(observed: float, low: float, high: float) -> tuple[float, float]:
+    """``[low, high]`` stretched to hold ``observed`` (a figure always lies in its own
+    interval; a percentile interval of a skewed statistic from few blocks can miss it)."""
+    if not (math.isfinite(low) and math.isfinite(high) and math.isfinite(observed)):
+        return low, high
+    return min(low, observed), max(high, observed)
+
+
 def unit_intervals(n_frames: int, anchor: np.ndarray, end: np.ndarray,
                    values: dict[str, np.ndarray], rmse: bool = False, level: float = LEVEL,
                    reps: int = REPS, seed: int = 0, block: int | None = None,
-                   small_sample: bool = False) -> dict[str, Interval]:
+                   small_sample: bool = True) -> dict[str, Interval]:
     """Intervals of the mean (``rmse``: the RMSE) of each array in ``values`` (one value per
     unit, units anchored at frame ``anchor`` and ending at frame ``end``), all resampled with
-    the same blocks. The block length is :func:`block_frames` of the units' span and of the
-    most correlated of the value series, unless ``block`` is given. ``small_sample``: widened
-    by :func:`widen` for the independent units behind it (else the plain percentile
-    interval)."""
+    the same blocks. The block length is :data:`BLOCK_FACTOR` times :func:`block_frames` of the
+    units' span and of the most correlated of the value series, unless ``block`` is given.
+    ``small_sample`` (the default, what a run's figures print): the percentile interval widened
+    by :func:`widen` for the whole blocks behind it (at most the independent units), and
+    stretched to hold the figure (:func:`contain`); else the plain percentile interval. NaN
+    with fewer than :data:`MIN_INDEPENDENT` independent units."""
     anchor = np.asarray(anchor, dtype=np.int64)
     end = np.asarray(end, dtype=np.int64)
     n_ind = independent_count(anchor, end)
@@ -271,33 +362,37 @@ def unit_intervals(n_frames: int, anchor: np.ndarray, end: np.ndarray,
     finite = {k: np.asarray(v, dtype=np.float64) for k, v in values.items()}
     if anchor.size == 0 or n_frames < 2:
         return {k: nan for k in finite}
-    block, n_ind = _block_rule(n_frames, anchor, end, list(finite.values()), block, n_ind)
+    block, n_ind = _block_rule(n_frames, anchor, end, list(finite.values()), block, n_ind,
+                               BLOCK_FACTOR)
+    pieces = min(n_ind, n_frames // int(block))
     keys = [k for k, v in finite.items() if np.all(np.isfinite(v))]
     stats = dict(zip(keys, _resampled(n_frames, int(block), reps, seed, anchor,
                                       [finite[k] for k in keys], rmse), strict=True))
     out = {}
     for key, v in finite.items():
-        if key not in stats:
+        if key not in stats or n_ind < MIN_INDEPENDENT:
             out[key] = Interval(math.nan, math.nan, level, int(block), n_ind)
             continue
         lo, hi = _percentiles(stats[key], level)
         if small_sample:
             observed = float(np.sqrt(np.mean(v**2))) if rmse else float(np.mean(v))
-            lo, hi = widen(observed, lo, hi, n_ind, level)
-        elif n_ind < MIN_INDEPENDENT:
-            lo, hi = math.nan, math.nan
+            lo, hi = contain(observed, *widen(observed, lo, hi, pieces, level, True))
         out[key] = Interval(lo, hi, level, int(block), n_ind)
     return out
 
 
-def widen(observed: float, low: float, high: float, n_independent: int, level: float
-          ) -> tuple[float, float]:
+def widen(observed: float, low: float, high: float, n_independent: int, level: float,
+          batch_means: bool = False) -> tuple[float, float]:
     """The percentile interval ``[low, high]`` widened about ``observed`` by
-    ``t_{K-1} / z`` for ``K = n_independent`` (NaN for K < 2)."""
+    ``t_{K-1} / z`` for ``K = n_independent`` (NaN for K < 2); ``batch_means``: by
+    ``t_{K-1} / z * sqrt(K / (K - 1))``, the batch-means interval's factor for ``K`` pieces
+    (a bootstrap variance from ``K`` blocks divides by ``K``, an unbiased one by ``K - 1``)."""
     if n_independent < MIN_INDEPENDENT or not (math.isfinite(low) and math.isfinite(high)):
         return math.nan, math.nan
     q = 0.5 * (1.0 + level)
     f = float(student_t.ppf(q, n_independent - 1) / norm.ppf(q))
+    if batch_means:
+        f *= math.sqrt(n_independent / (n_independent - 1))
     return observed - (observed - low) * f, observed + (high - observed) * f
 
 

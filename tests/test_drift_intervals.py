@@ -111,7 +111,7 @@ def test_ape_intervals_cover_the_long_run_mean_where_blocks_of_frame_errors_do_n
     """60 synthetic 300 m drives with known noise: the step-error intervals contain the mean
     APE RMSE over 120 more drives about 95 % of the time (measured with 200 / 400 trials of
     750 m: 94-95 %, bench.studies.coverage); blocks of per-frame APE errors (the previous
-    rule: at most 4 blocks) cover it in well under 70 %."""
+    rule: 4 blocks, the plain percentile interval) cover it in well under 70 %."""
     gt = ground_truth(600)
     noise = NoiseModel()
     truth = np.mean([ape(gt, noisy_estimate(gt, noise, 5000 + s)).trans_rmse_m
@@ -123,7 +123,8 @@ def test_ape_intervals_cover_the_long_run_mean_where_blocks_of_frame_errors_do_n
         hits.append(iv.low <= truth <= iv.high)
         units = ape_units(gt, est)
         old = unit_intervals(len(gt), units.anchor, units.end,
-                             {"trans_m": units.values["trans_m"]}, rmse=True, reps=300)
+                             {"trans_m": units.values["trans_m"]}, rmse=True, reps=300,
+                             block=len(gt) // 4, small_sample=False)
         frame_blocks.append(old["trans_m"].low <= truth <= old["trans_m"].high)
     assert np.mean(hits) >= 0.85
     assert np.mean(frame_blocks) < 0.7
@@ -166,3 +167,64 @@ def test_estimates_aligned_differently_are_not_paired():
     est = noisy_estimate(gt, NoiseModel(), seed=1)
     assert np.isnan(paired_ape_interval(Drift(gt, est, "se3"), Drift(gt, est, "sim3"),
                                         reps=50).low)
+
+
+@pytest.mark.parametrize("alignment", ["se3", "sim3", "origin", "none", "first-40",
+                                       "sim3-first-30"])
+def test_the_one_path_kernel_draws_what_the_batched_paths_draw(alignment):
+    """Drift.draws (one resample's path at a time, compiled, the fit's sums accumulated while
+    chaining) against draws_batched (every resample's path materialised, aligned by
+    ape_rmse_batch): the same draws, equal to rounding, for every alignment, on a drive with
+    correlated step noise and a block that cuts the last one."""
+    from metrics.drift_intervals import draws_batched
+
+    gt = ground_truth(701)
+    est = noisy_estimate(gt, NoiseModel(0.05, 0.01, correlation=0.6), seed=12)
+    drift = Drift(gt, est, alignment)
+    new = drift.draws(23, 120, seed=3)
+    old = draws_batched(drift, 23, 120, seed=3)
+    for q in ("trans_m", "rot_deg"):
+        np.testing.assert_allclose(new[q], old[q], rtol=1e-9, atol=1e-11)
+        assert np.std(new[q]) > 0  # draws that differ (not one path repeated)
+
+
+def test_a_degenerate_resample_falls_back_to_the_orientation_alignment():
+    """Positions on one line do not fix an SE(3) alignment: the kernel flags the resample and
+    it is aligned by its orientations as metrics.ape.align does (the batched reference)."""
+    from metrics.drift_intervals import draws_batched
+
+    gt = np.repeat(np.eye(4)[None], 120, axis=0)
+    gt[:, 0, 3] = 0.5 * np.arange(120)
+    est = gt.copy()
+    est[:, 0, 3] *= 1.01  # the same line, stretched: every resample is on one line
+    drift = Drift(gt, est, "se3")
+    new, old = drift.draws(10, 20, 1), draws_batched(drift, 10, 20, 1)
+    for q in ("trans_m", "rot_deg"):
+        assert np.all(np.isfinite(new[q]))
+        np.testing.assert_allclose(new[q], old[q], rtol=1e-9, atol=1e-11)
+
+
+def test_the_draws_memory_is_one_path_whatever_the_number_of_resamples():
+    """Drift.draws keeps one path (n x 12 floats), a chunk of block starts and the draws
+    (reps x 2), never reps x n: the peak of its allocations (numpy reports them to
+    tracemalloc) at 2000 poses grows by little more than the draws themselves from 50 to 800
+    resamples, and stays well below one materialised chunk of paths."""
+    import tracemalloc
+
+    gt = ground_truth(2000)
+    drift = Drift(gt, noisy_estimate(gt, NoiseModel(), seed=2))
+    assert len(drift.errors) == 1999  # computed once, outside the measurement
+    drift.draws(7, 5, seed=9)  # compiled outside the measurement
+    peaks = {}
+    for reps in (50, 800):
+        tracemalloc.start()
+        drift.draws(7, reps, seed=reps)
+        peaks[reps] = tracemalloc.get_traced_memory()[1]
+        tracemalloc.stop()
+    from metrics.intervals import CHUNK
+
+    path = 2000 * 12 * 8
+    starts_chunk = CHUNK * (-(-1999 // 7)) * 8  # one chunk of block starts (int64)
+    # the draws (2 x 800 floats), a chunk of starts, 100 kB of slack; reps x n would be 12 MB
+    assert peaks[800] - peaks[50] < 800 * 2 * 8 + starts_chunk + 100_000
+    assert peaks[800] < 6 * path  # a chunk of 32 paths would be 32 x path

@@ -4,8 +4,10 @@ Every figure ``bench.runs.evaluate.score`` writes gets, beside it, its confidenc
 ``LEVEL`` (95 %) from a circular block bootstrap over the scored frames and the count of
 independent (non-overlapping) units behind it:
 
-- relative error per length: the rotation and translation means, blocks at least one segment's
-  span (``metrics.intervals.block_frames``);
+- relative error per length: the rotation and translation means, blocks of twice the larger of
+  a segment's span and the errors' correlation length, the percentile interval widened for
+  the few whole blocks (``metrics.intervals``, its docstring: the rule that makes the interval
+  cover its 95 %) and always holding the figure;
 - KITTI drift: the translation [%] and rotation [deg/100 m] means over every segment;
 - APE: the translation and rotation RMSE, from trajectories re-chained from blocks of the
   estimate's frame-to-frame errors along the same path and aligned as the figure
@@ -35,17 +37,17 @@ def _ci(iv: Interval) -> list | None:
     return [num(iv.low), num(iv.high)]
 
 
-def intervals(units: Units, n_frames: int, keys: dict[str, str]) -> dict:
+def intervals(units: Units, n_frames: int, keys: dict[str, str], reps: int = REPS) -> dict:
     """The ``*_ci`` fields (``keys``: quantity in ``units`` -> field name) and the ``spread``
-    of one figure's units over ``n_frames`` scored frames."""
+    of one figure's units over ``n_frames`` scored frames (``reps`` resamples)."""
     if len(units) == 0:
         return {field: None for field in keys.values()} | {"spread": Spread(n_independent=0)}
     if units.drift is not None:
-        ivs = ape_intervals(units.drift, level=LEVEL, reps=REPS, seed=SEED)
+        ivs = ape_intervals(units.drift, level=LEVEL, reps=reps, seed=SEED)
     else:
         ivs = unit_intervals(n_frames, units.anchor, units.end,
                              {k: units.values[k] for k in keys}, rmse=units.rmse, level=LEVEL,
-                             reps=REPS, seed=SEED)
+                             reps=reps, seed=SEED)
     first = next(iter(ivs.values()))
     out = {field: _ci(ivs[key]) for key, field in keys.items()}
     out["spread"] = Spread(block_frames=first.block_frames or None,
