@@ -20,7 +20,7 @@ X - (q_lo - m*)]`` around the observed ``X`` (clipped at 0). Paired: both estima
 errors are drawn with the same blocks and the interval is that of the difference.
 
 The figure's interval follows the three steps of ``metrics.intervals``: blocks of
-``BLOCK_FACTOR`` (2) times the Politis-White length of the step errors' six components (at most
+``BLOCK_FACTOR`` (1.5) times the Politis-White length of the step errors' six components (at most
 half the steps), the pivotal interval widened about ``X`` by ``t_{K-1} / z`` for the ``K``
 whole blocks, and stretched to hold ``X``. The number of independent pieces behind the figure
 is the number of whole blocks of step errors. A paired comparison keeps blocks of one
