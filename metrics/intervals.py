@@ -46,8 +46,8 @@ same widths (the widening makes up for the fewer blocks), 1 covers 91-93 %, 1.5 
 92-95 %, while on a short drive (the 250-frame real sample, 109 m) the intervals at 8 / 16 m
 grow 1.2-1.5x / 1.9x over the plain percentile rule at 1.5 but 1.5-1.8x / 2.6x at 2: the few
 whole blocks of a long block cost a short drive more than the longer block gains. The
-manual's table is measured on seeds 40000-40399, used for nothing else. Paired comparisons (:func:`paired_interval`) keep blocks of one
-span / correlation length and are widened by ``t_{K-1} / z`` for the ``K`` independent units.
+manual's table is measured on seeds 40000-40399, used for nothing else. Paired comparisons
+(:func:`paired_interval`) keep blocks of one span / correlation length and are widened by ``t_{K-1} / z`` for the ``K`` independent units.
 
 **Cost.** A resample's statistic needs only the sums of the per-frame unit counts and values
 over its blocks (:func:`block_sums`): from a prefix sum over the frames twice round, each
