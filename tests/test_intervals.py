@@ -366,3 +366,16 @@ def test_a_weak_correlation_of_a_short_series_still_lengthens_the_block():
                                         (0.2, 100, 1, 1.85)):
         x = lfilter([1.0], [1.0, -phi], np.random.default_rng(seed).normal(size=n))
         assert abs(correlation_length(x) - arch_circular) < 1.0, (phi, n, seed)
+
+
+def test_an_interval_of_errors_that_cannot_be_negative_stops_at_zero():
+    # two independent 48 m-like units on 250 frames: the widening (t_1) reaches far below 0;
+    # a mean of non-negative errors is never below 0, so neither is its interval
+    rng = np.random.default_rng(4)
+    n = 250
+    anchor = np.arange(0, 140)
+    end = anchor + 110
+    v = np.abs(1.0 + np.cumsum(rng.normal(0, 0.2, anchor.size)))
+    iv = unit_intervals(n, anchor, end, {"v": v, "signed": v - 3.0})
+    assert iv["v"].low == 0.0 < iv["v"].high
+    assert iv["signed"].low < -3.0  # a signed quantity keeps its widened interval
