@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from bench.studies.coverage import NoiseModel, ground_truth, noisy_estimate
 from metrics import ape
@@ -228,3 +229,38 @@ def test_the_draws_memory_is_one_path_whatever_the_number_of_resamples():
     # the draws (2 x 800 floats), a chunk of starts, 100 kB of slack; reps x n would be 12 MB
     assert peaks[800] - peaks[50] < 800 * 2 * 8 + starts_chunk + 100_000
     assert peaks[800] < 6 * path  # a chunk of 32 paths would be 32 x path
+
+
+def test_the_block_follows_a_correlated_translation_error_too():
+    """Step errors whose translation is correlated from step to step (an AR(1) of 0.95 in x)
+    and whose rotation is white: the block is the translation's correlation length, long; a
+    block taken from the rotation components only would be a few steps."""
+    from metrics.drift_intervals import drift_block
+
+    rng = np.random.default_rng(8)
+    n = 2000
+    errors = np.repeat(np.eye(4)[None], n, axis=0)
+    angles = rng.normal(0.0, 1e-4, (n, 3))
+    errors[:, :3, :3] = Rotation.from_rotvec(angles).as_matrix()
+    x = np.zeros(n)
+    for k in range(1, n):
+        x[k] = 0.95 * x[k - 1] + rng.normal(0.0, 0.01)
+    errors[:, 0, 3] = x
+    white = errors.copy()
+    white[:, 0, 3] = rng.normal(0.0, 0.01, n)
+    assert drift_block([white]) < 8
+    assert drift_block([errors]) > 30
+
+
+def test_the_ape_interval_reflects_the_draws_about_the_figure():
+    """The pivotal interval [X - (q_hi - m*), X - (q_lo - m*)]: with draws skewed to the right
+    (a long upper tail) the interval reaches further below X than above it; shifting the
+    percentiles to X instead would do the opposite."""
+    from metrics.drift_intervals import _pivot
+
+    draws = np.random.default_rng(3).exponential(1.0, 20000) + 1.0
+    lo_q, hi_q = np.quantile(draws, [0.025, 0.975])
+    mean = draws.mean()
+    low, high = _pivot(2.0, draws, 0.95)
+    assert low == pytest.approx(2.0 - (hi_q - mean)) and high == pytest.approx(2.0 - (lo_q - mean))
+    assert 2.0 - low > high - 2.0  # the long upper tail of the draws goes below X
