@@ -131,7 +131,7 @@ def test_the_rules_guarantees_on_random_columns():
 
 #: a printed figure: value and optionally its interval, then its mark
 _CELL = re.compile(r"(\*\*|<u>)?(-?\d+\.\d+)(?: \[(-?\d+\.\d+), (-?\d+\.\d+)\])?"
-                   r"( \(\d+ segments?\))?(\*\*|</u>)?")
+                   r"( \(\d+ segments?\))?(?: †)?(\*\*|</u>)?(?: \[\d+\])?")
 
 
 def ruler(markdown: str) -> int:
@@ -157,7 +157,10 @@ def ruler(markdown: str) -> int:
                     if part >= len(parts):
                         continue
                     m = _CELL.fullmatch(parts[part].strip())
-                    if m is None:
+                    if m is None:  # a status or a count: nothing else is skipped unseen
+                        text = parts[part].split(" [")[0].strip()
+                        assert text in ("Div.", "-", "failed", "") or re.fullmatch(
+                            r"\d+ \(\d+\)", text), parts[part]
                         continue
                     mark = BEST if m.group(1) == "**" else SECOND if m.group(1) else OTHER
                     v = float(m.group(2))
