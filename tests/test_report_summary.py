@@ -256,6 +256,12 @@ def test_parameter_overrides_are_in_the_row_label(tmp_path):
     labels = sorted(r.label for r in rows)
     assert labels[0].endswith("ICP point-to-point [max_iterations=3]"), labels
     assert labels[1].endswith("mine"), labels
+    # the APE table (methods x sequences) labels its rows alike
+    from bench.report.tables_ape import collect_ape
+
+    ape_rows = sorted(r.keys[0] for r in collect_ape(tmp_path).table.rows)
+    assert ape_rows[0].endswith("ICP point-to-point [max_iterations=3]"), ape_rows
+    assert ape_rows[1].endswith("mine"), ape_rows
     prep = prepare(Job(store=ROOT / "samples" / "ntu4dradlm-loop1.h5", method="icp-p2p",
                        seed=True, out_root=tmp_path, params={"max_iterations": 3}))
     prep.sequence.close()

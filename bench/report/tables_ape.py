@@ -22,6 +22,7 @@ from bench.report.names import (
     SEED_NOTE,
     gt_assisted_note,
     order_key,
+    overrides_note,
     run_label,
     sequence_key,
     synthetic_note,
@@ -77,7 +78,8 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
     # runs of one sequence under one label (e.g. differing only in --alignment) are told apart
     # by what differs in their configuration: one row each, none dropped
     labels = distinct_labels(runs, lambda r: run_label(r.method, r.seed, r.label,
-                                                       r.doppler_kind),
+                                                       r.doppler_kind)
+                             + overrides_note(r.config),  # -p max_iterations=3 is no default
                              lambda r: r.display_name, lambda r: r.config, lambda r: r.dir)
     for r, label in zip(runs, labels, strict=True):
         key = (order_key(r.method), r.method, r.label or "", r.seed.rank, r.seed.value, label)
