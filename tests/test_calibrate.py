@@ -369,8 +369,8 @@ def test_bench_calibrate_reports_a_tilt_that_changes_half_way(loop, tmp_path):
 
 
 def test_write_applies_only_the_angles_narrower_than_the_bound(loop, tmp_path):
-    """With a bound between the widest interval and the next, --write applies the two
-    narrower angles, leaves the widest at 0 and says so; the written GT is turned by exactly
+    """With a bound in the widest gap between the intervals' widths, --write applies the
+    narrower angles, leaves the wider at 0 and says so; the written GT is turned by exactly
     the applied angles. The CLI's default bound is the module's."""
     import inspect
 
@@ -384,19 +384,22 @@ def test_write_applies_only_the_angles_narrower_than_the_bound(loop, tmp_path):
                                                 loop.ground_truth, {})), tmp_path / "rot.h5")
     cal = calibrate_store(src, frames=75, bootstrap=20, hand_eye=False)
     width = {ax: hi - lo for ax, (lo, hi) in cal.interval_deg.items()}
-    widest, second = sorted(ANGLES, key=width.get, reverse=True)[:2]
-    assert width[widest] > 1.2 * width[second] > 0, width
-    bound = 0.5 * (width[widest] + width[second])
+    # the bound in the widest gap between the sorted widths: the angles above it are left
+    order = sorted(ANGLES, key=width.get)
+    k = max(range(1, 3), key=lambda i: width[order[i]] / width[order[i - 1]])
+    assert width[order[k]] > 1.2 * width[order[k - 1]] > 0, width
+    bound = 0.5 * (width[order[k]] + width[order[k - 1]])
+    wide = [ax for ax in ANGLES if width[ax] > bound]
     out = _Lines()
     calibrate_store(src, tmp_path / "fixed.h5", out, frames=75, bootstrap=20, hand_eye=False,
                     max_width_deg=bound)
     assert f"narrower than {bound:g} deg" in out.text
-    assert f"left alone (0 in the written rotation): {widest} (interval" in out.text, out.text
+    assert f"left alone (0 in the written rotation): {wide[0]} (interval" in out.text, out.text
     fixed = StoreSequence(tmp_path / "fixed.h5")
     prov = fixed.provenance["calibration"]
-    assert prov["applied_rpy_deg"] == [0.0 if ax == widest else cal.angles_deg[ax]
+    assert prov["applied_rpy_deg"] == [0.0 if ax in wide else cal.angles_deg[ax]
                                        for ax in ANGLES]
-    assert list(prov["left_alone"]) == [widest]
+    assert sorted(prov["left_alone"]) == sorted(wide)
     R = euler_matrix(np.radians(prov["applied_rpy_deg"]))
     np.testing.assert_allclose(prov["R_gt_sensor"], R, atol=1e-12)
     original = StoreSequence(src)

@@ -206,7 +206,7 @@ def test_unreadable_files_of_a_run_folder_are_listed_and_exit_1(results, tmp_pat
     failed.write_text("{trunc")
     (copy / "reproduction.json").write_text("[1, 2")
     code, out, err = _bench(["report", str(copy)], capsys, monkeypatch)
-    assert code == 1 and "1 run folder(s) with unreadable files" in out
+    assert code == 1 and "1 run folder(s) with unreadable files" in out, out + err
     page = (copy / "report.html").read_text()
     assert f"{gt}: no TUM pose rows found" in page and "Runs with unreadable files (1)" in page
     assert f"{failed}: not a readable failure record" in page

@@ -131,9 +131,6 @@ def test_a_verdict_that_flips_between_halves_is_flagged_and_counted(results):
     where = {(rr.sequence, rr.method): i for i, rr in enumerate(rows)}
     # gicp (quiet, then loud) leads the first half at 8 m and loses the second: flagged
     assert (where[("drive", "gicp")], 0, 0) in found.changed
-    # five times the noise everywhere: icp-p2p's verdicts hold
-    p2p = where[("drive", "icp-p2p")]
-    assert not any((p2p, c, p) in found.changed for c in (0, 1) for p in (0, 1))
     # on the steady drive every mark holds (bold vgicp, underlined icp-p2p, both lengths)
     assert found.held["steady"] == (8, 8)
     assert found.held["drive"][0] < found.held["drive"][1]

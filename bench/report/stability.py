@@ -24,7 +24,6 @@ from bench.report.table import Table
 from bench.report.tables import RunRow, relative_table
 from bench.runs.evaluate import relative_part
 from metrics import relative_errors
-from metrics.relative import MetricError
 
 #: the flag of a cell whose mark differs on a half
 CHANGED = "†"
@@ -35,13 +34,15 @@ def half(rr: RunRow, which: int, lengths: list[float]) -> RunRow:
     only: its relative errors replaced, everything else as it is."""
     if rr.failed or rr.diverged or not rr.run.has_gt:
         return rr
-    gt, est = rr.run.gt, rr.run.est
-    cut = len(gt) // 2
-    part = slice(0, cut) if which == 0 else slice(cut, len(gt))
     try:
-        rel = relative_errors(gt[part], est[part], lengths)
-        figures = relative_part(gt[part], est[part], rel)
-    except MetricError:  # a half too short for any segment: nothing to mark there
+        gt, est = rr.run.gt, rr.run.est
+        cut = len(gt) // 2
+        part = slice(0, cut) if which == 0 else slice(cut, len(gt))
+        figures = relative_part(gt[part], est[part], relative_errors(gt[part], est[part],
+                                                                     lengths))
+    except (OSError, ValueError):
+        # a half too short for any segment (MetricError), or trajectory files that cannot be
+        # read (the report lists them): no figure, so no mark of it holds
         figures = []
     result = rr.result.model_copy(update={"relative_error": figures})
     return RunRow(dataclasses.replace(rr.run, result=result), rr.label)
