@@ -36,7 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from loaders.errors import DataError
-from loaders.posefile import QUAT_NORM_TOLERANCE, numeric_rows
+from loaders.posefile import QUAT_NORM_TOLERANCE, first_numeric_width, numeric_rows
 from loaders.se3 import T_from_tum, make_T
 from loaders.trajectory import Trajectory
 
@@ -183,17 +183,7 @@ def detect_format(path: Path) -> str:
     from loaders.limits import check_file_size
 
     check_file_size(path, str(path))
-    with open(path, errors="replace") as f:
-        for line in f:
-            parts = line.replace(",", " ").split()
-            if not parts or parts[0].startswith("#"):
-                continue
-            try:
-                [float(p) for p in parts]
-            except ValueError:
-                continue
-            return {12: "kitti", 13: "boreas"}.get(len(parts), "tum")
-    return "tum"
+    return {12: "kitti", 13: "boreas"}.get(first_numeric_width(path), "tum")
 
 
 def is_bag(path: Path) -> bool:

@@ -271,11 +271,9 @@ def is_ref_csv(path: str | Path) -> bool:
     return False
 
 
-def detect_pose_format(path: str | Path) -> str:
-    """"ref-csv" for a reference trajectory in CSV form (``is_ref_csv``), "kitti" when the first
-    numeric row has 12 values, else "tum"."""
-    if is_ref_csv(path):  # (checks the file's size against the per-file limit first)
-        return "ref-csv"
+def first_numeric_width(path: str | Path) -> int | None:
+    """How many values the first all-numeric row of a pose file holds (commas read as spaces,
+    ``#`` comments and other rows passed over); None without such a row."""
     with open(path, errors="replace") as f:
         for line in f:
             parts = line.replace(",", " ").split()
@@ -285,8 +283,16 @@ def detect_pose_format(path: str | Path) -> str:
                 [float(p) for p in parts]
             except ValueError:
                 continue
-            return "kitti" if len(parts) == 12 else "tum"
-    return "tum"
+            return len(parts)
+    return None
+
+
+def detect_pose_format(path: str | Path) -> str:
+    """"ref-csv" for a reference trajectory in CSV form (``is_ref_csv``), "kitti" when the first
+    numeric row has 12 values, else "tum"."""
+    if is_ref_csv(path):  # (checks the file's size against the per-file limit first)
+        return "ref-csv"
+    return "kitti" if first_numeric_width(path) == 12 else "tum"
 
 
 def read_gt_file(path: str | Path, fmt: str = "auto", stamps: np.ndarray | None = None
