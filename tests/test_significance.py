@@ -246,10 +246,9 @@ def test_marks_on_real_radar_frames_agree_with_their_printed_intervals(tmp_path)
     methods (with and without seed), `bench table --ci` at 8-48 m and the APE table; every
     marked figure re-derived from the printed text alone, no two marked alike with disjoint
     intervals, equal printed values marked alike."""
-    from conftest import real_sample_store
-
     from bench.api import run_method
     from bench.report.tables_ape import collect_ape
+    from conftest import real_sample_store
 
     store = real_sample_store()
     for method, seeds in (("doppler", (None,)), ("icp-p2p", (True, False)),
