@@ -15,7 +15,7 @@ import pytest
 
 from conftest import SAMPLE_STORE
 from helpers_public import write_coloradar, write_npy_frames, write_vod
-from helpers_snail import radar_array, write_ros2_bag, write_snail_folder
+from helpers_snail import radar_array, write_ros2_bag, write_snail_bag, write_snail_folder
 from loaders.doppler_check import low_points_median_z
 from loaders.scan import MemorySequence, Scan, SensorInfo
 from loaders.se3 import make_T
@@ -54,7 +54,12 @@ def _layouts(root, stamps, points, doppler, poses):
              zip(stamps, points, doppler, strict=True)]
     write_snail_folder(root / "data1" / "eagleg7" / "enhanced", eagle)
     write_ros2_bag(root / "bag_mcap", eagle, "mcap")
+    (root / "20240123").mkdir()
+    ros1 = write_snail_bag(root / "20240123" / "data1.bag", {"/radar_enhanced_pcl2": eagle})
     return {
+        "snail-radar (ROS1 bag)": SnailRadarSequence(ros1),
+        "rosbag (ROS1)": RosbagSequence([ros1], topic="/radar_enhanced_pcl2",
+                                        doppler_field="Doppler"),
         "npy-frames": NpyFramesSequence(write_npy_frames(root / "npy", points, doppler, stamps,
                                                          poses), period_s=PERIOD_S),
         "vod": vod,
