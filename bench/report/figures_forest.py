@@ -218,8 +218,7 @@ def draw_panel(ax, panel: Panel) -> None:
 NOTE = ("Bar: the 95 % interval the table prints, dot: the figure. Dashed line U: the smallest "
         "upper end among the ranked figures; every ranked figure at or below it is bold (label "
         "bold, thick bar), so every bold bar crosses U. Dotted: the same among the rest "
-        "(underlined). Grey, hollow: not ranked (fewer than 2 independent segments, or the "
-        "method's other seed row is better).")
+        "(underlined). Grey, hollow: not ranked (fewer than 2 independent segments).")
 
 
 def draw_forest(panels: list[Panel]):
