@@ -53,8 +53,11 @@ def test_a_pairwise_method_registers_each_consecutive_pair_once_after_the_runs_w
     r = speed.time_frames(method, stored)
     stamps = [round(s, 6) for s in stored.stamps]
     pairs = list(zip(stamps[:-1], stamps[1:], strict=True))
-    # Odometry.warm_up: one untimed run on the last pair, then every pair once, in order
-    assert calls == [pairs[-1], *pairs]
+    # Odometry.warm_up: one untimed run on the last pair, then every pair once, in order; a
+    # run whose CPU time leaked out of its thread (another thread of this test process busy)
+    # is timed again, whole, by the wall clock (bench.runs.timed), and says so
+    once = [pairs[-1], *pairs]
+    assert calls == (once * 2 if r["clock"] == "wall" else once), r["clock"]
     assert r["repeats"] == len(stored) - 1  # every registered frame is a figure
 
 
