@@ -479,7 +479,8 @@ def paired_ape_interval(a: Drift, b: Drift, quantity: str = "trans_m", level: fl
                         reps: int = REPS, seed: int = 0, block: int | None = None) -> Interval:
     """The interval of ``APE(a) - APE(b)`` (``quantity``'s RMSE) of two estimates of the same
     frames (``Drift.same_frames``), both resampled with the same blocks, widened for the
-    independent blocks (``metrics.intervals.widen``)."""
+    independent blocks (``metrics.intervals.widen``). For a notebook comparing two estimates;
+    the tables' marks read each figure's own printed interval."""
     if not (a.usable and b.usable and a.same_frames(b)):
         return Interval(math.nan, math.nan, level, 0, 0)
     block = drift_block([a.errors, b.errors]) if block is None else int(block)

@@ -1,16 +1,15 @@
-"""`bench` run in-process as its console entry point runs it (bench.cli.main: a DataError is
-one message and exit 2, no traceback): the exit code and the printed text, whitespace
-folded."""
+"""The `bench` entry point itself, as a user runs it (exit codes and the message formatting of
+``bench.cli.main``), for tests."""
 
 import pytest
 
+from bench.cli import main
 
-def bench_main(monkeypatch, capsys, *args) -> tuple[int, str]:
-    from bench.cli import main
 
-    monkeypatch.setattr("sys.argv", ["bench", *map(str, args)])
+def run_bench(args, capsys, monkeypatch) -> tuple[int, str]:
+    """(exit code, stdout + stderr) of ``bench ARGS``."""
+    monkeypatch.setattr("sys.argv", ["bench", *args])
     with pytest.raises(SystemExit) as exit_:
         main()
     out = capsys.readouterr()
-    code = exit_.value.code
-    return (0 if code is None else code), " ".join((out.out + out.err).split())
+    return exit_.value.code, out.out + out.err

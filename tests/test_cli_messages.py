@@ -5,9 +5,10 @@ right exit code) before any job runs."""
 import numpy as np
 import pytest
 import yaml
+from helpers_cli import run_bench as _bench
 from typer.testing import CliRunner
 
-from bench.cli import app, main
+from bench.cli import app
 from conftest import constant_twist_sequence
 from loaders.store import write_store
 
@@ -16,15 +17,6 @@ from loaders.store import write_store
 def store(tmp_path_factory):
     seq = constant_twist_sequence(n_frames=30, n_points=800, max_range_m=60)
     return write_store(seq, tmp_path_factory.mktemp("data") / "twist.h5")
-
-
-def _bench(args, capsys, monkeypatch) -> tuple[int, str]:
-    """The `bench` entry point itself (exit codes and message formatting of main())."""
-    monkeypatch.setattr("sys.argv", ["bench", *args])
-    with pytest.raises(SystemExit) as exit_:
-        main()
-    out = capsys.readouterr()
-    return exit_.value.code, out.out + out.err
 
 
 def _experiment(tmp_path, store, **extra):

@@ -10,8 +10,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers_cli import run_bench as _bench
 
-from bench.cli import main
 from bench.runs.external import ExternalSpec, score_external
 from bench.runs.external_match import match_to_scans
 from bench.runs.folders import read_run
@@ -283,14 +283,6 @@ def test_a_boreas_submission_scores_as_its_tum_twin(sample, tmp_path, capsys, mo
             assert res.relative(length).rot_deg_mean == pytest.approx(
                 tum_res.relative(length).rot_deg_mean, rel=1e-6, abs=1e-9)
         assert res.ape.trans_rmse_m == pytest.approx(tum_res.ape.trans_rmse_m, rel=1e-6)
-
-
-def _bench(args, capsys, monkeypatch) -> tuple[int, str]:
-    monkeypatch.setattr("sys.argv", ["bench", *args])
-    with pytest.raises(SystemExit) as exit_:
-        main()
-    out = capsys.readouterr()
-    return exit_.value.code, out.out + out.err
 
 
 @pytest.mark.parametrize("extra, message", [

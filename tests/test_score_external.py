@@ -15,9 +15,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from helpers_cli import run_bench as _bench
 from scipy.spatial.transform import Rotation, Slerp
 
-from bench.cli import main
 from bench.runs.external import ExternalSpec, score_external
 from bench.runs.folders import read_run
 from bench.runs.job import Job, run_job
@@ -284,14 +284,6 @@ def test_every_reader_shows_the_external_run(data, tmp_path):
     assert "doppler-tum (external)" in html and info
     figs = plot_trajectories(folder, tmp_path / "figs")
     assert figs and all(p.exists() for p in figs)
-
-
-def _bench(args, capsys, monkeypatch) -> tuple[int, str]:
-    monkeypatch.setattr("sys.argv", ["bench", *args])
-    with pytest.raises(SystemExit) as exit_:
-        main()
-    out = capsys.readouterr()
-    return exit_.value.code, out.out + out.err
 
 
 def test_cli_scores_and_bad_input_is_one_message(data, tmp_path, capsys, monkeypatch):

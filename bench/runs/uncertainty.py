@@ -15,8 +15,8 @@ independent (non-overlapping) units behind it:
 - velocity error: the mean error norm over the windows.
 
 The resampling is seeded (``SEED``): the same trajectory gives the same interval, and two runs
-on the same frames are resampled with the same blocks (their paired comparison,
-``bench.report.significance``).
+on the same frames are resampled with the same blocks. The tables' marks read these intervals
+as printed (``bench.report.significance``).
 """
 
 from __future__ import annotations
