@@ -46,7 +46,7 @@ import numba as nb
 import numpy as np
 
 from metrics import intervals as _iv
-from metrics.ape import Alignment, orientation_alignment
+from metrics.ape import Alignment, orientation_alignment, umeyama_batch
 from metrics.intervals import (
     LEVEL,
     MIN_INDEPENDENT,
@@ -132,6 +132,29 @@ def _chain_kernel(first, gt_steps, gt_rot, errors, idx, pos, rel):  # pragma: no
 #: alignment kinds as the draw kernel's codes
 _KIND_CODE = {"none": 0, "origin": 1, "se3": 2, "sim3": 3}
 
+#: ``asin(sqrt(x))^2 = sum_n c_n x^n`` with ``c_n = 2^(2n-1) ((n-1)!)^2 / (2n)!`` (n = 1..10):
+#: the squared angle of a rotation from ``x = (1 - cos) / 2`` is ``4 asin(sqrt(x))^2``. Up to
+#: ``_SERIES_X`` (angles up to 20 deg) the ten terms leave less than 2e-17 of it, and cost a
+#: tenth of a call to ``arccos``; larger angles take ``arccos``.
+_ASIN_SQ = np.array([2.0 ** (2 * n - 1) * math.factorial(n - 1) ** 2 / math.factorial(2 * n)
+                     for n in range(1, 11)])
+_SERIES_X = 0.03
+
+
+@nb.njit(cache=True, fastmath={"contract", "reassoc", "nsz", "arcp"})
+def _angle_sq(cos):  # pragma: no cover - numba
+    """The squared rotation angle [rad^2] of a rotation whose angle has cosine ``cos``:
+    ``arccos(cos)^2``, by the series ``_ASIN_SQ`` for small angles."""
+    c = min(1.0, max(-1.0, cos))
+    x = 0.5 * (1.0 - c)
+    if x > _SERIES_X:
+        ang = np.arccos(c)
+        return ang * ang
+    s = _ASIN_SQ[9]
+    for i in range(8, -1, -1):
+        s = s * x + _ASIN_SQ[i]
+    return 4.0 * s * x
+
 
 @nb.njit(cache=True, fastmath={"contract", "reassoc", "nsz", "arcp"})
 def _chain_one(first, gt_steps, gt_rot, errors, starts_r, block, pos, rel, xd, m_fit,
@@ -152,6 +175,8 @@ def _chain_one(first, gt_steps, gt_rot, errors, starts_r, block, pos, rel, xd, m
     r10, r11, r12 = first[1, 0], first[1, 1], first[1, 2]
     r20, r21, r22 = first[2, 0], first[2, 1], first[2, 2]
     p0, p1, p2 = first[0, 3], first[1, 3], first[2, 3]
+    # i_k by counters, not by k // block, k % block and mod m (three integer divisions a step)
+    j, left, src = 0, 0, 0
     for k in range(n):
         pos[k, 0] = p0
         pos[k, 1] = p1
@@ -184,8 +209,15 @@ def _chain_one(first, gt_steps, gt_rot, errors, starts_r, block, pos, rel, xd, m
         rel[k, 8] = r20 * g[2, 0] + r21 * g[2, 1] + r22 * g[2, 2]
         if k == m:
             break
+        if left == 0:  # a new block
+            src, left = starts_r[j] % m, block
+            j += 1
         s = gt_steps[k]
-        e = errors[(starts_r[k // block] + k % block) % m]
+        e = errors[src]
+        src += 1
+        left -= 1
+        if src == m:
+            src = 0
         # the step s e: rotation a, translation t
         t0 = s[0, 0] * e[0, 3] + s[0, 1] * e[1, 3] + s[0, 2] * e[2, 3] + s[0, 3]
         t1 = s[1, 0] * e[0, 3] + s[1, 1] * e[1, 3] + s[1, 2] * e[2, 3] + s[1, 3]
@@ -216,7 +248,7 @@ def _draw_kernel(first, gt_steps, gt_rot, gt_pos, errors, starts, block, kind, m
     """For every resample r (row of ``starts``: the first step error of each block): its path
     (``_chain_one``) into the buffers ``pos`` (n, 3) and ``rel`` (n, 9), aligned (``kind``:
     0 none, 1 origin, 2 se3, 3 sim3; Umeyama on the first ``m_fit`` poses as
-    ``_umeyama_batch``), its translation RMSE [m] and rotation RMSE [deg] written into
+    ``metrics.ape.umeyama_batch``), its translation RMSE [m] and rotation RMSE [deg] written into
     ``out_t[r]``, ``out_r[r]``. A resample whose positions do not fix the alignment is flagged
     in ``degenerate`` (its RMSE left NaN). One path in memory, never the resamples' paths."""
     n = gt_pos.shape[0]
@@ -298,34 +330,9 @@ def _draw_kernel(first, gt_steps, gt_rot, gt_pos, errors, starts, block, kind, m
             cos = 0.5 * (rel[k, 0] * q00 + rel[k, 1] * q10 + rel[k, 2] * q20
                          + rel[k, 3] * q01 + rel[k, 4] * q11 + rel[k, 5] * q21
                          + rel[k, 6] * q02 + rel[k, 7] * q12 + rel[k, 8] * q22 - 1.0)
-            ang = np.arccos(min(1.0, max(-1.0, cos)))
-            r_sum += ang * ang
+            r_sum += _angle_sq(cos)
         out_t[r] = np.sqrt(t_sum / n)
         out_r[r] = np.degrees(np.sqrt(r_sum / n))
-
-
-def _umeyama_batch(src: np.ndarray, dst: np.ndarray, with_scale: bool
-                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """Per batch row (R (c,3,3), t (c,3), s (c,), degenerate (c,)) minimising
-    ``|dst - (s R src + t)|^2`` (Umeyama 1991 with the reflection guard, as evo); degenerate:
-    the cross-covariance has rank < 2 (``metrics.ape.positions_degenerate``)."""
-    mu_s, mu_d = src.mean(axis=1), dst.mean(axis=1)
-    xs, xd = src - mu_s[:, None], dst - mu_d[:, None]
-    cov = np.swapaxes(xd, 1, 2) @ xs / src.shape[1]
-    u, d, vt = np.linalg.svd(cov)
-    degenerate = np.count_nonzero(
-        d > np.finfo(float).eps * np.maximum(1.0, d[:, :1]), axis=1) < 2
-    sign = np.where(np.linalg.det(u) * np.linalg.det(vt) < 0.0, -1.0, 1.0)
-    s_diag = np.ones((len(src), 3))
-    s_diag[:, 2] = sign
-    rot = u @ (s_diag[:, :, None] * vt)
-    if with_scale:
-        var = np.mean(np.sum(xs**2, axis=2), axis=1)
-        scale = np.sum(d * s_diag, axis=1) / var
-    else:
-        scale = np.ones(len(src))
-    trans = mu_d - scale[:, None] * (rot @ mu_s[:, :, None])[:, :, 0]
-    return rot, trans, scale, degenerate
 
 
 def _rmse(x: np.ndarray) -> np.ndarray:
@@ -342,7 +349,7 @@ def ape_rmse_batch(gt: np.ndarray, pos: np.ndarray, rel: np.ndarray, alignment: 
     r_al, t_al, scale = np.repeat(np.eye(3)[None], c, 0), np.zeros((c, 3)), np.ones(c)
     if a.kind in ("se3", "sim3"):
         m = n if a.first_n is None else min(a.first_n, n)
-        r_al, t_al, scale, degenerate = _umeyama_batch(
+        r_al, t_al, scale, degenerate = umeyama_batch(
             pos[:, :m], np.broadcast_to(gt[:m, :3, 3], (c, m, 3)), a.kind == "sim3")
         for i in np.flatnonzero(degenerate | (m < 3)):  # as metrics.ape.align
             poses = np.repeat(np.eye(4)[None], m, axis=0)

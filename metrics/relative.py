@@ -31,7 +31,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 DEFAULT_LENGTHS_M: tuple[float, ...] = (8.0, 16.0, 24.0, 32.0, 40.0, 48.0)
 
@@ -104,11 +103,19 @@ def inverse_se3(poses: np.ndarray) -> np.ndarray:
 
 
 def rotation_angle_deg(rotations: np.ndarray) -> np.ndarray:
-    """Angle of each (M,3,3) rotation [deg]; NaN where the matrix has non-finite entries."""
-    out = np.full(rotations.shape[0], np.nan)
-    finite = np.all(np.isfinite(rotations), axis=(1, 2))
-    if np.any(finite):
-        out[finite] = np.degrees(Rotation.from_matrix(rotations[finite]).magnitude())
+    """Angle of each (M,3,3) rotation [deg]; NaN where the matrix has non-finite entries.
+
+    ``atan2(|v|, trace - 1)`` with ``v`` the axis vector of ``R - R^T`` (``2 sin`` and ``2 cos``
+    of the angle): accurate to rounding at every angle, like scipy's quaternion magnitude
+    (the tests compare the two), where ``arccos`` of the trace loses half the digits near 0;
+    vectorised, a fifth of scipy's time."""
+    r = np.asarray(rotations, dtype=np.float64)
+    v = np.stack([r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0], r[:, 1, 0] - r[:, 0, 1]],
+                 axis=1)
+    with np.errstate(invalid="ignore", over="ignore"):
+        out = np.degrees(np.arctan2(np.linalg.norm(v, axis=1),
+                                    r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2] - 1.0))
+    out[~np.all(np.isfinite(r), axis=(1, 2))] = np.nan
     return out
 
 
@@ -192,6 +199,31 @@ def stats_from_segments(seg: SegmentErrors) -> RelativeErrorStats:
     )
 
 
+def relative_segments(
+    gt_poses: np.ndarray,
+    est_poses: np.ndarray,
+    lengths_m: tuple[float, ...] | list[float] = DEFAULT_LENGTHS_M,
+    tolerance: float = 0.2,
+) -> dict[float, SegmentErrors]:
+    """The segments of each nominal length [m] (keys are float lengths): what
+    :func:`relative_errors` summarises and the intervals resample.
+
+    Raises MetricError if no requested length yields a single segment.
+    """
+    lengths = [float(length) for length in lengths_m]
+    if not lengths:
+        raise MetricError("no segment length requested")
+    out = {length: segment_errors(gt_poses, est_poses, length, tolerance) for length in lengths}
+    if all(s.trans_m.size == 0 for s in out.values()):
+        gt = np.asarray(gt_poses, dtype=np.float64)
+        total = float(path_distances(gt[:, :3, 3])[-1])
+        raise MetricError(
+            f"no relative-error segment found: GT path length is {total:.3f} m, shortest "
+            f"requested segment length is {min(lengths):g} m (tolerance {tolerance:g} x L)"
+        )
+    return out
+
+
 def relative_errors(
     gt_poses: np.ndarray,
     est_poses: np.ndarray,
@@ -202,18 +234,5 @@ def relative_errors(
 
     Raises MetricError if no requested length yields a single segment.
     """
-    lengths = [float(length) for length in lengths_m]
-    if not lengths:
-        raise MetricError("no segment length requested")
-    out = {
-        length: stats_from_segments(segment_errors(gt_poses, est_poses, length, tolerance))
-        for length in lengths
-    }
-    if all(s.n == 0 for s in out.values()):
-        gt = np.asarray(gt_poses, dtype=np.float64)
-        total = float(path_distances(gt[:, :3, 3])[-1])
-        raise MetricError(
-            f"no relative-error segment found: GT path length is {total:.3f} m, shortest "
-            f"requested segment length is {min(lengths):g} m (tolerance {tolerance:g} x L)"
-        )
-    return out
+    return {length: stats_from_segments(seg) for length, seg in
+            relative_segments(gt_poses, est_poses, lengths_m, tolerance).items()}

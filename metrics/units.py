@@ -24,7 +24,7 @@ import numpy as np
 from metrics.ape import ape_errors
 from metrics.drift_intervals import Drift
 from metrics.kitti import KITTI_LENGTHS_M, STEP_FRAMES, kitti_segments
-from metrics.relative import segment_errors
+from metrics.relative import SegmentErrors, segment_errors
 from metrics.velocity import DEFAULT_WINDOW_S, own_velocity_series, velocity_series
 
 
@@ -54,7 +54,11 @@ class Units:
 def relative_units(gt_poses: np.ndarray, est_poses: np.ndarray, length_m: float,
                    tolerance: float = 0.2) -> Units:
     """The relative-error segments of ``length_m``: ``rot_deg``, ``trans_m``."""
-    seg = segment_errors(gt_poses, est_poses, length_m, tolerance)
+    return segment_units(segment_errors(gt_poses, est_poses, length_m, tolerance))
+
+
+def segment_units(seg: SegmentErrors) -> Units:
+    """Units of segments already computed (``metrics.relative.segment_errors``)."""
     return Units(seg.start_idx, seg.end_idx, {"rot_deg": seg.rot_deg, "trans_m": seg.trans_m})
 
 
@@ -67,10 +71,12 @@ def kitti_units(gt_poses: np.ndarray, est_poses: np.ndarray, lengths_m=KITTI_LEN
                   "rot_deg_per_100m": 100.0 * np.degrees(seg.rot_rad_per_m)})
 
 
-def ape_units(gt_poses: np.ndarray, est_poses: np.ndarray, alignment="se3") -> Units:
+def ape_units(gt_poses: np.ndarray, est_poses: np.ndarray, alignment="se3",
+              errors: tuple[np.ndarray, np.ndarray] | None = None) -> Units:
     """Per-frame APE after ``alignment`` (fitted once on the whole trajectory): ``trans_m``,
-    ``rot_deg``; the statistic is the RMSE; resampled by its drift."""
-    trans, rot = ape_errors(gt_poses, est_poses, alignment)
+    ``rot_deg``; the statistic is the RMSE; resampled by its drift. ``errors``: the per-frame
+    (translation, rotation) errors when already computed (``metrics.ape.ape_with_errors``)."""
+    trans, rot = errors if errors is not None else ape_errors(gt_poses, est_poses, alignment)
     anchor = np.arange(trans.size)
     return Units(anchor, anchor + 1, {"trans_m": trans, "rot_deg": rot}, rmse=True,
                  drift=Drift(gt_poses, est_poses, alignment))

@@ -264,3 +264,18 @@ def test_the_ape_interval_reflects_the_draws_about_the_figure():
     low, high = _pivot(2.0, draws, 0.95)
     assert low == pytest.approx(2.0 - (hi_q - mean)) and high == pytest.approx(2.0 - (lo_q - mean))
     assert 2.0 - low > high - 2.0  # the long upper tail of the draws goes below X
+
+
+def test_the_kernels_squared_angle_is_arccos_squared_at_every_angle():
+    """The series the draw kernel uses for small angles (metrics.drift_intervals._angle_sq)
+    equals arccos(cos)^2 to rounding from 0 to 180 deg, on both sides of where it hands over
+    to arccos (20 deg), and clips a cosine rounded beyond +-1."""
+    from metrics.drift_intervals import _SERIES_X, _angle_sq
+
+    edge = np.arccos(1.0 - 2.0 * _SERIES_X)
+    angles = np.concatenate([np.geomspace(1e-9, np.pi, 400), edge + np.linspace(-1e-6, 1e-6, 9),
+                             [0.0, np.pi]])
+    got = np.array([_angle_sq(np.cos(a)) for a in angles])
+    want = np.arccos(np.cos(angles)) ** 2
+    np.testing.assert_allclose(got, want, rtol=1e-13, atol=1e-300)
+    assert _angle_sq(1.0 + 1e-12) == 0.0 and _angle_sq(-1.0 - 1e-12) == pytest.approx(np.pi**2)

@@ -7,7 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from metrics import DEFAULT_LENGTHS_M, MetricError, relative_errors, segment_errors
-from metrics.relative import path_distances
+from metrics.relative import path_distances, rotation_angle_deg
 
 
 def poses_from(positions, rotvecs=None):
@@ -257,3 +257,20 @@ def test_pairs_match_evo_on_exact_ties_and_pauses():
         ref = filters.filter_pairs_by_path(list(poses_from(pos)), length, length * tol, True)
         start, end = segment_pairs(path_distances(pos), length, tol)
         assert list(zip(start.tolist(), end.tolist(), strict=True)) == [tuple(p) for p in ref]
+
+
+def test_rotation_angle_equals_scipys_quaternion_magnitude_at_every_angle():
+    """metrics.relative.rotation_angle_deg (atan2 of the axis vector and the trace) against
+    scipy's Rotation.magnitude from 1e-9 rad to pi: equal to rounding, also near 0 where
+    arccos of the trace would be off by about 1e-6 deg; NaN for a non-finite matrix."""
+    rng = np.random.default_rng(7)
+    axes = rng.normal(size=(3000, 3))
+    axes /= np.linalg.norm(axes, axis=1)[:, None]
+    angles = np.concatenate([np.geomspace(1e-9, 1.0, 1500), rng.uniform(1.0, np.pi, 1500)])
+    mats = Rotation.from_rotvec(axes * angles[:, None]).as_matrix()
+    ours = rotation_angle_deg(mats)
+    np.testing.assert_allclose(ours, np.degrees(Rotation.from_matrix(mats).magnitude()),
+                               rtol=1e-12, atol=1e-13)
+    np.testing.assert_allclose(ours, np.degrees(angles), rtol=1e-9)
+    mats[5, 0, 0] = np.nan
+    assert np.isnan(rotation_angle_deg(mats)[5]) and np.isfinite(rotation_angle_deg(mats)[6])

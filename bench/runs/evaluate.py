@@ -40,14 +40,22 @@ from loaders.errors import DataError
 from loaders.gt import gt_for_frames
 from loaders.trajectory import Trajectory
 from methods.base import OdometryResult
-from metrics import Alignment, ape, is_diverged, kitti_drift, relative_errors, timing_stats
+from metrics import Alignment, is_diverged, kitti_drift, timing_stats
+from metrics.ape import ape_with_errors
 from metrics.kitti import KITTI_LENGTHS_M, STEP_FRAMES
-from metrics.relative import DEFAULT_LENGTHS_M, MetricError
+from metrics.relative import (
+    DEFAULT_LENGTHS_M,
+    MetricError,
+    SegmentErrors,
+    relative_segments,
+    stats_from_segments,
+)
 from metrics.units import (
     ape_units,
     kitti_units,
     own_velocity_units,
     relative_units,
+    segment_units,
     velocity_units,
 )
 from metrics.velocity import DEFAULT_WINDOW_S, own_velocity_errors, velocity_errors
@@ -112,14 +120,21 @@ def _kitti(gt_s: np.ndarray, est_s: np.ndarray, scoring: Scoring) -> dict:
         too_long=list(k.too_long), **spread).model_dump()
 
 
-def relative_part(gt_s: np.ndarray, est_s: np.ndarray, rel: dict) -> list[RelativeError]:
+def relative_part(gt_s: np.ndarray, est_s: np.ndarray, rel: dict,
+                  segments: dict[float, SegmentErrors] | None = None) -> list[RelativeError]:
     """The relative-error figures with their intervals, from ``metrics.relative_errors`` of
-    the scored frames' GT and estimate (``rel``: length -> its statistics)."""
+    the scored frames' GT and estimate (``rel``: length -> its statistics; ``segments``:
+    length -> the segments they summarise, when already computed)."""
+    def units(length):
+        if segments is not None and length in segments:
+            return segment_units(segments[length])
+        return relative_units(gt_s, est_s, length)
+
     return [RelativeError(
         length_m=length, rot_deg_mean=num(s.rot_deg_mean), rot_deg_median=num(s.rot_deg_median),
         rot_deg_rmse=num(s.rot_deg_rmse), trans_m_mean=num(s.trans_m_mean),
         trans_m_median=num(s.trans_m_median), trans_m_rmse=num(s.trans_m_rmse), n=int(s.n),
-        **intervals(relative_units(gt_s, est_s, length), len(gt_s),
+        **intervals(units(length), len(gt_s),
                     {"rot_deg": "rot_deg_mean_ci", "trans_m": "trans_m_mean_ci"}),
     ) for length, s in rel.items()]
 
@@ -142,20 +157,21 @@ def score(gt_poses: np.ndarray, est_poses: np.ndarray, times_ms: np.ndarray,
         raise DataError(f"{name}: no frame has ground truth; nothing to score")
     gt_s, est_s = np.asarray(gt_poses, dtype=np.float64)[idx], est_poses[idx]
     try:
-        rel = relative_errors(gt_s, est_s, scoring.lengths_m)
+        segments = relative_segments(gt_s, est_s, scoring.lengths_m)
     except MetricError as err:
         raise DataError(f"{name}: {err} ({len(idx)} frames with ground truth)") from err
+    rel = {length: stats_from_segments(seg) for length, seg in segments.items()}
     diverged = bool(is_diverged(est_poses, rel))
-    relative = [r.model_dump() for r in relative_part(gt_s, est_s, rel)]
+    relative = [r.model_dump() for r in relative_part(gt_s, est_s, rel, segments)]
     finite = bool(np.all(np.isfinite(est_poses)))
     if finite and len(idx) >= 2:
-        a = ape(gt_s, est_s, alignment=scoring.alignment)
+        a, *errors = ape_with_errors(gt_s, est_s, alignment=scoring.alignment)
         ape_part = ApeResult(
             requested=scoring.alignment, alignment=a.alignment, trans_rmse_m=num(a.trans_rmse_m),
             trans_mean_m=num(a.trans_mean_m), trans_median_m=num(a.trans_median_m),
             trans_max_m=num(a.trans_max_m), rot_rmse_deg=num(a.rot_rmse_deg),
             rot_mean_deg=num(a.rot_mean_deg), scale=num(a.scale),
-            **intervals(ape_units(gt_s, est_s, scoring.alignment), len(idx),
+            **intervals(ape_units(gt_s, est_s, scoring.alignment, tuple(errors)), len(idx),
                         {"trans_m": "trans_rmse_m_ci", "rot_deg": "rot_rmse_deg_ci"}),
         ).model_dump()
     else:

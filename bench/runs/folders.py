@@ -91,7 +91,13 @@ def clear_run(run_dir: Path) -> None:
 
 
 def _rows(values: np.ndarray) -> str:
-    return "".join(" ".join(f"{x:.17g}" for x in row) + "\n" for row in values)
+    """Space-separated rows, 17 significant digits (exact), formatted by one ``%`` over the
+    whole array (a third of the time of formatting number by number)."""
+    values = np.asarray(values, dtype=np.float64)
+    if values.size == 0:
+        return ""
+    line = " ".join(["%.17g"] * values.shape[1]) + "\n"
+    return (line * len(values)) % tuple(values.ravel().tolist())
 
 
 def write_trajectory(path: Path, traj: Trajectory, fmt: str) -> None:
