@@ -406,3 +406,24 @@ def test_a_doppler_kind_the_loader_does_not_take_is_noted_beside_a_command_that_
     assert "(" not in line.split("--T-body-sensor")[0] and not line.rstrip().endswith(")")
     _run_printed(res.output, tmp_path, monkeypatch)
     assert StoreSequence(tmp_path / "radar_run.h5").sensor.doppler_kind == "radial"
+
+
+@pytest.mark.parametrize("fmt", ["ros1", "mcap"])
+def test_the_printed_command_run_beside_a_store_named_by_its_sequence_does_not_touch_it(
+        tmp_path, monkeypatch, fmt):
+    """`bench export radar_run.h5` run in the store's own folder (the store named like its
+    sequence, as `bench convert` names it): the printed read-back command writes
+    radar_run_FMT.h5, not radar_run.h5 (it would be refused, the store being there), runs, and
+    leaves the store as it was."""
+    store = write_store(radar_sequence(), tmp_path / "radar_run.h5")
+    before = store.read_bytes()
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(app, ["export", "radar_run.h5", "--format", fmt])
+    assert res.exit_code == 0, res.output
+    (line,) = [x for x in res.output.splitlines() if x.startswith("read it back with: ")]
+    assert line.endswith(f"--out radar_run_{fmt}.h5"), line
+    _run_printed(res.output, tmp_path, monkeypatch)
+    assert store.read_bytes() == before
+    back, src = StoreSequence(tmp_path / f"radar_run_{fmt}.h5"), StoreSequence(store)
+    np.testing.assert_array_equal(back.scan(4).doppler, src.scan(4).doppler)
+    np.testing.assert_allclose(back.ground_truth.poses, src.ground_truth.poses, atol=1e-9)

@@ -36,7 +36,8 @@ storage files), never a folder of other files. Streaming: one scan is read from 
 serialised and written at a time, so memory stays flat in the sequence length. Atomic: the bag
 is written beside its destination under a temporary name and renamed when complete. ``bench
 convert rosbag`` reads it back to the same store contents (``reimport_command`` prints the
-exact command; ``bench convert rosbag BAG`` alone reads the same options from the bag's
+exact command, writing ``NAME.h5``, or ``NAME_FMT.h5`` when ``NAME.h5`` exists: never the
+store; ``bench convert rosbag BAG`` alone reads the same options from the bag's
 description). The messages and the writer over rosbags' formats: ``bench.data.bag_messages``.
 """
 
@@ -215,12 +216,20 @@ def _rosbag2_or_empty(path: Path) -> bool:
     return is_rosbag2_folder(path) or (path.is_dir() and not any(path.iterdir()))
 
 
+def readback_out(seq_name: str, fmt: str) -> str:
+    """The read-back command's ``--out``: ``NAME.h5`` in the current folder, or ``NAME_FMT.h5``
+    when ``NAME.h5`` is there already (e.g. the exported store itself, named by its sequence:
+    the command would be refused, and must never replace it)."""
+    return f"{seq_name}_{fmt}.h5" if Path(f"{seq_name}.h5").exists() else f"{seq_name}.h5"
+
+
 def reimport_command(summary: ExportSummary, seq_name: str, sensor_kind: str, model: str,
-                     doppler_kind: str, T_body_sensor: np.ndarray) -> str:
+                     doppler_kind: str, T_body_sensor: np.ndarray, out: str | None = None
+                     ) -> str:
     """The ``bench convert rosbag`` command that reads the bag back to the same store (every
     option spelled out, quoted for a POSIX shell; ``bench convert rosbag BAG`` alone takes the
-    same values from the bag's description). A store without Doppler (no ``doppler`` among
-    ``summary.fields``): ``--doppler-field none``."""
+    same values from the bag's description), writing ``out`` (default ``NAME.h5``). A store
+    without Doppler (no ``doppler`` among ``summary.fields``): ``--doppler-field none``."""
     from shlex import quote
 
     xyz, quat = tum_from_T(np.asarray(T_body_sensor, dtype=np.float64)[None])
@@ -233,7 +242,7 @@ def reimport_command(summary: ExportSummary, seq_name: str, sensor_kind: str, mo
                f" --doppler-field {NO_DOPPLER}")
     text = (f"bench convert rosbag {quote(str(summary.path))} --topic {POINTS_TOPIC}{gt} "
             f"--T-body-sensor '{ext}' --sensor-kind {sensor_kind}{model_opt}{doppler} "
-            f"--name {quote(seq_name)} --out {quote(seq_name + '.h5')}")
+            f"--name {quote(seq_name)} --out {quote(out or seq_name + '.h5')}")
     return text
 
 
@@ -253,7 +262,8 @@ def export_command(console, store: Path, fmt: str, out: Path | None, force: bool
     seq = StoreSequence(store)
     try:
         back = reimport_command(summary, seq.name, seq.sensor.kind, seq.sensor.model,
-                                seq.sensor.doppler_kind, seq.sensor.T_body_sensor)
+                                seq.sensor.doppler_kind, seq.sensor.T_body_sensor,
+                                readback_out(seq.name, fmt))
     finally:
         clock, kind = clock_note(seq), seq.sensor.doppler_kind
         seq.close()
