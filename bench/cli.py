@@ -283,9 +283,11 @@ def export(
     = None,
     force: Annotated[bool, typer.Option(help="replace an existing bag")] = False,
 ) -> None:
-    """Write a store as a ROS bag: /points (PointCloud2: x y z doppler and the stored fields;
-    doppler positive when the point recedes), /ground_truth (nav_msgs/Odometry of base_link),
-    /tf_static (base_link -> sensor) and /doppler_bench/description; one scan at a time."""
+    """Write a store as a ROS bag: /points (PointCloud2 in the frame radar or lidar: x y z
+    doppler and the stored fields; doppler positive when the point recedes), /ground_truth
+    (nav_msgs/Odometry of the body the GT poses are of: base_link, camera for View-of-Delft),
+    /tf_static (body -> radar|lidar) and /doppler_bench/description; the store's stamps; one
+    scan at a time."""
     from bench.data.export import export_command
 
     export_command(console, store, format, out, force)

@@ -24,8 +24,13 @@ Format facts (tudelft-iv/view-of-delft-dataset; file paths in that repository):
   ``get_sensor_transforms('radar')`` reads line 6 as "the radar frame, to the camera frame").
 - Frames are synchronised to the LiDAR at about 10 Hz (the radar runs at about 13 Hz; each
   frame holds the radar scan closest to the LiDAR stamp) and VoD publishes no frame stamps, so
-  frames are stamped ``index x period`` (option ``period``, default 0.1 s, said in the
-  provenance and a warning: Doppler methods integrate velocity over it).
+  frame ``NNNNN`` is stamped ``CLOCK_ORIGIN_S + NNNNN x period`` (option ``period``, default
+  0.1 s: frame 00544 at 1054.4 s; said in the provenance and a warning: Doppler methods
+  integrate velocity over it). A frame counter, not a time of day: its origin keeps every stamp
+  positive (ROS reads a 0 s stamp as "no time", and a clip may start at frame 00000) and far
+  from any date a reader could take for the recording's (1970-01-01 00:16:40 on); the frame
+  number keeps two clips, or two cuts of one clip, on one clock. ``bench export`` keeps it, so
+  a trajectory made from the exported bag scores against the store unchanged.
 - The frames come in clips with gaps between them (frame numbers jump; the test clips are not
   in the training folder). **A gap ends a segment**: a jump in the frame numbers, or a pose step
   faster than ``max_speed_mps``, splits the folder into segments, and a sequence is one segment
@@ -34,7 +39,9 @@ Format facts (tudelft-iv/view-of-delft-dataset; file paths in that repository):
 
 Ground truth: ``T_world_radar = T_world_camera @ T_camera_radar`` at each frame (world: option
 ``world``, default the local ``odom`` frame); ``SensorInfo.T_body_sensor`` is
-``T_camera_radar`` (the pose files give the camera, the "body" here). The calibration is read
+``T_camera_radar`` (the pose files give the camera, the "body" here). The provenance names the
+frames (``world_frame`` odom / map / utm, ``body_frame`` camera, ``sensor_frame`` radar), which
+``bench export`` uses as the bag's frame ids. The calibration is read
 from every frame of the segment and must agree. Licence: the dataset is under the VoD Research
 Use Licence (no redistribution), so no real frames are vendored in the tests.
 """
@@ -60,6 +67,8 @@ from loaders.trajectory import Trajectory
 
 #: the frame rate of VoD's synchronised frames (LiDAR-led, ~10 Hz): the default period
 DEFAULT_PERIOD_S = 0.1
+#: frame NNNNN is stamped CLOCK_ORIGIN_S + NNNNN x period [s] (VoD publishes no stamps)
+CLOCK_ORIGIN_S = 1000.0
 RADAR_RECORD = record_dtype([("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("rcs", "<f4"),
                              ("v_r", "<f4"), ("v_r_compensated", "<f4"), ("time", "<f4")])
 LAYOUT = "View-of-Delft radar N x 7"
@@ -74,7 +83,8 @@ class Options(LoaderOptions):
 
     period: float = Field(DEFAULT_PERIOD_S, gt=0, description=(
         "seconds between frames: VoD publishes no stamps; its frames are synchronised to the "
-        "LiDAR at about 10 Hz (default 0.1)"))
+        f"LiDAR at about 10 Hz (default 0.1); frame NNNNN is stamped {CLOCK_ORIGIN_S:g} s + "
+        "NNNNN x period"))
     segment: int | None = Field(None, ge=0, description=(
         "which clip of the folder to load (0-based; a gap in the frame numbers or a pose jump "
         "ends a clip); needed when the folder holds several"))
@@ -183,6 +193,12 @@ def split_segments(numbers: np.ndarray, positions: np.ndarray, period_s: float,
     return list(zip(edges[:-1], edges[1:], strict=True))
 
 
+def frame_stamps(numbers: np.ndarray, period_s: float) -> np.ndarray:
+    """The stamps [s] of the frames numbered ``numbers``: ``CLOCK_ORIGIN_S + number x
+    period_s`` (a frame counter: VoD publishes no stamps)."""
+    return CLOCK_ORIGIN_S + np.asarray(numbers, dtype=np.float64) * period_s
+
+
 class VodSequence(OpensFromOptions, Sequence):
     """One clip of View-of-Delft radar frames with ``T_world_radar`` ground truth."""
 
@@ -225,7 +241,6 @@ class VodSequence(OpensFromOptions, Sequence):
                             f"{len(segments)} clip(s): {'; '.join(described[:8])}")
         start, stop = segments[k]
         self._files = files[start:stop]
-        n = len(self._files)
         calib_dir = self.root / "calib"
         calibs = [read_calib(calib_dir / f"{p.stem}.txt") for p in self._files]
         T_camera_radar = calibs[0]
@@ -234,7 +249,7 @@ class VodSequence(OpensFromOptions, Sequence):
                 raise DataError(f"{calib_dir / (p.stem + '.txt')}: Tr_velo_to_cam differs "
                                 f"from frame {self._files[0].stem}'s; expected one radar "
                                 "calibration per clip")
-        self._stamps = np.arange(n, dtype=np.float64) * opts.period
+        self._stamps = frame_stamps(numbers[start:stop], opts.period)
         poses = T_world_camera[start:stop] @ T_camera_radar
         self.ground_truth = Trajectory(self._stamps.copy(), poses)
         self.name = opts.name or f"vod_{self._files[0].stem}-{self._files[-1].stem}"
@@ -248,11 +263,15 @@ class VodSequence(OpensFromOptions, Sequence):
             "segment": k,
             "segments_in_folder": len(segments),
             "frames": [self._files[0].stem, self._files[-1].stem],
-            "stamp_source": f"index x period {opts.period} s (VoD publishes no frame stamps; "
+            "stamp_source": f"{CLOCK_ORIGIN_S:g} s + frame number x period {opts.period} s "
+                            "(VoD publishes no frame stamps: a frame counter, not a time of day; "
                             "option period)",
+            "clock_origin_s": CLOCK_ORIGIN_S,
             "period_s": opts.period,
             "world": f"{opts.world} ({key})",
+            "world_frame": opts.world,
             "body_frame": "camera",
+            "sensor_frame": "radar",
             "T_body_sensor": "T_camera_radar from calib/NNNNN.txt Tr_velo_to_cam; GT = "
                              f"T_{opts.world}_camera @ T_camera_radar",
             "doppler_column": opts.doppler,
@@ -260,8 +279,10 @@ class VodSequence(OpensFromOptions, Sequence):
             "nan_points_dropped": 0,
         }
         warnings.warn(f"{frame_dir}: View-of-Delft publishes no frame stamps: frames "
-                      f"{self._files[0].stem}-{self._files[-1].stem} stamped index x "
-                      f"{opts.period} s (option period)", stacklevel=2)
+                      f"{self._files[0].stem}-{self._files[-1].stem} stamped "
+                      f"{CLOCK_ORIGIN_S:g} s + frame number x {opts.period} s "
+                      f"({self._stamps[0]:.6g}-{self._stamps[-1]:.6g} s; option period)",
+                      stacklevel=2)
 
     def __len__(self) -> int:
         return len(self._files)

@@ -100,7 +100,7 @@ def test_tf_static_holds_the_extrinsic_and_the_description_the_doppler_sign(stor
     out = export_store(store, fmt, tmp_path / ("b.bag" if fmt == "ros1" else "b")).path
     (tf,) = _topic_messages(out, TF_TOPIC)
     (t,) = tf.transforms
-    assert (t.header.frame_id, t.child_frame_id) == ("base_link", "sensor")
+    assert (t.header.frame_id, t.child_frame_id) == ("base_link", "radar")
     tr, q = t.transform.translation, t.transform.rotation
     T = T_from_tum(np.array([[tr.x, tr.y, tr.z]]), np.array([[q.x, q.y, q.z, q.w]]))[0]
     np.testing.assert_allclose(T, T_BS, atol=1e-12)
@@ -120,7 +120,7 @@ def test_tf_static_holds_the_extrinsic_and_the_description_the_doppler_sign(stor
     clouds = _topic_messages(out, POINTS_TOPIC)
     assert [f.name for f in clouds[0].fields] == ["x", "y", "z", "doppler", "intensity",
                                                    "power"]
-    assert clouds[0].header.frame_id == "sensor"
+    assert clouds[0].header.frame_id == "radar"  # the sensor's kind names its frame
 
 
 def test_scans_without_ground_truth_stay_unscored_after_the_round_trip(tmp_path):
@@ -281,7 +281,7 @@ def test_a_store_without_doppler_and_an_out_without_extension_read_back_as_print
         np.testing.assert_allclose(back.sensor.T_body_sensor, T_BS, atol=1e-12)
 
 
-@pytest.mark.parametrize("fmt", ["ros1", "mcap"])
+@pytest.mark.parametrize("fmt", ["ros1", "ros2", "mcap"])
 def test_the_printed_command_of_a_doppler_store_runs_and_plain_convert_agrees(
         store, tmp_path, monkeypatch, fmt):
     res = CliRunner().invoke(app, ["export", str(store), "--format", fmt, "--out",
@@ -325,30 +325,38 @@ def test_stamps_are_rounded_to_the_nanosecond_not_truncated(tmp_path):
     assert got == want and logged == want
 
 
-def test_a_clock_from_zero_is_kept_and_said_and_a_vod_body_is_the_camera(
+def test_a_clock_from_zero_is_kept_and_said_and_a_lidar_frame_is_named_lidar(
         tmp_path, monkeypatch, capsys):
-    """A store stamped from 0 s (View-of-Delft: index x period): the bag keeps the store's
-    clock (a trajectory made from the bag scores against the store unchanged) and the export
-    says that ROS may read 0 s as no time; a View-of-Delft store's GT is of the camera, named
-    so on /ground_truth, /tf_static and in the description."""
-    seq = radar_sequence(t0=0.0, provenance={"loader": "vod"})
-    store = write_store(seq, tmp_path / "vod.h5")
-    code, text = bench_main(monkeypatch, capsys, "export", store, "--out", tmp_path / "vod_mcap")
+    """A store stamped from 0 s (synthetic): the bag keeps the store's clock (a trajectory made
+    from the bag scores against the store unchanged) and the export says that ROS may read 0 s
+    as no time; a LiDAR's points are in the frame ``lidar``, its GT of ``base_link`` in
+    ``world`` (no loader names them). View-of-Delft's clock and frames: test_export_vod.py."""
+    from dataclasses import replace as dc_replace
+
+    seq = radar_sequence(t0=0.0)
+    seq.sensor = dc_replace(seq.sensor, kind="lidar")
+    store = write_store(seq, tmp_path / "zero.h5")
+    code, text = bench_main(monkeypatch, capsys, "export", store, "--out", tmp_path / "z_mcap")
     assert code == 0 and "clock starts at 0 s" in text and "'no time'" in text, text
-    out = tmp_path / "vod_mcap"
+    assert "View-of-Delft" not in text
+    out = tmp_path / "z_mcap"
     clouds = _topic_messages(out, POINTS_TOPIC)
     assert (clouds[0].header.stamp.sec, clouds[0].header.stamp.nanosec) == (0, 0)
+    assert clouds[0].header.frame_id == "lidar"
     (info,) = _topic_messages(out, INFO_TOPIC)
-    assert json.loads(info.data)["frames"]["body"] == "camera"
-    assert _topic_messages(out, GT_TOPIC)[0].child_frame_id == "camera"
-    (tf,) = _topic_messages(out, TF_TOPIC)
-    assert tf.transforms[0].header.frame_id == "camera"
+    d = json.loads(info.data)
+    assert d["frames"] == {"world": "world", "body": "base_link", "sensor": "lidar"}
+    assert "clock starts at 0 s" in d["stamps"]
+    odom = _topic_messages(out, GT_TOPIC)[0]
+    assert (odom.header.frame_id, odom.child_frame_id) == ("world", "base_link")
     back = RosbagSequence([out])
     np.testing.assert_allclose(back.stamps, StoreSequence(store).stamps, rtol=0, atol=1e-9)
     # a store with an epoch clock says nothing of it
     code, text = bench_main(monkeypatch, capsys, "export", write_store(
         radar_sequence(), tmp_path / "epoch.h5"), "--out", tmp_path / "epoch_mcap")
-    assert code == 0 and "clock starts" not in text
+    assert code == 0 and "clock starts" not in text and "note:" not in text
+    (info,) = _topic_messages(tmp_path / "epoch_mcap", INFO_TOPIC)
+    assert json.loads(info.data)["stamps"] == "the store's stamps, rounded to the nanosecond"
 
 
 def test_export_never_writes_onto_its_store_nor_deletes_a_folders_other_files(
@@ -398,3 +406,24 @@ def test_a_doppler_kind_the_loader_does_not_take_is_noted_beside_a_command_that_
     assert "(" not in line.split("--T-body-sensor")[0] and not line.rstrip().endswith(")")
     _run_printed(res.output, tmp_path, monkeypatch)
     assert StoreSequence(tmp_path / "radar_run.h5").sensor.doppler_kind == "radial"
+
+
+@pytest.mark.parametrize("fmt", ["ros1", "mcap"])
+def test_the_printed_command_run_beside_a_store_named_by_its_sequence_does_not_touch_it(
+        tmp_path, monkeypatch, fmt):
+    """`bench export radar_run.h5` run in the store's own folder (the store named like its
+    sequence, as `bench convert` names it): the printed read-back command writes
+    radar_run_FMT.h5, not radar_run.h5 (it would be refused, the store being there), runs, and
+    leaves the store as it was."""
+    store = write_store(radar_sequence(), tmp_path / "radar_run.h5")
+    before = store.read_bytes()
+    monkeypatch.chdir(tmp_path)
+    res = CliRunner().invoke(app, ["export", "radar_run.h5", "--format", fmt])
+    assert res.exit_code == 0, res.output
+    (line,) = [x for x in res.output.splitlines() if x.startswith("read it back with: ")]
+    assert line.endswith(f"--out radar_run_{fmt}.h5"), line
+    _run_printed(res.output, tmp_path, monkeypatch)
+    assert store.read_bytes() == before
+    back, src = StoreSequence(tmp_path / f"radar_run_{fmt}.h5"), StoreSequence(store)
+    np.testing.assert_array_equal(back.scan(4).doppler, src.scan(4).doppler)
+    np.testing.assert_allclose(back.ground_truth.poses, src.ground_truth.poses, atol=1e-9)

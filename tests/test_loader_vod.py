@@ -46,12 +46,17 @@ def test_points_doppler_and_gt_are_the_written_ones(tmp_path):
         np.testing.assert_array_equal(s.points.astype(np.float32), t.points[i])
         np.testing.assert_array_equal(s.doppler.astype(np.float32), t.doppler[i])
         assert s.fields["rcs"][0] == pytest.approx(-10.0)
-    np.testing.assert_allclose(seq.stamps, 0.1 * np.arange(6))
+    # frame NNNNN at 1000 s + NNNNN x period: frames 00120-00125 at 1012.0-1012.5 s, to 1 ns
+    np.testing.assert_allclose(seq.stamps, 1012.0 + 0.1 * np.arange(6), rtol=0, atol=1e-9)
+    np.testing.assert_allclose(seq.ground_truth.stamps, seq.stamps, rtol=0, atol=0)
     np.testing.assert_allclose(seq.ground_truth.poses, t.sensor_poses(), atol=1e-9)
     np.testing.assert_allclose(seq.sensor.T_body_sensor, VOD_T_CAMERA_RADAR, atol=1e-12)
     assert doppler_sign_cosine(seq) > 0.99  # receding positive, like the harness
     assert seq.provenance["frames"] == ["00120", "00125"]
     assert "VoD publishes no frame stamps" in seq.provenance["stamp_source"]
+    assert "1000 s + frame number x period 0.1 s" in seq.provenance["stamp_source"]
+    assert (seq.provenance["world_frame"], seq.provenance["body_frame"],
+            seq.provenance["sensor_frame"]) == ("odom", "camera", "radar")
     # the other world frames and the compensated column
     in_map = load(root, world="map")
     np.testing.assert_allclose(in_map.ground_truth.poses, MAP_FROM_ODOM @ t.sensor_poses(),
@@ -59,7 +64,24 @@ def test_points_doppler_and_gt_are_the_written_ones(tmp_path):
     comp_seq = load(root, doppler="v_r_compensated", period=0.05)
     assert comp_seq.sensor.doppler_kind == "ego-compensated"
     np.testing.assert_allclose(comp_seq[0].doppler, 0.25)
-    np.testing.assert_allclose(comp_seq.stamps, 0.05 * np.arange(6))
+    np.testing.assert_allclose(comp_seq.stamps, 1006.0 + 0.05 * np.arange(6), rtol=0,
+                               atol=1e-9)
+    assert in_map.provenance["world_frame"] == "map"
+
+
+def test_a_clip_from_frame_zero_is_not_stamped_zero_and_clips_share_one_clock(tmp_path):
+    """Frames 00000-00002 and 00010-00012 (two clips of one folder): no stamp is 0 s (ROS
+    reads 0 as "no time"), and the second clip's stamps continue the frame counter (10 frames
+    later is 1.0 s later), not restart at its own first frame."""
+    t = truth(frames=3)
+    root = write_vod(tmp_path / "vod", t.points, t.doppler, t.sensor_poses())
+    write_vod(tmp_path / "vod", t.points, t.doppler, t.sensor_poses(), first=10)
+    first, second = load(root, segment=0), load(root, segment=1)
+    np.testing.assert_allclose(first.stamps, [1000.0, 1000.1, 1000.2], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(second.stamps - first.stamps, 1.0, rtol=0, atol=1e-9)
+    assert first.stamps.min() > 0
+    with pytest.warns(UserWarning, match=r"1000 s \+ frame number x 0.1 s \(1000-1000.2 s"):
+        VodSequence(root, segment=0)
 
 
 def test_options_contract():

@@ -12,7 +12,6 @@ from loaders.se3 import tum_from_T
 
 CLOUD, ODOM, TF, STRING = ("sensor_msgs/msg/PointCloud2", "nav_msgs/msg/Odometry",
                            "tf2_msgs/msg/TFMessage", "std_msgs/msg/String")
-WORLD_FRAME, BODY_FRAME, SENSOR_FRAME = "world", "base_link", "sensor"
 
 
 def _sec_nsec(t: float) -> tuple[int, int]:
@@ -73,8 +72,10 @@ class BagWriter:
         self.writer.close()
 
 
-def cloud_msg(bag: BagWriter, t: float, points: np.ndarray, values: dict[str, np.ndarray]):
-    """A PointCloud2 of float32 fields x, y, z and ``values`` (packed, little-endian)."""
+def cloud_msg(bag: BagWriter, t: float, points: np.ndarray, values: dict[str, np.ndarray],
+              sensor: str):
+    """A PointCloud2 of float32 fields x, y, z and ``values`` (packed, little-endian) in the
+    frame ``sensor``."""
     T = bag.store.types
     names = ["x", "y", "z", *values]
     dtype = np.dtype({"names": names, "formats": ["<f4"] * len(names),
@@ -86,7 +87,7 @@ def cloud_msg(bag: BagWriter, t: float, points: np.ndarray, values: dict[str, np
         arr[name] = v
     PF = T["sensor_msgs/msg/PointField"]  # datatype 7: FLOAT32
     return T[CLOUD](
-        header=bag.header(t, SENSOR_FRAME), height=1, width=len(arr),
+        header=bag.header(t, sensor), height=1, width=len(arr),
         fields=[PF(name=n, offset=4 * i, datatype=7, count=1)
                 for i, n in enumerate(names)],
         is_bigendian=False, point_step=dtype.itemsize, row_step=dtype.itemsize * len(arr),
@@ -102,24 +103,27 @@ def _pose(T, pose: np.ndarray):
                                                       w=float(qw)))
 
 
-def odometry_msg(bag: BagWriter, t: float, T_world_body: np.ndarray, body: str = BODY_FRAME):
+def odometry_msg(bag: BagWriter, t: float, T_world_body: np.ndarray, world: str, body: str):
+    """``T_world_body`` as a nav_msgs/Odometry (header frame ``world``, child ``body``; twist
+    zero: not given)."""
     T = bag.store.types
     cov = np.zeros(36)
     zero = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
     return T[ODOM](
-        header=bag.header(t, WORLD_FRAME), child_frame_id=body,
+        header=bag.header(t, world), child_frame_id=body,
         pose=T["geometry_msgs/msg/PoseWithCovariance"](pose=_pose(T, T_world_body),
                                                        covariance=cov),
         twist=T["geometry_msgs/msg/TwistWithCovariance"](
             twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero), covariance=cov))
 
 
-def tf_static_msg(bag: BagWriter, t: float, T_body_sensor: np.ndarray, body: str = BODY_FRAME):
+def tf_static_msg(bag: BagWriter, t: float, T_body_sensor: np.ndarray, body: str, sensor: str):
+    """The extrinsic as a tf2_msgs/TFMessage of one transform ``body -> sensor``."""
     T = bag.store.types
     xyz, quat = tum_from_T(np.asarray(T_body_sensor, dtype=np.float64)[None])
     (x, y, z), (qx, qy, qz, qw) = xyz[0], quat[0]
     tf = T["geometry_msgs/msg/TransformStamped"](
-        header=bag.header(t, body), child_frame_id=SENSOR_FRAME,
+        header=bag.header(t, body), child_frame_id=sensor,
         transform=T["geometry_msgs/msg/Transform"](
             translation=T["geometry_msgs/msg/Vector3"](x=float(x), y=float(y), z=float(z)),
             rotation=T["geometry_msgs/msg/Quaternion"](x=float(qx), y=float(qy), z=float(qz),

@@ -2,25 +2,27 @@
 
 One uniform form for every dataset the harness loads, to feed a ROS node:
 
-- ``/points`` ``sensor_msgs/PointCloud2`` (frame ``sensor``), one message per scan stamped
-  with the scan's stamp: float32 fields ``x y z`` [m, sensor frame], ``doppler`` [m/s] in the
+- ``/points`` ``sensor_msgs/PointCloud2`` (frame: the sensor's, ``radar`` or ``lidar``), one
+  message per scan stamped with the scan's stamp: float32 fields ``x y z`` [m, sensor frame],
+  ``doppler`` [m/s] in the
   harness's sign (``DOPPLER_SIGN``: positive when the point recedes from the sensor; a static
   point ahead of a forward-moving sensor reads negative), then every per-point field of the
   store (``intensity``, ``power``, ``rcs``, ...) by its name;
-- ``/ground_truth`` ``nav_msgs/Odometry`` (frame ``world``, child: the body frame, ``base_link``
-  or the frame the dataset's poses are of, e.g. ``camera`` for View-of-Delft,
-  ``body_frame``): the GT body pose ``T_world_body = T_world_sensor @ inv(T_body_sensor)`` at
-  each scan that has GT (twist zero: not given);
-- ``/tf_static`` ``tf2_msgs/TFMessage``: body frame -> ``sensor``, the store's
+- ``/ground_truth`` ``nav_msgs/Odometry`` (frame: the GT's world, ``world`` or the loader's,
+  e.g. ``odom`` for View-of-Delft; child: the body frame, ``base_link`` or the frame the
+  dataset's poses are of, e.g. ``camera`` for View-of-Delft): the GT body pose ``T_world_body
+  = T_world_sensor @ inv(T_body_sensor)`` at each scan that has GT (twist zero: not given);
+- ``/tf_static`` ``tf2_msgs/TFMessage``: body frame -> sensor frame, the store's
   ``T_body_sensor``;
 - ``/doppler_bench/description`` ``std_msgs/String``: a JSON text stating the fields, the
-  Doppler sign and kind, the frames, the sensor and the store it came from.
+  Doppler sign and kind, the frames, the clock, the sensor and the store it came from.
 
-Stamps: the store's stamps, rounded to the nanosecond, never shifted: a trajectory an
-odometry makes from the bag is on the store's clock and scores against it unchanged. A store
-whose clock starts at 0 s (View-of-Delft publishes no stamps: its frames are index x period;
-synthetic stores) keeps it, and the export says so: ROS tools may read a 0 s stamp as "no
-time" (``zero_clock_note``).
+The frame ids and the note on the clock: ``bench.data.export_frames``. Stamps: the store's
+stamps, rounded to the nanosecond, never shifted: a trajectory an odometry makes from the bag
+is on the store's clock and scores against it unchanged. A dataset that publishes no stamps
+gets its clock when it is converted (View-of-Delft: frame NNNNN at 1000 s + NNNNN x period,
+never 0 s), and the export says so; a store whose clock starts at 0 s (synthetic) keeps it,
+and the export says that ROS tools may read a 0 s stamp as "no time" (``clock_note``).
 
 A store without Doppler exports ``x y z`` and its other fields (no ``doppler``); the description
 says so and the read-back command carries ``--doppler-field none``.
@@ -34,7 +36,8 @@ storage files), never a folder of other files. Streaming: one scan is read from 
 serialised and written at a time, so memory stays flat in the sequence length. Atomic: the bag
 is written beside its destination under a temporary name and renamed when complete. ``bench
 convert rosbag`` reads it back to the same store contents (``reimport_command`` prints the
-exact command; ``bench convert rosbag BAG`` alone reads the same options from the bag's
+exact command, writing ``NAME.h5``, or ``NAME_FMT.h5`` when ``NAME.h5`` exists: never the
+store; ``bench convert rosbag BAG`` alone reads the same options from the bag's
 description). The messages and the writer over rosbags' formats: ``bench.data.bag_messages``.
 """
 
@@ -50,18 +53,16 @@ from pathlib import Path
 import numpy as np
 
 from bench.data.bag_messages import (
-    BODY_FRAME,
     CLOUD,
     ODOM,
-    SENSOR_FRAME,
     STRING,
     TF,
-    WORLD_FRAME,
     BagWriter,
     cloud_msg,
     odometry_msg,
     tf_static_msg,
 )
+from bench.data.export_frames import bag_frames, clock_note
 from bench.guard import is_ros1_bag, is_rosbag2_folder, replaceable
 from loaders.errors import DataError
 from loaders.fileio import atomic_path
@@ -104,27 +105,10 @@ def bag_path(out: Path, fmt: str) -> Path:
     return out if fmt != "ros1" or out.suffix == ".bag" else out.with_name(out.name + ".bag")
 
 
-def body_frame(seq: StoreSequence) -> str:
-    """The frame the store's ground-truth poses are of (its loader's ``body_frame``; the
-    View-of-Delft poses are the camera's), ``base_link`` when the loader names none."""
-    prov = getattr(seq, "provenance", {}) or {}
-    name = prov.get("body_frame") or ("camera" if prov.get("loader") == "vod" else None)
-    return str(name) if name else BODY_FRAME
-
-
-def zero_clock_note(first_stamp_s: float) -> str | None:
-    """What the export says when the store's clock starts at (or before) 0 s, else None."""
-    if first_stamp_s > 0:
-        return None
-    return (f"the store's clock starts at {first_stamp_s:g} s (its dataset publishes no "
-            "stamps, or it is synthetic), kept as it is so that a trajectory made from the bag "
-            "scores against the store unchanged; ROS tools may read a 0 s stamp as 'no time'")
-
-
 def description(seq: StoreSequence, store: Path, fields: list[str]) -> dict:
     """The bag's description (``INFO_TOPIC``): fields, Doppler sign and kind, frames, sensor,
     the clock. ``loaders.rosbag`` reads it back (``bench convert rosbag BAG``)."""
-    body = body_frame(seq)
+    frames = bag_frames(seq)
     return {
         "exported_by": "doppler-bench (bench export)", "store": str(store),
         "sequence": seq.name, "points_topic": POINTS_TOPIC, "ground_truth_topic": GT_TOPIC,
@@ -134,12 +118,12 @@ def description(seq: StoreSequence, store: Path, fields: list[str]) -> dict:
         "doppler_kind": seq.sensor.doppler_kind if seq.has_doppler else NO_DOPPLER,
         "sensor_kind": seq.sensor.kind,
         "sensor_model": seq.sensor.model, "period_s": seq.sensor.period_s,
-        "frames": {"world": WORLD_FRAME, "body": body, "sensor": SENSOR_FRAME},
-        "ground_truth": f"nav_msgs/Odometry: T_world_body ({body}) at the scans with "
-                        "ground truth; the sensor pose is T_world_body @ T_body_sensor "
-                        f"({TF_TOPIC})",
-        "stamps": zero_clock_note(float(seq.stamps[0])) or
-        "the store's stamps, rounded to the nanosecond",
+        "frames": {"world": frames.world, "body": frames.body, "sensor": frames.sensor},
+        "ground_truth": f"nav_msgs/Odometry: T_{frames.world}_{frames.body} at the scans with "
+                        f"ground truth; the sensor ({frames.sensor}) pose is that @ "
+                        f"T_{frames.body}_{frames.sensor} ({TF_TOPIC})",
+        "stamps": clock_note(seq) or "the store's stamps, rounded to the nanosecond",
+        "first_stamp_s": float(seq.stamps[0]),
         "T_body_sensor": np.asarray(seq.sensor.T_body_sensor).tolist(),
     }
 
@@ -153,33 +137,37 @@ def write_bag(seq: StoreSequence, store: Path, path: Path, fmt: str,
         T_bs = np.asarray(seq.sensor.T_body_sensor, dtype=np.float64)
         gt = seq.ground_truth
         fields = (["doppler"] if seq.has_doppler else []) + list(seq.fields)
-        body = body_frame(seq)
+        frames = bag_frames(seq)
         cloud = bag.connection(POINTS_TOPIC, CLOUD)
         tf = bag.connection(TF_TOPIC, TF, latched=True)
         info = bag.connection(INFO_TOPIC, STRING, latched=True)
         odom = bag.connection(GT_TOPIC, ODOM) if gt is not None else None
         t0 = float(stamps[0])
-        bag.write(tf, t0, tf_static_msg(bag, t0, T_bs, body))
+        bag.write(tf, t0, tf_static_msg(bag, t0, T_bs, frames.body, frames.sensor))
         text = json.dumps(description(seq, store, fields), indent=1)
         bag.write(info, t0, bag.store.types[STRING](data=text))
         gt_stamps = gt.stamps if gt is not None else np.zeros(0)
         T_sb = inv_T(T_bs)
+
+        def write_gt(k: int) -> None:
+            tg = float(gt_stamps[k])
+            bag.write(odom, tg, odometry_msg(bag, tg, gt.poses[k] @ T_sb, frames.world,
+                                             frames.body))
+
         g = 0
         for i in range(len(seq)):
             t = float(stamps[i])
             while g < len(gt_stamps) and gt_stamps[g] <= t:  # GT in time order with the scans
-                tg = float(gt_stamps[g])
-                bag.write(odom, tg, odometry_msg(bag, tg, gt.poses[g] @ T_sb, body))
+                write_gt(g)
                 g += 1
             scan = seq.scan(i)
             values = {} if scan.doppler is None else {"doppler": scan.doppler}
             values.update({name: scan.fields[name] for name in seq.fields})
-            bag.write(cloud, t, cloud_msg(bag, t, scan.points, values))
+            bag.write(cloud, t, cloud_msg(bag, t, scan.points, values, frames.sensor))
             if progress:
                 progress(i)
         for k in range(g, len(gt_stamps)):
-            tg = float(gt_stamps[k])
-            bag.write(odom, tg, odometry_msg(bag, tg, gt.poses[k] @ T_sb, body))
+            write_gt(k)
     finally:
         bag.close()
     return ExportSummary(path, fmt, len(seq), len(gt_stamps), fields)
@@ -228,12 +216,20 @@ def _rosbag2_or_empty(path: Path) -> bool:
     return is_rosbag2_folder(path) or (path.is_dir() and not any(path.iterdir()))
 
 
+def readback_out(seq_name: str, fmt: str) -> str:
+    """The read-back command's ``--out``: ``NAME.h5`` in the current folder, or ``NAME_FMT.h5``
+    when ``NAME.h5`` is there already (e.g. the exported store itself, named by its sequence:
+    the command would be refused, and must never replace it)."""
+    return f"{seq_name}_{fmt}.h5" if Path(f"{seq_name}.h5").exists() else f"{seq_name}.h5"
+
+
 def reimport_command(summary: ExportSummary, seq_name: str, sensor_kind: str, model: str,
-                     doppler_kind: str, T_body_sensor: np.ndarray) -> str:
+                     doppler_kind: str, T_body_sensor: np.ndarray, out: str | None = None
+                     ) -> str:
     """The ``bench convert rosbag`` command that reads the bag back to the same store (every
     option spelled out, quoted for a POSIX shell; ``bench convert rosbag BAG`` alone takes the
-    same values from the bag's description). A store without Doppler (no ``doppler`` among
-    ``summary.fields``): ``--doppler-field none``."""
+    same values from the bag's description), writing ``out`` (default ``NAME.h5``). A store
+    without Doppler (no ``doppler`` among ``summary.fields``): ``--doppler-field none``."""
     from shlex import quote
 
     xyz, quat = tum_from_T(np.asarray(T_body_sensor, dtype=np.float64)[None])
@@ -246,7 +242,7 @@ def reimport_command(summary: ExportSummary, seq_name: str, sensor_kind: str, mo
                f" --doppler-field {NO_DOPPLER}")
     text = (f"bench convert rosbag {quote(str(summary.path))} --topic {POINTS_TOPIC}{gt} "
             f"--T-body-sensor '{ext}' --sensor-kind {sensor_kind}{model_opt}{doppler} "
-            f"--name {quote(seq_name)} --out {quote(seq_name + '.h5')}")
+            f"--name {quote(seq_name)} --out {quote(out or seq_name + '.h5')}")
     return text
 
 
@@ -266,9 +262,10 @@ def export_command(console, store: Path, fmt: str, out: Path | None, force: bool
     seq = StoreSequence(store)
     try:
         back = reimport_command(summary, seq.name, seq.sensor.kind, seq.sensor.model,
-                                seq.sensor.doppler_kind, seq.sensor.T_body_sensor)
+                                seq.sensor.doppler_kind, seq.sensor.T_body_sensor,
+                                readback_out(seq.name, fmt))
     finally:
-        first, kind = float(seq.stamps[0]), seq.sensor.doppler_kind
+        clock, kind = clock_note(seq), seq.sensor.doppler_kind
         seq.close()
     doppler = (DOPPLER_SIGN if "doppler" in summary.fields else
                "no Doppler field: the store has no Doppler (methods that need it cannot run "
@@ -278,7 +275,7 @@ def export_command(console, store: Path, fmt: str, out: Path | None, force: bool
         f"(fields {' '.join(['x', 'y', 'z', *summary.fields])}), {summary.gt_poses} "
         f"ground-truth poses on {GT_TOPIC}, the extrinsic on {TF_TOPIC}, the description on "
         f"{INFO_TOPIC}; {doppler}", markup=False)
-    for note in (zero_clock_note(first), doppler_kind_note(summary, kind)):
+    for note in (clock, doppler_kind_note(summary, kind)):
         if note:
             console.print(f"note: {note}", markup=False)
     console.print(f"read it back with: {back}", markup=False)
