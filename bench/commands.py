@@ -4,6 +4,7 @@
 
 from __future__ import annotations
 
+import os
 import warnings
 from pathlib import Path
 
@@ -202,7 +203,10 @@ def score_command(console: Console, store: Path, spec, out: Path, force: bool,
     coverage and key metrics."""
     from bench.runs.evaluate import Scoring
     from bench.runs.external import score_external
+    from metrics.drift_intervals import set_threads
 
+    # scoring alone (nothing else timed meanwhile): the APE resamples on every core we have
+    set_threads(min(len(os.sched_getaffinity(0)), 8))
     given = {k: v for k, v in scoring.items() if v is not None}
     outcome = score_external(store, spec, out, Scoring(**given), force)
     c = outcome.coverage

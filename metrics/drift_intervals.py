@@ -34,12 +34,17 @@ chaining, the 3 x 3 fit solved, and the aligned errors summed in a second pass o
 path. It gives the draws of the batched computation (``draws_batched``: every path of a chunk
 materialised, then ``ape_rmse_batch``, the same fit as ``metrics.ape``, evo's, up to rounding)
 to rounding. Degenerate resamples (positions on one line) are aligned by their orientations,
-as ``metrics.ape.align`` does, through the batched computation.
+as ``metrics.ape.align`` does, through the batched computation. The kernel releases the GIL:
+``set_threads`` draws chunks of resamples on several threads (``bench score`` uses every core;
+the draws are the same).
 """
 
 from __future__ import annotations
 
+import itertools
 import math
+import queue
+from concurrent.futures import ThreadPoolExecutor
 from functools import cached_property
 
 import numba as nb
@@ -67,6 +72,18 @@ from metrics.relative import check_pose_pair, inverse_se3
 CHUNK = 32
 #: the APE quantities: translation [m] and rotation [deg]
 QUANTITIES = ("trans_m", "rot_deg")
+
+#: threads the resamples are drawn on (``set_threads``); 1 unless a command that scores alone
+#: asks for more: inside an experiment's workers, a second thread would take the core another
+#: worker times its method on
+_threads = 1
+
+
+def set_threads(threads: int) -> None:
+    """Draw the APE resamples on ``threads`` threads (the draws are the same: each resample
+    is seeded by its row, whatever thread computes it)."""
+    global _threads
+    _threads = max(1, int(threads))
 
 
 def step_errors(gt: np.ndarray, est: np.ndarray) -> np.ndarray:
@@ -141,7 +158,7 @@ _ASIN_SQ = np.array([2.0 ** (2 * n - 1) * math.factorial(n - 1) ** 2 / math.fact
 _SERIES_X = 0.03
 
 
-@nb.njit(cache=True, fastmath={"contract", "reassoc", "nsz", "arcp"})
+@nb.njit(cache=True, nogil=True, fastmath={"contract", "reassoc", "nsz", "arcp"})
 def _angle_sq(cos):  # pragma: no cover - numba
     """The squared rotation angle [rad^2] of a rotation whose angle has cosine ``cos``:
     ``arccos(cos)^2``, by the series ``_ASIN_SQ`` for small angles."""
@@ -156,7 +173,7 @@ def _angle_sq(cos):  # pragma: no cover - numba
     return 4.0 * s * x
 
 
-@nb.njit(cache=True, fastmath={"contract", "reassoc", "nsz", "arcp"})
+@nb.njit(cache=True, nogil=True, fastmath={"contract", "reassoc", "nsz", "arcp"})
 def _chain_one(first, gt_steps, gt_rot, errors, starts_r, block, pos, rel, xd, m_fit,
                sums):  # pragma: no cover - numba
     """One resample's path (module docstring): ``P_0 = first``, ``P_k+1 = P_k gt_steps[k]
@@ -242,7 +259,7 @@ def _chain_one(first, gt_steps, gt_rot, errors, starts_r, block, pos, rel, xd, m
                          r20 * a02 + r21 * a12 + r22 * a22)
 
 
-@nb.njit(cache=True, fastmath={"contract", "reassoc", "nsz", "arcp"})
+@nb.njit(cache=True, nogil=True, fastmath={"contract", "reassoc", "nsz", "arcp"})
 def _draw_kernel(first, gt_steps, gt_rot, gt_pos, errors, starts, block, kind, m_fit,
                  out_t, out_r, degenerate, pos, rel):  # pragma: no cover - numba
     """For every resample r (row of ``starts``: the first step error of each block): its path
@@ -406,6 +423,17 @@ class Drift:
         return (self.alignment == other.alignment and self.gt.shape == other.gt.shape
                 and bool(np.array_equal(self.gt, other.gt)))
 
+    @cached_property
+    def _kernel_inputs(self) -> tuple[np.ndarray, ...]:
+        """What ``_draw_kernel`` reads, contiguous: the first estimated pose, the GT steps
+        ``G_k^-1 G_k+1``, rotations and positions, the step errors. Of the steps and errors
+        only the upper 3 x 4 (fewer cache lines where each block jumps to another error)."""
+        gt = self.gt
+        return (np.ascontiguousarray(self.est[0]),
+                np.ascontiguousarray((inverse_se3(gt[:-1]) @ gt[1:])[:, :3, :]),
+                np.ascontiguousarray(gt[:, :3, :3]), np.ascontiguousarray(gt[:, :3, 3]),
+                np.ascontiguousarray(self.errors[:, :3, :]))
+
     def draws(self, block: int, reps: int = REPS, seed: int = 0) -> dict[str, np.ndarray]:
         """{quantity: (reps,) RMSE} of the trajectories re-chained from ``block``-step blocks
         of the step errors (seeded: two estimates of the same frames draw the same blocks).
@@ -416,26 +444,40 @@ class Drift:
         if key not in self._draws:
             gt, n = self.gt, len(self.gt)
             b = max(1, int(block))
-            gt_steps = np.ascontiguousarray(inverse_se3(gt[:-1]) @ gt[1:])
-            gt_rot = np.ascontiguousarray(gt[:, :3, :3])
-            gt_pos = np.ascontiguousarray(gt[:, :3, 3])
+            first, gt_steps, gt_rot, gt_pos, errors = self._kernel_inputs
             a = Alignment.parse(self.alignment)
             m_fit = n if a.first_n is None else min(a.first_n, n)
             out_t, out_r = np.empty(reps), np.empty(reps)
-            pos, rel = np.empty((n, 3)), np.empty((n, 9))
-            first, errors = np.ascontiguousarray(self.est[0]), np.ascontiguousarray(self.errors)
-            for c0, starts in block_start_chunks(n - 1, b, reps, seed):
+            buffers = queue.SimpleQueue()  # one path's buffers per thread at work
+
+            def chunk(c0: int, starts: np.ndarray) -> None:
                 c = len(starts)
+                try:
+                    pos, rel = buffers.get_nowait()
+                except queue.Empty:
+                    pos, rel = np.empty((n, 3)), np.empty((n, 9))
                 degenerate = np.zeros(c, dtype=np.bool_)
                 _draw_kernel(first, gt_steps, gt_rot, gt_pos, errors, starts, b,
                              _KIND_CODE[a.kind], m_fit, out_t[c0:c0 + c], out_r[c0:c0 + c],
                              degenerate, pos, rel)
+                buffers.put((pos, rel))
                 for r in np.flatnonzero(degenerate):  # rare: the batched path, one row
                     rows = block_indices_of(n - 1, b, starts[r:r + 1])
                     p1, r1 = np.empty((1, n, 3)), np.empty((1, n, 3, 3))
                     _chain_kernel(self.est[0], gt_steps, gt_rot, self.errors, rows, p1, r1)
                     t_rmse, r_rmse = ape_rmse_batch(gt, p1, r1, self.alignment)
                     out_t[c0 + r], out_r[c0 + r] = t_rmse[0], r_rmse[0]
+
+            chunks = block_start_chunks(n - 1, b, reps, seed)
+            if _threads <= 1:
+                for c0, starts in chunks:
+                    chunk(c0, starts)
+            else:  # the kernel releases the GIL: chunks of resamples on several cores, as
+                # many at a time as threads (the block starts of the others not yet drawn)
+                with ThreadPoolExecutor(_threads) as pool:
+                    while batch := list(itertools.islice(chunks, _threads)):
+                        for done in [pool.submit(chunk, c0, starts) for c0, starts in batch]:
+                            done.result()
             self._draws[key] = {"trans_m": out_t, "rot_deg": out_r}
         return self._draws[key]
 

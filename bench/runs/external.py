@@ -226,9 +226,9 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
             return ExternalOutcome(run_dir, "skipped", coverage, how, clock)
         idx = np.flatnonzero(m.covered)
         row_times = _frame_times(est.frame_times_ms, len(stamps), m)
-        frames = [FrameRecord(index=int(i), stamp=float(stamps[i]), time_ms=float(row_times[i]),
-                              points=0, correspondences=0, iterations=0, converged=True)
-                  for i in idx]
+        # positional arguments from plain lists: half the time at 40,000 frames
+        frames = [FrameRecord(i, t, ms, 0, 0, 0, True) for i, t, ms in
+                  zip(idx.tolist(), stamps[idx].tolist(), row_times[idx].tolist(), strict=True)]
         result = OdometryResult(stamps[idx], m.poses[idx], frames)
         evaluation = _evaluate(seq.ground_truth, result, scoring, with_gt, idx, coverage, where,
                                str(store))
