@@ -18,9 +18,12 @@ from metrics.intervals import (
     block_indices,
     correlation_length,
     independent_count,
+    overlap_factor,
     paired_interval,
+    scale_pivot,
     unit_intervals,
     widen,
+    widen_overlapping,
 )
 from metrics.units import ape_units, kitti_units, relative_units, velocity_units
 
@@ -83,8 +86,15 @@ def test_widen_by_the_student_quantile_of_the_independent_units():
     f = stats.t.ppf(0.975, 14) / stats.norm.ppf(0.975)
     assert (lo, hi) == pytest.approx((1.0 - 0.1 * f, 1.0 + 0.2 * f))
     assert np.isnan(widen(1.0, 0.9, 1.2, 1, 0.95)).all()
-    # a figure's interval is widened for its whole blocks (3 of 100 frames here: the
-    # batch-means factor t_2 / z sqrt(3 / 2), 2.7) unless the plain percentile one is asked for
+    # the batch-means factor t_{K-1} / z sqrt(K / (K - 1)) (APE's step errors use it)
+    f3 = stats.t.ppf(0.975, 2) / stats.norm.ppf(0.975) * np.sqrt(3 / 2)
+    assert widen(1.0, 0.9, 1.2, 3, 0.95, batch_means=True) == pytest.approx(
+        (1.0 - 0.1 * f3, 1.0 + 0.2 * f3))
+
+
+def test_a_figures_interval_is_the_scale_pivot_widened_for_its_overlapping_blocks():
+    # 3 whole blocks of 100 frames, units spanning 100 frames: the plain percentile interval,
+    # read as a ratio (x^2 / hi, x^2 / lo), widened by t_3 / z sqrt(3 / 2) / sqrt(1 - 1 / 3)
     rng = np.random.default_rng(3)
     n = 300
     v = rng.normal(1.0, 0.2, n)
@@ -92,10 +102,48 @@ def test_widen_by_the_student_quantile_of_the_independent_units():
     plain = unit_intervals(n, anchor, end, {"v": v}, block=100, small_sample=False)["v"]
     wide = unit_intervals(n, anchor, end, {"v": v}, block=100)["v"]
     assert plain.n_independent == 3
-    f3 = stats.t.ppf(0.975, 2) / stats.norm.ppf(0.975) * np.sqrt(3 / 2)
-    assert widen(1.0, 0.9, 1.2, 3, 0.95, batch_means=True) == pytest.approx(
-        (1.0 - 0.1 * f3, 1.0 + 0.2 * f3))
-    assert wide.high - wide.low == pytest.approx(f3 * (plain.high - plain.low), rel=0.02)
+    x = float(np.mean(v))
+    f = (stats.t.ppf(0.975, 1.5 * 2) / stats.norm.ppf(0.975) * np.sqrt(3 / 2)
+         / np.sqrt(1.0 - 100 / 300))
+    assert overlap_factor(3, 0.95, 100, 100) == pytest.approx(f)
+    low, high = x * x / plain.high, x * x / plain.low
+    assert (wide.low, wide.high) == pytest.approx((x - f * (x - low), x + f * (high - x)))
+
+
+def test_the_scale_pivot_reflects_the_percentile_interval_as_a_ratio():
+    # symmetric about the figure: the long-run mean may lie further above it than below
+    lo, hi = scale_pivot(1.0, 0.9, 1.1)
+    assert (lo, hi) == pytest.approx((1.0 / 1.1, 1.0 / 0.9))
+    assert hi - 1.0 > 1.0 - lo
+    # symmetric in the ratio (x / lo = hi / x): unchanged
+    assert scale_pivot(2.0, 1.6, 2.5) == pytest.approx((1.6, 2.5))
+    # a right-skewed resampling puts the interval's longer arm below the figure
+    lo, hi = scale_pivot(1.0, 0.95, 1.3)
+    assert 1.0 - lo > hi - 1.0
+    # no ratio without a positive figure and low end: unchanged
+    assert scale_pivot(1.0, 0.0, 1.2) == (0.0, 1.2)
+    assert scale_pivot(0.0, 0.0, 0.0) == (0.0, 0.0)
+
+
+def test_the_overlap_factor_narrows_few_blocks_and_widens_long_units():
+    z = stats.norm.ppf(0.975)
+    old = lambda k: stats.t.ppf(0.975, k - 1) / z * np.sqrt(k / (k - 1))  # noqa: E731
+    # units spanning 2/3 of the block (1.5 spans): a third of 2/3 of the variance is lost
+    for k in (2, 3, 4, 10, 29):
+        assert overlap_factor(k, 0.95, 96, 144) == pytest.approx(
+            stats.t.ppf(0.975, 1.5 * (k - 1)) / z * np.sqrt(k / (k - 1)) / np.sqrt(7 / 9))
+    # the overlapping batches' degrees of freedom: few blocks (a short drive) are widened
+    # less than by the batch-means factor, many blocks of long units more
+    assert overlap_factor(4, 0.95, 96, 144) < old(4)
+    assert overlap_factor(2, 0.95, 96, 144) < 0.6 * old(2)
+    assert overlap_factor(10, 0.95, 96, 144) > 1.05 * old(10)
+    # single-frame units lose no lags; a span beyond the block loses at most a third
+    assert overlap_factor(10, 0.95, 0, 144) == pytest.approx(
+        stats.t.ppf(0.975, 13.5) / z * np.sqrt(10 / 9))
+    assert overlap_factor(10, 0.95, 500, 144) == pytest.approx(
+        overlap_factor(10, 0.95, 144, 144))
+    assert np.isnan(overlap_factor(1, 0.95, 10, 20))
+    assert np.isnan(widen_overlapping(1.0, 0.9, 1.1, 1, 0.95, 10, 20)).all()
 
 
 def test_a_figure_always_lies_in_its_own_interval():

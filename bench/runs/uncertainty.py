@@ -4,10 +4,11 @@ Every figure ``bench.runs.evaluate.score`` writes gets, beside it, its confidenc
 ``LEVEL`` (95 %) from a circular block bootstrap over the scored frames and the count of
 independent (non-overlapping) units behind it:
 
-- relative error per length: the rotation and translation means, blocks of twice the larger of
-  a segment's span and the errors' correlation length, the percentile interval widened for
-  the few whole blocks (``metrics.intervals``, its docstring: the rule that makes the interval
-  cover its 95 %) and always holding the figure;
+- relative error per length: the rotation and translation means, blocks of 1.5 times the
+  larger of a segment's span and the errors' correlation length, the percentile interval read
+  with the figure's ratio to its long-run mean as the pivot and widened for the few,
+  overlapping whole blocks (``metrics.intervals``, its docstring: the rule that makes the
+  interval cover its 95 %) and always holding the figure;
 - KITTI drift: the translation [%] and rotation [deg/100 m] means over every segment;
 - APE: the translation and rotation RMSE, from trajectories re-chained from blocks of the
   estimate's frame-to-frame errors along the same path and aligned as the figure
