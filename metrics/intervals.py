@@ -472,7 +472,7 @@ def overlap_factor(n_pieces: int, level: float, span_frames: float, block: int) 
     q = 0.5 * (1.0 + level)
     dof = OVERLAP_DOF * (n_pieces - 1)
     lost = min(max(float(span_frames), 0.0), float(block)) / (3.0 * max(1, int(block)))
-    return float(student_t.ppf(q, dof) / norm.ppf(q) * math.sqrt(n_pieces / (n_pieces - 1))
+    return float(stdtrit(dof, q) / ndtri(q) * math.sqrt(n_pieces / (n_pieces - 1))
                  / math.sqrt(1.0 - lost))
 
 
