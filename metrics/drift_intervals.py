@@ -33,10 +33,10 @@ error index is computed from the block starts, what the Umeyama (1991) fit needs
 chaining, the 3 x 3 fit solved, and the aligned errors summed in a second pass over the one
 path. It gives the draws of the batched computation (``draws_batched``: every path of a chunk
 materialised, then ``ape_rmse_batch``, the same fit as ``metrics.ape``, evo's, up to rounding)
-to rounding. Degenerate resamples (positions on one line) are aligned by their orientations,
-as ``metrics.ape.align`` does, through the batched computation. The kernel releases the GIL:
-``set_threads`` draws chunks of resamples on several threads (``bench score`` uses every core;
-the draws are the same).
+to rounding. A resample whose positions do not fix the alignment (all on one line: a straight
+drive) is aligned by its orientations, as ``metrics.ape.align`` does, in the kernel too. The
+kernel releases the GIL: ``set_threads`` draws chunks of resamples on several threads
+(``bench score`` uses every core; the draws are the same).
 """
 
 from __future__ import annotations
@@ -58,7 +58,6 @@ from metrics.intervals import (
     REPS,
     Interval,
     block_index_chunks,
-    block_indices_of,
     block_start_chunks,
     contain,
     correlation_length,
@@ -266,8 +265,9 @@ def _draw_kernel(first, gt_steps, gt_rot, gt_pos, errors, starts, block, kind, m
     (``_chain_one``) into the buffers ``pos`` (n, 3) and ``rel`` (n, 9), aligned (``kind``:
     0 none, 1 origin, 2 se3, 3 sim3; Umeyama on the first ``m_fit`` poses as
     ``metrics.ape.umeyama_batch``), its translation RMSE [m] and rotation RMSE [deg] written into
-    ``out_t[r]``, ``out_r[r]``. A resample whose positions do not fix the alignment is flagged
-    in ``degenerate`` (its RMSE left NaN). One path in memory, never the resamples' paths."""
+    ``out_t[r]``, ``out_r[r]``. A resample whose positions do not fix the alignment is aligned
+    by its orientations (``metrics.ape.orientation_alignment``) and flagged in ``degenerate``.
+    One path in memory, never the resamples' paths."""
     n = gt_pos.shape[0]
     reps = starts.shape[0]
     # the GT positions of the fit less their mean c (row n: c)
@@ -316,16 +316,23 @@ def _draw_kernel(first, gt_steps, gt_rot, gt_pos, errors, starts, block, kind, m
                 if d[i] > eps * max(1.0, d[0]):
                     rank += 1
             if rank < 2 or m_fit < 3:
+                # the positions do not fix the rotation: the polar factor of sum R(G_k) R(P_k)^T
+                # (metrics.ape.orientation_alignment; rel holds its transposed terms), no scale
                 degenerate[r] = True
-                out_t[r] = np.nan
-                out_r[r] = np.nan
-                continue
+                for i in range(3):
+                    for j in range(3):
+                        cov[i, j] = 0.0
+                for k in range(m_fit):
+                    for i in range(3):
+                        for j in range(3):
+                            cov[i, j] += rel[k, 3 * j + i]
+                u, d, vt = np.linalg.svd(cov)
             sign = -1.0 if np.linalg.det(u) * np.linalg.det(vt) < 0.0 else 1.0
             for i in range(3):
                 for j in range(3):
                     r_al[i, j] = (u[i, 0] * vt[0, j] + u[i, 1] * vt[1, j]
                                   + sign * u[i, 2] * vt[2, j])
-            if kind == 3:
+            if kind == 3 and not degenerate[r]:
                 scale = (d[0] + d[1] + sign * d[2]) / var
             for i in range(3):
                 t_al[i] = mu_d[i] - scale * (r_al[i, 0] * mu_s[0] + r_al[i, 1] * mu_s[1]
@@ -439,10 +446,10 @@ class Drift:
         of the step errors (seeded: two estimates of the same frames draw the same blocks).
         One resample at a time in a compiled kernel (``_draw_kernel``): memory is one path,
         whatever the number of resamples; a resample whose positions do not fix the alignment
-        is re-chained and aligned by its orientations (as ``metrics.ape.align``)."""
+        is aligned by its orientations (as ``metrics.ape.align``)."""
         key = (int(block), int(reps), int(seed))
         if key not in self._draws:
-            gt, n = self.gt, len(self.gt)
+            n = len(self.gt)
             b = max(1, int(block))
             first, gt_steps, gt_rot, gt_pos, errors = self._kernel_inputs
             a = Alignment.parse(self.alignment)
@@ -461,12 +468,6 @@ class Drift:
                              _KIND_CODE[a.kind], m_fit, out_t[c0:c0 + c], out_r[c0:c0 + c],
                              degenerate, pos, rel)
                 buffers.put((pos, rel))
-                for r in np.flatnonzero(degenerate):  # rare: the batched path, one row
-                    rows = block_indices_of(n - 1, b, starts[r:r + 1])
-                    p1, r1 = np.empty((1, n, 3)), np.empty((1, n, 3, 3))
-                    _chain_kernel(self.est[0], gt_steps, gt_rot, self.errors, rows, p1, r1)
-                    t_rmse, r_rmse = ape_rmse_batch(gt, p1, r1, self.alignment)
-                    out_t[c0 + r], out_r[c0 + r] = t_rmse[0], r_rmse[0]
 
             chunks = block_start_chunks(n - 1, b, reps, seed)
             if _threads <= 1:
