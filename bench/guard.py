@@ -164,6 +164,12 @@ def run_folder(run_dir: Path, kind: str, force: bool | None = False,
         raise DataError(f"{run_dir}: outside the results root {root}; a run's name is one "
                         "folder name")
     not_an_input(run_dir, inputs, "run folder")
+    for parent in run_dir.parents:  # e.g. --out naming a file: one message, not an OSError
+        if parent.exists():
+            if not parent.is_dir():
+                raise DataError(f"{parent}: is a file, expected a folder of results (to hold "
+                                f"{run_dir.relative_to(parent)}); it is left as it is")
+            break
     if not run_dir.exists():
         return
     if not run_dir.is_dir():

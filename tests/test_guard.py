@@ -324,3 +324,19 @@ def test_inspect_plots_next_to_the_store_and_never_onto_an_input(tmp_path, monke
     code, text = bench_main(monkeypatch, capsys, "inspect", store, "--plot", photo)
     assert code == 2 and "not a speed plot this command wrote" in text, text
     assert photo.read_bytes() == b"\x89PNG\r\n\x1a\nmine" and digest(store) == before
+
+
+def test_a_results_folder_that_is_a_file_is_one_message_naming_it(
+        twist, tmp_path, monkeypatch, capsys):
+    """`--out` naming an existing file (or a path through one): `bench score` and `bench run`
+    stop with one message naming that file, exit 2, and leave it as it was (was: an OSError
+    "Not a directory" from deep inside the writer)."""
+    store, _, tum = twist
+    notes = tmp_path / "notes.txt"
+    notes.write_text("mine")
+    for args in (["score", tum, "--store", store, "--name", "mine", "--out", notes],
+                 ["run", "--method", "doppler", "--data", store, "--out", notes / "sub"]):
+        code, text = bench_main(monkeypatch, capsys, *args)
+        assert code == 2 and f"{notes}: is a file, expected a folder of results" in text, text
+        assert "Traceback" not in text and "Errno" not in text
+    assert notes.read_text() == "mine"

@@ -333,3 +333,41 @@ def test_an_experiment_scores_its_external_trajectories(data, tmp_path, capsys, 
                                    "methods": [], "external": [{**entry, "name": "doppler"}]}))
     code, out = _bench(["run", str(exp)], capsys, monkeypatch)
     assert code == 2 and "'doppler' is a method of the harness" in out
+
+
+def test_figures_of_scored_runs_alone_leave_out_the_per_frame_plot(data, tmp_path, capsys,
+                                                                   monkeypatch):
+    """A folder holding only trajectories scored without per-frame times (no time_ms, no
+    correspondences: nothing to draw on the per-frame plot's log axes, which raised a math
+    domain error): `bench figures` exits 0, draws the error figures and no per-frame figure;
+    beside a harness run the per-frame figure shows the harness run."""
+    store, _, doppler_dir = data
+    alone = tmp_path / "alone"
+    score_external(store, ExternalSpec(doppler_dir / "est_tum.txt", "mine"), alone)
+    code, out = _bench(["figures", str(alone), "--out", str(tmp_path / "f1")], capsys,
+                       monkeypatch)
+    assert code == 0 and "Traceback" not in out, out
+    assert any((tmp_path / "f1").rglob("*.png")) and not (tmp_path / "f1" / "frames").exists()
+    both = tmp_path / "both"
+    shutil.copytree(alone, both)
+    shutil.copytree(doppler_dir, both / "twist" / "doppler")
+    code, out = _bench(["figures", str(both), "--out", str(tmp_path / "f2")], capsys,
+                       monkeypatch)
+    assert code == 0 and list((tmp_path / "f2" / "frames").glob("*.png")), out
+
+
+def test_a_log_axis_with_nothing_positive_on_it_keeps_matplotlibs_ticks():
+    """bench.report.figstyle.log_y on an axis that holds no positive value (its limits may
+    not be positive) returns instead of taking the log of a negative ratio."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bench.report.figstyle import log_y
+
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [np.nan, np.nan])
+    ax.set_ylim(-1.0, 1.0)
+    log_y(ax)  # no ValueError
+    plt.close(fig)

@@ -125,6 +125,8 @@ def log_y(ax, axis: str = "y") -> None:
     getattr(ax, f"set_{axis}scale")("log")
     lo, hi = getattr(ax, f"get_{axis}lim")()
     target = ax.yaxis if axis == "y" else ax.xaxis
+    if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
+        return  # nothing positive plotted: matplotlib's own ticks
     # the fewest ticks that still label at least two values inside the limits: 1-2-5 per
     # decade, every digit on a narrow range (1000-4000 has only 2000 among 1-2-5), plain
     # evenly spaced values on a range inside one digit step
