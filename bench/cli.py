@@ -422,7 +422,8 @@ def report(
                                              "RESULTS_DIR/report.html)")] = None,
     figures: Annotated[bool, typer.Option(
         "--figures/--no-figures", help="draw the figures into RESULTS_DIR/figures first "
-        "(as `bench figures`), unless they are newer than every run record")] = True,
+        "(as `bench figures`, PNG for the page: a PDF only where one exists), unless they are "
+        "newer than every run record")] = True,
 ) -> None:
     """One self-contained HTML page of a results folder: its tables (every metric's, made for
     the page with intervals and significance marks, then every *.md table the folder holds),

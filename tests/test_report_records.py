@@ -7,6 +7,7 @@ escaped in markdown (checked with markdown-it-py, an independent renderer) and o
 import json
 import shutil
 
+import numpy as np
 import pytest
 from markdown_it import MarkdownIt
 
@@ -269,3 +270,25 @@ def test_a_failure_record_saying_done_is_no_finished_run(results, tmp_path):
     (run / "metrics.json").unlink()
     (run / "failed.json").write_text(json.dumps({"status": "done", "error": "odd"}))
     assert read_run(run, failed=True).result.status == "failed"
+
+
+def test_a_run_file_is_parsed_once_per_version_and_handed_out_as_a_copy(tmp_path):
+    """bench.runs.folders.read_run_tum: the same parsed trajectory while the file is
+    unchanged (a caller changing its copy changes nothing for the next), the new content as
+    soon as the file changes."""
+    from bench.runs.folders import read_run_tum
+    from loaders.posefile import write_tum
+    from loaders.trajectory import Trajectory
+
+    poses = np.repeat(np.eye(4)[None], 5, axis=0)
+    poses[:, 0, 3] = np.arange(5.0)
+    path = tmp_path / "est_tum.txt"
+    write_tum(Trajectory(np.arange(5) * 0.1, poses), path)
+    first = read_run_tum(path)
+    first.poses[:, 0, 3] = -1.0  # the caller's copy
+    np.testing.assert_array_equal(read_run_tum(path).poses[:, 0, 3], np.arange(5.0))
+    poses[:, 0, 3] *= 2.0
+    write_tum(Trajectory(np.arange(6)[:5] * 0.1, poses), path)
+    path.write_text(path.read_text() + "0.5 9 0 0 0 0 0 1\n")  # one more row: a new version
+    again = read_run_tum(path)
+    assert len(again) == 6 and again.poses[1, 0, 3] == 2.0

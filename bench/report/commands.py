@@ -157,18 +157,19 @@ def report_command(console: Console, results_dir: Path, out: Path | None,
     from bench.report.html import write_page
 
     if figures and not figures_current(results_dir):
+        from bench.report.figstyle import for_the_page
         from bench.report.figures import make_figures
 
         try:
-            with warnings.catch_warnings():  # a broken record: the page lists it
-                warnings.simplefilter("ignore")
+            with warnings.catch_warnings(), for_the_page():  # a broken record: the page
+                warnings.simplefilter("ignore")                # lists it
                 drawn = [p for p in make_figures(results_dir) if p.suffix == ".png"]
         except (DataError, OSError, ValueError) as err:  # an unreadable run file: the page
             drawn = []                                     # lists it; the tables still show
             console.print(f"figures not drawn: {str(err).splitlines()[0]}", markup=False)
         if drawn:
-            console.print(f"drew {len(drawn)} figure(s) into {Path(results_dir) / 'figures'}",
-                          markup=False)
+            console.print(f"drew {len(drawn)} figure(s) into {Path(results_dir) / 'figures'} "
+                          "(PNG, for the page; `bench figures` writes PDF too)", markup=False)
     path, counts = write_page(results_dir, out)
     console.print(f"wrote {path}: {counts['tables']} table(s), {counts['figures']} figure(s), "
                   f"{counts['runs']} run(s), {counts['failed']} not finished", markup=False)

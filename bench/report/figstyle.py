@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 import re
+from contextlib import contextmanager
 from pathlib import Path
 
 from bench.report.names import display_name, is_gt_assisted, order_key, overrides_note
@@ -155,14 +156,35 @@ def slug(name: str) -> str:
     return re.sub(r"[^a-z0-9]+", "-", name.lower()).strip("-") or "unnamed"
 
 
+#: ``save`` writes PNG only, and a PDF where one already exists (``for_the_page``)
+_page_only = False
+
+
+@contextmanager
+def for_the_page():
+    """Figures drawn for ``bench report``'s page: PNG (what the page shows), and a PDF only
+    where the figure already has one (written by ``bench figures``: made again, so that no
+    stale PDF stays beside a new PNG). Half the drawing: a PDF costs as much as its PNG and
+    embedding the fonts more."""
+    global _page_only
+    before, _page_only = _page_only, True
+    try:
+        yield
+    finally:
+        _page_only = before
+
+
 def save(fig, path_stem: Path) -> list[Path]:
-    """Write ``path_stem``.pdf and .png atomically at the figure's exact size; returns both."""
+    """Write ``path_stem``.pdf and .png atomically at the figure's exact size; returns both
+    (in ``for_the_page``: the PNG, and the PDF only if it existed)."""
     import matplotlib.pyplot as plt
 
     path_stem.parent.mkdir(parents=True, exist_ok=True)
     paths = []
     for fmt in ("pdf", "png"):
         path = path_stem.with_name(path_stem.name + f".{fmt}")
+        if fmt == "pdf" and _page_only and not path.exists():
+            continue
         with atomic_path(path) as tmp:
             fig.savefig(tmp, format=fmt, dpi=DPI)
         paths.append(path)

@@ -106,7 +106,7 @@ def file_problems(run_dir: Path, finished: bool) -> list[str]:
     """The run folder's files besides its record that cannot be read (config.yaml, meta.json
     and, of a finished run, its trajectory files), each naming the file and what is wrong:
     the page lists them, never passes over them."""
-    from loaders.posefile import read_tum
+    from bench.runs.folders import read_run_tum
 
     out = []
     for name, load in (("config.yaml", yaml.safe_load), ("meta.json", json.loads)):
@@ -123,7 +123,7 @@ def file_problems(run_dir: Path, finished: bool) -> list[str]:
             path = run_dir / name
             if path.exists():
                 try:
-                    read_tum(path)
+                    read_run_tum(path)
                 except (OSError, ValueError) as err:
                     text = str(err).splitlines()[0]
                     out.append(text if str(path) in text else f"{path}: {text}")
