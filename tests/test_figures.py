@@ -256,3 +256,32 @@ def test_plugin_methods_get_distinct_colours_and_their_declared_presentation(mon
     assert registry.display_name("test-declared") == "My Method"
     assert registry.order_key("dicp") < registry.order_key("test-declared") < \
         registry.order_key("doppler")
+
+
+def test_figures_for_the_page_are_png_and_never_leave_a_stale_pdf(tmp_path):
+    """figstyle.save inside for_the_page (bench report): a new figure as PNG only; a figure
+    that already has a PDF (from bench figures) gets both made again, so no old PDF stays
+    beside a new PNG; outside it, both as before."""
+    import os
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bench.report.figstyle import for_the_page, save
+
+    def draw(stem):
+        fig, ax = plt.subplots()
+        ax.plot([0, 1], [0, 1])
+        return save(fig, tmp_path / stem)
+
+    with for_the_page():
+        assert [p.suffix for p in draw("new")] == [".png"]
+    assert not (tmp_path / "new.pdf").exists()
+    assert sorted(p.suffix for p in draw("both")) == [".pdf", ".png"]
+    old = tmp_path / "both.pdf"
+    os.utime(old, (1.0, 1.0))
+    with for_the_page():
+        assert sorted(p.suffix for p in draw("both")) == [".pdf", ".png"]
+    assert old.stat().st_mtime > 1.0
