@@ -258,8 +258,8 @@ def main() -> None:
                         first_seed=args.first_seed, reps=args.reps, speed_mps=args.speed)
             for name, noise in models.items()}
     print(f"{args.trials} trajectories of {args.frames} poses ({args.speed:g} m/s, 10 Hz: "
-          f"{args.frames * args.speed / 10:g} m) per noise model, long-run mean from {args.truth_seeds} "
-          f"more, noise seeds from {args.first_seed}, {args.reps} resamples")
+          f"{args.frames * args.speed / 10:g} m) per noise model, long-run mean from "
+          f"{args.truth_seeds} more, noise seeds from {args.first_seed}, {args.reps} resamples")
     for name, noise in models.items():
         print(f"- {name}: {noise.label}")
     print(table(rows))
