@@ -265,6 +265,25 @@ def test_the_coverage_study_drives_a_short_drive_at_its_speed_and_reports_missin
     assert kitti.trials == 0 and np.isnan(kitti.coverage)
 
 
+def test_the_coverage_studys_block_factor_option_sets_the_block(monkeypatch, capsys):
+    # how the factor was chosen (the manual): the study run with another BLOCK_FACTOR; a 16 m
+    # segment of a 4.4 m/s drive spans about 37 frames, so factor 1 gives blocks of 36-38
+    # frames where the harness's 1.5 gives 54-57
+    import metrics.intervals as iv
+    from bench.studies import coverage
+
+    monkeypatch.setattr(iv, "BLOCK_FACTOR", iv.BLOCK_FACTOR)  # restored afterwards
+    monkeypatch.setattr("sys.argv", ["coverage", "--frames", "250", "--speed", "4.4",
+                                     "--trials", "3", "--truth-seeds", "3", "--reps", "20",
+                                     "--noise", "white", "--block-factor", "1"])
+    coverage.main()
+    out = capsys.readouterr().out
+    assert "block factor 1\n" in out
+    row = next(line for line in out.splitlines() if line.startswith("| relative 16 m rotation"))
+    block = float(row.strip("|").split("|")[3])
+    assert 36 <= block <= 38
+
+
 #: the fast coverage check: trials per noise model, and the level it holds every figure to:
 #: the 93 % the full study must reach (issue 40) less two binomial standard deviations at that
 #: many trials

@@ -20,7 +20,8 @@ does, and the coverage is the share of trials whose interval contains the long-r
 median interval width and block length; "no interval" where no drive gives one, e.g. KITTI's
 100-800 m segments on a short drive); ``--frames`` and ``--speed`` set the drive (750 m by
 default; ``--frames 250 --speed 4.4``: 110 m, like the real 250-frame sample, where few whole
-blocks remain); ``tests/test_intervals.py`` runs a smaller version
+blocks remain; ``--block-factor``: the study with another ``metrics.intervals.BLOCK_FACTOR``,
+how the factor was chosen); ``tests/test_intervals.py`` runs a smaller version
 (150 drives of 300 m per noise model) and fails below 95 % less two binomial standard
 deviations.
 """
@@ -34,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+import metrics.intervals as _intervals
 from bench.runs.uncertainty import intervals
 from metrics.intervals import REPS
 from metrics.units import Units, ape_units, kitti_units, relative_units, velocity_units
@@ -252,14 +254,20 @@ def main() -> None:
                         help="the first noise seed (trials, then the long-run mean's drives)")
     parser.add_argument("--noise", choices=[*NOISE_MODELS, "both"], default="both")
     parser.add_argument("--reps", type=int, default=REPS, help="bootstrap resamples")
+    parser.add_argument("--block-factor", type=float, default=None,
+                        help="metrics.intervals.BLOCK_FACTOR for this study (default: the "
+                             f"harness's, {_intervals.BLOCK_FACTOR:g}): how it was chosen")
     args = parser.parse_args()
+    if args.block_factor is not None:  # read at call time by every interval rule
+        _intervals.BLOCK_FACTOR = args.block_factor
     models = NOISE_MODELS if args.noise == "both" else {args.noise: NOISE_MODELS[args.noise]}
     rows = {name: study(args.frames, args.trials, args.truth_seeds, noise,
                         first_seed=args.first_seed, reps=args.reps, speed_mps=args.speed)
             for name, noise in models.items()}
     print(f"{args.trials} trajectories of {args.frames} poses ({args.speed:g} m/s, 10 Hz: "
           f"{args.frames * args.speed / 10:g} m) per noise model, long-run mean from "
-          f"{args.truth_seeds} more, noise seeds from {args.first_seed}, {args.reps} resamples")
+          f"{args.truth_seeds} more, noise seeds from {args.first_seed}, {args.reps} resamples, "
+          f"block factor {_intervals.BLOCK_FACTOR:g}")
     for name, noise in models.items():
         print(f"- {name}: {noise.label}")
     print(table(rows))
