@@ -246,6 +246,44 @@ def test_a_figure_on_one_independent_segment_has_no_interval():
     assert r48["rot_deg_mean_ci"] is None and r48["n"] > 1
 
 
+def test_the_coverage_study_drives_a_short_drive_at_its_speed_and_reports_missing_intervals():
+    # 250 frames at 4.4 m/s, like the real sample: 110 m, so a 16 m segment spans about 37
+    # frames (at the default 5 m/s, 32) and a KITTI 100 m segment has no second independent one
+    from metrics.intervals import BLOCK_FACTOR
+
+    gt = ground_truth(250, speed_mps=4.4)
+    path_m = np.linalg.norm(np.diff(gt[:, :3, 3], axis=0), axis=1).sum()
+    assert path_m == pytest.approx(249 * 0.44, rel=1e-9)
+    rows = {r.figure: r for r in study(n_frames=250, trials=4, truth_seeds=4, reps=50,
+                                       figures=("relative 16 m rotation",
+                                                "KITTI translation drift"),
+                                       first_seed=30_000, speed_mps=4.4)}
+    r16 = rows["relative 16 m rotation"]
+    assert r16.trials == 4
+    assert 36 <= r16.median_block / BLOCK_FACTOR <= 38
+    kitti = rows["KITTI translation drift"]
+    assert kitti.trials == 0 and np.isnan(kitti.coverage)
+
+
+def test_the_coverage_studys_block_factor_option_sets_the_block(monkeypatch, capsys):
+    # how the factor was chosen (the manual): the study run with another BLOCK_FACTOR; a 16 m
+    # segment of a 4.4 m/s drive spans about 37 frames, so factor 1 gives blocks of 36-38
+    # frames where the harness's 1.5 gives 54-57
+    import metrics.intervals as iv
+    from bench.studies import coverage
+
+    monkeypatch.setattr(iv, "BLOCK_FACTOR", iv.BLOCK_FACTOR)  # restored afterwards
+    monkeypatch.setattr("sys.argv", ["coverage", "--frames", "250", "--speed", "4.4",
+                                     "--trials", "3", "--truth-seeds", "3", "--reps", "20",
+                                     "--noise", "white", "--block-factor", "1"])
+    coverage.main()
+    out = capsys.readouterr().out
+    assert "block factor 1\n" in out
+    row = next(line for line in out.splitlines() if line.startswith("| relative 16 m rotation"))
+    block = float(row.strip("|").split("|")[3])
+    assert 36 <= block <= 38
+
+
 #: the fast coverage check: trials per noise model, and the level it holds every figure to:
 #: the 93 % the full study must reach (issue 40) less two binomial standard deviations at that
 #: many trials
