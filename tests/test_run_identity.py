@@ -192,7 +192,12 @@ print(run_job(job).status)
 def test_editing_a_loader_helper_re_runs_the_run(store, tmp_path):
     """The run key covers the content of every module that can change a result: a copy of the
     code runs a job, the job is reused, then a helper in loaders/se3.py is edited (a new
-    docstring line, results unchanged) and the same job runs again."""
+    docstring line, results unchanged) and the same job runs again.
+
+    The copy keeps numba's on-disk cache of the compiled kernels (``__pycache__/*.nbi``,
+    ``*.nbc``; not the bytecode): the copied files keep their times, so the copy loads the
+    kernels instead of compiling them again in each child process. The run key covers the
+    modules' sources, not these caches, as the reuse below shows."""
     import os
     import shutil
     import subprocess
@@ -202,8 +207,7 @@ def test_editing_a_loader_helper_re_runs_the_run(store, tmp_path):
     root = Path(__file__).resolve().parents[1]
     copy = tmp_path / "repo"
     for part in ("bench", "loaders", "methods", "metrics", "configs"):
-        shutil.copytree(root / part, copy / part,
-                        ignore=shutil.ignore_patterns("__pycache__"))
+        shutil.copytree(root / part, copy / part, ignore=shutil.ignore_patterns("*.pyc"))
 
     def run() -> str:
         out = subprocess.run([sys.executable, "-c", _RUN_IN_COPY, str(store),
