@@ -111,6 +111,8 @@ def run_kind(folder: Path) -> str | None:
     metrics.json / failed.json), None for anything else."""
     import yaml
 
+    from loaders.yamlio import read_yaml
+
     folder = Path(folder)
     if not folder.is_dir():
         return None
@@ -120,7 +122,7 @@ def run_kind(folder: Path) -> str | None:
     config = {}
     if "config.yaml" in names:
         try:
-            config = yaml.safe_load((folder / "config.yaml").read_text()) or {}
+            config = read_yaml(folder / "config.yaml") or {}
         except (OSError, yaml.YAMLError):
             config = None
         if not isinstance(config, dict) or not (config.keys() & {"method", "run_key"}

@@ -19,11 +19,16 @@ from methods.registry import METHODS
 
 @pytest.fixture(scope="module")
 def ci_out(tmp_path_factory, ci_data_dir) -> Path:
-    """The CI experiment's runs, once per module (the CLI tests below reuse them)."""
+    """The CI experiment's runs, once per module (the CLI tests below reuse them).
+
+    They run in this process (the ``local`` executor): the metrics are the same whichever
+    executor runs them (tests/test_executors.py), and a forked worker per run pays again for
+    what this process has loaded already (numba's compiled kernels, the library lookup): 85
+    runs took 55-180 s with two workers, about 30 s here."""
     exp = load_experiment(rg.CI_EXPERIMENT)
     exp.data_dir = ci_data_dir
     exp.out = tmp_path_factory.mktemp("ci")
-    outcomes = run_jobs(plan(jobs_for_experiment(exp)), workers=2)
+    outcomes = run_jobs(plan(jobs_for_experiment(exp)), executor="local")
     assert all(o.status == "done" for o in outcomes), [o.message for o in outcomes]
     return exp.out
 

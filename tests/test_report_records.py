@@ -83,6 +83,10 @@ def test_what_differs_names_the_items_known_answer():
 
 def test_a_truncated_record_is_a_failed_row_and_the_good_run_keeps_its_table(
         results, tmp_path, capsys, monkeypatch):
+    """The page and the table with a broken record. The page is written without drawing the
+    figures (``--no-figures``: about 5 s a drawing); the figures beside a broken record are
+    test_figures_leave_out_a_broken_record_naming_it_and_tell_runs_apart's, and the report's
+    drawing step with one is test_a_schema_invalid_record_names_the_field's."""
     copy = _copy(results, tmp_path)
     bad = copy / "twist" / "doppler_sim3" / "metrics.json"
     bad.write_text(bad.read_text()[:100])
@@ -91,7 +95,7 @@ def test_a_truncated_record_is_a_failed_row_and_the_good_run_keeps_its_table(
         read_run(bad.parent)
     assert read_run(bad.parent, failed=True).result.status == BROKEN
 
-    code, out, err = _bench(["report", str(copy)], capsys, monkeypatch)
+    code, out, err = _bench(["report", str(copy), "--no-figures"], capsys, monkeypatch)
     assert code == 1 and "1 run record(s) broken" in out and "Traceback" not in out + err
     page = (copy / "report.html").read_text()
     assert f"{bad}: not valid JSON" in page and "Every run finished" not in page

@@ -180,8 +180,13 @@ def _kind(sensor: str) -> str:
 
 @pytest.mark.parametrize("name", CHEAPEST)
 def test_the_cheapest_sweep_replays_its_decision(name, tmp_path):
+    """The sweep's runs in this process (``--executor local``): the decision reads errors,
+    which are the same whichever executor runs them (tests/test_executors.py), and a forked
+    worker per run pays again for what this process has loaded (kiss-icp, numba's kernels,
+    the library lookup): 20 runs cost about 34 s of CPU in workers, 25 s here."""
     path = ROOT / "configs" / "tuning" / f"{name}.yaml"
-    result = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path)])
+    result = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path),
+                                      "--executor", "local"])
     assert result.exit_code == 0, result.output
     chosen = [ln for ln in result.output.splitlines() if ln.startswith("chosen")]
     assert chosen, result.output

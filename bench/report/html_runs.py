@@ -13,6 +13,7 @@ import yaml
 
 from bench.runs.folders import BROKEN, check_record
 from bench.runs.sequence_identity import sequence_tags, tagged
+from loaders.yamlio import read_yaml
 
 
 @dataclass(frozen=True)
@@ -59,7 +60,7 @@ def read_page_runs(results_dir: Path) -> list[PageRun]:
         config = {}
         if (d / "config.yaml").exists():
             try:
-                config = yaml.safe_load((d / "config.yaml").read_text()) or {}
+                config = read_yaml(d / "config.yaml") or {}
             except (OSError, yaml.YAMLError):
                 pass
         config = config if isinstance(config, dict) else {}

@@ -76,9 +76,12 @@ def _third_party_modules() -> list[str]:
     return sorted(names)
 
 
+@functools.cache
 def distribution_of(module: str) -> str | None:
     """The installed distribution that provides top-level module ``module`` (None: none, e.g.
-    a plugin module on PYTHONPATH)."""
+    a plugin module on PYTHONPATH); looked up once per process, like ``installed_version``
+    (each lookup parses the distribution's metadata: about 1 ms, for every loaded library
+    after every run)."""
     try:
         return metadata.distribution(module).metadata["Name"]
     except metadata.PackageNotFoundError:
@@ -105,8 +108,10 @@ def _normal(name: str) -> str:
     return re.sub(r"[-_.]+", "-", name).lower()
 
 
+@functools.cache
 def _requirements(dist: str) -> list[str]:
-    """The distributions ``dist`` requires, other than for an extra of its own."""
+    """The distributions ``dist`` requires, other than for an extra of its own; read once per
+    process (the caller only reads the list)."""
     try:
         requires = metadata.requires(dist) or []
     except metadata.PackageNotFoundError:

@@ -23,6 +23,7 @@ from bench.runs.reuse import rename_reused
 from loaders.errors import DataError
 from loaders.gt import gt_for_frames
 from loaders.scan import FrameRange
+from loaders.yamlio import read_yaml
 from methods.registry import get_method, seed_option
 
 
@@ -276,7 +277,7 @@ def _other_content(run_dir: Path, store: Path, sha256: str) -> str | None:
     it holds no run, a run of this store (re-converted in place: it runs again), or of the
     same content."""
     try:
-        config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}
+        config = read_yaml(run_dir / "config.yaml") or {}
     except (OSError, ValueError, yaml.YAMLError):
         return None
     if not isinstance(config, dict):

@@ -10,10 +10,10 @@ import platform
 import subprocess
 import sys
 from datetime import UTC, datetime
-from importlib import metadata
 from pathlib import Path
 
 from bench.paths import ROOT
+from bench.runs.libraries import installed_version
 from bench.threads import thread_settings
 from methods.timing import TIMING_LOCK_ENV
 
@@ -91,14 +91,9 @@ def cpu_flags_digest(cpuinfo: str | None = None) -> str | None:
 
 
 def installed_versions(names) -> dict[str, str | None]:
-    """The installed version of each distribution in ``names`` (None when absent)."""
-    versions = {}
-    for name in names:
-        try:
-            versions[name] = metadata.version(name)
-        except metadata.PackageNotFoundError:
-            versions[name] = None
-    return versions
+    """The installed version of each distribution in ``names`` (None when absent), read once
+    per process (``bench.runs.libraries.installed_version``)."""
+    return {name: installed_version(name) for name in names}
 
 
 def run_meta() -> dict:

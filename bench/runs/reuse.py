@@ -18,6 +18,7 @@ import yaml
 from bench.runs.folders import is_finished
 from bench.runs.result import RunResult
 from loaders.fileio import atomic_write_text
+from loaders.yamlio import read_yaml
 
 #: the names a run record carries of its sequence (config.yaml ``sequence`` / metrics.json)
 SEQUENCE_NAMES = ("name", "display_name", "sensor_class")
@@ -31,7 +32,7 @@ def rename_reused(run_dir: Path, key: str, sequence: dict) -> str | None:
     says what was reused under which name; None when there is nothing to rename."""
     if not is_finished(run_dir, key):
         return None
-    config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}
+    config = read_yaml(run_dir / "config.yaml") or {}
     old = config.get("sequence") or {}
     if all(old.get(k) == sequence.get(k) for k in SEQUENCE_NAMES):
         return None
