@@ -44,6 +44,7 @@ from loaders.fileio import atomic_write_text
 from loaders.posefile import read_tum
 from loaders.se3 import tum_from_T
 from loaders.trajectory import Trajectory
+from loaders.yamlio import load_yaml
 from methods.base import OdometryResult
 from methods.registry import Seed
 
@@ -73,7 +74,7 @@ def is_finished(run_dir: Path, key: str | None = None) -> bool:
     if key is None:
         return check_record(run_dir / "metrics.json") is None
     try:
-        config = yaml.safe_load((run_dir / "config.yaml").read_text()) or {}
+        config = load_yaml((run_dir / "config.yaml").read_text()) or {}
         # a run with a compilation inside a timed frame is no clean timing: it runs again
         clean = json.loads((run_dir / "metrics.json").read_text()).get("timing_clean", True)
     except (OSError, ValueError, AttributeError, yaml.YAMLError):
@@ -276,7 +277,7 @@ _told: set[str] = set()
 def _config(run_dir: Path) -> dict:
     path = run_dir / "config.yaml"
     try:
-        config = (yaml.safe_load(path.read_text()) or {}) if path.exists() else {}
+        config = (load_yaml(path.read_text()) or {}) if path.exists() else {}
     except (OSError, yaml.YAMLError):
         return {}  # bench report lists the folder's unreadable files
     if not isinstance(config, dict):
