@@ -184,14 +184,24 @@ def test_the_cheapest_sweep_replays_its_decision(name, tmp_path):
     which are the same whichever executor runs them (tests/test_executors.py), and a forked
     worker per run pays again for what this process has loaded (kiss-icp, numba's kernels,
     the library lookup): 20 runs cost about 34 s of CPU in workers, 25 s here."""
-    path = ROOT / "configs" / "tuning" / f"{name}.yaml"
-    result = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path),
+    import yaml
+
+    original = ROOT / "configs" / "tuning" / f"{name}.yaml"
+    spec = yaml.safe_load(original.read_text())
+    # the same sweep with its synthetic stores made under tmp_path, not the checkout's data/
+    spec["data_dir"] = str(tmp_path / "data")
+    for seq in spec.get("sequences", []):
+        seq["path"] = str((original.parent / seq["path"]).resolve())
+    path = tmp_path / original.name
+    path.write_text(yaml.safe_dump(spec, sort_keys=False))
+    result = CliRunner().invoke(app, ["run", str(path), "--out", str(tmp_path / "out"),
                                       "--executor", "local"])
     assert result.exit_code == 0, result.output
     chosen = [ln for ln in result.output.splitlines() if ln.startswith("chosen")]
     assert chosen, result.output
-    assert (tmp_path / "sweep.md").exists() and (tmp_path / "sweeps.json").exists()
+    assert (tmp_path / "out" / "sweep.md").exists() and (tmp_path / "out" / "sweeps.json").exists()
+    assert any((tmp_path / "data").rglob("*.h5"))  # its synthetic stores, made there
     decided = " ".join(f"{k}={format_value(v)}"
-                       for k, v in load_experiment(path).decided.items())
+                       for k, v in load_experiment(original).decided.items())
     for line in chosen:
         assert "agrees" in line and decided in line, line
