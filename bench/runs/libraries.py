@@ -25,6 +25,7 @@ from importlib import metadata
 from pathlib import Path
 
 from bench.paths import ROOT
+from bench.runs.provenance import installed_version
 
 #: the repository's own top-level packages (their content is in the code hash)
 REPO_PACKAGES = frozenset(p.name for p in ROOT.iterdir() if (p / "__init__.py").is_file())
@@ -92,16 +93,6 @@ def distribution_of(module: str) -> str | None:
         _provided.append(metadata.packages_distributions())
     found = _provided[0].get(module)
     return sorted(found)[0] if found else None
-
-
-@functools.cache
-def installed_version(name: str) -> str | None:
-    """The installed version of distribution ``name`` (None: not installed); read once per
-    process (every skip decision of a command asks for the same few)."""
-    try:
-        return metadata.version(name)
-    except metadata.PackageNotFoundError:
-        return None
 
 
 def _normal(name: str) -> str:

@@ -4,16 +4,17 @@ result is ``bench.runs.identity``."""
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import os
 import platform
 import subprocess
 import sys
 from datetime import UTC, datetime
+from importlib import metadata
 from pathlib import Path
 
 from bench.paths import ROOT
-from bench.runs.libraries import installed_version
 from bench.threads import thread_settings
 from methods.timing import TIMING_LOCK_ENV
 
@@ -90,9 +91,19 @@ def cpu_flags_digest(cpuinfo: str | None = None) -> str | None:
     return hashlib.sha256(" ".join(sorted(flags.split())).encode()).hexdigest()[:12]
 
 
+@functools.cache
+def installed_version(name: str) -> str | None:
+    """The installed version of distribution ``name`` (None: not installed); read once per
+    process (every skip decision of a command asks for the same few)."""
+    try:
+        return metadata.version(name)
+    except metadata.PackageNotFoundError:
+        return None
+
+
 def installed_versions(names) -> dict[str, str | None]:
     """The installed version of each distribution in ``names`` (None when absent), read once
-    per process (``bench.runs.libraries.installed_version``)."""
+    per process (``installed_version``)."""
     return {name: installed_version(name) for name in names}
 
 
