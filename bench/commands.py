@@ -206,9 +206,12 @@ def score_command(console: Console, store: Path, spec, out: Path, force: bool,
     from metrics.drift_intervals import set_threads
 
     # scoring alone (nothing else timed meanwhile): the APE resamples on every core we have
-    set_threads(min(len(os.sched_getaffinity(0)), 8))
     given = {k: v for k, v in scoring.items() if v is not None}
-    outcome = score_external(store, spec, out, Scoring(**given), force)
+    set_threads(min(len(os.sched_getaffinity(0)), 8))
+    try:
+        outcome = score_external(store, spec, out, Scoring(**given), force)
+    finally:
+        set_threads(1)
     c = outcome.coverage
     gap = ("no interpolation" if c["max_gap_s"] is None else
            f"{c['interpolated']} interpolated across gaps up to {c['max_gap_s']:g} s")
