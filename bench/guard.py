@@ -87,6 +87,15 @@ def is_store(path: Path) -> bool:
     return Path(path).is_file() and _head(path, 8) == HDF5_MAGIC
 
 
+#: the first bytes of a rerun recording (.rrd: "RRF" and the format's version digit)
+RRD_MAGIC = b"RRF"
+
+
+def is_recording(path: Path) -> bool:
+    """A rerun recording (what ``bench view`` writes) by its signature."""
+    return Path(path).is_file() and _head(path, len(RRD_MAGIC)) == RRD_MAGIC
+
+
 def is_ros1_bag(path: Path) -> bool:
     return Path(path).is_file() and _head(path, len(ROS1_MAGIC)) == ROS1_MAGIC
 

@@ -340,3 +340,31 @@ def test_a_results_folder_that_is_a_file_is_one_message_naming_it(
         assert code == 2 and f"{notes}: is a file, expected a folder of results" in text, text
         assert "Traceback" not in text and "Errno" not in text
     assert notes.read_text() == "mine"
+
+
+def test_view_never_writes_onto_its_store_another_file_or_into_a_run_folder(
+        twist, tmp_path, monkeypatch, capsys):
+    """`bench view --out`: onto its own store (it replaced the store with a recording), onto a
+    file that is not a rerun recording, onto a folder or into a run folder: one message,
+    exit 2, everything as it was; a recording it wrote is made again."""
+    store, results, _ = twist
+    copy = Path(shutil.copy(store, tmp_path / "s.h5"))
+    notes = tmp_path / "notes.txt"
+    notes.write_text("mine")
+    run = results / "twist" / "doppler"
+    before = digest(run)
+    folder = tmp_path / "recordings"
+    folder.mkdir()
+    for out, says in ((copy, "is an input of this command"),
+                      (notes, "is not a rerun recording this command wrote"),
+                      (folder, "is a folder"),
+                      (run / "view.rrd", "inside a run folder")):
+        code, text = bench_main(monkeypatch, capsys, "view", copy, "--run", run, "--out", out,
+                                "--stride", "10")
+        assert code == 2 and says in text and "Traceback" not in text, text
+    assert guard.is_store(copy) and notes.read_text() == "mine" and digest(run) == before
+    rrd = tmp_path / "v.rrd"
+    for _ in range(2):
+        code, text = bench_main(monkeypatch, capsys, "view", copy, "--out", rrd, "--stride",
+                                "10")
+        assert code == 0 and guard.is_recording(rrd), text

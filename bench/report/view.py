@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench import guard
 from loaders.errors import DataError
 from loaders.fileio import atomic_path
 from loaders.posefile import read_tum
@@ -43,6 +44,14 @@ def doppler_colors(doppler: np.ndarray, limit_mps: float) -> np.ndarray:
 
 def write_recording(store: Path, out: Path, run_dir: Path | None = None,
                     pair: int | None = None, stride: int = 1) -> Path:
+    out = Path(out)
+    inputs = [store] + ([run_dir / "est_tum.txt", run_dir / "est_all_tum.txt"]
+                        if run_dir is not None else [])
+    guard.regenerated_file(out, guard.is_recording, "a rerun recording", inputs=inputs)
+    holder = guard.run_kind(out.parent)
+    if holder is not None:
+        raise DataError(f"--out {out}: inside a run folder ({out.parent}), which holds its "
+                        "run's own files only; write the recording elsewhere")
     rr = _rerun()
     seq = StoreSequence(store)
     try:
