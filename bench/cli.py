@@ -495,8 +495,10 @@ def speed(
     """Time every method on the same synthetic scan pairs (total per-frame work and the
     registration call); print ratios to `doppler`, each method's peak memory and the harness's
     own cost per frame."""
+    from bench import guard
     from bench.studies.speed import run_speed
 
+    guard.output_folder(out, inputs=[store])  # a folder of its own CSVs and plots
     if scale:
         from bench.studies.scale import MIN_POSES, run_scale
 
@@ -514,9 +516,21 @@ def speed(
 
         run_harness(out, console, store)
         return
-    run_speed([int(s) for s in sizes.split(",")], methods.split(",") if methods else None,
-              repeats, out, console, memory, threads=threads, reference=reference,
-              vs_run=vs_run)
+    try:
+        counts = [int(s) for s in sizes.split(",")]
+    except ValueError:
+        counts = []
+    if not counts or min(counts) < 1:
+        raise DataError(f"--sizes {sizes!r}: expected point counts of at least 1, comma "
+                        "separated, e.g. 1000,64000")
+    names = [m.strip() for m in methods.split(",")] if methods else None
+    if names is not None:
+        from methods.registry import get_method
+
+        for name in names:
+            get_method(name)  # an unknown name: one message naming it and the registered ones
+    run_speed(counts, names, repeats, out, console, memory, threads=threads,
+              reference=reference, vs_run=vs_run)
 
 
 @app.command(short_help="the paper's Tables III-V")

@@ -165,3 +165,22 @@ def test_ground_truth_hours_off_suggests_the_time_offset():
         associate(late, gt.stamps + 1.7e9)
     with pytest.raises(DataError, match=r"try --time-offset -1000 \(this lines up"):
         associate(type(gt)(gt.stamps + 1000, gt.poses), gt.stamps)
+
+
+def test_bench_speed_bad_options_are_one_message_before_any_timing(tmp_path, capsys,
+                                                                     monkeypatch):
+    """`bench speed` with sizes that are not point counts, an unknown method or an --out that
+    is a file: one message naming the option, exit 2, no traceback (were a ValueError, a
+    KeyError and a FileExistsError), and nothing written."""
+    notes = tmp_path / "notes.txt"
+    notes.write_text("mine")
+    out = tmp_path / "speed"
+    for args, says in ((["--sizes", "abc"], "--sizes 'abc': expected point counts"),
+                       (["--sizes", "1000,0"], "--sizes '1000,0'"),
+                       (["--sizes", "1000", "--methods", "dopler"], "unknown method 'dopler'"),
+                       (["--sizes", "1000", "--out", str(notes)], "is a file")):
+        extra = [] if "--out" in args else ["--out", str(out)]
+        code, text = _bench(["speed", "--no-memory", "--repeats", "1", *args, *extra], capsys,
+                            monkeypatch)
+        assert code == 2 and says in text and "Traceback" not in text, text
+    assert notes.read_text() == "mine" and not out.exists()
