@@ -96,8 +96,14 @@ def test_a_library_pipeline_is_timed_as_a_run(stored):
             return RegistrationResult(np.eye(4), source["n"], 1, True)
 
     r = speed.time_frames(Pipeline(), stored)
-    assert len(calls) == 1 + len(stored) - 1 and len(set(calls)) == len(stored) - 1
-    assert r["clock"] == "cpu" and r["repeats"] == len(stored) - 1
+    n = len(stored) - 1
+    # the warm-up pair, then every pair once; a run whose CPU time leaked out of its thread
+    # (another thread of this test process still busy, e.g. a stateful method's thread pool
+    # from the test before) is timed again, whole, by the wall clock, and says so
+    once = 1 + n
+    assert r["clock"] in ("cpu", "wall")
+    assert len(calls) == (2 * once if r["clock"] == "wall" else once), r["clock"]
+    assert len(set(calls)) == n and r["repeats"] == n
 
 
 def test_bench_speed_times_what_a_run_records(stored, tmp_path):
