@@ -96,6 +96,23 @@ def is_recording(path: Path) -> bool:
     return Path(path).is_file() and _head(path, len(RRD_MAGIC)) == RRD_MAGIC
 
 
+def is_synthetic_store(path: Path) -> bool:
+    """A store ``bench synth`` made (its provenance's source is "synthetic"): what synth may
+    make again; a converted store (real data) is never replaced by a synthetic one."""
+    if not is_store(path):
+        return False
+    import json
+
+    import h5py
+
+    try:
+        with h5py.File(path, "r") as f:
+            source = json.loads(f.attrs.get("provenance", "{}")).get("source")
+    except (OSError, ValueError, AttributeError):
+        return False
+    return source == "synthetic"
+
+
 def is_ros1_bag(path: Path) -> bool:
     return Path(path).is_file() and _head(path, len(ROS1_MAGIC)) == ROS1_MAGIC
 

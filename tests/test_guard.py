@@ -368,3 +368,22 @@ def test_view_never_writes_onto_its_store_another_file_or_into_a_run_folder(
         code, text = bench_main(monkeypatch, capsys, "view", copy, "--out", rrd, "--stride",
                                 "10")
         assert code == 0 and guard.is_recording(rrd), text
+
+
+def test_synth_makes_its_own_store_again_but_never_replaces_a_converted_one(
+        twist, tmp_path, monkeypatch, capsys):
+    """`bench synth --out S.h5`: a store synth made is made again; a store converted from a
+    recording (real data: its provenance is not synthetic) is left as it is (it was replaced
+    by a synthetic one without a word), as is any other file."""
+    store, _, _ = twist
+    real = Path(shutil.copy(store, tmp_path / "real.h5"))
+    before = digest(real)
+    code, text = bench_main(monkeypatch, capsys, "synth", "loop", "--frames", "3", "--out", real)
+    assert code == 2 and "is not a synthetic store" in text, text
+    assert digest(real) == before
+    mine = tmp_path / "syn.h5"
+    for frames in ("3", "4"):
+        code, text = bench_main(monkeypatch, capsys, "synth", "loop", "--frames", frames,
+                                "--out", mine)
+        assert code == 0 and guard.is_synthetic_store(mine), text
+    assert not guard.is_synthetic_store(real)

@@ -42,7 +42,8 @@ def synth_command(console: Console, scene: str | None, sensor: str, frames: int,
     from bench import guard
     from bench.data.convert import write_with_progress
 
-    guard.regenerated_file(out, guard.is_store, "a store")  # a store is made again, nothing else
+    # a synthetic store is made again; a converted store (real data) or any other file never
+    guard.regenerated_file(out, guard.is_synthetic_store, "a synthetic store")
     write_with_progress(seq, out)
     return 0
 
