@@ -427,3 +427,39 @@ def test_the_printed_command_run_beside_a_store_named_by_its_sequence_does_not_t
     back, src = StoreSequence(tmp_path / f"radar_run_{fmt}.h5"), StoreSequence(store)
     np.testing.assert_array_equal(back.scan(4).doppler, src.scan(4).doppler)
     np.testing.assert_allclose(back.ground_truth.poses, src.ground_truth.poses, atol=1e-9)
+
+
+def test_force_never_replaces_a_dataset_recording(store, tmp_path):
+    """--force replaces a bag `bench export` wrote (it carries the description topic), never
+    a dataset's own recording of the same format: a ROS1 bag of NTU4DRadLM's layout and a
+    rosbag2 folder of another topic are left as they were."""
+    from helpers_bags import Motion, make_truth, write_ntu_bag
+
+    recording = write_ntu_bag(tmp_path / "drive.bag", make_truth(Motion(), 4, 30))
+    before = recording.read_bytes()
+    with pytest.raises(DataError, match="not a ROS1 bag this command wrote"):
+        export_store(store, "ros1", recording, force=True)
+    assert recording.read_bytes() == before
+    ours = tmp_path / "ours.bag"
+    export_store(store, "ros1", ours)
+    export_store(store, "ros1", ours, force=True)  # its own bag: made again
+    folder = tmp_path / "ros2"
+    export_store(store, "ros2", folder)
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([folder]) as reader:
+        assert any(c.topic == "/doppler_bench/description" for c in reader.connections)
+    export_store(store, "ros2", folder, force=True)
+    from rosbags.rosbag2 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    typestore = get_typestore(Stores.ROS2_HUMBLE)
+    other = tmp_path / "recorded"
+    with Writer(other, version=8) as writer:
+        conn = writer.add_connection("/chatter", "std_msgs/msg/String", typestore=typestore)
+        msg = typestore.types["std_msgs/msg/String"](data="hello")
+        writer.write(conn, 1, typestore.serialize_cdr(msg, "std_msgs/msg/String"))
+    files = sorted((p.name, p.read_bytes()) for p in other.iterdir())
+    with pytest.raises(DataError, match="not a rosbag2 folder"):
+        export_store(store, "ros2", other, force=True)
+    assert sorted((p.name, p.read_bytes()) for p in other.iterdir()) == files

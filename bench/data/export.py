@@ -184,7 +184,7 @@ def export_store(store: Path, fmt: str, out: Path | None = None, force: bool = F
     store = Path(store)
     out = bag_path(out, fmt) if out is not None else default_out(store, fmt)
     if fmt == "ros1":
-        replaceable(out, force, is_ros1_bag, "a ROS1 bag", inputs=[store])
+        replaceable(out, force, _exported_ros1, "a ROS1 bag", inputs=[store])
     else:
         replaceable(out, force, _rosbag2_or_empty, "a rosbag2 folder (metadata.yaml and its "
                     "storage files only)", inputs=[store])
@@ -212,8 +212,25 @@ def export_store(store: Path, fmt: str, out: Path | None = None, force: bool = F
         seq.close()
 
 
+def _exported(path: Path) -> bool:
+    """A bag this command wrote: it carries ``DESCRIPTION_TOPIC``. A dataset's own recording
+    (no description) is never what ``--force`` replaces."""
+    from rosbags.highlevel import AnyReader
+
+    try:
+        with AnyReader([Path(path)]) as reader:
+            return any(c.topic == DESCRIPTION_TOPIC for c in reader.connections)
+    except Exception:  # noqa: BLE001 - unreadable as a bag: not one of ours
+        return False
+
+
+def _exported_ros1(path: Path) -> bool:
+    return is_ros1_bag(path) and _exported(path)
+
+
 def _rosbag2_or_empty(path: Path) -> bool:
-    return is_rosbag2_folder(path) or (path.is_dir() and not any(path.iterdir()))
+    return ((is_rosbag2_folder(path) and _exported(path))
+            or (path.is_dir() and not any(path.iterdir())))
 
 
 def readback_out(seq_name: str, fmt: str) -> str:
