@@ -83,8 +83,20 @@ def _head(path: Path, n: int) -> bytes:
 
 
 def is_store(path: Path) -> bool:
-    """An HDF5 file (what ``bench convert`` / ``calibrate --write`` write) by its signature."""
-    return Path(path).is_file() and _head(path, 8) == HDF5_MAGIC
+    """A store (what ``bench convert`` / ``calibrate --write`` write): an HDF5 file by its
+    signature whose ``format`` attribute names this harness's store format (another HDF5
+    file, a dataset's own or a user's, is not one)."""
+    if not (Path(path).is_file() and _head(path, 8) == HDF5_MAGIC):
+        return False
+    import h5py
+
+    from loaders.store import FORMAT_NAME
+
+    try:
+        with h5py.File(path, "r") as f:
+            return f.attrs.get("format") == FORMAT_NAME
+    except (OSError, ValueError):
+        return False
 
 
 #: the first bytes of a rerun recording (.rrd: "RRF" and the format's version digit)

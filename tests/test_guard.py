@@ -59,10 +59,21 @@ def test_an_input_is_never_an_output_by_any_path(tmp_path):
 
 
 def test_replaceable_needs_force_and_a_thing_of_its_own(tmp_path):
+    import h5py
+
+    from loaders.store import FORMAT_NAME
+
     mine = tmp_path / "s.h5"
-    mine.write_bytes(guard.HDF5_MAGIC + b"rest")
+    with h5py.File(mine, "w") as f:
+        f.attrs["format"] = FORMAT_NAME
     other = tmp_path / "notes.h5"
     other.write_text("my notes")
+    foreign = tmp_path / "foreign.h5"  # an HDF5 file of someone else's: not a store
+    with h5py.File(foreign, "w") as f:
+        f["x"] = [1.0, 2.0]
+    with pytest.raises(DataError, match="is a file that is not a store this command wrote"):
+        guard.replaceable(foreign, True, guard.is_store, "a store")
+    assert not guard.is_store(foreign) and guard.is_store(mine)
     assert guard.replaceable(tmp_path / "new.h5", False, guard.is_store, "a store") is False
     with pytest.raises(DataError, match=r"exists \(a store\); give another --out or --force"):
         guard.replaceable(mine, False, guard.is_store, "a store")
