@@ -239,7 +239,8 @@ def _float(x: str) -> float:
 def plot_frames(runs: list[RunRecord], out_dir: Path) -> list[Path]:
     """Per sequence: time per frame [ms] (all per-frame work, ``time_ms``) and correspondences
     per frame (frames.csv), both on log axes. A run with neither (a trajectory scored with
-    ``bench score`` without per-frame times) is left out; a sequence with no other, drawn not."""
+    ``bench score`` without per-frame times) is left out; a sequence with no other run gets
+    no figure."""
     use_paper_style()
     written = []
     for sequence in sorted({r.display_name for r in runs}, key=sequence_key):
@@ -252,10 +253,9 @@ def plot_frames(runs: list[RunRecord], out_dir: Path) -> list[Path]:
                 series.append((run, [int(r["index"]) for r in rows], time_ms, pairs))
         if not series:
             continue
-        group = [s[0] for s in series]
         fig, axes = figure(2.6, 2, 1, sharex=True)
         for k, (run, idx, time_ms, pairs) in enumerate(series):
-            kw = line_kwargs(run, k, len(group), points=len(idx)) | {"lw": 0.7}
+            kw = line_kwargs(run, k, len(series), points=len(idx)) | {"lw": 0.7}
             axes[0].plot(idx, np.where(time_ms > 0, time_ms, np.nan), label=run_name(run), **kw)
             axes[1].plot(idx, np.where(pairs > 0, pairs, np.nan), **kw)
         for ax in axes:
