@@ -260,14 +260,14 @@ def _chain_one(first, gt_steps, gt_rot, errors, starts_r, block, pos, rel, xd, m
 
 @nb.njit(cache=True, nogil=True, fastmath={"contract", "reassoc", "nsz", "arcp"})
 def _draw_kernel(first, gt_steps, gt_rot, gt_pos, errors, starts, block, kind, m_fit,
-                 out_t, out_r, degenerate, pos, rel):  # pragma: no cover - numba
+                 out_t, out_r, pos, rel):  # pragma: no cover - numba
     """For every resample r (row of ``starts``: the first step error of each block): its path
     (``_chain_one``) into the buffers ``pos`` (n, 3) and ``rel`` (n, 9), aligned (``kind``:
     0 none, 1 origin, 2 se3, 3 sim3; Umeyama on the first ``m_fit`` poses as
     ``metrics.ape.umeyama_batch``), its translation RMSE [m] and rotation RMSE [deg] written into
     ``out_t[r]``, ``out_r[r]``. A resample whose positions do not fix the alignment is aligned
-    by its orientations (``metrics.ape.orientation_alignment``) and flagged in ``degenerate``.
-    One path in memory, never the resamples' paths."""
+    by its orientations (``metrics.ape.orientation_alignment``). One path in memory, never
+    the resamples' paths."""
     n = gt_pos.shape[0]
     reps = starts.shape[0]
     # the GT positions of the fit less their mean c (row n: c)
@@ -315,10 +315,10 @@ def _draw_kernel(first, gt_steps, gt_rot, gt_pos, errors, starts, block, kind, m
             for i in range(3):
                 if d[i] > eps * max(1.0, d[0]):
                     rank += 1
-            if rank < 2 or m_fit < 3:
+            degenerate = rank < 2 or m_fit < 3
+            if degenerate:
                 # the positions do not fix the rotation: the polar factor of sum R(G_k) R(P_k)^T
                 # (metrics.ape.orientation_alignment; rel holds its transposed terms), no scale
-                degenerate[r] = True
                 for i in range(3):
                     for j in range(3):
                         cov[i, j] = 0.0
@@ -332,7 +332,7 @@ def _draw_kernel(first, gt_steps, gt_rot, gt_pos, errors, starts, block, kind, m
                 for j in range(3):
                     r_al[i, j] = (u[i, 0] * vt[0, j] + u[i, 1] * vt[1, j]
                                   + sign * u[i, 2] * vt[2, j])
-            if kind == 3 and not degenerate[r]:
+            if kind == 3 and not degenerate:
                 scale = (d[0] + d[1] + sign * d[2]) / var
             for i in range(3):
                 t_al[i] = mu_d[i] - scale * (r_al[i, 0] * mu_s[0] + r_al[i, 1] * mu_s[1]
@@ -463,10 +463,9 @@ class Drift:
                     pos, rel = buffers.get_nowait()
                 except queue.Empty:
                     pos, rel = np.empty((n, 3)), np.empty((n, 9))
-                degenerate = np.zeros(c, dtype=np.bool_)
                 _draw_kernel(first, gt_steps, gt_rot, gt_pos, errors, starts, b,
                              _KIND_CODE[a.kind], m_fit, out_t[c0:c0 + c], out_r[c0:c0 + c],
-                             degenerate, pos, rel)
+                             pos, rel)
                 buffers.put((pos, rel))
 
             chunks = block_start_chunks(n - 1, b, reps, seed)

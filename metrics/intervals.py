@@ -258,11 +258,6 @@ def block_start_chunks(n_frames: int, block: int, reps: int = REPS, seed: int = 
         yield c0, rng.integers(0, n, size=(min(max(1, int(chunk)), int(reps) - c0), k))
 
 
-def block_indices_of(n_frames: int, block: int, starts: np.ndarray) -> np.ndarray:
-    """(rows, n_frames) the frames drawn by the rows of :func:`block_starts`."""
-    return _indices(int(n_frames), max(1, int(block)), np.asarray(starts))
-
-
 def _indices(n: int, b: int, starts: np.ndarray) -> np.ndarray:
     k = starts.shape[1]
     return (starts[:, :, None] + np.arange(b)[None, None, :]).reshape(len(starts), k * b)[:, :n] % n

@@ -190,8 +190,8 @@ def test_the_one_path_kernel_draws_what_the_batched_paths_draw(alignment):
 
 
 def test_a_degenerate_resample_falls_back_to_the_orientation_alignment():
-    """Positions on one line do not fix an SE(3) alignment: the kernel flags the resample and
-    it is aligned by its orientations as metrics.ape.align does (the batched reference)."""
+    """Positions on one line do not fix an SE(3) alignment: the kernel aligns each such
+    resample by its orientations, as metrics.ape.align does (the batched reference)."""
     from metrics.drift_intervals import draws_batched
 
     gt = np.repeat(np.eye(4)[None], 120, axis=0)
