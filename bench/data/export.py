@@ -215,11 +215,10 @@ def export_store(store: Path, fmt: str, out: Path | None = None, force: bool = F
 def _exported(path: Path) -> bool:
     """A bag this command wrote: it carries ``DESCRIPTION_TOPIC``. A dataset's own recording
     (no description) is never what ``--force`` replaces."""
-    from rosbags.highlevel import AnyReader
+    from loaders.rosbag import bag_topics
 
     try:
-        with AnyReader([Path(path)]) as reader:
-            return any(c.topic == DESCRIPTION_TOPIC for c in reader.connections)
+        return DESCRIPTION_TOPIC in bag_topics([Path(path)])
     except Exception:  # noqa: BLE001 - unreadable as a bag: not one of ours
         return False
 
