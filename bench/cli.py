@@ -19,7 +19,7 @@ from rich.markup import escape
 # (bench/__init__.py, bench.threads), the same in every executor mode
 from bench.console import make_console
 from bench.data.convert import convert_app
-from bench.runs.external_defaults import DEFAULT_MIN_COVERAGE, DEFAULT_TOLERANCE_S
+from bench.runs.external import DEFAULT_MIN_COVERAGE, DEFAULT_TOLERANCE_S
 from loaders.errors import DataError
 
 app = typer.Typer(add_completion=False, no_args_is_help=True, rich_markup_mode=None,
@@ -123,7 +123,7 @@ def calibrate(
     range of frames, twice: from the Doppler ego velocity (and road plane), and without Doppler
     by hand-eye alignment of KISS-ICP's trajectory; print both, their difference, and the
     Doppler estimate of pieces of the range (and whether they agree)."""
-    from bench.data.calibrate import calibrate_store
+    from bench.data.calibration.calibrate import calibrate_store
 
     calibrate_store(store, write, console, min_speed, bootstrap, start, frames, apply,
                     max_width_deg=max_width, force=force)
@@ -263,7 +263,7 @@ def score(
     speed profile that lines up only shifted; the message says the --time-offset or
     --stamp-unit that fits), a coverage below --min-coverage."""
     from bench.commands import score_command, scoring_options
-    from bench.runs.external import ExternalSpec
+    from bench.runs.external.score import ExternalSpec
 
     spec = ExternalSpec(trajectory, name, format, stamps, topic, frame_times, time_offset,
                         tolerance, max_gap, pose_frame, extrinsic, stamp_unit, min_coverage,
@@ -345,7 +345,7 @@ def table(
     from bench.report.commands import table_command
 
     if sweep:
-        from bench.report.tables_sweep import sweep_markdown
+        from bench.report.tables.sweep import sweep_markdown
 
         if len(results_dirs) != 1:
             raise DataError("--sweep reads one results folder (the sweep experiment's out)")
@@ -560,7 +560,7 @@ def reproduce(
     """Reproduce the paper's Tables III, IV and V (configs/experiments/table3-5.yaml) on the
     paper's sequences: real stores under DATA_DIR/real when present, else the synthetic suite."""
     from bench.commands import scoring_options
-    from bench.report.table import MARK_RULES, rule_name
+    from bench.report.tables.model import MARK_RULES, rule_name
     from bench.studies.reproduce import reproduce_table
 
     try:

@@ -99,7 +99,7 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
     external = external_runs(exp, force, console) if experiment is not None else []
     if results_dir is not None and (any(o.status in ("done", "skipped") for o in outcomes)
                                     or any(status != "failed" for _, status, _ in external)):
-        from bench.report.tables import write_tables
+        from bench.report.tables.paper import write_tables
 
         # tables are never wrapped mid-row (a terminal narrower than a row scrolls instead)
         console.print(write_tables(results_dir)["md"], markup=False, soft_wrap=True)
@@ -130,7 +130,7 @@ def external_runs(exp, force: bool, console: Console) -> list[tuple[str, str, st
     each went."""
     if not exp.external:
         return []
-    from bench.runs.external import score_experiment_external
+    from bench.runs.external.score import score_experiment_external
 
     done = score_experiment_external(exp, force)
     for name, status, message in done:
@@ -140,8 +140,8 @@ def external_runs(exp, force: bool, console: Console) -> list[tuple[str, str, st
 
 def print_sweeps(results_dir: Path, index: dict, console: Console) -> None:
     """Write the experiment's sweep index and its sweep table (sweep.md), and print the table
-    with each sweep's chosen point (bench/report/tables_sweep.py)."""
-    from bench.report.tables_sweep import sweep_markdown
+    with each sweep's chosen point (bench/report/tables/sweep.py)."""
+    from bench.report.tables.sweep import sweep_markdown
     from bench.runs.sweep import write_sweep_index
     from loaders.fileio import atomic_write_text
 
@@ -185,7 +185,7 @@ def print_run_summary(run_dir: Path, console: Console) -> None:
         if res.fallback_text():
             parts.append(res.fallback_text() + (" [fell back]" if res.fell_back else ""))
         console.print("; ".join(parts) or "no ground truth: no errors", markup=False)
-        from bench.report.tables_ape import start_offset_note
+        from bench.report.tables.ape import start_offset_note
 
         offset = start_offset_note(run)
         if offset:
@@ -199,10 +199,10 @@ def print_run_summary(run_dir: Path, console: Console) -> None:
 
 def score_command(console: Console, store: Path, spec, out: Path, force: bool,
                   scoring: dict) -> int:
-    """``bench score``: score an external trajectory (``bench.runs.external``), print its
+    """``bench score``: score an external trajectory (``bench.runs.external.score``), print its
     coverage and key metrics."""
     from bench.runs.evaluate import Scoring
-    from bench.runs.external import score_external
+    from bench.runs.external.score import score_external
     from metrics.drift_intervals import set_threads
 
     # scoring alone (nothing else timed meanwhile): the APE resamples on every core we have

@@ -9,7 +9,6 @@ ROOT = Path(__file__).resolve().parent.parent
 CONFIGS = ROOT / "configs"
 DATASET_CONFIGS = CONFIGS / "datasets"
 EXPERIMENTS = CONFIGS / "experiments"
-METHOD_CONFIGS = CONFIGS / "methods"
 SPLITS = CONFIGS / "splits.yaml"
 CI_EXPERIMENT = EXPERIMENTS / "ci.yaml"
 CI_BASELINE = CONFIGS / "ci" / "baseline.json"

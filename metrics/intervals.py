@@ -489,7 +489,7 @@ def paired_interval(n_frames: int, anchor: np.ndarray, end: np.ndarray, values_a
     the independent units behind it (:func:`widen`: a significance call on few independent
     segments is conservative). The block length is the largest of both series' and their
     difference's rule unless given. For a notebook comparing two estimates; the tables' marks
-    read each figure's own printed interval instead (``bench.report.significance``)."""
+    read each figure's own printed interval instead (``bench.report.tables.significance``)."""
     a = np.asarray(values_a, dtype=np.float64)
     b = np.asarray(values_b, dtype=np.float64)
     anchor = np.asarray(anchor, dtype=np.int64)

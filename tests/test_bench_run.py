@@ -7,8 +7,8 @@ import pytest
 from typer.testing import CliRunner
 
 from bench.cli import app
-from bench.report.table import to_latex, to_markdown
-from bench.report.tables import relative_table, runs, scored_lengths, write_tables
+from bench.report.tables.model import to_latex, to_markdown
+from bench.report.tables.paper import relative_table, runs, scored_lengths, write_tables
 from bench.runs.job import Job, run_job
 from bench.runs.progress import run_jobs
 from conftest import constant_twist_sequence
@@ -227,7 +227,7 @@ def test_labelled_variants_are_told_apart_from_plain_methods(tmp_path):
 
 
 def test_pivot_table_ranks_methods_per_sequence(tmp_path):
-    from bench.report.tables_pivot import pivot_tables
+    from bench.report.tables.pivot import pivot_tables
 
     for seq, method, rot, trans, diverged, t in (
             ("A", "icp-p2p", 0.5, 2.0, False, 12.345), ("A", "gicp", 0.2, 3.0, False, 3.21),

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from bench.data.calibrate import calibrate_store
-from bench.data.calibration import CorrectedSequence, calibrate_sequence, rotation_check
+from bench.data.calibration.calibrate import calibrate_store
+from bench.data.calibration.estimate import CorrectedSequence, calibrate_sequence, rotation_check
 from loaders.scan import MemorySequence
 from loaders.store import StoreSequence, write_store
 from loaders.synthetic import SyntheticSequence
@@ -90,7 +90,7 @@ def test_bench_inspect_warns_and_plots_the_doppler_speed(loop, tmp_path):
 
 
 def test_inspect_calls_consistent_only_the_angles_known_that_well():
-    from bench.data.calibration import CalibrationResult, rotation_consistent_text
+    from bench.data.calibration.estimate import CalibrationResult, rotation_consistent_text
 
     def cal(sd, source):
         return CalibrationResult(np.eye(3), {"roll": 0.1, "pitch": -0.2, "yaw": 0.05},
@@ -112,7 +112,7 @@ def test_hand_eye_alignment_recovers_the_rotation_without_doppler(loop):
     """KISS-ICP's trajectory (no Doppler) against the GT over the same frames: roll and pitch
     from the turn axes, yaw from the displacement directions, each within its stated (block
     bootstrap) uncertainty of the truth."""
-    from bench.data.hand_eye import hand_eye_on
+    from bench.data.calibration.hand_eye import hand_eye_on
 
     seq = MemorySequence("loop", loop.sensor, list(loop), loop.ground_truth)
     he = hand_eye_on(rotated_gt(seq), bootstrap=30)
@@ -131,7 +131,7 @@ def test_hand_eye_ignores_a_drifting_odometry_and_its_spread_covers_it():
     """An odometry that climbs slowly (a vertical translation drift, as on a near-planar
     drive) tilts every displacement direction; the turn axes are untouched, so pitch stays
     right, and the two estimates' disagreement is reported, not hidden."""
-    from bench.data.hand_eye import hand_eye_rotation
+    from bench.data.calibration.hand_eye import hand_eye_rotation
     from loaders.se3 import exp_se3
 
     rng = np.random.default_rng(0)
@@ -160,8 +160,8 @@ def test_calibrate_says_when_the_estimates_disagree():
     0.224 deg: 0.25 deg apart disagrees, 0.2 deg does not."""
     from types import SimpleNamespace
 
-    from bench.data.calibrate import disagreements
-    from bench.data.hand_eye import HandEyeResult
+    from bench.data.calibration.calibrate import disagreements
+    from bench.data.calibration.hand_eye import HandEyeResult
 
     angles = {"roll": 0.0, "pitch": -1.7, "yaw": 0.0}
     cal = SimpleNamespace(angles_deg=angles, not_observable=[],
@@ -184,7 +184,7 @@ def test_hand_eye_recovers_a_large_mount_rotation_exactly():
     the turn axes fix roll and pitch, then the displacements - moved by that first rotation -
     fix yaw; exact to 1e-6 deg. Moving the displacements by the transpose instead leaves yaw
     0.5 deg off, which the small rotations of the other tests hid."""
-    from bench.data.hand_eye import hand_eye_rotation
+    from bench.data.calibration.hand_eye import hand_eye_rotation
     from loaders.se3 import exp_se3
 
     period, n = 0.1, 300
@@ -258,7 +258,7 @@ def test_a_method_consuming_the_gt_fitted_extrinsic_is_marked(loop, tmp_path):
     to the GT: its row says so; a method that does not use the extrinsic is not marked, and a
     dicp run given its own extrinsic is not either."""
     from bench.api import run_method
-    from bench.report.tables import select
+    from bench.report.tables.paper import select
     from bench.runs.job import GT_EXTRINSIC_MARK
 
     short = MemorySequence("s", loop.sensor, [loop[i] for i in range(40)], loop.ground_truth,
@@ -375,8 +375,8 @@ def test_write_applies_only_the_angles_narrower_than_the_bound(loop, tmp_path):
     import inspect
 
     from bench.cli import calibrate as calibrate_command
-    from bench.data.calibration import ANGLES, euler_matrix
-    from bench.data.calibration_write import WRITE_MAX_WIDTH_DEG
+    from bench.data.calibration.estimate import ANGLES, euler_matrix
+    from bench.data.calibration.write import WRITE_MAX_WIDTH_DEG
 
     assert inspect.signature(calibrate_command).parameters["max_width"].default == \
         WRITE_MAX_WIDTH_DEG
@@ -410,7 +410,7 @@ def test_write_applies_only_the_angles_narrower_than_the_bound(loop, tmp_path):
 
 
 def test_select_angles_at_the_bound():
-    from bench.data.calibration_write import select_angles
+    from bench.data.calibration.write import select_angles
 
     angles = {"roll": 1.0, "pitch": 2.0, "yaw": -1.5}
     fitted = {"roll": True, "pitch": True, "yaw": True}
@@ -490,8 +490,8 @@ def test_hand_eye_prints_no_number_for_an_angle_it_does_not_observe():
     95 % [+0.000, +0.000] sd 0.000": now its reason and no number; the others as before."""
     from types import SimpleNamespace
 
-    from bench.data.calibrate import format_hand_eye
-    from bench.data.hand_eye import HandEyeResult
+    from bench.data.calibration.calibrate import format_hand_eye
+    from bench.data.calibration.hand_eye import HandEyeResult
 
     angles = {"roll": 0.0, "pitch": -1.7, "yaw": 0.2}
     he = HandEyeResult(np.eye(3), angles, {"roll": 0.0, "pitch": 0.1, "yaw": 0.05},

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 from test_calibration_uncertainty import TRUTH, simulated_cues
 
-from bench.data.calibration import FrameCues
-from bench.data.calibration_pieces import (
+from bench.data.calibration.estimate import FrameCues
+from bench.data.calibration.pieces import (
     disagreements,
     fit_pieces,
     format_pieces,
@@ -82,7 +82,7 @@ def test_disagreement_is_beyond_the_combined_half_widths():
     0.45 (combined 0.541) it does not; an angle one piece does not observe is not compared."""
     from types import SimpleNamespace
 
-    from bench.data.calibration_pieces import Piece
+    from bench.data.calibration.pieces import Piece
 
     def piece(pitch, half, source="velocity"):
         cal = SimpleNamespace(

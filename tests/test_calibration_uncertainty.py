@@ -10,7 +10,7 @@ import pytest
 from scipy.optimize import minimize
 from scipy.spatial.transform import Rotation
 
-from bench.data.calibration import (
+from bench.data.calibration.estimate import (
     ANGLES,
     FrameCues,
     calibrate_cues,
@@ -146,7 +146,7 @@ def test_the_real_sample_prints_pitch_with_an_interval_holding_a_plain_fit():
     """The vendored real sample, all 250 frames and each half: pitch and yaw come from the
     Doppler velocity with intervals of positive width, and the pitch interval holds the plain
     elevation-difference estimate of the same frames (about -2.27 / -2.57 / -1.97 deg)."""
-    from bench.data.calibration import collect_cues
+    from bench.data.calibration.estimate import collect_cues
     from loaders.scan import FrameRange
     from loaders.store import StoreSequence
 
@@ -176,7 +176,7 @@ def test_an_angle_known_loosely_keeps_its_estimate_and_wide_interval():
     the sd bound below every sd, pitch and yaw keep their estimates and intervals; on a drive
     whose errors wander (lag-one correlation 0.99) the blocks leave about one degree of
     freedom, the intervals are wide, and the output says why."""
-    from bench.data.calibrate import format_result
+    from bench.data.calibration.calibrate import format_result
 
     cues = simulated_cues(np.random.default_rng(3), TRUTH)
     cal = calibrate_cues(cues, bootstrap=50, max_std_deg=1e-6)
@@ -200,7 +200,7 @@ def test_printed_lines_never_show_a_zero_width_interval_or_a_number_for_an_unsee
     below the printed resolution says so instead of "[x, x]"; a missing interval says so."""
     import re
 
-    from bench.data.calibrate import _angle_line
+    from bench.data.calibration.calibrate import _angle_line
 
     unseen = _angle_line("roll", 0.0, (0.0, 0.0), 0.0, 0.95, "not observable", "no road")
     assert unseen == "  roll  not observable: no road"
@@ -214,7 +214,7 @@ def test_printed_lines_never_show_a_zero_width_interval_or_a_number_for_an_unsee
 
 
 def test_block_choice_floor_cap_and_description():
-    from bench.data.rotation_bootstrap import choose_block
+    from bench.data.calibration.bootstrap import choose_block
 
     white = np.random.default_rng(0).normal(size=100)
     free = choose_block(100, 0.1, [white], floor_frames=3)
@@ -235,7 +235,7 @@ def test_t_interval_of_a_block_bootstrapped_mean():
     sqrt(n / (n - b)) with k = n / b blocks."""
     from scipy.stats import t as student_t
 
-    from bench.data.rotation_bootstrap import BlockChoice, bootstrap_angles
+    from bench.data.calibration.bootstrap import BlockChoice, bootstrap_angles
     from metrics.intervals import block_counts
 
     x = np.cumsum(np.random.default_rng(2).normal(size=90)) * 0.1
@@ -254,7 +254,7 @@ def test_residual_series_are_ordered_by_frame_whatever_the_row_order():
     """Rows given out of frame order: each residual series is in frame order (the correlation
     length is of the series along the drive). fitted = x, target = x turned by a_i about z:
     the residual on z is sin(a_i)."""
-    from bench.data.rotation_bootstrap import residual_series
+    from bench.data.calibration.bootstrap import residual_series
 
     frames = np.array([3, 0, 4, 1, 2])
     angles = 0.01 * (frames + 1.0)
@@ -267,7 +267,7 @@ def test_residual_series_are_ordered_by_frame_whatever_the_row_order():
 def test_resamples_that_cannot_be_fitted_give_no_interval_quietly():
     import warnings
 
-    from bench.data.rotation_bootstrap import BlockChoice, bootstrap_angles
+    from bench.data.calibration.bootstrap import BlockChoice, bootstrap_angles
 
     calls = []
 

@@ -91,11 +91,11 @@ def test_runs_on_a_gt_reconstructed_store_are_labelled_gt_assisted(tmp_path):
     import warnings
 
     from bench.api import load_results, run_method
-    from bench.report.figstyle import run_name
+    from bench.report.figures.style import run_name
     from bench.report.names import GT_ASSISTED_NOTE
-    from bench.report.table import to_markdown
-    from bench.report.tables import relative_table, select
-    from bench.report.tables_ape import collect_ape
+    from bench.report.tables.ape import collect_ape
+    from bench.report.tables.model import to_markdown
+    from bench.report.tables.paper import relative_table, select
     from bench.runs.folders import load_runs
 
     seq = SyntheticSequence("campus", "radar-sparse", frames=40, seed=4)

@@ -1,5 +1,5 @@
 """Parameter sweeps in experiments (bench/runs/sweep.py) and their table
-(bench/report/tables_sweep.py): expansion into labelled variants, the list-valued parameter
+(bench/report/tables/sweep.py): expansion into labelled variants, the list-valued parameter
 rule, validation, and the choice of the best point."""
 
 import json
@@ -7,7 +7,7 @@ import json
 import pytest
 import yaml
 
-from bench.report.tables_sweep import sweep_choices, sweep_markdown
+from bench.report.tables.sweep import sweep_choices, sweep_markdown
 from bench.runs.experiment import Experiment, load_experiment
 from bench.runs.plan import jobs_for_experiment
 from bench.runs.sweep import sweep_index, write_sweep_index

@@ -1,11 +1,11 @@
-"""bench.runs.external_clock on analytic motions: the profiles' values (speed [m/s], turn rate
+"""bench.runs.external.clock on analytic motions: the profiles' values (speed [m/s], turn rate
 [rad/s]), the fit's shift and sign, and when a fit is inconclusive."""
 
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from bench.runs.external_clock import aligned_offset, fit_clock, motion_profiles, stamp_scale
+from bench.runs.external.clock import aligned_offset, fit_clock, motion_profiles, stamp_scale
 from loaders.se3 import make_T
 
 T = np.arange(0, 30, 0.1)

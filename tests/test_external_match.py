@@ -1,4 +1,4 @@
-"""bench.runs.external_match: an estimate at its own stamps brought to the scan stamps, against
+"""bench.runs.external.match: an estimate at its own stamps brought to the scan stamps, against
 analytic motions (constant speed along x with a constant yaw rate: SE(3) interpolation of two
 poses on it is exact in rotation, and exact in translation for the straight part)."""
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from bench.runs.external_match import match_to_scans
+from bench.runs.external.match import match_to_scans
 from loaders.errors import DataError
 from loaders.posefile import parse_extrinsic
 from loaders.se3 import make_T

@@ -13,11 +13,11 @@ import pytest
 from matplotlib.image import imread
 from typer.testing import CliRunner
 
-import bench.report.figures as figures_mod
-import bench.report.figures_errors as errors_mod
-import bench.report.figures_pair as pair_mod
+import bench.report.figures.draw as figures_mod
+import bench.report.figures.errors as errors_mod
+import bench.report.figures.pair as pair_mod
 from bench.cli import app
-from bench.report.figstyle import COLUMN_IN, DPI, color, slug
+from bench.report.figures.style import COLUMN_IN, DPI, color, slug
 from bench.runs.job import Job
 from bench.runs.plan import plan
 from bench.runs.progress import run_jobs
@@ -211,7 +211,7 @@ def test_pair_of_the_last_frame_is_a_clear_error(results):
 def test_labelled_variants_of_one_method_are_told_apart():
     from types import SimpleNamespace
 
-    from bench.report.figstyle import prior_style
+    from bench.report.figures.style import prior_style
 
     def run(label, seed=True):
         return SimpleNamespace(method="doppler-ego", seed=seed, label=label)
@@ -259,7 +259,7 @@ def test_plugin_methods_get_distinct_colours_and_their_declared_presentation(mon
 
 
 def test_figures_for_the_page_are_png_and_never_leave_a_stale_pdf(tmp_path):
-    """figstyle.save inside for_the_page (bench report): a new figure as PNG only; a figure
+    """style.save inside for_the_page (bench report): a new figure as PNG only; a figure
     that already has a PDF (from bench figures) gets both made again, so no old PDF stays
     beside a new PNG; outside it, both as before."""
     import os
@@ -269,7 +269,7 @@ def test_figures_for_the_page_are_png_and_never_leave_a_stale_pdf(tmp_path):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bench.report.figstyle import for_the_page, save
+    from bench.report.figures.style import for_the_page, save
 
     def draw(stem):
         fig, ax = plt.subplots()

@@ -1,4 +1,4 @@
-"""bench/report/figures_drift.py: one paper-column figure per sequence with six panels."""
+"""bench/report/figures/drift.py: one paper-column figure per sequence with six panels."""
 
 from __future__ import annotations
 
@@ -6,8 +6,8 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from bench.report.figstyle import COLUMN_IN
-from bench.report.figures_drift import plot_drift
+from bench.report.figures.drift import plot_drift
+from bench.report.figures.style import COLUMN_IN
 from loaders.se3 import make_T
 
 

@@ -1,4 +1,4 @@
-"""Forest plots and the interval rule behind their marks (bench.report.figures_forest).
+"""Forest plots and the interval rule behind their marks (bench.report.figures.forest).
 
 The rule: U = the smallest upper interval end among the ranked figures; bold = every ranked
 figure whose value is at most U; the same among the rest gives underlined. Checked on cases
@@ -16,7 +16,7 @@ import math
 import numpy as np
 import pytest
 
-from bench.report.figures_forest import (
+from bench.report.figures.forest import (
     BOLD,
     UNDERLINED,
     UNMARKED,
@@ -26,7 +26,7 @@ from bench.report.figures_forest import (
     interval_tiers,
     plot_forest,
 )
-from bench.report.tables import runs as table_rows
+from bench.report.tables.paper import runs as table_rows
 from bench.runs.evaluate import evaluate_run
 from bench.runs.folders import write_run
 from bench.studies.coverage import NoiseModel, ground_truth, noisy_estimate

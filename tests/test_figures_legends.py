@@ -9,8 +9,8 @@ import shutil
 import numpy as np
 import pytest
 
-import bench.report.figures_errors as errors_mod
-from bench.report.figstyle import PRIOR_NOTE, figure, log_y, run_name, use_paper_style
+import bench.report.figures.errors as errors_mod
+from bench.report.figures.style import PRIOR_NOTE, figure, log_y, run_name, use_paper_style
 from bench.runs.folders import load_runs
 from bench.runs.job import Job
 from bench.runs.plan import plan
@@ -132,7 +132,7 @@ def test_div_labels_never_print_over_each_other():
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bench.report.figstyle import COLUMN_IN
+    from bench.report.figures.style import COLUMN_IN
 
     fig, ax = plt.subplots(figsize=(COLUMN_IN, 2.0))
     ax.plot([0, 100], [0.01, 1.0])

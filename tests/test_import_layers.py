@@ -15,8 +15,22 @@ TOP_LAYERS = {"loaders": 0, "methods": 1, "metrics": 1, "bench": 2}
 #: inside bench/: a module's layer is that of its folder, or of the top-level module
 BENCH_LAYERS = {"bench": 0, "bench.paths": 0, "bench.guard": 0, "bench.threads": 0,
                 "bench.console": 0,
-                "bench.data": 1, "bench.runs": 2, "bench.report": 3, "bench.studies": 4,
+                "bench.data": 1, "bench.runs": 2,
+                # the report's rooms, each importing only those below it: names and dataframe <
+                # tables < figures < summary < html < the report's single jobs (compare, view,
+                # commands, ...)
+                "bench.report.names": 3.0, "bench.report.dataframe": 3.0,
+                "bench.report.tables": 3.1, "bench.report.figures": 3.2,
+                "bench.report.summary": 3.3, "bench.report.html": 3.4, "bench.report": 3.5,
+                "bench.studies": 4,
                 "bench.commands": 5, "bench.cli": 5, "bench.api": 5, "bench.docs_cli": 5}
+#: the folders every bench module lives in: each is a package whose face (its __init__.py
+#: docstring) says what the room is for and what it may import
+BENCH_ROOMS = {"bench.data", "bench.data.calibration", "bench.runs", "bench.runs.external",
+               "bench.report", "bench.report.tables", "bench.report.figures",
+               "bench.report.summary", "bench.report.html", "bench.studies"}
+#: the longest a module may grow [lines] (the command table bench/cli.py aside)
+MAX_MODULE_LINES = 600
 
 
 def modules(root: Path, packages=PACKAGES) -> dict[str, Path]:
@@ -117,6 +131,32 @@ def upward_imports(graph: dict[str, set[str]]) -> list[str]:
             elif top_a == top_b == "bench" and bench_layer(b) > bench_layer(a):
                 bad.append(f"{a} -> {b}")
     return bad
+
+
+def test_every_room_is_a_package_with_a_face():
+    """Each folder of bench/ is a listed room whose __init__.py docstring says what it is for
+    and what it may import."""
+    folders = {".".join(p.relative_to(ROOT).parts) for p in (ROOT / "bench").rglob("*")
+               if p.is_dir() and any(p.glob("*.py"))}
+    assert folders == BENCH_ROOMS
+    for room in sorted(BENCH_ROOMS):
+        face = ast.get_docstring(ast.parse((ROOT / room.replace(".", "/") / "__init__.py")
+                                           .read_text())) or ""
+        assert "May import" in face, f"{room}/__init__.py: say what the room is for and what " \
+            "it may import"
+
+
+def test_no_module_is_overgrown():
+    long = {name: n for name, path in modules(ROOT).items()
+            if name != "bench.cli" and (n := len(path.read_text().splitlines())) > MAX_MODULE_LINES}
+    assert long == {}, f"split these modules (over {MAX_MODULE_LINES} lines): {long}"
+
+
+def test_the_report_rooms_have_layers():
+    assert bench_layer("bench.report.tables.paper") < bench_layer("bench.report.figures.draw") \
+        < bench_layer("bench.report.summary.overview") < bench_layer("bench.report.html.page") \
+        < bench_layer("bench.report.compare") < bench_layer("bench.studies.reproduce")
+    assert bench_layer("bench.report.names") < bench_layer("bench.report.tables.model")
 
 
 def test_every_top_level_module_of_bench_has_a_layer():

@@ -9,10 +9,10 @@ import re
 import pytest
 
 from bench.cli import main
-from bench.report.figures import make_figures
-from bench.report.html import PAGE_TABLES, render_page, table_files
-from bench.report.html_markdown import inline, markdown_html
-from bench.report.tables import write_tables
+from bench.report.figures.draw import make_figures
+from bench.report.html.markdown import inline, markdown_html
+from bench.report.html.page import PAGE_TABLES, render_page, table_files
+from bench.report.tables.paper import write_tables
 from bench.runs.folders import write_failure
 from bench.runs.job import Job, sequence_folder
 from bench.runs.plan import plan

@@ -8,7 +8,7 @@ from pathlib import Path
 
 from bench.paths import PAPER_TABLE3
 from bench.report.names import PAPER_SEQUENCES, sequence_key
-from bench.report.tables import RunRow, runs
+from bench.report.tables.paper import RunRow, runs
 from bench.runs.folders import RunRecord
 from bench.runs.result import RunResult
 

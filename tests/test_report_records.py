@@ -12,11 +12,11 @@ import pytest
 from markdown_it import MarkdownIt
 
 from bench.cli import main
-from bench.report.html import render_page
-from bench.report.html_markdown import inline
-from bench.report.row_keys import differences
-from bench.report.table import md_escape
-from bench.report.tables import write_tables
+from bench.report.html.markdown import inline
+from bench.report.html.page import render_page
+from bench.report.tables.model import md_escape
+from bench.report.tables.paper import write_tables
+from bench.report.tables.row_keys import differences
 from bench.runs.folders import BROKEN, read_run
 from bench.runs.job import Job
 from bench.runs.plan import plan
@@ -220,8 +220,8 @@ def test_unreadable_files_of_a_run_folder_are_listed_and_exit_1(results, tmp_pat
 
 def test_figures_leave_out_a_broken_record_naming_it_and_tell_runs_apart(
         results, tmp_path, capsys, monkeypatch):
-    from bench.report.figstyle import run_name
-    from bench.report.figures import _runs_with_gt
+    from bench.report.figures.draw import _runs_with_gt
+    from bench.report.figures.style import run_name
 
     assert sorted(run_name(r) for r in _runs_with_gt(results)) == [
         "Doppler Correspondence (Ours) [alignment=se3]",

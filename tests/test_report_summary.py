@@ -1,4 +1,5 @@
-"""One page across datasets (bench.report.summary): mean significance-aware ranks per sensor
+"""One page across datasets (bench.report.summary.overview): mean significance-aware ranks per
+sensor
 class, failures counted, a method that cannot run on a class says why, every sequence's
 source listed, and the HTML report showing it all with intervals."""
 
@@ -7,10 +8,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from bench.report.html import render_page
-from bench.report.summary import cross_dataset, summary_table
-from bench.report.table import to_markdown
-from bench.report.tables import select
+from bench.report.html.page import render_page
+from bench.report.summary.overview import cross_dataset, summary_table
+from bench.report.tables.model import to_markdown
+from bench.report.tables.paper import select
 from bench.runs.evaluate import evaluate_run
 from bench.runs.folders import write_run
 from bench.studies.coverage import NoiseModel, ground_truth, noisy_estimate
@@ -168,7 +169,7 @@ def test_summary_columns_count_sequences_failures_divergence_and_fallback(mixed)
 
 
 def test_pairwise_verdicts_count_sequences_and_test_them(mixed):
-    from bench.report.summary_pairwise import pairwise_table, sign_test_p
+    from bench.report.summary.pairwise import pairwise_table, sign_test_p
 
     assert sign_test_p(6, 0) == pytest.approx(2 / 64)
     assert sign_test_p(5, 1) == pytest.approx(2 * 7 / 64)
@@ -200,9 +201,9 @@ def test_report_on_two_datasets_with_an_external_run_on_one_class(mixed):
     assert "Across sequences: pairwise verdicts" in page and "6/6, p 0.031" in page
     assert "relative error at 2 m and 4 m" in page
     # the long shared notes of the captions are shown once on the page, then referred to
-    from bench.report.html_markdown import _SENTENCE, inline
-    from bench.report.table import md_escape
-    from bench.report.tables import build
+    from bench.report.html.markdown import _SENTENCE, inline
+    from bench.report.tables.model import md_escape
+    from bench.report.tables.paper import build
 
     rows, lengths = select(mixed)
     caption = build("relative", rows, lengths, ci=True).caption
@@ -215,7 +216,7 @@ def test_sources_name_the_vendored_sample_from_its_own_metadata(tmp_path):
     """The sample store was made by the generic NumPy-frame loader; its provenance says it is
     NTU4DRadLM (MIT): the sources table says so, not "NumPy frames ... licence: yours"."""
     from bench.paths import ROOT
-    from bench.report.summary import sources
+    from bench.report.summary.overview import sources
 
     gt = ground_truth(120)
     _write(tmp_path, "loop1", "Semi-Dense 4D Radar", "radial", "doppler", "doppler", None, gt,
@@ -258,7 +259,7 @@ def test_parameter_overrides_are_in_the_row_label(tmp_path):
     assert labels[0].endswith("ICP point-to-point [max_iterations=3]"), labels
     assert labels[1].endswith("mine"), labels
     # the APE table (methods x sequences) labels its rows alike
-    from bench.report.tables_ape import collect_ape
+    from bench.report.tables.ape import collect_ape
 
     ape_rows = sorted(r.keys[0] for r in collect_ape(tmp_path).table.rows)
     assert ape_rows[0].endswith("ICP point-to-point [max_iterations=3]"), ape_rows

@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from bench.report.tables import runs
+from bench.report.tables.paper import runs
 from bench.runs.experiment import load_experiment
 from bench.runs.job import Job, run_job
 from bench.runs.plan import jobs_for_experiment, plan
@@ -438,8 +438,8 @@ def test_another_cpu_or_thread_setting_reruns_the_job(store, tmp_path, monkeypat
 
 
 def test_a_table_of_times_from_two_cpus_says_so(store, tmp_path):
-    from bench.report.table import to_markdown
-    from bench.report.tables import relative_table, select
+    from bench.report.tables.model import to_markdown
+    from bench.report.tables.paper import relative_table, select
 
     for method in ("doppler", "icp-p2p"):
         assert run_job(Job(store=store, method=method, seed=None if method == "doppler"

@@ -1,4 +1,4 @@
-"""bench score's contract for trajectories made elsewhere (bench.runs.external): a clock that
+"""bench score's contract for trajectories made elsewhere (bench.runs.external.score): a clock that
 does not fit the scans is refused with the offset or unit that fits (on the vendored real
 NTU4DRadLM sample, its ground truth taken as an estimate and shifted by known offsets), the
 coverage share is of the scans WITH ground truth, an estimate too short is named as such, the
@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 from helpers_cli import run_bench as _bench
 
-from bench.runs.external import ExternalSpec, score_external
-from bench.runs.external_match import match_to_scans
+from bench.runs.external.match import match_to_scans
+from bench.runs.external.score import ExternalSpec, score_external
 from bench.runs.folders import read_run
 from bench.runs.job import Job, run_job
 from conftest import constant_twist_sequence

@@ -18,7 +18,7 @@ import pytest
 from helpers_cli import run_bench as _bench
 from scipy.spatial.transform import Rotation, Slerp
 
-from bench.runs.external import ExternalSpec, score_external
+from bench.runs.external.score import ExternalSpec, score_external
 from bench.runs.folders import read_run
 from bench.runs.job import Job, run_job
 from conftest import constant_twist_sequence
@@ -177,8 +177,8 @@ def test_times_the_method_reported_are_recorded_as_such_and_not_ranked(data, tmp
     assert res.time_ms.mean == pytest.approx(times.mean()) and res.register_ms.mean is None
     frames = (out.run_dir / "frames.csv").read_text().splitlines()
     assert float(frames[2].split(",")[2]) == pytest.approx(times[1], abs=1e-6)  # 6 decimals
-    from bench.report.table import OTHER
-    from bench.report.tables import relative_table, runs
+    from bench.report.tables.model import OTHER
+    from bench.report.tables.paper import relative_table, runs
 
     rows = runs(results)
     table = relative_table(rows, [8.0])
@@ -260,9 +260,9 @@ def test_every_reader_shows_the_external_run(data, tmp_path):
     shutil.copytree(doppler_dir, folder / "twist" / "doppler")
     score_external(store, ExternalSpec(doppler_dir / "est_tum.txt", "doppler-tum"), folder)
     from bench.report.compare import compare, to_markdown
-    from bench.report.figures import plot_trajectories
-    from bench.report.html import write_page
-    from bench.report.tables import write_tables
+    from bench.report.figures.draw import plot_trajectories
+    from bench.report.html.page import write_page
+    from bench.report.tables.paper import write_tables
     from bench.studies.regress import check, snapshot
 
     md = write_tables(folder)["md"]
@@ -351,7 +351,7 @@ def test_figures_of_scored_runs_alone_leave_out_the_per_frame_plot(data, tmp_pat
     both = tmp_path / "both"
     shutil.copytree(alone, both)
     shutil.copytree(doppler_dir, both / "twist" / "doppler")
-    from bench.report.figures_errors import plot_frames
+    from bench.report.figures.errors import plot_frames
     from bench.runs.folders import load_runs
 
     drawn = plot_frames(load_runs(both), tmp_path / "f2")  # the per-frame plot alone
@@ -359,14 +359,14 @@ def test_figures_of_scored_runs_alone_leave_out_the_per_frame_plot(data, tmp_pat
 
 
 def test_a_log_axis_with_nothing_positive_on_it_keeps_matplotlibs_ticks():
-    """bench.report.figstyle.log_y on an axis that holds no positive value (its limits may
+    """bench.report.figures.style.log_y on an axis that holds no positive value (its limits may
     not be positive) returns instead of taking the log of a negative ratio."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from bench.report.figstyle import log_y
+    from bench.report.figures.style import log_y
 
     fig, ax = plt.subplots()
     ax.plot([0, 1], [np.nan, np.nan])

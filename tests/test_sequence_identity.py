@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 from typer.testing import CliRunner
 
-from bench.report.summary import summary_table
-from bench.report.tables import build, select
+from bench.report.summary.overview import summary_table
+from bench.report.tables.paper import build, select
 from bench.runs.evaluate import evaluate_run
 from bench.runs.folders import load_runs, write_run
 from bench.runs.sequence_identity import frames_text, sequence_tags
@@ -108,7 +108,7 @@ def test_several_results_folders_are_told_apart_across_folders(clashing):
 
 
 def test_the_report_shows_each_content_under_its_own_label(clashing):
-    from bench.report.html import render_page
+    from bench.report.html.page import render_page
 
     page, _ = render_page(clashing)
     assert "data1 [frames 0-699]" in page and "data1 [frames 60-759]" in page

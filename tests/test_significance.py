@@ -1,4 +1,4 @@
-"""Marks read from the printed numbers: bench.report.significance and the tables built on it.
+"""Marks read from the printed numbers: bench.report.tables.significance and the tables built on it.
 
 The rule (bold = every figure at or below the smallest printed upper end U of its column,
 underlined = the same among the rest) on constructed columns with a known answer, its
@@ -14,9 +14,9 @@ import re
 import numpy as np
 import pytest
 
-from bench.report.significance import BEST, OTHER, SECOND, Stat, interval_marks, shown, worse
-from bench.report.table import to_csv, to_markdown
-from bench.report.tables import build, select
+from bench.report.tables.model import to_csv, to_markdown
+from bench.report.tables.paper import build, select
+from bench.report.tables.significance import BEST, OTHER, SECOND, Stat, interval_marks, shown, worse
 from bench.runs.evaluate import evaluate_run
 from bench.runs.folders import write_run
 from bench.studies.coverage import NoiseModel, ground_truth, noisy_estimate
@@ -247,7 +247,7 @@ def test_marks_on_real_radar_frames_agree_with_their_printed_intervals(tmp_path)
     marked figure re-derived from the printed text alone, no two marked alike with disjoint
     intervals, equal printed values marked alike."""
     from bench.api import run_method
-    from bench.report.tables_ape import collect_ape
+    from bench.report.tables.ape import collect_ape
     from conftest import real_sample_store
 
     store = real_sample_store()

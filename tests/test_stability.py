@@ -1,4 +1,4 @@
-"""Do a table's marks hold on both halves of a sequence (bench.report.stability)?
+"""Do a table's marks hold on both halves of a sequence (bench.report.tables.stability)?
 
 Synthetic drives with exact ground truth (bench.studies.coverage): a method five times noisier
 than another everywhere keeps its verdict on both halves; a method that is good on the first
@@ -13,10 +13,10 @@ import pytest
 from typer.testing import CliRunner
 
 from bench.cli import app
-from bench.report.significance import BEST, OTHER
-from bench.report.stability import CHANGED, half, stability, with_stability
-from bench.report.table import to_markdown
-from bench.report.tables import build, relative_table, select
+from bench.report.tables.model import to_markdown
+from bench.report.tables.paper import build, relative_table, select
+from bench.report.tables.significance import BEST, OTHER
+from bench.report.tables.stability import CHANGED, half, stability, with_stability
 from bench.runs.evaluate import evaluate_run
 from bench.runs.folders import write_run
 from bench.studies.coverage import NoiseModel, ground_truth, noisy_estimate

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from bench.data.calibration import calibrate_sequence
+from bench.data.calibration.estimate import calibrate_sequence
 from loaders.se3 import inv_T
 from loaders.store import StoreSequence
 from loaders.synthetic import SyntheticSequence, ensure_suite, generator_code_hash

@@ -1,10 +1,19 @@
-"""The one table model (bench/report/table.py) and its three renderers: keys shown once per
+"""The one table model (bench/report/tables/model.py) and its three renderers: keys shown once per
 group, ranks marked, booktabs rules, caption with the synthetic notice, footnotes, long CSV."""
 
 import csv
 import io
 
-from bench.report.table import Cell, Part, Row, Table, rank_column, to_csv, to_latex, to_markdown
+from bench.report.tables.model import (
+    Cell,
+    Part,
+    Row,
+    Table,
+    rank_column,
+    to_csv,
+    to_latex,
+    to_markdown,
+)
 from loaders.sensor_classes import SYNTHETIC_MARK
 
 
@@ -48,7 +57,7 @@ def test_csv_is_long_one_line_per_value_with_status_and_note():
 
 
 def test_relative_table_caption_carries_the_synthetic_notice(tmp_path):
-    from bench.report.tables import relative_table, runs
+    from bench.report.tables.paper import relative_table, runs
     from bench.runs.result import RelativeError, RunResult
 
     d = tmp_path / "Loop1_0" / "dicp_seed"
@@ -63,7 +72,7 @@ def test_relative_table_caption_carries_the_synthetic_notice(tmp_path):
 
 
 def test_stat_text_states_the_interval_and_too_few_segments():
-    from bench.report.table import stat_text
+    from bench.report.tables.model import stat_text
 
     assert stat_text(1.23456, None, 2) == "1.235"  # two independent segments: nothing added
     assert stat_text(1.0, None, 1) == "1.000 (1 segment)"
@@ -75,8 +84,8 @@ def test_stat_text_states_the_interval_and_too_few_segments():
 
 
 def test_the_value_rule_leaves_a_figure_on_one_segment_unmarked():
-    from bench.report.significance import BEST, OTHER, SECOND, Stat
-    from bench.report.table import mark_column
+    from bench.report.tables.model import mark_column
+    from bench.report.tables.significance import BEST, OTHER, SECOND, Stat
 
     rows = [Row([k], (), [Cell([Part(k, stat=Stat(v, None, n))])])
             for k, v, n in (("a", 0.1, 1), ("b", 0.5, 10), ("c", 0.7, 10), ("d", 0.9, 10))]

@@ -5,8 +5,8 @@ import json
 
 import yaml
 
-from bench.report.table import to_csv, to_latex, to_markdown
-from bench.report.tables_ape import collect_ape, write_ape_tables
+from bench.report.tables.ape import collect_ape, write_ape_tables
+from bench.report.tables.model import to_csv, to_latex, to_markdown
 
 
 def _run(root, seq, display, method, seed, ape_m, diverged=False, label=None):

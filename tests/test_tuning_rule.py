@@ -2,14 +2,14 @@
 the criterion C against a hand computation and a loop-by-loop bootstrap, and the decision: a
 significant improvement in both folds replaces the reference, an insignificant one, one that
 reverses on validation or one the second domain contradicts keeps it, and a best point on the
-grid's edge asks for a wider grid. The table (bench/report/tables_sweep.py) shows it."""
+grid's edge asks for a wider grid. The table (bench/report/tables/sweep.py) shows it."""
 
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
-from bench.report import tables_sweep
+from bench.report.tables import sweep as tables_sweep
 from bench.runs.sweep import write_sweep_index
 from bench.runs.tuning_rule import RunErrors, decide, estimate, run_errors, sequence_draws
 from metrics.intervals import block_counts

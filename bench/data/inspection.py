@@ -104,7 +104,7 @@ def inspect_path(path: Path, period_s: float | None, console: Console,
     compensated = kind is not None and kind.measured == "ego-compensated"
     if seq.ground_truth is not None and len(seq) and seq[0].doppler is not None \
             and not compensated:  # compensated Doppler carries no ego velocity to compare
-        from bench.data.calibration import rotation_check, rotation_consistent_text
+        from bench.data.calibration.estimate import rotation_check, rotation_consistent_text
 
         cal, warning = rotation_check(seq)
         if warning:

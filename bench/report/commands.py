@@ -22,11 +22,11 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
     own ``table.*`` (``table_<metric>.*``) is the whole table of that one folder: a filtered
     view (lengths, methods, variants, pivot) or a merged one (several folders) is written only
     to ``out``. ``stability``: each half of every sequence scored on its own, and the cells
-    whose mark differs on a half flagged (``bench.report.stability``)."""
-    from bench.report.table import MARK_RULES, RENDERERS, render, rule_name
-    from bench.report.tables import METRICS, build, select
-    from bench.report.tables_ape import collect_ape
-    from bench.report.tables_pivot import pivot_markdown
+    whose mark differs on a half flagged (``bench.report.tables.stability``)."""
+    from bench.report.tables.ape import collect_ape
+    from bench.report.tables.model import MARK_RULES, RENDERERS, render, rule_name
+    from bench.report.tables.paper import METRICS, build, select
+    from bench.report.tables.pivot import pivot_markdown
     from bench.runs.folders import BROKEN, load_runs
 
     wanted = None if methods is None else {m.strip() for m in methods.split(",")}
@@ -66,7 +66,7 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
     else:
         made = build(metric, rows, chosen, marks, ci)
         if stability:
-            from bench.report.stability import with_stability
+            from bench.report.tables.stability import with_stability
 
             with_stability(rows, chosen, made, marks)
         texts = render(made)
@@ -109,8 +109,8 @@ def figures_command(console: Console, results_dir: Path | None, out: Path | None
                     speed_csv: Path | None, pair: tuple[Path, int] | None) -> int:
     """Write the figures asked for and list them; returns 0 (1 when a run record of the
     folder is broken: left out, with a warning naming it)."""
-    from bench.report.figures import make_figures
-    from bench.report.figures_pair import plot_pair
+    from bench.report.figures.draw import make_figures
+    from bench.report.figures.pair import plot_pair
 
     paths = []
     if out is not None:
@@ -154,11 +154,11 @@ def report_command(console: Console, results_dir: Path, out: Path | None,
     first (``bench figures``) unless they are newer than every run record."""
     import warnings
 
-    from bench.report.html import write_page
+    from bench.report.html.page import write_page
 
     if figures and not figures_current(results_dir):
-        from bench.report.figstyle import for_the_page
-        from bench.report.figures import make_figures
+        from bench.report.figures.draw import make_figures
+        from bench.report.figures.style import for_the_page
 
         try:
             with warnings.catch_warnings(), for_the_page():  # a broken record: the page

@@ -7,7 +7,7 @@ confidence interval "[low, high]", and the change B - A; a length at which neith
 segments is no cell. A cell whose error grew by more than
 ``threshold`` (relative) is a regression, and so is every cell of a run that diverges in B but
 not in A. Whether a change is more than noise is read from the printed intervals alone, as the
-tables' marks are (``bench.report.significance``): a note says "worse" / "better" for a
+tables' marks are (``bench.report.tables.significance``): a note says "worse" / "better" for a
 quantity whose A and B intervals, as printed, do not meet, and a regression within them says
 so. A second table gives each run's mean time per frame ``time_ms`` (all per-frame work,
 ``methods.timing``) in A and B and its change, and a third its per-run metrics: APE [m] (with
@@ -28,8 +28,8 @@ import pandas as pd
 
 from bench.report.dataframe import load_results
 from bench.report.names import order_key, run_label, seed_tag, sequence_key
-from bench.report.significance import Stat, shown_interval, worse
-from bench.report.table import md_escape
+from bench.report.tables.model import md_escape
+from bench.report.tables.significance import Stat, shown_interval, worse
 
 RUN_KEYS = ["sequence", "method", "label", "seed"]
 QUANTITIES = ("rot_deg_mean", "trans_m_mean")

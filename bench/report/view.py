@@ -113,7 +113,7 @@ def _log_sequence(rr, rec, seq, gt, est, stride: int) -> None:
 
 
 def _log_pair(rr, rec, store: Path, frame: int, gt) -> None:
-    from bench.report.figures_pair import pair_correspondences
+    from bench.report.figures.pair import pair_correspondences
 
     data = pair_correspondences(store, frame)
     T_src = _pose_at(gt, StoreSequence(store).stamps[frame]) if gt is not None else None

@@ -59,7 +59,7 @@ from typing import TYPE_CHECKING, Literal
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
-from bench.runs.external_defaults import DEFAULT_MIN_COVERAGE, DEFAULT_TOLERANCE_S
+from bench.runs.external import DEFAULT_MIN_COVERAGE, DEFAULT_TOLERANCE_S
 from loaders.errors import DataError, did_you_mean, validation_problems
 from methods.registry import METHODS, get_method, seed_options
 from metrics.ape import Alignment
@@ -223,7 +223,7 @@ class Criterion(_Strict):
 
 class ExternalEntry(_Strict):
     """A trajectory made elsewhere, scored against ``store``'s ground truth after the jobs ran
-    (``bench.runs.external``; the options of ``bench score``). It is filed under the sequence
+    (``bench.runs.external.score``; the options of ``bench score``). It is filed under the sequence
     entry of the same store (its name), else the store's own name."""
 
     name: str

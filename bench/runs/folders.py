@@ -248,11 +248,6 @@ class RunRecord:
         """(N, 4, 4) estimated T_world_sensor at ``stamps``."""
         return self._paired[2]
 
-    def estimate_all(self) -> Trajectory:
-        """Every frame's estimated pose (with or without ground truth)."""
-        path = self.dir / "est_all_tum.txt"
-        return read_run_tum(path if path.exists() else self.dir / "est_tum.txt")
-
 
 #: a run's two files of two runs (a comparison): 4 x 5 MB at 40,000 poses
 @lru_cache(maxsize=4)

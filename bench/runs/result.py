@@ -37,7 +37,7 @@ Num = float | None  # a statistic; None = no value (NaN / infinite / nothing to 
 #: ``RunResult.clock`` of a run whose per-frame times its method reported (an external
 #: trajectory scored by ``bench score``): shown, never ranked against the harness's clock
 REPORTED_CLOCK = "reported by the method"
-#: the end of an external run's label ("NAME (external)", ``bench.runs.external``)
+#: the end of an external run's label ("NAME (external)", ``bench.runs.external.score``)
 EXTERNAL_MARK = "(external)"
 
 

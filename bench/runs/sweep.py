@@ -1,7 +1,7 @@
 """Parameter sweeps of an experiment: a method entry's grid expanded into labelled variants
 (``expand``), and the index of a finished sweep (``sweep_index``: which run folder holds which
 point, what the method's default is there, and the experiment's criterion), written to
-``<out>/sweeps.json`` so that ``bench table RESULTS --sweep`` (bench/report/tables_sweep.py)
+``<out>/sweeps.json`` so that ``bench table RESULTS --sweep`` (bench/report/tables/sweep.py)
 can show the sweep and its best point without the YAML.
 
 Syntax (bench/runs/experiment.py): a list in ``params`` for a parameter that takes one value

@@ -17,7 +17,7 @@ independent (non-overlapping) units behind it:
 
 The resampling is seeded (``SEED``): the same trajectory gives the same interval, and two runs
 on the same frames are resampled with the same blocks. The tables' marks read these intervals
-as printed (``bench.report.significance``).
+as printed (``bench.report.tables.significance``).
 """
 
 from __future__ import annotations

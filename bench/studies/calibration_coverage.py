@@ -1,7 +1,7 @@
 """``bench calibrate-coverage``: how often the intervals ``bench calibrate`` states cover a known
 mounting rotation. Synthetic sequences (``loaders.synthetic``, one scene and sensor, one seed
 per sequence: its own trajectory, scene and noise) get their ground truth rotated by a known
-``R_gt_sensor``; the Doppler estimate of ``bench.data.calibration`` is run on each, and for
+``R_gt_sensor``; the Doppler estimate of ``bench.data.calibration.estimate`` is run on each, and for
 every angle it observes we count whether its stated interval contains the truth. The coverage
 of a level-95 % interval should be about 95 %; with ``n`` sequences its own standard error is
 ``sqrt(0.95 * 0.05 / n)`` (2.2 % at 100). The mean error and the mean stated standard
@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from bench.data.calibration import ANGLES, CorrectedSequence, calibrate_sequence
+from bench.data.calibration.estimate import ANGLES, CorrectedSequence, calibrate_sequence
 
 #: the default mounting rotation [deg]: different in every angle, none zero
 TRUTH_DEG = {"roll": 1.0, "pitch": 2.0, "yaw": -1.5}

@@ -29,7 +29,6 @@ from bench.paths import PAPER_TABLE3, PAPER_TABLE4_5
 from bench.runs.folders import load_runs
 from bench.runs.result import nan
 
-SUITE = "synthetic-paper"
 LENGTHS = ("8", "16", "24", "32", "40", "48")
 #: a synthetic value within this factor of the paper's counts as reproduced
 FACTOR = 2.0

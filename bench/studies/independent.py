@@ -249,7 +249,7 @@ class Tuned:
         return effective(self.decisions[key], self.points)
 
     def run_dir(self, point: dict, sequence: str) -> Path | None:
-        from bench.report.tables_sweep import _same
+        from bench.report.tables.sweep import _same
 
         for p, runs in zip(self.points, self.runs, strict=True):
             if all(_same(p[k], point.get(k)) for k in p):
@@ -259,7 +259,7 @@ class Tuned:
 
 def tuned_references(tuning_dir: Path) -> dict[str, Tuned]:
     """Each reference sweep of the tuning results (``sweeps.json``) with its decisions."""
-    from bench.report.tables_sweep import _reference_index
+    from bench.report.tables.sweep import _reference_index
     from bench.runs.folders import read_run
     from bench.runs.sweep import read_sweep_index
     from bench.runs.tuning_rule import run_errors
@@ -291,7 +291,7 @@ def tuned_references(tuning_dir: Path) -> dict[str, Tuned]:
 def stale_decisions(tuned: dict[str, Tuned], decided: dict | None) -> list[str]:
     """Where the tuning YAML's ``decided:`` is not what the runs decide (or a decision is
     missing): one line each; empty when every recorded setting is the replay's."""
-    from bench.report.tables_sweep import _same
+    from bench.report.tables.sweep import _same
 
     problems = []
     for method, t in tuned.items():
@@ -346,8 +346,8 @@ def run_experiment(console: Console, yaml_path: Path, jobs: int | None, force: b
     (``sweeps.json``, ``sweep.md``: what ``stale_choices`` reads), as ``bench run
     EXPERIMENT.yaml`` writes them; built from the runs and report layers (this study sits
     below ``bench.commands``). Exit code 0 when every run finished or was reused, else 1."""
-    from bench.report.tables import write_tables
-    from bench.report.tables_sweep import sweep_markdown
+    from bench.report.tables.paper import write_tables
+    from bench.report.tables.sweep import sweep_markdown
     from bench.runs.experiment import load_experiment
     from bench.runs.job import summarize
     from bench.runs.plan import jobs_for_experiment, plan

@@ -14,7 +14,7 @@ are missing, each real store checked against its dataset config (sensor kind, sc
 path length: a warning when far off), only the tables that have rows written (a table none of
 whose sequences is present is not, and an earlier one of that name is removed), and
 ``reproduction.json`` (data used, found, missing, tables written and not) and the results page
-``report.html`` (``bench.report.html``) beside the tables.
+``report.html`` (``bench.report.html.page``) beside the tables.
 """
 
 from __future__ import annotations
@@ -29,10 +29,10 @@ from rich.console import Console
 
 from bench.data.datasets import dataset_configs
 from bench.paths import EXPERIMENTS
-from bench.report.figures import make_figures
-from bench.report.html import write_page
-from bench.report.tables import write_tables
-from bench.report.tables_ape import write_ape_tables
+from bench.report.figures.draw import make_figures
+from bench.report.html.page import write_page
+from bench.report.tables.ape import write_ape_tables
+from bench.report.tables.paper import write_tables
 from bench.runs.experiment import Experiment, SequenceEntry, load_experiment
 from bench.runs.job import Job, summarize
 from bench.runs.plan import jobs_for_experiment, plan, suite_sequences
@@ -201,7 +201,7 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
     sequences it found and which are missing, writes ``reproduction.json`` (what was used,
     found, missing and written) and the HTML page. ``scoring``
     (``bench.commands.scoring_options``) overrides the lengths, KITTI lengths and alignment;
-    ``marks`` is the tables' marking rule (``bench.report.table.MARK_RULES``)."""
+    ``marks`` is the tables' marking rule (``bench.report.tables.model.MARK_RULES``)."""
     t0 = time.perf_counter()
     real, notes = _choose_data(data_dir, synthetic_only, console)
     if real and out == Path("results/paper-synthetic"):

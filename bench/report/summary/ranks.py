@@ -1,0 +1,58 @@
+"""The ranks the cross-dataset page is made of (``bench.report.summary.overview`` and
+``bench.report.summary.pairwise``): a method's rank on one figure of one sequence (1 + the
+number of methods whose printed interval lies wholly below its own: ``significance.worse``),
+the lengths ranked at, and a contender's name."""
+
+from __future__ import annotations
+
+from collections import defaultdict
+
+from bench.report.tables.model import Row
+from bench.report.tables.paper import RunRow, stat_part
+from bench.report.tables.significance import contender, worse
+from bench.runs.result import EXTERNAL_MARK
+
+
+def figure_ranks(rows: list[RunRow], length_m: float,
+                 quantity: str) -> dict[str, dict[tuple, int]]:
+    """sequence -> contender -> interval-aware rank of ``quantity`` at ``length_m`` (ties
+    where the printed intervals meet)."""
+    by_seq: dict[str, list[tuple[tuple, object]]] = defaultdict(list)
+    for rr in rows:
+        if rr.failed or rr.diverged:
+            continue
+        rel = rr.result.relative(length_m)
+        if rel is None or not rel.n:
+            continue
+        value = rel.rot_deg_mean if quantity == "rot_deg" else rel.trans_m_mean
+        ci = rel.rot_deg_mean_ci if quantity == "rot_deg" else rel.trans_m_mean_ci
+        part = stat_part(value, ci, rel.spread.n_independent)
+        if not part.stat.rankable:
+            continue
+        key = contender(Row([rr.label], (), [], {"method": rr.method, "label": rr.run.label}))
+        by_seq[rr.sequence].append((key, part.stat))
+    out: dict[str, dict[tuple, int]] = {}
+    for seq, entries in by_seq.items():
+        best: dict[tuple, object] = {}
+        for key, stat in entries:  # a method's better row
+            if key not in best or stat.value < best[key].value:
+                best[key] = stat
+        out[seq] = {k: 1 + sum(worse(s, o) for o in best.values() if o is not s)
+                    for k, s in best.items()}
+    return out
+
+
+def ranked_lengths(rows: list[RunRow]) -> tuple[float, ...]:
+    """The lengths the summary ranks at: the shortest and the longest segment length at which
+    some run has segments (one length when they are the same; none when no run has any)."""
+    have = sorted({r.length_m for rr in rows if not rr.failed
+                   for r in rr.result.relative_error if r.n})
+    return tuple(dict.fromkeys(have[:1] + have[-1:]))
+
+
+def contender_name(method: str, label: str) -> str:
+    """A contender's name in the summary: its method and variant label, an external run's
+    label alone ("kiss-ext (external)")."""
+    if label.endswith(EXTERNAL_MARK):
+        return label
+    return method + (f" [{label}]" if label else "")
