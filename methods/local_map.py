@@ -268,6 +268,7 @@ def register_to_map(
     min_correspondences: int = 10,
     tolerance_rad: float = 1e-4,
     free_axes_sensor: np.ndarray | None = None,
+    prior: tuple | None = None,
 ) -> MapFit:
     """Align ``points`` (N, 3) [m, sensor frame] with covariances ``covs`` (N, 3, 3) to the map.
 
@@ -315,6 +316,15 @@ def register_to_map(
         Rl = Rp if tied is None else Rp + R @ tied.lever
         H, g = _normal_equations(Rl, moved, covs, R, local_map.points, local_map.covs,
                                  idx, keep, c2, U)
+        if prior is not None and tied is None:
+            translation_of, W_p = prior
+            lw = R @ translation_of.lever
+            r_p = t - translation_of(R)
+            J_p = np.zeros((3, 6))
+            J_p[:, :3] = np.array([[0, -lw[2], lw[1]], [lw[2], 0, -lw[0]], [-lw[1], lw[0], 0]])
+            J_p[:, 3:] = np.eye(3)
+            H = H + J_p.T @ W_p @ J_p
+            g = g + J_p.T @ W_p @ r_p
         try:
             delta = -np.linalg.solve(H, g)
         except np.linalg.LinAlgError:
