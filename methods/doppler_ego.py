@@ -67,7 +67,6 @@ from collections.abc import Callable
 
 import numpy as np
 import small_gicp
-from scipy.spatial.transform import Rotation
 from pydantic import Field
 
 from loaders.errors import DataError
@@ -87,8 +86,6 @@ from methods.local_map import LocalMap, register_to_map, scan_covariances
 from methods.timing import stopwatch, timed_section
 
 _SENSOR_Z = np.array([[0.0, 0.0, 1.0]])
-DIAG = None
-_FREE = {'tied': _SENSOR_Z, 'online': _SENSOR_Z, 'free': None, 'prior': None, 'yz': np.array([[0.0, 1, 0], [0, 0, 1]])}
 
 # sensor-dependent defaults (radar, lidar); each value's source is in
 # configs/methods/doppler-ego.yaml ("tuning: real" = real store frames 0-124 only)
@@ -126,6 +123,11 @@ class DopplerEgoParams(MethodParams):
     free_vertical: bool | None = Field(
         None, description="leave the vertical translation (sensor z) to the geometry in the "
         "rotation solve (None: when the sensor re-publishes its earlier detections)")
+    tie_sigma_mps: float = Field(
+        0.0, ge=0, description="on a sensor that re-publishes its detections (free_vertical), "
+        "the rotation solve holds the horizontal translation to the Doppler one by a prior of "
+        "this sigma [m/s, times the scan interval: metres] instead of tying it exactly; the pose "
+        "keeps the Doppler translation either way (0: tied exactly)")
     threshold_mps: float | None = Field(None, gt=0, description="RANSAC Doppler gate [m/s] "
                                         "(radar 0.25, LiDAR 0.2)")
     gate_sigmas: float = Field(3.0, gt=0, description="static points: within this many robust "
@@ -152,9 +154,6 @@ class DopplerEgoParams(MethodParams):
     max_iterations: int = Field(15, ge=1, description="Gauss-Newton iterations at most")
     max_source_points: int = Field(1500, ge=10, description="registration uses at most this "
                                    "many (strided) source points; the map gets all of them")
-    rotation_solve: str = Field("tied", description="EXPERIMENT")
-    prior_sigma_mps: tuple[float, float, float] | None = Field(None, description="EXPERIMENT")
-    online_tau_s: float = Field(2.0, description="EXPERIMENT")
     num_threads: int = Field(1, ge=1, description="threads of the voxel grid and the "
                              "covariances' neighbour search (small_gicp); the rest is serial")
 
@@ -195,7 +194,6 @@ class DopplerEgo(Odometry):
         v_prev, first_static = None, None
         noise = AngularNoise()
         free_vertical = p.free_vertical  # None: decided on the first pair of scans
-        yaw_align = 0.0
         last_motion, last_dt = np.eye(4), None  # T_prev_curr of the previous step (seed only)
         for i, scan in enumerate(sequence):
             if scan.doppler is None:
@@ -238,45 +236,15 @@ class DopplerEgo(Odometry):
                     ego_t = None
                     if p.ego_translation and (v_curr is not None or v_prev is not None):
                         ego_t = EgoTranslation(T_wp, v_prev, v_curr, dt)
-                    if p.rotation_solve == "online" and ego_t is not None:
-                        stp0 = max(1, -(-len(src) // p.max_source_points))
-                        f0 = register_to_map(local_map, src[::stp0], covs[::stp0],
-                                             _with_t(init, ego_t), None,
-                                             p.max_correspondence_m, p.kernel_scale,
-                                             p.max_iterations)
-                        T0 = f0.T_world_sensor
-                        if f0.correspondences >= 10 and np.all(np.isfinite(T0)):
-                            t_d = ego_t(T0[:3, :3])
-                            dd = T0[:3, :3].T @ (T0[:3, 3] - t_d)
-                            sp = T0[:3, :3].T @ (t_d - T_wp[:3, 3])
-                            if sp[0] > 0.05:
-                                a = min(1.0, dt / p.online_tau_s)
-                                yaw_align += a * (math.atan2(dd[1], sp[0]) - yaw_align)
-                        Qz = Rotation.from_rotvec([0, 0, yaw_align]).as_matrix()
-                        ego_t = EgoTranslation(T_wp, None if v_prev is None else Qz @ v_prev,
-                                               None if v_curr is None else Qz @ v_curr, dt)
                     step = max(1, -(-len(src) // p.max_source_points))  # ceil division
-                    free_solve = p.rotation_solve in ("free", "prior") and ego_t is not None
-                    prior = None
-                    if p.rotation_solve == "prior" and ego_t is not None:
-                        Rw = init[:3, :3]
-                        W_s = np.diag(1.0 / (np.asarray(p.prior_sigma_mps) * dt) ** 2)
-                        prior = (ego_t, Rw @ W_s @ Rw.T)
-                    if free_solve:
-                        init = _with_t(init, ego_t)
                     with stopwatch() as reg:
-                        fit = register_to_map(local_map, src[::step], covs[::step], init,
-                                              None if free_solve else ego_t,
+                        fit = register_to_map(local_map, src[::step], covs[::step], init, ego_t,
                                               p.max_correspondence_m, p.kernel_scale,
-                                              p.max_iterations, free_axes_sensor=_FREE[
-                                              p.rotation_solve] if free_vertical else None,
-                                              prior=prior)
+                                              p.max_iterations, free_axes_sensor=_SENSOR_Z
+                                              if free_vertical else None,
+                                              tie_sigma_m=p.tie_sigma_mps * dt
+                                              if free_vertical else 0.0)
                     T = fit.T_world_sensor
-                    if ego_t is not None and DIAG is not None:
-                        t_d = ego_t(T[:3, :3])
-                        d = T[:3, :3].T @ (T[:3, 3] - t_d)
-                        stp = T[:3, :3].T @ (t_d - T_wp[:3, 3])
-                        DIAG.append((i, *d, *stp))
                     replaced = fit.correspondences < 10 or not np.all(np.isfinite(T))
                     if replaced:  # nothing to register to: keep the motion prior (counted)
                         T = init
