@@ -146,6 +146,12 @@ class DopplerEgoParams(MethodParams):
         "the rotation solve holds the horizontal translation to the Doppler one by a prior of "
         "this sigma [m/s, times the scan interval: metres] instead of tying it exactly; the pose "
         "keeps the Doppler translation either way (0: tied exactly)")
+    lever_memory_s: float = Field(
+        0.0, ge=0, description="on a sensor that re-publishes its detections, tie the rotation "
+        "solve to the Doppler translation of a point a lever arm r away, t + (R - I) r, with r "
+        "(sensor x, y) estimated online from the geometry's disagreement with the Doppler "
+        "translation, by least squares over the past steps forgotten with this time constant "
+        "[s] (0: off, r = 0); the pose keeps the Doppler translation")
     threshold_mps: float | None = Field(None, gt=0, description="RANSAC Doppler gate [m/s] "
                                         "(radar 0.25, LiDAR 0.2)")
     gate_sigmas: float = Field(3.0, gt=0, description="static points: within this many robust "
@@ -213,6 +219,7 @@ class DopplerEgo(Odometry):
         noise = AngularNoise()
         free_vertical = p.free_vertical  # None: decided on the first pair of scans
         last_motion, last_dt = np.eye(4), None  # T_prev_curr of the previous step (seed only)
+        lever = LeverArm(p.lever_memory_s) if p.lever_memory_s > 0 else None
         for i, scan in enumerate(sequence):
             if scan.doppler is None:
                 raise DataError(f"{scan.source or sequence.name}: doppler-ego needs Doppler")
@@ -252,8 +259,10 @@ class DopplerEgo(Odometry):
                     if free_vertical is None:
                         free_vertical = repeats_detections(first_static, pts, guess, p)
                     ego_t = None
+                    use_lever = lever is not None and bool(free_vertical)
                     if p.ego_translation and (v_curr is not None or v_prev is not None):
-                        ego_t = EgoTranslation(T_wp, v_prev, v_curr, dt)
+                        ego_t = EgoTranslation(T_wp, v_prev, v_curr, dt,
+                                               lever.value() if use_lever else None)
                     step = max(1, -(-len(src) // p.max_source_points))  # ceil division
                     with stopwatch() as reg:
                         fit = register_to_map(local_map, src[::step], covs[::step], init, ego_t,
@@ -261,13 +270,16 @@ class DopplerEgo(Odometry):
                                               p.max_iterations, free_axes_sensor=_SENSOR_Z
                                               if free_vertical else None,
                                               tie_sigma_m=p.tie_sigma_mps * dt
-                                              if free_vertical else 0.0)
+                                              if free_vertical else 0.0,
+                                              geometry_step=use_lever and ego_t is not None)
+                    if use_lever and ego_t is not None and fit.T_geometry is not None:
+                        lever.update(T_wp, fit.T_geometry, ego_t.without_offset(), dt)
                     T = fit.T_world_sensor
                     replaced = fit.correspondences < 10 or not np.all(np.isfinite(T))
                     if replaced:  # nothing to register to: keep the motion prior (counted)
                         T = init
                     if ego_t is not None:  # the translation is the Doppler one, always
-                        T = _with_t(T, ego_t)
+                        T = _with_t(T, ego_t if POSE_WITH_OFFSET else ego_t.without_offset())
                     poses[i] = T
                     pairs, iterations = fit.correspondences, fit.iterations
                     converged = fit.converged
@@ -314,27 +326,86 @@ def repeats_detections(prev_points: np.ndarray, points: np.ndarray,
     return bool(np.mean(sq < coincide_m**2) >= 0.5)
 
 
+POSE_WITH_OFFSET = False  # experiment switch: the pose takes t + (R - I) r too
+
+
 class EgoTranslation:
     """t_world_curr as a function of R_world_curr (``__call__``): the prev-frame displacement
     is the trapezoid dT/2 (v_prev + R_prev_curr v_curr) (one velocity alone, over dT, when the
-    other is missing). ``lever`` [m, sensor frame]: how it turns with R (``register_to_map``):
-    the v_curr term's coefficient times v_curr, zero without v_curr."""
+    other is missing), plus ``(R_prev_curr - I) offset`` with ``offset`` [m, sensor frame]: the
+    displacement of a point ``offset`` away from where the velocity applies (rigid body; None:
+    zero). ``lever`` [m, sensor frame]: how it turns with R (``register_to_map``): the v_curr
+    term's coefficient times v_curr (zero without v_curr) plus the offset."""
 
-    def __init__(self, T_world_prev: np.ndarray, v_prev, v_curr, dt: float) -> None:
+    def __init__(self, T_world_prev: np.ndarray, v_prev, v_curr, dt: float,
+                 offset: np.ndarray | None = None) -> None:
         self.R_wp, self.t_wp = T_world_prev[:3, :3], T_world_prev[:3, 3]
         self.v_prev, self.v_curr, self.dt = v_prev, v_curr, dt
+        self.offset = None if offset is None else np.asarray(offset, dtype=float)
         if v_curr is None:
             self.lever = np.zeros(3)
         else:
             self.lever = (dt if v_prev is None else 0.5 * dt) * np.asarray(v_curr, dtype=float)
+        if self.offset is not None:
+            self.lever = self.lever + self.offset
+
+    def without_offset(self) -> EgoTranslation:
+        if self.offset is None:
+            return self
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = self.R_wp, self.t_wp
+        return EgoTranslation(T, self.v_prev, self.v_curr, self.dt)
 
     def __call__(self, R_world_curr: np.ndarray) -> np.ndarray:
         if self.v_curr is None:
-            return self.t_wp + self.R_wp @ (self.dt * self.v_prev)
-        d_world = R_world_curr @ self.lever  # = R_wp R_prev_curr (c v_curr)
-        if self.v_prev is not None:
-            d_world = d_world + self.R_wp @ (0.5 * self.dt * self.v_prev)
+            d_world = self.R_wp @ (self.dt * self.v_prev)
+        else:
+            d_world = R_world_curr @ (self.lever if self.offset is None
+                                      else self.lever - self.offset)
+            if self.v_prev is not None:
+                d_world = d_world + self.R_wp @ (0.5 * self.dt * self.v_prev)
+        if self.offset is not None:  # R_wp (R_prev_curr - I) offset
+            d_world = d_world + (R_world_curr - self.R_wp) @ self.offset
         return self.t_wp + d_world
+
+
+DIAG = None  # experiment: a list collects (R_prev_curr, d_prev, t_doppler_prev) per step
+
+
+class LeverArm:
+    """Online estimate of the lever arm r = (r_x, r_y, 0) [m, sensor frame] between where the
+    Doppler velocity applies and the frame the geometry registers, from the model
+    ``d = (R_prev_curr - I) r``: d the geometry's step translation minus the Doppler one (in the
+    previous sensor frame, horizontal rows), R_prev_curr the geometry's step rotation. Least
+    squares over the past steps, each forgotten with the time constant ``memory_s``; a zero-mean
+    prior of ``prior_m`` keeps r near zero until the rotation has excited it (r's information
+    is the sum of squared step rotations, rad^2), weighed against the residual variance measured
+    on the same steps."""
+
+    def __init__(self, memory_s: float, prior_m: float = 2.0, noise_m: float = 0.01) -> None:
+        self.memory_s, self.prior_m = memory_s, prior_m
+        self.S, self.b = np.zeros((2, 2)), np.zeros(2)
+        self.ss, self.n = noise_m**2, 1.0  # residual sum of squares [m^2] and its count
+        self.r = np.zeros(3)
+
+    def update(self, T_world_prev: np.ndarray, T_geometry: np.ndarray,
+               doppler: EgoTranslation, dt: float) -> None:
+        R_wp = T_world_prev[:3, :3]
+        R_g = T_geometry[:3, :3]
+        d = R_wp.T @ (T_geometry[:3, 3] - doppler(R_g))
+        A = (R_wp.T @ R_g - np.eye(3))[:2, :2]
+        if DIAG is not None:
+            DIAG.append((R_wp.T @ R_g, d, R_wp.T @ (doppler(R_g) - T_world_prev[:3, 3])))
+        lam = math.exp(-dt / self.memory_s)
+        e = d[:2] - A @ self.r[:2]
+        self.ss, self.n = lam * self.ss + e @ e, lam * self.n + 2.0
+        self.S = lam * self.S + A.T @ A
+        self.b = lam * self.b + A.T @ d[:2]
+        ridge = (self.ss / self.n) / self.prior_m**2
+        self.r[:2] = np.linalg.solve(self.S + ridge * np.eye(2), self.b)
+
+    def value(self) -> np.ndarray:
+        return self.r.copy()
 
 
 def _with_t(T: np.ndarray, translation_of: EgoTranslation) -> np.ndarray:

@@ -169,12 +169,15 @@ class LocalMap:
 
 @dataclass
 class MapFit:
-    """T_world_sensor: the solved pose; correspondences: pairs of the last iteration."""
+    """T_world_sensor: the solved pose; correspondences: pairs of the last iteration;
+    T_geometry: with ``geometry_step``, the pose one free 6-DoF Gauss-Newton step of the
+    geometric cost alone takes from the solved one (None otherwise or when it fails)."""
 
     T_world_sensor: np.ndarray
     correspondences: int
     iterations: int
     converged: bool
+    T_geometry: np.ndarray | None = None
 
 
 class TiedTranslation(Protocol):
@@ -270,6 +273,7 @@ def register_to_map(
     tolerance_rad: float = 1e-4,
     free_axes_sensor: np.ndarray | None = None,
     tie_sigma_m: float = 0.0,
+    geometry_step: bool = False,
 ) -> MapFit:
     """Align ``points`` (N, 3) [m, sensor frame] with covariances ``covs`` (N, 3, 3) to the map.
 
@@ -289,7 +293,13 @@ def register_to_map(
     tie_sigma_m^2`` with P the projection off the free axes (they stay free). Its Jacobian is
     ``[(R lever)^, I]``: the measured translation turns with R. The geometry then decides the
     translation it is sure of, the measured one holds the directions it cannot see, and a
-    disagreement between the two is no longer absorbed by the rotation alone."""
+    disagreement between the two is no longer absorbed by the rotation alone.
+
+    ``geometry_step``: after the solve, one more Gauss-Newton step of the geometric cost alone
+    over all 6 degrees of freedom (no tie, no prior) from the solved pose, returned as
+    ``MapFit.T_geometry``: where the geometry would put the pose (to first order) when the
+    translation were free; the cost of one iteration. ``doppler-ego`` reads the measured
+    translation's disagreement with the geometry from it (its lever arm, issue 49)."""
     # contiguous, whatever the caller passes (a strided subsample ``covs[::step]`` would make
     # numba compile a second version of ``_normal_equations`` inside a timed frame: the first
     # frame with more than ``max_source_points`` points after a warm-up pair with fewer)
@@ -346,7 +356,21 @@ def register_to_map(
         if np.linalg.norm(delta[:3]) < tolerance_rad and np.linalg.norm(delta[3:]) < 1e-4:
             converged = True
             break
-    return MapFit(_pose(R, t), n_pairs, it, converged)
+    T_geometry = None
+    if geometry_step and n_pairs >= min_correspondences:
+        Rp = points @ R.T
+        idx, sq = local_map.nearest(Rp + t)
+        keep = sq < max_correspondence_m**2
+        if int(keep.sum()) >= min_correspondences:
+            H, g = _normal_equations(Rp, Rp + t, covs, R, local_map.points, local_map.covs,
+                                     idx, keep, c2, np.eye(3))
+            try:
+                delta = -np.linalg.solve(H, g)
+                T_geometry = _pose(Rotation.from_rotvec(delta[:3]).as_matrix() @ R,
+                                   t + delta[3:])
+            except np.linalg.LinAlgError:
+                pass
+    return MapFit(_pose(R, t), n_pairs, it, converged, T_geometry)
 
 
 def _pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
