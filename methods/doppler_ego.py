@@ -17,8 +17,12 @@ for static points), and a scan holds thousands of them; what Doppler cannot see 
          t_prev_curr(R) (exact derivative: the tied translation turns with R); on a sensor
          that re-publishes its earlier detections the vertical translation (sensor z) is left
          free in this solve (see below); pairs within the gate (exact nearest neighbour
-         through a spatial hash); started from the harness's constant-velocity guess (with
-         seed) or from the previous pose (no seed)                      (methods/local_map.py)
+         through a spatial hash); with ``tie_sigma_mps`` > 0 on such a sensor the horizontal
+         translation is only held to t_prev_curr(R) by a prior (issue 49's ablation), with
+         ``lever_memory_s`` > 0 tied to t_prev_curr(R) + (R - I) r, r an online lever arm
+         (issue 49's other ablation); started
+         from the harness's constant-velocity guess (with seed) or from the previous pose (no
+         seed)                                                          (methods/local_map.py)
       -> T_world_curr = T_world_prev (R_prev_curr, t_prev_curr(R_prev_curr)): the translation
          is always the Doppler one; the scan joins the map.
 
@@ -34,13 +38,47 @@ detections is tested once, on the first pair of scans (``repeats_detections``); 
 with independent detections (every synthetic one) the translation stays fully tied, which is
 better there (the Doppler vertical is then the more accurate one).
 
+The horizontal tie and yaw (issue 49). The same disagreement exists sideways, smaller: on the
+tuning frames the geometry's step points +0.05 deg - 21.4 deg per rad/s of yaw rate off the
+Doppler translation (correlation -0.95 over 1 s; 0.37 s of yaw rate, i.e. the lateral velocity
+of a sensor ~2 m ahead of the car's centre of rotation, which re-published points carried by a
+model without that term would lack, or a lag). Tied, it becomes a yaw error that grows with the
+heading change: over 100-frame windows yaw +0.31 / -0.43 deg (half A / B of the tuning split),
++0.22 / -0.01 deg with the horizontal untied. ``tie_sigma_mps`` > 0 loosens the tie on such a
+sensor into a prior of that sigma (``register_to_map(tie_sigma_m=)``: 6 DoF, the prior with its
+exact Jacobian); the pose keeps the Doppler translation either way. Criterion C of the tuning
+rule at 3 m/s (the free solve's rotation): half A 0.924 [0.889, 0.950], half B 0.978 [0.818,
+1.054]: better on both, significant on A only, so the rule keeps the exact tie (default 0;
+configs/tuning/doppler-ego-tie.yaml) and ``-p tie_sigma_mps=3`` is the decoupled ablation
+(1.06x the time per frame). docs/doppler-ego.md, "The tie and the rotation drift".
+
+The lever arm (issue 49, ``lever_memory_s``). That disagreement is what a rigid body gives when
+the velocity applies at one point and the geometry registers another: the points' frame moves
+by ``t + (R - I) r`` a step (lateral velocity ``w x r``). With ``lever_memory_s`` > 0, on a
+re-publishing sensor, the rotation solve is tied to that (``EgoTranslation(offset=r)``, the
+Jacobian still exact), with r (sensor x, y) estimated online (``LeverArm``: least squares of
+the geometry's disagreement, from one free Gauss-Newton step after each solve,
+``register_to_map(geometry_step=True)``, against ``R - I``; past steps forgotten with this
+time constant; a 2 m zero-mean prior until the rotation excites it); the pose keeps the Doppler
+translation. On the tuning halves it finds the same arm (r_x -2.3 / -1.9 m after 25 steps) and
+removes the yaw bias (100-frame windows +0.31 -> +0.24 deg on A, -0.43 -> 0.00 on B), but B's
+roll error grows (+0.24 -> +1.04 deg: the geometry's own roll drift, which the exact tie's yaw
+error had cancelled there), so criterion C is A 0.960 [0.898, 1.002], B 1.015 [0.856, 1.083]
+at 30 s (every memory alike): the rule keeps it off (default 0;
+configs/tuning/doppler-ego-lever.yaml) and ``-p lever_memory_s=30`` is the ablation (1.15x the
+time per frame). Forced on a sensor without an arm (synthetic, vertical freed) it estimates
+0.2-0.3 m of its own and costs up to 14 %, hence only on re-publishing sensors.
+
 When a scan's ego velocity is not observable the other scan's velocity alone is used, and when
 neither is, the step falls back to a free 6-DoF registration from the motion guess.
 
 Ablation switches: ``ego_translation`` (off: free 6-DoF registration and its translation, i.e.
 a plain GICP scan-to-map odometry), ``static_filter`` (off: all points go to the registration
 and the map), ``use_map`` (off: scan-to-scan against the previous scan only),
-``free_vertical`` (false: the translation stays fully tied even on an accumulating sensor).
+``free_vertical`` (false: the translation stays fully tied even on an accumulating sensor),
+``tie_sigma_mps`` (3: on an accumulating sensor the rotation from a solve untied from the Doppler
+translation, held only by a 3 m/s prior), ``lever_memory_s`` (30: on an accumulating sensor the
+solve tied to the Doppler translation of the lever arm the method estimates online).
 
 Seed / no seed: with seed, each frame's registration starts from the harness's constant-velocity
 guess, the previous step's motion scaled to this step's interval (``scale_motion``; the same
@@ -123,6 +161,17 @@ class DopplerEgoParams(MethodParams):
     free_vertical: bool | None = Field(
         None, description="leave the vertical translation (sensor z) to the geometry in the "
         "rotation solve (None: when the sensor re-publishes its earlier detections)")
+    tie_sigma_mps: float = Field(
+        0.0, ge=0, description="on a sensor that re-publishes its detections (free_vertical), "
+        "the rotation solve holds the horizontal translation to the Doppler one by a prior of "
+        "this sigma [m/s, times the scan interval: metres] instead of tying it exactly; the pose "
+        "keeps the Doppler translation either way (0: tied exactly)")
+    lever_memory_s: float = Field(
+        0.0, ge=0, description="on a sensor that re-publishes its detections, tie the rotation "
+        "solve to the Doppler translation of a point a lever arm r away, t + (R - I) r, with r "
+        "(sensor x, y) estimated online from the geometry's disagreement with the Doppler "
+        "translation, by least squares over the past steps forgotten with this time constant "
+        "[s] (0: off, r = 0); the pose keeps the Doppler translation")
     threshold_mps: float | None = Field(None, gt=0, description="RANSAC Doppler gate [m/s] "
                                         "(radar 0.25, LiDAR 0.2)")
     gate_sigmas: float = Field(3.0, gt=0, description="static points: within this many robust "
@@ -190,6 +239,7 @@ class DopplerEgo(Odometry):
         noise = AngularNoise()
         free_vertical = p.free_vertical  # None: decided on the first pair of scans
         last_motion, last_dt = np.eye(4), None  # T_prev_curr of the previous step (seed only)
+        lever = LeverArm(p.lever_memory_s) if p.lever_memory_s > 0 else None
         for i, scan in enumerate(sequence):
             if scan.doppler is None:
                 raise DataError(f"{scan.source or sequence.name}: doppler-ego needs Doppler")
@@ -229,20 +279,27 @@ class DopplerEgo(Odometry):
                     if free_vertical is None:
                         free_vertical = repeats_detections(first_static, pts, guess, p)
                     ego_t = None
+                    use_lever = lever is not None and bool(free_vertical)
                     if p.ego_translation and (v_curr is not None or v_prev is not None):
-                        ego_t = EgoTranslation(T_wp, v_prev, v_curr, dt)
+                        ego_t = EgoTranslation(T_wp, v_prev, v_curr, dt,
+                                               lever.value() if use_lever else None)
                     step = max(1, -(-len(src) // p.max_source_points))  # ceil division
                     with stopwatch() as reg:
                         fit = register_to_map(local_map, src[::step], covs[::step], init, ego_t,
                                               p.max_correspondence_m, p.kernel_scale,
                                               p.max_iterations, free_axes_sensor=_SENSOR_Z
-                                              if free_vertical else None)
+                                              if free_vertical else None,
+                                              tie_sigma_m=p.tie_sigma_mps * dt
+                                              if free_vertical else 0.0,
+                                              geometry_step=use_lever and ego_t is not None)
+                    if use_lever and ego_t is not None and fit.T_geometry is not None:
+                        lever.update(T_wp, fit.T_geometry, ego_t.without_offset(), dt)
                     T = fit.T_world_sensor
                     replaced = fit.correspondences < 10 or not np.all(np.isfinite(T))
                     if replaced:  # nothing to register to: keep the motion prior (counted)
                         T = init
                     if ego_t is not None:  # the translation is the Doppler one, always
-                        T = _with_t(T, ego_t)
+                        T = _with_t(T, ego_t if POSE_WITH_OFFSET else ego_t.without_offset())
                     poses[i] = T
                     pairs, iterations = fit.correspondences, fit.iterations
                     converged = fit.converged
@@ -289,27 +346,86 @@ def repeats_detections(prev_points: np.ndarray, points: np.ndarray,
     return bool(np.mean(sq < coincide_m**2) >= 0.5)
 
 
+POSE_WITH_OFFSET = False  # experiment switch: the pose takes t + (R - I) r too
+
+
 class EgoTranslation:
     """t_world_curr as a function of R_world_curr (``__call__``): the prev-frame displacement
     is the trapezoid dT/2 (v_prev + R_prev_curr v_curr) (one velocity alone, over dT, when the
-    other is missing). ``lever`` [m, sensor frame]: how it turns with R (``register_to_map``):
-    the v_curr term's coefficient times v_curr, zero without v_curr."""
+    other is missing), plus ``(R_prev_curr - I) offset`` with ``offset`` [m, sensor frame]: the
+    displacement of a point ``offset`` away from where the velocity applies (rigid body; None:
+    zero). ``lever`` [m, sensor frame]: how it turns with R (``register_to_map``): the v_curr
+    term's coefficient times v_curr (zero without v_curr) plus the offset."""
 
-    def __init__(self, T_world_prev: np.ndarray, v_prev, v_curr, dt: float) -> None:
+    def __init__(self, T_world_prev: np.ndarray, v_prev, v_curr, dt: float,
+                 offset: np.ndarray | None = None) -> None:
         self.R_wp, self.t_wp = T_world_prev[:3, :3], T_world_prev[:3, 3]
         self.v_prev, self.v_curr, self.dt = v_prev, v_curr, dt
+        self.offset = None if offset is None else np.asarray(offset, dtype=float)
         if v_curr is None:
             self.lever = np.zeros(3)
         else:
             self.lever = (dt if v_prev is None else 0.5 * dt) * np.asarray(v_curr, dtype=float)
+        if self.offset is not None:
+            self.lever = self.lever + self.offset
+
+    def without_offset(self) -> EgoTranslation:
+        if self.offset is None:
+            return self
+        T = np.eye(4)
+        T[:3, :3], T[:3, 3] = self.R_wp, self.t_wp
+        return EgoTranslation(T, self.v_prev, self.v_curr, self.dt)
 
     def __call__(self, R_world_curr: np.ndarray) -> np.ndarray:
         if self.v_curr is None:
-            return self.t_wp + self.R_wp @ (self.dt * self.v_prev)
-        d_world = R_world_curr @ self.lever  # = R_wp R_prev_curr (c v_curr)
-        if self.v_prev is not None:
-            d_world = d_world + self.R_wp @ (0.5 * self.dt * self.v_prev)
+            d_world = self.R_wp @ (self.dt * self.v_prev)
+        else:
+            d_world = R_world_curr @ (self.lever if self.offset is None
+                                      else self.lever - self.offset)
+            if self.v_prev is not None:
+                d_world = d_world + self.R_wp @ (0.5 * self.dt * self.v_prev)
+        if self.offset is not None:  # R_wp (R_prev_curr - I) offset
+            d_world = d_world + (R_world_curr - self.R_wp) @ self.offset
         return self.t_wp + d_world
+
+
+DIAG = None  # experiment: a list collects (R_prev_curr, d_prev, t_doppler_prev) per step
+
+
+class LeverArm:
+    """Online estimate of the lever arm r = (r_x, r_y, 0) [m, sensor frame] between where the
+    Doppler velocity applies and the frame the geometry registers, from the model
+    ``d = (R_prev_curr - I) r``: d the geometry's step translation minus the Doppler one (in the
+    previous sensor frame, horizontal rows), R_prev_curr the geometry's step rotation. Least
+    squares over the past steps, each forgotten with the time constant ``memory_s``; a zero-mean
+    prior of ``prior_m`` keeps r near zero until the rotation has excited it (r's information
+    is the sum of squared step rotations, rad^2), weighed against the residual variance measured
+    on the same steps."""
+
+    def __init__(self, memory_s: float, prior_m: float = 2.0, noise_m: float = 0.01) -> None:
+        self.memory_s, self.prior_m = memory_s, prior_m
+        self.S, self.b = np.zeros((2, 2)), np.zeros(2)
+        self.ss, self.n = noise_m**2, 1.0  # residual sum of squares [m^2] and its count
+        self.r = np.zeros(3)
+
+    def update(self, T_world_prev: np.ndarray, T_geometry: np.ndarray,
+               doppler: EgoTranslation, dt: float) -> None:
+        R_wp = T_world_prev[:3, :3]
+        R_g = T_geometry[:3, :3]
+        d = R_wp.T @ (T_geometry[:3, 3] - doppler(R_g))
+        A = (R_wp.T @ R_g - np.eye(3))[:2, :2]
+        if DIAG is not None:
+            DIAG.append((R_wp.T @ R_g, d, R_wp.T @ (doppler(R_g) - T_world_prev[:3, 3])))
+        lam = math.exp(-dt / self.memory_s)
+        e = d[:2] - A @ self.r[:2]
+        self.ss, self.n = lam * self.ss + e @ e, lam * self.n + 2.0
+        self.S = lam * self.S + A.T @ A
+        self.b = lam * self.b + A.T @ d[:2]
+        ridge = (self.ss / self.n) / self.prior_m**2
+        self.r[:2] = np.linalg.solve(self.S + ridge * np.eye(2), self.b)
+
+    def value(self) -> np.ndarray:
+        return self.r.copy()
 
 
 def _with_t(T: np.ndarray, translation_of: EgoTranslation) -> np.ndarray:

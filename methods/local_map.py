@@ -24,6 +24,7 @@ import numpy as np
 import small_gicp
 from scipy.spatial.transform import Rotation
 
+from loaders.se3 import skew
 from methods.spatial_hash import SpatialHash
 
 
@@ -168,12 +169,15 @@ class LocalMap:
 
 @dataclass
 class MapFit:
-    """T_world_sensor: the solved pose; correspondences: pairs of the last iteration."""
+    """T_world_sensor: the solved pose; correspondences: pairs of the last iteration;
+    T_geometry: with ``geometry_step``, the pose one free 6-DoF Gauss-Newton step of the
+    geometric cost alone takes from the solved one (None otherwise or when it fails)."""
 
     T_world_sensor: np.ndarray
     correspondences: int
     iterations: int
     converged: bool
+    T_geometry: np.ndarray | None = None
 
 
 class TiedTranslation(Protocol):
@@ -268,6 +272,8 @@ def register_to_map(
     min_correspondences: int = 10,
     tolerance_rad: float = 1e-4,
     free_axes_sensor: np.ndarray | None = None,
+    tie_sigma_m: float = 0.0,
+    geometry_step: bool = False,
 ) -> MapFit:
     """Align ``points`` (N, 3) [m, sensor frame] with covariances ``covs`` (N, 3, 3) to the map.
 
@@ -280,13 +286,27 @@ def register_to_map(
     translation moves by ``-(R lever)^ dtheta + U ds``, and the Gauss-Newton step uses exactly
     that (the full derivative of the constrained cost, so the iteration converges to its own
     optimum). ``kernel_scale`` is the Cauchy scale on the Mahalanobis distance [-]. Returns the
-    pose T_world_sensor and the last pair count."""
+    pose T_world_sensor and the last pair count.
+
+    ``tie_sigma_m`` > 0 (with ``tied``) loosens the tie into a prior: all 6 degrees of freedom
+    are unknown, from ``(R_init, tied(R_init))``, and the cost gains ``|P (t - tied(R))|^2 /
+    tie_sigma_m^2`` with P the projection off the free axes (they stay free). Its Jacobian is
+    ``[(R lever)^, I]``: the measured translation turns with R. The geometry then decides the
+    translation it is sure of, the measured one holds the directions it cannot see, and a
+    disagreement between the two is no longer absorbed by the rotation alone.
+
+    ``geometry_step``: after the solve, one more Gauss-Newton step of the geometric cost alone
+    over all 6 degrees of freedom (no tie, no prior) from the solved pose, returned as
+    ``MapFit.T_geometry``: where the geometry would put the pose (to first order) when the
+    translation were free; the cost of one iteration. ``doppler-ego`` reads the measured
+    translation's disagreement with the geometry from it (its lever arm, issue 49)."""
     # contiguous, whatever the caller passes (a strided subsample ``covs[::step]`` would make
     # numba compile a second version of ``_normal_equations`` inside a timed frame: the first
     # frame with more than ``max_source_points`` points after a warm-up pair with fewer)
     points = np.ascontiguousarray(points, dtype=np.float64)
     covs = np.ascontiguousarray(covs, dtype=np.float64)
     R = init_T_world_sensor[:3, :3].copy()
+    prior_info = None  # (3, 3) information of the prior on t - tied(R) [1/m^2, world frame]
     if tied is None:
         U = np.eye(3)  # the translation is free
         t = init_T_world_sensor[:3, 3].copy()
@@ -295,6 +315,9 @@ def register_to_map(
         U = R @ np.asarray(axes, dtype=np.float64).T  # (3, k) world frame
         s = np.zeros(U.shape[1])
         t = tied(R)
+        if tie_sigma_m > 0:
+            prior_info = (np.eye(3) - U @ U.T) / tie_sigma_m**2
+            U = np.eye(3)  # the translation is free, held by the prior
     n_pairs, converged, it = 0, False, 0
     if local_map.index is None:
         return MapFit(_pose(R, t), 0, 0, False)
@@ -312,15 +335,20 @@ def register_to_map(
         if n_pairs < min_correspondences:
             break
         # the point moves by -(R p)^ dtheta + dt; tied: dt = -(R lever)^ dtheta + U ds
-        Rl = Rp if tied is None else Rp + R @ tied.lever
+        exact_tie = tied is not None and prior_info is None
+        Rl = Rp + R @ tied.lever if exact_tie else Rp
         H, g = _normal_equations(Rl, moved, covs, R, local_map.points, local_map.covs,
                                  idx, keep, c2, U)
+        if prior_info is not None:  # residual t - tied(R), Jacobian [(R lever)^, I]
+            J = np.hstack([skew(R @ tied.lever), np.eye(3)])
+            H = H + J.T @ prior_info @ J
+            g = g + J.T @ prior_info @ (t - tied(R))
         try:
             delta = -np.linalg.solve(H, g)
         except np.linalg.LinAlgError:
             break
         R = Rotation.from_rotvec(delta[:3]).as_matrix() @ R
-        if tied is None:
+        if tied is None or prior_info is not None:
             t = t + delta[3:]
         else:
             s = s + delta[3:]
@@ -328,7 +356,21 @@ def register_to_map(
         if np.linalg.norm(delta[:3]) < tolerance_rad and np.linalg.norm(delta[3:]) < 1e-4:
             converged = True
             break
-    return MapFit(_pose(R, t), n_pairs, it, converged)
+    T_geometry = None
+    if geometry_step and n_pairs >= min_correspondences:
+        Rp = points @ R.T
+        idx, sq = local_map.nearest(Rp + t)
+        keep = sq < max_correspondence_m**2
+        if int(keep.sum()) >= min_correspondences:
+            H, g = _normal_equations(Rp, Rp + t, covs, R, local_map.points, local_map.covs,
+                                     idx, keep, c2, np.eye(3))
+            try:
+                delta = -np.linalg.solve(H, g)
+                T_geometry = _pose(Rotation.from_rotvec(delta[:3]).as_matrix() @ R,
+                                   t + delta[3:])
+            except np.linalg.LinAlgError:
+                pass
+    return MapFit(_pose(R, t), n_pairs, it, converged, T_geometry)
 
 
 def _pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
