@@ -195,13 +195,14 @@ def _remove_stale(out: Path, stem: str, console: Console) -> None:
 def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic_only: bool,
                     console: Console, executor: str = "process", scheduler: str | None = None,
                     job_timeout_s: float | None = None, scoring: dict | None = None,
-                    marks: str = "intervals") -> list[str]:
+                    marks: str = "intervals", ci: bool = False) -> list[str]:
     """Run and write the tables that have rows (and the KITTI-drift and velocity tables of
     Table III's runs); returns the failed runs' messages (empty on success). Says which paper
     sequences it found and which are missing, writes ``reproduction.json`` (what was used,
     found, missing and written) and the HTML page. ``scoring``
     (``bench.commands.scoring_options``) overrides the lengths, KITTI lengths and alignment;
-    ``marks`` is the tables' marking rule (``bench.report.tables.model.MARK_RULES``)."""
+    ``marks`` is the tables' marking rule (``bench.report.tables.model.MARK_RULES``); ``ci``
+    prints each figure's interval in the cells (as ``bench table --ci``)."""
     t0 = time.perf_counter()
     real, notes = _choose_data(data_dir, synthetic_only, console)
     if real and out == Path("results/paper-synthetic"):
@@ -231,14 +232,14 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
         only = {j.run_dir_override for j in per_table[name]}
         try:
             if kind == "relative":
-                texts = write_tables(out, out, only=only, stem=stem, marks=marks)
+                texts = write_tables(out, out, only=only, stem=stem, marks=marks, ci=ci)
                 for metric in ("kitti", "velocity"):
                     write_tables(out, out, only=only, stem=f"{stem}_{metric}", metric=metric,
-                                 marks=marks)
+                                 marks=marks, ci=ci)
                     written.append(f"{stem}_{metric}")
             else:
                 texts = write_ape_tables(out, out, _columns(exp), stem, caption, only=only,
-                                         marks=marks)
+                                         marks=marks, ci=ci)
         except FileNotFoundError:
             _remove_stale(out, stem, console)
             not_written[stem] = "no finished run"
