@@ -35,7 +35,7 @@ from bench.report.summary.ranks import contender_name, figure_ranks, ranked_leng
 from bench.report.tables.model import Cell, Part, Row, Table
 from bench.report.tables.paper import RunRow
 from bench.runs.result import EXTERNAL_MARK
-from loaders.sensor_classes import class_rank
+from loaders.sensor_classes import CLASS_ORDER, class_rank
 from methods.registry import METHODS, get_method
 
 
@@ -117,8 +117,22 @@ def summary_table(rows: list[RunRow], lengths_m: tuple[float, ...] | None = None
         "counted). Bold: on how many of those figures the method is bold. The lowest mean mark "
         "of a class is bold (by value: a summary, not a test). "
         "Failed / Diverged: runs that did not finish / diverged; Fell back: runs with more "
-        "than 5 % of their frames replaced by the motion prior or not converged.")
+        "than 5 % of their frames replaced by the motion prior or not converged."
+        + _unknown_classes_note(classes))
     return table
+
+
+def _unknown_classes_note(classes: list[str]) -> str:
+    """Classes outside the paper's three (a store whose loader does not know the sensor's
+    density): said, since the same drive from its own loader lands in a paper class."""
+    odd = [c for c in classes if c not in CLASS_ORDER]
+    if not odd:
+        return ""
+    return (f" {', '.join(odd)}: stores whose loader does not know the sensor's density "
+            "(NumPy frames, a ROS bag converted without --model); the same drive converted by "
+            "its own loader lands in its paper class (the Oculii Eagle: Semi-Dense 4D Radar), "
+            "so one drive can appear in two classes here: convert with --model (e.g. "
+            "radar-semidense) to rank it in one.")
 
 
 def sources(rows: list[RunRow]) -> list[dict]:
