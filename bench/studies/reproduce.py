@@ -181,6 +181,18 @@ def _choose_data(data_dir: Path, synthetic_only: bool, console: Console
     return found, notes
 
 
+def plan_tables(experiments: dict[str, Experiment], console: Console
+                ) -> tuple[dict[str, list[Job]], list[Job]]:
+    """Each table's planned jobs and their union, planned once more as one set (a run two
+    tables share runs once). The per-table plans are quiet: every warning a plan gives (a path
+    too short for a length, ...) is said once, by the union's plan."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        per_table = {name: plan(jobs_for_experiment(exp, console))
+                     for name, exp in experiments.items()}
+    return per_table, plan([j for js in per_table.values() for j in js])
+
+
 def _remove_stale(out: Path, stem: str, console: Console) -> None:
     """Remove ``stem``'s files left by an earlier reproduction: this one writes no such table,
     so they would show runs that are not part of it."""
@@ -216,9 +228,7 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
     resolved = {name: suite_sequences(name, data_dir, console) for name in suites}
     experiments = {k: e if e.suite is None else e.model_copy(update={
         "suite": None, "sequences": resolved[e.suite]}) for k, e in experiments.items()}
-    per_table: dict[str, list[Job]] = {
-        name: plan(jobs_for_experiment(exp, console)) for name, exp in experiments.items()}
-    all_jobs = plan([j for js in per_table.values() for j in js])
+    per_table, all_jobs = plan_tables(experiments, console)
     outcomes = run_jobs(all_jobs, console, jobs, force, executor, job_timeout_s, scheduler)
     written, not_written = [], {}
     for name in TABLES:
