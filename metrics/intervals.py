@@ -490,10 +490,11 @@ def paired_interval(n_frames: int, anchor: np.ndarray, end: np.ndarray, values_a
     their difference's :func:`block_frames` unless given, the percentile interval widened by
     :func:`overlap_factor` for the whole blocks behind it and stretched to hold the observed
     difference. With blocks of one span and the plain ``t_{K-1} / z`` widening it declared a
-    difference between two methods of equal true error on 9-15 % of 120 m drives at 8 and
-    24 m (nominal 5 %); with this rule 2.7-7.0 % (``python -m bench.studies.coverage
-    --paired``; docs/metrics.md). For a notebook comparing two estimates; the tables' marks
-    read each figure's own printed interval instead (``bench.report.tables.significance``)."""
+    difference between two methods of equal true error on 9-17 % of 120 m drives at 8 and
+    24 m (nominal 5 %); with this rule 2.7-7.0 % (``python -m
+    bench.studies.paired_coverage``; docs/metrics.md). For a notebook comparing two
+    estimates; the tables' marks read each figure's own printed interval instead
+    (``bench.report.tables.significance``)."""
     a = np.asarray(values_a, dtype=np.float64)
     b = np.asarray(values_b, dtype=np.float64)
     anchor = np.asarray(anchor, dtype=np.int64)

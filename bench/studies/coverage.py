@@ -254,11 +254,6 @@ def main() -> None:
                         help="the first noise seed (trials, then the long-run mean's drives)")
     parser.add_argument("--noise", choices=[*NOISE_MODELS, "both"], default="both")
     parser.add_argument("--reps", type=int, default=REPS, help="bootstrap resamples")
-    parser.add_argument("--paired", action="store_true",
-                        help="instead: how often metrics.intervals.paired_interval calls two "
-                             "methods of equal error different (nominal 5 %%) and the tables' "
-                             "marks split them, over --trials pairs (bench.studies."
-                             "paired_coverage)")
     parser.add_argument("--block-factor", type=float, default=None,
                         help="metrics.intervals.BLOCK_FACTOR for this study (default: the "
                              f"harness's, {_intervals.BLOCK_FACTOR:g}): how it was chosen")
@@ -266,16 +261,6 @@ def main() -> None:
     if args.block_factor is not None:  # read at call time by every interval rule
         _intervals.BLOCK_FACTOR = args.block_factor
     models = NOISE_MODELS if args.noise == "both" else {args.noise: NOISE_MODELS[args.noise]}
-    if args.paired:
-        from bench.studies.paired_coverage import paired_study, paired_table
-
-        found = {name: paired_study(args.trials, args.frames, noise, args.first_seed,
-                                    reps=args.reps, speed_mps=args.speed)
-                 for name, noise in models.items()}
-        print(f"{args.trials} pairs of equal methods on drives of {args.frames} poses "
-              f"({args.frames * args.speed / 10:g} m), noise seeds from {args.first_seed}")
-        print(paired_table(found))
-        return
     rows = {name: study(args.frames, args.trials, args.truth_seeds, noise,
                         first_seed=args.first_seed, reps=args.reps, speed_mps=args.speed)
             for name, noise in models.items()}

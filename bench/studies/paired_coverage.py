@@ -6,18 +6,20 @@ Each drive: the study's ground truth (``bench.studies.coverage``), two estimates
 noise model and different noise seeds (so equal long-run errors), their relative errors at the
 given lengths; per length and quantity the paired interval of the difference of the means, and
 both figures' own intervals (``metrics.intervals.unit_intervals``, as a run's) marked by the
-tables' rule (``bench.report.tables.significance``). ``python -m bench.studies.coverage
---paired`` prints the rates per noise model; ``tests/test_intervals.py`` runs a small version.
+tables' rule (``bench.report.tables.significance``). ``python -m bench.studies.paired_coverage``
+prints the rates per noise model (the coverage study's drives and noise models, its options);
+``tests/test_intervals.py`` runs a small version.
 """
 
 from __future__ import annotations
 
+import argparse
 from dataclasses import dataclass
 
 import numpy as np
 
 from bench.report.tables.significance import Stat, interval_marks
-from bench.studies.coverage import NoiseModel, ground_truth, noisy_estimate
+from bench.studies.coverage import NOISE_MODELS, NoiseModel, ground_truth, noisy_estimate
 from metrics.intervals import REPS, paired_interval, unit_intervals
 from metrics.units import relative_units
 
@@ -83,3 +85,26 @@ def paired_table(rows: dict[str, list[FalseAlarms]]) -> str:
             cells += [f"{100 * r.paired_rate:.1f} %", f"{100 * r.marks_rate:.1f} %"]
         lines.append(f"| {first.figure} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--trials", type=int, default=300, help="pairs of equal methods")
+    parser.add_argument("--frames", type=int, default=240, help="poses per drive (10 Hz)")
+    parser.add_argument("--speed", type=float, default=5.0, help="driving speed [m/s]")
+    parser.add_argument("--first-seed", type=int, default=50_000, help="the first noise seed")
+    parser.add_argument("--noise", choices=[*NOISE_MODELS, "both"], default="both")
+    parser.add_argument("--reps", type=int, default=REPS, help="bootstrap resamples")
+    args = parser.parse_args()
+    models = NOISE_MODELS if args.noise == "both" else {args.noise: NOISE_MODELS[args.noise]}
+    found = {name: paired_study(args.trials, args.frames, noise, args.first_seed,
+                                reps=args.reps, speed_mps=args.speed)
+             for name, noise in models.items()}
+    print(f"{args.trials} pairs of equal methods on drives of {args.frames} poses "
+          f"({args.frames * args.speed / 10:g} m), noise seeds from {args.first_seed}, "
+          f"{args.reps} resamples")
+    print(paired_table(found))
+
+
+if __name__ == "__main__":
+    main()
