@@ -137,7 +137,8 @@ def test_a_table_without_intervals_names_the_file_and_its_marks_check_out(result
         md = texts["md"]
         assert "printed 95 % intervals" not in md  # it does not claim what it does not show
         assert "which this table does not print" in md
-        named = re.search(r"they are in the CSV (\S+), as the quantities", md).group(1)
+        named = re.search(r"they are in the CSV (\S+) \(written beside this table\), as the "
+                          r"quantities", md).group(1)
         assert Path(named) == tmp_path / f"t_{metric}.csv" and Path(named).is_file()
         assert "--ci" in md
         assert _check(md, Path(named)) >= (12 if metric == "relative" else 4)

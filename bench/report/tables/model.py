@@ -66,7 +66,8 @@ def caption_text(table: Table) -> str:
     CSV when the table is not written."""
     if UNPRINTED not in table.caption:
         return table.caption
-    where = (f"the CSV {table.csv_file}" if table.csv_file else
+    beside = "" if table.csv_file.startswith("of ") else " (written beside this table)"
+    where = (f"the CSV {table.csv_file}{beside}" if table.csv_file else
              "this table's CSV (the same command with --format csv prints it)")
     high = next((k for r in table.rows for c in r.cells for k in c.values
                  if k.endswith("_ci_high")), "")
@@ -119,7 +120,8 @@ class Table:
     rows: list[Row]
     caption: str = ""
     footnotes: list[str] = field(default_factory=list)
-    #: the CSV written beside the table (named by a caption whose intervals are not printed)
+    #: the CSV written beside the table (named by a caption whose intervals are not printed);
+    #: "of ..." names another table's CSV (the pivot: the main table's)
     csv_file: str = ""
 
     def note(self, text: str) -> int:
