@@ -10,8 +10,9 @@ interpolated at the frame stamps: frames outside its span are kept and excluded 
 What the folder is: the sequence is named after DIR (after DIR's parent when DIR is a
 ``frames`` folder, whose name says nothing of the drive); the file numbers are the frames of
 the source drive (a folder of ``frame_060.npy`` ... ``frame_249.npy`` records frames 60-249,
-``frame_range`` in the provenance, so a cut is labelled by where it lies in the drive; numbers
-from 0 or 1 are the whole drive); and
+``frame_range`` in the provenance, so a cut is labelled by where it lies in the drive, "frame
+files 60-249" since a folder may number from 0 or 1; numbers from 0 or 1 are the whole drive);
+and
 the sensor's class is set by ``model`` (e.g. ``radar-semidense`` for the Oculii Eagle, the class
 the same drive gets from its own loader), else the generic "4D Radar" / "Dense 4D LiDAR".
 """

@@ -254,7 +254,9 @@ class FrameRange(Sequence):
         first, step = int(outer.get("start") or 0), int(outer.get("stride") or 1)
         self.provenance = {**base.provenance,
                            "frame_range": {"start": first + start * step,
-                                           "frames": len(indices), "stride": stride * step}}
+                                           "frames": len(indices), "stride": stride * step,
+                                           **({"from": outer["from"]} if "from" in outer
+                                              else {})}}
 
     def __len__(self) -> int:
         return len(self.indices)

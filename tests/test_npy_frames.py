@@ -149,8 +149,8 @@ def test_two_txt_files_beside_the_frames_are_named_and_gt_asked_for(tmp_path, mo
 
 def test_a_frames_folder_is_named_by_its_drive_placed_in_it_and_classed_by_its_model(tmp_path):
     """A folder `drive7/frames` of files frame_060 ... frame_069: the sequence is "drive7" (not
-    "frames"), its provenance says frames 60-69 of the drive (so a run's label names them, not
-    "frames 0-9"), a further cut composes (frames 62-69, stride 2 -> 62, 64, ...), and --model
+    "frames"), its provenance says frames 60-69 of the drive, by the files' numbers (so a run's
+    label names them, not "frames 0-9"), a further cut composes (62, 64, ...), and --model
     radar-semidense puts it in the class the drive's own loader gives the Oculii Eagle."""
     from bench.runs.sequence_identity import frames_text
     from loaders.scan import select_frames
@@ -167,12 +167,12 @@ def test_a_frames_folder_is_named_by_its_drive_placed_in_it_and_classed_by_its_m
     assert seq.provenance["frame_range"] == {"start": 60, "frames": 10, "stride": 1,
                                              "from": "file numbers"}
     config = {"sequence": {"frames": 10, "store_frame_range": seq.provenance["frame_range"]}}
-    assert frames_text(config) == "frames 60-69"
+    assert frames_text(config) == "frame files 60-69"
     cut = select_frames(seq, 2, None, 2)
     assert cut.provenance["frame_range"]["start"] == 62
     assert len(cut) == 4 and frames_text(
         {"sequence": {"frames": 4, "store_frame_range": cut.provenance["frame_range"]}}) \
-        == "frames 62-68, stride 2"
+        == "frame files 62-68, stride 2"  # a cut of the folder, by the folder's numbers
     assert sensor_class(seq.sensor) == "4D Radar"
     semi, _ = _load(folder, period_s=0.1, model="radar-semidense (Oculii Eagle)")
     assert sensor_class(semi.sensor) == SEMI_DENSE_RADAR
