@@ -87,8 +87,11 @@ docs: $(DEV_STAMP)
 	$(VENV)/bin/mkdocs build --strict
 
 # the paper's Tables III-V on the synthetic suite (or on real stores under data/real when present)
+# INTERVALS=1 prints every figure's 95 % interval in the tables' cells (`bench reproduce --ci`,
+# as `bench table --ci`); without it the captions name the CSV columns that hold them
+INTERVALS ?=
 reproduce-table: $(RUNTIME_STAMP)
-	$(BENCH) reproduce
+	$(BENCH) reproduce $(if $(filter 1 yes true,$(INTERVALS)),--ci,)
 
 # every paper figure of the reproduced tables (and of `make speed` when it has run): of the
 # folder `make reproduce-table` wrote last (results/paper-real or results/paper-synthetic, by

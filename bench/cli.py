@@ -556,6 +556,10 @@ def reproduce(
         help="intervals (default: bold = every figure at or below the smallest upper end of "
         "the printed 95 % intervals in its column) or value (the paper's by-value style)")
     ] = "intervals",
+    ci: Annotated[bool, typer.Option(
+        "--ci/--no-ci", help="show each figure's 95 % confidence interval [low, high] in the "
+        "tables' cells, as `bench table --ci` (without: the caption names the CSV columns "
+        "that hold them)")] = False,
 ) -> None:
     """Reproduce the paper's Tables III, IV and V (configs/experiments/table3-5.yaml) on the
     paper's sequences: real stores under DATA_DIR/real when present, else the synthetic suite."""
@@ -569,7 +573,7 @@ def reproduce(
         raise DataError(f"--marks {marks!r}: choose from {', '.join(MARK_RULES)}") from None
     if reproduce_table(out, data_dir, jobs, force, synthetic_only, console, executor,
                        scheduler, job_timeout,
-                       scoring_options(lengths, kitti_lengths, alignment), marks):
+                       scoring_options(lengths, kitti_lengths, alignment), marks, ci):
         raise typer.Exit(1)
 
 

@@ -6,6 +6,15 @@ row per frame. Such TUM stamps are often not the sensor clock (the NTU4DRadLM sa
 0.0, 0.1, 0.2, ... for a 12 Hz radar): pass ``period_s`` to stamp scans as index x period, and
 ground truth is then associated with frames by row order when the counts match (or by time,
 interpolated at the frame stamps: frames outside its span are kept and excluded from scoring).
+
+What the folder is: the sequence is named after DIR (after DIR's parent when DIR is a
+``frames`` folder, whose name says nothing of the drive); the file numbers are the frames of
+the source drive (a folder of ``frame_060.npy`` ... ``frame_249.npy`` records frames 60-249,
+``frame_range`` in the provenance, so a cut is labelled by where it lies in the drive, "frame
+files 60-249" since a folder may number from 0 or 1; numbers from 0 or 1 are the whole drive);
+and
+the sensor's class is set by ``model`` (e.g. ``radar-semidense`` for the Oculii Eagle, the class
+the same drive gets from its own loader), else the generic "4D Radar" / "Dense 4D LiDAR".
 """
 
 from __future__ import annotations
@@ -57,6 +66,10 @@ class Options(LoaderOptions):
     period_s: float | None = Field(None, gt=0, description="scan period [s]: stamps = index x "
                                    "period")
     kind: Literal["radar", "lidar"] = Field("radar", description="radar or lidar")
+    model: str = Field("", description="sensor model, which sets the sensor class: "
+                       "radar-sparse, radar-semidense (e.g. the Oculii Eagle), lidar-dense or "
+                       "lidar-fmcw, a device name may follow in parentheses (default: none, "
+                       "class '4D Radar' or 'Dense 4D LiDAR' by --kind)")
     associate: Literal["order", "time"] = Field("order", description="GT association: order "
                                                 "(one row per frame) or time")
     stamps_from_gt: bool = Field(False, description="stamp the frames with the TUM file's "
@@ -74,7 +87,7 @@ class NpyFramesSequence(OpensFromOptions, Sequence):
     def open(cls, paths: list[Path], options: Options) -> NpyFramesSequence:
         o = options
         return cls(paths[0], gt=o.gt, period_s=o.period_s, kind=o.kind, name=o.name,
-                   associate=o.associate, stamps_from_gt=o.stamps_from_gt)
+                   associate=o.associate, stamps_from_gt=o.stamps_from_gt, model=o.model)
 
     def __init__(
         self,
@@ -85,6 +98,7 @@ class NpyFramesSequence(OpensFromOptions, Sequence):
         name: str | None = None,
         associate: str = "order",
         stamps_from_gt: bool = False,
+        model: str = "",
     ) -> None:
         folder = Path(folder)
         if not folder.is_dir():
@@ -126,13 +140,23 @@ class NpyFramesSequence(OpensFromOptions, Sequence):
         self.repeated_gt_poses = 0
         if trajectory is not None:
             self.ground_truth = self._associate(trajectory, gt_path, associate)
-        self.name = name or folder.name
-        self.sensor = SensorInfo(kind=kind, period_s=float(period_s), model="npy-frames")
+        resolved = folder.resolve()
+        self.name = name or (resolved.parent.name if resolved.name == "frames" else folder.name)
+        self.sensor = SensorInfo(kind=kind, period_s=float(period_s),
+                                 model=model or "npy-frames")
         self.provenance = {
-            "loader": "npy-frames", "folder": str(folder.resolve()), "frames": n,
+            "loader": "npy-frames", "folder": str(resolved), "frames": n,
             "gt": str(gt_path) if gt_path else None, "period_s": float(period_s),
             "gt_association": associate, "repeated_gt_poses": self.repeated_gt_poses,
         }
+        numbers = np.array([int(_FRAME.match(f.name).group(1)) for f in self.files])
+        steps = np.diff(numbers)
+        if n and (n == 1 or (steps[0] > 0 and (steps == steps[0]).all())) and numbers[0] > 1:
+            # the files are frames numbers[0], +step, ... of their drive: recorded, so a cut
+            # folder is labelled by where it lies (one numbered from 0 or 1 is the whole drive)
+            self.provenance["frame_range"] = {"start": int(numbers[0]), "frames": n,
+                                              "stride": int(steps[0]) if n > 1 else 1,
+                                              "from": "file numbers"}
 
     def _associate(self, traj: Trajectory, path: Path, associate: str) -> Trajectory:
         n = len(self.files)

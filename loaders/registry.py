@@ -182,8 +182,8 @@ LOADERS: dict[str, LoaderEntry] = {e.name: e for e in (
         sensor="any radar / FMCW LiDAR (--kind)", sensor_class="set per recording",
         licence="yours", published_at="-",
         layout="DIR[/frames]/frame_XXX.npy (N x 3) + frame_XXX_dop.npy (N) + one TUM .txt",
-        example="bench convert npy-frames path/to/frames --period 0.0833333 --out "
-                "data/real/my-sequence.h5"),
+        example="bench convert npy-frames path/to/frames --period 0.0833333 --model "
+                "radar-semidense --out data/real/my-sequence.h5"),
 )}
 
 

@@ -248,9 +248,15 @@ class FrameRange(Sequence):
                 keep &= _on(gt.stamps, self._stamps)
             gt = Trajectory(gt.stamps[keep], gt.poses[keep])
         self.ground_truth = gt
+        # frames of the source drive: composed with a cut the base already is (a cut of a cut,
+        # a numbered frame folder's files)
+        outer = base.provenance.get("frame_range") or {}
+        first, step = int(outer.get("start") or 0), int(outer.get("stride") or 1)
         self.provenance = {**base.provenance,
-                           "frame_range": {"start": start, "frames": len(indices),
-                                           "stride": stride}}
+                           "frame_range": {"start": first + start * step,
+                                           "frames": len(indices), "stride": stride * step,
+                                           **({"from": outer["from"]} if "from" in outer
+                                              else {})}}
 
     def __len__(self) -> int:
         return len(self.indices)

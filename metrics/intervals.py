@@ -73,8 +73,7 @@ while on a short drive (the 250-frame real sample, 109 m) the intervals at 8 / 1
 1.2-1.5x / 1.9x over the plain percentile rule at 1.5 but 1.5-1.8x / 2.6x at 2: the few
 whole blocks of a long block cost a short drive more than the longer block gains. The
 manual's table is measured on seeds 40000-40399, used for nothing else. Paired comparisons
-(:func:`paired_interval`) keep blocks of one span / correlation length and are widened by
-``t_{K-1} / z`` for the ``K`` independent units.
+(:func:`paired_interval`) follow the same rule (blocks and widening; no pivot).
 
 **Cost.** A resample's statistic needs only the sums of the per-frame unit counts and values
 over its blocks (:func:`block_sums`): from a prefix sum over the frames twice round, each
@@ -485,11 +484,17 @@ def paired_interval(n_frames: int, anchor: np.ndarray, end: np.ndarray, values_a
                     values_b: np.ndarray, rmse: bool = False, level: float = LEVEL,
                     reps: int = REPS, seed: int = 0, block: int | None = None) -> Interval:
     """The interval of ``stat(values_a) - stat(values_b)`` over the same units (paired: both
-    resampled with the same blocks; ``stat`` the mean, or the RMSE when ``rmse``), widened for
-    the independent units behind it (:func:`widen`: a significance call on few independent
-    segments is conservative). The block length is the largest of both series' and their
-    difference's rule unless given. For a notebook comparing two estimates; the tables' marks
-    read each figure's own printed interval instead (``bench.report.tables.significance``)."""
+    resampled with the same blocks; ``stat`` the mean, or the RMSE when ``rmse``), by the
+    rule of the tables' own intervals (:func:`unit_intervals`, without the pivot: a difference
+    can be negative): blocks of :data:`BLOCK_FACTOR` times the largest of both series' and
+    their difference's :func:`block_frames` unless given, the percentile interval widened by
+    :func:`overlap_factor` for the whole blocks behind it and stretched to hold the observed
+    difference. With blocks of one span and the plain ``t_{K-1} / z`` widening it declared a
+    difference between two methods of equal true error on 9-17 % of 120 m drives at 8 and
+    24 m (nominal 5 %); with this rule 2.7-7.0 % (``python -m
+    bench.studies.paired_coverage``; docs/metrics.md). For a notebook comparing two
+    estimates; the tables' marks read each figure's own printed interval instead
+    (``bench.report.tables.significance``)."""
     a = np.asarray(values_a, dtype=np.float64)
     b = np.asarray(values_b, dtype=np.float64)
     anchor = np.asarray(anchor, dtype=np.int64)
@@ -498,10 +503,14 @@ def paired_interval(n_frames: int, anchor: np.ndarray, end: np.ndarray, values_a
     if anchor.size == 0 or n_frames < 2 or not (np.all(np.isfinite(a))
                                                  and np.all(np.isfinite(b))):
         return Interval(math.nan, math.nan, level, 0, n_ind)
-    block, n_ind = _block_rule(n_frames, anchor, end, [a, b, a - b], block, n_ind)
+    block, n_ind = _block_rule(n_frames, anchor, end, [a, b, a - b], block, n_ind,
+                               BLOCK_FACTOR)
+    pieces = min(n_ind, n_frames // int(block))
+    span = float(np.median(end - anchor))
     stat_a, stat_b = _resampled(n_frames, int(block), reps, seed, anchor, [a, b], rmse)
-    diff = stat_a - stat_b
-    lo, hi = _percentiles(diff, level)
+    lo, hi = _percentiles(stat_a - stat_b, level)
     stat = (lambda x: float(np.sqrt(np.mean(x**2)))) if rmse else (lambda x: float(np.mean(x)))
-    lo, hi = widen(stat(a) - stat(b), lo, hi, n_ind, level)
+    observed = stat(a) - stat(b)
+    lo, hi = contain(observed, *widen_overlapping(observed, lo, hi, pieces, level, span,
+                                                  int(block)))
     return Interval(lo, hi, level, int(block), n_ind)

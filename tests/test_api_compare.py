@@ -107,12 +107,22 @@ def test_compare_shows_the_changed_cell(store, tmp_path):
     run_method("doppler", store, out=tmp_path / "a" / "twist" / "doppler")
     run_method("doppler", store, params={"tau_spatial_m": 0.5},
                out=tmp_path / "b" / "twist" / "doppler")
+    # two results folders: the run given -p is another configuration, labelled as such
     res = CliRunner().invoke(app, ["compare", str(tmp_path / "a"), str(tmp_path / "b")])
+    assert res.exit_code == 0, res.output
+    (header, rows), _, _ = _tables(res.output)
+    assert {"only in A", "only in B"} == {x for r in rows for x in ("only in A", "only in B")
+                                          if x in r[-1]}
+    assert all("tau_spatial_m A 3.0, B 0.5" in r[-1] for r in rows)
+    # the two run folders side by side: the changed cell, the parameter named
+    res = CliRunner().invoke(app, ["compare", str(tmp_path / "a" / "twist" / "doppler"),
+                                   str(tmp_path / "b" / "twist" / "doppler")])
     assert res.exit_code == 0, res.output
     (header, rows), _, (rheader, rrows) = _tables(res.output)
     row = dict(zip(header, next(r for r in rows if r[0] == "twist" and r[2] == "8"),
                    strict=True))
-    assert row["Run"] == "(No initial guess) Doppler Correspondence (Ours)"
+    assert row["Run"].endswith("Doppler Correspondence (Ours) [tau_spatial_m=0.5]")
+    assert row["Note"].startswith("parameters differ: tau_spatial_m A 3.0, B 0.5")
     # each figure is followed by its interval "[low, high]"
     a, b = float(row["Trans. A"].split()[0]), float(row["Trans. B"].split()[0])
     delta = float(row["Trans. change"].split()[0])
@@ -162,7 +172,8 @@ def test_compare_marks_regressions_and_runs_on_one_side_only(tmp_path):
     assert res.exit_code == 0, res.output  # without --fail-on-regression
     (header, rows), (_, trows), _ = _tables(res.output)
     notes = {(r[1], r[2]): r[-1] for r in rows}
-    assert notes[("(With Seed) ICP point-to-point", "8")] == "! regression; ! newly diverged"
+    assert notes[("(With Seed) ICP point-to-point", "8")] == \
+        "! regression (by value: no intervals); ! newly diverged"
     assert notes[("(No Seed) ICP point-to-point", "8")] == "only in B"
     assert notes[("(No initial guess) Doppler Correspondence (Ours)", "16")] == "only in A"
     only_b = next(r for r in rows if r[1] == "(No Seed) ICP point-to-point")
@@ -207,7 +218,9 @@ def test_compare_says_whether_a_change_lies_beyond_the_printed_intervals(tmp_pat
     res = CliRunner().invoke(app, ["compare", str(wide_a), str(wide_b)])
     (header, rows), _, _ = _tables(res.output)
     notes = {(r[1], r[2]): r[-1] for r in rows}
-    assert notes[("(With Seed) ICP point-to-point", "8")] == "! regression (within the intervals)"
+    assert notes[("(With Seed) ICP point-to-point", "8")] == (
+        "! regression by value only: A's and B's intervals meet, they cannot tell it from noise")
+    assert "of them by value only" in res.output
     # and the other way round: an improvement beyond the intervals is named
     res = CliRunner().invoke(app, ["compare", str(b), str(a)])
     (header, rows), _, _ = _tables(res.output)
@@ -242,3 +255,37 @@ def test_table_over_several_experiments_labels_each(store, tmp_path):
     rows = [line for line in res.output.splitlines() if line.startswith("twist,")]
     assert any("exp-a: (No initial guess) Doppler Correspondence (Ours)" in r for r in rows)
     assert any("exp-b: (No initial guess) Doppler Correspondence (Ours)" in r for r in rows)
+
+
+def _given(root: Path, given: dict, params: dict) -> None:
+    """Record in every fake run's config.yaml the parameters it was given (``-p``) and its
+    resolved parameters, as `bench run` does."""
+    import yaml
+
+    for m in root.rglob("metrics.json"):
+        config = {"method": {"name": json.loads(m.read_text())["method"], "params": params,
+                             "given": given}}
+        (m.parent / "config.yaml").write_text(yaml.safe_dump(config))
+
+
+def test_compare_keeps_the_parameter_label_and_names_what_differs(tmp_path):
+    """A run given -p tau_spatial_m=1 (B) is labelled so, as in `bench table`, is not matched
+    with (nor called a regression of) the default run (A), and both notes name the parameter;
+    two run folders compared directly say which parameters differ, and no regression."""
+    a, b = _fake_results(tmp_path / "a"), _fake_results(tmp_path / "b", scale=1.5)
+    _given(a, {}, {"tau_spatial_m": 3.0, "downsample": 1})
+    _given(b, {"tau_spatial_m": 1.0}, {"tau_spatial_m": 1.0, "downsample": 1})
+    res = CliRunner().invoke(app, ["compare", str(a), str(b), "--fail-on-regression"])
+    assert res.exit_code == 0, res.output
+    (header, rows), _, _ = _tables(res.output)
+    labelled = [r for r in rows if r[1].endswith("[tau_spatial_m=1]")]
+    assert labelled and all("only in B" in r[-1] for r in labelled)
+    assert all("tau_spatial_m A 3.0, B 1.0" in r[-1] for r in rows)
+    assert "! regression" not in res.output and "0 regressions" in res.output
+    one_a = next(p.parent for p in a.rglob("metrics.json") if p.parent.name == "doppler")
+    one_b = next(p.parent for p in b.rglob("metrics.json") if p.parent.name == "doppler")
+    res = CliRunner().invoke(app, ["compare", str(one_a), str(one_b), "--fail-on-regression"])
+    assert res.exit_code == 0, res.output
+    (header, rows), _, _ = _tables(res.output)
+    assert all(r[-1].startswith("parameters differ: tau_spatial_m A 3.0, B 1.0") for r in rows)
+    assert "[tau_spatial_m=1]" in rows[0][1]

@@ -200,3 +200,30 @@ def test_the_legend_is_below_and_nothing_runs_off_the_figure(results):
         for text in (ax.title, *ax.get_yticklabels()):
             box = text.get_window_extent(renderer)
             assert box.x0 >= page.x0 - 1 and box.x1 <= page.x1 + 1, text.get_text()
+
+
+def test_one_method_keeps_a_readable_panel_with_its_value_inside_the_frame(results):
+    """A sequence with one method: the layout does not collapse (one row's height left the
+    axes no room, matplotlib gave up its layout and drew a sliver), each panel keeps a
+    readable height and the value printed beside the bar lies inside the axes, not across its
+    frame."""
+    import warnings
+
+    rows = [r for r in table_rows(results) if r.run.dir.name == "doppler"]
+    panels = dict(forest_panels(rows))["drive-rotation"]
+    assert all(len(p.entries) == 1 for p in panels)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        fig = draw_forest(panels)
+        fig.canvas.draw()
+    assert not [w for w in caught if "collapsed" in str(w.message)]
+    renderer = fig.canvas.get_renderer()
+    for ax in fig.axes:
+        frame = ax.get_window_extent(renderer)
+        assert frame.height >= 0.2 * fig.dpi
+        values = [t for t in ax.texts if t.get_text().strip()[:1].isdigit()]
+        assert values
+        for t in values:
+            box = t.get_window_extent(renderer)
+            assert frame.y0 < box.y0 and box.y1 < frame.y1, (box, frame)
+            assert box.x1 <= frame.x1 + 1, (box, frame)

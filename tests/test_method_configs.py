@@ -73,3 +73,16 @@ def test_reported_suites_never_use_tuning_seeds():
                  ["synthetic"]["tuning_seeds"])
     for entries in SUITES.values():
         assert not tuning & {e.seed for e in entries}
+
+
+@pytest.mark.parametrize("name", BUILT_IN)
+def test_every_config_says_it_is_a_mirror_of_the_code(name):
+    """The defaults live in the code (a method's Params): each file says so on its first line,
+    naming the module and class that hold them, and that editing it changes no run (a reader
+    took it for the place to change a default: `bench regress` then found 0 changes)."""
+    cls = METHODS[name]
+    module = cls.__module__.replace(".", "/") + ".py"
+    assert (CONFIGS.parents[1] / module).is_file()
+    head = " ".join((CONFIGS / f"{name}.yaml").read_text().splitlines()[:4])
+    assert head.startswith(f"# A MIRROR of the defaults in {module} ({cls.__name__}.Params)")
+    assert "editing this file changes no run" in head and "bench run -p" in head

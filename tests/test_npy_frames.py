@@ -145,3 +145,38 @@ def test_two_txt_files_beside_the_frames_are_named_and_gt_asked_for(tmp_path, mo
     assert "no ground truth found" not in text
     seq = NpyFramesSequence(folder, period_s=0.1, gt=folder / "gt.txt")
     assert len(seq.ground_truth) == 4
+
+
+def test_a_frames_folder_is_named_by_its_drive_placed_in_it_and_classed_by_its_model(tmp_path):
+    """A folder `drive7/frames` of files frame_060 ... frame_069: the sequence is "drive7" (not
+    "frames"), its provenance says frames 60-69 of the drive, by the files' numbers (so a run's
+    label names them, not "frames 0-9"), a further cut composes (62, 64, ...), and --model
+    radar-semidense puts it in the class the drive's own loader gives the Oculii Eagle."""
+    from bench.runs.sequence_identity import frames_text
+    from loaders.scan import select_frames
+    from loaders.sensor_classes import SEMI_DENSE_RADAR, sensor_class
+
+    folder = tmp_path / "drive7" / "frames"
+    folder.mkdir(parents=True)
+    rng = np.random.default_rng(0)
+    for i in range(60, 70):
+        np.save(folder / f"frame_{i:03d}.npy", rng.normal(size=(50, 3)) * 10)
+        np.save(folder / f"frame_{i:03d}_dop.npy", rng.normal(size=50))
+    seq, _ = _load(folder, period_s=0.1)
+    assert seq.name == "drive7"
+    assert seq.provenance["frame_range"] == {"start": 60, "frames": 10, "stride": 1,
+                                             "from": "file numbers"}
+    config = {"sequence": {"frames": 10, "store_frame_range": seq.provenance["frame_range"]}}
+    assert frames_text(config) == "frame files 60-69"
+    cut = select_frames(seq, 2, None, 2)
+    assert cut.provenance["frame_range"]["start"] == 62
+    assert len(cut) == 4 and frames_text(
+        {"sequence": {"frames": 4, "store_frame_range": cut.provenance["frame_range"]}}) \
+        == "frame files 62-68, stride 2"  # a cut of the folder, by the folder's numbers
+    assert sensor_class(seq.sensor) == "4D Radar"
+    semi, _ = _load(folder, period_s=0.1, model="radar-semidense (Oculii Eagle)")
+    assert sensor_class(semi.sensor) == SEMI_DENSE_RADAR
+    # a folder numbered from 1 (the reference format's whole drive) records no cut
+    (tmp_path / "w").mkdir()
+    whole, _ = _load(_write_folder(tmp_path / "w"), period_s=0.1)
+    assert "frame_range" not in whole.provenance

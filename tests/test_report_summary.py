@@ -1,7 +1,6 @@
-"""One page across datasets (bench.report.summary.overview): mean significance-aware ranks per
-sensor
-class, failures counted, a method that cannot run on a class says why, every sequence's
-source listed, and the HTML report showing it all with intervals."""
+"""One page across datasets (bench.report.summary.overview): the tables' marks summed up per
+sensor class (mean mark, bold count), failures counted, a method that cannot run on a class
+says why, every sequence's source listed, and the HTML report showing it all with intervals."""
 
 from __future__ import annotations
 
@@ -56,18 +55,19 @@ def test_mean_rank_ties_and_why_a_method_did_not_run(two_datasets):
     by = {(r.keys[0], r.keys[1]): r for r in table.rows}
     radar_doppler = by[("Semi-Dense 4D Radar", "doppler")]
     radar_icp = by[("Semi-Dense 4D Radar", "icp-p2p")]
-    assert radar_doppler.cells[1].values["mean_rank"] == 1.0
-    assert radar_icp.cells[1].values["mean_rank"] == 2.0  # significantly worse everywhere
+    assert radar_doppler.cells[1].values["mean_mark"] == 1.0
+    assert radar_icp.cells[1].values["mean_mark"] == 2.0  # underlined everywhere
+    assert radar_doppler.cells[2].parts[0].text == "4 of 4"  # bold on every figure
     assert radar_doppler.cells[1].parts[0].rank == 0
     lidar_doppler = by[("Dense 4D LiDAR", "doppler")]
     assert "needs raw (radial) Doppler" in lidar_doppler.cells[0].status
     assert "ego-compensated" in lidar_doppler.cells[0].status
-    assert by[("Dense 4D LiDAR", "icp-p2p")].cells[1].values["mean_rank"] == 1.0
+    assert by[("Dense 4D LiDAR", "icp-p2p")].cells[1].values["mean_mark"] == 1.0
 
 
 def test_the_page_across_datasets_has_a_table_per_dataset_with_intervals(two_datasets):
     made = dict(cross_dataset(two_datasets))
-    assert "Across datasets: mean rank per method" in made
+    assert "Across datasets: mean mark per method" in made
     assert "Sources of the sequences" in made
     per_dataset = [t for title, t in made.items() if title.startswith("Dataset: ")]
     assert len(per_dataset) == 2
@@ -160,8 +160,8 @@ def test_summary_columns_count_sequences_failures_divergence_and_fallback(mixed)
     assert cell(RADAR, "doppler", "Failed").values["failed"] == 0
     assert cell(RADAR, "doppler", "Fell back").values["fell_back"] == 0
     # ranked at the lengths the runs have (2 and 4 m), not "-" for want of 8 / 48 m
-    assert cell(RADAR, "doppler", "Mean rank").values["mean_rank"] == 1.0
-    assert cell(RADAR, "icp-p2p", "Mean rank").values["mean_rank"] > 1.0
+    assert cell(RADAR, "doppler", "Mean mark").values["mean_mark"] == 1.0
+    assert cell(RADAR, "icp-p2p", "Mean mark").values["mean_mark"] > 1.0
     assert "relative error at 2 m and 4 m" in table.caption
     # an external trajectory scored on one class only: its row on the other says so
     assert "external trajectory" in cell(RADAR, "kiss-ext (external)", "Sequences").status
@@ -309,3 +309,78 @@ def test_a_fresh_report_draws_the_figures_it_shows(tmp_path):
     res = CliRunner().invoke(app, ["report", str(tmp_path / "empty")])
     assert res.exit_code == 2 or type(res.exception).__name__ == "DataError", res.output
     assert not (tmp_path / "empty" / "figures").exists()
+
+
+def _mark_counts_from_tables(root) -> dict[tuple, list[int]]:
+    """(sensor class, method) -> the marks (1 bold, 2 underlined, 3 none) the page's
+    per-dataset relative-error tables print at the summary's lengths: per sequence, figure and
+    method, its better row's mark."""
+    from bench.report.summary.ranks import ranked_lengths
+
+    rows, lengths = select(root)
+    ranked = ranked_lengths(rows)
+    made = dict(cross_dataset(root))
+    best: dict[tuple, int] = {}
+    for title, table in made.items():
+        if not title.startswith("Dataset: "):
+            continue
+        for row in table.rows:
+            for col, name in enumerate(table.columns):
+                if not name.endswith(" m") or float(name[:-2]) not in ranked:
+                    continue
+                for p, part in enumerate(row.cells[col].parts):
+                    if part.stat is None or not part.stat.rankable:
+                        continue
+                    key = (row.keys[0], row.meta["method"], row.keys[1], col, p)
+                    best[key] = min(best.get(key, 3), part.rank + 1)
+    out: dict[tuple, list[int]] = {}
+    for (cls, method, *_), mark in best.items():
+        out.setdefault((cls, method), []).append(mark)
+    return out
+
+
+def test_the_summary_counts_the_marks_the_tables_print(mixed, two_datasets):
+    """One rule per page: each method's mean mark and bold count are those of the marks the
+    per-dataset tables on the same page print."""
+    for root in (mixed, two_datasets):
+        rows, _ = select(root)
+        table = summary_table(rows)
+        col = {name: i for i, name in enumerate(table.columns)}
+        expected = _mark_counts_from_tables(root)
+        checked = 0
+        for r in table.rows:
+            got = r.cells[col["Mean mark"]].values.get("mean_mark")
+            marks = expected.get((r.keys[0], r.meta["method"]))
+            if marks is None or r.meta.get("label"):
+                continue
+            assert got == pytest.approx(sum(marks) / len(marks)), (r.keys, marks)
+            assert r.cells[col["Bold"]].values["bold_figures"] == marks.count(1)
+            checked += 1
+        assert checked >= 3
+
+
+def test_an_underlined_method_is_not_ranked_with_the_bold_one(tmp_path):
+    """The issue's case: B's interval overlaps A's (no interval wholly below B's), yet B's
+    figure lies above A's upper end, so the tables underline it; the summary counts it 2, not
+    tied best."""
+    gt = ground_truth(900)
+    est = noisy_estimate(gt, NoiseModel(), 1)
+    for seq, dataset in (("SeqA", "DsA"), ("SeqB", "DsB")):
+        for name, method, value, ci in (("doppler", "doppler", 1.0, (0.9, 1.1)),
+                                        ("icp-p2p_seed", "icp-p2p", 1.3, (1.05, 1.6))):
+            _write(tmp_path, seq, "Sparse 4D Radar", "radial", name, method,
+                   None if method == "doppler" else True, gt, est, dataset)
+            path = tmp_path / seq / name / "metrics.json"
+            import json
+
+            m = json.loads(path.read_text())
+            for rel in m["relative_error"]:
+                for q in ("rot_deg_mean", "trans_m_mean"):
+                    rel[q], rel[f"{q}_ci"] = value, list(ci)
+            path.write_text(json.dumps(m))
+    rows, _ = select(tmp_path)
+    table = summary_table(rows)
+    by = {r.keys[1]: r for r in table.rows}
+    assert by["doppler"].cells[1].values["mean_mark"] == 1.0
+    assert by["icp-p2p"].cells[1].values["mean_mark"] == 2.0
+    assert by["icp-p2p"].cells[2].values["bold_figures"] == 0

@@ -97,8 +97,8 @@ def test_tables_and_summary_keep_two_contents_of_one_name_apart(clashing):
     by = {r.keys[1]: r for r in summary.rows}
     assert by["doppler"].cells[0].values["sequences"] == 2
     assert by["icp-p2p"].cells[0].values["sequences"] == 2
-    assert by["doppler"].cells[1].values["mean_rank"] == 1.5
-    assert by["icp-p2p"].cells[1].values["mean_rank"] == 1.5
+    assert by["doppler"].cells[1].values["mean_mark"] == 1.5
+    assert by["icp-p2p"].cells[1].values["mean_mark"] == 1.5
 
 
 def test_several_results_folders_are_told_apart_across_folders(clashing):

@@ -119,6 +119,42 @@ def inspect_path(path: Path, period_s: float | None, console: Console,
     return report
 
 
+def scored_text(has_gt: np.ndarray, provenance: dict) -> str:
+    """How many frames a run on the store scores: those with ground truth, less the frames
+    ``bench calibrate --write`` estimated its correction on (never scored)."""
+    n = len(has_gt)
+    frames = (provenance.get("calibration") or {}).get("frames")
+    if not frames:
+        return f"{int(has_gt.sum())} of {n} have ground truth (the others run, unscored)"
+    first, stop = int(frames[0]), int(frames[1])
+    used = np.zeros(n, dtype=bool)
+    used[max(first, 0):min(stop, n)] = True
+    return (f"{int((has_gt & ~used).sum())} of {n}: {int(has_gt.sum())} have ground truth, and "
+            f"frames {first}-{stop - 1}, on which bench calibrate estimated the GT correction, "
+            "are run but not scored")
+
+
+def calibration_text(provenance: dict) -> str:
+    """What ``bench calibrate --write`` applied to a store's ground truth: the angles, from
+    which estimate and frames, and the angles it left alone; "" for a store it did not write."""
+    cal = provenance.get("calibration") or {}
+    if not cal:
+        return ""
+    angles = cal.get("applied_rpy_deg") or cal.get("roll_pitch_yaw_deg") or []
+    names = ("roll", "pitch", "yaw")
+    left = cal.get("left_alone") or {}
+    applied = ", ".join(f"{n} {float(v):+.3f}" for n, v in zip(names, angles, strict=False)
+                        if n not in left) or "none"
+    frames = cal.get("frames")
+    text = (f"applied {applied} deg (R_gt_sensor, to {cal.get('applied_to', 'the ground truth')})"
+            f" from the {cal.get('applied_estimate', 'doppler')} estimate")
+    if frames:
+        text += f" on frames {int(frames[0])}-{int(frames[1]) - 1}"
+    if left:
+        text += "; left alone (0): " + ", ".join(f"{k} ({v})" for k, v in left.items())
+    return text
+
+
 def inspect_sequence(seq: Sequence) -> dict:
     counts = (seq.points_per_frame() if hasattr(seq, "points_per_frame")
               else np.array([len(s) for s in seq]))
@@ -148,11 +184,13 @@ def inspect_sequence(seq: Sequence) -> dict:
                      f"repeated poses, {len(sanity['gaps'])} gaps"))
         try:
             poses, scored = gt_for_frames(gt, stamps)
-            rows.append(("frames scored", f"{int(scored.sum())} of {len(stamps)} have ground "
-                                          "truth (the others run, unscored)"))
+            rows.append(("frames scored", scored_text(scored, seq.provenance or {})))
             gt_poses = poses  # NaN where a frame has no GT: the sign check skips those
         except DataError as err:
             gt_findings.append(f"cannot associate GT with the scans: {err}")
+    calibrated = calibration_text(seq.provenance or {})
+    if calibrated:
+        rows.append(("GT calibrated", calibrated))
     if seq.sensor.kind == "radar":  # elevation-sign check: the road should be below the sensor
         z = low_points_median_z(seq)
         rows.append(("height check", height_advice(seq, z)))

@@ -56,19 +56,23 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
     view = pivot or len(results_dirs) > 1 or lengths is not None or methods is not None \
         or not variants
     where = out if out is not None else (None if view else results_dirs[0])
+    stem = "pivot" if pivot else ("table" if metric == "relative" else f"table_{metric}")
     if pivot:
-        texts = {"md": pivot_markdown(rows, chosen, marks)}
-    elif metric == "ape":
-        if len(results_dirs) > 1:
-            raise DataError("--metric ape: one results folder at a time")
-        only = {r.run.dir for r in rows}
-        texts = render(collect_ape(results_dirs[0], only=only, marks=marks, ci=ci).table)
+        texts = {"md": pivot_markdown(rows, chosen, marks, ci)}
     else:
-        made = build(metric, rows, chosen, marks, ci)
-        if stability:
-            from bench.report.tables.stability import with_stability
+        if metric == "ape":
+            if len(results_dirs) > 1:
+                raise DataError("--metric ape: one results folder at a time")
+            only = {r.run.dir for r in rows}
+            made = collect_ape(results_dirs[0], only=only, marks=marks, ci=ci).table
+        else:
+            made = build(metric, rows, chosen, marks, ci)
+            if stability:
+                from bench.report.tables.stability import with_stability
 
-            with_stability(rows, chosen, made, marks)
+                with_stability(rows, chosen, made, marks)
+        if where is not None:  # a caption without the intervals names the CSV written
+            made.csv_file = str(Path(where) / f"{stem}.csv")
         texts = render(made)
     sys.stdout.write(texts["md" if pivot else format])  # unwrapped (a pipe gets valid CSV)
     broken = [r for r in rows if r.result.status == BROKEN]
@@ -84,7 +88,6 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
         status.print("a filtered or merged view: not written (--out DIR writes it)",
                       style="dim", markup=False)
         return code
-    stem = "pivot" if pivot else ("table" if metric == "relative" else f"table_{metric}")
     guard.output_folder(Path(where))  # a folder, never a run's own
     for fmt, text in texts.items():
         atomic_write_text(Path(where) / f"{stem}.{fmt}", text)

@@ -9,7 +9,11 @@ segments is no cell. A cell whose error grew by more than
 not in A. Whether a change is more than noise is read from the printed intervals alone, as the
 tables' marks are (``bench.report.tables.significance``): a note says "worse" / "better" for a
 quantity whose A and B intervals, as printed, do not meet, and a regression within them says
-so. A second table gives each run's mean time per frame ``time_ms`` (all per-frame work,
+that the intervals cannot tell it from noise. Runs are labelled as the tables label them (the
+parameters a run was given, ``-p tau_spatial_m=1``, after its name) and matched with them: a run
+with other parameters is no regression of the default one; where A and B hold a run of the
+same method under different parameters, the note names the parameters that differ. A second
+table gives each run's mean time per frame ``time_ms`` (all per-frame work,
 ``methods.timing``) in A and B and its change, and a third its per-run metrics: APE [m] (with
 its alignment), KITTI drift [%, deg/100 m] and ego-velocity error [m/s]. Two run folders (each
 with a metrics.json) are compared by sequence and length whatever their methods.
@@ -27,11 +31,11 @@ import numpy as np
 import pandas as pd
 
 from bench.report.dataframe import load_results
-from bench.report.names import order_key, run_label, seed_tag, sequence_key
+from bench.report.names import order_key, overrides_note, run_label, seed_tag, sequence_key
 from bench.report.tables.model import md_escape
 from bench.report.tables.significance import Stat, shown_interval, worse
 
-RUN_KEYS = ["sequence", "method", "label", "seed"]
+RUN_KEYS = ["sequence", "method", "label", "seed", "overrides"]
 QUANTITIES = ("rot_deg_mean", "trans_m_mean")
 _SEED_ORDER = ["With Seed", "With Seed, own model", "No Seed", "No initial guess"]
 
@@ -47,12 +51,37 @@ def _frame(path: Path) -> pd.DataFrame:
         raise FileNotFoundError(f"{path}: no finished runs with relative errors (no "
                                 "metrics.json of a run with ground truth found)")
     df["label"] = df["label"].fillna("")
+    from bench.runs.folders import load_runs
+
+    configs = {str(r.dir): r.config for r in load_runs(Path(path))}
+    df["overrides"] = [overrides_note(configs.get(d) or {}) for d in df["run_dir"]]
+    df["params"] = [_params(configs.get(d) or {}) for d in df["run_dir"]]
     seeds = [_seed(s) for s in df["seed"]]
-    df["run"] = [run_label(m, s, lab or None, kind)
-                 for m, s, lab, kind in zip(df["method"], seeds, df["label"], df["doppler_kind"],
-                                            strict=True)]
+    df["run"] = [run_label(m, s, lab or None, kind) + extra
+                 for m, s, lab, kind, extra in zip(df["method"], seeds, df["label"],
+                                                   df["doppler_kind"], df["overrides"],
+                                                   strict=True)]
     df["seed"] = [seed_tag(m, s) for m, s in zip(df["method"], seeds, strict=True)]
     return df
+
+
+def _params(config: dict) -> str:
+    """A run's resolved method parameters as "name=value" pairs joined by ";" (config.yaml's
+    ``method.params``), for naming the ones that differ between A and B."""
+    method = config.get("method") if isinstance(config.get("method"), dict) else {}
+    params = method.get("params") if isinstance(method.get("params"), dict) else {}
+    return ";".join(f"{k}={v}" for k, v in sorted(params.items()))
+
+
+def params_differ(pa, pb) -> str:
+    """The parameters whose values differ between two ``_params`` texts: "tau_spatial_m A 3.0,
+    B 1.0"; "" when they agree or one is unknown."""
+    if not (isinstance(pa, str) and isinstance(pb, str)) or not pa or not pb:
+        return ""
+    a = dict(x.split("=", 1) for x in pa.split(";"))
+    b = dict(x.split("=", 1) for x in pb.split(";"))
+    return "; ".join(f"{k} A {a.get(k, '-')}, B {b.get(k, '-')}"
+                     for k in sorted(a.keys() | b.keys()) if a.get(k) != b.get(k))
 
 
 def _pair(a: Path, b: Path) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
@@ -87,6 +116,8 @@ def compare(a: Path, b: Path, threshold: float = 0.10) -> pd.DataFrame:
     for _, r in merged.iterrows():
         row = {k: r[k] for k in keys}
         row["run"] = _run_name(r)
+        row["_params"] = r.get("params_a") if isinstance(r.get("params_a"), str) \
+            else r.get("params_b")
         row["only_in"] = {"left_only": "A", "right_only": "B"}.get(r["_merge"], "")
         newly_diverged = _true(r.get("diverged_b")) and not _true(r.get("diverged_a"))
         grew = False
@@ -99,11 +130,17 @@ def compare(a: Path, b: Path, threshold: float = 0.10) -> pd.DataFrame:
             delta = vb - va if _finite(va) and _finite(vb) else math.nan
             row[f"{q}_delta"] = delta
             grew |= _finite(delta) and va > 0 and delta / va > threshold
+        differ = params_differ(r.get("params_a"), r.get("params_b"))
+        grew &= not differ  # another configuration: a difference, not a regression
         row["regression"] = newly_diverged or grew
         row["has_data"] = any(_finite(row[f"{q}_{s}"]) for q in QUANTITIES for s in "ab")
         row["note"] = _note(row, grew, newly_diverged, r, _apart(row))
+        if differ:
+            row["note"] = "; ".join(x for x in (f"parameters differ: {differ}", row["note"])
+                                    if x)
         rows.append(row)
-    df = pd.DataFrame(rows)
+    _name_other_parameters(rows, [k for k in keys if k != "overrides"])
+    df = pd.DataFrame(rows).drop(columns=["_params"], errors="ignore")
     if df.empty:
         return df
     # a length without segments on either side is no cell; a newly diverged run keeps one row
@@ -113,6 +150,24 @@ def compare(a: Path, b: Path, threshold: float = 0.10) -> pd.DataFrame:
     keep = ~empty | (df["regression"] & df["_first"] & ~_any_data(df, run_keys))
     df.loc[keep & empty, "length_m"] = math.nan
     return _in_table_order(df[keep].drop(columns=["has_data", "_first"]), run_keys)
+
+
+def _name_other_parameters(rows: list[dict], same: list[str]) -> None:
+    """A run only in A and one only in B of the same sequence, method, label, seed option and
+    length that differ in their parameters (``-p``): each row's note names them."""
+    alone = {"A": {}, "B": {}}
+    for row in rows:
+        if row["only_in"] and "overrides" in row:
+            alone[row["only_in"]].setdefault(tuple(row[k] for k in same), []).append(row)
+    for key, in_a in alone["A"].items():
+        in_b = alone["B"].get(key, [])
+        if len(in_a) != 1 or len(in_b) != 1:
+            continue
+        differ = params_differ(in_a[0]["_params"], in_b[0]["_params"]) or \
+            f"A {in_a[0]['overrides'].strip() or 'defaults'}, " \
+            f"B {in_b[0]['overrides'].strip() or 'defaults'}"
+        for row, other in ((in_a[0], "B"), (in_b[0], "A")):
+            row["note"] += f" ({other} has this run with other parameters: {differ})"
 
 
 def _in_table_order(df: pd.DataFrame, run_keys: list[str]) -> pd.DataFrame:
@@ -163,7 +218,9 @@ def _note(row: dict, grew: bool, newly_diverged: bool, r, apart: dict[str, str])
     notes = []
     if grew:
         within = apart and not any(v == "worse" for v in apart.values())
-        notes.append("! regression" + (" (within the intervals)" if within else ""))
+        notes.append("! regression" + (" by value only: A's and B's intervals meet, they cannot "
+                                       "tell it from noise" if within else
+                                       "" if apart else " (by value: no intervals)"))
     notes += [f"{_WORDS[q]} {v} beyond the intervals" for q, v in apart.items() if v]
     if newly_diverged:
         notes.append("! newly diverged")
@@ -309,11 +366,15 @@ def to_markdown(cells: pd.DataFrame, times: pd.DataFrame, a: Path, b: Path,
 
 
 def summary(cells: pd.DataFrame, threshold: float) -> str:
-    """"12 cells (2 only in A, 0 only in B), 1 regression (...)"."""
+    """"12 cells (2 only in A, 0 only in B), 1 regression (...)", and how many of the
+    regressions the intervals cannot tell from noise."""
     n = len(cells)
     only = cells["only_in"].value_counts() if n else pd.Series(dtype=int)
     regressions = int(cells["regression"].sum()) if n else 0
+    unsure = int(cells["note"].str.contains("cannot tell it from noise").sum()) if n else 0
     return (f"{n} {'cell' if n == 1 else 'cells'} ({only.get('A', 0)} only in A, "
             f"{only.get('B', 0)} only in B), {regressions} "
             f"{'regression' if regressions == 1 else 'regressions'} (> {threshold:.0%} growth "
-            "or newly diverged)")
+            "or newly diverged" + (f"; {unsure} of them by value only: A's and B's intervals "
+                                   "meet, so they cannot tell it from noise" if unsure else "")
+            + ")")

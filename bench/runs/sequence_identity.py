@@ -66,7 +66,10 @@ def frames_text(config: dict) -> str | None:
     if not isinstance(count, int) or count < 1:
         return None
     last = first + (count - 1) * stride
-    return f"frames {first}-{last}" + (f", stride {stride}" if stride > 1 else "")
+    # a NumPy frame folder's own numbers (frame_061.npy ...): said as such, since a folder may
+    # number its drive from 0 or from 1
+    what = "frame files" if cut.get("from") == "file numbers" else "frames"
+    return f"{what} {first}-{last}" + (f", stride {stride}" if stride > 1 else "")
 
 
 def _attributes(config: dict) -> dict[str, str]:

@@ -181,6 +181,18 @@ def _choose_data(data_dir: Path, synthetic_only: bool, console: Console
     return found, notes
 
 
+def plan_tables(experiments: dict[str, Experiment], console: Console
+                ) -> tuple[dict[str, list[Job]], list[Job]]:
+    """Each table's planned jobs and their union, planned once more as one set (a run two
+    tables share runs once). The per-table plans are quiet: every warning a plan gives (a path
+    too short for a length, ...) is said once, by the union's plan."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        per_table = {name: plan(jobs_for_experiment(exp, console))
+                     for name, exp in experiments.items()}
+    return per_table, plan([j for js in per_table.values() for j in js])
+
+
 def _remove_stale(out: Path, stem: str, console: Console) -> None:
     """Remove ``stem``'s files left by an earlier reproduction: this one writes no such table,
     so they would show runs that are not part of it."""
@@ -195,13 +207,14 @@ def _remove_stale(out: Path, stem: str, console: Console) -> None:
 def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic_only: bool,
                     console: Console, executor: str = "process", scheduler: str | None = None,
                     job_timeout_s: float | None = None, scoring: dict | None = None,
-                    marks: str = "intervals") -> list[str]:
+                    marks: str = "intervals", ci: bool = False) -> list[str]:
     """Run and write the tables that have rows (and the KITTI-drift and velocity tables of
     Table III's runs); returns the failed runs' messages (empty on success). Says which paper
     sequences it found and which are missing, writes ``reproduction.json`` (what was used,
     found, missing and written) and the HTML page. ``scoring``
     (``bench.commands.scoring_options``) overrides the lengths, KITTI lengths and alignment;
-    ``marks`` is the tables' marking rule (``bench.report.tables.model.MARK_RULES``)."""
+    ``marks`` is the tables' marking rule (``bench.report.tables.model.MARK_RULES``); ``ci``
+    prints each figure's interval in the cells (as ``bench table --ci``)."""
     t0 = time.perf_counter()
     real, notes = _choose_data(data_dir, synthetic_only, console)
     if real and out == Path("results/paper-synthetic"):
@@ -215,9 +228,7 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
     resolved = {name: suite_sequences(name, data_dir, console) for name in suites}
     experiments = {k: e if e.suite is None else e.model_copy(update={
         "suite": None, "sequences": resolved[e.suite]}) for k, e in experiments.items()}
-    per_table: dict[str, list[Job]] = {
-        name: plan(jobs_for_experiment(exp, console)) for name, exp in experiments.items()}
-    all_jobs = plan([j for js in per_table.values() for j in js])
+    per_table, all_jobs = plan_tables(experiments, console)
     outcomes = run_jobs(all_jobs, console, jobs, force, executor, job_timeout_s, scheduler)
     written, not_written = [], {}
     for name in TABLES:
@@ -231,14 +242,14 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
         only = {j.run_dir_override for j in per_table[name]}
         try:
             if kind == "relative":
-                texts = write_tables(out, out, only=only, stem=stem, marks=marks)
+                texts = write_tables(out, out, only=only, stem=stem, marks=marks, ci=ci)
                 for metric in ("kitti", "velocity"):
                     write_tables(out, out, only=only, stem=f"{stem}_{metric}", metric=metric,
-                                 marks=marks)
+                                 marks=marks, ci=ci)
                     written.append(f"{stem}_{metric}")
             else:
                 texts = write_ape_tables(out, out, _columns(exp), stem, caption, only=only,
-                                         marks=marks)
+                                         marks=marks, ci=ci)
         except FileNotFoundError:
             _remove_stale(out, stem, console)
             not_written[stem] = "no finished run"

@@ -28,6 +28,7 @@ from bench.data.calibration.estimate import (
 )
 from bench.data.calibration.hand_eye import HE_BLOCK_S, HandEyeResult, hand_eye_on
 from bench.data.calibration.pieces import fit_pieces, format_pieces, piece_bounds
+from bench.data.calibration.verdict import Verdict, summary
 from bench.data.calibration.write import (
     WRITE_MAX_WIDTH_DEG,
     applied_rotation,
@@ -126,7 +127,23 @@ def disagreements(he: HandEyeResult, cal: CalibrationResult) -> list[str]:
     return out
 
 
-def format_hand_eye(he: HandEyeResult, cal: CalibrationResult) -> list[str]:
+def hand_eye_verdicts(he: HandEyeResult, cal: CalibrationResult,
+                      resolution_deg: float = WRITE_MAX_WIDTH_DEG) -> list[Verdict]:
+    """Per angle both estimates observe: their difference against the combined half-widths
+    of their intervals, and what that can tell at ``resolution_deg`` (``--max-width``)."""
+    out = []
+    for ax in ANGLES:
+        if not he.observable[ax] or ax in cal.not_observable:
+            continue
+        width = float(np.hypot(_half_width(he.interval_deg[ax]),
+                               _half_width(cal.interval_deg[ax])))
+        out.append(Verdict(ax, he.angles_deg[ax] - cal.angles_deg[ax],
+                           width if np.isfinite(width) else float("inf"), resolution_deg))
+    return out
+
+
+def format_hand_eye(he: HandEyeResult, cal: CalibrationResult,
+                    resolution_deg: float = WRITE_MAX_WIDTH_DEG) -> list[str]:
     lines = [f"hand-eye alignment of {he.odometry} (no Doppler): R_gt_sensor from "
              f"{he.segments} segments (turn axes first, then displacement directions):"]
     for ax in ANGLES:
@@ -154,8 +171,8 @@ def format_hand_eye(he: HandEyeResult, cal: CalibrationResult) -> list[str]:
             "hand-eye: the odometry's drift and the lever arm), so neither is exact; check "
             "with `bench inspect` before applying one")
     else:
-        lines.append("  the two agree within their combined intervals on every angle both "
-                     "observe")
+        lines += summary(hand_eye_verdicts(he, cal, resolution_deg), "the two estimates",
+                         resolution_deg)
     return lines
 
 
@@ -223,7 +240,8 @@ def calibrate_store(path: str | Path, write_to: Path | None = None, console=None
         for line in format_result(cal):
             say(line)
         for line in format_pieces(fit_pieces(cues, piece_bounds(cues.n_frames),
-                                             bootstrap=bootstrap, name=name), first):
+                                             bootstrap=bootstrap, name=name), first,
+                                  max_width_deg):
             say(line)
         he = None
         if hand_eye or apply == "hand-eye":
@@ -234,7 +252,7 @@ def calibrate_store(path: str | Path, write_to: Path | None = None, console=None
                     raise
                 say(f"hand-eye alignment (no Doppler): not possible here: {err}")
             if he is not None:
-                for line in format_hand_eye(he, cal):
+                for line in format_hand_eye(he, cal, max_width_deg):
                     say(line)
         chosen = cal if apply == "doppler" else he
         fitted = ({ax: ax not in cal.not_observable for ax in ANGLES} if apply == "doppler"

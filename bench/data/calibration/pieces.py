@@ -13,7 +13,9 @@ Pieces: about ``PIECE_FRAMES`` frames each, at least two and at least ``MIN_PIEC
 frames each (a range shorter than twice that is not split). Two pieces disagree on an angle
 when both fitted it (the same cue) with an interval and their estimates are further apart than
 the combined half-widths of their intervals, ``sqrt(h_1^2 + h_2^2)`` - the rule ``bench
-calibrate`` also uses between its Doppler and hand-eye estimates. On 60 simulated drives of
+calibrate`` also uses between its Doppler and hand-eye estimates. Pieces not apart *agree* on
+an angle only when those combined half-widths are at most ``--max-width``; wider, the intervals
+cannot tell, and the message says so (``bench.data.calibration.verdict``). On 60 simulated drives of
 250 frames and one fixed rotation (AR(1) per-frame errors with lag-one correlation 0.8, 5 %
 outliers; the cues of tests/test_calibration_uncertainty.py) it fired on none, for any angle;
 with the pitch 1 deg higher from the middle on, on 11 of 12 (tests/test_calibration_pieces.py).
@@ -26,6 +28,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from bench.data.calibration.estimate import ANGLES, CalibrationResult, FrameCues, calibrate_cues
+from bench.data.calibration.verdict import AGREE, CANNOT_TELL, Verdict, summary
+from bench.data.calibration.write import WRITE_MAX_WIDTH_DEG
 from loaders.errors import DataError
 
 #: the length of a piece the range is split into [frames] (125: 10 s at 12.5 Hz)
@@ -115,8 +119,38 @@ def _cell(cal: CalibrationResult, ax: str) -> str:
     return f"{ax} {cal.angles_deg[ax]:+.2f} [{lo:+.2f}, {hi:+.2f}]"
 
 
-def format_pieces(pieces: list[Piece], offset: int = 0) -> list[str]:
-    """The per-piece estimates (frames numbered from ``offset``) and the verdict."""
+def verdicts(pieces: list[Piece], resolution_deg: float = WRITE_MAX_WIDTH_DEG
+             ) -> list[Verdict]:
+    """Per angle compared (both pieces fitted it from the same cue), the pair that says least:
+    the one the intervals cannot tell with the widest combined half-width, else the agreeing
+    pair with the widest; angles with a pair apart are left to ``disagreements``."""
+    by_angle: dict[str, list[Verdict]] = {}
+    for i, p in enumerate(pieces):
+        for q in pieces[i + 1:]:
+            if p.result is None or q.result is None:
+                continue
+            for ax in ANGLES:
+                if p.result.source[ax] == "not observable" or \
+                        p.result.source[ax] != q.result.source[ax]:
+                    continue
+                width = float(np.hypot(_half_width(p.result, ax), _half_width(q.result, ax)))
+                by_angle.setdefault(ax, []).append(Verdict(
+                    ax, q.result.angles_deg[ax] - p.result.angles_deg[ax],
+                    width if np.isfinite(width) else float("inf"), resolution_deg))
+    out = []
+    for found in by_angle.values():
+        cannot = [v for v in found if v.kind == CANNOT_TELL]
+        agree = [v for v in found if v.kind == AGREE]
+        if len(cannot) + len(agree) < len(found):
+            continue  # apart somewhere: said by ``disagreements``
+        out.append(max(cannot or agree, key=lambda v: v.combined_deg))
+    return out
+
+
+def format_pieces(pieces: list[Piece], offset: int = 0,
+                  resolution_deg: float = WRITE_MAX_WIDTH_DEG) -> list[str]:
+    """The per-piece estimates (frames numbered from ``offset``) and the verdict: apart, agree
+    or cannot tell (``resolution_deg``: ``--max-width``)."""
     if not pieces:
         return []
     level = next((p.result.level for p in pieces if p.result is not None), 0.95)
@@ -127,8 +161,13 @@ def format_pieces(pieces: list[Piece], offset: int = 0) -> list[str]:
         lines.append(f"  {name:<16} {body}")
     apart = disagreements(pieces)
     if not apart:
-        lines.append("  the pieces agree within their intervals on every angle: one rotation "
-                     "fits the range")
+        said = verdicts(pieces, resolution_deg)
+        lines += summary(said, "the pieces", resolution_deg)
+        if said and all(v.kind == AGREE for v in said):
+            lines.append("  one rotation fits the range on every angle compared")
+        elif not said:
+            lines.append("  no angle is fitted by two pieces from the same cue: nothing to "
+                         "compare")
         return lines
     said = []
     for d in apart:

@@ -44,6 +44,9 @@ BOLD, UNDERLINED, UNMARKED = 0, 1, 2
 ERRORS = (("rotation", "rot_deg_mean", "deg"), ("translation", "trans_m_mean", "m"))
 _GREY = "0.6"
 _ROW_IN, _PANEL_EXTRA_IN = 0.15, 0.5  # height of a method's row, a panel's title and axis [in]
+#: a panel is never shorter than this many rows: one method's panel stays readable (its value
+#: label inside the frame), centred in that height
+_MIN_ROWS = 3
 
 
 def interval_tiers(values: Sequence[float], lows: Sequence[float | None],
@@ -203,7 +206,8 @@ def draw_panel(ax, panel: Panel) -> None:
         ax.axvline(u, color="black" if tier == BOLD else "0.45", lw=0.8,
                    ls=(0, (4, 2)) if tier == BOLD else (0, (1, 1.5)), zorder=1)
     ax.set_xlim(left, right)
-    ax.set_ylim(n - 0.5, -0.5)  # the table's first row on top
+    spare = (max(n, _MIN_ROWS) - n) / 2  # a short panel's rows centred in its height
+    ax.set_ylim(n - 0.5 + spare, -0.5 - spare)  # the table's first row on top
     ax.set_yticks(range(n), [_tick_label(e.name, e.mark) for e in panel.entries])
     for label, e in zip(ax.get_yticklabels(), panel.entries, strict=True):
         if e.mark == BOLD:
@@ -225,7 +229,7 @@ def draw_forest(panels: list[Panel]):
     """The figure of one sequence and error: its panels stacked, the note below."""
     from matplotlib.lines import Line2D
 
-    heights = [len(p.entries) * _ROW_IN + _PANEL_EXTRA_IN for p in panels]
+    heights = [max(len(p.entries), _MIN_ROWS) * _ROW_IN + _PANEL_EXTRA_IN for p in panels]
     fig, axes = figure(sum(heights), len(panels), 1, width_in=COLUMN_IN,
                        gridspec_kw={"height_ratios": heights}, squeeze=False)
     for ax, panel in zip(axes[:, 0], panels, strict=True):

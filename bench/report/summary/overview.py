@@ -1,18 +1,19 @@
 """One page across datasets: how each method fares over every sequence of a results folder.
 
 Per sensor class (the paper's order) one row per method: the sequences it was scored on, its
-**mean rank** over the sequences with interval-aware ties, and how many of its runs failed,
-diverged or fell back. A method's rank on one figure of one sequence (the mean rotation and the
-mean translation relative error at the shortest and the longest length the runs have,
-``ranked_lengths``) is one plus the number of methods distinguishably better than it there
-(its printed interval wholly below, as the tables' marks read them:
-``bench.report.tables.significance``): methods that tie share a rank, and a method beaten by nobody
-ranks 1 even when its value is not the lowest. A method's seed and no-seed rows are one
-contender (its better row), as in the tables. A figure resting on fewer than two independent
-segments is not ranked. A method run in the folder but not on a sensor class says why (a Doppler
-method on stores without raw Doppler; an external trajectory (``bench score``) not scored on
-that class's stores; otherwise: not run on that class). "Sequences" counts the sequences a
-method has a finished run on (its seed and no-seed runs of one sequence are one sequence).
+**mean mark** over them and how often it is bold, and how many of its runs failed, diverged or
+fell back. A method's mark on one figure of one sequence (the mean rotation and the mean
+translation relative error at the shortest and the longest length the runs have,
+``ranked_lengths``) is the mark the tables of the same page print for it (1 bold, 2 underlined,
+3 neither: ``bench.report.summary.ranks``, from ``bench.report.tables.significance``), so the
+page has one rule: a method whose cells are underlined in its class's tables cannot have the
+best mean mark unless every other method's cells are marked no better. A method's seed and
+no-seed rows are one contender (its better mark). A figure resting on fewer than two
+independent segments is not marked, so not counted. A method run in the folder but not on a
+sensor class says why (a Doppler method on stores without raw Doppler; an external trajectory
+(``bench score``) not scored on that class's stores; otherwise: not run on that class).
+"Sequences" counts the sequences a method has a finished run on (its seed and no-seed runs of
+one sequence are one sequence).
 Across sequences, pairwise (``bench.report.summary.pairwise``): on how many sequences each
 method ranks better than another and whether that holds (an exact sign test).
 
@@ -34,7 +35,7 @@ from bench.report.summary.ranks import contender_name, figure_ranks, ranked_leng
 from bench.report.tables.model import Cell, Part, Row, Table
 from bench.report.tables.paper import RunRow
 from bench.runs.result import EXTERNAL_MARK
-from loaders.sensor_classes import class_rank
+from loaders.sensor_classes import CLASS_ORDER, class_rank
 from methods.registry import METHODS, get_method
 
 
@@ -59,7 +60,7 @@ def summary_table(rows: list[RunRow], lengths_m: tuple[float, ...] | None = None
               if any(rr.result.relative(L) is not None for rr in rows)]
     ranks = {(L, q): figure_ranks(rows, L, q) for L in usable for q in ("rot_deg", "trans_m")}
     table = Table(["Sensor class", "Method"],
-                  ["Sequences", "Mean rank", "Failed", "Diverged", "Fell back"], [])
+                  ["Sequences", "Mean mark", "Bold", "Failed", "Diverged", "Fell back"], [])
     classes = sorted({rr.sensor_class for rr in rows}, key=lambda c: (class_rank(c), c))
     methods = sorted({(rr.method, rr.run.label or "") for rr in rows},
                      key=lambda m: (order_key(m[0]), m))
@@ -72,7 +73,7 @@ def summary_table(rows: list[RunRow], lengths_m: tuple[float, ...] | None = None
             if not mine:
                 table.rows.append(Row([cls_name, name], (cls_name,),
                                       [Cell(status=_why_not(method, label, class_rows))]
-                                      + [Cell(status="") for _ in range(4)],
+                                      + [Cell(status="") for _ in range(5)],
                                       {"method": method, "label": label or None}))
                 continue
             key = (method, label or None)
@@ -80,25 +81,28 @@ def summary_table(rows: list[RunRow], lengths_m: tuple[float, ...] | None = None
             got = [per_q[seq][key] for per_q in ranks.values() for seq in seqs
                    if key in per_q.get(seq, {})]
             mean = sum(got) / len(got) if got else math.nan
+            bold = sum(g == 1 for g in got)
             failed = sum(rr.failed for rr in mine)
             diverged = sum(not rr.failed and rr.diverged for rr in mine)
             fell_back = sum(not rr.failed and rr.result.fell_back for rr in mine)
             cells = [Cell([Part(str(len(seqs)))], values={"sequences": len(seqs)}),
                      Cell([Part(f"{mean:.2f}" if got else "-")],
-                          values={"mean_rank": mean, "ranked_figures": len(got)}),
+                          values={"mean_mark": mean, "marked_figures": len(got)}),
+                     Cell([Part(f"{bold} of {len(got)}" if got else "-")],
+                          values={"bold_figures": bold}),
                      Cell([Part(str(failed))], values={"failed": failed}),
                      Cell([Part(str(diverged))], values={"diverged": diverged}),
                      Cell([Part(str(fell_back))], values={"fell_back": fell_back})]
             table.rows.append(Row([cls_name, name], (cls_name,), cells,
                                   {"method": method, "label": label or None}))
-    # within a class, the lowest mean rank in bold (a summary of ranks: by value, said so)
+    # within a class, the lowest mean mark in bold (a summary of marks: by value, said so)
     for group in {r.group for r in table.rows}:
         members = [r for r in table.rows if r.group == group and r.cells[1].parts
-                   and math.isfinite(r.cells[1].values.get("mean_rank", math.nan))]
+                   and math.isfinite(r.cells[1].values.get("mean_mark", math.nan))]
         if members:
-            low = min(r.cells[1].values["mean_rank"] for r in members)
+            low = min(r.cells[1].values["mean_mark"] for r in members)
             for r in members:
-                if r.cells[1].values["mean_rank"] == low:
+                if r.cells[1].values["mean_mark"] == low:
                     r.cells[1].parts[0].rank = 0
     lengths = " and ".join(f"{L:g} m" for L in usable)
     where = (f"the mean rotation and the mean translation relative error at {lengths}, the "
@@ -106,14 +110,29 @@ def summary_table(rows: list[RunRow], lengths_m: tuple[float, ...] | None = None
              "no run has segments at any length: nothing is ranked")
     table.caption = (
         "Across datasets, per sensor class: the sequences each method was scored on and its mean "
-        f"rank over them ({where};"
-        " on each figure a method's rank is 1 + the number of methods whose printed 95 % "
-        "interval lies wholly below its own, so overlapping intervals share a rank; the "
-        "seed and no-seed rows of a method count as one, its better row; figures on fewer than "
-        "2 independent segments are not ranked). The lowest mean rank of a class is bold. "
+        f"mark over them ({where}; on each figure the mark the relative-error tables on this "
+        "page print for it, counted 1 = bold, 2 = underlined, 3 = neither, so the summary "
+        "follows the tables' one rule; the seed and no-seed rows of a method count as one, "
+        "its better mark; figures on fewer than 2 independent segments are not marked and not "
+        "counted). Bold: on how many of those figures the method is bold. The lowest mean mark "
+        "of a class is bold (by value: a summary, not a test). "
         "Failed / Diverged: runs that did not finish / diverged; Fell back: runs with more "
-        "than 5 % of their frames replaced by the motion prior or not converged.")
+        "than 5 % of their frames replaced by the motion prior or not converged."
+        + _unknown_classes_note(classes))
     return table
+
+
+def _unknown_classes_note(classes: list[str]) -> str:
+    """Classes outside the paper's three (a store whose loader does not know the sensor's
+    density): said, since the same drive from its own loader lands in a paper class."""
+    odd = [c for c in classes if c not in CLASS_ORDER]
+    if not odd:
+        return ""
+    return (f" {', '.join(odd)}: stores whose loader does not know the sensor's density "
+            "(NumPy frames, a ROS bag converted without --model); the same drive converted by "
+            "its own loader lands in its paper class (the Oculii Eagle: Semi-Dense 4D Radar), "
+            "so one drive can appear in two classes here: convert with --model (e.g. "
+            "radar-semidense) to rank it in one.")
 
 
 def sources(rows: list[RunRow]) -> list[dict]:
@@ -210,7 +229,7 @@ def cross_dataset(results_dir: Path) -> list[tuple[str, Table]]:
         by_dataset[names.get(rr.sequence) or "dataset not recorded"].append(rr)
     if len([d for d in by_dataset if d != "dataset not recorded"]) < 2:
         return []  # one dataset (or none recorded): the ordinary tables say it all
-    out = [("Across datasets: mean rank per method", summary_table(rows))]
+    out = [("Across datasets: mean mark per method", summary_table(rows))]
     pairwise = pairwise_table(rows)
     if pairwise.rows:  # a class with two or more sequences
         out.append(("Across sequences: pairwise verdicts (k/n, sign test)", pairwise))

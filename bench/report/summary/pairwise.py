@@ -1,9 +1,9 @@
 """Across sequences, pairwise: on how many sequences of a sensor class each method ranks better
-than another, and whether that verdict holds across the sequences, not only a mean rank.
+than another, and whether that verdict holds across the sequences, not only a mean mark.
 
-On one sequence, method A ranks better than B when A's mean interval-aware rank
-(``bench.report.summary.ranks.figure_ranks``: 1 + the number of methods whose printed interval
-lies wholly below) over the figures both are ranked on (the mean rotation and translation
+On one sequence, method A ranks better than B when A's mean mark
+(``bench.report.summary.ranks.figure_ranks``: the tables' own marks, 1 bold, 2 underlined, 3
+neither) over the figures both are marked on (the mean rotation and translation
 relative error at the summary's lengths) is lower than B's; equal means tie. Over the n
 sequences of a class where both are ranked, A is better on k, B on l, n - k - l tie. Whether the
 verdict holds across sequences: a two-sided exact sign test (binomial, p = 1/2) on the k + l
@@ -112,7 +112,8 @@ def pairwise_table(rows: list[RunRow], lengths_m: tuple[float, ...] | None = Non
     table.caption = (
         "Across sequences, pairwise, per sensor class with two or more sequences: the cell of "
         "row A and column B reads \"k/n, p\": A ranks better than B on k of the n sequences "
-        "where both are ranked (on a sequence, the lower mean interval-aware rank over "
+        "where both are ranked (on a sequence, the lower mean mark, 1 bold, 2 underlined, 3 "
+        "neither as the tables print it, over "
         f"the mean rotation and translation relative error at {at or 'no length'}; equal is a "
         "tie), and p is a two-sided exact sign test (binomial, 1/2) over the untied sequences, "
         "sequences taken as independent. Bold: the verdict holds across sequences (p < 0.05), "

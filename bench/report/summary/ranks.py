@@ -1,7 +1,9 @@
 """The ranks the cross-dataset page is made of (``bench.report.summary.overview`` and
-``bench.report.summary.pairwise``): a method's rank on one figure of one sequence (1 + the
-number of methods whose printed interval lies wholly below its own: ``significance.worse``),
-the lengths ranked at, and a contender's name."""
+``bench.report.summary.pairwise``): a method's mark on one figure of one sequence, exactly the
+mark the tables of the page give it (``significance.interval_marks`` over every row of the
+sequence: 1 = bold, 2 = underlined, 3 = neither; a method's seed and no-seed rows: its better
+mark), the lengths ranked at, and a contender's name. One rule per page: a method bold in
+every table cell ranks 1 here, one underlined anywhere does not."""
 
 from __future__ import annotations
 
@@ -9,14 +11,15 @@ from collections import defaultdict
 
 from bench.report.tables.model import Row
 from bench.report.tables.paper import RunRow, stat_part
-from bench.report.tables.significance import contender, worse
+from bench.report.tables.significance import contender, interval_marks
 from bench.runs.result import EXTERNAL_MARK
 
 
 def figure_ranks(rows: list[RunRow], length_m: float,
                  quantity: str) -> dict[str, dict[tuple, int]]:
-    """sequence -> contender -> interval-aware rank of ``quantity`` at ``length_m`` (ties
-    where the printed intervals meet)."""
+    """sequence -> contender -> its mark on ``quantity`` at ``length_m`` as a number (1 bold,
+    2 underlined, 3 neither), decided as the tables decide it: every row of the sequence
+    marked together by the printed intervals, a contender's better row counted."""
     by_seq: dict[str, list[tuple[tuple, object]]] = defaultdict(list)
     for rr in rows:
         if rr.failed or rr.diverged:
@@ -33,12 +36,11 @@ def figure_ranks(rows: list[RunRow], length_m: float,
         by_seq[rr.sequence].append((key, part.stat))
     out: dict[str, dict[tuple, int]] = {}
     for seq, entries in by_seq.items():
-        best: dict[tuple, object] = {}
-        for key, stat in entries:  # a method's better row
-            if key not in best or stat.value < best[key].value:
-                best[key] = stat
-        out[seq] = {k: 1 + sum(worse(s, o) for o in best.values() if o is not s)
-                    for k, s in best.items()}
+        marks = interval_marks([stat for _, stat in entries])  # the tables' marks, per row
+        best: dict[tuple, int] = {}
+        for (key, _), mark in zip(entries, marks, strict=True):
+            best[key] = min(best.get(key, mark + 1), mark + 1)  # a method's better row
+        out[seq] = best
     return out
 
 

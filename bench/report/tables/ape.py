@@ -29,12 +29,11 @@ from bench.report.names import (
     synthetic_note,
 )
 from bench.report.tables.model import (
-    MARK_RULES,
     Cell,
     Row,
     Table,
     mark_column,
-    rule_name,
+    rule_text,
     save_table,
 )
 from bench.report.tables.paper import stat_part
@@ -145,7 +144,7 @@ def collect_ape(results_dir: Path, sequences: list[str] | None = None,
                      + (" ([low, high]: its 95 % confidence interval, from blocks of the "
                         "estimate's frame-to-frame errors resampled, chained along the ground "
                         "truth and aligned as the figure; docs/metrics.md)" if ci else "") + ". "
-                     + MARK_RULES[rule_name(marks)] + " Div. = diverged; - = not run"
+                     + rule_text(marks, ci) + " Div. = diverged; - = not run"
                      + ("; failed = the run did not finish (reason in its footnote)" if failed
                         else "") + ". " + SEED_NOTE)
     return ApeTable(table, columns)

@@ -32,7 +32,9 @@ from bench.report.tables.significance import (  # noqa: F401
     BEST,
     OTHER,
     RULE,
+    RULE_UNPRINTED,
     SECOND,
+    UNPRINTED,
     Stat,
     interval_marks,
     shown_interval,
@@ -46,6 +48,34 @@ MARK_RULES = {
     "value": ("Best value per sequence in bold, second underlined (by value alone, the "
               "paper's style: differences may lie within the noise)."),
 }
+
+
+def rule_text(marks: str, ci: bool) -> str:
+    """The caption's sentence for the rule ``marks``: with the intervals printed (``ci``) the
+    rule as read from them; without, the same rule and where the intervals are (resolved when
+    the table is rendered: ``caption_text``)."""
+    marks = rule_name(marks)
+    if marks == "intervals" and not ci:
+        return RULE_UNPRINTED
+    return MARK_RULES[marks]
+
+
+def caption_text(table: Table) -> str:
+    """The caption as rendered: the stand-in for where unprinted intervals are replaced by
+    the CSV written beside the table (``Table.csv_file``), or by the command that prints that
+    CSV when the table is not written."""
+    if UNPRINTED not in table.caption:
+        return table.caption
+    beside = "" if table.csv_file.startswith("of ") else " (written beside this table)"
+    where = (f"the CSV {table.csv_file}{beside}" if table.csv_file else
+             "this table's CSV (the same command with --format csv prints it)")
+    high = next((k for r in table.rows for c in r.cells for k in c.values
+                 if k.endswith("_ci_high")), "")
+    example = (f" (for example {high} beside {high.removesuffix('_ci_high')})" if high else "")
+    said = (f"they are in {where}, as the quantities ending in _ci_low and _ci_high beside "
+            f"each figure's own{example}, and the same command with --ci (bench table, bench "
+            "reproduce) prints them beside every figure")
+    return table.caption.replace(UNPRINTED, said)
 
 
 @dataclass
@@ -90,6 +120,9 @@ class Table:
     rows: list[Row]
     caption: str = ""
     footnotes: list[str] = field(default_factory=list)
+    #: the CSV written beside the table (named by a caption whose intervals are not printed);
+    #: "of ..." names another table's CSV (the pivot: the main table's)
+    csv_file: str = ""
 
     def note(self, text: str) -> int:
         """The footnote number of ``text`` (added once)."""
@@ -243,7 +276,7 @@ def to_markdown(table: Table) -> str:
     for r, keys in zip(table.rows, _shown_keys(table), strict=True):
         cells = [_cell_text(c, _md_part, lambda n: f" [{n}]", md_escape) for c in r.cells]
         lines.append("| " + " | ".join([*(md_escape(x) for x in keys), *cells]) + " |")
-    out = "\n".join(lines) + "\n\n" + md_escape(table.caption) + "\n"
+    out = "\n".join(lines) + "\n\n" + md_escape(caption_text(table)) + "\n"
     if table.footnotes:
         out += "\n" + "\n".join(f"[{i}] {md_escape(t)}" for i, t in
                                 enumerate(table.footnotes, 1)) + "\n"
@@ -264,7 +297,7 @@ def to_latex(table: Table, label: str = "") -> str:
     ``\\bottomrule``, footnotes below."""
     nkeys, ncol = len(table.keys), len(table.keys) + len(table.columns)
     out = [r"\begin{table}[t]", r"\centering", r"\footnotesize",
-           rf"\caption{{{tex_escape(table.caption)}}}"]
+           rf"\caption{{{tex_escape(caption_text(table))}}}"]
     if label:
         out.append(rf"\label{{{label}}}")
     out += [r"\begin{tabular}{@{}" + "l" * nkeys + "c" * len(table.columns) + "@{}}",
@@ -321,7 +354,9 @@ def render(table: Table) -> dict[str, str]:
 
 
 def save_table(table: Table, out_dir: Path, stem: str) -> dict[str, str]:
-    """Write ``<stem>.md/.tex/.csv`` atomically; return the texts by format."""
+    """Write ``<stem>.md/.tex/.csv`` atomically (a caption whose intervals are not printed
+    names the CSV); return the texts by format."""
+    table.csv_file = str(Path(out_dir) / f"{stem}.csv")
     texts = render(table)
     for fmt, text in texts.items():
         atomic_write_text(Path(out_dir) / f"{stem}.{fmt}", text)

@@ -39,14 +39,13 @@ from bench.report.names import (
     synthetic_note,
 )
 from bench.report.tables.model import (
-    MARK_RULES,
     Cell,
     Part,
     Row,
     Stat,
     Table,
     mark_column,
-    rule_name,
+    rule_text,
     save_table,
     stat_text,
 )
@@ -216,7 +215,7 @@ def _caption(rows: list[RunRow], text: str, marks: str = "intervals",
     return (synthetic_note(r.sequence for r in rows) + gt_assisted_note(r.label for r in rows)
             + text + " " + shown + hosts_note(r.result.cpu for r in rows
                                               if r.result.finished and r.result.timed_by_harness)
-            + MARK_RULES[rule_name(marks)] + " Div. = diverged; " + failed + fell + SEED_NOTE)
+            + rule_text(marks, ci) + " Div. = diverged; " + failed + fell + SEED_NOTE)
 
 
 def _ci(ci) -> tuple[float, float] | None:

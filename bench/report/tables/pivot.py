@@ -9,14 +9,14 @@ so a cell reads exactly as in the main table."""
 from __future__ import annotations
 
 from bench.report.names import hosts_note, order_key
-from bench.report.tables.model import MARK_RULES, Cell, Row, Table, rule_name, to_markdown
+from bench.report.tables.model import Cell, Row, Table, rule_text, to_markdown
 from bench.report.tables.paper import TIME_NOTE, RunRow, relative_table
 
 
-def pivot_tables(rows: list[RunRow], lengths: list[float], marks: str = "intervals"
-                 ) -> list[Table]:
-    """One table per length and one of the times."""
-    main = relative_table(rows, lengths, marks)
+def pivot_tables(rows: list[RunRow], lengths: list[float], marks: str = "intervals",
+                 ci: bool = False) -> list[Table]:
+    """One table per length and one of the times (the intervals in the cells with ``ci``)."""
+    main = relative_table(rows, lengths, marks, ci)
     sequences = list(dict.fromkeys(r.sequence for r in rows))
     order = {}
     for rr in rows:
@@ -25,14 +25,16 @@ def pivot_tables(rows: list[RunRow], lengths: list[float], marks: str = "interva
     at = {(rr.label, rr.sequence): row for rr, row in zip(rows, main.rows, strict=True)}
     tables = []
     for col, title in enumerate(main.columns):
-        t = Table([title], sequences, [], footnotes=main.footnotes)
+        t = Table([title], sequences, [], footnotes=main.footnotes,
+                  csv_file="of the same table without --pivot (bench table --format csv "
+                           "prints it)")
         for label in labels:
             cells = [at[(label, s)].cells[col] if (label, s) in at else Cell(status="")
                      for s in sequences]
             t.rows.append(Row([label], (), cells))
         if col < len(lengths):
             t.caption = (f"Each cell: mean rotation [deg] / translation [m] relative error over "
-                         f"{title} segments. {MARK_RULES[rule_name(marks)]} Div. = diverged; "
+                         f"{title} segments. {rule_text(marks, ci)} Div. = diverged; "
                          "empty = not run.")
         else:
             t.caption = (TIME_NOTE + " " + hosts_note(r.result.cpu for r in rows
@@ -44,7 +46,7 @@ def pivot_tables(rows: list[RunRow], lengths: list[float], marks: str = "interva
     return tables
 
 
-def pivot_markdown(rows: list[RunRow], lengths: list[float], marks: str = "intervals"
-                   ) -> str:
+def pivot_markdown(rows: list[RunRow], lengths: list[float], marks: str = "intervals",
+                   ci: bool = False) -> str:
     """``pivot.md``: one table per segment length, then the times."""
-    return "\n".join(to_markdown(t) for t in pivot_tables(rows, lengths, marks))
+    return "\n".join(to_markdown(t) for t in pivot_tables(rows, lengths, marks, ci))

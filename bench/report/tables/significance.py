@@ -30,12 +30,28 @@ from metrics.intervals import MIN_INDEPENDENT
 #: a part's mark: bold, underlined, none
 BEST, SECOND, OTHER = 0, 1, 2
 
-#: the rule as every caption states it
+#: the rule as every caption states it, when the table prints the intervals
 RULE = ("Marks are read from the printed numbers: in each column and sequence, bold = every "
         "figure at or below the smallest upper end U of the printed 95 % intervals (so every "
         "bold interval contains U), underlined = the same rule among the rest; a figure without "
         "an interval counts as its own interval; a figure on fewer than "
         f"{MIN_INDEPENDENT} independent segments is not marked.")
+
+#: a caption's stand-in for where the intervals are when the table does not print them,
+#: resolved when the table is rendered (``bench.report.tables.model.caption_text``: the CSV
+#: written beside the table, or the command that prints it)
+UNPRINTED = "<<where the intervals are>>"
+
+#: the rule as a caption states it when the table does not print the intervals: a reader is
+#: told exactly where they are, so every mark can still be checked
+RULE_UNPRINTED = ("Marks are read from each figure's 95 % interval, which this table does not "
+                  f"print: {UNPRINTED}. In each column and sequence, bold = every figure at or "
+                  "below the smallest upper end U of those intervals (so every bold interval "
+                  "contains U), underlined = the same rule among the rest (the intervals "
+                  "rounded to the digits the figures are printed with, and widened to hold "
+                  "their figure where needed); a figure without an interval counts as its own "
+                  "interval; a figure on fewer than "
+                  f"{MIN_INDEPENDENT} independent segments is not marked.")
 
 
 @dataclass

@@ -4,10 +4,14 @@ One table is one drive: a mark says how methods compared on it, not whether they
 next stretch of road. Here every run's scored frames are cut in two halves (the first
 ``floor(n / 2)`` frames and the rest), each half is scored on its own (the relative errors and
 their intervals, exactly as a run is: ``bench.runs.evaluate.relative_part``), and the same
-table is built and marked by the same rule for each half. A cell's verdict (bold, underlined
-or none) *holds* when both halves give it the same mark as the whole sequence; the table then
-says, per sequence, how many of its marks hold and flags every cell whose verdict does not
-(``CHANGED``). Times are one figure per run, not per half: left out.
+table is built and marked by the same rule for each half. A mark of the whole sequence (bold or
+underlined) *holds* when both halves give its cell the same mark and each half could have told
+otherwise; a half *cannot tell* when it has no marked figure there (it rests on fewer than two
+independent segments) or marks every figure of that column and sequence bold (its intervals
+separate nothing, so a bold there says nothing). Otherwise the mark *differs*. The table then
+says, per sequence, how many of its marks hold, differ and cannot be told, and flags every cell
+whose mark differs on a half (``CHANGED``). Times are one figure per run, not per half: left
+out.
 
 Nothing is cached or written: the halves cost one more scoring of the relative errors, made
 when the table or the report asks for them (``bench table --stability``, the report).
@@ -21,7 +25,7 @@ from dataclasses import dataclass
 
 from bench.report.tables.model import Table
 from bench.report.tables.paper import RunRow, relative_table
-from bench.report.tables.significance import OTHER
+from bench.report.tables.significance import BEST, OTHER
 from bench.runs.evaluate import relative_part
 from metrics import relative_errors
 
@@ -50,18 +54,37 @@ def half(rr: RunRow, which: int, lengths: list[float]) -> RunRow:
 
 @dataclass
 class Stability:
-    """Per sequence, (marks holding on both halves, marks of the whole sequence); the cells
-    (row, column, part) whose mark differs on a half."""
+    """Per sequence, (marks holding on both halves, marks of the whole sequence, marks a half
+    cannot tell); the cells (row, column, part) whose mark differs on a half."""
 
-    held: dict[str, tuple[int, int]]
+    held: dict[str, tuple[int, int, int]]
     changed: set[tuple[int, int, int]]
 
     def text(self) -> str:
         """The sentence a caption gets."""
-        counts = "; ".join(f"{seq}: {k} of {n}" for seq, (k, n) in self.held.items())
+        counts = "; ".join(f"{seq}: {k} hold, {n - k - u} differ, {u} cannot tell (of {n})"
+                           for seq, (k, n, u) in self.held.items())
         return (f"Stability (each half of a sequence's scored frames scored on its own, marked "
-                f"by the same rule): marks holding on both halves, {counts or 'none'}; "
-                f"{CHANGED} = a cell whose mark differs on a half.")
+                f"by the same rule), per sequence, of its marks: {counts or 'none'}. A mark "
+                "holds when both halves give it and each could have told otherwise; a half "
+                "cannot tell where its figure rests on fewer than 2 independent segments or "
+                f"every figure of its column is bold; {CHANGED} = a cell whose mark differs on "
+                "a half.")
+
+
+def _blind(table: Table, i: int, col: int, p: int) -> bool:
+    """Can a half's table not tell row ``i``'s mark at (col, part)? Its figure is unmarked for
+    want of segments, or every ranked figure of that column and group is bold."""
+    row = table.rows[i]
+    if len(row.cells[col].parts) <= p:
+        return True
+    stat = row.cells[col].parts[p].stat
+    if stat is None or not stat.rankable:
+        return True
+    peers = [r.cells[col].parts[p] for r in table.rows if r.group == row.group
+             and len(r.cells[col].parts) > p and r.cells[col].parts[p].stat is not None
+             and r.cells[col].parts[p].stat.rankable]
+    return len(peers) < 2 or all(q.rank == BEST for q in peers)
 
 
 def stability(rows: list[RunRow], lengths: list[float], table: Table,
@@ -70,7 +93,7 @@ def stability(rows: list[RunRow], lengths: list[float], table: Table,
     with the same table of each half."""
     halves = [relative_table([half(rr, w, lengths) for rr in rows], lengths, marks)
               for w in (0, 1)]
-    held: dict[str, list[int]] = defaultdict(lambda: [0, 0])
+    held: dict[str, list[int]] = defaultdict(lambda: [0, 0, 0])
     changed = set()
     for i, (rr, row) in enumerate(zip(rows, table.rows, strict=True)):
         for col in range(len(lengths)):
@@ -78,12 +101,14 @@ def stability(rows: list[RunRow], lengths: list[float], table: Table,
                 ranks = [h.rows[i].cells[col].parts[p].rank
                          if len(h.rows[i].cells[col].parts) > p else OTHER for h in halves]
                 same = all(r == part.rank for r in ranks)
+                blind = any(_blind(h, i, col, p) for h in halves)
                 if part.rank != OTHER:
                     held[rr.sequence][1] += 1
-                    held[rr.sequence][0] += same
-                if not same:
+                    held[rr.sequence][0] += same and not blind
+                    held[rr.sequence][2] += blind
+                if not same and not blind:
                     changed.add((i, col, p))
-    return Stability({s: (k, n) for s, (k, n) in held.items()}, changed)
+    return Stability({s: (k, n, u) for s, (k, n, u) in held.items()}, changed)
 
 
 def with_stability(rows: list[RunRow], lengths: list[float], table: Table,
