@@ -141,13 +141,13 @@ def external_runs(exp, force: bool, console: Console) -> list[tuple[str, str, st
 def print_sweeps(results_dir: Path, index: dict, console: Console) -> None:
     """Write the experiment's sweep index and its sweep table (sweep.md), and print the table
     with each sweep's chosen point (bench/report/tables/sweep.py)."""
+    from bench import guard
     from bench.report.tables.sweep import sweep_markdown
     from bench.runs.sweep import write_sweep_index
-    from loaders.fileio import atomic_write_text
 
     write_sweep_index(results_dir, index)
     text = sweep_markdown(results_dir)
-    atomic_write_text(Path(results_dir) / "sweep.md", text)
+    guard.write_text(Path(results_dir) / "sweep.md", text, guard.derived, "a sweep table")
     console.print(text, markup=False, soft_wrap=True)
 
 

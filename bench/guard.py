@@ -17,8 +17,9 @@ Rules (each a ``DataError``: exit 2, one message naming the path):
 
 from __future__ import annotations
 
+import contextlib
 import os
-from collections.abc import Callable, Iterable
+from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
 
 from loaders.errors import DataError
@@ -170,14 +171,24 @@ def run_kind(folder: Path) -> str | None:
     return EXTERNAL if "external" in config or identity.get("kind") == EXTERNAL else HARNESS
 
 
+def not_in_a_run(out: Path, option: str = "--out") -> None:
+    """Refuse ``out`` inside a run folder (its files are that run's; only a run writes there)."""
+    for parent in Path(os.path.abspath(out)).parents:
+        if run_kind(parent) is not None:
+            raise DataError(f"{option} {out}: lies inside the run folder {parent} (a run "
+                            f"made by {RUN_MAKERS[run_kind(parent)]}); its files are the "
+                            "run's: choose another folder")
+
+
 def replaceable(out: Path, force: bool | None, own: Callable[[Path], bool], what: str,
                 option: str = "--out", inputs: Iterable[Path | None] = ()) -> bool:
-    """Check ``out`` before writing: not an input; when it exists, ``force`` given and ``own``
-    recognising it as ``what`` (e.g. "a ROS1 bag") this command wrote (``force`` None: the
-    command has no --force, an existing ``out`` is never replaced). True when it exists (and
-    may be replaced), False when it is new."""
-    out = Path(out)
+    """Check ``out`` before writing: not an input, not inside a run folder; when it exists,
+    ``force`` given and ``own`` recognising it as ``what`` (e.g. "a ROS1 bag") this command
+    wrote (``force`` None: the command has no --force, an existing ``out`` is never replaced).
+    True when it exists (and may be replaced), False when it is new."""
+    out = check_out(out, option)
     not_an_input(out, inputs, option)
+    not_in_a_run(out, option)
     if not os.path.lexists(out):
         return False
     if not own(out):
@@ -235,8 +246,9 @@ def regenerated_file(out: Path, own: Callable[[Path], bool], what: str,
     """Check a derived file (a page, a plot: made again from the same inputs on every call)
     before writing it: not an input; an existing file only when ``own`` recognises it as
     ``what`` this command wrote (replaced without ``--force``), never a folder."""
-    out = Path(out)
+    out = check_out(out, option)
     not_an_input(out, inputs, option)
+    not_in_a_run(out, option)
     if out.is_dir():
         raise DataError(f"{option} {out}: is a folder; expected the file name of {what}")
     if os.path.lexists(out) and not own(out):
@@ -246,11 +258,294 @@ def regenerated_file(out: Path, own: Callable[[Path], bool], what: str,
 
 def output_folder(out: Path, option: str = "--out", inputs: Iterable[Path | None] = ()) -> None:
     """Check a folder that derived files (tables, figures) go into: not an input's folder, not
-    a file, not a run folder (whose files are a run's own)."""
-    out = Path(out)
+    a file (nor a path through one), not a run folder (whose files are a run's own, whichever
+    command made it) nor inside one."""
+    out = check_out(out, option)
     not_an_input(out, inputs, option)
     if os.path.lexists(out) and not out.is_dir():
         raise DataError(f"{option} {out}: is a file; expected a folder to write into")
+    for parent in out.parents:
+        if os.path.lexists(parent):
+            if not parent.is_dir():
+                raise DataError(f"{option} {out}: {parent} is a file; expected a folder to "
+                                "write into")
+            break
     if run_kind(out) is not None:
-        raise DataError(f"{option} {out}: is a run folder; its files are the run's: choose "
+        raise DataError(f"{option} {out}: is a run folder (made by "
+                        f"{RUN_MAKERS[run_kind(out)]}); its files are the run's: choose "
                         "another folder")
+    not_in_a_run(out, option)
+
+
+# -- names -------------------------------------------------------------------------------------
+
+#: the longest file or folder name most file systems take [bytes] (NAME_MAX)
+NAME_MAX_BYTES = 255
+#: the longest path the system takes [bytes] (PATH_MAX, its terminating NUL aside)
+PATH_MAX_BYTES = 4095
+
+
+def check_out(path: Path | str, option: str = "--out") -> Path:
+    """``path`` as a Path when it can name a file or folder to write: not empty, no NUL, no
+    name longer than ``NAME_MAX_BYTES``, the whole path within ``PATH_MAX_BYTES``; else a
+    DataError naming ``option`` (not an OSError "File name too long" deep in a writer)."""
+    text = str(path)
+    if not text.strip():
+        raise DataError(f"{option} {text!r}: empty; expected the path of a file or folder "
+                        "to write")
+    if "\0" in text:
+        raise DataError(f"{option} {text!r}: holds a NUL character; expected a path")
+    for part in Path(text).parts:
+        if len(os.fsencode(part)) > NAME_MAX_BYTES:
+            raise DataError(f"{option} {text[:60]}...: the name {part[:40]}... is "
+                            f"{len(os.fsencode(part))} bytes long; a file or folder name is at "
+                            f"most {NAME_MAX_BYTES} bytes")
+    if len(os.fsencode(os.path.abspath(text))) > PATH_MAX_BYTES:
+        raise DataError(f"{option} {text[:60]}...: the path is longer than {PATH_MAX_BYTES} "
+                        "bytes")
+    return Path(text)
+
+
+def check_name(name: str, option: str = "--name") -> str:
+    """``name`` when it can be one folder name (``one_component``) within ``NAME_MAX_BYTES``."""
+    one_component(name, option)
+    if len(os.fsencode(name)) > NAME_MAX_BYTES - 16:  # room for a suffix (_noseed, .h5)
+        raise DataError(f"{option} {name[:40]}...: {len(os.fsencode(name))} bytes long; a "
+                        f"name is at most {NAME_MAX_BYTES - 16} bytes (it names a folder)")
+    return name
+
+
+# -- what the harness wrote --------------------------------------------------------------------
+
+#: the file in an output folder that lists the derived files the harness wrote there, each
+#: with its SHA-256: such a file, unchanged, is the harness's own and is made again
+LEDGER = ".doppler-bench-files.json"
+
+
+def _sha256(path: Path) -> str | None:
+    import hashlib
+
+    h = hashlib.sha256()
+    try:
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+    except OSError:
+        return None
+    return h.hexdigest()
+
+
+def _ledger(folder: Path) -> dict:
+    import json
+
+    try:
+        data = json.loads((Path(folder) / LEDGER).read_text())
+    except (OSError, ValueError):
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def _tail(path: Path, n: int) -> bytes:
+    try:
+        with open(path, "rb") as f:
+            f.seek(max(0, os.path.getsize(path) - n))
+            return f.read(n)
+    except OSError:
+        return b""
+
+
+def derived(path: Path) -> bool:
+    """A derived file (a table, a figure, a page, a report) the harness wrote and nobody
+    changed since: listed in its folder's ``LEDGER`` with its current SHA-256, or carrying
+    ``MARK`` (a page's text, a PNG's or PDF's metadata)."""
+    path = Path(path)
+    if not path.is_file() or path.is_symlink():
+        return False
+    if has_mark(path) or MARK.encode() in _tail(path, 65536):
+        return True
+    listed = _ledger(path.parent).get(path.name)
+    return listed is not None and listed == _sha256(path)
+
+
+def in_a_run(path: Path) -> bool:
+    """A file of a run folder (its parent is one: ``run_kind``), which only a run writes; the
+    folder's kind and identity were checked before the run began (``run_folder``,
+    ``foreign_run``)."""
+    return run_kind(Path(path).parent) is not None
+
+
+def _record(path: Path) -> None:
+    """List ``path`` (just written) in its folder's ledger."""
+    import json
+
+    from loaders.fileio import atomic_write_text
+
+    entries = _ledger(path.parent)
+    entries[path.name] = _sha256(path)
+    atomic_write_text(path.parent / LEDGER, json.dumps(entries, indent=1, sort_keys=True))
+
+
+# -- writing: every file and folder a command writes goes through these ----------------------
+
+def _may_write(path: Path, own: Callable[[Path], bool] | None, what: str) -> None:
+    """The last word before a write: ``path`` is new, or ``own`` recognises it as ``what`` the
+    harness wrote; never a folder."""
+    if os.path.isdir(path) and not os.path.islink(path):
+        raise DataError(f"{path}: is a folder; expected the file name of {what}")
+    if os.path.lexists(path) and (own is None or not own(path)):
+        raise DataError(f"{path}: exists and is not {what} the harness wrote; it is left as it "
+                        "is: choose another output")
+
+
+def make_folder(path: Path, option: str = "--out") -> Path:
+    """Create ``path`` and its parents (an existing folder is fine); a part that is a file,
+    a name too long or a folder that cannot be written: one DataError naming it."""
+    path = Path(path)
+    for parent in [path, *path.parents]:
+        if os.path.lexists(parent):
+            if not parent.is_dir():
+                raise DataError(f"{option} {path}: {parent} is a file, expected a folder; it is "
+                                "left as it is")
+            break
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise DataError(f"{option} {path}: cannot create this folder "
+                        f"({err.strerror or err})") from None
+    return path
+
+
+def _written(path: Path, own: Callable[[Path], bool] | None) -> None:
+    if own is derived:
+        _record(path)
+
+
+def write_text(path: Path, text: str, own: Callable[[Path], bool] | None = None,
+               what: str = "a file") -> Path:
+    """Write ``text`` to ``path`` atomically: new, or replacing what ``own`` recognises."""
+    from loaders.fileio import atomic_write_text
+
+    path = Path(path)
+    _may_write(path, own, what)
+    make_folder(path.parent, "output")
+    try:
+        atomic_write_text(path, text)
+    except OSError as err:
+        raise DataError(f"{path}: cannot write ({err.strerror or err})") from None
+    _written(path, own)
+    return path
+
+
+def write_texts(texts: dict[Path, str], own: Callable[[Path], bool] | None = None,
+                what: str = "a file") -> None:
+    """Write several files (a table's .md/.tex/.csv): every one checked before any is
+    written, so a refusal leaves none half done."""
+    for path in texts:
+        _may_write(Path(path), own, what)
+    for path, text in texts.items():
+        write_text(Path(path), text, own, what)
+
+
+def write_via(path: Path, writer: Callable[[str], object],
+              own: Callable[[Path], bool] | None = None, what: str = "a file") -> Path:
+    """Write ``path`` atomically by ``writer(temporary path)`` (a figure's savefig, rerun's
+    save, the store writer): new, or replacing what ``own`` recognises."""
+    from loaders.fileio import atomic_path
+
+    path = Path(path)
+    _may_write(path, own, what)
+    make_folder(path.parent, "output")
+    with atomic_path(path) as tmp:
+        writer(str(tmp))
+    _written(path, own)
+    return path
+
+
+def savefig(fig, path: Path, fmt: str, own: Callable[[Path], bool] | None = None,
+            what: str = "a figure", **options) -> Path:
+    """``fig.savefig`` to ``path`` atomically, its metadata carrying ``MARK`` (so the harness
+    knows its own figure again); ``own`` default ``derived``."""
+    stamp = {"png": "Software", "pdf": "Creator", "svg": "Creator"}.get(fmt)
+    meta = dict(options.pop("metadata", None) or {})
+    if stamp and stamp not in meta:
+        meta[stamp] = MARK
+    return write_via(path, lambda tmp: fig.savefig(tmp, format=fmt, metadata=meta or None,
+                                                   **options),
+                     derived if own is None else own, what)
+
+
+def remove(path: Path, own: Callable[[Path], bool], what: str = "a file") -> bool:
+    """Remove a file the harness wrote (``own``); True when one was removed."""
+    path = Path(path)
+    if not os.path.lexists(path):
+        return False
+    _may_write(path, own, what)
+    path.unlink()
+    return True
+
+
+def remove_folder(path: Path, own: Callable[[Path], bool], what: str = "a folder") -> bool:
+    """Remove a folder the harness made (``own``: e.g. a rosbag2 folder it wrote, or its own
+    work folder); True when one was removed."""
+    import shutil
+
+    path = Path(path)
+    if not os.path.lexists(path):
+        return False
+    if not own(path):
+        raise DataError(f"{path}: is not {what} the harness made; it is left as it is")
+    if path.is_symlink() or not path.is_dir():
+        path.unlink()
+    else:
+        shutil.rmtree(path)
+    return True
+
+
+def move_into_place(made: Path, dest: Path, own: Callable[[Path], bool],
+                    what: str = "an output") -> Path:
+    """Move ``made`` (a file or folder the command finished beside ``dest``) to ``dest``: new,
+    or replacing what ``own`` recognises (a folder is removed first)."""
+    dest = Path(dest)
+    if os.path.lexists(dest):
+        if not own(dest):
+            raise DataError(f"{dest}: exists and is not {what} the harness wrote; it is left "
+                            "as it is")
+        if dest.is_dir() and not dest.is_symlink():
+            remove_folder(dest, own, what)
+    os.replace(made, dest)
+    return dest
+
+
+def write_store(sequence, path: Path, own: Callable[[Path], bool] | None = is_store,
+                what: str = "a store", **options) -> Path:
+    """``loaders.store.write_store`` after the last check (new, or ``own``'s)."""
+    from loaders.store import write_store as _write_store
+
+    path = Path(path)
+    _may_write(path, own, what)
+    make_folder(path.parent, "output")
+    return _write_store(sequence, path, **options)
+
+
+def bag_writer(cls, path: Path, **options):
+    """A rosbags writer (``cls``: ``rosbags.rosbag1.Writer`` / ``rosbags.rosbag2.Writer``) of
+    a new bag at ``path`` (the command's own work path: checked before, ``replaceable``)."""
+    if os.path.lexists(path):
+        raise DataError(f"{path}: exists; a bag is written only to a new path")
+    return cls(path, **options)
+
+
+@contextlib.contextmanager
+def saving(stream, path: Path, own: Callable[[Path], bool] | None = None,
+           what: str = "a file") -> Iterator:
+    """``stream.save(temporary path)`` (a rerun recording stream: it writes as it is logged
+    to); the file takes its name ``path`` when the block ends (new, or ``own``'s)."""
+    from loaders.fileio import atomic_path
+
+    path = Path(path)
+    _may_write(path, own, what)
+    make_folder(path.parent, "output")
+    with atomic_path(path) as tmp:
+        stream.save(str(tmp))
+        yield stream
+    _written(path, own)

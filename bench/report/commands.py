@@ -9,7 +9,6 @@ from rich.console import Console
 
 from bench import guard
 from loaders.errors import DataError
-from loaders.fileio import atomic_write_text
 
 
 def table_command(console: Console, status: Console, results_dirs: list[Path], format: str,
@@ -49,13 +48,19 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
         lengths_m = None if lengths is None else [float(x) for x in lengths.split(",")]
     except ValueError:
         raise DataError(f"--lengths {lengths!r}: expected numbers in metres, e.g. 8,48") from None
+    view = pivot or len(results_dirs) > 1 or lengths is not None or methods is not None \
+        or not variants
+    where = out if out is not None else (None if view else results_dirs[0])
+    stem = "pivot" if pivot else ("table" if metric == "relative" else f"table_{metric}")
+    if where is not None:  # before any work: a folder, never a run's; only tables of ours
+        guard.output_folder(Path(where))
+        for fmt in RENDERERS:
+            guard.regenerated_file(Path(where) / f"{stem}.{fmt}", guard.derived, "a table",
+                                   "--out" if out is not None else "table")
     try:
         rows, chosen = select(list(results_dirs), lengths_m=lengths_m, keep=keep)
     except ValueError as e:
         raise DataError(str(e)) from None
-    view = pivot or len(results_dirs) > 1 or lengths is not None or methods is not None \
-        or not variants
-    where = out if out is not None else (None if view else results_dirs[0])
     if pivot:
         texts = {"md": pivot_markdown(rows, chosen, marks)}
     elif metric == "ape":
@@ -84,10 +89,8 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
         status.print("a filtered or merged view: not written (--out DIR writes it)",
                       style="dim", markup=False)
         return code
-    stem = "pivot" if pivot else ("table" if metric == "relative" else f"table_{metric}")
-    guard.output_folder(Path(where))  # a folder, never a run's own
-    for fmt, text in texts.items():
-        atomic_write_text(Path(where) / f"{stem}.{fmt}", text)
+    guard.write_texts({Path(where) / f"{stem}.{fmt}": text for fmt, text in texts.items()},
+                      guard.derived, "a table")
     status.print(f"wrote {where}/{stem}.{{{','.join(texts)}}}", style="dim", markup=False)
     return code
 

@@ -33,11 +33,11 @@ import re
 import sys
 from pathlib import Path
 
+from bench import guard
 from bench.paths import ROOT
 from bench.runs.provenance import cpu_flags_digest, cpu_model
 from bench.threads import thread_settings
 from loaders.errors import DataError
-from loaders.fileio import atomic_write_text
 
 #: code that executes between the store and metrics.json (folders searched recursively for
 #: *.py), with every repository module it imports (``result_modules``)
@@ -77,8 +77,8 @@ def store_identity(path: Path) -> str:
         cached = cached if isinstance(cached, dict) else {}
         live = {k: v for k, v in cached.items() if Path(k.split("|")[0]).exists()}
         try:  # best effort: a read-only home only costs re-hashing next time
-            cache_file.parent.mkdir(parents=True, exist_ok=True)
-            atomic_write_text(cache_file, json.dumps({**live, cache_key: digest}))
+            guard.write_text(cache_file, json.dumps({**live, cache_key: digest}), guard.derived,
+                             "the store hash cache")
         except (OSError, DataError):
             pass
     _store_hashes[cache_key] = digest

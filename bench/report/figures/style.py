@@ -12,7 +12,6 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from bench.report.names import display_name, is_gt_assisted, order_key, overrides_note
-from loaders.fileio import atomic_path
 from methods.registry import Seed
 from methods.registry import color as _method_color
 
@@ -179,14 +178,16 @@ def save(fig, path_stem: Path) -> list[Path]:
     (in ``for_the_page``: the PNG, and the PDF only if it existed)."""
     import matplotlib.pyplot as plt
 
-    path_stem.parent.mkdir(parents=True, exist_ok=True)
+    from bench import guard
+
+    guard.make_folder(path_stem.parent)
+    planned = [path_stem.with_name(path_stem.name + f".{fmt}") for fmt in ("pdf", "png")]
+    planned = [p for p in planned if not (p.suffix == ".pdf" and _page_only and not p.exists())]
+    for path in planned:  # a user's own PNG / PDF of that name: refused before either is drawn
+        guard.regenerated_file(path, guard.derived, "a figure", "figure")
     paths = []
-    for fmt in ("pdf", "png"):
-        path = path_stem.with_name(path_stem.name + f".{fmt}")
-        if fmt == "pdf" and _page_only and not path.exists():
-            continue
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format=fmt, dpi=DPI)
+    for path in planned:
+        guard.savefig(fig, path, path.suffix[1:], guard.derived, "a figure", dpi=DPI)
         paths.append(path)
     plt.close(fig)
     return paths

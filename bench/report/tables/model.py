@@ -37,7 +37,6 @@ from bench.report.tables.significance import (  # noqa: F401
     interval_marks,
     shown_interval,
 )
-from loaders.fileio import atomic_write_text
 
 #: the marking rules and how a caption states them ("significance", the name of the rule before
 #: marks were read from the printed intervals, is accepted for "intervals": ``rule_name``)
@@ -322,7 +321,10 @@ def render(table: Table) -> dict[str, str]:
 
 def save_table(table: Table, out_dir: Path, stem: str) -> dict[str, str]:
     """Write ``<stem>.md/.tex/.csv`` atomically; return the texts by format."""
+    from bench import guard
+
     texts = render(table)
-    for fmt, text in texts.items():
-        atomic_write_text(Path(out_dir) / f"{stem}.{fmt}", text)
+    guard.output_folder(Path(out_dir))
+    guard.write_texts({Path(out_dir) / f"{stem}.{fmt}": text for fmt, text in texts.items()},
+                      guard.derived, "a table")
     return texts
