@@ -447,15 +447,19 @@ def write_texts(texts: dict[Path, str], own: Callable[[Path], bool] | None = Non
 
 
 def write_via(path: Path, writer: Callable[[str], object],
-              own: Callable[[Path], bool] | None = None, what: str = "a file") -> Path:
-    """Write ``path`` atomically by ``writer(temporary path)`` (a figure's savefig, rerun's
-    save, the store writer): new, or replacing what ``own`` recognises."""
+              own: Callable[[Path], bool] | None = None, what: str = "a file",
+              fresh: bool = False) -> Path:
+    """Write ``path`` atomically by ``writer(temporary path)`` (a figure's savefig, a bag
+    writer): new, or replacing what ``own`` recognises. ``fresh``: the temporary does not
+    exist yet when ``writer`` starts (rosbags' ROS1 writer refuses an existing file)."""
     from loaders.fileio import atomic_path
 
     path = Path(path)
     _may_write(path, own, what)
     make_folder(path.parent, "output")
     with atomic_path(path) as tmp:
+        if fresh:
+            tmp.unlink()
         writer(str(tmp))
     _written(path, own)
     return path

@@ -122,8 +122,13 @@ def check_quaternions(quat: np.ndarray, path, linenos: list[int],
 
 def write_tum(traj: Trajectory, path: str | Path) -> None:
     """Write TUM rows ``t x y z qx qy qz qw`` (9 decimals)."""
+    atomic_write_text(path, tum_text(traj))
+
+
+def tum_text(traj: Trajectory) -> str:
+    """TUM rows ``t x y z qx qy qz qw`` (9 decimals) as text."""
     xyz, quat = tum_from_T(traj.poses)
-    atomic_write_text(path, _rows(np.column_stack([traj.stamps, xyz, quat]), "%.9f"))
+    return _rows(np.column_stack([traj.stamps, xyz, quat]), "%.9f")
 
 def read_kitti(path: str | Path, stamps: np.ndarray | None = None) -> Trajectory:
     """Read KITTI rows (12 values, 3x4 row-major); stamps default to the row index."""

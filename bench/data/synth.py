@@ -44,7 +44,7 @@ def synth_command(console: Console, scene: str | None, sensor: str, frames: int,
 
     # a synthetic store is made again; a converted store (real data) or any other file never
     guard.regenerated_file(out, guard.is_synthetic_store, "a synthetic store")
-    write_with_progress(seq, out)
+    write_with_progress(seq, out, guard.is_synthetic_store, "a synthetic store")
     return 0
 
 
@@ -71,7 +71,7 @@ def ensure_entries_with_progress(entries: list, out_dir: Path,
     experiment's own ``synthetic:`` sequences, e.g. the tuning seeds of configs/tuning/) under
     ``out_dir`` as ``<name>-<entry hash>.h5`` (so experiments that list the same sequence
     share its store), only missing ones, with a progress bar each."""
-    from loaders.store import write_store
+    from bench import guard
     from loaders.synthetic.suite import store_is_current
 
     paths = []
@@ -82,8 +82,10 @@ def ensure_entries_with_progress(entries: list, out_dir: Path,
             if not store_is_current(path, entry):
                 task = progress.add_task(escape(f"{out_dir.name}/{entry.name}"),
                                          total=entry.frames)
-                path.parent.mkdir(parents=True, exist_ok=True)
-                write_store(entry.sequence(out_dir.name), path,
-                            lambda i, _t=task: progress.update(_t, completed=i + 1))
+                # a store of an older entry hash is the harness's synthetic store: made again
+                guard.write_store(entry.sequence(out_dir.name), path, guard.is_synthetic_store,
+                                  "a synthetic store",
+                                  progress=lambda i, _t=task: progress.update(_t,
+                                                                              completed=i + 1))
             paths.append(path)
     return paths
