@@ -175,7 +175,7 @@ def not_in_a_run(out: Path, option: str = "--out") -> None:
     """Refuse ``out`` inside a run folder (its files are that run's; only a run writes there)."""
     for parent in Path(os.path.abspath(out)).parents:
         if run_kind(parent) is not None:
-            raise DataError(f"{option} {out}: lies inside the run folder {parent} (a run "
+            raise DataError(f"{option} {out}: lies inside a run folder ({parent}, a run "
                             f"made by {RUN_MAKERS[run_kind(parent)]}); its files are the "
                             "run's: choose another folder")
 

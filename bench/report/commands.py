@@ -157,8 +157,11 @@ def report_command(console: Console, results_dir: Path, out: Path | None,
     first (``bench figures``) unless they are newer than every run record."""
     import warnings
 
-    from bench.report.html.page import write_page
+    from bench.report.html.page import PAGE_NAME, write_page
 
+    # the page's path before any drawing: only a page of ours, never into a run folder
+    guard.regenerated_file(Path(out) if out is not None else Path(results_dir) / PAGE_NAME,
+                           guard.derived, "a report page")
     if figures and not figures_current(results_dir):
         from bench.report.figures.draw import make_figures
         from bench.report.figures.style import for_the_page
