@@ -622,12 +622,40 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     status.print(f"[yellow]warning:[/] {escape(str(message))}")
 
 
+#: the options that name a file or folder to write, and those that name a folder to make
+PATH_OPTIONS = ("--out", "--write", "--fidelity-out")
+NAME_OPTIONS = ("--name",)
+
+
+def check_names(args: list[str]) -> None:
+    """Every --out / --name of the command line through one name check before anything runs
+    (``bench.guard.check_out`` / ``check_name``: empty, too long, separators in a name): one
+    message and exit 2, never an OSError "File name too long" after the work."""
+    from bench import guard
+
+    for i, arg in enumerate(args):
+        if arg == "--":
+            break
+        option, eq, value = arg.partition("=")
+        if option not in PATH_OPTIONS + NAME_OPTIONS:
+            continue
+        if not eq:
+            if i + 1 >= len(args):
+                continue  # the parser says the value is missing
+            value = args[i + 1]
+        if option in NAME_OPTIONS:
+            guard.check_name(value, option)
+        else:
+            guard.check_out(value, option)
+
+
 def main() -> None:
     """Console entry point: bad input ends with one clear message, not a traceback."""
     import warnings
 
     warnings.showwarning = _show_warning
     try:
+        check_names(sys.argv[1:])
         command = typer.main.get_command(app)
         tidy_help(command)
         code = command.main(prog_name="bench", standalone_mode=False)

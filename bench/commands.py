@@ -92,7 +92,7 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
                           "once, as in the paper)", stacklevel=2)
         job_list = plan([single_job(method, data, seed is not False, out, params,
                                     {k: tuple(v) if isinstance(v, list) else v
-                                     for k, v in given.items()})])
+                                     for k, v in given.items()})], own_only=True)
         workers, results_dir, sweeps = 1, None, None
     outcomes = run_jobs(job_list, console, workers, force, executor, job_timeout, scheduler)
     console.print(summarize(outcomes), markup=False)

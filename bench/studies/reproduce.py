@@ -193,6 +193,17 @@ def _remove_stale(out: Path, stem: str, console: Console) -> None:
                       "one)", markup=False)
 
 
+def _check_outputs(out: Path) -> None:
+    """``out`` can take the reproduction: a folder (or new), not a run's, and its tables and
+    page, where they exist, the harness's own (``bench.guard``)."""
+    guard.output_folder(out)
+    for _, stem, _ in TABLES.values():
+        for name in (stem, f"{stem}_kitti", f"{stem}_velocity"):
+            for fmt in ("md", "tex", "csv"):
+                guard.regenerated_file(out / f"{name}.{fmt}", guard.derived, "a table")
+    guard.regenerated_file(out / "report.html", guard.derived, "a report page")
+
+
 def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic_only: bool,
                     console: Console, executor: str = "process", scheduler: str | None = None,
                     job_timeout_s: float | None = None, scoring: dict | None = None,
@@ -204,9 +215,11 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
     (``bench.commands.scoring_options``) overrides the lengths, KITTI lengths and alignment;
     ``marks`` is the tables' marking rule (``bench.report.tables.model.MARK_RULES``)."""
     t0 = time.perf_counter()
+    _check_outputs(out)  # at once, before the suite is generated and anything runs
     real, notes = _choose_data(data_dir, synthetic_only, console)
     if real and out == Path("results/paper-synthetic"):
         out = Path("results/paper-real")
+        _check_outputs(out)
     experiments = table_experiments(out, data_dir, real)
     given = {k: list(v) if isinstance(v, tuple) else v for k, v in (scoring or {}).items()
              if v is not None}

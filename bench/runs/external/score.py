@@ -169,6 +169,15 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         given = {"name": None, "display_name": None, "sensor_class": None, **(names or {})}
         seq_name, display, klass = sequence_labels(seq, SimpleNamespace(**given))
         run_dir = Path(out or DEFAULT_OUT) / sequence_folder(seq_name) / run_dir_name(name, None)
+        # the output before any matching (bench.guard): a new folder, this command's own run
+        # (same trajectory file and store), or a harness run only with --replace-run
+        check_run_folder(run_dir, spec.replace_run)
+        guard.run_folder(run_dir, guard.EXTERNAL, spec.replace_run, [
+            spec.trajectory, spec.stamps, spec.frame_times, store], root=Path(out or DEFAULT_OUT),
+            ask="--replace-run")
+        guard.foreign_run(run_dir, {"trajectory": str(guard.resolved(spec.trajectory)),
+                                    "topic": spec.topic, "store": str(guard.resolved(store))},
+                          "bench score")
         T_frame_sensor, how = frame_transform(spec, seq.sensor.T_body_sensor)
         stamps = seq.stamps
         where = f"{spec.trajectory}" + (f":{spec.topic}" if spec.topic else "")
