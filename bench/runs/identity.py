@@ -54,6 +54,15 @@ def _hash_cache_file() -> Path:
     return Path(base) / "doppler-bench" / "store-sha256.json"
 
 
+def _is_hash_cache(path: Path) -> bool:
+    """The cache ``store_identity`` writes: a JSON object of "path|size|mtime|inode" keys."""
+    try:
+        cached = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(cached, dict) and all("|" in str(k) for k in cached)
+
+
 def store_identity(path: Path) -> str:
     """SHA-256 of a store's bytes (its content identity). Cached in memory and in
     ~/.cache/doppler-bench/store-sha256.json by resolved path, size, mtime and inode (a store
@@ -77,8 +86,8 @@ def store_identity(path: Path) -> str:
         cached = cached if isinstance(cached, dict) else {}
         live = {k: v for k, v in cached.items() if Path(k.split("|")[0]).exists()}
         try:  # best effort: a read-only home only costs re-hashing next time
-            guard.write_text(cache_file, json.dumps({**live, cache_key: digest}), guard.derived,
-                             "the store hash cache")
+            guard.write_text(cache_file, json.dumps({**live, cache_key: digest}),
+                             _is_hash_cache, "the store hash cache")
         except (OSError, DataError):
             pass
     _store_hashes[cache_key] = digest
