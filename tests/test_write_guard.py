@@ -294,3 +294,23 @@ def test_calibrate_write_force_never_replaces_another_store(tmp_path, monkeypatc
     for extra in ([], ["--force"]):
         code, text = bench_main(monkeypatch, capsys, *args, "--write", mine, *extra)
         assert code == 0, text
+
+
+def test_a_suite_never_replaces_a_file_of_its_name(tmp_path, monkeypatch, capsys):
+    """`bench synth --suite`: a store of the suite's file name that is not a synthetic store
+    (a user's file) is left as it is; the suite's own stores are made."""
+    import loaders.synthetic.suite as suite
+
+    first = suite.SuiteEntry("A", "A", suite.SPARSE, "campus", "radar-sparse", 4, 1)
+    monkeypatch.setitem(suite.SUITES, "tiny", [first])
+    mine = tmp_path / "tiny" / f"{first.name}.h5"
+    mine.parent.mkdir()
+    mine.write_text("mine")
+    code, text = bench_main(monkeypatch, capsys, "synth", "--suite", "tiny", "--data-dir",
+                            tmp_path)
+    assert code == 2 and "not a synthetic store" in text and "Traceback" not in text, text
+    assert mine.read_text() == "mine"
+    mine.unlink()
+    code, text = bench_main(monkeypatch, capsys, "synth", "--suite", "tiny", "--data-dir",
+                            tmp_path)
+    assert code == 0 and guard.is_synthetic_store(mine), text
