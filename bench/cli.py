@@ -495,10 +495,9 @@ def speed(
     """Time every method on the same synthetic scan pairs (total per-frame work and the
     registration call); print ratios to `doppler`, each method's peak memory and the harness's
     own cost per frame."""
-    from bench import guard
-    from bench.studies.speed import run_speed
+    from bench.studies.speed import check_outputs, run_speed
 
-    guard.output_folder(out, inputs=[store])  # a folder of its own CSVs and plots
+    check_outputs(out, inputs=[store])  # a folder of its own CSVs and plots, before timing
     if scale:
         from bench.studies.scale import MIN_POSES, run_scale
 

@@ -77,6 +77,7 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
         if out is not None:
             exp.out = out
         check_external(exp, experiment)
+        check_tables(exp.out_dir)
         refused: list[str] = []
         job_list = plan(jobs_for_experiment(exp, console), refused)
         if refused and not job_list:
@@ -114,6 +115,16 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
                       "refused); the others ran", markup=False)
     return 1 if refused or any(o.status not in ("done", "skipped") for o in outcomes) or \
         any(status == "failed" for _, status, _ in external) else 0
+
+
+def check_tables(results_dir: Path) -> None:
+    """Before anything runs: the experiment's results folder is a folder (not a run's) and its
+    tables and sweep table, where they exist, the harness wrote (``bench.guard``)."""
+    from bench import guard
+
+    guard.output_folder(Path(results_dir))
+    for name in ("table.md", "table.tex", "table.csv", "sweep.md"):
+        guard.regenerated_file(Path(results_dir) / name, guard.derived, "a table")
 
 
 def check_external(exp, experiment: Path) -> None:

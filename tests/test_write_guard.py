@@ -314,3 +314,27 @@ def test_a_suite_never_replaces_a_file_of_its_name(tmp_path, monkeypatch, capsys
     code, text = bench_main(monkeypatch, capsys, "synth", "--suite", "tiny", "--data-dir",
                             tmp_path)
     assert code == 0 and guard.is_synthetic_store(mine), text
+
+
+def test_speed_and_an_experiment_check_their_files_before_any_work(twist, tmp_path,
+                                                                   monkeypatch, capsys):
+    """A user's own speed.csv / table.md in the output folder: refused at once, before any
+    timing or run (no run folder made)."""
+    store, _, _ = twist
+    out = tmp_path / "speed"
+    out.mkdir()
+    (out / "speed.csv").write_text("mine")
+    t0 = time.perf_counter()
+    code, text = bench_main(monkeypatch, capsys, "speed", "--out", out, "--sizes", "100",
+                            "--no-memory")
+    assert code == 2 and "speed.csv" in text, text
+    assert time.perf_counter() - t0 < 10 and (out / "speed.csv").read_text() == "mine"
+    results = tmp_path / "exp_results"
+    results.mkdir()
+    (results / "table.md").write_text("mine")
+    exp = tmp_path / "exp.yaml"
+    exp.write_text(f"name: x\nout: {results}\nsequences: [{{path: {store}}}]\n"
+                   "methods: [{name: doppler}]\n")
+    code, text = bench_main(monkeypatch, capsys, "run", exp, "--executor", "local")
+    assert code == 2 and "table.md" in text, text
+    assert sorted(p.name for p in results.iterdir()) == ["table.md"]

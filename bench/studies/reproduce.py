@@ -202,6 +202,8 @@ def _check_outputs(out: Path) -> None:
             for fmt in ("md", "tex", "csv"):
                 guard.regenerated_file(out / f"{name}.{fmt}", guard.derived, "a table")
     guard.regenerated_file(out / "report.html", guard.derived, "a report page")
+    for name in ("fidelity.md", "fidelity.csv", "reproduction.json"):
+        guard.regenerated_file(out / name, guard.derived, "a reproduction record")
 
 
 def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic_only: bool,

@@ -270,6 +270,19 @@ def _print_vs_run(names: list[str], sequence: MemorySequence, what: str,
     console.print(table)
 
 
+#: every file ``bench speed`` may write into its --out folder
+OUTPUTS = ("speed.csv", "speed.png", "speed_reference.csv", "memory.csv", "harness.csv",
+           "scale.csv", "scale_executors.csv")
+
+
+def check_outputs(out: Path, inputs=()) -> None:
+    """Before any timing: ``out`` a folder (not a run's) whose files of ``OUTPUTS``, where they
+    exist, the harness wrote (``bench.guard``)."""
+    guard.output_folder(out, inputs=inputs)
+    for name in OUTPUTS:
+        guard.regenerated_file(Path(out) / name, guard.derived, "a speed table or plot")
+
+
 def write_csv(rows: list[dict], path: Path) -> None:
     """``rows`` (the same keys each) as CSV, written atomically."""
     header = list(rows[0])
