@@ -325,6 +325,8 @@ def check_name(name: str, option: str = "--name") -> str:
 
 # -- what the harness wrote --------------------------------------------------------------------
 
+#: the kinds of file whose metadata or text carries ``MARK`` when the harness writes them
+MARKED = (".png", ".pdf", ".svg", ".html")
 #: the file in an output folder that lists the derived files the harness wrote there, each
 #: with its SHA-256: such a file, unchanged, is the harness's own and is made again
 LEDGER = ".doppler-bench-files.json"
@@ -369,7 +371,9 @@ def derived(path: Path) -> bool:
     path = Path(path)
     if not path.is_file() or path.is_symlink():
         return False
-    if has_mark(path) or MARK.encode() in _tail(path, 65536):
+    # the mark counts in a figure's metadata or a page only: a user's text that names the
+    # project (notes.md saying "doppler-bench") is not the harness's table
+    if path.suffix.lower() in MARKED and (has_mark(path) or MARK.encode() in _tail(path, 65536)):
         return True
     listed = _ledger(path.parent).get(path.name)
     return listed is not None and listed == _sha256(path)

@@ -338,3 +338,16 @@ def test_speed_and_an_experiment_check_their_files_before_any_work(twist, tmp_pa
     code, text = bench_main(monkeypatch, capsys, "run", exp, "--executor", "local")
     assert code == 2 and "table.md" in text, text
     assert sorted(p.name for p in results.iterdir()) == ["table.md"]
+
+
+def test_a_users_text_naming_the_project_is_not_the_harnesss(tmp_path):
+    """Only a figure's metadata or a page carries the mark: a user's notes.md that mentions
+    doppler-bench is not a derived file the harness may replace."""
+    notes = tmp_path / "table.md"
+    notes.write_text(f"my notes on {guard.MARK}\n")
+    assert not guard.derived(notes)
+    with pytest.raises(DataError, match="exists and is not a table"):
+        guard.write_text(notes, "x", guard.derived, "a table")
+    page = tmp_path / "report.html"
+    page.write_text(f"<!-- {guard.MARK} -->")
+    assert guard.derived(page)
