@@ -19,6 +19,7 @@ from bench.data.synth import ensure_suite_with_progress
 from bench.runs.experiment import Experiment, SequenceEntry, expand_sequences
 from bench.runs.folders import RunRecord, read_run, write_failure
 from bench.runs.job import Job, calibration_frames, prepare, run_job
+from bench.runs.ownership import foreign_run, run_identity
 from bench.runs.reuse import rename_reused
 from loaders.errors import DataError
 from loaders.gt import gt_for_frames
@@ -166,7 +167,7 @@ def plan(jobs: list[Job], refused: list[str] | None = None, own_only: bool = Fal
         owners[prep.run_dir] = (job, prep.key)
         _check_writable(prep.run_dir, job.store)
         if own_only:
-            guard.foreign_run(prep.run_dir, guard.run_identity(prep.config), "bench run")
+            foreign_run(prep.run_dir, run_identity(prep.config), "bench run")
         other_store = _other_content(prep.run_dir, job.store,
                                      prep.config["identity"]["store_sha256"])
         if other_store:

@@ -56,6 +56,7 @@ from bench.runs.external.names import EXTERNAL, check_name, check_run_folder
 from bench.runs.folders import clear_run, is_finished, run_dir_name, write_run
 from bench.runs.identity import code_identity, run_key, store_identity
 from bench.runs.job import calibration_frames, sequence_folder, sequence_labels
+from bench.runs.ownership import foreign_run
 from bench.runs.result import EXTERNAL_MARK, REPORTED_CLOCK
 from loaders.errors import DataError
 from loaders.estimate import read_estimate
@@ -175,9 +176,9 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         guard.run_folder(run_dir, guard.EXTERNAL, spec.replace_run, [
             spec.trajectory, spec.stamps, spec.frame_times, store], root=Path(out or DEFAULT_OUT),
             ask="--replace-run")
-        guard.foreign_run(run_dir, {"trajectory": str(guard.resolved(spec.trajectory)),
-                                    "topic": spec.topic, "store": str(guard.resolved(store))},
-                          "bench score")
+        foreign_run(run_dir, {"trajectory": str(guard.resolved(spec.trajectory)),
+                              "topic": spec.topic, "store": str(guard.resolved(store))},
+                    "bench score")
         T_frame_sensor, how = frame_transform(spec, seq.sensor.T_body_sensor)
         stamps = seq.stamps
         where = f"{spec.trajectory}" + (f":{spec.topic}" if spec.topic else "")
