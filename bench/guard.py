@@ -214,7 +214,7 @@ def run_folder(run_dir: Path, kind: str, force: bool | None = False,
     no input; new, empty or a run of the same ``kind``; a run of another kind only with
     ``force`` (the option ``ask``; ``say`` tells it is replaced; None: the command has no such
     option); never a folder of other files (a run writes its own files' names only)."""
-    run_dir = Path(run_dir)
+    run_dir = check_out(run_dir, "run folder")
     if root is not None and not inside(run_dir, root):
         raise DataError(f"{run_dir}: outside the results root {root}; a run's name is one "
                         "folder name")
