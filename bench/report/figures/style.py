@@ -180,17 +180,17 @@ def save(fig, path_stem: Path) -> list[Path]:
 
     from bench import guard
 
-    guard.make_folder(path_stem.parent)
     planned = [path_stem.with_name(path_stem.name + f".{fmt}") for fmt in ("pdf", "png")]
     planned = [p for p in planned if not (p.suffix == ".pdf" and _page_only and not p.exists())]
-    for path in planned:  # a user's own PNG / PDF of that name: refused before either is drawn
-        guard.regenerated_file(path, guard.derived, "a figure", "figure")
-    paths = []
-    for path in planned:
-        guard.savefig(fig, path, path.suffix[1:], guard.derived, "a figure", dpi=DPI)
-        paths.append(path)
-    plt.close(fig)
-    return paths
+    try:
+        guard.make_folder(path_stem.parent)
+        for path in planned:  # a user's own PNG / PDF of that name: refused before either is
+            guard.regenerated_file(path, guard.derived, "a figure", "figure")  # written
+        for path in planned:
+            guard.savefig(fig, path, path.suffix[1:], guard.derived, "a figure", dpi=DPI)
+    finally:
+        plt.close(fig)
+    return planned
 
 
 #: the legends' note on the motion prior (``run_name`` marks only "no seed")
