@@ -183,6 +183,8 @@ def test_no_command_writes_into_a_run_folder(twist, work, monkeypatch, capsys):
                  ["figures", work, "--out", run]):
         code, text = bench_main(monkeypatch, capsys, *args)
         assert code == 2 and "run folder" in text and "Traceback" not in text, (args, text)
+    code, text = bench_main(monkeypatch, capsys, "table", run)  # printed, not written there
+    assert code == 0 and "printed, not written" in text, text
     assert digest(run) == before
 
 

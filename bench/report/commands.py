@@ -52,6 +52,11 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
         or not variants
     where = out if out is not None else (None if view else results_dirs[0])
     stem = "pivot" if pivot else ("table" if metric == "relative" else f"table_{metric}")
+    if where is not None and out is None and (guard.run_kind(Path(where)) is not None or any(
+            guard.run_kind(p) is not None for p in Path(where).resolve().parents)):
+        status.print(f"{where} is a run folder: the table is printed, not written into it "
+                     "(--out DIR writes it)", style="dim", markup=False)
+        where = None  # a run folder holds its run's files only
     if where is not None:  # before any work: a folder, never a run's; only tables of ours
         guard.output_folder(Path(where))
         for fmt in RENDERERS:
@@ -86,8 +91,9 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
                              style="dim", markup=False)
     code = 1 if broken else 0  # a broken record is a failed row, never a success
     if where is None:
-        status.print("a filtered or merged view: not written (--out DIR writes it)",
-                      style="dim", markup=False)
+        if view:
+            status.print("a filtered or merged view: not written (--out DIR writes it)",
+                         style="dim", markup=False)
         return code
     guard.write_texts({Path(where) / f"{stem}.{fmt}": text for fmt, text in texts.items()},
                       guard.derived, "a table")
