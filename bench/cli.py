@@ -622,7 +622,7 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
 
 
 #: the options that name a file or folder to write, and those that name a folder to make
-PATH_OPTIONS = ("--out", "--write", "--fidelity-out")
+PATH_OPTIONS = ("--out", "--write", "--fidelity-out", "--plot", "--data-dir")
 NAME_OPTIONS = ("--name",)
 
 

@@ -175,6 +175,17 @@ def run_kind(folder: Path) -> str | None:
     return EXTERNAL if "external" in config or identity.get("kind") == EXTERNAL else HARNESS
 
 
+def folders_on_the_way(out: Path, option: str = "--out") -> None:
+    """Refuse ``out`` when the first existing folder above it is a file (one message, not a
+    FileExistsError or NotADirectoryError after the work)."""
+    for parent in Path(out).parents:
+        if os.path.lexists(parent):
+            if not parent.is_dir():
+                raise DataError(f"{option} {out}: {parent} is a file; expected a folder to "
+                                "write into")
+            return
+
+
 def not_in_a_run(out: Path, option: str = "--out") -> None:
     """Refuse ``out`` inside a run folder (its files are that run's; only a run writes there)."""
     for parent in Path(os.path.abspath(out)).parents:
@@ -193,6 +204,7 @@ def replaceable(out: Path, force: bool | None, own: Callable[[Path], bool], what
     out = check_out(out, option)
     not_an_input(out, inputs, option)
     not_in_a_run(out, option)
+    folders_on_the_way(out, option)
     if not os.path.lexists(out):
         return False
     if not own(out):
@@ -253,6 +265,7 @@ def regenerated_file(out: Path, own: Callable[[Path], bool], what: str,
     out = check_out(out, option)
     not_an_input(out, inputs, option)
     not_in_a_run(out, option)
+    folders_on_the_way(out, option)
     if out.is_dir():
         raise DataError(f"{option} {out}: is a folder; expected the file name of {what}")
     if os.path.lexists(out) and not own(out):
@@ -268,12 +281,7 @@ def output_folder(out: Path, option: str = "--out", inputs: Iterable[Path | None
     not_an_input(out, inputs, option)
     if os.path.lexists(out) and not out.is_dir():
         raise DataError(f"{option} {out}: is a file; expected a folder to write into")
-    for parent in out.parents:
-        if os.path.lexists(parent):
-            if not parent.is_dir():
-                raise DataError(f"{option} {out}: {parent} is a file; expected a folder to "
-                                "write into")
-            break
+    folders_on_the_way(out, option)
     if run_kind(out) is not None:
         raise DataError(f"{option} {out}: is a run folder (made by "
                         f"{RUN_MAKERS[run_kind(out)]}); its files are the run's: choose "

@@ -167,6 +167,9 @@ def test_figures_into_a_folder_whose_subfolder_is_a_file(work, tmp_path, monkeyp
     code, text = bench_main(monkeypatch, capsys, "figures", work, "--out", out)
     assert code == 2 and "trajectories is a file" in text and "Traceback" not in text, text
     assert (out / "trajectories").read_text() == "mine"
+    code, text = bench_main(monkeypatch, capsys, "report", work, "--out",
+                            out / "trajectories" / "page.html")
+    assert code == 2 and "trajectories is a file" in text and "drew" not in text, text
 
 
 # -- nothing written into a run folder by another command --------------------------------------
@@ -231,6 +234,8 @@ def test_every_out_and_name_passes_one_name_check(twist, tmp_path, monkeypatch, 
          "255 bytes"),
         (["export", store, "--format", "ros1", "--out", ""], "empty"),
         (["table", tmp_path, "--out", ""], "empty"),
+        (["inspect", store, "--plot", tmp_path / (long + ".png")], "255 bytes"),
+        (["synth", "--suite", "synthetic-ci", "--data-dir", tmp_path / long], "255 bytes"),
         (["score", first, "--store", store, "--name", "", "--out", tmp_path / "r"],
          "one path component"),
     ]
