@@ -75,20 +75,42 @@ def _open_method_writes(call: ast.Call) -> bool:
             and _writes_mode(mode, "wax+"))
 
 
+#: modules whose ``open(path, mode)`` takes the mode second, as the builtin's does
+OPENERS = {"io", "gzip", "bz2", "lzma", "tarfile", "codecs"}
+
+
+def _imported(tree: ast.AST) -> dict[str, tuple[str, str]]:
+    """Local name -> (module, name) of every ``from MODULE import NAME [as LOCAL]``."""
+    found = {}
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module:
+            for a in node.names:
+                found[a.asname or a.name] = (node.module.split(".")[0], a.name)
+    return found
+
+
 def write_calls(tree: ast.AST) -> list[tuple[int, str]]:
     """(line, what) of every write call in a module's syntax tree."""
     found = []
+    imported = _imported(tree)
     for node in ast.walk(tree):
         if not isinstance(node, ast.Call):
             continue
         func, name = node.func, _name(node.func)
         owner = _name(func.value) if isinstance(func, ast.Attribute) else ""
+        if isinstance(func, ast.Name) and func.id in imported:  # from shutil import rmtree
+            owner, name = imported[func.id]
+            owner = "np" if owner == "numpy" else owner
         if owner == "guard":
             continue  # the guard's own helpers: the way every command writes
         what = None
         if isinstance(func, ast.Name) and name == "open" and _writes_mode(_mode(node, 1),
                                                                           "wax+"):
             what = "open for writing"
+        elif name == "open" and owner in OPENERS and _writes_mode(_mode(node, 1), "wax+"):
+            what = f"{owner}.open for writing"
+        elif name == "ZipFile" and _writes_mode(_mode(node, 1), "wax+"):
+            what = "ZipFile for writing"
         elif isinstance(func, ast.Attribute) and name == "open" and owner != "os" and \
                 _open_method_writes(node):
             what = "open for writing"
@@ -185,7 +207,29 @@ RAW_WRITES = [
     'rec.save(str(out))',
     'os.open(out, os.O_WRONLY | os.O_CREAT)',
     'yaml.safe_dump(data, f)',
+    'tarfile.open(out, "w:gz")',
+    'gzip.open(out, "wt")',
+    'zipfile.ZipFile(out, "w")',
+    'np.save(out, a)',
+    'pickle.dump(a, f)',
+    'frame.to_parquet(out)',
+    'os.makedirs(out)',
+    'shutil.copyfile(a, b)',
+    'tempfile.mkstemp(dir=out)',
 ]
+
+
+@pytest.mark.parametrize("imports, call", [
+    ("from shutil import rmtree", "rmtree(out)"),
+    ("from os import remove as rm", "rm(out)"),
+    ("from numpy import savetxt", "savetxt(out, a)"),
+])
+def test_a_writer_imported_by_name_is_found(tmp_path, imports, call):
+    bench = tmp_path / "bench"
+    bench.mkdir()
+    (bench / "commands.py").write_text(f"{imports}\n\n\ndef command(out, a):\n    {call}\n")
+    found = violations(tmp_path)
+    assert len(found) == 1 and found[0].startswith("bench/commands.py:5:"), found
 
 
 @pytest.mark.parametrize("source", RAW_WRITES)
