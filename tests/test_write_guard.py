@@ -68,6 +68,36 @@ def test_run_never_replaces_another_run_in_its_out_folder(twist, work, monkeypat
     assert digest(run) == before
 
 
+def test_run_never_replaces_a_run_of_another_store_path(twist, work, monkeypatch, capsys):
+    """A copy of the store at another path (the same content): another run's input, refused
+    with or without --force; the store changed in place at its own path runs again."""
+    store, _, _ = twist
+    run = work / "twist" / "doppler"
+    before = digest(run)
+    copy = shutil.copy(store, work.parent / "copy.h5")
+    for extra in ([], ["--force"]):
+        code, text = bench_main(monkeypatch, capsys, "run", "--method", "doppler", "--data",
+                                copy, "--out", run, "--executor", "local", *extra)
+        assert code == 2 and "holds another run" in text and str(store) in text, text
+    assert digest(run) == before
+    moved = work.parent / "moved"
+    moved.mkdir()
+    changed = moved / "twist.h5"
+    base = constant_twist_sequence(n_frames=30, n_points=800, noise_m=0.02, max_range_m=70)
+    write_store(MemorySequence("twist", base.sensor, list(base), base.ground_truth), changed)
+    out = work / "twist" / "again"
+    code, text = bench_main(monkeypatch, capsys, "run", "--method", "doppler", "--data",
+                            changed, "--out", out, "--executor", "local")
+    assert code == 0, text
+    other = constant_twist_sequence(n_frames=30, n_points=800, noise_m=0.02, max_range_m=70,
+                                    seed=7)
+    write_store(MemorySequence("twist", other.sensor, list(other), other.ground_truth), changed)
+    stamp = (out / "metrics.json").stat().st_mtime_ns
+    code, text = bench_main(monkeypatch, capsys, "run", "--method", "doppler", "--data",
+                            changed, "--out", out, "--executor", "local")
+    assert code == 0 and (out / "metrics.json").stat().st_mtime_ns != stamp, text
+
+
 def test_run_never_replaces_a_run_of_the_other_seed_option(twist, work, monkeypatch, capsys):
     store, _, _ = twist
     run = work / "twist" / "icp-p2p_seed"

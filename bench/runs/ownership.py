@@ -1,7 +1,8 @@
 """Whose run a run folder holds: a command writes a run only into a new folder or one holding
-its own run (the same method, seed option, parameters and frame range for ``bench run``; the
-same trajectory file and store for ``bench score``). ``--force`` re-does that run only, never
-another (issue 46, the one write rule; ``bench.guard.run_folder`` checks the folder's kind)."""
+its own run (the same method, seed option, parameters, frame range and store path for ``bench
+run``; the same trajectory file and store for ``bench score``). ``--force`` re-does that run
+only, never another (issue 46, the one write rule; ``bench.guard.run_folder`` checks the
+folder's kind)."""
 
 from __future__ import annotations
 
@@ -13,7 +14,8 @@ from loaders.errors import DataError
 
 def run_identity(config: dict) -> dict:
     """What makes a run folder's run the run it is, from its config.yaml: for a harness run
-    the method, its seed option, its resolved parameters and the frame range; for an external
+    the method, its seed option, its resolved parameters, the frame range and the store (its
+    resolved path: a store changed in place is the same run, done again); for an external
     one (``bench score``) the trajectory file and the store (resolved paths)."""
     identity = config.get("identity") if isinstance(config.get("identity"), dict) else {}
     method = config.get("method") if isinstance(config.get("method"), dict) else {}
@@ -22,10 +24,12 @@ def run_identity(config: dict) -> dict:
         sequence = config.get("sequence") if isinstance(config.get("sequence"), dict) else {}
         return {"trajectory": _resolved_text(external.get("trajectory")),
                 "topic": external.get("topic"), "store": _resolved_text(sequence.get("store"))}
+    sequence = config.get("sequence") if isinstance(config.get("sequence"), dict) else {}
     return {"method": identity.get("method", method.get("name")),
             "seed option": identity.get("seed", config.get("seed")),
             "parameters": identity.get("params", method.get("params")),
-            "frame range": identity.get("frame_range")}
+            "frame range": identity.get("frame_range"),
+            "store": _resolved_text(sequence.get("store"))}
 
 
 def _resolved_text(path) -> str | None:

@@ -129,8 +129,8 @@ def plan(jobs: list[Job], refused: list[str] | None = None, own_only: bool = Fal
     failed.json (a failed row in every table), and the other pairs are planned.
 
     ``own_only`` (``bench run --method``: a folder named by the user or the default one): a
-    folder holding a run of another method, seed option, parameters or frame range is
-    refused (``bench.guard.foreign_run``), ``--force`` included; an experiment's folders are
+    folder holding a run of another method, seed option, parameters, frame range or store
+    path is refused (``bench.guard.foreign_run``), ``--force`` included; an experiment's folders are
     its own layout (a changed parameter there runs again)."""
     problems, planned, owners, paths, warned = [], [], {}, {}, set()
     for job in jobs:
