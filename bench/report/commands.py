@@ -60,8 +60,7 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
     if where is not None:  # before any work: a folder, never a run's; only tables of ours
         guard.output_folder(Path(where))
         for fmt in RENDERERS:
-            guard.regenerated_file(Path(where) / f"{stem}.{fmt}", guard.derived, "a table",
-                                   "--out" if out is not None else "table")
+            guard.regenerated_file(Path(where) / f"{stem}.{fmt}", guard.derived, "a table")
     try:
         rows, chosen = select(list(results_dirs), lengths_m=lengths_m, keep=keep)
     except ValueError as e:

@@ -62,8 +62,19 @@ def foreign_run(run_dir: Path, wanted: dict, maker: str) -> None:
     held = run_identity(config)
     differs = [k for k in wanted if k in held and plain(held[k]) != plain(wanted[k])]
     if differs:
-        holds = ", ".join(f"{k} {held[k]!r}" for k in held)
-        asked = ", ".join(f"{k} {wanted[k]!r}" for k in differs)
+        first = next(iter(held))  # the method, or the trajectory file: always named
+        if "method" in differs:  # another method's parameters say nothing more
+            differs = [k for k in differs if k != "parameters"]
+        shown = [first, *(k for k in differs if k != first)]
+        holds = ", ".join(f"{k} {_differing(held[k], wanted.get(k))!r}" for k in shown)
+        asked = ", ".join(f"{k} {_differing(wanted[k], held[k])!r}" for k in differs)
         raise DataError(f"{run_dir}: holds another run ({holds}); {maker} would replace it "
                         f"with {asked}: choose another folder or name (--force re-does only "
                         "the same run, never another)")
+
+
+def _differing(value, other):
+    """``value``, or of a dict (parameters) only the entries that differ from ``other``'s."""
+    if isinstance(value, dict) and isinstance(other, dict):
+        return {k: v for k, v in value.items() if other.get(k) != v}
+    return value
