@@ -231,6 +231,7 @@ def run_folder(run_dir: Path, kind: str, force: bool | None = False,
         raise DataError(f"{run_dir}: outside the results root {root}; a run's name is one "
                         "folder name")
     not_an_input(run_dir, inputs, "run folder")
+    not_in_a_run(run_dir, "run folder")  # no run nests inside another run's folder
     for parent in run_dir.parents:  # e.g. --out naming a file: one message, not an OSError
         if parent.exists():
             if not parent.is_dir():

@@ -213,7 +213,11 @@ def test_no_command_writes_into_a_run_folder(twist, work, monkeypatch, capsys):
                  ["export", store, "--format", "ros1", "--out", run / "s.bag"],
                  ["report", work, "--out", run / "page.html"],
                  ["table", work, "--out", run / "tables"],
-                 ["figures", work, "--out", run]):
+                 ["figures", work, "--out", run],
+                 ["run", "--method", "doppler", "--data", store, "--out", run / "sub"],
+                 ["score", run / "est_tum.txt", "--store", store, "--name", "n", "--out", run],
+                 ["synth", "loop", "--frames", "3", "--out", run / "s.h5"],
+                 ["speed", "--out", run, "--sizes", "100", "--no-memory"]):
         code, text = bench_main(monkeypatch, capsys, *args)
         assert code == 2 and "run folder" in text and "Traceback" not in text, (args, text)
     code, text = bench_main(monkeypatch, capsys, "table", run)  # printed, not written there
