@@ -159,8 +159,10 @@ def run_kind(folder: Path) -> str | None:
     folder = Path(folder)
     if not folder.is_dir():
         return None
-    names = {p.name for p in folder.iterdir()}
-    if not names & {"config.yaml", "metrics.json", "failed.json"}:
+    # three look-ups, not a listing: this runs on every folder above an output (/tmp too)
+    names = {n for n in ("config.yaml", "metrics.json", "failed.json")
+             if os.path.lexists(folder / n)}
+    if not names:
         return None
     config = {}
     if "config.yaml" in names:
