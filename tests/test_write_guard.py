@@ -297,6 +297,13 @@ def test_reproduce_refuses_a_file_as_out_at_once(tmp_path, monkeypatch, capsys):
     assert code == 2 and "is a file" in text, text
     assert time.perf_counter() - t0 < 10
     assert not (tmp_path / "data").exists() and notes.read_text() == "mine"
+    out = tmp_path / "paper"
+    out.mkdir()
+    (out / "table5.md").write_text("my table5")  # a user's: neither replaced nor removed
+    code, text = bench_main(monkeypatch, capsys, "reproduce", "--out", out, "--data-dir",
+                            tmp_path / "data", "--synthetic-only", "--executor", "local")
+    assert code == 2 and "table5.md" in text and "not a table" in text, text
+    assert (out / "table5.md").read_text() == "my table5" and not (tmp_path / "data").exists()
 
 
 # -- the guard's writers -----------------------------------------------------------------------
