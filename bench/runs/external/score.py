@@ -160,8 +160,6 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
     name = check_name(spec.name)
     check_options_of(spec)
     scoring = scoring or Scoring()
-    est = read_estimate(spec.trajectory, spec.fmt, spec.stamps, spec.topic, spec.frame_times,
-                        spec.stamp_unit)
     seq = StoreSequence(store, fields=())
     try:
         if seq.ground_truth is None:
@@ -179,6 +177,8 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         foreign_run(run_dir, {"trajectory": str(guard.resolved(spec.trajectory)),
                               "topic": spec.topic, "store": str(guard.resolved(store))},
                     "bench score")
+        est = read_estimate(spec.trajectory, spec.fmt, spec.stamps, spec.topic, spec.frame_times,
+                            spec.stamp_unit)
         T_frame_sensor, how = frame_transform(spec, seq.sensor.T_body_sensor)
         stamps = seq.stamps
         where = f"{spec.trajectory}" + (f":{spec.topic}" if spec.topic else "")
