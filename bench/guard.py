@@ -34,6 +34,11 @@ HARNESS, EXTERNAL = "harness", "external"
 RUN_MAKERS = {HARNESS: "bench run", EXTERNAL: "bench score"}
 
 
+class Refused(DataError):
+    """An output the guard refuses (a user's file, a folder of another kind, a run folder):
+    a DataError (exit 2, one message) that no command turns into a warning and goes on."""
+
+
 def one_component(name: str, option: str = "--name") -> str:
     """``name`` when it is one path component (a folder name); else a DataError."""
     bad = (not name or not name.strip() or name in (".", "..") or "/" in name
@@ -72,10 +77,10 @@ def not_an_input(out: Path, inputs: Iterable[Path | None], option: str = "--out"
         if given is None:
             continue
         if same_file(out, given):
-            raise DataError(f"{option} {out}: is an input of this command ({given}); write "
+            raise Refused(f"{option} {out}: is an input of this command ({given}); write "
                             "to another path, the input is never overwritten")
         if inside(given, out) and _resolved(out) != _resolved(given):
-            raise DataError(f"{option} {out}: holds an input of this command ({given}); "
+            raise Refused(f"{option} {out}: holds an input of this command ({given}); "
                             "write to another path, the input is never overwritten")
 
 
@@ -183,7 +188,7 @@ def folders_on_the_way(out: Path, option: str = "--out") -> None:
     for parent in Path(out).parents:
         if os.path.lexists(parent):
             if not parent.is_dir():
-                raise DataError(f"{option} {out}: {parent} is a file; expected a folder to "
+                raise Refused(f"{option} {out}: {parent} is a file; expected a folder to "
                                 "write into")
             return
 
@@ -192,7 +197,7 @@ def not_in_a_run(out: Path, option: str = "--out") -> None:
     """Refuse ``out`` inside a run folder (its files are that run's; only a run writes there)."""
     for parent in Path(os.path.abspath(out)).parents:
         if run_kind(parent) is not None:
-            raise DataError(f"{option} {out}: lies inside a run folder ({parent}, a run "
+            raise Refused(f"{option} {out}: lies inside a run folder ({parent}, a run "
                             f"made by {RUN_MAKERS[run_kind(parent)]}); its files are the "
                             "run's: choose another folder")
 
@@ -212,10 +217,10 @@ def replaceable(out: Path, force: bool | None, own: Callable[[Path], bool], what
     if not own(out):
         kind = "a folder" if out.is_dir() else "a file"
         only = " (--force replaces only that)" if force else ""
-        raise DataError(f"{option} {out}: exists and is {kind} that is not {what} this command "
+        raise Refused(f"{option} {out}: exists and is {kind} that is not {what} this command "
                         f"wrote; it is left as it is{only}: choose another {option}")
     if not force:
-        raise DataError(f"{option} {out}: exists ({what}); give another {option}"
+        raise Refused(f"{option} {out}: exists ({what}); give another {option}"
                         + (" or --force to replace it" if force is False else
                            " (it is not replaced)"))
     return True
@@ -230,29 +235,29 @@ def run_folder(run_dir: Path, kind: str, force: bool | None = False,
     option); never a folder of other files (a run writes its own files' names only)."""
     run_dir = check_out(run_dir, "run folder")
     if root is not None and not inside(run_dir, root):
-        raise DataError(f"{run_dir}: outside the results root {root}; a run's name is one "
+        raise Refused(f"{run_dir}: outside the results root {root}; a run's name is one "
                         "folder name")
     not_an_input(run_dir, inputs, "run folder")
     not_in_a_run(run_dir, "run folder")  # no run nests inside another run's folder
     for parent in run_dir.parents:  # e.g. --out naming a file: one message, not an OSError
         if parent.exists():
             if not parent.is_dir():
-                raise DataError(f"{parent}: is a file, expected a folder of results (to hold "
+                raise Refused(f"{parent}: is a file, expected a folder of results (to hold "
                                 f"{run_dir.relative_to(parent)}); it is left as it is")
             break
     if not run_dir.exists():
         return
     if not run_dir.is_dir():
-        raise DataError(f"{run_dir}: is a file, expected a run folder; it is left as it is")
+        raise Refused(f"{run_dir}: is a file, expected a run folder; it is left as it is")
     found = run_kind(run_dir)
     if found is None:
         if any(run_dir.iterdir()):
-            raise DataError(f"{run_dir}: holds files that are not a run's; it is left as it "
+            raise Refused(f"{run_dir}: holds files that are not a run's; it is left as it "
                             "is: choose another name or folder")
         return
     if found != kind:
         if not force:
-            raise DataError(f"{run_dir}: holds a run made by {RUN_MAKERS[found]} ({found}); "
+            raise Refused(f"{run_dir}: holds a run made by {RUN_MAKERS[found]} ({found}); "
                             f"{RUN_MAKERS[kind]} does not replace it: choose another name"
                             + (f", or {ask} to replace that run" if force is False else ""))
         if say is not None:
@@ -270,9 +275,9 @@ def regenerated_file(out: Path, own: Callable[[Path], bool], what: str,
     not_in_a_run(out, option)
     folders_on_the_way(out, option)
     if out.is_dir():
-        raise DataError(f"{option} {out}: is a folder; expected the file name of {what}")
+        raise Refused(f"{option} {out}: is a folder; expected the file name of {what}")
     if os.path.lexists(out) and not own(out):
-        raise DataError(f"{option} {out}: exists and is not {what} this command wrote; it is "
+        raise Refused(f"{option} {out}: exists and is not {what} this command wrote; it is "
                         f"left as it is: choose another {option}")
 
 
@@ -283,10 +288,10 @@ def output_folder(out: Path, option: str = "--out", inputs: Iterable[Path | None
     out = check_out(out, option)
     not_an_input(out, inputs, option)
     if os.path.lexists(out) and not out.is_dir():
-        raise DataError(f"{option} {out}: is a file; expected a folder to write into")
+        raise Refused(f"{option} {out}: is a file; expected a folder to write into")
     folders_on_the_way(out, option)
     if run_kind(out) is not None:
-        raise DataError(f"{option} {out}: is a run folder (made by "
+        raise Refused(f"{option} {out}: is a run folder (made by "
                         f"{RUN_MAKERS[run_kind(out)]}); its files are the run's: choose "
                         "another folder")
     not_in_a_run(out, option)
@@ -414,9 +419,9 @@ def _may_write(path: Path, own: Callable[[Path], bool] | None, what: str) -> Non
     """The last word before a write: ``path`` is new, or ``own`` recognises it as ``what`` the
     harness wrote; never a folder."""
     if os.path.isdir(path) and not os.path.islink(path):
-        raise DataError(f"{path}: is a folder; expected the file name of {what}")
+        raise Refused(f"{path}: is a folder; expected the file name of {what}")
     if os.path.lexists(path) and (own is None or not own(path)):
-        raise DataError(f"{path}: exists and is not {what} the harness wrote; it is left as it "
+        raise Refused(f"{path}: exists and is not {what} the harness wrote; it is left as it "
                         "is: choose another output")
 
 
@@ -427,13 +432,13 @@ def make_folder(path: Path, option: str = "--out") -> Path:
     for parent in [path, *path.parents]:
         if os.path.lexists(parent):
             if not parent.is_dir():
-                raise DataError(f"{option} {path}: {parent} is a file, expected a folder; it is "
+                raise Refused(f"{option} {path}: {parent} is a file, expected a folder; it is "
                                 "left as it is")
             break
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as err:
-        raise DataError(f"{option} {path}: cannot create this folder "
+        raise Refused(f"{option} {path}: cannot create this folder "
                         f"({err.strerror or err})") from None
     return path
 
@@ -520,7 +525,7 @@ def remove_folder(path: Path, own: Callable[[Path], bool], what: str = "a folder
     if not os.path.lexists(path):
         return False
     if not own(path):
-        raise DataError(f"{path}: is not {what} the harness made; it is left as it is")
+        raise Refused(f"{path}: is not {what} the harness made; it is left as it is")
     if path.is_symlink() or not path.is_dir():
         path.unlink()
     else:
@@ -535,7 +540,7 @@ def move_into_place(made: Path, dest: Path, own: Callable[[Path], bool],
     dest = Path(dest)
     if os.path.lexists(dest):
         if not own(dest):
-            raise DataError(f"{dest}: exists and is not {what} the harness wrote; it is left "
+            raise Refused(f"{dest}: exists and is not {what} the harness wrote; it is left "
                             "as it is")
         if dest.is_dir() and not dest.is_symlink():
             remove_folder(dest, own, what)
@@ -558,7 +563,7 @@ def bag_writer(cls, path: Path, **options):
     """A rosbags writer (``cls``: ``rosbags.rosbag1.Writer`` / ``rosbags.rosbag2.Writer``) of
     a new bag at ``path`` (the command's own work path: checked before, ``replaceable``)."""
     if os.path.lexists(path):
-        raise DataError(f"{path}: exists; a bag is written only to a new path")
+        raise Refused(f"{path}: exists; a bag is written only to a new path")
     return cls(path, **options)
 
 

@@ -182,7 +182,8 @@ def test_figures_and_report_never_overwrite_a_users_plot(work, tmp_path, monkeyp
     os.utime(work / "twist" / "doppler" / "metrics.json")  # figures older than a record
     time.sleep(0.01)
     code, text = bench_main(monkeypatch, capsys, "report", work)
-    assert png.read_bytes() == b"mine", text
+    assert code == 2 and png.name in text and "not a figure" in text, text
+    assert png.read_bytes() == b"mine"
     page = work / "report.html"
     page.write_text("<html>my page</html>")
     code, text = bench_main(monkeypatch, capsys, "report", work)

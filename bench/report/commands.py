@@ -175,6 +175,8 @@ def report_command(console: Console, results_dir: Path, out: Path | None,
             with warnings.catch_warnings(), for_the_page():  # a broken record: the page
                 warnings.simplefilter("ignore")                # lists it
                 drawn = [p for p in make_figures(results_dir) if p.suffix == ".png"]
+        except guard.Refused:  # a user's own figure of that name: left as it is, said, exit 2
+            raise
         except (DataError, OSError, ValueError) as err:  # an unreadable run file: the page
             drawn = []                                     # lists it; the tables still show
             console.print(f"figures not drawn: {str(err).splitlines()[0]}", markup=False)
