@@ -131,6 +131,9 @@ def write_calls(tree: ast.AST) -> list[tuple[int, str]]:
         elif isinstance(func, ast.Attribute) and name in ATTR_WRITERS and owner not in (
                 "os", "shutil"):
             what = f".{name}()"
+        elif isinstance(func, ast.Attribute) and name == "replace" and len(node.args) == 1 \
+                and not node.keywords and owner not in ("dataclasses",):
+            what = "Path.replace (a move)"  # str.replace takes two arguments
         if what:
             found.append((node.lineno, what))
     return found
@@ -216,6 +219,7 @@ RAW_WRITES = [
     'os.makedirs(out)',
     'shutil.copyfile(a, b)',
     'tempfile.mkstemp(dir=out)',
+    'tmp.replace(out)',
 ]
 
 
@@ -238,7 +242,7 @@ def test_a_raw_write_added_to_a_command_is_found(tmp_path, source):
     there: the copy without it is clean of that line)."""
     bench = tmp_path / "bench"
     bench.mkdir()
-    (bench / "commands.py").write_text(f"def command(path, out, a, b, fig, frame, rec):\n"
+    (bench / "commands.py").write_text(f"def command(path, out, a, b, fig, frame, rec, tmp):\n"
                                        f"    {source}\n")
     found = violations(tmp_path)
     assert len(found) == 1 and found[0].startswith("bench/commands.py:2:"), found
@@ -247,6 +251,7 @@ def test_a_raw_write_added_to_a_command_is_found(tmp_path, source):
 @pytest.mark.parametrize("source", ['open(path)', 'open(path, "rb")', 'h5py.File(p, "r")',
                                     'yaml.safe_dump(data)', 'json.dumps(data)',
                                     'text.replace("a", "b")', 'csv.writer(buf)',
+                                    'dataclasses.replace(p, name="x")',
                                     'Loader.open(paths, options)',
                                     'guard.write_text(path, text, guard.derived)'])
 def test_reads_are_not_writes(tmp_path, source):
