@@ -1,7 +1,17 @@
-"""The output guard every command that writes calls before it opens its output: nothing lost
-to a flag, nothing written where it should not be.
+"""The output guard, and the only way any command writes: nothing lost to a flag, nothing
+written where it should not be (the one write rule; tests/test_write_rule.py walks the sources
+and fails on a write call anywhere else).
 
-Rules (each a ``DataError``: exit 2, one message naming the path):
+Every file and folder a command writes goes through the writing helpers below
+(``write_text`` / ``write_texts``, ``write_via``, ``savefig``, ``saving``, ``write_store``,
+``bag_writer``, ``make_folder``, ``remove``, ``remove_folder``, ``move_into_place``): each
+writes a new file, or replaces one only when its ``own`` predicate recognises it as the kind
+the command makes that the harness wrote (``derived``: listed with its SHA-256 in the folder's
+``LEDGER``, or a figure's / page's ``MARK``; ``is_store``; ``in_a_run``; ...). The checks
+below run first, before any long work: ``check_out`` / ``check_name`` (empty, too long,
+separators), ``replaceable``, ``regenerated_file``, ``output_folder``, ``run_folder``.
+
+Rules (each a ``Refused``, a ``DataError``: exit 2, one message naming the path):
 
 - never onto an input of the same command: the output is not the same file as an input
   (resolved paths, ``os.path.samefile``) and not a folder that holds one (``not_an_input``);
@@ -12,7 +22,8 @@ Rules (each a ``DataError``: exit 2, one message naming the path):
   empty (``one_component``); the path it makes stays inside its root (``inside``);
 - a run folder is written only over a run of the same kind (a harness run by ``bench run``,
   an external one by ``bench score``); another kind is replaced only when asked, and said
-  (``run_folder``).
+  (``run_folder``); whose run it holds is ``bench.runs.ownership``'s question;
+- nothing is written into or below a run folder by anything but its run (``not_in_a_run``).
 """
 
 from __future__ import annotations
@@ -78,10 +89,10 @@ def not_an_input(out: Path, inputs: Iterable[Path | None], option: str = "--out"
             continue
         if same_file(out, given):
             raise Refused(f"{option} {out}: is an input of this command ({given}); write "
-                            "to another path, the input is never overwritten")
+                          "to another path, the input is never overwritten")
         if inside(given, out) and _resolved(out) != _resolved(given):
             raise Refused(f"{option} {out}: holds an input of this command ({given}); "
-                            "write to another path, the input is never overwritten")
+                          "write to another path, the input is never overwritten")
 
 
 def _head(path: Path, n: int) -> bytes:
@@ -189,7 +200,7 @@ def folders_on_the_way(out: Path, option: str = "--out") -> None:
         if os.path.lexists(parent):
             if not parent.is_dir():
                 raise Refused(f"{option} {out}: {parent} is a file; expected a folder to "
-                                "write into")
+                              "write into")
             return
 
 
@@ -198,8 +209,8 @@ def not_in_a_run(out: Path, option: str = "--out") -> None:
     for parent in Path(os.path.abspath(out)).parents:
         if run_kind(parent) is not None:
             raise Refused(f"{option} {out}: lies inside a run folder ({parent}, a run "
-                            f"made by {RUN_MAKERS[run_kind(parent)]}); its files are the "
-                            "run's: choose another folder")
+                          f"made by {RUN_MAKERS[run_kind(parent)]}); its files are the "
+                          "run's: choose another folder")
 
 
 def replaceable(out: Path, force: bool | None, own: Callable[[Path], bool], what: str,
@@ -218,10 +229,10 @@ def replaceable(out: Path, force: bool | None, own: Callable[[Path], bool], what
         kind = "a folder" if out.is_dir() else "a file"
         only = " (--force replaces only that)" if force else ""
         raise Refused(f"{option} {out}: exists and is {kind} that is not {what} this command "
-                        f"wrote; it is left as it is{only}: choose another {option}")
+                      f"wrote; it is left as it is{only}: choose another {option}")
     if not force:
         raise Refused(f"{option} {out}: exists ({what}); give another {option}"
-                        + (" or --force to replace it" if force is False else
+                      + (" or --force to replace it" if force is False else
                            " (it is not replaced)"))
     return True
 
@@ -236,14 +247,14 @@ def run_folder(run_dir: Path, kind: str, force: bool | None = False,
     run_dir = check_out(run_dir, "run folder")
     if root is not None and not inside(run_dir, root):
         raise Refused(f"{run_dir}: outside the results root {root}; a run's name is one "
-                        "folder name")
+                      "folder name")
     not_an_input(run_dir, inputs, "run folder")
     not_in_a_run(run_dir, "run folder")  # no run nests inside another run's folder
     for parent in run_dir.parents:  # e.g. --out naming a file: one message, not an OSError
         if parent.exists():
             if not parent.is_dir():
                 raise Refused(f"{parent}: is a file, expected a folder of results (to hold "
-                                f"{run_dir.relative_to(parent)}); it is left as it is")
+                              f"{run_dir.relative_to(parent)}); it is left as it is")
             break
     if not run_dir.exists():
         return
@@ -253,13 +264,13 @@ def run_folder(run_dir: Path, kind: str, force: bool | None = False,
     if found is None:
         if any(run_dir.iterdir()):
             raise Refused(f"{run_dir}: holds files that are not a run's; it is left as it "
-                            "is: choose another name or folder")
+                          "is: choose another name or folder")
         return
     if found != kind:
         if not force:
             raise Refused(f"{run_dir}: holds a run made by {RUN_MAKERS[found]} ({found}); "
-                            f"{RUN_MAKERS[kind]} does not replace it: choose another name"
-                            + (f", or {ask} to replace that run" if force is False else ""))
+                          f"{RUN_MAKERS[kind]} does not replace it: choose another name"
+                          + (f", or {ask} to replace that run" if force is False else ""))
         if say is not None:
             say(f"replacing the {found} run in {run_dir} ({RUN_MAKERS[found]}'s), as {ask} "
                 "asks")
@@ -278,7 +289,7 @@ def regenerated_file(out: Path, own: Callable[[Path], bool], what: str,
         raise Refused(f"{option} {out}: is a folder; expected the file name of {what}")
     if os.path.lexists(out) and not own(out):
         raise Refused(f"{option} {out}: exists and is not {what} this command wrote; it is "
-                        f"left as it is: choose another {option}")
+                      f"left as it is: choose another {option}")
 
 
 def output_folder(out: Path, option: str = "--out", inputs: Iterable[Path | None] = ()) -> None:
@@ -292,8 +303,8 @@ def output_folder(out: Path, option: str = "--out", inputs: Iterable[Path | None
     folders_on_the_way(out, option)
     if run_kind(out) is not None:
         raise Refused(f"{option} {out}: is a run folder (made by "
-                        f"{RUN_MAKERS[run_kind(out)]}); its files are the run's: choose "
-                        "another folder")
+                      f"{RUN_MAKERS[run_kind(out)]}); its files are the run's: choose "
+                      "another folder")
     not_in_a_run(out, option)
 
 
@@ -422,7 +433,7 @@ def _may_write(path: Path, own: Callable[[Path], bool] | None, what: str) -> Non
         raise Refused(f"{path}: is a folder; expected the file name of {what}")
     if os.path.lexists(path) and (own is None or not own(path)):
         raise Refused(f"{path}: exists and is not {what} the harness wrote; it is left as it "
-                        "is: choose another output")
+                      "is: choose another output")
 
 
 def make_folder(path: Path, option: str = "--out") -> Path:
@@ -433,13 +444,13 @@ def make_folder(path: Path, option: str = "--out") -> Path:
         if os.path.lexists(parent):
             if not parent.is_dir():
                 raise Refused(f"{option} {path}: {parent} is a file, expected a folder; it is "
-                                "left as it is")
+                              "left as it is")
             break
     try:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as err:
         raise Refused(f"{option} {path}: cannot create this folder "
-                        f"({err.strerror or err})") from None
+                      f"({err.strerror or err})") from None
     return path
 
 
@@ -541,7 +552,7 @@ def move_into_place(made: Path, dest: Path, own: Callable[[Path], bool],
     if os.path.lexists(dest):
         if not own(dest):
             raise Refused(f"{dest}: exists and is not {what} the harness wrote; it is left "
-                            "as it is")
+                          "as it is")
         if dest.is_dir() and not dest.is_symlink():
             remove_folder(dest, own, what)
     os.replace(made, dest)
