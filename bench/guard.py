@@ -326,11 +326,12 @@ def check_out(path: Path | str, option: str = "--out") -> Path:
                         "to write")
     if "\0" in text:
         raise DataError(f"{option} {text!r}: holds a NUL character; expected a path")
-    for part in Path(text).parts:
-        if len(os.fsencode(part)) > NAME_MAX_BYTES:
+    for part in Path(text).parts:  # room for the temporary name of an atomic write
+        if len(os.fsencode(part)) > NAME_MAX_BYTES - 16:
             raise DataError(f"{option} {text[:60]}...: the name {part[:40]}... is "
                             f"{len(os.fsencode(part))} bytes long; a file or folder name is at "
-                            f"most {NAME_MAX_BYTES} bytes")
+                            f"most {NAME_MAX_BYTES - 16} bytes (the system's {NAME_MAX_BYTES} "
+                            "bytes, less room for a temporary name)")
     if len(os.fsencode(os.path.abspath(text))) > PATH_MAX_BYTES:
         raise DataError(f"{option} {text[:60]}...: the path is longer than {PATH_MAX_BYTES} "
                         "bytes")
