@@ -495,10 +495,9 @@ def speed(
     """Time every method on the same synthetic scan pairs (total per-frame work and the
     registration call); print ratios to `doppler`, each method's peak memory and the harness's
     own cost per frame."""
-    from bench import guard
-    from bench.studies.speed import run_speed
+    from bench.studies.speed import check_outputs, run_speed
 
-    guard.output_folder(out, inputs=[store])  # a folder of its own CSVs and plots
+    check_outputs(out, inputs=[store])  # a folder of its own CSVs and plots, before timing
     if scale:
         from bench.studies.scale import MIN_POSES, run_scale
 
@@ -626,12 +625,40 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     status.print(f"[yellow]warning:[/] {escape(str(message))}")
 
 
+#: the options that name a file or folder to write, and those that name a folder to make
+PATH_OPTIONS = ("--out", "--write", "--fidelity-out", "--plot", "--data-dir")
+NAME_OPTIONS = ("--name",)
+
+
+def check_names(args: list[str]) -> None:
+    """Every --out / --name of the command line through one name check before anything runs
+    (``bench.guard.check_out`` / ``check_name``: empty, too long, separators in a name): one
+    message and exit 2, never an OSError "File name too long" after the work."""
+    from bench import guard
+
+    for i, arg in enumerate(args):
+        if arg == "--":
+            break
+        option, eq, value = arg.partition("=")
+        if option not in PATH_OPTIONS + NAME_OPTIONS:
+            continue
+        if not eq:
+            if i + 1 >= len(args):
+                continue  # the parser says the value is missing
+            value = args[i + 1]
+        if option in NAME_OPTIONS:
+            guard.check_name(value, option)
+        else:
+            guard.check_out(value, option)
+
+
 def main() -> None:
     """Console entry point: bad input ends with one clear message, not a traceback."""
     import warnings
 
     warnings.showwarning = _show_warning
     try:
+        check_names(sys.argv[1:])
         command = typer.main.get_command(app)
         tidy_help(command)
         code = command.main(prog_name="bench", standalone_mode=False)

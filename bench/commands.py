@@ -77,6 +77,7 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
         if out is not None:
             exp.out = out
         check_external(exp, experiment)
+        check_tables(exp.out_dir)
         refused: list[str] = []
         job_list = plan(jobs_for_experiment(exp, console), refused)
         if refused and not job_list:
@@ -92,7 +93,7 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
                           "once, as in the paper)", stacklevel=2)
         job_list = plan([single_job(method, data, seed is not False, out, params,
                                     {k: tuple(v) if isinstance(v, list) else v
-                                     for k, v in given.items()})])
+                                     for k, v in given.items()})], own_only=True)
         workers, results_dir, sweeps = 1, None, None
     outcomes = run_jobs(job_list, console, workers, force, executor, job_timeout, scheduler)
     console.print(summarize(outcomes), markup=False)
@@ -114,6 +115,16 @@ def run_command(console: Console, experiment: Path | None, method: str | None,
                       "refused); the others ran", markup=False)
     return 1 if refused or any(o.status not in ("done", "skipped") for o in outcomes) or \
         any(status == "failed" for _, status, _ in external) else 0
+
+
+def check_tables(results_dir: Path) -> None:
+    """Before anything runs: the experiment's results folder is a folder (not a run's) and its
+    tables and sweep table, where they exist, the harness wrote (``bench.guard``)."""
+    from bench import guard
+
+    guard.output_folder(Path(results_dir))
+    for name in ("table.md", "table.tex", "table.csv", "sweep.md"):
+        guard.regenerated_file(Path(results_dir) / name, guard.derived, "a table")
 
 
 def check_external(exp, experiment: Path) -> None:
@@ -141,13 +152,13 @@ def external_runs(exp, force: bool, console: Console) -> list[tuple[str, str, st
 def print_sweeps(results_dir: Path, index: dict, console: Console) -> None:
     """Write the experiment's sweep index and its sweep table (sweep.md), and print the table
     with each sweep's chosen point (bench/report/tables/sweep.py)."""
+    from bench import guard
     from bench.report.tables.sweep import sweep_markdown
     from bench.runs.sweep import write_sweep_index
-    from loaders.fileio import atomic_write_text
 
     write_sweep_index(results_dir, index)
     text = sweep_markdown(results_dir)
-    atomic_write_text(Path(results_dir) / "sweep.md", text)
+    guard.write_text(Path(results_dir) / "sweep.md", text, guard.derived, "a sweep table")
     console.print(text, markup=False, soft_wrap=True)
 
 

@@ -13,8 +13,6 @@ from pathlib import Path
 
 import typer
 
-from loaders.fileio import atomic_write_text
-
 ROOT = Path(__file__).resolve().parents[1]
 PAGE = ROOT / "docs" / "reference" / "commands.md"
 
@@ -131,8 +129,11 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{PAGE}: up to date")
         return 0
     if current != text:
-        PAGE.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_text(PAGE, text)
+        from bench import guard
+
+        # the generated page as just read is replaced, nothing else
+        guard.write_text(PAGE, text, lambda p: p.read_text() == current,
+                         "the generated command reference")
     print(f"{PAGE}: {'updated' if current != text else 'up to date'}")
     return 0
 

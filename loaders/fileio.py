@@ -1,4 +1,6 @@
-"""Atomic file writes: write to a temporary file beside the destination, fsync it, rename it.
+"""Atomic file writes (the mechanics below ``bench/guard.py``, which decides what a command may
+write; loaders/ may not import bench, so the store writer uses these directly): write to a
+temporary file beside the destination, fsync it, rename it.
 
 A crash never leaves a half-written file under the final name, so "the file exists" always
 means "the file is complete" (runs are resumed on that basis).
@@ -120,3 +122,17 @@ def atomic_write_text(path: str | Path, text: str) -> None:
     """Write ``text`` to ``path`` atomically."""
     with atomic_path(path) as tmp:
         tmp.write_text(text)
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically."""
+    with atomic_path(path) as tmp:
+        tmp.write_bytes(data)
+
+
+def create_hdf5(path: str | Path, **options):
+    """A new HDF5 file open for writing at ``path`` (the temporary of an ``atomic_path``):
+    the store writer's only way to create one (tests/test_write_rule.py)."""
+    import h5py
+
+    return h5py.File(path, "w", **options)

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from loaders.errors import DataError
+from loaders.fileio import atomic_write_bytes
 from loaders.limits import check_file_size, check_frame_bytes
 
 #: the longest header read before giving up (a PCD header is a few hundred bytes)
@@ -201,13 +202,12 @@ def write_pcd(path: str | Path, arr: np.ndarray, data: str = "binary") -> Path:
               f"FIELDS {' '.join(names)}\nSIZE {' '.join(sizes)}\nTYPE {' '.join(kinds)}\n"
               f"COUNT {' '.join('1' for _ in names)}\nWIDTH {n}\nHEIGHT 1\n"
               f"VIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\nDATA {data}\n")
-    with open(path, "wb") as f:
-        f.write(header.encode("ascii"))
-        if data == "binary":
-            packed = np.dtype({"names": names,
-                               "formats": ["<" + arr.dtype[k].str[1:] for k in names]})
-            f.write(arr.astype(packed).tobytes())
-        else:
-            for row in arr:
-                f.write((" ".join(repr(v.item()) for v in row) + "\n").encode("ascii"))
+    body = [header.encode("ascii")]
+    if data == "binary":
+        packed = np.dtype({"names": names,
+                           "formats": ["<" + arr.dtype[k].str[1:] for k in names]})
+        body.append(arr.astype(packed).tobytes())
+    else:
+        body += [(" ".join(repr(v.item()) for v in row) + "\n").encode("ascii") for row in arr]
+    atomic_write_bytes(path, b"".join(body))
     return path

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from loaders.errors import DataError
+from loaders.fileio import atomic_write_text
 from loaders.limits import check_file_size
 from loaders.se3 import T_from_tum, make_T, tum_from_T
 from loaders.trajectory import Trajectory
@@ -121,8 +122,13 @@ def check_quaternions(quat: np.ndarray, path, linenos: list[int],
 
 def write_tum(traj: Trajectory, path: str | Path) -> None:
     """Write TUM rows ``t x y z qx qy qz qw`` (9 decimals)."""
+    atomic_write_text(path, tum_text(traj))
+
+
+def tum_text(traj: Trajectory) -> str:
+    """TUM rows ``t x y z qx qy qz qw`` (9 decimals) as text."""
     xyz, quat = tum_from_T(traj.poses)
-    np.savetxt(path, np.column_stack([traj.stamps, xyz, quat]), fmt="%.9f")
+    return _rows(np.column_stack([traj.stamps, xyz, quat]), "%.9f")
 
 def read_kitti(path: str | Path, stamps: np.ndarray | None = None) -> Trajectory:
     """Read KITTI rows (12 values, 3x4 row-major); stamps default to the row index."""
@@ -152,7 +158,14 @@ def read_kitti(path: str | Path, stamps: np.ndarray | None = None) -> Trajectory
 
 def write_kitti(traj: Trajectory, path: str | Path) -> None:
     """Write KITTI rows (3x4 row-major, no stamps)."""
-    np.savetxt(path, traj.poses[:, :3, :].reshape(-1, 12), fmt="%.9e")
+    atomic_write_text(path, _rows(traj.poses[:, :3, :].reshape(-1, 12), "%.9e"))
+
+
+def _rows(values: np.ndarray, fmt: str) -> str:
+    """Space-separated rows of ``values`` in the ``%`` format ``fmt`` (as ``np.savetxt``)."""
+    values = np.asarray(values, dtype=np.float64)
+    line = " ".join([fmt] * values.shape[1]) + "\n" if values.ndim == 2 else "\n"
+    return "".join(line % tuple(row) for row in values.tolist())
 
 
 def parse_extrinsic(text: str | list | tuple | np.ndarray | None) -> np.ndarray:

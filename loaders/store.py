@@ -44,7 +44,7 @@ import h5py
 import numpy as np
 
 from loaders.errors import DataError
-from loaders.fileio import atomic_path
+from loaders.fileio import atomic_path, create_hdf5
 from loaders.scan import Scan, SensorInfo, Sequence
 from loaders.trajectory import Trajectory
 
@@ -156,7 +156,7 @@ def write_store(
     except StopIteration:
         raise DataError(f"{source}: the sequence has no frames; nothing to store") from None
     with atomic_path(path) as tmp:
-        with h5py.File(tmp, "w", libver="earliest") as h5:
+        with create_hdf5(tmp, libver="earliest") as h5:
             writer = _Writer(h5, first.has_doppler, sorted(first.fields), compression)
             writer.append(first, 0, source)
             if progress:

@@ -309,7 +309,7 @@ def test_table_figures_and_report_write_only_their_own_files(twist, tmp_path, mo
     code, text = bench_main(monkeypatch, capsys, "figures", work, "--out", run / "metrics.json")
     assert code == 2 and "is a file; expected a folder" in text, text
     code, text = bench_main(monkeypatch, capsys, "report", work, "--out", run / "metrics.json")
-    assert code == 2 and "not a report page this command wrote" in text, text
+    assert code == 2 and "inside a run folder" in text and "drew" not in text, text
     assert digest(run) == before
     assert bench_main(monkeypatch, capsys, "report", work)[0] == 0
     assert bench_main(monkeypatch, capsys, "report", work)[0] == 0  # its own page: made again

@@ -10,6 +10,7 @@ import json
 import pytest
 from rich.console import Console
 
+from bench import guard
 from bench.cli import main
 from bench.studies.reproduce import _choose_data
 from conftest import constant_twist_sequence
@@ -31,7 +32,8 @@ def test_a_real_reproduction_says_what_it_found_checked_and_wrote(data_dir, tmp_
                                                                   monkeypatch):
     out = tmp_path / "paper-real"
     out.mkdir()
-    (out / "table5.md").write_text("an old table5\n")
+    # an earlier reproduction's table5 (the harness wrote it: its folder's ledger lists it)
+    guard.write_text(out / "table5.md", "an old table5\n", guard.derived, "a table")
     monkeypatch.setattr("sys.argv", ["bench", "reproduce", "--data-dir", str(data_dir), "--out",
                                      str(out), "--jobs", "1", "--executor", "local"])
     with pytest.raises(SystemExit) as exit_:

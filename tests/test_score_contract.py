@@ -183,7 +183,8 @@ def test_stamps_in_another_unit_are_refused_naming_it(sample, tmp_path, unit, fa
         scaled[:, :3, 3] *= 3.0
         path = write_tum(tmp_path / "scaled.tum", sample.stamps * factor, scaled)
         with pytest.raises(DataError, match="score it with --stamp-unit ms"):
-            score_external(SAMPLE, ExternalSpec(path, unit), tmp_path / "r")
+            # a name of its own: the folder "ms" holds the score of another trajectory
+            score_external(SAMPLE, ExternalSpec(path, "ms-scaled"), tmp_path / "r")
         # the other way: seconds read as nanoseconds
         path = write_tum(tmp_path / "s.tum", sample.stamps, sample.poses)
         with pytest.raises(DataError, match=r"s.tum: its stamps read in nanoseconds move it .*"

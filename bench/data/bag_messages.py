@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
+from bench import guard
 from loaders.se3 import tum_from_T
 
 CLOUD, ODOM, TF, STRING = ("sensor_msgs/msg/PointCloud2", "nav_msgs/msg/Odometry",
@@ -38,12 +39,12 @@ class BagWriter:
         if self.ros1:
             from rosbags.rosbag1 import Writer
 
-            self.writer = Writer(path)
+            self.writer = guard.bag_writer(Writer, path)
         else:
             from rosbags.rosbag2 import StoragePlugin, Writer
 
             plugin = StoragePlugin.MCAP if fmt == "mcap" else StoragePlugin.SQLITE3
-            self.writer = Writer(path, version=9, storage_plugin=plugin)
+            self.writer = guard.bag_writer(Writer, path, version=9, storage_plugin=plugin)
         self.writer.open()
         self.seq = 0
 

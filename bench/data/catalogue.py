@@ -151,7 +151,7 @@ def page_block(text: str, begin: str = BEGIN) -> str | None:
 
 def write_pages() -> list[Path]:
     """Rewrite every generated block (datasets page, README); the files that changed."""
-    from loaders.fileio import atomic_write_text
+    from bench import guard
 
     changed = []
     for path in dict.fromkeys(FILES.values()):
@@ -165,7 +165,9 @@ def write_pages() -> list[Path]:
             tail = rest.split(end, 1)[1]
             new = f"{head}{begin}\n{render()}\n{end}{tail}"
         if new != text:
-            atomic_write_text(path, new)
+            # the page as just read (its generated blocks between their markers) is replaced
+            guard.write_text(path, new, lambda p, was=text: p.read_text() == was,
+                             "a page with generated blocks")
             changed.append(path)
     return changed
 

@@ -59,8 +59,10 @@ convert_app = typer.Typer(cls=ConvertGroup, no_args_is_help=True, rich_markup_mo
                                "(see `bench datasets`).")
 
 
-def write_with_progress(sequence, out: Path) -> Path:
-    """Write ``sequence`` to the store ``out`` with a progress bar, then print the throughput."""
+def write_with_progress(sequence, out: Path, own=None, what: str = "a store") -> Path:
+    """Write ``sequence`` to the store ``out`` with a progress bar, then print the throughput;
+    an existing ``out`` only when ``own`` recognises it (default ``bench.guard.is_store``; the
+    command checked it before)."""
     from rich.progress import (
         BarColumn,
         MofNCompleteColumn,
@@ -70,7 +72,7 @@ def write_with_progress(sequence, out: Path) -> Path:
         TimeRemainingColumn,
     )
 
-    from loaders.store import write_store
+    from bench import guard
 
     n = len(sequence)
     t0 = time.perf_counter()
@@ -84,7 +86,7 @@ def write_with_progress(sequence, out: Path) -> Path:
                 fps = (i + 1) / max(time.perf_counter() - t0, 1e-9)
                 progress.update(task, completed=i + 1, fps=f"{fps:.0f}")
 
-        write_store(sequence, out, progress=report)
+        guard.write_store(sequence, out, own or guard.is_store, what, progress=report)
     wall = time.perf_counter() - t0
     size_mb = Path(out).stat().st_size / 1e6
     console.print(f"[green]wrote[/] {out}: {n} frames in {wall:.1f} s "

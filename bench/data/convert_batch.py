@@ -62,8 +62,6 @@ def convert_one(job: ConvertJob, queue=None) -> tuple[str, str, str, int, float]
     from bench.threads import pin_threads
 
     pin_threads()
-    from loaders.store import write_store
-
     t0 = time.perf_counter()
     try:
         cfg = DatasetConfig.model_validate(job.config)
@@ -80,8 +78,8 @@ def convert_one(job: ConvertJob, queue=None) -> tuple[str, str, str, int, float]
 
         if queue is not None:
             queue.put((job.name, 0, n))
-        Path(job.out).parent.mkdir(parents=True, exist_ok=True)
-        write_store(seq, job.out, progress=report)
+        # checked when planned (``plan_conversions``): new, or a store (this one's with --force)
+        guard.write_store(seq, job.out, guard.is_store, "a store", progress=report)
         seq.close()
         note = ("" if seq.ground_truth is not None else
                 " (no ground truth: runs on this store are not scored)")

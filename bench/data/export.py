@@ -45,13 +45,13 @@ from __future__ import annotations
 
 import json
 import os
-import shutil
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
+from bench import guard
 from bench.data.bag_messages import (
     CLOUD,
     ODOM,
@@ -65,7 +65,6 @@ from bench.data.bag_messages import (
 from bench.data.export_frames import bag_frames, clock_note
 from bench.guard import is_ros1_bag, is_rosbag2_folder, replaceable
 from loaders.errors import DataError
-from loaders.fileio import atomic_path
 from loaders.rosbag import DESCRIPTION_TOPIC, NO_DOPPLER
 from loaders.se3 import inv_T, tum_from_T
 from loaders.store import StoreSequence
@@ -182,6 +181,8 @@ def export_store(store: Path, fmt: str, out: Path | None = None, force: bool = F
     if fmt not in FORMATS:
         raise DataError(f"--format {fmt!r}: expected one of {', '.join(FORMATS)}")
     store = Path(store)
+    if out is not None:
+        guard.check_out(out)
     out = bag_path(out, fmt) if out is not None else default_out(store, fmt)
     if fmt == "ros1":
         replaceable(out, force, _exported_ros1, "a ROS1 bag", inputs=[store])
@@ -191,22 +192,25 @@ def export_store(store: Path, fmt: str, out: Path | None = None, force: bool = F
     seq = StoreSequence(store)
     try:
         if fmt == "ros1":
-            with atomic_path(out) as tmp:
-                tmp.unlink()  # rosbags' ROS1 writer refuses an existing file
-                summary = write_bag(seq, store, tmp, fmt, progress)
-            return replace(summary, path=out)
+            made = []
+            guard.write_via(out, lambda tmp: made.append(write_bag(seq, store, Path(tmp), fmt,
+                                                                   progress)),
+                            _exported_ros1, "a ROS1 bag", fresh=True)
+            return replace(made[0], path=out)
         # a rosbag2 bag is a folder named like its storage file: written in a temporary
         # parent folder under its final name, then moved into place
         work = out.parent / f".{out.name}.{os.getpid()}.export"
-        shutil.rmtree(work, ignore_errors=True)
-        work.mkdir(parents=True)
+
+        def own_work(path: Path) -> bool:
+            return path == work
+
+        guard.remove_folder(work, own_work, "this export's work folder")
+        guard.make_folder(work)
         try:
             summary = write_bag(seq, store, work / out.name, fmt, progress)
-            if out.exists():  # a rosbag2 folder and nothing else (checked above)
-                shutil.rmtree(out)
-            os.replace(work / out.name, out)
+            guard.move_into_place(work / out.name, out, _rosbag2_or_empty, "a rosbag2 folder")
         finally:
-            shutil.rmtree(work, ignore_errors=True)
+            guard.remove_folder(work, own_work, "this export's work folder")
         return replace(summary, path=out)
     finally:
         seq.close()

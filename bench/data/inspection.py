@@ -19,7 +19,6 @@ from loaders.doppler_check import (
     low_points_median_z,
 )
 from loaders.errors import DataError
-from loaders.fileio import atomic_path
 from loaders.gt import gt_for_frames
 from loaders.gt_report import gt_sanity_report
 from loaders.scan import Sequence
@@ -81,7 +80,7 @@ def inspect_path(path: Path, period_s: float | None, console: Console,
     plot is checked by the output guard first: not the input, an existing file only when it is
     a plot this command wrote (its PNG metadata carries ``bench.guard.MARK``)."""
     if plot is not None:
-        guard.regenerated_file(plot, guard.has_mark, "a speed plot", "--plot", [path])
+        guard.regenerated_file(plot, guard.derived, "a speed plot", "--plot", [path])
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         seq = open_sequence(path, period_s)
@@ -114,7 +113,6 @@ def inspect_path(path: Path, period_s: float | None, console: Console,
         for style, line in clock_offset_lines(seq, speed_from_doppler(seq)):
             console.print(f"[{style}]{escape(line)}[/]", highlight=False)
         if plot is not None:
-            plot.parent.mkdir(parents=True, exist_ok=True)
             console.print(f"speed from Doppler vs GT: {plot_speed(seq, plot)}", markup=False)
     return report
 
@@ -225,8 +223,7 @@ def plot_speed(sequence: Sequence, path: str | Path) -> Path:
     ax.legend(loc="best")
     fig.tight_layout()
     path = Path(path)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=120, format="png",
-                    metadata={"Software": f"{guard.MARK} (bench inspect)"})
+    guard.savefig(fig, path, "png", guard.derived, "a speed plot", dpi=120,
+                  metadata={"Software": f"{guard.MARK} (bench inspect)"})
     plt.close(fig)
     return path

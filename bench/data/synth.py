@@ -9,6 +9,7 @@ from rich.console import Console
 from rich.markup import escape
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
+from bench import guard
 from loaders.errors import DataError
 
 
@@ -39,12 +40,11 @@ def synth_command(console: Console, scene: str | None, sensor: str, frames: int,
                                           **options)
     except (ValueError, KeyError) as err:
         raise DataError(f"bench synth: {err}") from err
-    from bench import guard
     from bench.data.convert import write_with_progress
 
     # a synthetic store is made again; a converted store (real data) or any other file never
     guard.regenerated_file(out, guard.is_synthetic_store, "a synthetic store")
-    write_with_progress(seq, out)
+    write_with_progress(seq, out, guard.is_synthetic_store, "a synthetic store")
     return 0
 
 
@@ -62,7 +62,11 @@ def ensure_suite_with_progress(suite: str, data_dir: Path,
                 tasks[name] = progress.add_task(escape(f"{suite}/{name}"), total=total)
             progress.update(tasks[name], completed=done)
 
-        return synthetic.ensure_suite(suite, data_dir, progress=report)
+        def write(seq, path: Path, cb) -> Path:  # a stale synthetic store only, never a file
+            return guard.write_store(seq, path, guard.is_synthetic_store,  # of another kind
+                                     "a synthetic store", progress=cb)
+
+        return synthetic.ensure_suite(suite, data_dir, progress=report, writer=write)
 
 
 def ensure_entries_with_progress(entries: list, out_dir: Path,
@@ -71,7 +75,6 @@ def ensure_entries_with_progress(entries: list, out_dir: Path,
     experiment's own ``synthetic:`` sequences, e.g. the tuning seeds of configs/tuning/) under
     ``out_dir`` as ``<name>-<entry hash>.h5`` (so experiments that list the same sequence
     share its store), only missing ones, with a progress bar each."""
-    from loaders.store import write_store
     from loaders.synthetic.suite import store_is_current
 
     paths = []
@@ -82,8 +85,10 @@ def ensure_entries_with_progress(entries: list, out_dir: Path,
             if not store_is_current(path, entry):
                 task = progress.add_task(escape(f"{out_dir.name}/{entry.name}"),
                                          total=entry.frames)
-                path.parent.mkdir(parents=True, exist_ok=True)
-                write_store(entry.sequence(out_dir.name), path,
-                            lambda i, _t=task: progress.update(_t, completed=i + 1))
+                # a store of an older entry hash is the harness's synthetic store: made again
+                guard.write_store(entry.sequence(out_dir.name), path, guard.is_synthetic_store,
+                                  "a synthetic store",
+                                  progress=lambda i, _t=task: progress.update(_t,
+                                                                              completed=i + 1))
             paths.append(path)
     return paths

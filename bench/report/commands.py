@@ -9,7 +9,6 @@ from rich.console import Console
 
 from bench import guard
 from loaders.errors import DataError
-from loaders.fileio import atomic_write_text
 
 
 def table_command(console: Console, status: Console, results_dirs: list[Path], format: str,
@@ -49,14 +48,23 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
         lengths_m = None if lengths is None else [float(x) for x in lengths.split(",")]
     except ValueError:
         raise DataError(f"--lengths {lengths!r}: expected numbers in metres, e.g. 8,48") from None
-    try:
-        rows, chosen = select(list(results_dirs), lengths_m=lengths_m, keep=keep)
-    except ValueError as e:
-        raise DataError(str(e)) from None
     view = pivot or len(results_dirs) > 1 or lengths is not None or methods is not None \
         or not variants
     where = out if out is not None else (None if view else results_dirs[0])
     stem = "pivot" if pivot else ("table" if metric == "relative" else f"table_{metric}")
+    if where is not None and out is None and (guard.run_kind(Path(where)) is not None or any(
+            guard.run_kind(p) is not None for p in Path(where).resolve().parents)):
+        status.print(f"{where} is a run folder: the table is printed, not written into it "
+                     "(--out DIR writes it)", style="dim", markup=False)
+        where = None  # a run folder holds its run's files only
+    if where is not None:  # before any work: a folder, never a run's; only tables of ours
+        guard.output_folder(Path(where))
+        for fmt in RENDERERS:
+            guard.regenerated_file(Path(where) / f"{stem}.{fmt}", guard.derived, "a table")
+    try:
+        rows, chosen = select(list(results_dirs), lengths_m=lengths_m, keep=keep)
+    except ValueError as e:
+        raise DataError(str(e)) from None
     if pivot:
         texts = {"md": pivot_markdown(rows, chosen, marks, ci)}
     else:
@@ -85,12 +93,12 @@ def table_command(console: Console, status: Console, results_dirs: list[Path], f
                              style="dim", markup=False)
     code = 1 if broken else 0  # a broken record is a failed row, never a success
     if where is None:
-        status.print("a filtered or merged view: not written (--out DIR writes it)",
-                      style="dim", markup=False)
+        if view:
+            status.print("a filtered or merged view: not written (--out DIR writes it)",
+                         style="dim", markup=False)
         return code
-    guard.output_folder(Path(where))  # a folder, never a run's own
-    for fmt, text in texts.items():
-        atomic_write_text(Path(where) / f"{stem}.{fmt}", text)
+    guard.write_texts({Path(where) / f"{stem}.{fmt}": text for fmt, text in texts.items()},
+                      guard.derived, "a table")
     status.print(f"wrote {where}/{stem}.{{{','.join(texts)}}}", style="dim", markup=False)
     return code
 
@@ -157,8 +165,11 @@ def report_command(console: Console, results_dir: Path, out: Path | None,
     first (``bench figures``) unless they are newer than every run record."""
     import warnings
 
-    from bench.report.html.page import write_page
+    from bench.report.html.page import PAGE_NAME, write_page
 
+    # the page's path before any drawing: only a page of ours, never into a run folder
+    guard.regenerated_file(Path(out) if out is not None else Path(results_dir) / PAGE_NAME,
+                           guard.derived, "a report page")
     if figures and not figures_current(results_dir):
         from bench.report.figures.draw import make_figures
         from bench.report.figures.style import for_the_page
@@ -167,6 +178,8 @@ def report_command(console: Console, results_dir: Path, out: Path | None,
             with warnings.catch_warnings(), for_the_page():  # a broken record: the page
                 warnings.simplefilter("ignore")                # lists it
                 drawn = [p for p in make_figures(results_dir) if p.suffix == ".png"]
+        except guard.Refused:  # a user's own figure of that name: left as it is, said, exit 2
+            raise
         except (DataError, OSError, ValueError) as err:  # an unreadable run file: the page
             drawn = []                                     # lists it; the tables still show
             console.print(f"figures not drawn: {str(err).splitlines()[0]}", markup=False)

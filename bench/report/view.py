@@ -16,7 +16,6 @@ import numpy as np
 
 from bench import guard
 from loaders.errors import DataError
-from loaders.fileio import atomic_path
 from loaders.posefile import read_tum
 from loaders.se3 import inv_T, transform_points
 from loaders.store import StoreSequence
@@ -62,9 +61,8 @@ def write_recording(store: Path, out: Path, run_dir: Path | None = None,
                 raise DataError(f"{run_dir}: no est_tum.txt (not a finished run folder)")
             all_frames = run_dir / "est_all_tum.txt"  # every frame, when some have no GT
             est = read_tum(all_frames if all_frames.exists() else run_dir / "est_tum.txt")
-        with atomic_path(Path(out)) as tmp:
-            rec = rr.RecordingStream("doppler-bench", recording_id=f"view-{Path(store).stem}")
-            rec.save(str(tmp))
+        rec = rr.RecordingStream("doppler-bench", recording_id=f"view-{Path(store).stem}")
+        with guard.saving(rec, out, guard.is_recording, "a rerun recording"):
             _log_sequence(rr, rec, seq, gt, est, stride)
             if pair is not None:
                 _log_pair(rr, rec, store, pair, gt)

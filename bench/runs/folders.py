@@ -35,12 +35,12 @@ import numpy as np
 import yaml
 from pydantic import ValidationError
 
+from bench import guard
 from bench.runs.libraries import libraries_current
 from bench.runs.provenance import run_meta
 from bench.runs.result import RunResult
 from bench.runs.sequence_identity import sequence_tags, tagged
 from loaders.errors import DataError, validation_problems
-from loaders.fileio import atomic_write_text
 from loaders.posefile import read_tum
 from loaders.se3 import tum_from_T
 from loaders.trajectory import Trajectory
@@ -88,7 +88,7 @@ def clear_run(run_dir: Path) -> None:
     """Remove a run folder's result records before it is run again, so a failed re-run never
     leaves the old metrics behind."""
     for name in RUN_RECORDS:
-        (run_dir / name).unlink(missing_ok=True)
+        guard.remove(run_dir / name, guard.in_a_run, "a run's record")
 
 
 def _rows(values: np.ndarray) -> str:
@@ -108,7 +108,12 @@ def write_trajectory(path: Path, traj: Trajectory, fmt: str) -> None:
         text = _rows(np.column_stack([traj.stamps, xyz, quat]))
     else:
         text = _rows(np.asarray(traj.poses, dtype=np.float64)[:, :3, :].reshape(-1, 12))
-    atomic_write_text(path, text)
+    _run_file(path, text)
+
+
+def _run_file(path: Path, text: str) -> None:
+    """Write a file of a run folder (new, or the run's own: ``guard.in_a_run``)."""
+    guard.write_text(path, text, guard.in_a_run, "a run's file")
 
 
 def frames_csv(result: OdometryResult) -> str:
@@ -127,10 +132,10 @@ def write_run(run_dir: Path, result: OdometryResult, gt: Trajectory | None,
               config: dict, metrics: dict, warnings: list[str] | None = None) -> None:
     """Write every file of a finished run; ``metrics.json`` (the ``RunResult`` of ``metrics``
     with the run's names from ``config``) last."""
-    run_dir.mkdir(parents=True, exist_ok=True)
+    guard.make_folder(run_dir, "run folder")
     est = Trajectory(np.asarray(result.stamps, dtype=np.float64), result.poses)
     for stale in ("gt_tum.txt", "gt_kitti.txt", "est_all_tum.txt"):
-        (run_dir / stale).unlink(missing_ok=True)
+        guard.remove(run_dir / stale, guard.in_a_run, "a run's file")
     if gt is not None:
         keep = np.isin(est.stamps, gt.stamps)
         if not keep.all():
@@ -140,26 +145,26 @@ def write_run(run_dir: Path, result: OdometryResult, gt: Trajectory | None,
         write_trajectory(run_dir / "gt_kitti.txt", gt, "kitti")
     write_trajectory(run_dir / "est_tum.txt", est, "tum")
     write_trajectory(run_dir / "est_kitti.txt", est, "kitti")
-    atomic_write_text(run_dir / "frames.csv", frames_csv(result))
-    atomic_write_text(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
-    atomic_write_text(run_dir / "meta.json",
-                      json.dumps({**run_meta(), "warnings": list(warnings or [])}, indent=2))
-    (run_dir / "failed.json").unlink(missing_ok=True)
+    _run_file(run_dir / "frames.csv", frames_csv(result))
+    _run_file(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
+    _run_file(run_dir / "meta.json",
+              json.dumps({**run_meta(), "warnings": list(warnings or [])}, indent=2))
+    guard.remove(run_dir / "failed.json", guard.in_a_run, "a run's record")
     seq = config.get("sequence") or {}
     record = RunResult.model_validate({
         **metrics, "label": config.get("label"), "display_name": seq.get("display_name"),
         "sensor_class": seq.get("sensor_class"), "notes": list(warnings or [])})
-    atomic_write_text(run_dir / "metrics.json", record.dump())
+    _run_file(run_dir / "metrics.json", record.dump())
 
 
 def write_failure(run_dir: Path, config: dict | None, error: str, trace: str = "",
                   status: str = "failed") -> None:
     """Record a run that did not finish (``status``: failed, interrupted, timeout, crashed)."""
-    run_dir.mkdir(parents=True, exist_ok=True)
-    (run_dir / "metrics.json").unlink(missing_ok=True)
+    guard.make_folder(run_dir, "run folder")
+    guard.remove(run_dir / "metrics.json", guard.in_a_run, "a run's record")
     if config is not None:
-        atomic_write_text(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
-    atomic_write_text(run_dir / "failed.json", json.dumps(
+        _run_file(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
+    _run_file(run_dir / "failed.json", json.dumps(
         {"status": status, "error": error, "traceback": trace,
          "date": datetime.now(UTC).isoformat(timespec="seconds")}, indent=2))
 

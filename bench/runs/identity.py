@@ -33,11 +33,11 @@ import re
 import sys
 from pathlib import Path
 
+from bench import guard
 from bench.paths import ROOT
 from bench.runs.provenance import cpu_flags_digest, cpu_model
 from bench.threads import thread_settings
 from loaders.errors import DataError
-from loaders.fileio import atomic_write_text
 
 #: code that executes between the store and metrics.json (folders searched recursively for
 #: *.py), with every repository module it imports (``result_modules``)
@@ -52,6 +52,15 @@ _scanned: list[tuple[list[Path], set[str]]] = []  # ``_scan`` of ROOT, once per 
 def _hash_cache_file() -> Path:
     base = os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache"
     return Path(base) / "doppler-bench" / "store-sha256.json"
+
+
+def _is_hash_cache(path: Path) -> bool:
+    """The cache ``store_identity`` writes: a JSON object of "path|size|mtime|inode" keys."""
+    try:
+        cached = json.loads(Path(path).read_text())
+    except (OSError, ValueError):
+        return False
+    return isinstance(cached, dict) and all("|" in str(k) for k in cached)
 
 
 def store_identity(path: Path) -> str:
@@ -77,8 +86,8 @@ def store_identity(path: Path) -> str:
         cached = cached if isinstance(cached, dict) else {}
         live = {k: v for k, v in cached.items() if Path(k.split("|")[0]).exists()}
         try:  # best effort: a read-only home only costs re-hashing next time
-            cache_file.parent.mkdir(parents=True, exist_ok=True)
-            atomic_write_text(cache_file, json.dumps({**live, cache_key: digest}))
+            guard.write_text(cache_file, json.dumps({**live, cache_key: digest}),
+                             _is_hash_cache, "the store hash cache")
         except (OSError, DataError):
             pass
     _store_hashes[cache_key] = digest

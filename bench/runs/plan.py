@@ -19,6 +19,7 @@ from bench.data.synth import ensure_suite_with_progress
 from bench.runs.experiment import Experiment, SequenceEntry, expand_sequences
 from bench.runs.folders import RunRecord, read_run, write_failure
 from bench.runs.job import Job, calibration_frames, prepare, run_job
+from bench.runs.ownership import foreign_run, run_identity
 from bench.runs.reuse import rename_reused
 from loaders.errors import DataError
 from loaders.gt import gt_for_frames
@@ -116,7 +117,8 @@ def single_job(method: str, data: Path, seed: bool, out: Path | None, params: di
                **{k: v for k, v in (scoring or {}).items() if v is not None})
 
 
-def plan(jobs: list[Job], refused: list[str] | None = None) -> list[Job]:
+def plan(jobs: list[Job], refused: list[str] | None = None, own_only: bool = False
+         ) -> list[Job]:
     """Resolve every job before any runs: the stores open, the parameters are valid, the
     output folders are writable and no two jobs share a folder. Raises one DataError listing
     every problem; returns the jobs with their folders fixed.
@@ -124,7 +126,12 @@ def plan(jobs: list[Job], refused: list[str] | None = None) -> list[Job]:
     ``refused`` (an experiment): a method that cannot run on a store's Doppler (none, or
     ego-compensated) refuses only that pair: its reason (with the option that would make it
     run) is appended to ``refused`` and recorded in its run folder as a ``refused``
-    failed.json (a failed row in every table), and the other pairs are planned."""
+    failed.json (a failed row in every table), and the other pairs are planned.
+
+    ``own_only`` (``bench run --method``: a folder named by the user or the default one): a
+    folder holding a run of another method, seed option, parameters, frame range or store
+    path is refused (``bench.guard.foreign_run``), ``--force`` included; an experiment's folders are
+    its own layout (a changed parameter there runs again)."""
     problems, planned, owners, paths, warned = [], [], {}, {}, set()
     for job in jobs:
         try:
@@ -159,6 +166,8 @@ def plan(jobs: list[Job], refused: list[str] | None = None) -> list[Job]:
             continue
         owners[prep.run_dir] = (job, prep.key)
         _check_writable(prep.run_dir, job.store)
+        if own_only:
+            foreign_run(prep.run_dir, run_identity(prep.config), "bench run")
         other_store = _other_content(prep.run_dir, job.store,
                                      prep.config["identity"]["store_sha256"])
         if other_store:
@@ -319,7 +328,7 @@ def run_single(method: str, store: Path, seed: bool = True, params: dict | None 
     """Plan and run one job in this process, exactly as ``bench run`` does (a finished run with
     the same key is reused); DataError when it fails."""
     job = plan([single_job(method, Path(store), seed, Path(out) if out is not None else None,
-                           dict(params or {}))])[0]
+                           dict(params or {}))], own_only=True)[0]
     outcome = run_job(job, force)
     if outcome.status not in ("done", "skipped"):
         raise DataError(f"{method} on {store}: {outcome.message}")

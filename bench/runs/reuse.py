@@ -15,9 +15,9 @@ from pathlib import Path
 
 import yaml
 
+from bench import guard
 from bench.runs.folders import is_finished
 from bench.runs.result import RunResult
-from loaders.fileio import atomic_write_text
 from loaders.yamlio import read_yaml
 
 #: the names a run record carries of its sequence (config.yaml ``sequence`` / metrics.json)
@@ -40,8 +40,10 @@ def rename_reused(run_dir: Path, key: str, sequence: dict) -> str | None:
     raw.update({"sequence": sequence["name"], "display_name": sequence["display_name"],
                 "sensor_class": sequence["sensor_class"]})
     config["sequence"] = {**old, **{k: sequence[k] for k in SEQUENCE_NAMES}}
-    atomic_write_text(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False))
-    atomic_write_text(run_dir / "metrics.json", RunResult.model_validate(raw).dump())
+    guard.write_text(run_dir / "config.yaml", yaml.safe_dump(config, sort_keys=False),
+                     guard.in_a_run, "a run's file")
+    guard.write_text(run_dir / "metrics.json", RunResult.model_validate(raw).dump(),
+                     guard.in_a_run, "a run's file")
     was = old.get("display_name") or old.get("name")
     return (f"reused {run_dir} (made as sequence {was!r}; the same store, frames and "
             f"settings) under the name {sequence['display_name']!r}; `bench run --force` "

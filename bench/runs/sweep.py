@@ -19,8 +19,8 @@ import typing
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from bench import guard
 from loaders.errors import DataError
-from loaders.fileio import atomic_write_text
 from methods.registry import get_method
 
 INDEX = "sweeps.json"
@@ -137,8 +137,8 @@ def _plain(value):
 
 def write_sweep_index(out_dir: Path, index: dict) -> Path:
     path = Path(out_dir) / INDEX
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path, json.dumps(index, indent=1) + "\n")
+    guard.write_text(path, json.dumps(index, indent=1) + "\n", guard.derived,
+                     "an experiment's sweep index")
     return path
 
 

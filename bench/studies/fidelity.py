@@ -25,6 +25,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from bench import guard
 from bench.paths import PAPER_TABLE3, PAPER_TABLE4_5
 from bench.runs.folders import load_runs
 from bench.runs.result import nan
@@ -366,8 +367,8 @@ def write_report(results_dir: str | Path, out_dir: str | Path | None = None,
     runs = collect_runs(results_dir)
     cells = table3_cells(runs, paper)
     text = format_markdown(cells, findings(runs, paper), calibration_text(), header)
-    out.mkdir(parents=True, exist_ok=True)
-    (out / "fidelity.csv").write_text(format_csv(cells))
+    guard.output_folder(out)
     path = out / "fidelity.md"
-    path.write_text(text)
+    guard.write_texts({out / "fidelity.csv": format_csv(cells), path: text}, guard.derived,
+                      "a fidelity report")
     return path

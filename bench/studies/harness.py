@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from loaders.fileio import atomic_write_text
+from bench import guard
 from loaders.scan import FrameRange, MemorySequence, Scan, Sequence
 from loaders.se3 import make_T
-from loaders.store import StoreSequence, write_store
+from loaders.store import StoreSequence
 from loaders.trajectory import Trajectory
 from methods.base import OdometryResult
 
@@ -163,7 +163,8 @@ def whole_run(store: Path, method: str = "doppler") -> dict:
         full = StoreSequence(store)
         n = len(full)
         k = min(SHORT_FRAMES, n // 2)
-        short = write_store(FrameRange(full, 0, k), Path(tmp) / "short.h5")
+        short = guard.write_store(FrameRange(full, 0, k), Path(tmp) / "short.h5", None,
+                                  "a scratch store")
         full.close()
         wall_s, cpu_s = _bench_run(short, method, Path(tmp) / "short")
         wall, cpu = _bench_run(Path(store), method, Path(tmp) / "full")
@@ -185,7 +186,8 @@ def tiled_store(seq: Sequence, frames: int, path: Path) -> Path:
     stamps = np.arange(frames) * dt
     scans = [Scan(t, s.points, s.doppler, s.fields) for t, s in zip(stamps, scans, strict=True)]
     gt = Trajectory(stamps, np.array([make_T(np.eye(3), [10.0 * t, 0, 0]) for t in stamps]))
-    write_store(MemorySequence(f"{seq.name}-tiled", seq.sensor, scans, gt), path)
+    guard.write_store(MemorySequence(f"{seq.name}-tiled", seq.sensor, scans, gt), path,
+                      guard.is_store, "a scratch store")
     return path
 
 
@@ -253,11 +255,12 @@ def wanted(scenario: str, points: int, sizes: list[int]) -> bool:
 def report(rows: list[dict], out: Path, console) -> None:
     """Print the harness table and write ``harness.csv``."""
     print_rows(rows, console)
-    out.mkdir(parents=True, exist_ok=True)
+    guard.make_folder(out)
     header = list(rows[0])
     lines = [",".join(header)] + [",".join(f"{r[k]:.6g}" if isinstance(r[k], float)
                                            else str(r[k]) for k in header) for r in rows]
-    atomic_write_text(out / "harness.csv", "\n".join(lines) + "\n")
+    guard.write_text(out / "harness.csv", "\n".join(lines) + "\n", guard.derived,
+                     "a harness table")
     console.print(f"wrote {out}/harness.csv")
 
 

@@ -45,6 +45,7 @@ from pathlib import Path
 
 from rich.console import Console
 
+from bench import guard
 from bench.runs.tuning_rule import Decision, decide
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -353,7 +354,6 @@ def run_experiment(console: Console, yaml_path: Path, jobs: int | None, force: b
     from bench.runs.plan import jobs_for_experiment, plan
     from bench.runs.progress import run_jobs
     from bench.runs.sweep import sweep_index, write_sweep_index
-    from loaders.fileio import atomic_write_text
 
     exp = load_experiment(yaml_path)
     job_list = plan(jobs_for_experiment(exp, console))
@@ -365,7 +365,8 @@ def run_experiment(console: Console, yaml_path: Path, jobs: int | None, force: b
         if sweeps is not None:
             write_sweep_index(exp.out_dir, sweeps)
             text = sweep_markdown(exp.out_dir)
-            atomic_write_text(Path(exp.out_dir) / "sweep.md", text)
+            guard.write_text(Path(exp.out_dir) / "sweep.md", text, guard.derived,
+                             "a sweep table")
             console.print(text, markup=False, soft_wrap=True)
     return 1 if any(o.status not in ("done", "skipped") for o in outcomes) else 0
 
@@ -396,15 +397,13 @@ def _with_plugin() -> None:
 
 
 def write_outputs(rows: list[Comparison], out: Path, decisions: str = "") -> str:
-    from loaders.fileio import atomic_write_text
-
     text = table_markdown(rows)
     if decisions:
         text += "\nThe references' settings (the tuning rule of configs/splits.yaml, " \
             "independent-real-tuning.yaml):\n\n" + decisions
-    out.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(out / "comparison.md", text)
-    atomic_write_text(out / "comparison.json", json.dumps([
+    guard.output_folder(out)
+    guard.write_text(out / "comparison.md", text, guard.derived, "a comparison")
+    guard.write_text(out / "comparison.json", json.dumps([
         {"method": c.baseline.method, "reference": c.baseline.reference,
          "what": c.baseline.what, "half": c.half, "tuned_on": c.tuned_on,
          "setting": c.setting,
@@ -412,7 +411,8 @@ def write_outputs(rows: list[Comparison], out: Path, decisions: str = "") -> str
          "reference_errors": ({f"{x:g}": c.reference.get(x) for x in c.lengths_m}
                               if c.reference else None),
          "ratios": {f"{x:g}": [c.ratio(x, 0), c.ratio(x, 1)] for x in c.lengths_m},
-         "worst": c.worst, "limit": LIMIT, "passed": c.passed} for c in rows], indent=1) + "\n")
+         "worst": c.worst, "limit": LIMIT, "passed": c.passed} for c in rows], indent=1) + "\n",
+        guard.derived, "a comparison")
     return text
 
 

@@ -22,11 +22,11 @@ import math
 from dataclasses import dataclass
 from pathlib import Path
 
+from bench import guard
 from bench.paths import CI_BASELINE as BASELINE
 from bench.paths import CI_EXPERIMENT
 from bench.runs.folders import load_runs
 from bench.runs.result import RunResult
-from loaders.fileio import atomic_write_text
 from methods.registry import Seed
 
 FLOOR = {"rot_deg": 0.01, "trans_m": 0.001}
@@ -141,11 +141,19 @@ def read_baseline(path: Path | None = None) -> dict:
 
 def write_baseline(current: dict, path: Path | None = None) -> None:
     path = path or BASELINE
-    path.parent.mkdir(parents=True, exist_ok=True)
-    atomic_write_text(path, json.dumps({
+    guard.write_text(path, json.dumps({
         "about": "bench regress baseline: mean relative error per sequence/method/seed and "
                  "length of configs/experiments/ci.yaml; update with `bench regress --update`",
-        "runs": current}, indent=1) + "\n")
+        "runs": current}, indent=1) + "\n", is_baseline, "a regress baseline")
+
+
+def is_baseline(path: Path) -> bool:
+    """A baseline ``write_baseline`` wrote (its ``about`` says so): what --update replaces."""
+    try:
+        about = json.loads(Path(path).read_text()).get("about", "")
+    except (OSError, ValueError, AttributeError):
+        return False
+    return isinstance(about, str) and about.startswith("bench regress baseline")
 
 
 def regress_command(console, update: bool, tolerance: float, jobs: int,

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 from rich.console import Console
 
+from bench import guard
 from bench.data.datasets import dataset_configs
 from bench.paths import EXPERIMENTS
 from bench.report.figures.draw import make_figures
@@ -38,7 +39,6 @@ from bench.runs.job import Job, summarize
 from bench.runs.plan import jobs_for_experiment, plan, suite_sequences
 from bench.runs.progress import run_jobs
 from bench.studies.fidelity import write_report
-from loaders.fileio import atomic_write_text
 
 TABLES = {  # experiment -> (kind, output stem, caption)
     "table3": ("relative", "table3", ""),
@@ -196,12 +196,26 @@ def plan_tables(experiments: dict[str, Experiment], console: Console
 def _remove_stale(out: Path, stem: str, console: Console) -> None:
     """Remove ``stem``'s files left by an earlier reproduction: this one writes no such table,
     so they would show runs that are not part of it."""
-    removed = [p for p in (out / f"{stem}.{fmt}" for fmt in ("md", "tex", "csv")) if p.exists()]
+    removed = [p for p in (out / f"{stem}.{fmt}" for fmt in ("md", "tex", "csv"))
+               if guard.derived(p)]  # tables of ours only: a user's file is left alone
     for p in removed:
-        p.unlink()
+        guard.remove(p, guard.derived, "a table")
     if removed:
         console.print(f"removed {out}/{stem}.* of an earlier reproduction (not part of this "
                       "one)", markup=False)
+
+
+def _check_outputs(out: Path) -> None:
+    """``out`` can take the reproduction: a folder (or new), not a run's, and its tables and
+    page, where they exist, the harness's own (``bench.guard``)."""
+    guard.output_folder(out)
+    for _, stem, _ in TABLES.values():
+        for name in (stem, f"{stem}_kitti", f"{stem}_velocity"):
+            for fmt in ("md", "tex", "csv"):
+                guard.regenerated_file(out / f"{name}.{fmt}", guard.derived, "a table")
+    guard.regenerated_file(out / "report.html", guard.derived, "a report page")
+    for name in ("fidelity.md", "fidelity.csv", "reproduction.json"):
+        guard.regenerated_file(out / name, guard.derived, "a reproduction record")
 
 
 def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic_only: bool,
@@ -216,9 +230,11 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
     ``marks`` is the tables' marking rule (``bench.report.tables.model.MARK_RULES``); ``ci``
     prints each figure's interval in the cells (as ``bench table --ci``)."""
     t0 = time.perf_counter()
+    _check_outputs(out)  # at once, before the suite is generated and anything runs
     real, notes = _choose_data(data_dir, synthetic_only, console)
     if real and out == Path("results/paper-synthetic"):
         out = Path("results/paper-real")
+        _check_outputs(out)
     experiments = table_experiments(out, data_dir, real)
     given = {k: list(v) if isinstance(v, tuple) else v for k, v in (scoring or {}).items()
              if v is not None}
@@ -278,7 +294,8 @@ def reproduce_table(out: Path, data_dir: Path, jobs: int, force: bool, synthetic
               "tables_written": written, "tables_not_written": not_written,
               "notes": notes + [f"{stem} not written: {why}" for stem, why in
                                 not_written.items()]}
-    atomic_write_text(out / "reproduction.json", json.dumps(record, indent=2))
+    guard.write_text(out / "reproduction.json", json.dumps(record, indent=2), guard.derived,
+                     "a reproduction record")
     page, _ = write_page(out)
     console.print(f"results page: {page}", markup=False)
     return [o.message for o in outcomes if o.status not in ("done", "skipped")]

@@ -39,6 +39,7 @@ import numpy as np
 from rich.markup import escape
 from rich.table import Table
 
+from bench import guard
 from bench.studies.speed import write_csv
 
 POSES = (2500, 10_000, 40_000)
@@ -89,9 +90,8 @@ def drive(poses: int, folder: Path) -> tuple[Path, list[Path]]:
     with the ground truth of a smooth 5 m/s drive, and two estimates of it with different
     noise as TUM files."""
     from bench.studies.coverage import NoiseModel, ground_truth, noisy_estimate
-    from loaders.posefile import write_tum
+    from loaders.posefile import tum_text
     from loaders.scan import MemorySequence, Scan, SensorInfo
-    from loaders.store import write_store
     from loaders.trajectory import Trajectory
 
     gt = ground_truth(poses)
@@ -99,11 +99,12 @@ def drive(poses: int, folder: Path) -> tuple[Path, list[Path]]:
     points = np.array([[5.0, 0.0, 0.0], [0.0, 5.0, 0.0], [5.0, 5.0, 1.0]])
     seq = MemorySequence(f"drive-{poses}", SensorInfo("radar", 0.1),
                          [Scan(float(t), points) for t in stamps], Trajectory(stamps, gt))
-    store = write_store(seq, folder / f"drive-{poses}.h5")
+    store = guard.write_store(seq, folder / f"drive-{poses}.h5", guard.is_store, "a scratch store")
     estimates = []
     for k, noise in enumerate((NoiseModel(), NoiseModel(0.08, 0.02))):
         path = folder / f"drive-{poses}-estimate-{k}.txt"
-        write_tum(Trajectory(stamps, noisy_estimate(gt, noise, 100 + k)), path)
+        guard.write_text(path, tum_text(Trajectory(stamps, noisy_estimate(gt, noise, 100 + k))),
+                         guard.derived, "a scratch estimate")
         estimates.append(path)
     return store, estimates
 
@@ -182,7 +183,7 @@ def executor_rows(folder: Path, sequences: int, frames: int,
         spec = {"name": f"scale-{executor}", "methods": [{"name": METHOD}], "jobs": WORKERS,
                 "out": str(out), "sequences": [{"path": str(s)} for s in stores]}
         config = folder / f"experiment-{executor}.yaml"
-        config.write_text(yaml.safe_dump(spec))
+        guard.write_text(config, yaml.safe_dump(spec), guard.derived, "a scratch experiment")
         r = child(["run", str(config), "--executor", executor, "--jobs", str(WORKERS)])
         times = np.concatenate([pd.read_csv(p)["time_ms"].to_numpy(float)
                                 for p in sorted(out.rglob("frames.csv"))])
@@ -265,7 +266,7 @@ def run_scale(out: Path, console, poses: tuple[int, ...] = POSES, frames: int = 
         r["doppler_sample_ms"] = doppler_ms
     print_scale(rows, doppler_ms, console)
     print_executors(ex_rows, doppler_ms, console)
-    out.mkdir(parents=True, exist_ok=True)
+    guard.make_folder(out)
     write_csv(rows, out / "scale.csv")
     write_csv(ex_rows, out / "scale_executors.csv")
     console.print(f"wrote {out}/scale.csv and scale_executors.csv", markup=False)

@@ -42,8 +42,8 @@ from rich.console import Console
 from rich.markup import escape
 from rich.table import Table
 
+from bench import guard
 from bench.studies.speed_timing import method_params, time_frames
-from loaders.fileio import atomic_path, atomic_write_text
 from loaders.scan import MemorySequence, Scan, SensorInfo
 from methods.registry import METHODS, make_method
 
@@ -102,11 +102,10 @@ def compare_with_run(name: str, sequence, folder: Path) -> tuple[float, float]:
     the same scans (``sequence`` written as a store into ``folder``): the two protocols agree
     when these are equal within noise."""
     from bench.runs.plan import run_single
-    from loaders.store import write_store
 
     # without ground truth: the run is timed, not scored (the scans are a few metres of path)
     scans = MemorySequence(sequence.name, sequence.sensor, list(sequence))
-    store = write_store(scans, folder / f"{name}.h5")
+    store = guard.write_store(scans, folder / f"{name}.h5", guard.is_store, "a scratch store")
     ours = time_method(name, sequence)["median_ms"]
     run = run_single(name, store, True, {}, folder / name, force=True).result
     return ours, run.time_ms.median
@@ -153,11 +152,10 @@ def peak_memory_of_run(method: str, store: Path, threads: int = 1) -> tuple[floa
 
 def memory_store(path: Path, points: int = 64_000, frames: int = 20) -> tuple[Path, str]:
     """A LiDAR store of ``frames`` scans of ``points`` points each (tunnel scene)."""
-    from loaders.store import write_store
-
     seq = make_sequence("tunnel", "lidar-dense", frames, points, seed=1)
     scans = [subsample(s, points, k) for k, s in enumerate(seq)]
-    write_store(MemorySequence(seq.name, seq.sensor, scans, seq.ground_truth), path)
+    guard.write_store(MemorySequence(seq.name, seq.sensor, scans, seq.ground_truth), path,
+                      guard.is_store, "a scratch store")
     return path, f"{frames} frames of {int(np.median([len(s) for s in scans]))} points"
 
 
@@ -166,10 +164,11 @@ def _scenarios(sizes: list[int], radar: bool, frames: int, folder: Path):
     sequence is read from a store written into ``folder``, one scan at a time as a run reads
     it (float32 per-point values; the read between frames is untimed but, as in a run, it
     leaves the caches to the next frame)."""
-    from loaders.store import StoreSequence, write_store
+    from loaders.store import StoreSequence
 
     def stored(seq: MemorySequence, name: str) -> StoreSequence:
-        return StoreSequence(write_store(seq, folder / f"{name}.h5"))
+        return StoreSequence(guard.write_store(seq, folder / f"{name}.h5", guard.is_store,
+                                               "a scratch store"))
 
     if radar:
         seq = stored(make_sequence(RADAR_SCENE, "radar-semidense", frames), "radar")
@@ -236,7 +235,7 @@ def run_speed(sizes: list[int], methods: list[str] | None, repeats: int, out: Pa
     _print_table(rows, names, console)
     if harness_rows:
         harness_study.report(harness_rows, out, console)
-    out.mkdir(parents=True, exist_ok=True)
+    guard.make_folder(out)
     write_csv(rows, out / "speed.csv")
     _plot(rows, names, out / "speed.png")
     console.print(f"wrote {out}/speed.csv and speed.png")
@@ -271,11 +270,24 @@ def _print_vs_run(names: list[str], sequence: MemorySequence, what: str,
     console.print(table)
 
 
+#: every file ``bench speed`` may write into its --out folder
+OUTPUTS = ("speed.csv", "speed.png", "speed_reference.csv", "memory.csv", "harness.csv",
+           "scale.csv", "scale_executors.csv")
+
+
+def check_outputs(out: Path, inputs=()) -> None:
+    """Before any timing: ``out`` a folder (not a run's) whose files of ``OUTPUTS``, where they
+    exist, the harness wrote (``bench.guard``)."""
+    guard.output_folder(out, inputs=inputs)
+    for name in OUTPUTS:
+        guard.regenerated_file(Path(out) / name, guard.derived, "a speed table or plot")
+
+
 def write_csv(rows: list[dict], path: Path) -> None:
     """``rows`` (the same keys each) as CSV, written atomically."""
     header = list(rows[0])
     lines = [",".join(header)] + [",".join(_csv_value(r[k]) for k in header) for r in rows]
-    atomic_write_text(path, "\n".join(lines) + "\n")
+    guard.write_text(path, "\n".join(lines) + "\n", guard.derived, "a table of times")
 
 
 def _memory(names: list[str], out: Path, console: Console, threads: int) -> None:
@@ -299,7 +311,8 @@ def _memory(names: list[str], out: Path, console: Console, threads: int) -> None
                            "NumPy, SciPy, numba, small_gicp, h5py, ...) take "
                            f"{min(bases):.0f}-{max(bases):.0f} MB before a scan is read")
     console.print(table)
-    atomic_write_text(out / "memory.csv", "\n".join(lines) + "\n")
+    guard.write_text(out / "memory.csv", "\n".join(lines) + "\n", guard.derived,
+                     "a table of memory")
 
 
 def _csv_value(v) -> str:
@@ -359,6 +372,5 @@ def _plot(rows: list[dict], names: list[str], path: Path) -> None:
     ax.grid(True, which="both", alpha=0.3)
     ax.legend(fontsize=7)
     fig.tight_layout()
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=120)
+    guard.savefig(fig, path, "png", guard.derived, "a speed plot", dpi=120)
     plt.close(fig)

@@ -161,10 +161,13 @@ def store_is_current(path: Path, entry: SuiteEntry) -> bool:
 
 
 def ensure_suite(name: str, data_dir: str | Path,
-                 progress: Callable[[str, int, int], None] | None = None) -> list[Path]:
+                 progress: Callable[[str, int, int], None] | None = None,
+                 writer: Callable = write_store) -> list[Path]:
     """Write the stores of suite ``name`` under ``data_dir/name/`` (only missing or stale ones)
     and return their paths in suite order. ``progress(entry_name, done, total)`` is called after
-    each written frame, and once with done == total for a store that is already current."""
+    each written frame, and once with done == total for a store that is already current.
+    ``writer(sequence, path, progress)``: the store writer (bench passes its output guard's, so
+    a file of the suite's name that is not a synthetic store is never replaced)."""
     entries = suite_entries(name)
     out_dir = Path(data_dir) / name
     paths = []
@@ -179,6 +182,6 @@ def ensure_suite(name: str, data_dir: str | Path,
             if progress:
                 def cb(i, _n=entry.name, _t=entry.frames):
                     progress(_n, i + 1, _t)
-            write_store(seq, path, cb)
+            writer(seq, path, cb)
         paths.append(path)
     return paths

@@ -216,7 +216,8 @@ def calibrate_store(path: str | Path, write_to: Path | None = None, console=None
     its ground truth corrected by the angles of the ``apply`` estimate whose interval is
     narrower than ``max_width_deg``, and the frames used recorded."""
     from bench import guard
-    from loaders.store import StoreSequence, write_store
+    from bench.data.calibration.write import written_by_calibrate
+    from loaders.store import StoreSequence
 
     if apply not in ESTIMATES:
         raise DataError(f"--apply {apply!r}: choose from {', '.join(ESTIMATES)}")
@@ -269,9 +270,12 @@ def calibrate_store(path: str | Path, write_to: Path | None = None, console=None
                    "left_alone": left, "max_width_deg": float(max_width_deg)}
         if he is not None:
             details["hand_eye_rpy_deg"] = list(he.angles_deg.values())
-        guard.replaceable(write_to, force, guard.is_store, "a store", "--write", [path])
-        write_store(CorrectedSequence(seq, applied_rotation(applied), (first, stop), details),
-                    write_to)
+        # --force replaces a store bench calibrate wrote, never another store nor any file
+        guard.replaceable(write_to, force, written_by_calibrate,
+                          "a store bench calibrate wrote", "--write", [path])
+        guard.write_store(CorrectedSequence(seq, applied_rotation(applied), (first, stop),
+                                            details), write_to, written_by_calibrate,
+                          "a store bench calibrate wrote")
         say(f"wrote {write_to} (ground truth and extrinsic corrected by the {apply} "
             f"estimate's applied angles, points unchanged; frames {first}-{stop - 1} are not "
             "scored)")

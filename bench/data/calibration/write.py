@@ -86,12 +86,18 @@ def check_write_target(store: Path, write_to: Path, force: bool) -> None:
     if not force:
         raise DataError(f"--write {write_to}: exists; give another path, or --force to replace "
                         "a store bench calibrate wrote")
-    if not _written_by_calibrate(write_to):
+    if not written_by_calibrate(write_to):
         raise DataError(f"--write {write_to}: exists and is not a store bench calibrate wrote; "
                         "--force replaces only those: give another path")
 
 
-def _written_by_calibrate(path: Path) -> bool:
+def written_by_calibrate(path: Path) -> bool:
+    """A store (``bench.guard.is_store``) whose provenance records a calibration: what
+    ``calibrate --write --force`` may replace."""
+    from bench.guard import is_store
+
+    if not is_store(path):
+        return False
     from loaders.store import StoreSequence
 
     try:

@@ -165,6 +165,7 @@ def plot_trajectories(results_dir: Path, out_dir: Path | None = None,
 def make_figures(results_dir: Path, out_dir: Path | None = None,
                  speed_csv: Path | None = None) -> list[Path]:
     """Every figure of a results folder (and of a ``bench speed`` CSV when given)."""
+    from bench import guard
     from bench.report.figures.drift import plot_drift
     from bench.report.figures.errors import (
         plot_boxplots,
@@ -177,6 +178,7 @@ def make_figures(results_dir: Path, out_dir: Path | None = None,
     from bench.report.tables.paper import runs as table_rows
 
     out_dir = Path(out_dir or Path(results_dir) / "figures")
+    guard.output_folder(out_dir)  # a folder of figures, never a run's own nor inside one
     runs = _runs_with_gt(results_dir)
     written = plot_trajectories(results_dir, out_dir, runs)
     written += plot_boxplots(runs, out_dir)

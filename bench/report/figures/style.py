@@ -12,7 +12,6 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from bench.report.names import display_name, is_gt_assisted, order_key, overrides_note
-from loaders.fileio import atomic_path
 from methods.registry import Seed
 from methods.registry import color as _method_color
 
@@ -179,17 +178,19 @@ def save(fig, path_stem: Path) -> list[Path]:
     (in ``for_the_page``: the PNG, and the PDF only if it existed)."""
     import matplotlib.pyplot as plt
 
-    path_stem.parent.mkdir(parents=True, exist_ok=True)
-    paths = []
-    for fmt in ("pdf", "png"):
-        path = path_stem.with_name(path_stem.name + f".{fmt}")
-        if fmt == "pdf" and _page_only and not path.exists():
-            continue
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, format=fmt, dpi=DPI)
-        paths.append(path)
-    plt.close(fig)
-    return paths
+    from bench import guard
+
+    planned = [path_stem.with_name(path_stem.name + f".{fmt}") for fmt in ("pdf", "png")]
+    planned = [p for p in planned if not (p.suffix == ".pdf" and _page_only and not p.exists())]
+    try:
+        guard.make_folder(path_stem.parent)
+        for path in planned:  # a user's own PNG / PDF of that name: refused before either is
+            guard.regenerated_file(path, guard.derived, "a figure", "figure")  # written
+        for path in planned:
+            guard.savefig(fig, path, path.suffix[1:], guard.derived, "a figure", dpi=DPI)
+    finally:
+        plt.close(fig)
+    return planned
 
 
 #: the legends' note on the motion prior (``run_name`` marks only "no seed")

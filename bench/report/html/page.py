@@ -31,7 +31,6 @@ from bench.report.summary.overview import cross_dataset
 from bench.report.tables.model import to_markdown
 from bench.runs.folders import BROKEN
 from bench.runs.result import REPORTED_CLOCK
-from loaders.fileio import atomic_write_text
 
 #: the page's name inside the results folder
 PAGE_NAME = "report.html"
@@ -392,10 +391,11 @@ def write_page(results_dir: Path, out: Path | None = None) -> tuple[Path, dict]:
         raise DataError(f"{results_dir}: no run records in this folder (no metrics.json, "
                         "failed.json or run config.yaml under it); expected a results folder "
                         "of `bench run` or `bench reproduce`")
-    page, counts = render_page(results_dir)
     from bench import guard
 
     path = Path(out) if out is not None else results_dir / PAGE_NAME
-    guard.regenerated_file(path, guard.has_mark, "a report page")  # only a page of ours
-    atomic_write_text(path, page)
+    # before any drawing: only a page of ours, never into a run folder
+    guard.regenerated_file(path, guard.derived, "a report page")
+    page, counts = render_page(results_dir)
+    guard.write_text(path, page, guard.derived, "a report page")
     return path, counts

@@ -39,7 +39,6 @@ from bench.report.tables.significance import (  # noqa: F401
     interval_marks,
     shown_interval,
 )
-from loaders.fileio import atomic_write_text
 
 #: the marking rules and how a caption states them ("significance", the name of the rule before
 #: marks were read from the printed intervals, is accepted for "intervals": ``rule_name``)
@@ -356,8 +355,11 @@ def render(table: Table) -> dict[str, str]:
 def save_table(table: Table, out_dir: Path, stem: str) -> dict[str, str]:
     """Write ``<stem>.md/.tex/.csv`` atomically (a caption whose intervals are not printed
     names the CSV); return the texts by format."""
+    from bench import guard
+
     table.csv_file = str(Path(out_dir) / f"{stem}.csv")
     texts = render(table)
-    for fmt, text in texts.items():
-        atomic_write_text(Path(out_dir) / f"{stem}.{fmt}", text)
+    guard.output_folder(Path(out_dir))
+    guard.write_texts({Path(out_dir) / f"{stem}.{fmt}": text for fmt, text in texts.items()},
+                      guard.derived, "a table")
     return texts

@@ -56,6 +56,7 @@ from bench.runs.external.names import EXTERNAL, check_name, check_run_folder
 from bench.runs.folders import clear_run, is_finished, run_dir_name, write_run
 from bench.runs.identity import code_identity, run_key, store_identity
 from bench.runs.job import calibration_frames, sequence_folder, sequence_labels
+from bench.runs.ownership import foreign_run
 from bench.runs.result import EXTERNAL_MARK, REPORTED_CLOCK
 from loaders.errors import DataError
 from loaders.estimate import read_estimate
@@ -159,8 +160,6 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
     name = check_name(spec.name)
     check_options_of(spec)
     scoring = scoring or Scoring()
-    est = read_estimate(spec.trajectory, spec.fmt, spec.stamps, spec.topic, spec.frame_times,
-                        spec.stamp_unit)
     seq = StoreSequence(store, fields=())
     try:
         if seq.ground_truth is None:
@@ -169,6 +168,17 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         given = {"name": None, "display_name": None, "sensor_class": None, **(names or {})}
         seq_name, display, klass = sequence_labels(seq, SimpleNamespace(**given))
         run_dir = Path(out or DEFAULT_OUT) / sequence_folder(seq_name) / run_dir_name(name, None)
+        # the output before any matching (bench.guard): a new folder, this command's own run
+        # (same trajectory file and store), or a harness run only with --replace-run
+        check_run_folder(run_dir, spec.replace_run)
+        guard.run_folder(run_dir, guard.EXTERNAL, spec.replace_run, [
+            spec.trajectory, spec.stamps, spec.frame_times, store], root=Path(out or DEFAULT_OUT),
+            ask="--replace-run")
+        foreign_run(run_dir, {"trajectory": str(guard.resolved(spec.trajectory)),
+                              "topic": spec.topic, "store": str(guard.resolved(store))},
+                    "bench score")
+        est = read_estimate(spec.trajectory, spec.fmt, spec.stamps, spec.topic, spec.frame_times,
+                            spec.stamp_unit)
         T_frame_sensor, how = frame_transform(spec, seq.sensor.T_body_sensor)
         stamps = seq.stamps
         where = f"{spec.trajectory}" + (f":{spec.topic}" if spec.topic else "")
