@@ -58,6 +58,8 @@ class Estimate:
     frame_times_ms: np.ndarray | None = None
     #: the unit the stamps were read in (they are returned in seconds)
     stamp_unit: str = "s"
+    #: the stamps as the file wrote them (before the unit; None: as ``trajectory.stamps``)
+    raw_stamps: np.ndarray | None = None
 
 
 def check_stamps(stamps: np.ndarray, where: str, lines: list | None = None) -> None:
@@ -241,4 +243,4 @@ def read_estimate(path: str | Path, fmt: str = "auto", stamps: str | Path | None
     unit = stamp_unit or DEFAULT_UNITS[fmt]
     traj = est.trajectory
     return Estimate(Trajectory(traj.stamps * STAMP_UNITS[unit], traj.poses), est.frame_times_ms,
-                    unit)
+                    unit, traj.stamps.copy())

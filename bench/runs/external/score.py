@@ -105,6 +105,7 @@ class ExternalOutcome:
     coverage: dict = field(default_factory=dict)
     frame: str = ""  # how the poses were moved to the sensor (T_frame_sensor)
     clock: str = ""  # what the clock check found
+    warnings: list[str] = field(default_factory=list)  # scored anyway
 
 
 def file_sha256(path: Path | None) -> str | None:
@@ -172,15 +173,15 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         T_frame_sensor, how = frame_transform(spec, seq.sensor.T_body_sensor)
         stamps = seq.stamps
         where = f"{spec.trajectory}" + (f":{spec.topic}" if spec.topic else "")
-        fit, clock = check_clock(est.trajectory, T_frame_sensor, seq.ground_truth, stamps,
-                                 spec.time_offset_s, spec.trust_clock, where, str(store),
-                                 est.stamp_unit)
+        verdict = check_clock(est.trajectory, T_frame_sensor, seq.ground_truth, stamps,
+                              spec.time_offset_s, spec.trust_clock, where, str(store),
+                              est.stamp_unit, spec.tolerance_s, est.raw_stamps)
+        clock, warned = verdict.line, list(verdict.warnings)
         m = match_to_scans(est.trajectory, stamps, time_offset_s=spec.time_offset_s,
                            tolerance_s=spec.tolerance_s, max_gap_s=spec.max_gap_s,
                            T_frame_sensor=T_frame_sensor, est_name=where, scan_name=str(store),
-                           hint=fit_hint(fit))
-        if fit is not None:
-            refuse_misfit(fit, spec.time_offset_s, where, str(store))
+                           hint=fit_hint(verdict.fit))
+        refuse_misfit(verdict, spec.time_offset_s, spec.tolerance_s, where, str(store))
         _, has_gt = gt_for_frames(seq.ground_truth, stamps, name=str(store))
         calibrated = calibration_frames(seq)
         with_gt = has_gt if calibrated is None else has_gt & ~calibrated
@@ -222,7 +223,7 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
             spec.trajectory, spec.stamps, spec.frame_times, store], root=Path(out or DEFAULT_OUT),
             ask="--replace-run")
         if is_finished(run_dir, key) and not force and not replaced:
-            return ExternalOutcome(run_dir, "skipped", coverage, how, clock)
+            return ExternalOutcome(run_dir, "skipped", coverage, how, clock, warned)
         idx = np.flatnonzero(m.covered)
         row_times = _frame_times(est.frame_times_ms, len(stamps), m)
         # positional arguments from plain lists: half the time at 40,000 frames
@@ -234,7 +235,7 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         reported = est.frame_times_ms is not None
         timings = {"time_ms": timing_part(est.frame_times_ms if reported else np.zeros(0)),
                    "register_ms": {}, "wall_ms": {}}
-        notes = _notes(coverage, reported)
+        notes = _notes(coverage, reported) + [f"warning: {w}" for w in warned]
         metrics = {"sequence": seq_name, "method": name, "seed": None, "frames": len(seq),
                    **evaluation.metrics, **timings,
                    "clock": REPORTED_CLOCK if reported else None,
@@ -265,7 +266,7 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
             warnings.warn(f"{run_dir}: replaced {replaced} by the external run {name} "
                           "(--replace-run)", stacklevel=2)
         write_run(run_dir, result, evaluation.gt, config, metrics, notes)
-        return ExternalOutcome(run_dir, "done", coverage, how, clock)
+        return ExternalOutcome(run_dir, "done", coverage, how, clock, warned)
     finally:
         seq.close()
 
