@@ -109,8 +109,9 @@ def unit_misfit(est_stamps: np.ndarray, est_xyz: np.ndarray, gt: Trajectory, uni
     fits = next((u for u, s in STAMP_UNITS.items() if np.isclose(s, seconds)), None)
     head = (f"{where}: read in {UNIT_NAMES[unit]}, its stamps move it at {est_speed:.3g} m/s "
             f"where the ground truth of {store} moves at {gt_speed:.3g} m/s "
-            f"({1000.0 ** k:g} times faster): stamps in another unit, or positions in another "
-            f"unit? Its path is {length(est_xyz):.4g} (position units) over "
+            f"({1000.0 ** abs(k):g} times {'slower' if k > 0 else 'faster'}): stamps in another "
+            f"unit, or positions in another unit? Its path is {length(est_xyz):.4g} (position "
+            "units) over "
             f"{est_stamps[-1] - est_stamps[0]:.4g} (stamp units), the ground truth's "
             f"{length(gt_xyz):.4g} m over {gt.stamps[-1] - gt.stamps[0]:.4g} s")
     if path_k == -k and span_k is None:
