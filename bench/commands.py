@@ -221,6 +221,7 @@ def score_command(console: Console, store: Path, spec, out: Path, force: bool,
                   + (" (unchanged: not scored again; --force to)" if outcome.status == "skipped"
                      else ""), markup=False)
     console.print(f"clock check: {outcome.clock}", markup=False)
+    console.print(f"convention check: {outcome.convention}", markup=False)
     for warning in outcome.warnings:
         console.print(f"warning: {warning}", style="yellow", markup=False)
     console.print(f"poses moved to the sensor frame by T_frame_sensor = {outcome.frame}",

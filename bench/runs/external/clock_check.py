@@ -177,10 +177,9 @@ def check_clock(est: Trajectory, T_frame_sensor: np.ndarray, gt: Trajectory,
             "(the scans' stamps are those of the bag `bench export` writes), or "
             "--trust-clock to score it as it is")
     est_poses = est.poses @ T_frame_sensor
-    if not on_scans:
-        unit_text = unit_misfit(est_stamps, est_poses[:, :3, 3], gt, unit, where, store)
-        if unit_text:
-            raise DataError(unit_text)
+    unit_text = unit_misfit(est_stamps, est_poses[:, :3, 3], gt, unit, where, store)
+    if unit_text:  # (positions in mm keep the scans' stamps: checked whatever the stamps)
+        raise DataError(unit_text)
     fit = fit_clock(est_stamps, est_poses, gt.stamps, gt.poses, period)
     if fit.offset_s is None:
         said = ("on the store's clock (one stamp per scan, each its scan's); " if on_scans

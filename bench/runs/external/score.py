@@ -51,6 +51,7 @@ from bench import guard
 from bench.runs.evaluate import Scoring, evaluate_run, timing_part
 from bench.runs.external import DEFAULT_MIN_COVERAGE, DEFAULT_TOLERANCE_S
 from bench.runs.external.clock_check import check_clock, fit_hint, refuse_misfit
+from bench.runs.external.conventions import check_conventions, reread
 from bench.runs.external.match import check_options, match_to_scans
 from bench.runs.external.names import EXTERNAL, check_name, check_run_folder
 from bench.runs.folders import clear_run, is_finished, run_dir_name, write_run
@@ -62,6 +63,7 @@ from loaders.estimate import read_estimate
 from loaders.gt import gt_for_frames, time_span
 from loaders.posefile import parse_extrinsic
 from loaders.store import StoreSequence
+from loaders.trajectory import Trajectory
 from methods.base import FrameRecord, OdometryResult
 
 #: the clock note of an external run without per-frame times
@@ -106,6 +108,7 @@ class ExternalOutcome:
     frame: str = ""  # how the poses were moved to the sensor (T_frame_sensor)
     clock: str = ""  # what the clock check found
     warnings: list[str] = field(default_factory=list)  # scored anyway
+    convention: str = ""  # what the convention check found
 
 
 def file_sha256(path: Path | None) -> str | None:
@@ -182,7 +185,8 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
                            T_frame_sensor=T_frame_sensor, est_name=where, scan_name=str(store),
                            hint=fit_hint(verdict.fit))
         refuse_misfit(verdict, spec.time_offset_s, spec.tolerance_s, where, str(store))
-        _, has_gt = gt_for_frames(seq.ground_truth, stamps, name=str(store))
+        gt_at_scans, has_gt = gt_for_frames(seq.ground_truth, stamps, name=str(store))
+        convention = _conventions(est, spec, stamps, m, gt_at_scans, T_frame_sensor, where)
         calibrated = calibration_frames(seq)
         with_gt = has_gt if calibrated is None else has_gt & ~calibrated
         scored = m.covered & with_gt
@@ -223,7 +227,7 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
             spec.trajectory, spec.stamps, spec.frame_times, store], root=Path(out or DEFAULT_OUT),
             ask="--replace-run")
         if is_finished(run_dir, key) and not force and not replaced:
-            return ExternalOutcome(run_dir, "skipped", coverage, how, clock, warned)
+            return ExternalOutcome(run_dir, "skipped", coverage, how, clock, warned, convention)
         idx = np.flatnonzero(m.covered)
         row_times = _frame_times(est.frame_times_ms, len(stamps), m)
         # positional arguments from plain lists: half the time at 40,000 frames
@@ -259,14 +263,15 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
                          "stamp_unit": spec.stamp_unit,
                          "T_frame_sensor": T_frame_sensor.tolist(), "T_frame_sensor_from": how,
                          "timing": REPORTED_CLOCK if reported else "not timed",
-                         "clock_check": clock, "coverage": coverage},
+                         "clock_check": clock, "convention_check": convention,
+                         "coverage": coverage},
             "run_key": key, "identity": identity}
         if replaced:
             clear_run(run_dir)
             warnings.warn(f"{run_dir}: replaced {replaced} by the external run {name} "
                           "(--replace-run)", stacklevel=2)
         write_run(run_dir, result, evaluation.gt, config, metrics, notes)
-        return ExternalOutcome(run_dir, "done", coverage, how, clock, warned)
+        return ExternalOutcome(run_dir, "done", coverage, how, clock, warned, convention)
     finally:
         seq.close()
 
@@ -288,6 +293,20 @@ def _evaluate(gt, result, scoring: Scoring, with_gt: np.ndarray, idx: np.ndarray
             f"{coverage['scans_with_gt']} scans with ground truth "
             f"({100 * coverage['share_scored']:.1f} %), about {path:.3f} m of path, shorter "
             f"than the shortest segment ({min(scoring.lengths_m):g} m)") from None
+
+
+def _conventions(est, spec: ExternalSpec, stamps: np.ndarray, m, gt_at_scans: np.ndarray,
+                 T_frame_sensor: np.ndarray, where: str) -> str:
+    """``bench.runs.external.conventions``: the estimate's other readings at the same scans."""
+    period = float(np.median(np.diff(stamps))) if len(stamps) > 1 else 0.0
+
+    def match_other(name):
+        other = Trajectory(est.trajectory.stamps, reread(est.trajectory.poses, name))
+        return match_to_scans(other, stamps, time_offset_s=spec.time_offset_s,
+                              tolerance_s=spec.tolerance_s, max_gap_s=spec.max_gap_s,
+                              T_frame_sensor=T_frame_sensor).poses
+
+    return check_conventions(est.fmt, m.poses, match_other, gt_at_scans, period, where)
 
 
 def _str(path: Path | None) -> str | None:
