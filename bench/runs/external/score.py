@@ -52,7 +52,7 @@ from bench.runs.evaluate import Scoring, evaluate_run, timing_part
 from bench.runs.external import DEFAULT_MIN_COVERAGE, DEFAULT_TOLERANCE_S
 from bench.runs.external.clock_check import check_clock, fit_hint, refuse_misfit
 from bench.runs.external.conventions import check_conventions, reread
-from bench.runs.external.match import check_options, match_to_scans
+from bench.runs.external.match import check_options, match_to_scans, rounding_hint
 from bench.runs.external.names import EXTERNAL, check_name, check_run_folder
 from bench.runs.folders import clear_run, is_finished, run_dir_name, write_run
 from bench.runs.identity import code_identity, run_key, store_identity
@@ -191,12 +191,18 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         with_gt = has_gt if calibrated is None else has_gt & ~calibrated
         scored = m.covered & with_gt
         n_gt = int(with_gt.sum())
+        warned += _bridged(m.report, stamps, where)
         coverage = {**m.report, "scans_with_gt": n_gt, "scored": int(scored.sum()),
                     "share_scored": float(scored.sum() / max(n_gt, 1))}
         if not scored.any():
             raise DataError(f"{where}: none of the {int(m.covered.sum())} scans with an "
                             f"estimate has ground truth in {store}; nothing to score")
         if coverage["share_scored"] < spec.min_coverage:
+            rounded = rounding_hint(est.trajectory.stamps + spec.time_offset_s, stamps,
+                                    spec.tolerance_s)
+            advice = rounded or ("A shorter or sparser estimate? " + (
+                "--max-gap S interpolates between poses at most S apart; " if spec.max_gap_s
+                is None else "") + "--min-coverage 0 scores what it covers")
             raise DataError(
                 f"{where} covers {coverage['scored']} of the {n_gt} scans of {store} with ground "
                 f"truth ({100 * coverage['share_scored']:.1f} %), below --min-coverage "
@@ -204,9 +210,7 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
                 f"{spec.tolerance_s:g} s, {m.report['interpolated']} interpolated; the estimate "
                 f"({len(est.trajectory)} poses) spans "
                 f"{time_span(est.trajectory.stamps + spec.time_offset_s)}, the scans with ground "
-                f"truth {time_span(stamps[with_gt])}. A shorter or sparser estimate? "
-                + ("--max-gap S interpolates between poses at most S apart; " if spec.max_gap_s
-                   is None else "") + "--min-coverage 0 scores what it covers")
+                f"truth {time_span(stamps[with_gt])}. {advice}")
         identity = {
             "kind": EXTERNAL, "store_sha256": store_identity(store),
             "trajectory_sha256": file_sha256(spec.trajectory),
@@ -295,6 +299,21 @@ def _evaluate(gt, result, scoring: Scoring, with_gt: np.ndarray, idx: np.ndarray
             f"than the shortest segment ({min(scoring.lengths_m):g} m)") from None
 
 
+#: interpolating across a gap wider than this many scan periods is warned about
+BRIDGE_PERIODS = 3.0
+
+
+def _bridged(report: dict, stamps: np.ndarray, where: str) -> list[str]:
+    """A warning when ``--max-gap`` bridged a gap wider than ``BRIDGE_PERIODS`` periods."""
+    period = float(np.median(np.diff(stamps))) if len(stamps) > 1 else 0.0
+    wide = report.get("widest_bridged_s", 0.0)
+    if not (period > 0 and wide > BRIDGE_PERIODS * period):
+        return []
+    return [f"{where}: --max-gap {report['max_gap_s']:g} bridged a gap of {wide:.3g} s "
+            f"({wide / period:.1f} scan periods) between two of its poses: the scans inside "
+            "are scored on poses interpolated across it, not estimated"]
+
+
 def _conventions(est, spec: ExternalSpec, stamps: np.ndarray, m, gt_at_scans: np.ndarray,
                  T_frame_sensor: np.ndarray, where: str) -> str:
     """``bench.runs.external.conventions``: the estimate's other readings at the same scans."""
@@ -329,7 +348,8 @@ def _notes(coverage: dict, reported: bool) -> list[str]:
              f"scans with ground truth scored ({100 * share:.1f} %): {coverage['matched']} "
              f"matched within {coverage['tolerance_s']:g} s, {coverage['interpolated']} "
              + ("interpolated (no --max-gap: no interpolation)" if gap is None else
-                f"interpolated (gaps up to {gap:g} s)")]
+                f"interpolated (--max-gap {gap:g} s; the widest gap bridged "
+                f"{coverage.get('widest_bridged_s', 0.0):.3g} s)")]
     if not reported:
         notes.append(NOT_TIMED)
     return notes
