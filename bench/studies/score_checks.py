@@ -117,10 +117,14 @@ def table(rows: list[dict]) -> str:
             verdict = f"{det} detected, {other} other cause, {count['passed']} missed"
             sizes = sorted({abs(r["size"]) for r in rs if r["size"] is not None})
             if sizes and variant.startswith("shifted"):
-                all_det = [s for s in sizes if all(r["verdict"] == "detected" for r in rs
-                                                   if abs(r["size"]) == s)]
-                verdict += (f"; every base detected from {min(all_det):g} s" if all_det else
-                            "; no size detected on every base")
+                full = [all(r["verdict"] == "detected" for r in rs if abs(r["size"]) == s)
+                        for s in sizes]
+                upward = [s for k, s in enumerate(sizes) if all(full[k:])]
+                verdict += (f"; every base at every size from {upward[0]:g} s" if upward else
+                            "; some base missed at the largest size")
+                verdict += "; detected per size " + ", ".join(
+                    f"{s:g} s: {sum(r['verdict'] == 'detected' for r in rs if abs(r['size']) == s)}"
+                    f"/{sum(abs(r['size']) == s for r in rs)}" for s in sizes)
         lines.append(f"| {'fault: ' if faulty else ''}{variant} | {kind} | {n} | "
                      f"{count['refused']} | {count['warned']} | {count['passed']} | {verdict} |")
     return "\n".join(lines)

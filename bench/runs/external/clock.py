@@ -85,10 +85,11 @@ class ClockFit:
         interval (widened by a grid step) leaves out 0."""
         if self.offset_s is None or self.interval_s is None:
             return False
-        if not np.isfinite(self.correlation_at_zero):
-            return True  # the profiles do not even overlap unshifted
         lo, hi = self.interval_s
-        return bool(self.gain_low > 0 and not lo - self.grid_s <= 0 <= hi + self.grid_s)
+        if lo - self.grid_s <= 0 <= hi + self.grid_s:
+            return False
+        # profiles that do not overlap unshifted have no gain to weigh: the interval decides
+        return bool(self.gain_low > 0 or not np.isfinite(self.correlation_at_zero))
 
 
 def path_speed(stamps: np.ndarray, positions: np.ndarray) -> float:

@@ -185,7 +185,8 @@ def check_clock(est: Trajectory, T_frame_sensor: np.ndarray, gt: Trajectory,
         said = ("on the store's clock (one stamp per scan, each its scan's); " if on_scans
                 else "")
         return ClockVerdict(fit, f"{said}the clock could not be checked: {fit.why}; scored "
-                                 "as given", on_scans)
+                                 "as given", on_scans, [] if on_scans else _outside(
+                                     est_stamps, scan_stamps, tolerance_s, period, where))
     alike = alike_offsets(est_stamps, scan_stamps, fit, period, tolerance_s)
     fit = replace(fit, suggested_s=time_offset_s + alike[0],
                   alike_s=tuple(time_offset_s + a for a in alike))
@@ -201,8 +202,30 @@ def check_clock(est: Trajectory, T_frame_sensor: np.ndarray, gt: Trajectory,
         return verdict
     if not fit.decisive:
         return ClockVerdict(fit, f"the clock could not be checked: {found}: the data cannot "
-                                 "tell that shift from none; scored as given")
+                                 "tell that shift from none; scored as given", False,
+                            _outside(est_stamps, scan_stamps, tolerance_s, period, where))
     return ClockVerdict(fit, found)
+
+
+def _outside(est_stamps: np.ndarray, scan_stamps: np.ndarray, tolerance_s: float,
+             period_s: float, where: str) -> list[str]:
+    """A warning when poses lie beyond the scans' span by more than a period (and the
+    tolerance): an odometry of these scans has none there, so its clock may be off by about
+    that much (or it covers a longer recording than the store)."""
+    if len(scan_stamps) == 0:
+        return []
+    before = float(scan_stamps[0] - est_stamps[0])
+    after = float(est_stamps[-1] - scan_stamps[-1])
+    margin = max(tolerance_s, period_s)
+    if max(before, after) <= margin:
+        return []
+    n = int(np.sum(est_stamps < scan_stamps[0] - margin) + np.sum(est_stamps > scan_stamps[-1]
+                                                                   + margin))
+    side = (f"{before:.3g} s before the first scan" if before > after else
+            f"{after:.3g} s after the last scan")
+    return [f"{where}: {n} of its poses lie beyond the scans' span (up to {side}) and the motion "
+            "profile cannot check its clock here: a clock off by about that much (try "
+            "--time-offset), or an estimate of a longer recording than the store? Scored as given"]
 
 
 def _fit_text(fit: ClockFit) -> str:
