@@ -12,12 +12,16 @@ both ground truth and an estimate. Its run folder is an ordinary one
 The contract (each breach one ``DataError`` naming the estimate, exit 2 on the command line):
 
 - the options are finite (``match.check_options``; ``min_coverage`` in [0, 1]);
-- its clock fits the scans' (unless ``trust_clock``): stamps that look like ms / us / ns are
-  refused naming the ``--stamp-unit`` that fits; a motion profile (speed and turn rate) that
-  lines up with the ground truth's only when shifted by more than ``CLOCK_MAX_SHIFT_S`` (or
-  fits clearly better at another shift than unshifted: ``clock_misfit``) is refused naming
-  the ``--time-offset`` that fits, even when every stamp matches (an estimate a whole number
-  of scan periods off); ``bench.runs.external.clock_check``;
+- its clock fits the scans' (unless ``trust_clock``; ``bench.runs.external.clock_check``):
+  stamps that are the scans' own are on the store's clock; frame indices as stamps are
+  refused as such; a speed a power of 1000 off names stamps or positions in another unit, the
+  path length settling which; a motion profile that fits decisively elsewhere (a block
+  bootstrap interval of the shift that leaves out none, a correlation gain above 0) is refused
+  naming every ``--time-offset`` that fits alike, even when every stamp matches; where the data
+  cannot tell, it is scored as given and the check says so;
+- its convention fits (``bench.runs.external.conventions``): quaternions in w x y z order and
+  inverse poses (Boreas ``T_i_k``) are refused when the other reading's relative motions
+  decisively agree with the ground truth's;
 - no scan within the tolerance: refused with the offset that fits (the motion profile's, or
   ``loaders.gt.offset_hint``'s guess);
 - it covers at least ``min_coverage`` (``DEFAULT_MIN_COVERAGE``) of the scans that have ground
@@ -316,5 +320,6 @@ def score_experiment_external(exp, force: bool = False) -> list[tuple[str, str, 
         c = o.coverage
         done.append((e.name, o.status, f"{o.run_dir}: {c['scored']} of the "
                      f"{c['scans_with_gt']} scans with ground truth scored "
-                     f"({100 * c['share_scored']:.1f} %)"))
+                     f"({100 * c['share_scored']:.1f} %)"
+                     + "".join(f"; warning: {w}" for w in o.warnings)))
     return done
