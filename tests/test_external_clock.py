@@ -77,3 +77,20 @@ def test_the_aligned_offset_lines_the_stamps_up():
     est = scans - 0.37
     assert aligned_offset(est, scans, 0.36, 0.1) == pytest.approx(0.37, abs=1e-12)
     assert aligned_offset(est, scans, 0.30, 0.1) == pytest.approx(0.27, abs=1e-12)
+
+
+def test_a_part_of_the_drive_at_a_standstill_is_no_unit_problem():
+    """The speed is compared with the ground truth's over the estimate's own span: a part
+    covering a stop (1 mm/s where the whole drive averages 3.3 m/s) is not a unit; the whole in
+    mm or in ms is, each named by the path length."""
+    from bench.runs.external.clock_check import unit_misfit
+    from loaders.trajectory import Trajectory
+
+    t = np.arange(0, 60, 0.1)
+    x = np.where(t < 20, 5 * t, np.where(t < 40, 100 + 0.001 * (t - 20), 100.02 + 5 * (t - 40)))
+    poses = make_T(np.repeat(np.eye(3)[None], len(t), 0), np.column_stack([x, 0 * t, 0 * t]))
+    gt = Trajectory(t, poses)
+    stop = (t > 22) & (t < 38)
+    assert unit_misfit(t[stop], poses[stop, :3, 3], gt, "s", "e", "s") is None
+    assert "positions in millimetres" in unit_misfit(t, poses[:, :3, 3] * 1e3, gt, "s", "e", "s")
+    assert "--stamp-unit ms" in unit_misfit(t * 1e3, poses[:, :3, 3], gt, "s", "e", "s")
