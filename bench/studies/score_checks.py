@@ -13,7 +13,7 @@ warned / passed, and for shifts the smallest size detected.
 Tuning and reporting data (declared): the clock check's constants (``BLOCK_S``, ``LEVEL``)
 were chosen looking at the sample's own runs (doppler, icp-p2plane, kiss-icp, doppler-ego on
 the whole sample, its halves and frames 60-190, shifted by 0, +-0.1, +-0.37, 5 s); the
-conventions' pair length ``PAIR_S`` (4 s, from 1 s) on the same runs read in w x y z order
+conventions' pair lengths ``PAIR_S`` (4 s added to 1 s) on the same runs read in w x y z order
 (whole, frames 100-200, second half); the conventions' ``RATIO``, the orthonormality
 tolerance and the bridged-gap limit were set before any measurement. The
 sample's pieces and perturbations below overlap that tuning data (the same drive): the
