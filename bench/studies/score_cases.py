@@ -17,7 +17,8 @@ Bases (an estimate with its scans and ground truth):
 
 Correct variants: as is; positions jittered (2 cm) and stamps jittered (2 ms, within the
 tolerance); every other pose (6 Hz, ``--max-gap 0.25``); resampled at 5 Hz off the scan stamps
-(``--max-gap 0.3``); lagged 5 ms. Faults: shifted by +-0.05 .. 5 s (as given, and with
+(``--max-gap 0.3``); lagged 5 ms; the 5 Hz estimate against the store's ground truth lagged
+0.03 s or jittered by 2 cm. Faults: shifted by +-0.05 .. 5 s (as given, and with
 ``--max-gap 0.3``: then only the clock check stands between it and a score); positions in mm;
 stamps in ms; frame indices as stamps; quaternions in w x y z order; a Boreas file holding
 T_i_k; a KITTI file of inverse poses; a sheared rotation block; a 3.3 s hole bridged by
@@ -135,6 +136,19 @@ def correct_cases(base: Base, folder: Path, rng: np.random.Generator) -> list[Ca
                       write_tum(folder / f"{tag}-5hz.tum", q, resample(t, P, q)),
                       {"max_gap_s": 0.3}))
     cases.append(Case(base, "lagged 5 ms", write_tum(folder / f"{tag}-lag.tum", t + 0.005, P)))
+    # the store's ground truth imperfect, the estimate right: lagged 0.03 s (within half a
+    # scan period: more is a clock difference the check exists for), jittered 2 cm
+    five = folder / f"{tag}-5hz.tum"
+    g = base.gt
+    lagged = Base(base.name, base.kind, t, P, base.scans, Trajectory(g.stamps + 0.03, g.poses),
+                  base.piece)
+    cases.append(Case(lagged, "store's GT lagged 0.03 s (5 Hz estimate)", five,
+                      {"max_gap_s": 0.3}))
+    jg = g.poses.copy()
+    jg[:, :3, 3] += rng.normal(0, 0.02, (len(g), 3))
+    jittered = Base(base.name, base.kind, t, P, base.scans, Trajectory(g.stamps, jg), base.piece)
+    cases.append(Case(jittered, "store's GT jittered 2 cm (5 Hz estimate)", five,
+                      {"max_gap_s": 0.3}))
     return cases
 
 
