@@ -209,8 +209,11 @@ def check_clock(est: Trajectory, T_frame_sensor: np.ndarray, gt: Trajectory,
                 "the wrong scans' stamps? Scored as given")
         return verdict
     if not fit.decisive:
+        lo, hi = fit.interval_s
+        why = ("its interval holds no shift" if lo - fit.grid_s <= 0 <= hi + fit.grid_s else
+               "the correlation's gain over no shift may be 0")
         return ClockVerdict(fit, f"the clock could not be checked: {found}: the data cannot "
-                                 "tell that shift from none; scored as given", False,
+                                 f"tell that shift from none ({why}); scored as given", False,
                             _outside(est_stamps, scan_stamps, tolerance_s, period, where), period)
     if not clock_misfit(fit, tolerance_s, period):
         return ClockVerdict(fit, f"{found}: within half a scan period ({period / 2:.4g} s) of "
