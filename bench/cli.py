@@ -237,7 +237,7 @@ def score(
         metavar="SHARE", help="refuse an estimate covering less than this share of the scans "
         "with ground truth (0 to 1)")] = DEFAULT_MIN_COVERAGE,
     trust_clock: Annotated[bool, typer.Option(
-        "--trust-clock", help="skip the clock checks (stamp unit, speed-profile offset)")]
+        "--trust-clock", help="skip the clock checks (index stamps, units, the motion profile)")]
     = False,
     pose_frame: Annotated[str, typer.Option(
         help="the frame the poses are given in: sensor, or body (the store's T_body_sensor "
@@ -258,10 +258,14 @@ def score(
 ) -> None:
     """Score a trajectory estimated elsewhere (another odometry, a ROS node) against a store's
     ground truth, as a run of its own: the same metrics as `bench run`, in an ordinary run
-    folder that every table, figure, compare, regress and report shows. Refused (exit 2): a
-    clock that does not fit the scans (no pose within --tolerance, stamps in another unit, a
-    speed profile that lines up only shifted; the message says the --time-offset or
-    --stamp-unit that fits), a coverage below --min-coverage."""
+    folder that every table, figure, compare, regress and report shows. Refused (exit 2), each
+    only on evidence the data give: a clock that does not fit the scans (no pose within
+    --tolerance; stamps or positions in another unit, the path length saying which; frame
+    indices as stamps; a speed and turn-rate profile whose bootstrap interval leaves out no
+    shift: the message lists every --time-offset that fits alike), a convention that does not
+    fit (w x y z quaternions, inverse poses), a rotation block that is no rotation, a coverage
+    below --min-coverage. Stamps that are the scans' own are on the store's clock; where the
+    data cannot tell, it is scored as given and the clock check says so."""
     from bench.commands import score_command, scoring_options
     from bench.runs.external.score import ExternalSpec
 

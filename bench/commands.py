@@ -225,13 +225,17 @@ def score_command(console: Console, store: Path, spec, out: Path, force: bool,
         set_threads(1)
     c = outcome.coverage
     gap = ("no interpolation" if c["max_gap_s"] is None else
-           f"{c['interpolated']} interpolated across gaps up to {c['max_gap_s']:g} s")
+           f"{c['interpolated']} interpolated (--max-gap {c['max_gap_s']:g} s; the widest gap "
+           f"bridged {c.get('widest_bridged_s', 0.0):.3g} s)")
     console.print(f"{spec.name}: {c['scored']} of the {c['scans_with_gt']} scans with ground "
                   f"truth scored ({100 * c['share_scored']:.1f} %; {c['matched']} matched within "
                   f"{c['tolerance_s']:g} s, {gap})"
                   + (" (unchanged: not scored again; --force to)" if outcome.status == "skipped"
                      else ""), markup=False)
     console.print(f"clock check: {outcome.clock}", markup=False)
+    console.print(f"convention check: {outcome.convention}", markup=False)
+    for warning in outcome.warnings:
+        console.print(f"warning: {warning}", style="yellow", markup=False)
     console.print(f"poses moved to the sensor frame by T_frame_sensor = {outcome.frame}",
                   markup=False)
     run = read_run(outcome.run_dir)

@@ -36,7 +36,12 @@ from pathlib import Path
 import numpy as np
 
 from loaders.errors import DataError
-from loaders.posefile import QUAT_NORM_TOLERANCE, first_numeric_width, numeric_rows
+from loaders.posefile import (
+    QUAT_NORM_TOLERANCE,
+    first_numeric_width,
+    nearest_rotations,
+    numeric_rows,
+)
 from loaders.se3 import T_from_tum, make_T
 from loaders.trajectory import Trajectory
 
@@ -58,6 +63,10 @@ class Estimate:
     frame_times_ms: np.ndarray | None = None
     #: the unit the stamps were read in (they are returned in seconds)
     stamp_unit: str = "s"
+    #: the stamps as the file wrote them (before the unit; None: as ``trajectory.stamps``)
+    raw_stamps: np.ndarray | None = None
+    #: the format it was read as (tum, kitti, boreas, bag)
+    fmt: str = ""
 
 
 def check_stamps(stamps: np.ndarray, where: str, lines: list | None = None) -> None:
@@ -145,15 +154,8 @@ def read_kitti_estimate(path: Path, stamps_file: Path | None) -> Estimate:
         raise DataError(f"{path}: {len(data)} pose rows but {stamps_file} has {len(stamps)} "
                         "stamps; expected one stamp per pose row")
     M = data.reshape(-1, 3, 4)
-    R = M[:, :, :3]
-    det = np.linalg.det(R)
-    bad = np.flatnonzero(np.abs(det - 1.0) > 1e-3)
-    if len(bad):
-        raise DataError(f"{path}, line {lines[int(bad[0])]}: the 3x3 block is no rotation "
-                        f"(determinant {det[int(bad[0])]:.4f}); expected a rigid pose")
-    # re-orthonormalise (rows written with few digits): the nearest rotation
-    U, _, Vt = np.linalg.svd(R)
-    return Estimate(Trajectory(stamps, make_T(U @ Vt, M[:, :, 3])), None)
+    R = nearest_rotations(M[:, :, :3], str(path), lines)
+    return Estimate(Trajectory(stamps, make_T(R, M[:, :, 3])), None)
 
 
 def read_bag_estimate(path: Path, topic: str | None) -> Estimate:
@@ -241,4 +243,4 @@ def read_estimate(path: str | Path, fmt: str = "auto", stamps: str | Path | None
     unit = stamp_unit or DEFAULT_UNITS[fmt]
     traj = est.trajectory
     return Estimate(Trajectory(traj.stamps * STAMP_UNITS[unit], traj.poses), est.frame_times_ms,
-                    unit)
+                    unit, traj.stamps.copy(), fmt)

@@ -9,8 +9,9 @@ the stationary frame i as the world. The robot frame k is the applanix frame for
 benchmark and the radar for the 2D one: give ``--pose-frame`` / ``--extrinsic`` accordingly.
 
 Stamps are returned in microseconds as read (``loaders.estimate`` converts to seconds). A row
-whose stamp is not a whole number, whose 3x3 block is no rotation (determinant off 1 by more
-than 1e-3) or that is not 13 finite numbers is one ``DataError`` naming the file and line.
+whose stamp is not a whole number, whose 3x3 block is no rotation (off orthonormal by more than
+``loaders.posefile.ORTHONORMAL_TOLERANCE``: sheared, scaled, mirrored) or that is not 13
+finite numbers is one ``DataError`` naming the file and line.
 """
 
 from __future__ import annotations
@@ -20,12 +21,9 @@ from pathlib import Path
 import numpy as np
 
 from loaders.errors import DataError
-from loaders.posefile import numeric_rows
+from loaders.posefile import nearest_rotations, numeric_rows
 from loaders.se3 import inv_T, make_T
 from loaders.trajectory import Trajectory
-
-#: the rotation block's determinant may be off 1 by this (rows printed with few digits)
-DET_TOLERANCE = 1e-3
 
 
 def read_boreas(path: Path) -> tuple[Trajectory, list[int]]:
@@ -40,13 +38,6 @@ def read_boreas(path: Path) -> tuple[Trajectory, list[int]]:
         raise DataError(f"{path}, line {lines[r]}: stamp {stamps[r]!r} is not a whole number; "
                         "expected a Boreas row: an integer stamp [us] then 12 values")
     M = data[:, 1:].reshape(-1, 3, 4)
-    R = M[:, :, :3]
-    det = np.linalg.det(R)
-    bad = np.flatnonzero(np.abs(det - 1.0) > DET_TOLERANCE)
-    if len(bad):
-        r = int(bad[0])
-        raise DataError(f"{path}, line {lines[r]}: the 3x3 block of T_k_i is no rotation "
-                        f"(determinant {det[r]:.4f}); expected a rigid transform")
-    U, _, Vt = np.linalg.svd(R)  # the nearest rotation (rows printed with few digits)
-    T_k_i = make_T(U @ Vt, M[:, :, 3])
+    T_k_i = make_T(nearest_rotations(M[:, :, :3], str(path), lines, "3x3 block of T_k_i"),
+                   M[:, :, 3])
     return Trajectory(stamps, inv_T(T_k_i)), lines

@@ -120,6 +120,31 @@ def check_quaternions(quat: np.ndarray, path, linenos: list[int],
                         "expected a unit quaternion (norm 1)")
     return quat / norms[:, None]
 
+#: a rotation block may be off orthonormal by this much (max |R R^T - I|: rows printed with
+#: 4 decimals are off by about 1e-4)
+ORTHONORMAL_TOLERANCE = 1e-3
+
+
+def nearest_rotations(R: np.ndarray, where: str, linenos: list[int], name: str = "3x3 block"
+                      ) -> np.ndarray:
+    """The nearest rotations of rotation blocks (rows printed with few digits); a ``DataError``
+    naming the file and the line of the first block that is not a rotation within
+    ``ORTHONORMAL_TOLERANCE``: a sheared or scaled block (even of determinant 1) or a
+    reflection is refused, never silently made a rotation."""
+    with np.errstate(invalid="ignore"):
+        err = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max(axis=(1, 2))
+    det = np.linalg.det(R)
+    bad = np.flatnonzero(~(err <= ORTHONORMAL_TOLERANCE) | ~(det > 0))
+    if len(bad):
+        k = int(bad[0])
+        raise DataError(f"{where}, line {linenos[k]}: the {name} is no rotation (determinant "
+                        f"{det[k]:.4f}, max |R R^T - I| = {err[k]:.3g}, beyond "
+                        f"{ORTHONORMAL_TOLERANCE:g}; {len(bad)} such rows): sheared, scaled or "
+                        "mirrored; expected a rigid pose (a rotation block)")
+    U, _, Vt = np.linalg.svd(R)
+    return U @ Vt
+
+
 def write_tum(traj: Trajectory, path: str | Path) -> None:
     """Write TUM rows ``t x y z qx qy qz qw`` (9 decimals)."""
     atomic_write_text(path, tum_text(traj))

@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from bench.runs.external.clock import aligned_offset, fit_clock, motion_profiles, stamp_scale
+from bench.runs.external.clock import aligned_offset, fit_clock, motion_profiles
+from bench.runs.external.clock_check import _power_of_1000
 from loaders.se3 import make_T
 
 T = np.arange(0, 30, 0.1)
@@ -51,16 +52,24 @@ def test_a_constant_speed_straight_drive_is_inconclusive():
     assert fit.offset_s is None and "speed and turn rate hardly vary" in fit.why
 
 
-def test_stamp_units_by_speed():
-    poses = drive(T)
-    xyz = poses[:, :3, 3]
-    assert stamp_scale(T, xyz, T, xyz) is None
-    factor, est_speed, gt_speed = stamp_scale(T * 1e3, xyz, T, xyz)  # ms read as s
-    assert factor == 1e3 and est_speed == pytest.approx(gt_speed / 1e3)
-    assert stamp_scale(T * 1e6, xyz, T, xyz)[0] == 1e6
-    assert stamp_scale(T * 1e-9, xyz, T, xyz)[0] == 1e-9  # s read as ns
-    assert stamp_scale(T * 30, xyz, T, xyz) is None  # 30x: no unit
-    assert stamp_scale(T * 1e12, xyz, T, xyz) is None  # beyond s vs ns
+def test_a_power_of_1000_within_10x():
+    assert _power_of_1000(1000.0) == 1 and _power_of_1000(3000.0) == 1
+    assert _power_of_1000(1e-9) == -3 and _power_of_1000(1e6 * 0.2) == 2
+    assert _power_of_1000(30.0) is None and _power_of_1000(1.0) is None
+    assert _power_of_1000(1e12) is None and _power_of_1000(0.0) is None
+
+
+def test_the_bootstrap_interval_holds_the_shift_and_is_reproducible():
+    def speed(t):
+        return 5 + 3 * np.sin(0.7 * t) + 2 * np.sin(1.9 * t)
+
+    poses = drive(T, speed, yaw_rate=0.05)
+    noisy = poses.copy()
+    noisy[:, :3, 3] += np.random.default_rng(0).normal(0, 0.05, (len(T), 3))
+    fit = fit_clock(T - 0.37, noisy, T, poses, 0.1)
+    lo, hi = fit.interval_s
+    assert lo <= 0.37 <= hi and hi - lo < 0.2 and fit.decisive
+    assert fit_clock(T - 0.37, noisy, T, poses, 0.1) == fit  # seeded: the same verdict
 
 
 def test_the_aligned_offset_lines_the_stamps_up():
@@ -68,3 +77,20 @@ def test_the_aligned_offset_lines_the_stamps_up():
     est = scans - 0.37
     assert aligned_offset(est, scans, 0.36, 0.1) == pytest.approx(0.37, abs=1e-12)
     assert aligned_offset(est, scans, 0.30, 0.1) == pytest.approx(0.27, abs=1e-12)
+
+
+def test_a_part_of_the_drive_at_a_standstill_is_no_unit_problem():
+    """The speed is compared with the ground truth's over the estimate's own span: a part
+    covering a stop (1 mm/s where the whole drive averages 3.3 m/s) is not a unit; the whole in
+    mm or in ms is, each named by the path length."""
+    from bench.runs.external.clock_check import unit_misfit
+    from loaders.trajectory import Trajectory
+
+    t = np.arange(0, 60, 0.1)
+    x = np.where(t < 20, 5 * t, np.where(t < 40, 100 + 0.001 * (t - 20), 100.02 + 5 * (t - 40)))
+    poses = make_T(np.repeat(np.eye(3)[None], len(t), 0), np.column_stack([x, 0 * t, 0 * t]))
+    gt = Trajectory(t, poses)
+    stop = (t > 22) & (t < 38)
+    assert unit_misfit(t[stop], poses[stop, :3, 3], gt, "s", "e", "s") is None
+    assert "positions in millimetres" in unit_misfit(t, poses[:, :3, 3] * 1e3, gt, "s", "e", "s")
+    assert "--stamp-unit ms" in unit_misfit(t * 1e3, poses[:, :3, 3], gt, "s", "e", "s")

@@ -23,10 +23,11 @@ def _v(t):
     return 8 + 3 * np.sin(2 * np.pi * t / 4)
 
 
-def accelerating(gt_late_s: float, speed_amplitude: float = 1.0, n: int = 100,
+def accelerating(gt_late_s: float, speed_amplitude: float = 1.0, n: int = 220,
                  loader: str = "ntu4dradlm") -> MemorySequence:
     """Static points seen from a car that speeds up and slows down (exact Doppler); its ground
-    truth stamped ``gt_late_s`` late (each GT pose shows the car that much earlier)."""
+    truth stamped ``gt_late_s`` late (each GT pose shows the car that much earlier). 22 s: the
+    lag's block bootstrap needs 5 blocks of 4 s."""
     rng = np.random.default_rng(1)
     world = np.column_stack([rng.uniform(-60, 160, 2500), rng.uniform(-40, 40, 2500),
                              rng.uniform(-2, 8, 2500)])
@@ -68,6 +69,15 @@ def test_a_lag_above_one_period_is_a_warning_with_the_time_offset():
     seq = accelerating(0.5, speed_amplitude=3.0, loader="npy-frames")
     (_, line), = clock_offset_lines(seq, speed_from_doppler(seq))
     assert "--time-offset" not in line and "npy-frames takes no time-offset option" in line
+
+
+def test_a_piece_too_short_for_an_interval_is_never_warned():
+    """10 s (2.5 bootstrap blocks), the ground truth 0.5 s late: the lag is found but the data
+    give no interval, so no warning: inconclusive."""
+    seq = accelerating(0.5, speed_amplitude=3.0, n=100)
+    (style, line), = clock_offset_lines(seq, speed_from_doppler(seq))
+    assert not line.startswith("warning:") and "too few scans for an interval" in line
+    assert "inconclusive" in line
 
 
 def test_a_constant_speed_cannot_time_the_ground_truth():

@@ -61,6 +61,40 @@ def check_options(time_offset_s: float, tolerance_s: float, max_gap_s: float | N
                         "no interpolation)")
 
 
+#: stamps within this of a scan's [s] are that scan's stamp written with few digits
+ROUNDING_S = 1e-3
+#: ... when this share of the estimate's stamps inside the scans' span are
+ROUNDED_SHARE = 0.9
+
+
+def rounding_hint(est_stamps: np.ndarray, scan_stamps: np.ndarray, tolerance_s: float
+                  ) -> str | None:
+    """When the estimate's stamps are the scans' written with few digits (within
+    ``ROUNDING_S`` of a scan) but some lie beyond ``tolerance_s``: the tolerance that takes
+    them; else None."""
+    s, q = np.asarray(est_stamps, float), np.asarray(scan_stamps, float)
+    inside = s[(s >= q[0] - ROUNDING_S) & (s <= q[-1] + ROUNDING_S)]
+    if len(inside) == 0 or len(q) == 0:
+        return None
+    _, dist = nearest_indices(q, inside)
+    near = dist <= ROUNDING_S
+    if near.mean() < ROUNDED_SHARE or dist[near].max() <= tolerance_s:
+        return None
+    worst = float(dist[near].max())
+    return (f"{int(near.sum())} of its stamps lie within {worst:.3g} s of a scan's (the scans' "
+            f"stamps written with few digits?), {int((dist > tolerance_s).sum())} of them "
+            f"beyond --tolerance {tolerance_s:g}: --tolerance {max(worst * 1.01, 1e-6):.2g} "
+            "takes them")
+
+
+def widest_bridged(s: np.ndarray, q: np.ndarray, interpolated: np.ndarray) -> float:
+    """The widest gap between two poses [s] an interpolated scan lies in (0: none)."""
+    if not interpolated.any() or len(s) < 2:
+        return 0.0
+    hi = np.clip(np.searchsorted(s, q[interpolated]), 1, len(s) - 1)
+    return float((s[hi] - s[hi - 1]).max())
+
+
 def one_pose_a_scan(est_stamps: np.ndarray, scan_stamps: np.ndarray) -> np.ndarray:
     """Per scan, the index of the pose it takes (-1: none): each pose goes to its nearest scan,
     each scan takes the nearest of the poses that went to it (ties: the earlier one)."""
@@ -100,7 +134,7 @@ def match_to_scans(est: Trajectory, scan_stamps: np.ndarray, *, time_offset_s: f
               "max_gap_s": None if max_gap_s is None else float(max_gap_s),
               "scans": int(len(q)), "poses": int(len(s)),
               "matched": int(matched.sum()), "interpolated": int(interp.sum()),
-              "covered": int(covered.sum())}
+              "covered": int(covered.sum()), "widest_bridged_s": widest_bridged(s, q, interp)}
     if not covered.any():
         need = f"a pose within {tolerance_s:g} s" + (
             "" if max_gap_s is None else f", or two poses at most {max_gap_s:g} s apart around it")
@@ -108,6 +142,8 @@ def match_to_scans(est: Trajectory, scan_stamps: np.ndarray, *, time_offset_s: f
             f"{est_name} does not overlap the scans of {scan_name}: no scan has {need}; the "
             f"estimate spans {time_span(s)} (offset {time_offset_s:+.3f} s applied), the "
             f"{len(q)} scans span {time_span(q)}; different clocks? "
+            + ((rounding_hint(s, q, tolerance_s) or "") + "; " if rounding_hint(
+                s, q, tolerance_s) else "")
             + (hint or offset_hint(s, q).replace("gt_stamp", "est_stamp")
                .replace("the ground truth's clock", "the estimate's clock")))
     return Matched(out, covered, matched, report, np.where(matched, near, -1))

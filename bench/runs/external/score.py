@@ -12,12 +12,16 @@ both ground truth and an estimate. Its run folder is an ordinary one
 The contract (each breach one ``DataError`` naming the estimate, exit 2 on the command line):
 
 - the options are finite (``match.check_options``; ``min_coverage`` in [0, 1]);
-- its clock fits the scans' (unless ``trust_clock``): stamps that look like ms / us / ns are
-  refused naming the ``--stamp-unit`` that fits; a motion profile (speed and turn rate) that
-  lines up with the ground truth's only when shifted by more than ``CLOCK_MAX_SHIFT_S`` (or
-  fits clearly better at another shift than unshifted: ``clock_misfit``) is refused naming
-  the ``--time-offset`` that fits, even when every stamp matches (an estimate a whole number
-  of scan periods off); ``bench.runs.external.clock_check``;
+- its clock fits the scans' (unless ``trust_clock``; ``bench.runs.external.clock_check``):
+  stamps that are the scans' own are on the store's clock; frame indices as stamps are
+  refused as such; a speed a power of 1000 off names stamps or positions in another unit, the
+  path length settling which; a motion profile that fits decisively elsewhere (a block
+  bootstrap interval of the shift that leaves out none, a correlation gain above 0) is refused
+  naming every ``--time-offset`` that fits alike, even when every stamp matches; where the data
+  cannot tell, it is scored as given and the check says so;
+- its convention fits (``bench.runs.external.conventions``): quaternions in w x y z order and
+  inverse poses (Boreas ``T_i_k``) are refused when the other reading's relative motions
+  decisively agree with the ground truth's;
 - no scan within the tolerance: refused with the offset that fits (the motion profile's, or
   ``loaders.gt.offset_hint``'s guess);
 - it covers at least ``min_coverage`` (``DEFAULT_MIN_COVERAGE``) of the scans that have ground
@@ -50,17 +54,16 @@ import numpy as np
 from bench import guard
 from bench.runs.evaluate import Scoring, evaluate_run, timing_part
 from bench.runs.external import DEFAULT_MIN_COVERAGE, DEFAULT_TOLERANCE_S
-from bench.runs.external.clock_check import check_clock, fit_hint, refuse_misfit
-from bench.runs.external.match import check_options, match_to_scans
+from bench.runs.external.checks import check_estimate
+from bench.runs.external.match import check_options
 from bench.runs.external.names import EXTERNAL, check_name, check_run_folder
 from bench.runs.folders import clear_run, is_finished, run_dir_name, write_run
 from bench.runs.identity import code_identity, run_key, store_identity
-from bench.runs.job import calibration_frames, sequence_folder, sequence_labels
+from bench.runs.job import sequence_folder, sequence_labels
 from bench.runs.ownership import foreign_run
 from bench.runs.result import EXTERNAL_MARK, REPORTED_CLOCK
 from loaders.errors import DataError
 from loaders.estimate import read_estimate
-from loaders.gt import gt_for_frames, time_span
 from loaders.posefile import parse_extrinsic
 from loaders.store import StoreSequence
 from methods.base import FrameRecord, OdometryResult
@@ -106,6 +109,8 @@ class ExternalOutcome:
     coverage: dict = field(default_factory=dict)
     frame: str = ""  # how the poses were moved to the sensor (T_frame_sensor)
     clock: str = ""  # what the clock check found
+    warnings: list[str] = field(default_factory=list)  # scored anyway
+    convention: str = ""  # what the convention check found
 
 
 def file_sha256(path: Path | None) -> str | None:
@@ -182,36 +187,9 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         T_frame_sensor, how = frame_transform(spec, seq.sensor.T_body_sensor)
         stamps = seq.stamps
         where = f"{spec.trajectory}" + (f":{spec.topic}" if spec.topic else "")
-        fit, clock = check_clock(est.trajectory, T_frame_sensor, seq.ground_truth, stamps,
-                                 spec.time_offset_s, spec.trust_clock, where, str(store),
-                                 est.stamp_unit)
-        m = match_to_scans(est.trajectory, stamps, time_offset_s=spec.time_offset_s,
-                           tolerance_s=spec.tolerance_s, max_gap_s=spec.max_gap_s,
-                           T_frame_sensor=T_frame_sensor, est_name=where, scan_name=str(store),
-                           hint=fit_hint(fit))
-        if fit is not None:
-            refuse_misfit(fit, spec.time_offset_s, where, str(store))
-        _, has_gt = gt_for_frames(seq.ground_truth, stamps, name=str(store))
-        calibrated = calibration_frames(seq)
-        with_gt = has_gt if calibrated is None else has_gt & ~calibrated
-        scored = m.covered & with_gt
-        n_gt = int(with_gt.sum())
-        coverage = {**m.report, "scans_with_gt": n_gt, "scored": int(scored.sum()),
-                    "share_scored": float(scored.sum() / max(n_gt, 1))}
-        if not scored.any():
-            raise DataError(f"{where}: none of the {int(m.covered.sum())} scans with an "
-                            f"estimate has ground truth in {store}; nothing to score")
-        if coverage["share_scored"] < spec.min_coverage:
-            raise DataError(
-                f"{where} covers {coverage['scored']} of the {n_gt} scans of {store} with ground "
-                f"truth ({100 * coverage['share_scored']:.1f} %), below --min-coverage "
-                f"{spec.min_coverage:g}: {m.report['matched']} matched within "
-                f"{spec.tolerance_s:g} s, {m.report['interpolated']} interpolated; the estimate "
-                f"({len(est.trajectory)} poses) spans "
-                f"{time_span(est.trajectory.stamps + spec.time_offset_s)}, the scans with ground "
-                f"truth {time_span(stamps[with_gt])}. A shorter or sparser estimate? "
-                + ("--max-gap S interpolates between poses at most S apart; " if spec.max_gap_s
-                   is None else "") + "--min-coverage 0 scores what it covers")
+        checked = check_estimate(seq, est, spec, T_frame_sensor, where, str(store))
+        m, coverage, with_gt = checked.matched, checked.coverage, checked.with_gt
+        clock, convention, warned = checked.clock, checked.convention, checked.warnings
         identity = {
             "kind": EXTERNAL, "store_sha256": store_identity(store),
             "trajectory_sha256": file_sha256(spec.trajectory),
@@ -232,7 +210,7 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
             spec.trajectory, spec.stamps, spec.frame_times, store], root=Path(out or DEFAULT_OUT),
             ask="--replace-run")
         if is_finished(run_dir, key) and not force and not replaced:
-            return ExternalOutcome(run_dir, "skipped", coverage, how, clock)
+            return ExternalOutcome(run_dir, "skipped", coverage, how, clock, warned, convention)
         idx = np.flatnonzero(m.covered)
         row_times = _frame_times(est.frame_times_ms, len(stamps), m)
         # positional arguments from plain lists: half the time at 40,000 frames
@@ -244,7 +222,7 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
         reported = est.frame_times_ms is not None
         timings = {"time_ms": timing_part(est.frame_times_ms if reported else np.zeros(0)),
                    "register_ms": {}, "wall_ms": {}}
-        notes = _notes(coverage, reported)
+        notes = _notes(coverage, reported) + [f"warning: {w}" for w in warned]
         metrics = {"sequence": seq_name, "method": name, "seed": None, "frames": len(seq),
                    **evaluation.metrics, **timings,
                    "clock": REPORTED_CLOCK if reported else None,
@@ -268,14 +246,15 @@ def score_external(store: Path, spec: ExternalSpec, out: Path | None = None,
                          "stamp_unit": spec.stamp_unit,
                          "T_frame_sensor": T_frame_sensor.tolist(), "T_frame_sensor_from": how,
                          "timing": REPORTED_CLOCK if reported else "not timed",
-                         "clock_check": clock, "coverage": coverage},
+                         "clock_check": clock, "convention_check": convention,
+                         "coverage": coverage},
             "run_key": key, "identity": identity}
         if replaced:
             clear_run(run_dir)
             warnings.warn(f"{run_dir}: replaced {replaced} by the external run {name} "
                           "(--replace-run)", stacklevel=2)
         write_run(run_dir, result, evaluation.gt, config, metrics, notes)
-        return ExternalOutcome(run_dir, "done", coverage, how, clock)
+        return ExternalOutcome(run_dir, "done", coverage, how, clock, warned, convention)
     finally:
         seq.close()
 
@@ -319,7 +298,8 @@ def _notes(coverage: dict, reported: bool) -> list[str]:
              f"scans with ground truth scored ({100 * share:.1f} %): {coverage['matched']} "
              f"matched within {coverage['tolerance_s']:g} s, {coverage['interpolated']} "
              + ("interpolated (no --max-gap: no interpolation)" if gap is None else
-                f"interpolated (gaps up to {gap:g} s)")]
+                f"interpolated (--max-gap {gap:g} s; the widest gap bridged "
+                f"{coverage.get('widest_bridged_s', 0.0):.3g} s)")]
     if not reported:
         notes.append(NOT_TIMED)
     return notes
@@ -350,5 +330,6 @@ def score_experiment_external(exp, force: bool = False) -> list[tuple[str, str, 
         c = o.coverage
         done.append((e.name, o.status, f"{o.run_dir}: {c['scored']} of the "
                      f"{c['scans_with_gt']} scans with ground truth scored "
-                     f"({100 * c['share_scored']:.1f} %)"))
+                     f"({100 * c['share_scored']:.1f} %)"
+                     + "".join(f"; warning: {w}" for w in o.warnings)))
     return done
