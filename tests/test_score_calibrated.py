@@ -31,10 +31,12 @@ def runs(tmp_path_factory):
     out = {}
     for calibrated in (True, False):
         store = _store(tmp, calibrated)
-        done = run_job(Job(store=store, method="doppler", seed=None, out_root=tmp / "results"))
+        results = tmp / f"results-{'calibrated' if calibrated else 'plain'}"  # a root each:
+        # both stores hold a sequence "calib", and one folder holds one store's runs
+        done = run_job(Job(store=store, method="doppler", seed=None, out_root=results))
         assert done.status == "done", done.message
         scored = score_external(store, ExternalSpec(done.run_dir / "est_tum.txt", "ext"),
-                                tmp / "results")
+                                results)
         out[calibrated] = (read_run(done.run_dir).result, read_run(scored.run_dir).result,
                            scored.coverage)
     return out

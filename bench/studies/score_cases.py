@@ -35,6 +35,7 @@ from types import SimpleNamespace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from bench import guard
 from loaders.se3 import exp_se3, interpolate_poses, inv_T, tum_from_T
 from loaders.trajectory import Trajectory
 
@@ -72,21 +73,24 @@ class Case:
     size: float | None = None
 
 
+def _text(rows: np.ndarray, fmt: str) -> str:
+    """``rows`` as space-separated lines in the ``%`` format ``fmt`` (as ``np.savetxt``)."""
+    return "".join(" ".join(fmt % v for v in row) + "\n" for row in np.asarray(rows).tolist())
+
+
 def write_tum(path: Path, stamps, poses, order: str = "xyzw", fmt: str = "%.9f") -> Path:
     xyz, q = tum_from_T(np.asarray(poses))
     if order == "wxyz":
         q = q[:, [3, 0, 1, 2]]
-    np.savetxt(path, np.column_stack([stamps, xyz, q]), fmt=fmt)
-    return path
+    rows = np.column_stack([stamps, xyz, q])
+    return guard.write_text(path, _text(rows, fmt), what="a case file")
 
 
 def write_rows(path: Path, poses: np.ndarray, stamps_us: np.ndarray | None = None) -> Path:
     rows = np.asarray(poses)[:, :3, :].reshape(-1, 12)
-    with open(path, "w") as f:
-        for k, r in enumerate(rows):
-            head = "" if stamps_us is None else f"{int(stamps_us[k])} "
-            f.write(head + " ".join(f"{v:.9e}" for v in r) + "\n")
-    return path
+    lines = [("" if stamps_us is None else f"{int(stamps_us[k])} ")
+             + " ".join(f"{v:.9e}" for v in r) + "\n" for k, r in enumerate(rows)]
+    return guard.write_text(path, "".join(lines), what="a case file")
 
 
 def resample(stamps, poses, query) -> np.ndarray:
@@ -178,7 +182,7 @@ def fault_cases(base: Base, folder: Path) -> list[Case]:
     out.append(Case(base, "Boreas holding T_i_k", write_rows(folder / f"{tag}-bor.txt", P, us),
                     {}, "T_i_k"))
     times = folder / f"{tag}-times.txt"
-    np.savetxt(times, t, fmt="%.9f")
+    guard.write_text(times, _text(t[:, None], "%.9f"), what="a case file")
     out.append(Case(base, "KITTI of inverse poses",
                     write_rows(folder / f"{tag}-inv.kitti", inv_T(P)), {"stamps": times},
                     "inverse poses"))

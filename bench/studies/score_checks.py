@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import shutil
 import tempfile
 from collections import defaultdict
 from pathlib import Path
@@ -142,11 +141,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--json", action="store_true", help="print every case as JSON after "
                     "the table")
     args = ap.parse_args(argv)
-    folder = Path(tempfile.mkdtemp(prefix="score-checks-"))
-    try:
-        rows = study(args.runs, args.kiss, folder)
-    finally:
-        shutil.rmtree(folder, ignore_errors=True)
+    with tempfile.TemporaryDirectory(prefix="score-checks-") as folder:
+        rows = study(args.runs, args.kiss, Path(folder))
     text = table(rows)
     print(text)
     if args.json:
