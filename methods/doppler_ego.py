@@ -172,6 +172,11 @@ class DopplerEgoParams(MethodParams):
         "(sensor x, y) estimated online from the geometry's disagreement with the Doppler "
         "translation, by least squares over the past steps forgotten with this time constant "
         "[s] (0: off, r = 0); the pose keeps the Doppler translation")
+    repeat_weight_power: float = Field(
+        0.0, ge=0, description="on a sensor that re-publishes its detections, after the "
+        "rotation solve one more Gauss-Newton step in which each re-published copy (a point "
+        "within replace_within_m of its map copy) weighs its detection's publications to the "
+        "power -repeat_weight_power, new detections 1 (0: off)")
     threshold_mps: float | None = Field(None, gt=0, description="RANSAC Doppler gate [m/s] "
                                         "(radar 0.25, LiDAR 0.2)")
     gate_sigmas: float = Field(3.0, gt=0, description="static points: within this many robust "
@@ -291,7 +296,10 @@ class DopplerEgo(Odometry):
                                               if free_vertical else None,
                                               tie_sigma_m=p.tie_sigma_mps * dt
                                               if free_vertical else 0.0,
-                                              geometry_step=use_lever and ego_t is not None)
+                                              geometry_step=use_lever and ego_t is not None,
+                                              repeat_power=p.repeat_weight_power
+                                              if free_vertical else 0.0,
+                                              repeat_within_m=p.replace_within_m)
                     if use_lever and ego_t is not None and fit.T_geometry is not None:
                         lever.update(T_wp, fit.T_geometry, ego_t.without_offset(), dt)
                     T = fit.T_world_sensor
