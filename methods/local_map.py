@@ -314,12 +314,12 @@ def register_to_map(
     translation were free; the cost of one iteration. ``doppler-ego`` reads the measured
     translation's disagreement with the geometry from it (its lever arm, issue 49).
 
-    ``repeat_power`` > 0 (with ``repeat_within_m`` > 0): after the solve, the points whose pair
-    lies within ``repeat_within_m`` (a sensor's re-published copy of a map point: they land
+    ``repeat_power`` > 0 (with ``repeat_within_m`` > 0): at the solve's last iteration, the
+    points whose pair lies within ``repeat_within_m`` (a sensor's re-published copy of a map point: they land
     within millimetres of it) are weighted by their detection's publications to the power
     ``-repeat_power`` (publications = the map copy's ``counts`` + 1), every other pair by 1,
-    and one more Gauss-Newton step of the same cost (same unknowns, tie and prior) is taken
-    with those weights from the solved pose (issue 49: a detection carried from scan to scan
+    and that iteration's Gauss-Newton step of the same cost (same pairs, unknowns, tie and
+    prior) is taken again with those weights (``geometry_step`` then uses the same pairs; issue 49: a detection carried from scan to scan
     by the sensor's motion compensation measures that compensation again, not the world)."""
     # contiguous, whatever the caller passes (a strided subsample ``covs[::step]`` would make
     # numba compile a second version of ``_normal_equations`` inside a timed frame: the first
@@ -328,6 +328,7 @@ def register_to_map(
     covs = np.ascontiguousarray(covs, dtype=np.float64)
     R = init_T_world_sensor[:3, :3].copy()
     prior_info = None  # (3, 3) information of the prior on t - tied(R) [1/m^2, world frame]
+    s = None  # the free translation offsets along U (exact tie only)
     if tied is None:
         U = np.eye(3)  # the translation is free
         t = init_T_world_sensor[:3, 3].copy()
@@ -347,8 +348,33 @@ def register_to_map(
                          f"{local_map.search_radius_m} m")
     c2 = kernel_scale**2
     ones = np.ones(len(points))
-    reweighted = False
-    for step in range(1, max_iterations + 2):
+    reweight = repeat_power > 0 and repeat_within_m > 0
+    T_geometry = None
+
+    def solve_step(R, t, s, Rl, moved, idx, keep, pw):
+        """One Gauss-Newton step over the given pairs: the new (R, t, s) and the rotation
+        and translation-unknown updates (None when singular)."""
+        H, g = _normal_equations(Rl, moved, covs, R, local_map.points, local_map.covs,
+                                 idx, keep, c2, U, pw)
+        if prior_info is not None:  # residual t - tied(R), Jacobian [(R lever)^, I]
+            J = np.hstack([skew(R @ tied.lever), np.eye(3)])
+            H = H + J.T @ prior_info @ J
+            g = g + J.T @ prior_info @ (t - tied(R))
+        try:
+            delta = -np.linalg.solve(H, g)
+        except np.linalg.LinAlgError:
+            return None
+        R = Rotation.from_rotvec(delta[:3]).as_matrix() @ R
+        if tied is None or prior_info is not None:
+            t = t + delta[3:]
+        else:
+            s = s + delta[3:]
+            t = tied(R) + U @ s
+        return R, t, s, delta
+
+    if prior_info is not None:
+        s = None
+    for step in range(1, max_iterations + 1):
         it = step
         Rp = points @ R.T
         moved = Rp + t
@@ -360,51 +386,44 @@ def register_to_map(
         # the point moves by -(R p)^ dtheta + dt; tied: dt = -(R lever)^ dtheta + U ds
         exact_tie = tied is not None and prior_info is None
         Rl = Rp + R @ tied.lever if exact_tie else Rp
-        pw = ones
-        if reweighted:  # the last step: re-published copies weighted by their publications
+        out = solve_step(R, t, s, Rl, moved, idx, keep, ones)
+        if out is None:
+            break
+        small = (np.linalg.norm(out[3][:3]) < tolerance_rad
+                 and np.linalg.norm(out[3][3:]) < 1e-4)
+        if (small or step == max_iterations) and reweight:
+            # the re-weighted step over this iteration's pairs, from the pose they were found
+            # at (the update just solved is below the tolerance: the same pairs): each
+            # re-published copy weighted by its detection's publications ** -repeat_power
             copy = sq < repeat_within_m**2
-            pw = np.where(copy, (local_map.counts[np.maximum(idx, 0)] + 1.0)
-                          ** -repeat_power, 1.0)
-        H, g = _normal_equations(Rl, moved, covs, R, local_map.points, local_map.covs,
-                                 idx, keep, c2, U, pw)
-        if prior_info is not None:  # residual t - tied(R), Jacobian [(R lever)^, I]
-            J = np.hstack([skew(R @ tied.lever), np.eye(3)])
-            H = H + J.T @ prior_info @ J
-            g = g + J.T @ prior_info @ (t - tied(R))
-        try:
-            delta = -np.linalg.solve(H, g)
-        except np.linalg.LinAlgError:
+            pw = np.where(copy, (local_map.counts[np.maximum(idx, 0)] + 1.0) ** -repeat_power,
+                          1.0)
+            if geometry_step:  # and the geometry step from the same pairs
+                T_geometry = _free_step(Rp, moved, covs, R, t, local_map, idx, keep, c2, ones)
+            out = solve_step(R, t, s, Rl, moved, idx, keep, pw) or out
+        R, t, s = out[:3]
+        if small:
+            converged = True
             break
-        R = Rotation.from_rotvec(delta[:3]).as_matrix() @ R
-        if tied is None or prior_info is not None:
-            t = t + delta[3:]
-        else:
-            s = s + delta[3:]
-            t = tied(R) + U @ s
-        if reweighted:
-            break
-        small = np.linalg.norm(delta[:3]) < tolerance_rad and np.linalg.norm(delta[3:]) < 1e-4
-        if small or step == max_iterations:
-            converged = small
-            if repeat_power > 0 and repeat_within_m > 0:
-                reweighted = True  # one more pass, re-weighted
-                continue
-            break
-    T_geometry = None
-    if geometry_step and n_pairs >= min_correspondences:
+    if geometry_step and T_geometry is None and n_pairs >= min_correspondences:
         Rp = points @ R.T
         idx, sq = local_map.nearest(Rp + t)
         keep = sq < max_correspondence_m**2
         if int(keep.sum()) >= min_correspondences:
-            H, g = _normal_equations(Rp, Rp + t, covs, R, local_map.points, local_map.covs,
-                                     idx, keep, c2, np.eye(3), ones)
-            try:
-                delta = -np.linalg.solve(H, g)
-                T_geometry = _pose(Rotation.from_rotvec(delta[:3]).as_matrix() @ R,
-                                   t + delta[3:])
-            except np.linalg.LinAlgError:
-                pass
+            T_geometry = _free_step(Rp, Rp + t, covs, R, t, local_map, idx, keep, c2, ones)
     return MapFit(_pose(R, t), n_pairs, it, converged, T_geometry)
+
+
+def _free_step(Rp, moved, covs, R, t, local_map, idx, keep, c2, pw) -> np.ndarray | None:
+    """The pose one free 6-DoF Gauss-Newton step of the geometric cost takes from (R, t),
+    over the given pairs (None when singular)."""
+    H, g = _normal_equations(Rp, moved, covs, R, local_map.points, local_map.covs, idx, keep,
+                             c2, np.eye(3), pw)
+    try:
+        delta = -np.linalg.solve(H, g)
+    except np.linalg.LinAlgError:
+        return None
+    return _pose(Rotation.from_rotvec(delta[:3]).as_matrix() @ R, t + delta[3:])
 
 
 def _pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:
