@@ -167,13 +167,13 @@ class DopplerEgoParams(MethodParams):
         "this sigma [m/s, times the scan interval: metres] instead of tying it exactly; the pose "
         "keeps the Doppler translation either way (0: tied exactly)")
     lever_memory_s: float = Field(
-        0.0, ge=0, description="on a sensor that re-publishes its detections, tie the rotation "
+        30.0, ge=0, description="on a sensor that re-publishes its detections, tie the rotation "
         "solve to the Doppler translation of a point a lever arm r away, t + (R - I) r, with r "
         "(sensor x, y) estimated online from the geometry's disagreement with the Doppler "
         "translation, by least squares over the past steps forgotten with this time constant "
         "[s] (0: off, r = 0); the pose keeps the Doppler translation")
     repeat_weight_power: float = Field(
-        0.0, ge=0, description="on a sensor that re-publishes its detections, after the "
+        2.0, ge=0, description="on a sensor that re-publishes its detections, after the "
         "rotation solve one more Gauss-Newton step in which each re-published copy (a point "
         "within replace_within_m of its map copy) weighs its detection's publications to the "
         "power -repeat_weight_power, new detections 1 (0: off)")

@@ -9,8 +9,10 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+import pytest
+
 from conftest import constant_twist_sequence
-from loaders.se3 import make_T
+from loaders.se3 import inv_T, rotation_angle_deg
 from methods.doppler_ego import DopplerEgo
 from methods.local_map import LocalMap, register_to_map, scan_covariances
 
@@ -98,3 +100,22 @@ def test_the_weighting_is_used_only_on_a_sensor_that_re_publishes_its_detections
                           poses(free_vertical=False, repeat_weight_power=1.0))
     assert not np.array_equal(poses(free_vertical=True),
                               poses(free_vertical=True, repeat_weight_power=1.0))
+
+
+@pytest.mark.parametrize("seed", [True, False])
+def test_the_weightings_cost_on_exact_data_that_re_publish_every_point(seed):
+    """Its cost where its premise fails: exact data whose every point is re-published in every
+    scan (no new detections), so the few unflagged points are voxel-centroid shifts. The
+    shipped default (weighting and lever on) keeps the translation exact and costs at most
+    0.15 deg of rotation a step (measured 0.09), median under 0.05 deg (measured 0.02-0.03);
+    with the weighting off the same data give under 0.05 deg every step
+    (test_doppler_ego.test_recovers_a_noise_free_known_motion)."""
+    seq = constant_twist_sequence(n_frames=12, n_points=4000, v=(8.0, 0.3, 0.1),
+                                  w=(0.0, 0.01, 0.08))
+    est = DopplerEgo().configured_for(seq.sensor).run(seq, seed=seed).poses
+    gt = seq.ground_truth.poses
+    steps = [inv_T(inv_T(gt[k - 1]) @ gt[k]) @ (inv_T(est[k - 1]) @ est[k])
+             for k in range(1, len(gt))]
+    rot = np.array([float(rotation_angle_deg(E[:3, :3])) for E in steps])
+    assert max(np.linalg.norm(E[:3, 3]) for E in steps) < 1e-3
+    assert rot.max() < 0.15 and np.median(rot) < 0.05
