@@ -17,10 +17,11 @@ for static points), and a scan holds thousands of them; what Doppler cannot see 
          t_prev_curr(R) (exact derivative: the tied translation turns with R); on a sensor
          that re-publishes its earlier detections the vertical translation (sensor z) is left
          free in this solve (see below); pairs within the gate (exact nearest neighbour
-         through a spatial hash); with ``tie_sigma_mps`` > 0 on such a sensor the horizontal
-         translation is only held to t_prev_curr(R) by a prior (issue 49's ablation), with
-         ``lever_memory_s`` > 0 tied to t_prev_curr(R) + (R - I) r, r an online lever arm
-         (issue 49's other ablation); started
+         through a spatial hash); on such a sensor the solve is tied to
+         t_prev_curr(R) + (R - I) r, r an online lever arm (``lever_memory_s``), and its last
+         step is taken again with the re-published copies weighted down by their publications
+         (``repeat_weight_power``; both issue 49); with ``tie_sigma_mps`` > 0 the horizontal
+         translation is only held to it by a prior (issue 49's ablation); started
          from the harness's constant-velocity guess (with seed) or from the previous pose (no
          seed)                                                          (methods/local_map.py)
       -> T_world_curr = T_world_prev (R_prev_curr, t_prev_curr(R_prev_curr)): the translation
@@ -63,11 +64,24 @@ time constant; a 2 m zero-mean prior until the rotation excites it); the pose ke
 translation. On the tuning halves it finds the same arm (r_x -2.3 / -1.9 m after 25 steps) and
 removes the yaw bias (100-frame windows +0.31 -> +0.24 deg on A, -0.43 -> 0.00 on B), but B's
 roll error grows (+0.24 -> +1.04 deg: the geometry's own roll drift, which the exact tie's yaw
-error had cancelled there), so criterion C is A 0.960 [0.898, 1.002], B 1.015 [0.856, 1.083]
-at 30 s (every memory alike): the rule keeps it off (default 0;
-configs/tuning/doppler-ego-lever.yaml) and ``-p lever_memory_s=30`` is the ablation (1.15x the
-time per frame). Forced on a sensor without an arm (synthetic, vertical freed) it estimates
+error had cancelled there): alone, criterion C is A 0.960 [0.898, 1.002], B 1.015 [0.856,
+1.083] at 30 s. Forced on a sensor without an arm (synthetic, vertical freed) it estimates
 0.2-0.3 m of its own and costs up to 14 %, hence only on re-publishing sensors.
+
+The re-published copies (issue 49, ``repeat_weight_power``). That roll drift comes from the
+re-published detections: a copy lands within millimetres of its previous copy in the map, so
+its pair measures the sensor's own motion compensation again, not the world (83 % of the
+registered points). At the solve's last iteration the points whose pair lies within
+``replace_within_m`` (the map's copy test) are flagged, each weighted by its detection's
+publications (``LocalMap.counts``) to the power ``-repeat_weight_power``, new detections by 1,
+and that iteration's step is solved again over the same pairs (the lever's geometry step uses
+them too: no extra pair search). With the lever it moves the roll drift toward zero on both
+halves (radar frame, 100-frame windows: +0.39 -> -0.03 deg on A, +0.52 -> -0.83 on B: past
+zero at power 2) and keeps the yaw bias under 0.3 deg (+0.04 / -0.29). The tuning rule chose
+the two together (configs/tuning/doppler-ego-repeat.yaml: memory 30 s, power 2; C 0.849, half
+A 0.818 [0.807, 0.894], half B 0.880 [0.844, 0.969]; power 1 qualifies at every memory, 0.857;
+neither setting qualifies alone); 1.12x the time per frame. Where its premise fails (every
+point re-published, nothing new: exact test data) it costs up to 0.09 deg a step.
 
 When a scan's ego velocity is not observable the other scan's velocity alone is used, and when
 neither is, the step falls back to a free 6-DoF registration from the motion guess.
@@ -77,8 +91,9 @@ a plain GICP scan-to-map odometry), ``static_filter`` (off: all points go to the
 and the map), ``use_map`` (off: scan-to-scan against the previous scan only),
 ``free_vertical`` (false: the translation stays fully tied even on an accumulating sensor),
 ``tie_sigma_mps`` (3: on an accumulating sensor the rotation from a solve untied from the Doppler
-translation, held only by a 3 m/s prior), ``lever_memory_s`` (30: on an accumulating sensor the
-solve tied to the Doppler translation of the lever arm the method estimates online).
+translation, held only by a 3 m/s prior), ``lever_memory_s`` (0: the exact tie without the
+lever arm), ``repeat_weight_power`` (0: the re-published copies weighted like new detections;
+both 0: the method before issue 49's last change).
 
 Seed / no seed: with seed, each frame's registration starts from the harness's constant-velocity
 guess, the previous step's motion scaled to this step's interval (``scale_motion``; the same
@@ -167,11 +182,16 @@ class DopplerEgoParams(MethodParams):
         "this sigma [m/s, times the scan interval: metres] instead of tying it exactly; the pose "
         "keeps the Doppler translation either way (0: tied exactly)")
     lever_memory_s: float = Field(
-        0.0, ge=0, description="on a sensor that re-publishes its detections, tie the rotation "
+        30.0, ge=0, description="on a sensor that re-publishes its detections, tie the rotation "
         "solve to the Doppler translation of a point a lever arm r away, t + (R - I) r, with r "
         "(sensor x, y) estimated online from the geometry's disagreement with the Doppler "
         "translation, by least squares over the past steps forgotten with this time constant "
         "[s] (0: off, r = 0); the pose keeps the Doppler translation")
+    repeat_weight_power: float = Field(
+        2.0, ge=0, description="on a sensor that re-publishes its detections, after the "
+        "rotation solve one more Gauss-Newton step in which each re-published copy (a point "
+        "within replace_within_m of its map copy) weighs its detection's publications to the "
+        "power -repeat_weight_power, new detections 1 (0: off)")
     threshold_mps: float | None = Field(None, gt=0, description="RANSAC Doppler gate [m/s] "
                                         "(radar 0.25, LiDAR 0.2)")
     gate_sigmas: float = Field(3.0, gt=0, description="static points: within this many robust "
@@ -291,7 +311,10 @@ class DopplerEgo(Odometry):
                                               if free_vertical else None,
                                               tie_sigma_m=p.tie_sigma_mps * dt
                                               if free_vertical else 0.0,
-                                              geometry_step=use_lever and ego_t is not None)
+                                              geometry_step=use_lever and ego_t is not None,
+                                              repeat_power=p.repeat_weight_power
+                                              if free_vertical else 0.0,
+                                              repeat_within_m=p.replace_within_m)
                     if use_lever and ego_t is not None and fit.T_geometry is not None:
                         lever.update(T_wp, fit.T_geometry, ego_t.without_offset(), dt)
                     T = fit.T_world_sensor

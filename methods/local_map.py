@@ -115,7 +115,9 @@ class LocalMap:
 
     ``add(..., replace_within_m=r)`` lets a scan's point replace every older map point within
     ``r`` of it: for a sensor that re-publishes its earlier detections, a detection then stays
-    in the map once (its newest copy) instead of once per scan of the window."""
+    in the map once (its newest copy) instead of once per scan of the window, and ``counts``
+    holds how many times it has been published (1: a new detection; a copy: its replaced
+    copy's count + 1)."""
 
     def __init__(self, max_frames: int, search_radius_m: float) -> None:
         self.max_frames = int(max_frames)
@@ -124,6 +126,7 @@ class LocalMap:
         self.points = np.empty((0, 3))
         self.covs = np.empty((0, 3, 3))
         self.alive = np.zeros(0, dtype=bool)
+        self.counts = np.zeros(0)  # publications of each point's detection so far (1: new)
         self.next_slot = 0
         self.index: SpatialHash | None = None
 
@@ -132,21 +135,27 @@ class LocalMap:
         points = np.zeros((self.max_frames * new, 3))
         covs = np.zeros((self.max_frames * new, 3, 3))
         alive = np.zeros(self.max_frames * new, dtype=bool)
+        counts = np.zeros(self.max_frames * new)
         for slot in range(self.max_frames if old_cap else 0):
             src, dst = slot * old_cap, slot * new
             points[dst:dst + old_cap] = self.points[src:src + old_cap]
             covs[dst:dst + old_cap] = self.covs[src:src + old_cap]
             alive[dst:dst + old_cap] = self.alive[src:src + old_cap]
+            counts[dst:dst + old_cap] = self.counts[src:src + old_cap]
         self.points, self.covs, self.alive, self.capacity = points, covs, alive, new
+        self.counts = counts
 
     def add(self, points_sensor: np.ndarray, covs_sensor: np.ndarray,
             T_world_sensor: np.ndarray, replace_within_m: float = 0.0) -> None:
         R, t = T_world_sensor[:3, :3], T_world_sensor[:3, 3]
         n = len(points_sensor)
         world = points_sensor @ R.T + t
+        count = np.ones(n)
         if replace_within_m > 0 and self.index is not None and n:
             idx, sq = self.index.nearest(world, min(replace_within_m, self.search_radius_m))
-            self.alive[idx[sq < replace_within_m**2]] = False
+            copy = sq < replace_within_m**2
+            count[copy] = self.counts[idx[copy]] + 1  # a copy: one publication more
+            self.alive[idx[copy]] = False
         if n > self.capacity:
             self._grow(n)
         base = self.next_slot * self.capacity
@@ -154,6 +163,7 @@ class LocalMap:
         self.points[base:base + n] = world
         self.covs[base:base + n] = R @ covs_sensor @ R.T
         self.alive[base:base + n] = True
+        self.counts[base:base + n] = count
         self.next_slot = (self.next_slot + 1) % self.max_frames
         self.index = (SpatialHash(self.points, self.search_radius_m, self.alive)
                       if self.alive.any() else None)
@@ -192,12 +202,13 @@ class TiedTranslation(Protocol):
 
 
 @numba.njit(cache=True)
-def _normal_equations(Rl, moved, covs, R, map_points, map_covs, idx, keep, c2, Tcols):
+def _normal_equations(Rl, moved, covs, R, map_points, map_covs, idx, keep, c2, Tcols, pw):
     """H (dof x dof) and g (dof) of the weighted GICP cost over the kept pairs: residual
     e = R p + t - q, weight W = (C_q + R C_p R^T)^-1 scaled by the Cauchy IRLS factor,
     Jacobian [-(Rl)^, Tcols]: rotation columns from ``Rl`` (R p, or R (p + lever) when the
     translation turns with R), then the translation's free directions ``Tcols`` (3 x k;
-    dof = 3 + k). Scalar code: small matrix products in numba would allocate per pair."""
+    dof = 3 + k); ``pw`` (N,) scales each pair's weight. Scalar code: small matrix products in
+    numba would allocate per pair."""
     dof = 3 + Tcols.shape[1]
     H = np.zeros((dof, dof))
     g = np.zeros(dof)
@@ -241,7 +252,7 @@ def _normal_equations(Rl, moved, covs, R, map_points, map_covs, idx, keep, c2, T
         We0 = W[0, 0] * e0 + W[0, 1] * e1 + W[0, 2] * e2
         We1 = W[1, 0] * e0 + W[1, 1] * e1 + W[1, 2] * e2
         We2 = W[2, 0] * e0 + W[2, 1] * e1 + W[2, 2] * e2
-        w = 1.0 / (1.0 + (e0 * We0 + e1 * We1 + e2 * We2) / c2)
+        w = pw[n] / (1.0 + (e0 * We0 + e1 * We1 + e2 * We2) / c2)
         x, y, z = Rl[n, 0], Rl[n, 1], Rl[n, 2]
         J[0, 1], J[0, 2] = z, -y  # J[:, :3] = -skew(Rl)
         J[1, 0], J[1, 2] = -z, x
@@ -274,6 +285,8 @@ def register_to_map(
     free_axes_sensor: np.ndarray | None = None,
     tie_sigma_m: float = 0.0,
     geometry_step: bool = False,
+    repeat_power: float = 0.0,
+    repeat_within_m: float = 0.0,
 ) -> MapFit:
     """Align ``points`` (N, 3) [m, sensor frame] with covariances ``covs`` (N, 3, 3) to the map.
 
@@ -299,7 +312,15 @@ def register_to_map(
     over all 6 degrees of freedom (no tie, no prior) from the solved pose, returned as
     ``MapFit.T_geometry``: where the geometry would put the pose (to first order) when the
     translation were free; the cost of one iteration. ``doppler-ego`` reads the measured
-    translation's disagreement with the geometry from it (its lever arm, issue 49)."""
+    translation's disagreement with the geometry from it (its lever arm, issue 49).
+
+    ``repeat_power`` > 0 (with ``repeat_within_m`` > 0): at the solve's last iteration, the
+    points whose pair lies within ``repeat_within_m`` (a sensor's re-published copy of a map point: they land
+    within millimetres of it) are weighted by their detection's publications to the power
+    ``-repeat_power`` (publications = the map copy's ``counts`` + 1), every other pair by 1,
+    and that iteration's Gauss-Newton step of the same cost (same pairs, unknowns, tie and
+    prior) is taken again with those weights (``geometry_step`` then uses the same pairs; issue 49: a detection carried from scan to scan
+    by the sensor's motion compensation measures that compensation again, not the world)."""
     # contiguous, whatever the caller passes (a strided subsample ``covs[::step]`` would make
     # numba compile a second version of ``_normal_equations`` inside a timed frame: the first
     # frame with more than ``max_source_points`` points after a warm-up pair with fewer)
@@ -307,6 +328,7 @@ def register_to_map(
     covs = np.ascontiguousarray(covs, dtype=np.float64)
     R = init_T_world_sensor[:3, :3].copy()
     prior_info = None  # (3, 3) information of the prior on t - tied(R) [1/m^2, world frame]
+    s = None  # the free translation offsets along U (exact tie only)
     if tied is None:
         U = np.eye(3)  # the translation is free
         t = init_T_world_sensor[:3, 3].copy()
@@ -325,6 +347,33 @@ def register_to_map(
         raise ValueError(f"pair gate {max_correspondence_m} m exceeds the map's search radius "
                          f"{local_map.search_radius_m} m")
     c2 = kernel_scale**2
+    ones = np.ones(len(points))
+    reweight = repeat_power > 0 and repeat_within_m > 0
+    T_geometry = None
+
+    def solve_step(R, t, s, Rl, moved, idx, keep, pw):
+        """One Gauss-Newton step over the given pairs: the new (R, t, s) and the rotation
+        and translation-unknown updates (None when singular)."""
+        H, g = _normal_equations(Rl, moved, covs, R, local_map.points, local_map.covs,
+                                 idx, keep, c2, U, pw)
+        if prior_info is not None:  # residual t - tied(R), Jacobian [(R lever)^, I]
+            J = np.hstack([skew(R @ tied.lever), np.eye(3)])
+            H = H + J.T @ prior_info @ J
+            g = g + J.T @ prior_info @ (t - tied(R))
+        try:
+            delta = -np.linalg.solve(H, g)
+        except np.linalg.LinAlgError:
+            return None
+        R = Rotation.from_rotvec(delta[:3]).as_matrix() @ R
+        if tied is None or prior_info is not None:
+            t = t + delta[3:]
+        else:
+            s = s + delta[3:]
+            t = tied(R) + U @ s
+        return R, t, s, delta
+
+    if prior_info is not None:
+        s = None
     for step in range(1, max_iterations + 1):
         it = step
         Rp = points @ R.T
@@ -337,40 +386,44 @@ def register_to_map(
         # the point moves by -(R p)^ dtheta + dt; tied: dt = -(R lever)^ dtheta + U ds
         exact_tie = tied is not None and prior_info is None
         Rl = Rp + R @ tied.lever if exact_tie else Rp
-        H, g = _normal_equations(Rl, moved, covs, R, local_map.points, local_map.covs,
-                                 idx, keep, c2, U)
-        if prior_info is not None:  # residual t - tied(R), Jacobian [(R lever)^, I]
-            J = np.hstack([skew(R @ tied.lever), np.eye(3)])
-            H = H + J.T @ prior_info @ J
-            g = g + J.T @ prior_info @ (t - tied(R))
-        try:
-            delta = -np.linalg.solve(H, g)
-        except np.linalg.LinAlgError:
+        out = solve_step(R, t, s, Rl, moved, idx, keep, ones)
+        if out is None:
             break
-        R = Rotation.from_rotvec(delta[:3]).as_matrix() @ R
-        if tied is None or prior_info is not None:
-            t = t + delta[3:]
-        else:
-            s = s + delta[3:]
-            t = tied(R) + U @ s
-        if np.linalg.norm(delta[:3]) < tolerance_rad and np.linalg.norm(delta[3:]) < 1e-4:
+        small = (np.linalg.norm(out[3][:3]) < tolerance_rad
+                 and np.linalg.norm(out[3][3:]) < 1e-4)
+        if (small or step == max_iterations) and reweight:
+            # the re-weighted step over this iteration's pairs, from the pose they were found
+            # at (the update just solved is below the tolerance: the same pairs): each
+            # re-published copy weighted by its detection's publications ** -repeat_power
+            copy = sq < repeat_within_m**2
+            pw = np.where(copy, (local_map.counts[np.maximum(idx, 0)] + 1.0) ** -repeat_power,
+                          1.0)
+            if geometry_step:  # and the geometry step from the same pairs
+                T_geometry = _free_step(Rp, moved, covs, R, t, local_map, idx, keep, c2, ones)
+            out = solve_step(R, t, s, Rl, moved, idx, keep, pw) or out
+        R, t, s = out[:3]
+        if small:
             converged = True
             break
-    T_geometry = None
-    if geometry_step and n_pairs >= min_correspondences:
+    if geometry_step and T_geometry is None and n_pairs >= min_correspondences:
         Rp = points @ R.T
         idx, sq = local_map.nearest(Rp + t)
         keep = sq < max_correspondence_m**2
         if int(keep.sum()) >= min_correspondences:
-            H, g = _normal_equations(Rp, Rp + t, covs, R, local_map.points, local_map.covs,
-                                     idx, keep, c2, np.eye(3))
-            try:
-                delta = -np.linalg.solve(H, g)
-                T_geometry = _pose(Rotation.from_rotvec(delta[:3]).as_matrix() @ R,
-                                   t + delta[3:])
-            except np.linalg.LinAlgError:
-                pass
+            T_geometry = _free_step(Rp, Rp + t, covs, R, t, local_map, idx, keep, c2, ones)
     return MapFit(_pose(R, t), n_pairs, it, converged, T_geometry)
+
+
+def _free_step(Rp, moved, covs, R, t, local_map, idx, keep, c2, pw) -> np.ndarray | None:
+    """The pose one free 6-DoF Gauss-Newton step of the geometric cost takes from (R, t),
+    over the given pairs (None when singular)."""
+    H, g = _normal_equations(Rp, moved, covs, R, local_map.points, local_map.covs, idx, keep,
+                             c2, np.eye(3), pw)
+    try:
+        delta = -np.linalg.solve(H, g)
+    except np.linalg.LinAlgError:
+        return None
+    return _pose(Rotation.from_rotvec(delta[:3]).as_matrix() @ R, t + delta[3:])
 
 
 def _pose(R: np.ndarray, t: np.ndarray) -> np.ndarray:

@@ -31,7 +31,9 @@ def step_errors(seq, result):
 def test_recovers_a_noise_free_known_motion(seed):
     seq = constant_twist_sequence(n_frames=12, n_points=4000, v=(8.0, 0.3, 0.1),
                                   w=(0.0, 0.01, 0.08))
-    method = DopplerEgo().configured_for(seq.sensor)
+    # the copies' weighting off: every point of this sequence is re-published exactly, so
+    # the weighting would act on voxel-centroid shifts (its own test: test_doppler_ego_repeat)
+    method = DopplerEgo(repeat_weight_power=0.0).configured_for(seq.sensor)
     result = method.run(seq, seed=seed)
     trans, rot = step_errors(seq, result)
     assert trans.max() < 1e-3 and rot.max() < 0.05
