@@ -68,9 +68,11 @@ def foreign_run(run_dir: Path, wanted: dict, maker: str) -> None:
         shown = [first, *(k for k in differs if k != first)]
         holds = ", ".join(f"{k} {_differing(held[k], wanted.get(k))!r}" for k in shown)
         asked = ", ".join(f"{k} {_differing(wanted[k], held[k])!r}" for k in differs)
+        why = (" (a folder holds one store's runs: another store of that name is another "
+               "sequence)" if "store" in differs else "")
         raise DataError(f"{run_dir}: holds another run ({holds}); {maker} would replace it "
-                        f"with {asked}: choose another folder or name (--force re-does only "
-                        "the same run, never another)")
+                        f"with {asked}{why}: choose another folder or name (--force re-does "
+                        "only the same run, never another)")
 
 
 def _differing(value, other):
