@@ -42,3 +42,17 @@ def option_flag(provenance: dict, option: str) -> str | None:
 
 def loader_name(provenance: dict) -> str:
     return str(provenance.get("loader") or "its loader")
+
+
+def compensated_doppler(store, who: str, provenance: dict) -> str:
+    """Why ``who`` (e.g. "doppler", "calibration from Doppler") cannot use a store whose
+    Doppler is ego-compensated, and how to get raw radial Doppler (``bench run`` and ``bench
+    calibrate`` refuse such a store with this text)."""
+    flag = option_flag(provenance, "reconstruct_doppler_from_gt")
+    opt_in = (f"convert it again with `bench convert {loader_name(provenance)} ... {flag}` "
+              "(results marked GT-assisted)" if flag else
+              "reconstructing the radial velocity from the ground truth's ego motion is "
+              "an explicit opt-in of the loader (doppler_kind 'gt-reconstructed')")
+    return (f"{store}: {who} needs the raw radial Doppler velocity, but the store's Doppler is "
+            "ego-compensated (sensor doppler_kind 'ego-compensated': static points read about 0 "
+            f"m/s); {opt_in}")

@@ -14,7 +14,7 @@ import yaml
 from rich.console import Console
 
 from bench import guard
-from bench.data.advice import loader_name, option_flag
+from bench.data.advice import compensated_doppler, loader_name, option_flag
 from bench.data.synth import ensure_suite_with_progress
 from bench.runs.experiment import Experiment, SequenceEntry, expand_sequences
 from bench.runs.folders import RunRecord, read_run, write_failure
@@ -209,17 +209,9 @@ def _doppler_problem(job: Job, seq) -> str | None:
                 f"leave this store out of {job.method} (the method's `sequences:` list in the "
                 "experiment)")
     if seq.sensor.doppler_kind == "ego-compensated":
-        prov = seq.provenance
-        flag = option_flag(prov, "reconstruct_doppler_from_gt")
-        opt_in = (f"convert it again with `bench convert {loader_name(prov)} ... {flag}` "
-                  "(results marked GT-assisted)" if flag else
-                  "reconstructing the radial velocity from the ground truth's ego motion is "
-                  "an explicit opt-in of the loader (doppler_kind 'gt-reconstructed')")
-        return (f"{job.store}: {job.method} needs the raw radial Doppler velocity, but the "
-                "store's Doppler is ego-compensated (sensor doppler_kind 'ego-compensated': "
-                f"static points read about 0 m/s); {opt_in}, or run a method that needs no "
-                f"Doppler, or leave this store out of {job.method} (the method's `sequences:` "
-                "list in the experiment)")
+        return (compensated_doppler(job.store, job.method, seq.provenance) + ", or run a "
+                f"method that needs no Doppler, or leave this store out of {job.method} (the "
+                "method's `sequences:` list in the experiment)")
     return None
 
 
