@@ -8,6 +8,7 @@ Ctrl-C.
 
 from __future__ import annotations
 
+import functools
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -645,15 +646,22 @@ def _show_warning(message, category, filename, lineno, file=None, line=None) -> 
     status.print(f"[yellow]warning:[/] {escape(str(message))}")
 
 
+@functools.cache
+def _command():
+    """The click command tree of ``app``, its help tidied (built once a process: main() may be
+    called many times in one, as the property tests do)."""
+    command = typer.main.get_command(app)
+    tidy_help(command)
+    return command
+
+
 def main() -> None:
     """Console entry point: bad input ends with one clear message, not a traceback."""
     import warnings
 
     warnings.showwarning = _show_warning
     try:
-        command = typer.main.get_command(app)
-        tidy_help(command)
-        code = command.main(prog_name="bench", standalone_mode=False)
+        code = _command().main(prog_name="bench", standalone_mode=False)
     except DataError as err:  # errors and warnings on stderr: stdout may be data (a CSV)
         status.print(f"[bold red]error:[/] {escape(str(err))}")
         sys.exit(2)

@@ -248,10 +248,20 @@ def numeric_params(command, path: tuple[str, ...] = ()):
     for sub_name, sub in getattr(command, "commands", {}).items():
         yield from numeric_params(sub, (*path, sub_name))
     for param in command.params:
-        descriptor = getattr(param, "type_descriptor", None)
-        text = str(descriptor.annotation) if descriptor is not None else ""
-        if not getattr(param, "is_flag", False) and ("int" in text or "float" in text):
+        if is_numeric(param):
             yield path, param
+
+
+def is_numeric(param) -> bool:
+    """An int / float parameter (or a tuple holding one, as ``--pair STORE FRAME``)."""
+    import typing
+
+    descriptor = getattr(param, "type_descriptor", None)
+    if descriptor is None or getattr(param, "is_flag", False):
+        return False
+    annotation = descriptor.annotation
+    return annotation in (int, float) or any(a in (int, float)
+                                             for a in typing.get_args(annotation))
 
 
 def check_environment() -> None:
