@@ -14,6 +14,7 @@ import hashlib
 import io
 import os
 import sys
+import tempfile
 import traceback
 import tracemalloc
 from dataclasses import dataclass
@@ -21,7 +22,12 @@ from pathlib import Path
 
 from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
+from hypothesis.configuration import set_hypothesis_home_dir
 
+# Hypothesis keeps caches (and the patches of failing examples) in a folder of its own: never
+# in the checkout (`make test` writes nothing there)
+set_hypothesis_home_dir(os.path.join(tempfile.gettempdir(), f"doppler-bench-hypothesis-"
+                                                            f"{os.getuid()}"))
 _HEALTH = [HealthCheck.too_slow, HealthCheck.function_scoped_fixture,
            HealthCheck.data_too_large, HealthCheck.filter_too_much]
 settings.register_profile("fast", max_examples=4, deadline=None, derandomize=True,
