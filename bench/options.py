@@ -76,7 +76,7 @@ NUMBERS: dict[str, Number] = {
     "jobs": Number(1, 256, "a number of parallel workers"),
     "repeats": Number(1, 1_000, "a number of timed frames"),
     "threads": Number(1, 256, "a number of threads"),
-    "scale_frames": Number(2, 100_000, "a number of frames"),
+    "scale_frames": Number(2, 20_000, "a number of frames"),
     "min_speed": Number(0, 100, "a speed in m/s"),
     "max_width": Number(0, 180, "an interval width in degrees", above=True),
     "period": Number(0, 3600, "a scan period in seconds", above=True),
@@ -98,6 +98,9 @@ NUMBERS: dict[str, Number] = {
 #: where one name means another quantity in one command: (command, name) -> range
 COMMAND_NUMBERS: dict[tuple[str, str], Number] = {
     ("score", "tolerance"): Number(0, 3600, "a time in seconds"),
+    # frames generated (in memory, then written): a 2.3-hour drive at 12 Hz at most
+    ("synth", "frames"): Number(2, 100_000, "a number of frames"),
+    ("calibrate-coverage", "frames"): Number(10, 100_000, "a number of frames"),
 }
 #: text options that hold comma-separated numbers: name -> (range of each, integers, example)
 NUMBER_LISTS: dict[str, tuple[Number, bool, str]] = {
