@@ -1,7 +1,8 @@
 """The synthetic generator's options (``bench synth -o key=value``) checked before anything is
-generated (outside loaders/synthetic/, whose code hash is the generator's identity): each value's type and range, so a typo or
-an absurd value (``points=1000000000000``, ``speed=[1, .nan]``) is one ``ValueError`` naming
-the option, not an allocation that exhausts the machine or a NaN trajectory."""
+generated: each value's type and range, so a typo or an absurd value (``points=1000000000000``,
+``speed=[1, 1e9]``) is one ``ValueError`` naming the option, not an allocation that exhausts
+the machine or a NaN trajectory. (It lives outside loaders/synthetic/, whose code hash is the
+generator's identity: checking inputs changes no store.)"""
 
 from __future__ import annotations
 
