@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import os
+import re
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -110,6 +111,11 @@ NUMBER_LISTS: dict[str, tuple[Number, bool, str]] = {
     "sizes": (Number(1, 1_000_000, "point counts"), True, "1000,64000"),
     "poses": (Number(100, 200_000, "pose counts (a drive with 48 m segments)"), True,
               "2500,40000"),
+}
+#: text options of a fixed form: name -> (pattern, what is expected)
+TEXTS: dict[str, tuple[str, str]] = {
+    "scheduler": (r"(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:[0-9]{1,5})?/?",
+                  "a dask scheduler address, e.g. tcp://HOST:8786"),
 }
 #: parameters that name an input: it must exist
 INPUTS = {"store", "data", "trajectory", "stamps", "frame_times", "experiment", "path",
@@ -200,6 +206,8 @@ def _check_value(value: Any, command: str, param, option: str) -> None:
     if isinstance(value, str):
         if name in NUMBER_LISTS:
             number_list(value, option, name)
+        if name in TEXTS and not re.fullmatch(TEXTS[name][0], value):
+            raise DataError(f"{option} {value!r}: expected {TEXTS[name][1]}")
         return
     if isinstance(value, (int, float)) and not isinstance(value, bool):
         rule = number_rule(command, name)
