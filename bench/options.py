@@ -117,6 +117,23 @@ TEXTS: dict[str, tuple[str, str]] = {
     "scheduler": (r"(tcp|tls|inproc|ucx|ws|wss)://[^\s/]+(:[0-9]{1,5})?/?",
                   "a dask scheduler address, e.g. tcp://HOST:8786"),
 }
+#: text options naming one of a registry's entries: name -> its entries (imported when used)
+
+
+def _scenes() -> list[str]:
+    from loaders.synthetic import list_scenes
+
+    return list(list_scenes())
+
+
+def _sensors() -> list[str]:
+    from loaders.synthetic import list_sensors
+
+    return list(list_sensors())
+
+
+CHOICES = {(command, name): entries for command in ("synth", "calibrate-coverage")
+           for name, entries in (("scene", _scenes), ("sensor", _sensors))}
 #: parameters that name an input: it must exist
 INPUTS = {"store", "data", "trajectory", "stamps", "frame_times", "experiment", "path",
           "results_dirs", "results_dir", "a", "b", "run", "speed_csv", "pair", "inputs", "gt",
@@ -206,6 +223,12 @@ def _check_value(value: Any, command: str, param, option: str) -> None:
     if isinstance(value, str):
         if name in NUMBER_LISTS:
             number_list(value, option, name)
+        choices = CHOICES.get((command, name))
+        if choices is not None and value not in (known := choices()):
+            from loaders.errors import did_you_mean
+
+            raise DataError(f"{option} {value!r}: unknown {name}{did_you_mean(value, known)}; "
+                            f"choose from {', '.join(known)}")
         if name in TEXTS and not re.fullmatch(TEXTS[name][0], value):
             raise DataError(f"{option} {value!r}: expected {TEXTS[name][1]}")
         return

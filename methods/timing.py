@@ -69,6 +69,13 @@ def check_lock_path(path: str | None) -> None:
         if os.path.isdir(path):
             raise DataError(f"{where}: is a folder; expected the path of a lock file in it, "
                             f"e.g. {os.path.join(path, 'timing.lock')} ({unset})")
+        try:
+            os.stat(path)
+        except FileNotFoundError:
+            pass
+        except OSError as err:  # a name too long, a file where a folder should be
+            raise DataError(f"{where}: not a usable path ({err.strerror or err}); {unset}"
+                            ) from None
         if not os.path.isdir(folder):
             raise DataError(f"{where}: the folder {folder} does not exist; expected the path "
                             f"of a lock file in an existing folder ({unset})")

@@ -173,9 +173,9 @@ INPUT_CASES = [
     (["figures", "{empty}", "--speed-csv", "{input}", "--out", "{out}/f"], "--speed-csv"),
     (["report", "{input}", "--out", "{out}/r.html", "--no-figures"], "RESULTS_DIR"),
     (["view", "{input}", "--out", "{out}/v.rrd"], "STORE.h5"),
-    (["convert", "npy-frames", "{input}", "--out", "{out}/c.h5", "--period", "0.1"], "INPUTS"),
-    (["convert", "aeva", "{input}", "--out", "{out}/c.h5"], "INPUTS"),
-    (["convert", "coloradar", "{input}", "--out", "{out}/c.h5"], "INPUTS"),
+    (["convert", "npy-frames", "{input}", "--out", "{out}/c.h5", "--period", "0.1"], "INPUT"),
+    (["convert", "aeva", "{input}", "--out", "{out}/c.h5"], "INPUT"),
+    (["convert", "coloradar", "{input}", "--out", "{out}/c.h5"], "INPUT"),
 ]
 
 
