@@ -311,3 +311,41 @@ def damage_store(path: Path, damage: tuple) -> None:
             off = f["frames/offset"][:]
             off[2] = off[1]
             f["frames/offset"][:] = off
+
+
+@st.composite
+def npy_frame_folders(draw, n_max: int = 6):
+    """A NumPy frame folder's files (``frame_001.npy`` points, ``frame_001_dop.npy`` Doppler):
+    name -> array, mostly well-formed, with a chance of odd shapes, dtypes, NaN, empty frames,
+    a missing or mismatched Doppler file and stray names."""
+    import numpy as np
+
+    files = {}
+    rng = np.random.default_rng(draw(st.integers(0, 2**16)))
+    for i in range(1, draw(st.integers(0, n_max)) + 1):
+        n = draw(st.sampled_from([50, 50, 50, 0, 1, 3]))
+        points = rng.uniform(-30, 30, (n, 3))
+        doppler = rng.uniform(-5, 5, n)
+        odd = draw(st.sampled_from(["none"] * 5 + ["nan", "shape", "dtype", "no-dop",
+                                                   "short-dop", "2d-dop", "inf", "object"]))
+        if odd == "nan" and n:
+            points[0] = np.nan
+        elif odd == "inf" and n:
+            doppler[-1] = np.inf
+        elif odd == "shape":
+            points = points.reshape(-1)
+        elif odd == "dtype":
+            points = points.astype(np.float16)
+        elif odd == "short-dop":
+            doppler = doppler[:-1]
+        elif odd == "2d-dop":
+            doppler = doppler[:, None]
+        elif odd == "object":
+            points = np.array([["a", "b", "c"]] * max(n, 1), dtype=object)
+        files[f"frame_{i:03d}.npy"] = points
+        if odd != "no-dop":
+            files[f"frame_{i:03d}_dop.npy"] = doppler
+    if draw(st.booleans()):
+        files[draw(st.sampled_from(["frame_x.npy", "frame_0001.npy", "notes.npy",
+                                    "frame_999999999999999999999999.npy"]))] = np.zeros((3, 3))
+    return files

@@ -173,6 +173,8 @@ INPUT_CASES = [
     (["figures", "{empty}", "--speed-csv", "{input}", "--out", "{out}/f"], "--speed-csv"),
     (["report", "{input}", "--out", "{out}/r.html", "--no-figures"], "RESULTS_DIR"),
     (["view", "{input}", "--out", "{out}/v.rrd"], "STORE.h5"),
+    (["view", "{nogt}", "--run", "{input}", "--out", "{out}/v.rrd"], "--run"),
+    (["inspect", "{input}", "--period", "0.1", "--plot", "-"], "STORE_OR_FOLDER"),
     (["convert", "npy-frames", "{input}", "--out", "{out}/c.h5", "--period", "0.1"], "INPUT"),
     (["convert", "aeva", "{input}", "--out", "{out}/c.h5"], "INPUT"),
     (["convert", "coloradar", "{input}", "--out", "{out}/c.h5"], "INPUT"),

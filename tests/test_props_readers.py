@@ -22,6 +22,7 @@ from strategies import (
     examples,
     junk_bytes,
     kitti_files,
+    npy_frame_folders,
     stamp_files,
     store_damage,
     tree_digest,
@@ -173,3 +174,29 @@ def test_a_damaged_store_scored_against_is_named(inputs, damage):
         write_tum(constant_twist_sequence(n_frames=12, n_points=300,
                                           max_range_m=60).ground_truth, gt)
     _score(root, copy, gt)
+
+
+@examples(4)
+@given(files=npy_frame_folders(), gt=st.one_of(st.none(), tum_files()),
+       period=st.sampled_from(["0.1", "0.0833"]), associate=st.sampled_from(["order", "time"]))
+def test_numpy_frame_folders_convert_or_name_the_file(inputs, files, gt, period, associate):
+    root, _ = inputs
+    folder = root / f"npy{next(_count)}"
+    folder.mkdir()
+    for name, array in files.items():
+        np.save(folder / name, array, allow_pickle=array.dtype == object)
+    out = root / "out" / f"{folder.name}.h5"
+    args = ["convert", "npy-frames", folder, "--period", period, "--out", out]
+    if gt is not None:
+        (folder / "gt.txt").write_text(gt)
+        args += ["--gt", folder / "gt.txt", "--associate", associate]
+    before = tree_digest(root, Path.cwd(), skip=(root / "out",))
+    res = bench(args)
+    assert tree_digest(root, Path.cwd(), skip=(root / "out",)) == before
+    assert_clean(res, names=(str(folder), "--"))
+    if res.code == 0:  # the documented result: a store with every frame
+        from loaders.store import StoreSequence
+
+        seq = StoreSequence(out)
+        assert len(seq) >= 1 and seq.sensor.period_s == pytest.approx(float(period))
+        seq.close()
