@@ -74,7 +74,7 @@ NUMBERS: dict[str, Number] = {
     "seeds": Number(1, 10_000, "a number of synthetic sequences"),
     "seed": _SEED,
     "first_seed": _SEED,
-    "jobs": Number(1, 256, "a number of parallel workers"),
+    "jobs": Number(1, 64, "a number of parallel workers"),
     "repeats": Number(1, 1_000, "a number of timed frames"),
     "threads": Number(1, 256, "a number of threads"),
     "scale_frames": Number(2, 20_000, "a number of frames"),

@@ -4,9 +4,10 @@ names on ``PYTHONPATH``; each lists its classes in a ``METHODS`` sequence).
 ``load(spec, builtin)`` imports them and returns name -> class. Anything wrong with a module is
 one ``DataError`` naming the variable and the module: a name that is not a module path, a
 module that does not import (missing, a syntax error, an exception while importing), one
-without a ``METHODS`` sequence of ``Odometry`` classes with a ``name``, and a class whose name
-is a built-in method's (a plugin never replaces one: its runs would be labelled with the
-built-in's display name) or another plugin's.
+without a ``METHODS`` sequence of ``Odometry`` classes with a ``name`` that can name a folder
+(letters, digits, ``-_.+``), and a class whose name is a built-in method's, also but for case (a
+plugin never replaces one: its runs would be labelled with the built-in's display name), or
+another plugin's.
 """
 
 from __future__ import annotations
@@ -17,6 +18,8 @@ import re
 from loaders.errors import DataError
 
 PLUGINS_ENV = "DOPPLER_BENCH_METHODS"
+#: a method's name: one folder name (its runs' folders are named by it)
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,63}")
 _MODULE = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*")
 
 
@@ -53,6 +56,15 @@ def load(spec: str, builtin: dict) -> dict:
             if not isinstance(name, str) or not name.strip():
                 raise DataError(f"{where}: {module_name}.{cls.__qualname__} has no name; give "
                                 "it a class attribute name = \"my-method\"")
+            if not _NAME.fullmatch(name):
+                raise DataError(f"{where}: {module_name}.{cls.__qualname__} is named {name!r}; "
+                                "expected a name of letters, digits, '-', '_', '.' or '+' that "
+                                "starts with a letter or digit (it names run folders)")
+            clash = {n.lower(): n for n in builtin}.get(name.lower())
+            if clash is not None and clash != name:
+                raise DataError(f"{where}: {module_name}.{cls.__qualname__} is named {name!r}, "
+                                f"the built-in method {clash!r} but for case; a plugin cannot "
+                                "take a built-in method's name: give it a name of its own")
             if name in builtin:
                 raise DataError(f"{where}: {module_name}.{cls.__qualname__} is named {name!r}, "
                                 f"the name of the built-in method {builtin[name].__qualname__}; "

@@ -253,6 +253,22 @@ PLUGINS = {
         METHODS = [Fake]
         """,
     "no-methods": "X = 1\n",
+    "bad-name": """
+        from methods.icp import PointToPointIcp
+
+        class Escape(PointToPointIcp):
+            name = "../escape-{n}"
+
+        METHODS = [Escape]
+        """,
+    "case-clash": """
+        from methods.icp import PointToPointIcp
+
+        class Loud(PointToPointIcp):
+            name = "DOPPLER"
+
+        METHODS = [Loud]
+        """,
     "not-a-list": "METHODS = 'doppler'\n",
     "not-a-method": "METHODS = [int]\n",
 }
@@ -275,13 +291,13 @@ def test_environment_variables_are_checked_before_any_command(world, plugin_dir,
     limit = data.draw(st.one_of(st.none(), frame_limits), label="BENCH_MAX_FRAME_MB")
     lock = data.draw(st.one_of(st.none(), lock_paths(world.root / "in")),
                      label="DOPPLER_BENCH_TIMING_LOCK")
-    kinds = data.draw(st.lists(st.sampled_from([*PLUGINS, "missing", "bad-name"]),
+    kinds = data.draw(st.lists(st.sampled_from([*PLUGINS, "missing", "bad-module"]),
                                max_size=2), label="plugins")
     modules = []
     for kind in kinds:
         _counter[0] += 1
         name = f"props_plugin_{kind.replace('-', '_')}_{_counter[0]}"
-        if kind == "bad-name":
+        if kind == "bad-module":
             name = "not a module"
         elif kind != "missing":
             (plugin_dir / f"{name}.py").write_text(
