@@ -56,18 +56,36 @@ def test_calibrate_min_speed_is_checked_before_the_store_is_read(store, value):
     assert "estimating on frames" not in out.text  # nothing ran
 
 
-def test_calibrate_refuses_ego_compensated_doppler_as_run_does(tmp_path):
-    from loaders.scan import MemorySequence, SensorInfo
+def _stores_without_raw_doppler(folder):
+    from loaders.scan import MemorySequence, Scan, SensorInfo
 
     seq = constant_twist_sequence(n_frames=12, n_points=300, max_range_m=60)
     sensor = SensorInfo("lidar", seq.sensor.period_s, model="test",
                         doppler_kind="ego-compensated")
     comp = write_store(MemorySequence("comp", sensor, list(seq), seq.ground_truth,
-                                      {"loader": "helipr"}), tmp_path / "comp.h5")
-    out = bench(["calibrate", comp])
-    _one_error(out.code, out.text, f"{comp}: calibration from Doppler needs the raw radial "
-               "Doppler velocity", "ego-compensated")
-    assert "only 0 frames" not in out.text
+                                      {"loader": "helipr"}), folder / "comp.h5")
+    plain = write_store(MemorySequence("plain", seq.sensor,
+                                       [Scan(s.stamp, s.points, None) for s in seq],
+                                       seq.ground_truth, {"loader": "ntu4dradlm"}),
+                        folder / "plain.h5")
+    return comp, plain
+
+
+def test_commands_that_use_doppler_refuse_a_store_without_raw_doppler_as_run_does(tmp_path):
+    comp, plain = _stores_without_raw_doppler(tmp_path)
+    for store, says in ((comp, "needs the raw radial Doppler velocity, but the store's Doppler "
+                               "is ego-compensated"),
+                        (plain, "needs Doppler, but the store has no Doppler values; convert "
+                                "it again naming the Doppler field (bench convert ntu4dradlm "
+                                "... --doppler-field NAME)")):
+        out = bench(["calibrate", store])
+        _one_error(out.code, out.text, f"{store}: calibration from Doppler {says}")
+        assert "only 0 frames" not in out.text and "estimating on" not in out.text
+        out = bench(["figures", "--pair", store, "2", "--out", tmp_path / "f"])
+        _one_error(out.code, out.text, f"{store}: Doppler Correspondence's pairs {says}")
+        run = bench(["run", "--method", "doppler", "--data", store, "--out", tmp_path / "r"])
+        _one_error(run.code, run.text, f"{store}: doppler {says}")
+    assert not (tmp_path / "f").exists() and not (tmp_path / "r").exists()
 
 
 def test_speed_scale_refuses_absurd_pose_counts(tmp_path):
