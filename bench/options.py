@@ -146,7 +146,7 @@ def flag(param) -> str:
     opts = [o for o in getattr(param, "opts", ()) if o.startswith("-")]
     if opts:
         return max(opts, key=len)
-    return (param.metavar or param.name or "value").upper()
+    return param.metavar or (param.name or "value").upper()
 
 
 def number_rule(command: str, name: str) -> Number | None:

@@ -47,10 +47,12 @@ def _score(root: Path, store: Path, trajectory: Path, *extra: str):
     before = tree_digest(root, Path.cwd(), skip=(out.parent,))
     res = bench(["score", trajectory, "--store", store, "--name", "est", "--out", out, *extra])
     assert tree_digest(root, Path.cwd(), skip=(out.parent,)) == before
-    names = (str(trajectory), trajectory.name, "--", str(store))
+    names = (str(trajectory), trajectory.name, "--", str(store), *map(str, extra))
     assert_clean(res, names=names)
-    if res.code == 0:  # the documented result: an ordinary run folder with its metrics
-        assert (out / "twist" / "est" / "metrics.json").is_file(), res.text
+    if res.code == 0:  # the documented result: an ordinary run folder (RESULTS_DIR/SEQUENCE/
+        # NAME, the sequence named by the store) with its metrics
+        assert [p.parent.parent.parent for p in out.glob("*/est/metrics.json")] == [out], \
+            res.text
     return res
 
 
