@@ -266,6 +266,7 @@ class StoreSequence(Sequence):
                     f"{attrs.get('format')!r}); convert data with `bench convert`"
                 )
             version = int(attrs["format_version"])
+            n_frames = int(attrs["n_frames"])
             if version > FORMAT_VERSION:
                 raise DataError(
                     f"{self.path}: store format version {version} is newer than this "
@@ -315,12 +316,12 @@ class StoreSequence(Sequence):
         self._chunk = int(chunks[0]) if chunks else 1
         self._n_points = int(n_points)
         if (len(self._offsets) != len(self._stamps) + 1 or self._offsets[-1] != n_points
-                or int(attrs["n_frames"]) != len(self._stamps)):
+                or n_frames != len(self._stamps)):
             self.close()
             raise DataError(
                 f"{self.path}: truncated store: {len(self._stamps)} stamps, "
                 f"{len(self._offsets)} offsets, {n_points} points, header says "
-                f"{int(attrs['n_frames'])} frames"
+                f"{n_frames} frames"
             )
 
     def _file(self) -> h5py.File:
