@@ -341,6 +341,9 @@ def load_experiment(path: str | Path) -> Experiment:
         raise DataError(f"{path}: experiment file not found") from None
     except yaml.YAMLError as err:
         raise DataError(f"{path}: not valid YAML: {err}") from None
+    except UnicodeDecodeError:
+        raise DataError(f"{path}: not a text file; expected an experiment YAML (a store is run "
+                        "with `bench run --method M --data STORE.h5`)") from None
     except ValidationError as err:
         problems = validation_problems(err, _known_keys)
         raise DataError(f"{path}: invalid experiment:\n  " + "\n  ".join(problems)) from None
