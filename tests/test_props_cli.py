@@ -47,11 +47,15 @@ class World:
         self.empty.mkdir()
         self.junk = root / "in" / "junk.txt"
         self.junk.write_text("not what any command reads\n")
+        from loaders.posefile import write_tum
+
+        self.tum = root / "in" / "gt.txt"
+        write_tum(seq.ground_truth, self.tum)
         self.out = root / "out"
 
     def fill(self, text: str) -> str:
         return text.format(store=self.store, nogt=self.nogt, empty=self.empty, junk=self.junk,
-                           out=self.out)
+                           tum=self.tum, out=self.out)
 
 
 @pytest.fixture(scope="module")
@@ -167,6 +171,8 @@ INPUT_CASES = [
     (["score", "{junk}", "--store", "{input}", "--name", "n", "--out", "{out}"], "--store"),
     (["score", "{junk}", "--store", "{nogt}", "--name", "n", "--stamps", "{input}", "--out",
       "{out}"], "--stamps"),
+    (["score", "{tum}", "--store", "{store}", "--name", "n", "--frame-times", "{input}",
+      "--out", "{out}"], "--frame-times"),
     (["export", "{input}", "--out", "{out}/x.bag"], "STORE.h5"),
     (["table", "{input}"], "RESULTS_DIR"),
     (["compare", "{input}", "{empty}"], "A"),
