@@ -54,7 +54,9 @@ class Number:
         return f"{self.what}, from {_text(self.low)} to {_text(self.high)}"
 
     def holds(self, value: float) -> bool:
-        return (math.isfinite(value) and (value > self.low if self.above else value >= self.low)
+        # an int is compared as it is (one of 400 digits is no float: math.isfinite overflows)
+        return ((isinstance(value, int) or math.isfinite(value))
+                and (value > self.low if self.above else value >= self.low)
                 and value <= self.high)
 
 
@@ -163,7 +165,8 @@ def number_list(text: str, option: str, name: str) -> tuple[float, ...]:
         values = ()
     if not values or not all(rule.holds(v) for v in values):
         bounds = rule.expected()[len(rule.what) + 2:]
-        raise DataError(f"{option} {text!r}: expected {rule.what} ({kind} {bounds}), comma "
+        shown = repr(text) if len(text) <= 60 else f"{text[:40]!r}... ({len(text)} characters)"
+        raise DataError(f"{option} {shown}: expected {rule.what} ({kind} {bounds}), comma "
                         f"separated, e.g. {example}")
     return values
 
@@ -204,7 +207,10 @@ def _check_number(value: Any, rule: Number, option: str) -> None:
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         return
     if not rule.holds(value):
-        raise DataError(f"{option} {value!r}: expected {rule.expected()}")
+        shown = repr(value)
+        if len(shown) > 40:
+            shown = f"{shown[:20]}... ({len(shown)} digits)"
+        raise DataError(f"{option} {shown}: expected {rule.expected()}")
 
 
 def _check_value(value: Any, command: str, param, option: str) -> None:

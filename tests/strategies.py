@@ -150,6 +150,7 @@ bad_numbers = st.one_of(
     st.floats(min_value=1e13, allow_nan=False, allow_infinity=True).map(repr),
     st.floats(max_value=-1e13, allow_nan=False, allow_infinity=True).map(repr),
     st.integers(min_value=10**13, max_value=10**40).map(str),
+    st.integers(min_value=300, max_value=5000).map(lambda n: "1" + "0" * n),  # beyond any float
     st.integers(max_value=-(10**13), min_value=-(10**40)).map(str),
 )
 #: anything typed where a number goes
