@@ -4,7 +4,8 @@ Add a method by writing one module with a ``Registration`` (pairwise, scan to sc
 ``Odometry`` (keeps its own state) subclass and listing it here. Your own methods can also live
 outside this package: name their modules in the environment variable ``DOPPLER_BENCH_METHODS``
 (comma separated); each module lists its classes in a ``METHODS`` sequence. Worker processes
-inherit the variable, so plugins run under every executor.
+inherit the variable, so plugins run under every executor. A plugin never replaces a built-in
+method, and a broken module is one error naming it (``methods.plugins``).
 """
 
 from __future__ import annotations
