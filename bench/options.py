@@ -81,7 +81,7 @@ NUMBERS: dict[str, Number] = {
     "threads": Number(1, 256, "a number of threads"),
     "scale_frames": Number(2, 20_000, "a number of frames"),
     "min_speed": Number(0, 100, "a speed in m/s"),
-    "max_width": Number(0, 180, "an interval width in degrees", above=True),
+    "max_width": Number(0, 1e6, "an interval width in degrees", above=True),
     "period": Number(0, 3600, "a scan period in seconds", above=True),
     "period_s": Number(0, 3600, "a scan period in seconds", above=True),
     "job_timeout": Number(0, 1e7, "a time in seconds", above=True),
