@@ -51,7 +51,7 @@ class Number:
     def expected(self) -> str:
         if self.above:
             return f"{self.what}, above {_text(self.low)} and at most {_text(self.high)}"
-        return f"{self.what}, from {_text(self.low)} to {_text(self.high)}"
+        return f"{self.what}, at least {_text(self.low)} and at most {_text(self.high)}"
 
     def holds(self, value: float) -> bool:
         # an int is compared as it is (one of 400 digits is no float: math.isfinite overflows)
@@ -169,7 +169,7 @@ def number_list(text: str, option: str, name: str) -> tuple[float, ...]:
     if not values or not all(rule.holds(v) for v in values):
         bounds = rule.expected()[len(rule.what) + 2:]
         shown = repr(text) if len(text) <= 60 else f"{text[:40]!r}... ({len(text)} characters)"
-        raise DataError(f"{option} {shown}: expected {rule.what} ({kind} {bounds}), comma "
+        raise DataError(f"{option} {shown}: expected {rule.what} ({kind}, {bounds}), comma "
                         f"separated, e.g. {example}")
     return values
 
