@@ -266,7 +266,7 @@ class Experiment(_Strict):
     #: origin, se3, sim3, first-N, sim3-first-N)
     kitti_lengths_m: list[float] = Field(default_factory=lambda: list(KITTI_LENGTHS_M))
     alignment: str = "se3"
-    jobs: int = Field(1, ge=1)
+    jobs: int = Field(1, ge=1, le=64)  # as --jobs (bench/options.py)
     out: Path | None = None
     criterion: Criterion | None = None  # picks each sweep's best point
     default_differs: str | None = None  # why a method's default is not the sweep's choice
