@@ -178,7 +178,9 @@ def path_texts(existing: list[Path]) -> st.SearchStrategy[str]:
         st.sampled_from([str(p) for p in existing]),
         st.sampled_from(["", " ", "\0", "a\0b", "x" * 256, "/" + "y" * 300 + "/z",
                          "/nonexistent/folder/file.h5", "missing.h5", "/dev/null"]),
-        st.text(alphabet="abc./-_ ", min_size=1, max_size=15),
+        # names that do not exist, relative to the working folder; never "..", "/" or a path
+        # that climbs out of the test's folders (a command would read and write there)
+        st.text(alphabet="abc_- ", min_size=1, max_size=15).map(lambda t: f"missing-{t}"),
     )
 
 
