@@ -81,6 +81,8 @@ def check_lock_path(path: str | None) -> None:
                             f"of a lock file in an existing folder ({unset})")
         usable = (os.access(path, os.R_OK | os.W_OK) or os.access(folder, os.W_OK)
                   if os.path.exists(path) else os.access(folder, os.W_OK))
+    except DataError:
+        raise
     except (OSError, ValueError) as err:
         raise DataError(f"{where}: not a usable path ({err}); {unset}") from None
     if not usable:

@@ -154,7 +154,9 @@ def test_a_timing_lock_in_a_missing_folder_names_the_variable(store, tmp_path):
     lock = tmp_path / "missing" / "timing.lock"
     out = bench(["run", "--method", "doppler", "--data", store, "--out", tmp_path / "r",
                  "--executor", "local"], env={"DOPPLER_BENCH_TIMING_LOCK": str(lock)})
-    _one_error(out.code, out.text, "DOPPLER_BENCH_TIMING_LOCK", "does not exist")
+    _one_error(out.code, out.text, f"DOPPLER_BENCH_TIMING_LOCK='{lock}': the folder "
+               f"{lock.parent} does not exist")
+    assert out.text.count("DOPPLER_BENCH_TIMING_LOCK=") == 1  # said once
     assert not (tmp_path / "r").exists()
 
 
