@@ -14,7 +14,7 @@ DEV_STAMP := $(VENV)/.installed-dev
 PIP_TOOLS := pip-tools==7.6.2
 LOCK_VENV := .venv-lock
 
-.PHONY: install install-dev system-deps test lint docs reproduce-table figures speed lock clean
+.PHONY: install install-dev system-deps test fuzz lint docs reproduce-table figures speed lock clean
 
 # System packages the tests need, installed with apt when missing and we may (root), else we
 # say what to run: libusb-1.0 for Open3D's wheel (a dev extra: the DICP cross-check) and
@@ -74,6 +74,12 @@ install-dev: system-deps $(DEV_STAMP)
 
 test: system-deps $(DEV_STAMP)
 	$(PY) -m pytest
+
+# the property tests (Hypothesis) with many random examples: `make test` runs them with the
+# fast profile (a few fixed examples each), this with the long one (tests/strategies.py)
+fuzz: $(DEV_STAMP)
+	HYPOTHESIS_PROFILE=long $(PY) -m pytest tests/test_props_cli.py tests/test_props_readers.py \
+	  tests/test_options.py
 
 lint: $(DEV_STAMP)
 	$(VENV)/bin/ruff check .

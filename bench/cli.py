@@ -8,6 +8,7 @@ Ctrl-C.
 
 from __future__ import annotations
 
+import functools
 import sys
 from pathlib import Path
 from typing import Annotated
@@ -79,7 +80,7 @@ def synth(
     raise typer.Exit(synth_dispatch(
         console, fidelity, fidelity_out, realism, data_dir, scene=scene,
         sensor=sensor, frames=frames, seed=seed, out=out, noise=noise,
-        options=_parse_params(option), list_=list_, suite=suite))
+        options=_parse_params(option, "--option"), list_=list_, suite=suite))
 
 
 @app.command(short_help="what is in a store or frame folder")
@@ -297,17 +298,34 @@ def export(
     export_command(console, store, format, out, force)
 
 
-def _parse_params(items: list[str] | None) -> dict:
+def _parse_params(items: list[str] | None, option: str = "--param") -> dict:
     """``key=value`` strings -> dict (values parsed as YAML: 3, 0.5, true, [1, 2])."""
     import yaml
 
     params = {}
     for item in items or []:
-        if "=" not in item:
-            raise DataError(f"--param expects key=value, got {item!r}")
+        if "=" not in item or not item.split("=", 1)[0].strip():
+            raise DataError(f"{option} expects key=value, got {item!r}")
         key, value = item.split("=", 1)
-        params[key.strip()] = yaml.safe_load(value)
+        try:
+            params[key.strip()] = yaml.safe_load(value)
+        except yaml.YAMLError as err:
+            raise DataError(f"{option} {item!r}: the value is not a YAML value "
+                            f"({str(err).splitlines()[0]})") from None
+        if not _finite(params[key.strip()]):
+            raise DataError(f"{option} {item!r}: expected finite numbers (not nan or inf)")
     return params
+
+
+def _finite(value) -> bool:
+    """No NaN or infinity anywhere in a parsed parameter value."""
+    if isinstance(value, float):
+        return value == value and abs(value) != float("inf")
+    if isinstance(value, dict):
+        return all(_finite(v) for v in value.values())
+    if isinstance(value, list):
+        return all(_finite(v) for v in value)
+    return True
 
 
 @app.command(short_help="the paper's Table III from results")
@@ -619,10 +637,16 @@ def _version(value: bool) -> None:
 
 
 @app.callback()
-def _options(version: Annotated[bool, typer.Option(
+def _options(ctx: typer.Context, version: Annotated[bool, typer.Option(
         "--version", callback=_version, is_eager=True, help="print the version and exit")]
         = False) -> None:
     """Benchmark harness for Doppler-based scan matching (4D radar, FMCW LiDAR)."""
+    # before the command's own options are read: each is checked as it is (bench/options.py),
+    # and the environment variables the harness reads, once
+    from bench import options
+
+    options.attach(ctx.command)
+    options.check_environment()
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
@@ -656,6 +680,15 @@ def check_names(args: list[str]) -> None:
             guard.check_out(value, option)
 
 
+@functools.cache
+def _command():
+    """The click command tree of ``app``, its help tidied (built once a process: main() may be
+    called many times in one, as the property tests do)."""
+    command = typer.main.get_command(app)
+    tidy_help(command)
+    return command
+
+
 def main() -> None:
     """Console entry point: bad input ends with one clear message, not a traceback."""
     import warnings
@@ -663,9 +696,7 @@ def main() -> None:
     warnings.showwarning = _show_warning
     try:
         check_names(sys.argv[1:])
-        command = typer.main.get_command(app)
-        tidy_help(command)
-        code = command.main(prog_name="bench", standalone_mode=False)
+        code = _command().main(prog_name="bench", standalone_mode=False)
     except DataError as err:  # errors and warnings on stderr: stdout may be data (a CSV)
         status.print(f"[bold red]error:[/] {escape(str(err))}")
         sys.exit(2)
@@ -679,7 +710,13 @@ def main() -> None:
         sys.exit(130)
     except Exception as err:
         if callable(getattr(err, "show", None)) and hasattr(err, "exit_code"):
-            err.show()  # a usage error (unknown option, missing argument)
+            if type(err).__name__ == "NoArgsIsHelpError" or not hasattr(err, "ctx"):
+                err.show()  # the help of a group called without a command
+            else:  # a usage error (unknown option, missing argument): one line, as every error
+                where = getattr(err.ctx, "command_path", "") if err.ctx is not None else ""
+                status.print(f"[bold red]error:[/] {escape(err.format_message())}"
+                             + (f" (see {escape(where)} --help)" if where else ""),
+                             soft_wrap=True)
             sys.exit(err.exit_code)
         raise
     sys.exit(code if isinstance(code, int) else 0)

@@ -29,7 +29,7 @@ from loaders.errors import DataError
 class LoaderOptions(BaseModel):
     """Options every loader takes; a loader's own model subclasses it."""
 
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
     name: str | None = Field(None, description="sequence name stored in the file "
                              "(default: from the input's name)")

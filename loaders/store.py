@@ -203,6 +203,41 @@ class _Block:
         self.lo, self.hi, self.arrays = lo, hi, arrays
 
 
+def _check_header(seq) -> None:
+    """The values a store's attributes and ground truth must hold (a DataError naming what is
+    wrong): the fields a list of names, a name that can name a folder (runs of the store are
+    filed under it), a provenance mapping, ground-truth poses that are finite rigid transforms
+    at finite stamps."""
+    path = seq.path
+    if not (isinstance(seq.fields, list) and all(isinstance(f, str) for f in seq.fields)):
+        raise DataError(f"{path}: damaged store: attribute fields is {seq.fields!r}; expected "
+                        "a list of field names")
+    name = seq.name
+    if (not name.strip() or name in (".", "..") or "/" in name or "\\" in name
+            or "\0" in name):
+        raise DataError(f"{path}: damaged store: attribute name {name!r} cannot name the "
+                        "sequence's results folder; expected one folder name")
+    if not isinstance(seq.provenance, dict):
+        raise DataError(f"{path}: damaged store: attribute provenance is not a mapping")
+    if not np.isfinite(seq._stamps).all():
+        k = int(np.flatnonzero(~np.isfinite(seq._stamps))[0])
+        raise DataError(f"{path}: damaged store: frame {k}'s stamp is {seq._stamps[k]}; "
+                        "expected finite stamps [s]")
+    gt = seq.ground_truth
+    if gt is not None and len(gt):
+        R = gt.poses[:, :3, :3]
+        with np.errstate(invalid="ignore", over="ignore"):
+            err = np.abs(R @ np.swapaxes(R, 1, 2) - np.eye(3)).max(axis=(1, 2))
+            det = np.linalg.det(np.nan_to_num(R))
+        bad = (~np.isfinite(gt.poses).all(axis=(1, 2)) | ~np.isfinite(gt.stamps)
+               | ~(err <= 1e-3) | ~(det > 0))
+        if bad.any():
+            k = int(np.flatnonzero(bad)[0])
+            raise DataError(f"{path}: damaged store: ground-truth pose {k} (stamp "
+                            f"{gt.stamps[k]}) is not a rigid transform (its rotation is not a "
+                            "rotation, or a value is not finite)")
+
+
 class StoreSequence(Sequence):
     """A sequence read from a store, one frame at a time (the file opens lazily, so instances
     can be sent to worker processes).
@@ -231,6 +266,7 @@ class StoreSequence(Sequence):
                     f"{attrs.get('format')!r}); convert data with `bench convert`"
                 )
             version = int(attrs["format_version"])
+            n_frames = int(attrs["n_frames"])
             if version > FORMAT_VERSION:
                 raise DataError(
                     f"{self.path}: store format version {version} is newer than this "
@@ -254,10 +290,13 @@ class StoreSequence(Sequence):
                 if "ground_truth" in h5 else None
             )
             self.provenance = json.loads(attrs.get("provenance", "{}"))
-        except DataError:
+            _check_header(self)
+        except DataError as err:
             self.close()
-            raise
-        except (OSError, KeyError, ValueError) as err:
+            if str(self.path) in str(err):
+                raise
+            raise DataError(f"{self.path}: damaged store: {err}") from None
+        except (OSError, KeyError, ValueError, TypeError) as err:
             self.close()
             raise DataError(f"{self.path}: damaged or truncated store ({err})") from err
         for name in (["doppler"] if self.has_doppler else []) + self.fields:
@@ -277,12 +316,12 @@ class StoreSequence(Sequence):
         self._chunk = int(chunks[0]) if chunks else 1
         self._n_points = int(n_points)
         if (len(self._offsets) != len(self._stamps) + 1 or self._offsets[-1] != n_points
-                or int(attrs["n_frames"]) != len(self._stamps)):
+                or n_frames != len(self._stamps)):
             self.close()
             raise DataError(
                 f"{self.path}: truncated store: {len(self._stamps)} stamps, "
                 f"{len(self._offsets)} offsets, {n_points} points, header says "
-                f"{int(attrs['n_frames'])} frames"
+                f"{n_frames} frames"
             )
 
     def _file(self) -> h5py.File:

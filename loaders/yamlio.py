@@ -12,6 +12,8 @@ from pathlib import Path
 
 import yaml
 
+from loaders.errors import DataError
+
 #: the safe loader in C (libyaml), or PyYAML's own where it was built without libyaml
 SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
@@ -21,6 +23,15 @@ def load_yaml(text: str):
     return yaml.load(text, Loader=SAFE_LOADER)
 
 
+class NotYamlText(DataError, yaml.YAMLError):
+    """A file that is not text at all (a binary): a DataError naming it, and a YAMLError to
+    the callers that treat an unreadable YAML file as one that is not theirs."""
+
+
 def read_yaml(path: str | Path):
     """The YAML document in the file ``path`` (``yaml.safe_load`` of its text)."""
-    return load_yaml(Path(path).read_text())
+    try:
+        text = Path(path).read_text()
+    except UnicodeDecodeError:
+        raise NotYamlText(f"{path}: not a text file; expected YAML") from None
+    return load_yaml(text)

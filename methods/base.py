@@ -44,7 +44,7 @@ from methods.timing import stopwatch, timed_section
 class MethodParams(BaseModel):
     """Base of every method's parameters: unknown keys are an error, not a silent default."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 @dataclass(frozen=True)

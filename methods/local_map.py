@@ -315,12 +315,13 @@ def register_to_map(
     translation's disagreement with the geometry from it (its lever arm, issue 49).
 
     ``repeat_power`` > 0 (with ``repeat_within_m`` > 0): at the solve's last iteration, the
-    points whose pair lies within ``repeat_within_m`` (a sensor's re-published copy of a map point: they land
-    within millimetres of it) are weighted by their detection's publications to the power
-    ``-repeat_power`` (publications = the map copy's ``counts`` + 1), every other pair by 1,
-    and that iteration's Gauss-Newton step of the same cost (same pairs, unknowns, tie and
-    prior) is taken again with those weights (``geometry_step`` then uses the same pairs; issue 49: a detection carried from scan to scan
-    by the sensor's motion compensation measures that compensation again, not the world)."""
+    points whose pair lies within ``repeat_within_m`` (a sensor's re-published copy of a map
+    point: they land within millimetres of it) are weighted by their detection's publications
+    to the power ``-repeat_power`` (publications = the map copy's ``counts`` + 1), every other
+    pair by 1, and that iteration's Gauss-Newton step of the same cost (same pairs, unknowns,
+    tie and prior) is taken again with those weights (``geometry_step`` then uses the same
+    pairs; issue 49: a detection carried from scan to scan by the sensor's motion compensation
+    measures that compensation again, not the world)."""
     # contiguous, whatever the caller passes (a strided subsample ``covs[::step]`` would make
     # numba compile a second version of ``_normal_equations`` inside a timed frame: the first
     # frame with more than ``max_source_points`` points after a warm-up pair with fewer)

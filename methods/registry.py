@@ -4,12 +4,12 @@ Add a method by writing one module with a ``Registration`` (pairwise, scan to sc
 ``Odometry`` (keeps its own state) subclass and listing it here. Your own methods can also live
 outside this package: name their modules in the environment variable ``DOPPLER_BENCH_METHODS``
 (comma separated); each module lists its classes in a ``METHODS`` sequence. Worker processes
-inherit the variable, so plugins run under every executor.
+inherit the variable, so plugins run under every executor. A plugin never replaces a built-in
+method, and a broken module is one error naming it (``methods.plugins``).
 """
 
 from __future__ import annotations
 
-import importlib
 import os
 from enum import Enum
 
@@ -23,6 +23,7 @@ from methods.doppler_icp import DopplerIcp
 from methods.gicp import GeneralizedIcp, PointToPlaneIcp, VoxelizedGicp
 from methods.icp import PointToPointIcp
 from methods.kiss import KissIcp
+from methods.plugins import PLUGINS_ENV, load
 
 METHODS: dict[str, type[Odometry]] = {
     cls.name: cls
@@ -39,22 +40,26 @@ METHODS: dict[str, type[Odometry]] = {
     )
 }
 
-PLUGINS_ENV = "DOPPLER_BENCH_METHODS"
+#: the built-in methods (a plugin never replaces one)
+BUILTIN: dict[str, type[Odometry]] = dict(METHODS)
+_loaded: list[str] = []  # the variable's value the plugins were loaded from
 
 
-def _load_plugins() -> None:
-    for module_name in filter(None, (m.strip() for m in os.environ.get(PLUGINS_ENV, "")
-                                     .split(","))):
-        try:
-            module = importlib.import_module(module_name)
-        except ImportError as err:
-            raise DataError(f"{PLUGINS_ENV}: cannot import method module {module_name!r}: "
-                            f"{err}") from None
-        for cls in getattr(module, "METHODS", ()):
-            METHODS[cls.name] = cls
+def load_plugins(spec: str | None = None) -> None:
+    """Register the plugin methods of ``DOPPLER_BENCH_METHODS`` (or ``spec``) beside the
+    built-in ones (``methods.plugins``: anything wrong is one DataError naming the variable and
+    the module); again only when the value changed."""
+    spec = os.environ.get(PLUGINS_ENV, "") if spec is None else spec
+    if _loaded == [spec]:
+        return
+    found = load(spec, BUILTIN)
+    METHODS.clear()
+    METHODS.update(BUILTIN)
+    METHODS.update(found)
+    _loaded[:] = [spec]
 
 
-_load_plugins()
+load_plugins()
 
 
 def get_method(name: str) -> type[Odometry]:

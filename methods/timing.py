@@ -38,6 +38,8 @@ import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 
+from loaders.errors import DataError
+
 TIMING_LOCK_ENV = "DOPPLER_BENCH_TIMING_LOCK"
 #: the lock the executors (and a run that falls back to wall time) name by default
 DEFAULT_TIMING_LOCK = os.path.join(tempfile.gettempdir(), "doppler-bench-timing.lock")
@@ -52,13 +54,54 @@ _harness_clocks: list[int] = []  # CPU clocks of the threads whose work is not t
 _listening: list[bool] = []
 
 
+def check_lock_path(path: str | None) -> None:
+    """``DOPPLER_BENCH_TIMING_LOCK``'s value (None: unset) names a lock file that can be used:
+    a file (new or existing, not a folder) in an existing folder we may write to or a file we
+    may open; else a ``DataError`` naming the variable. Nothing is created."""
+    if path is None:
+        return
+    where = f"{TIMING_LOCK_ENV}={path!r}"
+    unset = f"or leave it unset: the executors use {DEFAULT_TIMING_LOCK}"
+    if not path.strip() or "\0" in path:
+        raise DataError(f"{where}: expected the path of a lock file ({unset})")
+    folder = os.path.dirname(os.path.abspath(path))
+    try:
+        if os.path.isdir(path):
+            raise DataError(f"{where}: is a folder; expected the path of a lock file in it, "
+                            f"e.g. {os.path.join(path, 'timing.lock')} ({unset})")
+        try:
+            os.stat(path)
+        except FileNotFoundError:
+            pass
+        except OSError as err:  # a name too long, a file where a folder should be
+            raise DataError(f"{where}: not a usable path ({err.strerror or err}); {unset}"
+                            ) from None
+        if not os.path.isdir(folder):
+            raise DataError(f"{where}: the folder {folder} does not exist; expected the path "
+                            f"of a lock file in an existing folder ({unset})")
+        usable = (os.access(path, os.R_OK | os.W_OK) or os.access(folder, os.W_OK)
+                  if os.path.exists(path) else os.access(folder, os.W_OK))
+    except DataError:
+        raise
+    except (OSError, ValueError) as err:
+        raise DataError(f"{where}: not a usable path ({err}); {unset}") from None
+    if not usable:
+        raise DataError(f"{where}: cannot open or create the lock file (no write permission "
+                        f"in {folder}); name a file in a folder of yours ({unset})")
+
+
 def _lock_fd(path: str) -> int:
     fd = _lock_files.get(path)
     if fd is None:
+        check_lock_path(path)
         try:
-            fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
-        except PermissionError:  # another user's lock file: one of our own
-            fd = os.open(f"{path}.{os.getuid()}", os.O_RDWR | os.O_CREAT, 0o600)
+            try:
+                fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o666)
+            except PermissionError:  # another user's lock file: one of our own
+                fd = os.open(f"{path}.{os.getuid()}", os.O_RDWR | os.O_CREAT, 0o600)
+        except OSError as err:
+            raise DataError(f"{TIMING_LOCK_ENV}={path!r}: cannot open the lock file "
+                            f"({err.strerror or err})") from None
         _lock_files[path] = fd
     return fd
 

@@ -7,9 +7,8 @@ re-publishes its detections)."""
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
-
 import pytest
+from scipy.spatial.transform import Rotation
 
 from conftest import constant_twist_sequence
 from loaders.se3 import inv_T, rotation_angle_deg

@@ -14,6 +14,7 @@ TOP_LAYERS = {"loaders": 0, "methods": 1, "metrics": 1, "bench": 2}
 
 #: inside bench/: a module's layer is that of its folder, or of the top-level module
 BENCH_LAYERS = {"bench": 0, "bench.paths": 0, "bench.guard": 0, "bench.threads": 0,
+                "bench.options": 0,
                 "bench.console": 0,
                 "bench.data": 1, "bench.runs": 2,
                 # the report's rooms, each importing only those below it: names and dataframe <

@@ -42,6 +42,9 @@ class ConvertGroup(typer.core.TyperGroup):
         command = super().get_command(ctx, name)
         if command is None and name in LOADERS:
             command = loader_command(LOADERS[name])
+            from bench import options
+
+            options.attach(command, name)  # every option checked as it is read
         return command
 
     def format_commands(self, ctx, formatter) -> None:

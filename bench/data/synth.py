@@ -36,6 +36,9 @@ def synth_command(console: Console, scene: str | None, sensor: str, frames: int,
     if scene is None or out is None:
         raise DataError("give a SCENE and --out PATH.h5 (or --list, or --suite NAME)")
     try:
+        from loaders.synthetic_options import check_options
+
+        check_options(options)
         seq = synthetic.SyntheticSequence(scene, sensor, frames=frames, seed=seed, noise=noise,
                                           **options)
     except (ValueError, KeyError) as err:

@@ -77,6 +77,19 @@ def _failure_message(err: BaseException) -> str:
     return f"dask: {type(err).__name__}: {err}"
 
 
+def _client(Client, scheduler: str | None, cluster):
+    """A client of the LocalCluster, or of the scheduler at ``scheduler`` (a bad address or
+    one nobody answers at: one DataError naming --scheduler)."""
+    if scheduler is None:
+        return Client(cluster)
+    try:
+        return Client(scheduler, timeout="10s")
+    except (ValueError, OSError, TimeoutError) as err:
+        raise DataError(f"--scheduler {scheduler!r}: no dask scheduler answers there "
+                        f"({type(err).__name__}: {err}); expected the address of a running "
+                        "`dask scheduler`, e.g. tcp://HOST:8786") from None
+
+
 def run_dask(jobs: list[Job], workers: int, force: bool, report, finish,
              job_timeout_s: float | None, scheduler: str | None, env: dict[str, str]
              ) -> list[JobOutcome]:
@@ -103,7 +116,7 @@ def run_dask(jobs: list[Job], workers: int, force: bool, report, finish,
         finish(outcome)
 
     try:
-        with Client(scheduler or cluster) as client:
+        with _client(Client, scheduler, cluster) as client:
             client.subscribe_topic(topic, lambda event: events.put(event[1]))
             # no more jobs in flight than worker threads: a worker holds only the job it runs,
             # so ending it for a timeout or Ctrl-C ends no other job

@@ -71,7 +71,7 @@ if TYPE_CHECKING:
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid")
+    model_config = ConfigDict(extra="forbid", allow_inf_nan=False)
 
 
 class SequenceEntry(_Strict):
@@ -266,7 +266,7 @@ class Experiment(_Strict):
     #: origin, se3, sim3, first-N, sim3-first-N)
     kitti_lengths_m: list[float] = Field(default_factory=lambda: list(KITTI_LENGTHS_M))
     alignment: str = "se3"
-    jobs: int = Field(1, ge=1)
+    jobs: int = Field(1, ge=1, le=64)  # as --jobs (bench/options.py)
     out: Path | None = None
     criterion: Criterion | None = None  # picks each sweep's best point
     default_differs: str | None = None  # why a method's default is not the sweep's choice
@@ -341,6 +341,9 @@ def load_experiment(path: str | Path) -> Experiment:
         raise DataError(f"{path}: experiment file not found") from None
     except yaml.YAMLError as err:
         raise DataError(f"{path}: not valid YAML: {err}") from None
+    except UnicodeDecodeError:
+        raise DataError(f"{path}: not a text file; expected an experiment YAML (a store is run "
+                        "with `bench run --method M --data STORE.h5`)") from None
     except ValidationError as err:
         problems = validation_problems(err, _known_keys)
         raise DataError(f"{path}: invalid experiment:\n  " + "\n  ".join(problems)) from None

@@ -14,7 +14,7 @@ import yaml
 from rich.console import Console
 
 from bench import guard
-from bench.data.advice import loader_name, option_flag
+from bench.data.advice import doppler_refusal
 from bench.data.synth import ensure_suite_with_progress
 from bench.runs.experiment import Experiment, SequenceEntry, expand_sequences
 from bench.runs.folders import RunRecord, read_run, write_failure
@@ -23,7 +23,6 @@ from bench.runs.ownership import foreign_run, run_identity
 from bench.runs.reuse import rename_reused
 from loaders.errors import DataError
 from loaders.gt import gt_for_frames
-from loaders.scan import FrameRange
 from loaders.yamlio import read_yaml
 from methods.registry import get_method, seed_option
 
@@ -204,32 +203,15 @@ def _doppler_problem(job: Job, seq) -> str | None:
     cls = get_method(job.method)
     if not getattr(cls, "needs_doppler", False):
         return None
-    has = getattr(seq.base if isinstance(seq, FrameRange) else seq, "has_doppler", None)
-    if has is None:
-        has = len(seq) > 0 and seq[0].doppler is not None
-    if not has:
-        prov = seq.provenance
-        flag = option_flag(prov, "doppler_field")
-        again = (f"convert it again naming the Doppler field (bench convert "
-                 f"{loader_name(prov)} ... {flag} NAME)" if flag else
-                 "convert it from data with Doppler")
-        return (f"{job.store}: {job.method} needs Doppler, but the store has no Doppler values; "
-                f"{again}, or run a method that needs none (icp-p2p, gicp, kiss-icp, ...), or "
+    refusal = doppler_refusal(job.store, job.method, seq)
+    if refusal is None:
+        return None
+    if "has no Doppler values" in refusal:
+        return (f"{refusal}, or run a method that needs none (icp-p2p, gicp, kiss-icp, ...), or "
                 f"leave this store out of {job.method} (the method's `sequences:` list in the "
                 "experiment)")
-    if seq.sensor.doppler_kind == "ego-compensated":
-        prov = seq.provenance
-        flag = option_flag(prov, "reconstruct_doppler_from_gt")
-        opt_in = (f"convert it again with `bench convert {loader_name(prov)} ... {flag}` "
-                  "(results marked GT-assisted)" if flag else
-                  "reconstructing the radial velocity from the ground truth's ego motion is "
-                  "an explicit opt-in of the loader (doppler_kind 'gt-reconstructed')")
-        return (f"{job.store}: {job.method} needs the raw radial Doppler velocity, but the "
-                "store's Doppler is ego-compensated (sensor doppler_kind 'ego-compensated': "
-                f"static points read about 0 m/s); {opt_in}, or run a method that needs no "
-                f"Doppler, or leave this store out of {job.method} (the method's `sequences:` "
-                "list in the experiment)")
-    return None
+    return (f"{refusal}, or run a method that needs no Doppler, or leave this store out of "
+            f"{job.method} (the method's `sequences:` list in the experiment)")
 
 
 #: a segment of length L is accepted when its path length is within this fraction of L

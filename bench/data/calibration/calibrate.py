@@ -227,6 +227,11 @@ def calibrate_store(path: str | Path, write_to: Path | None = None, console=None
         check_write_target(Path(path), Path(write_to), force)
     seq = StoreSequence(path)
     try:
+        from bench.data.advice import doppler_refusal
+
+        refusal = doppler_refusal(path, "calibration from Doppler", seq)
+        if refusal is not None:  # the words bench run refuses such a store with
+            raise DataError(refusal)
         first, stop = calibration_frames(len(seq), start, frames)
         _check_ground_truth(seq, path, first, stop)
         part = FrameRange(seq, first, stop - first)

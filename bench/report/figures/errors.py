@@ -36,6 +36,7 @@ from bench.report.figures.style import (
 )
 from bench.report.names import display_name, order_key, sequence_key
 from bench.runs.folders import RunRecord
+from loaders.errors import DataError
 from loaders.se3 import inv_T, rotation_angle_deg
 from loaders.sensor_classes import SYNTHETIC_MARK, class_rank
 from metrics.relative import MetricError, path_distances, segment_errors
@@ -278,8 +279,15 @@ def plot_speed_csv(path: Path, out_dir: Path) -> list[Path]:
     """``bench speed``'s LiDAR scaling curves: median time per frame [ms] (all per-frame work)
     against input points, with the p5-p95 band of the repeats."""
     use_paper_style()
-    with path.open() as f:
-        rows = [r for r in csv.DictReader(f) if r["scenario"] == "lidar"]
+    columns = ("scenario", "method", "points", "median_ms", "p5_ms", "p95_ms")
+    try:
+        with path.open() as f:
+            rows = [r for r in csv.DictReader(f) if r.get("scenario") == "lidar"]
+        for r in rows:
+            int(r["points"]), float(r["median_ms"]), float(r["p5_ms"]), float(r["p95_ms"])
+    except (UnicodeDecodeError, csv.Error, KeyError, TypeError, ValueError):
+        raise DataError(f"--speed-csv {path}: not a `bench speed` CSV; expected the columns "
+                        f"{', '.join(columns)} (results/speed/speed.csv)") from None
     fig, ax = figure(2.4)
     for method in sorted(dict.fromkeys(r["method"] for r in rows), key=order_key):
         pts = sorted((int(r["points"]), float(r["median_ms"]), float(r["p5_ms"]),

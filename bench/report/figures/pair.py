@@ -44,6 +44,11 @@ def pair_correspondences(store: Path, frame: int) -> dict:
     try:
         if not 0 <= frame < len(seq) - 1:
             raise DataError(f"{store}: frame {frame} has no next frame (0..{len(seq) - 2})")
+        from bench.data.advice import doppler_refusal
+
+        refusal = doppler_refusal(store, "Doppler Correspondence's pairs", seq)
+        if refusal is not None:  # the words bench run refuses such a store with
+            raise DataError(refusal)
         src, tgt = seq[frame], seq[frame + 1]
         if src.doppler is None:
             raise DataError(f"{store}, frame {frame}: no Doppler values")
