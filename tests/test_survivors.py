@@ -1,0 +1,192 @@
+"""Behaviours a mutation run found unpinned (issue 46, item 4: its known survivors), each pinned
+here by a test that fails on the mutant (checked by applying each mutation by hand):
+
+1. the APE resamples drawn on several threads are the draws of one thread (a chunk never
+   reseeds: the intervals do not change with the thread count);
+2. a run's APE interval resamples with the run's own alignment, not SE(3);
+4. the sequence key holds the run's own frame range (two ranges of one store never merge);
+8. the scale benchmark's CPU time counts the worker processes the command waited for;
+9. the forest plot never ranks a figure on one independent segment;
+10. a paired interval's block is the longest of both estimates' (and their difference's), not
+    one estimate's.
+(3, 5, 6 and 7 are pinned on the branches that rewrite that code.)"""
+
+from __future__ import annotations
+
+import json
+import sys
+import textwrap
+
+import numpy as np
+import pytest
+
+from bench.studies.coverage import NoiseModel, ground_truth, noisy_estimate
+from metrics import drift_intervals
+from metrics.drift_intervals import Drift, draws_batched, paired_ape_interval
+from metrics.intervals import block_frames, paired_interval
+
+# ---- 1. threads never change the draws --------------------------------------------------------
+
+def test_the_threaded_draws_are_the_one_thread_draws():
+    """Five chunks of resamples (450 at 100 a chunk) on three threads, two batches: every
+    resample's block starts are the one-thread run's (the generator draws row after row,
+    whatever thread computes the row), so the drawn RMSEs and the interval are equal."""
+    gt = ground_truth(301)
+    est = noisy_estimate(gt, NoiseModel(0.05, 0.01, correlation=0.6), seed=21)
+    try:
+        drift_intervals.set_threads(1)
+        one = Drift(gt, est).draws(9, 450, seed=4)
+        drift_intervals.set_threads(3)
+        three = Drift(gt, est).draws(9, 450, seed=4)
+        reference = draws_batched(Drift(gt, est), 9, 450, seed=4)
+    finally:
+        drift_intervals.set_threads(1)
+    for q in ("trans_m", "rot_deg"):
+        np.testing.assert_array_equal(three[q], one[q])
+        np.testing.assert_allclose(three[q], reference[q], rtol=1e-9, atol=1e-11)
+        # five chunks of different draws (a chunk that restarted the generator repeats)
+        chunks = three[q].reshape(-1, 90)  # 450 / 5, not aligned with the 100-row chunks
+        assert len({round(float(c.mean()), 12) for c in chunks}) == 5
+        assert not np.allclose(three[q][:100], three[q][100:200])
+
+
+# ---- 2. the run's own alignment ---------------------------------------------------------------
+
+def test_a_runs_ape_interval_is_that_of_its_alignment():
+    """An estimate 5 % too long: SE(3)'s APE is large, Sim(3)'s (which fits the scale) small.
+    A run scored with Sim(3) prints the Sim(3) figure with an interval about it; resampled
+    with SE(3) the interval would lie far above it."""
+    from bench.runs.evaluate import Scoring, score
+    from metrics.units import ape_units
+
+    gt = ground_truth(400)
+    est = noisy_estimate(gt, NoiseModel(), seed=3)
+    est[:, :3, 3] *= 1.05
+    assert ape_units(gt, est, "sim3").drift.alignment == "sim3"
+    out = {a: score(gt, est, np.ones(len(gt)), lengths_m=(8.0,),
+                    scoring=Scoring((8.0,), alignment=a))["ape"] for a in ("se3", "sim3")}
+    se3, sim3 = out["se3"], out["sim3"]
+    assert sim3["trans_rmse_m"] < 0.5 * se3["trans_rmse_m"]  # the case tells them apart
+    for a in (se3, sim3):
+        low, high = a["trans_rmse_m_ci"]
+        assert low <= a["trans_rmse_m"] <= high
+    # each interval about its own figure: Sim(3)'s lies wholly below SE(3)'s figure
+    assert sim3["trans_rmse_m_ci"][1] < se3["trans_rmse_m"]
+
+
+# ---- 4. a run's own frame range is part of its sequence ---------------------------------------
+
+def test_two_frame_ranges_of_one_store_are_two_sequences():
+    from bench.runs.sequence_identity import content_key, sequence_tags
+
+    def run(own, frames):
+        return {"identity": {"store_sha256": "a" * 64, "frame_range": own},
+                "sequence": {"name": "data1", "frames": frames, "store": "data1.h5"}}
+
+    early, late = run([0, 100], 100), run([100, 100], 100)
+    assert content_key(early) == ("a" * 64, (0, 100))
+    assert content_key(early) != content_key(late)
+    assert sequence_tags(["data1", "data1"], [early, late]) == ["frames 0-99", "frames 100-199"]
+    # the whole store and its first 100 frames: two sequences too
+    assert sequence_tags(["data1", "data1"], [run(None, 400), early]) == \
+        ["frames 0-399", "frames 0-99"]
+
+
+# ---- 8. the scale benchmark counts its worker processes ---------------------------------------
+
+def test_the_scale_probe_counts_the_cpu_of_the_processes_it_waited_for(tmp_path, monkeypatch):
+    """A command whose work is done by a child process (as an experiment's workers do): the
+    probe's CPU time holds the child's (0.4 s of busy work) although its own is near 0."""
+    from bench.studies.scale import child
+
+    (tmp_path / "burner.py").write_text(textwrap.dedent(f"""
+        import subprocess
+
+        BUSY = "import time\\nt = time.process_time()\\nwhile time.process_time() - t < 0.4: pass"
+
+        def main():
+            subprocess.run([{sys.executable!r}, "-c", BUSY], check=True)
+        """))
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path))
+    got = child([], entry="burner")
+    assert got["cpu_s"] >= 0.4
+    assert got["wall_s"] >= 0.4
+
+
+# ---- 9. the forest plot never ranks a one-segment figure --------------------------------------
+
+def test_the_forest_plot_leaves_a_one_segment_figure_unranked(tmp_path):
+    """The best figure of a column on one independent segment: hollow and unmarked, and the
+    column's U is the smallest upper end of the others (as the tables' "(1 segment)")."""
+    from bench.report.figures.forest import BOLD, UNMARKED, forest_panels
+    from bench.report.tables.paper import runs as table_rows
+    from bench.runs.evaluate import evaluate_run
+    from bench.runs.folders import write_run
+    from loaders.trajectory import Trajectory
+    from methods.base import FrameRecord, OdometryResult
+
+    gt = ground_truth(700)
+    stamps = np.arange(len(gt)) / 10.0
+    known = {"icp-p2p": (0.30, 0.25, 0.35, 1), "gicp": (0.40, 0.36, 0.45, 5),
+             "doppler": (0.50, 0.44, 0.56, 2)}
+    for k, (method, (value, low, high, n_ind)) in enumerate(known.items()):
+        est = noisy_estimate(gt, NoiseModel(), seed=k)
+        frames = [FrameRecord(i, stamps[i], 1.0, 100, 50, 3, True) for i in range(len(gt))]
+        result = OdometryResult(stamps, est, frames)
+        ev = evaluate_run(Trajectory(stamps, gt), result, lengths_m=(8.0,))
+        metrics = {**ev.metrics, "sequence": "drive", "method": method, "seed": None,
+                   "frames": len(gt), "status": "done"}
+        rel = metrics["relative_error"][0]
+        rel.update(rot_deg_mean=value, rot_deg_mean_ci=[low, high])
+        rel["spread"] = {**rel["spread"], "n_independent": n_ind}
+        config = {"method": method, "seed": None, "label": None,
+                  "sequence": {"name": "drive", "display_name": "drive",
+                               "sensor_class": "Semi-Dense 4D Radar"}}
+        write_run(tmp_path / "drive" / method, result, ev.gt, config, metrics)
+    panel = dict(forest_panels(table_rows(tmp_path)))["drive-rotation"][0]
+    entry = {e.run.method: e for e in panel.entries}
+    assert not entry["icp-p2p"].rankable and entry["icp-p2p"].mark == UNMARKED
+    assert entry["gicp"].rankable and entry["doppler"].rankable  # 5 and 2 segments
+    assert entry["gicp"].mark == BOLD
+    assert panel.bounds[0] == pytest.approx(0.45)  # not icp-p2p's 0.35
+    assert json.loads((tmp_path / "drive" / "icp-p2p" / "metrics.json").read_text())[
+        "relative_error"][0]["spread"]["n_independent"] == 1
+
+
+# ---- 10. a paired block is the longest of both estimates' -------------------------------------
+
+def _ar1(n, phi, seed):
+    rng = np.random.default_rng(seed)
+    x = np.empty(n)
+    x[0] = rng.normal()
+    for k in range(1, n):
+        x[k] = phi * x[k - 1] + rng.normal()
+    return x
+
+
+def test_a_paired_interval_blocks_by_the_more_correlated_estimate():
+    """Per-frame units, A white and B strongly correlated: whichever comes first, the paired
+    interval's block is B's correlation length (not A's one frame)."""
+    n = 400
+    anchor = np.arange(n)
+    white = 1.0 + 0.1 * np.random.default_rng(1).normal(size=n)
+    walk = 1.0 + 0.1 * _ar1(n, 0.95, 2)
+    assert block_frames(n, 1, white) < block_frames(n, 1, walk)
+    ab = paired_interval(n, anchor, anchor + 5, white, walk, reps=50)
+    ba = paired_interval(n, anchor, anchor + 5, walk, white, reps=50)
+    assert ab.block_frames == ba.block_frames == block_frames(n, 5, walk)
+
+
+def test_a_paired_ape_interval_blocks_by_both_estimates_step_errors():
+    """Step errors of A white, of B strongly correlated: the paired APE block is the same in
+    both orders and B's (the longer), as drift_block of both."""
+    from metrics.drift_intervals import drift_block
+
+    gt = ground_truth(400)
+    white = Drift(gt, noisy_estimate(gt, NoiseModel(0.05, 0.01), seed=5))
+    corr = Drift(gt, noisy_estimate(gt, NoiseModel(0.05, 0.01, correlation=0.95), seed=6))
+    alone = drift_block([white.errors]), drift_block([corr.errors])
+    assert alone[0] < alone[1]
+    ab = paired_ape_interval(white, corr, reps=40)
+    ba = paired_ape_interval(corr, white, reps=40)
+    assert ab.block_frames == ba.block_frames == alone[1]
