@@ -1,7 +1,10 @@
 """The ranks the cross-dataset page is made of (``bench.report.summary.overview`` and
 ``bench.report.summary.pairwise``): a method's rank on one figure of one sequence (1 + the
 number of methods whose printed interval lies wholly below its own: ``significance.worse``),
-the lengths ranked at, and a contender's name."""
+the lengths ranked at, and a contender's name. Sequences under two names that hold one content
+(``bench.runs.sequence_identity.one_content``: one store run under two names, one recording
+converted twice) are one sequence here, counted once under the first name
+(``counted_as``) and named in the captions (``same_content_note``)."""
 
 from __future__ import annotations
 
@@ -11,6 +14,25 @@ from bench.report.tables.model import Row
 from bench.report.tables.paper import RunRow, stat_part
 from bench.report.tables.significance import contender, worse
 from bench.runs.result import EXTERNAL_MARK
+from bench.runs.sequence_identity import one_content
+
+
+def counted_as(rows: list[RunRow]) -> dict[str, str]:
+    """Sequence label -> the label it is counted under across sequences (itself, or the first
+    label holding the same content)."""
+    return one_content([rr.sequence for rr in rows], [rr.run.config for rr in rows])
+
+
+def same_content_note(rows: list[RunRow]) -> str:
+    """" Sequences holding one content, counted once: a = b." (with a leading space), or ""."""
+    groups: dict[str, set[str]] = defaultdict(set)
+    for label, first in counted_as(rows).items():
+        groups[first].add(label)
+    alike = [sorted(g) for g in groups.values() if len(g) > 1]
+    if not alike:
+        return ""
+    return (" Sequences holding one content under different names, counted once (as the "
+            "first): " + "; ".join(" = ".join(g) for g in sorted(alike)) + ".")
 
 
 def figure_ranks(rows: list[RunRow], length_m: float,
@@ -18,6 +40,7 @@ def figure_ranks(rows: list[RunRow], length_m: float,
     """sequence -> contender -> interval-aware rank of ``quantity`` at ``length_m`` (ties
     where the printed intervals meet)."""
     by_seq: dict[str, list[tuple[tuple, object]]] = defaultdict(list)
+    counted = counted_as(rows)
     for rr in rows:
         if rr.failed or rr.diverged:
             continue
@@ -30,11 +53,11 @@ def figure_ranks(rows: list[RunRow], length_m: float,
         if not part.stat.rankable:
             continue
         key = contender(Row([rr.label], (), [], {"method": rr.method, "label": rr.run.label}))
-        by_seq[rr.sequence].append((key, part.stat))
+        by_seq[counted[rr.sequence]].append((key, part.stat))
     out: dict[str, dict[tuple, int]] = {}
     for seq, entries in by_seq.items():
         best: dict[tuple, object] = {}
-        for key, stat in entries:  # a method's better row
+        for key, stat in entries:  # a method's better row (of either name of one content)
             if key not in best or stat.value < best[key].value:
                 best[key] = stat
         out[seq] = {k: 1 + sum(worse(s, o) for o in best.values() if o is not s)
