@@ -191,6 +191,38 @@ def scores(results: dict[str, str]) -> dict[str, tuple[int, int, int]]:
     return {m: tuple(v) for m, v in sorted(out.items())}
 
 
+#: the frames of mutmut's spinner, which it redraws many times a second
+_SPINNER = tuple("⠋⠙⠹⠸⠼⠴⠦⠧⠇⠏")
+
+
+def _run_quietly(cmd: list[str], cwd: Path, env: dict) -> subprocess.CompletedProcess:
+    """Run mutmut, printing its lines but not its spinner's redraws (only the progress line
+    every 50 mutants and the last one)."""
+    proc = subprocess.Popen(cmd, cwd=cwd, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, bufsize=1)
+    last, shown = "", 0
+    buffer = ""
+    assert proc.stdout is not None
+    while chunk := proc.stdout.read(256):
+        buffer += chunk
+        *lines, buffer = re.split(r"[\r\n]", buffer)
+        for line in lines:
+            text = line.strip()
+            if not text:
+                continue
+            if text.startswith(_SPINNER):
+                last = text
+                done = re.match(r"\S+ (\d+)/\d+", text)
+                if done and int(done.group(1)) >= shown + 50:
+                    shown = int(done.group(1))
+                    print(text, flush=True)
+            else:
+                print(text, flush=True)
+    if last:
+        print(last, flush=True)
+    return subprocess.CompletedProcess(cmd, proc.wait())
+
+
 def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="make mutate", description=__doc__.split("\n\n")[0])
     p.add_argument("--base", required=True, help="the commit to diff against (BASE=...)")
@@ -238,8 +270,7 @@ def main(argv: list[str] | None = None) -> int:
     (tree / "setup.cfg").write_text(mutmut_config(modules, tests), encoding="utf-8")
     mutmut = Path(sys.executable).parent / "mutmut"
     env = {**os.environ, "PYTHONPATH": "", "PYTHONDONTWRITEBYTECODE": "1"}
-    run = subprocess.run([str(mutmut), "run", "--max-children", str(args.workers)], cwd=tree,
-                         env=env)
+    run = _run_quietly([str(mutmut), "run", "--max-children", str(args.workers)], tree, env)
     listing = subprocess.run([str(mutmut), "results", "--all", "true"], cwd=tree, env=env,
                              capture_output=True, text=True).stdout
     results = parse_results(listing)
