@@ -190,3 +190,49 @@ def test_a_paired_ape_interval_blocks_by_both_estimates_step_errors():
     ab = paired_ape_interval(white, corr, reps=40)
     ba = paired_ape_interval(corr, white, reps=40)
     assert ab.block_frames == ba.block_frames == alone[1]
+
+
+# ---- make mutate BASE=942ccd0: metrics/units.py ------------------------------------------------
+
+def _drive(n=400, seed=7):
+    gt = ground_truth(n)
+    return gt, noisy_estimate(gt, NoiseModel(), seed), np.arange(n) / 10.0
+
+
+def test_each_units_function_passes_its_own_options_on():
+    """Every option of a units function reaches the metric it wraps: the units reproduce the
+    metric computed with the same non-default option (and differ from the default's)."""
+    from metrics.ape import ape
+    from metrics.kitti import kitti_segments
+    from metrics.relative import segment_errors
+    from metrics.units import ape_units, kitti_units, relative_units, velocity_units
+    from metrics.velocity import velocity_series
+
+    gt, est, stamps = _drive()
+    est_long = est.copy()
+    est_long[:, :3, 3] *= 1.05
+    sim3 = ape_units(gt, est_long, "sim3")  # errors computed here, with the alignment asked
+    assert sim3.statistic("trans_m") == pytest.approx(ape(gt, est_long, "sim3").trans_rmse_m,
+                                                      rel=1e-9)
+    assert sim3.statistic("trans_m") < 0.5 * ape_units(gt, est_long).statistic("trans_m")
+    np.testing.assert_array_equal(sim3.end, sim3.anchor + 1)  # single frames
+    loose = relative_units(gt, est, 8.0, tolerance=0.5)
+    assert len(loose) == len(segment_errors(gt, est, 8.0, 0.5).start_idx)
+    assert len(loose) != len(relative_units(gt, est, 8.0))
+    steps = kitti_units(gt, est, (100.0,), step_frames=1)
+    assert len(steps) == len(kitti_segments(gt, est, (100.0,), 1).start_idx)
+    assert len(steps) > len(kitti_units(gt, est, (100.0,)))
+    short = velocity_units(gt, est, stamps, window_s=0.3)
+    series = velocity_series(gt, est, stamps, 0.3)
+    np.testing.assert_array_equal(short.end, series.end_idx)
+    assert not np.array_equal(short.end, velocity_units(gt, est, stamps).end)
+
+
+def test_a_statistic_of_one_unit_is_that_unit():
+    from metrics.units import Units
+
+    one = Units(np.array([3]), np.array([4]), {"x": np.array([-2.0])})
+    assert one.statistic("x") == -2.0
+    assert Units(one.anchor, one.end, one.values, rmse=True).statistic("x") == 2.0
+    assert np.isnan(Units(np.array([], int), np.array([], int),
+                          {"x": np.array([])}).statistic("x"))
