@@ -12,7 +12,9 @@ contender (its better row), as in the tables. A figure resting on fewer than two
 segments is not ranked. A method run in the folder but not on a sensor class says why (a Doppler
 method on stores without raw Doppler; an external trajectory (``bench score``) not scored on
 that class's stores; otherwise: not run on that class). "Sequences" counts the sequences a
-method has a finished run on (its seed and no-seed runs of one sequence are one sequence).
+method has a finished run on (its seed and no-seed runs of one sequence are one sequence; two
+names holding one content are one sequence, named in the caption:
+``bench.report.summary.ranks.counted_as``).
 Across sequences, pairwise (``bench.report.summary.pairwise``): on how many sequences each
 method ranks better than another and whether that holds (an exact sign test).
 
