@@ -141,3 +141,49 @@ def test_each_name_of_another_content_is_its_own_sequence(renamed):
     counted = counted_as(rows)
     assert counted["loopB"] == counted["loopA"] == "loopA"
     assert counted["loopC"] == "loopC" and counted["town"] == "town"
+
+
+def test_the_content_digest_reads_the_numbers_not_the_name(tmp_path):
+    """Known answers on tiny HDF5 files: the name and the provenance do not change the digest;
+    a value, a dataset's dtype or shape, a dataset's name or another attribute does; a dataset
+    longer than one read (``_ROWS``) is hashed whole."""
+    import h5py
+    import numpy as np
+
+    from bench.runs import sequence_identity as si
+
+    def write(name, **change):
+        path = tmp_path / f"{name}.h5"
+        values = change.get("values", np.arange(12.0).reshape(4, 3))
+        with h5py.File(path, "w") as f:
+            f.attrs["name"] = change.get("store_name", "a")
+            f.attrs["provenance"] = change.get("provenance", "{}")
+            f.attrs["period_s"] = change.get("period_s", 0.1)
+            f.create_dataset(change.get("dataset", "points/xyz"), data=values)
+            f.create_dataset("frames/stamp", data=np.array(change.get("stamp", [0.0, 0.1])))
+        return si.content_digest(path)
+
+    base = write("base")
+    assert write("renamed", store_name="b", provenance='{"source": "x"}') == base
+    assert write("value", values=np.arange(12.0).reshape(4, 3) + 1e-9) != base
+    assert write("dtype", values=np.arange(12.0, dtype=np.float32).reshape(4, 3)) != base
+    assert write("shape", values=np.arange(12.0).reshape(3, 4)) != base
+    assert write("where", dataset="points/xyz2") != base
+    assert write("period", period_s=0.2) != base
+    assert write("stamp", stamp=[0.0, 0.2]) != base
+    big = np.arange(3 * (si._ROWS + 5), dtype=np.float64).reshape(-1, 3)
+    tail = big.copy()
+    tail[-1, -1] += 1.0  # a change in the second read only
+    assert write("big", values=big) != write("bigtail", values=tail)
+
+
+def test_one_content_maps_each_label_to_the_first_of_its_content():
+    from bench.runs.sequence_identity import one_content
+
+    def cfg(sha, own=None):
+        return {"identity": {"store_sha256": sha, "frame_range": own},
+                "sequence": {"content_sha256": sha}}
+
+    labels = ["b", "a", "c", "d", "e"]
+    configs = [cfg("x"), cfg("x"), cfg("x", [0, 10]), cfg("y"), {"sequence": {}}]
+    assert one_content(labels, configs) == {"a": "a", "b": "a", "c": "c", "d": "d", "e": "e"}
