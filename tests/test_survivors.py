@@ -236,3 +236,23 @@ def test_a_statistic_of_one_unit_is_that_unit():
     assert Units(one.anchor, one.end, one.values, rmse=True).statistic("x") == 2.0
     assert np.isnan(Units(np.array([], int), np.array([], int),
                           {"x": np.array([])}).statistic("x"))
+
+
+# ---- make mutate BASE=942ccd0: bench/report/tables/significance.py ------------------------------
+
+def test_an_interval_with_an_end_missing_is_no_interval_and_digits_are_the_stats_own():
+    from bench.report.tables.significance import Stat, shown, shown_interval, worse
+
+    for broken in ((0.1, float("nan")), (float("nan"), 0.9), (0.1, float("inf"))):
+        assert shown_interval(0.5, broken) is None
+        assert shown(0.5, broken) == (0.5, 0.5, 0.5)  # the figure is its own interval
+    # a figure that is not a number has no interval to print, whatever its ci says
+    value, low, high = shown(float("nan"), (1.0, 2.0))
+    assert np.isnan(value) and np.isnan(low) and np.isnan(high)
+    assert not worse(Stat(float("nan"), (1.0, 2.0)), Stat(0.5, (0.4, 0.6)))
+    assert worse(Stat(1.5, (1.0, 2.0)), Stat(0.5, (0.4, 0.6)))  # the control
+    # a stat is printed with its own digits: 2 digits make 0.541 and 0.544 one figure
+    assert Stat(0.12345, (0.1, 0.2), digits=2).shown() == (0.12, 0.1, 0.2)
+    a, b = Stat(0.541, (0.541, 0.541), digits=2), Stat(0.544, (0.544, 0.544), digits=2)
+    assert not worse(b, a)
+    assert worse(Stat(0.544, (0.544, 0.544), digits=4), Stat(0.541, (0.541, 0.541), digits=4))
