@@ -254,6 +254,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{m}: {len(tests)} test file(s): {' '.join(Path(t).name for t in tests) or '-'}")
     tests = sorted(set(args.tests) if args.tests is not None
                    else {t for ts in per_module.values() for t in ts})
+    print(f"running {len(tests)} test file(s) on each mutant (those that reach it): "
+          f"{' '.join(tests)}")
     untested = [m for m, ts in per_module.items() if not ts]
     if untested and args.tests is None:
         print(f"note: no test file imports {', '.join(untested)}: their mutants all survive "
