@@ -70,6 +70,15 @@ def content_digest(path: str | Path) -> str:
     return _digests[key]
 
 
+def content_or_none(path: str | Path) -> str | None:
+    """``content_digest``, or None when the store cannot be read whole (the run's own read
+    then says what is wrong with it, as a clear error)."""
+    try:
+        return content_digest(path)
+    except (OSError, ValueError, KeyError, RuntimeError):
+        return None
+
+
 def _content(config: dict) -> str | None:
     """The run's store content: recorded, else read from the store, else its SHA-256."""
     seq = config.get("sequence") or {}
@@ -79,10 +88,9 @@ def _content(config: dict) -> str | None:
     store = seq.get("store")
     sha = (config.get("identity") or {}).get("store_sha256")
     if isinstance(sha, str) and sha and store and Path(str(store)).is_file():
-        try:
-            return content_digest(str(store))
-        except (OSError, ValueError, KeyError):
-            pass
+        digest = content_or_none(str(store))
+        if digest is not None:
+            return digest
     return sha if isinstance(sha, str) and sha else None
 
 
