@@ -256,3 +256,64 @@ def test_an_interval_with_an_end_missing_is_no_interval_and_digits_are_the_stats
     a, b = Stat(0.541, (0.541, 0.541), digits=2), Stat(0.544, (0.544, 0.544), digits=2)
     assert not worse(b, a)
     assert worse(Stat(0.544, (0.544, 0.544), digits=4), Stat(0.541, (0.541, 0.541), digits=4))
+
+
+# ---- make mutate BASE=942ccd0: metrics/intervals.py ---------------------------------------------
+
+def test_block_draws_of_one_frame_blocks_and_any_chunk_size_are_the_same_draws():
+    """Blocks of one frame: each resample's indices are its block starts (n of them); the
+    chunked indices are the whole draws for any chunk size, one resample at a time too."""
+    from metrics.intervals import (
+        block_counts,
+        block_index_chunks,
+        block_indices,
+        block_starts,
+    )
+
+    n, reps = 23, 9
+    starts = block_starts(n, 1, reps, seed=2)
+    assert starts.shape == (reps, n)
+    np.testing.assert_array_equal(block_indices(n, 1, reps, seed=2), starts)
+    counts = block_counts(n, 1, reps, seed=2)
+    assert counts.dtype == np.float64
+    np.testing.assert_array_equal(counts[0], np.bincount(starts[0], minlength=n))
+    for b in (1, 4):
+        whole = block_indices(n, b, reps, seed=2)
+        for chunk in (1, 2, 4, 100):
+            parts = list(block_index_chunks(n, b, reps, seed=2, chunk=chunk))
+            assert [c0 for c0, _ in parts] == list(range(0, reps, chunk))
+            np.testing.assert_array_equal(np.concatenate([p for _, p in parts]), whole)
+
+
+def test_paired_interval_edges_and_the_rmse_known_answer():
+    n = 40
+    anchor, end = np.arange(n), np.arange(n) + 1
+    ones = np.ones(n)
+    # random signs: RMSE 1 in any draw, a mean that varies from draw to draw
+    alternating = np.where(np.random.default_rng(3).random(n) < 0.5, 1.0, -1.0)
+    # RMSE: 3 - 1 in every resample, so the interval is that point; the mean would be about 3
+    rms = paired_interval(n, anchor, end, 3.0 * ones, alternating, rmse=True, reps=60,
+                          level=0.9)
+    assert (rms.low, rms.high) == pytest.approx((2.0, 2.0), abs=1e-12)
+    assert rms.level == 0.9 and rms.block_frames >= 10  # at least n / APE_MIN_BLOCKS
+    mean = paired_interval(n, anchor, end, 3.0 * ones, alternating, reps=60)
+    observed = 3.0 - alternating.mean()
+    assert mean.low < observed < mean.high and mean.high - mean.low > 0.1
+    # the default seed is 0; a given block is kept
+    again = paired_interval(n, anchor, end, 3.0 * ones, alternating, reps=60, seed=0)
+    assert (again.low, again.high) == (mean.low, mean.high)
+    assert paired_interval(n, anchor, end, ones, alternating, reps=20, block=7).block_frames == 7
+    # nothing to resample: NaN, no block, the units counted, the level kept
+    for args in ((n, anchor[:0], end[:0], ones[:0], ones[:0]),  # no unit
+                 (1, anchor[:1], end[:1], ones[:1], ones[:1]),  # one frame
+                 (n, anchor, end, ones, np.where(anchor == 5, np.nan, 1.0)),  # B not finite
+                 (n, anchor, end, np.where(anchor == 5, np.inf, 1.0), ones)):  # A not finite
+        iv = paired_interval(*args, level=0.8, reps=20)
+        assert np.isnan(iv.low) and np.isnan(iv.high), args[0]
+        assert (iv.level, iv.block_frames, iv.n_independent) == (0.8, 0, len(args[1]))
+    # two frames are enough to resample; one unit is resampled but gives no interval
+    two = paired_interval(2, np.arange(2), np.arange(2) + 1, np.array([1.0, 2.0]),
+                          np.zeros(2), reps=20)
+    assert np.isfinite(two.low) and np.isfinite(two.high) and two.block_frames == 1
+    one = paired_interval(10, np.array([3]), np.array([4]), np.ones(1), np.zeros(1), reps=20)
+    assert np.isnan(one.low) and one.block_frames > 0 and one.n_independent == 1
