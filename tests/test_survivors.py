@@ -317,3 +317,36 @@ def test_paired_interval_edges_and_the_rmse_known_answer():
     assert np.isfinite(two.low) and np.isfinite(two.high) and two.block_frames == 1
     one = paired_interval(10, np.array([3]), np.array([4]), np.ones(1), np.zeros(1), reps=20)
     assert np.isnan(one.low) and one.block_frames > 0 and one.n_independent == 1
+
+
+def test_the_widening_steps_on_missing_ends_and_known_answers():
+    from scipy import stats
+
+    from metrics.intervals import contain, overlap_factor, scale_pivot, widen
+
+    nan = float("nan")
+    # an end that is not a number stays so, and the other end is not stretched
+    low, high = contain(5.0, nan, 1.0)
+    assert np.isnan(low) and high == 1.0
+    low, high = contain(0.0, 1.0, nan)
+    assert low == 1.0 and np.isnan(high)
+    assert contain(5.0, 1.0, 2.0) == (1.0, 5.0) and contain(0.5, 1.0, 2.0) == (0.5, 2.0)
+    for args in ((1.0, nan, 2.0, 5, 0.95), (1.0, 0.5, nan, 5, 0.95),
+                 (1.0, 0.5, 1.5, 1, 0.95)):
+        assert all(np.isnan(widen(*args))) and all(np.isnan(widen(*args, batch_means=True)))
+    # t_{K-1} / z (and sqrt(K / (K - 1)) for batch means) about the figure
+    f = stats.t.ppf(0.975, 4) / stats.norm.ppf(0.975)
+    assert widen(1.0, 0.8, 1.1, 5, 0.95) == pytest.approx((1.0 - 0.2 * f, 1.0 + 0.1 * f))
+    g = f * np.sqrt(5 / 4)
+    assert widen(1.0, 0.8, 1.1, 5, 0.95, True) == pytest.approx((1.0 - 0.2 * g, 1.0 + 0.1 * g))
+    # the scale pivot leaves a figure of 0 (no ratio) alone
+    assert scale_pivot(0.0, 0.5, 1.0) == (0.5, 1.0)
+    assert scale_pivot(2.0, 1.0, 4.0) == pytest.approx((1.0, 4.0))
+    # overlap factor, blocks of one frame under units of one frame: a third of the variance lost
+    k = 6
+    expected = (stats.t.ppf(0.975, 1.5 * (k - 1)) / stats.norm.ppf(0.975)
+                * np.sqrt(k / (k - 1)) / np.sqrt(1 - 1 / 3))
+    assert overlap_factor(k, 0.95, 1.0, 1) == pytest.approx(expected, rel=1e-12)
+    assert overlap_factor(k, 0.95, 4.0, 12) == pytest.approx(
+        expected * np.sqrt(1 - 1 / 3) / np.sqrt(1 - 4 / 36), rel=1e-12)
+    assert np.isnan(overlap_factor(1, 0.95, 1.0, 1))
