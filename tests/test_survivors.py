@@ -350,3 +350,33 @@ def test_the_widening_steps_on_missing_ends_and_known_answers():
     assert overlap_factor(k, 0.95, 4.0, 12) == pytest.approx(
         expected * np.sqrt(1 - 1 / 3) / np.sqrt(1 - 4 / 36), rel=1e-12)
     assert np.isnan(overlap_factor(1, 0.95, 1.0, 1))
+
+
+def test_every_block_draw_defaults_to_the_same_seed_and_a_block_is_at_least_one_frame():
+    """block_starts, block_counts, block_indices, block_index_chunks and block_sums draw the
+    same resamples by default (seed 0), as their docstrings promise."""
+    from metrics.intervals import (
+        block_counts,
+        block_frames,
+        block_index_chunks,
+        block_indices,
+        block_starts,
+        block_sums,
+        widen_overlapping,
+    )
+
+    n, b, reps = 30, 4, 7
+    np.testing.assert_array_equal(block_starts(n, b, reps), block_starts(n, b, reps, seed=0))
+    np.testing.assert_array_equal(block_indices(n, b, reps), block_indices(n, b, reps, seed=0))
+    counts = block_counts(n, b, reps)
+    np.testing.assert_array_equal(counts, block_counts(n, b, reps, seed=0))
+    chunks = np.concatenate([p for _, p in block_index_chunks(n, b, reps)])
+    np.testing.assert_array_equal(chunks, block_indices(n, b, reps, seed=0))
+    x = np.arange(n, dtype=float)
+    np.testing.assert_allclose(block_sums(n, b, x, reps), counts @ x)
+    # a unit under one frame: blocks of one frame
+    assert block_frames(100, 1) == 1 and block_frames(100, 0.5) == 1
+    assert block_frames(100, 7.2) == 8 and block_frames(10, 9) == 5
+    nan = float("nan")
+    for low, high in ((nan, 2.0), (0.5, nan)):
+        assert all(np.isnan(widen_overlapping(1.0, low, high, 5, 0.95, 1.0, 3)))
