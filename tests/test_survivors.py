@@ -380,3 +380,16 @@ def test_every_block_draw_defaults_to_the_same_seed_and_a_block_is_at_least_one_
     nan = float("nan")
     for low, high in ((nan, 2.0), (0.5, nan)):
         assert all(np.isnan(widen_overlapping(1.0, low, high, 5, 0.95, 1.0, 3)))
+
+
+def test_unit_intervals_with_nothing_to_resample_are_nan_with_no_block():
+    from metrics.intervals import unit_intervals
+
+    for n, anchor, end in ((30, np.array([], int), np.array([], int)),  # no unit
+                           (1, np.array([0]), np.array([1]))):  # one frame
+        out = unit_intervals(n, anchor, end, {"x": np.ones(anchor.size),
+                                              "y": np.zeros(anchor.size)}, level=0.8, reps=10)
+        assert set(out) == {"x", "y"}
+        for iv in out.values():
+            assert np.isnan(iv.low) and np.isnan(iv.high)
+            assert (iv.level, iv.block_frames, iv.n_independent) == (0.8, 0, anchor.size)
