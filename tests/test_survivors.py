@@ -393,3 +393,54 @@ def test_unit_intervals_with_nothing_to_resample_are_nan_with_no_block():
         for iv in out.values():
             assert np.isnan(iv.low) and np.isnan(iv.high)
             assert (iv.level, iv.block_frames, iv.n_independent) == (0.8, 0, anchor.size)
+
+
+def test_unit_intervals_follow_their_documented_steps_exactly():
+    """The interval of a figure, recomposed from the module's documented steps (resample with
+    the given block, percentile interval, scale pivot, widened for min(independent units,
+    whole blocks) pieces and the units' median span, stretched to hold the figure, stopped
+    at 0), for the mean and the RMSE, on values with a zero among them (still errors that
+    cannot be negative)."""
+    from metrics import intervals as iv
+
+    n, span, b, reps = 60, 5, 8, 200
+    anchor = np.arange(0, 55)
+    end = anchor + span
+    v = np.abs(np.random.default_rng(4).normal(1.0, 0.3, anchor.size))
+    v[3] = 0.0
+    n_ind = iv.independent_count(anchor, end)
+    pieces = min(n_ind, n // b)
+    assert (n_ind, pieces) == (11, 7)  # 60 / 8 frames is 7.5 blocks: 7 whole ones
+    for rmse in (False, True):
+        got = iv.unit_intervals(n, anchor, end, {"v": v}, rmse=rmse, reps=reps, seed=1,
+                                block=b)["v"]
+        stats = iv._resampled(n, b, reps, 1, anchor, [v], rmse)[0]
+        lo, hi = iv._percentiles(stats, 0.95)
+        x = float(np.sqrt(np.mean(v**2))) if rmse else float(np.mean(v))
+        lo, hi = iv.scale_pivot(x, lo, hi)
+        lo, hi = iv.contain(x, *iv.widen_overlapping(x, lo, hi, pieces, 0.95, float(span), b))
+        assert (got.low, got.high) == pytest.approx((max(lo, 0.0), hi), rel=1e-12), rmse
+        assert (got.block_frames, got.n_independent) == (b, n_ind)
+
+
+def test_unit_intervals_without_an_interval_still_record_their_block():
+    from metrics.intervals import unit_intervals
+
+    # one unit: no interval, but the block it would have used
+    one = unit_intervals(10, np.array([3]), np.array([4]), {"x": np.ones(1)}, level=0.8,
+                         reps=10)["x"]
+    assert np.isnan(one.low) and np.isnan(one.high)
+    assert (one.level, one.n_independent) == (0.8, 1) and one.block_frames > 0
+    # a value that is not a number: that quantity has none, the others do
+    n = 40
+    anchor = np.arange(n)
+    out = unit_intervals(n, anchor, anchor + 1, {"bad": np.where(anchor == 7, np.nan, 1.0),
+                                                  "good": np.linspace(0.5, 1.5, n)},
+                         level=0.8, reps=30)
+    assert np.isnan(out["bad"].low) and np.isnan(out["bad"].high)
+    assert out["bad"].level == 0.8 and out["bad"].block_frames == out["good"].block_frames > 0
+    assert np.isfinite(out["good"].low) and np.isfinite(out["good"].high)
+    # two frames are enough to resample
+    two = unit_intervals(2, np.arange(2), np.arange(2) + 1, {"x": np.array([1.0, 2.0])},
+                         reps=20)["x"]
+    assert np.isfinite(two.low) and np.isfinite(two.high) and two.block_frames == 1
