@@ -444,3 +444,33 @@ def test_unit_intervals_without_an_interval_still_record_their_block():
     two = unit_intervals(2, np.arange(2), np.arange(2) + 1, {"x": np.array([1.0, 2.0])},
                          reps=20)["x"]
     assert np.isfinite(two.low) and np.isfinite(two.high) and two.block_frames == 1
+
+
+def test_the_block_rule_for_single_frames_and_for_units_in_any_order():
+    """Single-frame units: blocks of at least ceil(n / APE_MIN_BLOCKS) frames (times the
+    figure's BLOCK_FACTOR 1.5; the paired interval's factor is 1); units spanning 2 frames
+    have no such floor. The units' order does not matter: the values are ordered by anchor."""
+    from metrics.intervals import _percentiles, unit_intervals
+
+    n = 42  # ceil(42 / 4) = 11, not 10
+    anchor = np.arange(n)
+    white = 1.0 + 0.1 * np.random.default_rng(8).normal(size=n)
+    single = unit_intervals(n, anchor, anchor + 1, {"v": white}, reps=20)["v"]
+    assert single.block_frames == 17  # ceil(1.5 * 11)
+    paired = paired_interval(n, anchor, anchor + 1, white, white + 0.01, reps=20)
+    assert paired.block_frames == 11
+    two = unit_intervals(n, anchor[:-1], anchor[:-1] + 2, {"v": white[:-1]}, reps=20)["v"]
+    assert two.block_frames == 3  # ceil(1.5 * 2): the span, no floor
+    # units given in another order: the same interval
+    m = 300
+    starts = np.arange(m - 10)
+    walk = 1.0 + 0.1 * np.cumsum(np.random.default_rng(9).normal(size=starts.size)) / 10
+    walk = np.abs(walk)
+    ref = unit_intervals(m, starts, starts + 10, {"v": walk}, reps=50)["v"]
+    perm = np.random.default_rng(10).permutation(starts.size)
+    got = unit_intervals(m, starts[perm], starts[perm] + 10, {"v": walk[perm]}, reps=50)["v"]
+    assert (got.block_frames, got.n_independent) == (ref.block_frames, ref.n_independent)
+    assert ref.block_frames > 15  # the walk's correlation, not a shuffled series' (span 10)
+    assert (got.low, got.high) == pytest.approx((ref.low, ref.high), rel=1e-9)
+    assert _percentiles(np.array([2.0]), 0.95) == (2.0, 2.0)
+    assert all(np.isnan(_percentiles(np.array([np.nan]), 0.95)))
