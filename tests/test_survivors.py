@@ -459,8 +459,20 @@ def test_the_block_rule_for_single_frames_and_for_units_in_any_order():
     assert single.block_frames == 17  # ceil(1.5 * 11)
     paired = paired_interval(n, anchor, anchor + 1, white, white + 0.01, reps=20)
     assert paired.block_frames == 11
+    # single frames: the independent pieces are the whole blocks (42 // 17)
+    assert (single.n_independent, single.level) == (2, 0.95)
+    assert isinstance(single.n_independent, int)
     two = unit_intervals(n, anchor[:-1], anchor[:-1] + 2, {"v": white[:-1]}, reps=20)["v"]
     assert two.block_frames == 3  # ceil(1.5 * 2): the span, no floor
+    assert two.n_independent == 21  # the chain 0, 2, ..., 40: not capped by blocks
+    # a block is at most half the frames: 30 frames, units of 12 want 18
+    long = unit_intervals(30, np.arange(18), np.arange(18) + 12,
+                          {"v": np.linspace(1.0, 2.0, 18)}, reps=20)["v"]
+    assert long.block_frames == 15
+    # a given block that leaves one whole block: one independent piece, no interval
+    lone = paired_interval(10, np.arange(10), np.arange(10) + 1, white[:10], white[:10] + 1,
+                           reps=20, block=8)
+    assert lone.n_independent == 1 and np.isnan(lone.low) and np.isnan(lone.high)
     # units given in another order: the same interval
     m = 300
     starts = np.arange(m - 10)
