@@ -486,3 +486,72 @@ def test_the_block_rule_for_single_frames_and_for_units_in_any_order():
     assert (got.low, got.high) == pytest.approx((ref.low, ref.high), rel=1e-9)
     assert _percentiles(np.array([2.0]), 0.95) == (2.0, 2.0)
     assert all(np.isnan(_percentiles(np.array([np.nan]), 0.95)))
+
+
+# ---- make mutate BASE=942ccd0: bench/runs/sequence_identity.py ---------------------------------
+
+def _h5(path, cut=None, scalar=1.0, rows=(0.0, 0.1)):
+    import h5py
+
+    with h5py.File(path, "w") as f:
+        f.attrs["name"] = "data1"
+        f.attrs["provenance"] = json.dumps({"frame_range": cut} if cut else {})
+        f.create_dataset("frames/stamp", data=np.array(rows))
+        f.create_dataset("extrinsic/scale", data=scalar)  # a scalar dataset
+    return path
+
+
+def test_the_sequence_key_and_tags_read_what_older_runs_and_stores_record(tmp_path):
+    from bench.runs.sequence_identity import (
+        content_digest,
+        content_key,
+        frames_text,
+        sequence_tags,
+    )
+
+    # an older run: its frame range only in sequence.frame_range
+    old = {"identity": {"store_sha256": "a" * 64},
+           "sequence": {"frame_range": [10, 5], "frames": 5}}
+    assert content_key(old) == ("a" * 64, (10, 5))
+    assert frames_text(old) == "frames 10-14"
+    assert frames_text({"sequence": {"frames": 1}}) == "frames 0-0"
+    assert frames_text({"sequence": {}}) is None and frames_text({}) is None
+    # the store's own cut, read from the store when the run did not record it
+    store = _h5(tmp_path / "cut.h5", cut={"start": 60, "frames": 100, "stride": 2})
+    run = {"identity": {"store_sha256": "b" * 64}, "sequence": {"store": str(store),
+                                                                "frames": 3}}
+    assert frames_text(run) == "frames 60-64, stride 2"
+    # its content: read from the store when not recorded; recorded wins; else the SHA-256
+    assert content_key(run) == (content_digest(store), None)
+    recorded = {**run, "sequence": {**run["sequence"], "content_sha256": "c" * 64}}
+    assert content_key(recorded) == ("c" * 64, None)
+    gone = {"identity": {"store_sha256": "d" * 64}, "sequence": {"store": "nowhere.h5"}}
+    assert content_key(gone) == ("d" * 64, None)
+    assert content_key({"sequence": {"store": str(store)}}) is None  # nothing recorded
+    # a scalar dataset and the first row count
+    assert content_digest(_h5(tmp_path / "s1.h5", scalar=1.0)) != \
+        content_digest(_h5(tmp_path / "s2.h5", scalar=2.0))
+    assert content_digest(_h5(tmp_path / "r1.h5", rows=(0.0, 0.1))) != \
+        content_digest(_h5(tmp_path / "r2.h5", rows=(0.5, 0.1)))
+
+    def cfg(sha, frames=400, store="data1.h5", kind=None):
+        seq = {"frames": frames, "store": store}
+        if kind:
+            seq["doppler_kind"] = kind
+        return {"identity": {"store_sha256": sha}, "sequence": seq}
+
+    # what tells contents apart, in its words: the store's file name; what is not recorded
+    assert sequence_tags(["x", "x"], [cfg("a" * 64, store="a.h5"), cfg("b" * 64,
+                                                                       store="b.h5")]) == \
+        ["a.h5", "b.h5"]
+    assert sequence_tags(["x", "x"], [cfg("a" * 64, store=None), cfg("b" * 64)]) == \
+        ["store not recorded", "data1.h5"]
+    assert sequence_tags(["x", "x"], [cfg("a" * 64), cfg("b" * 64, frames=None)]) == \
+        ["frames 0-399", "frames not recorded"]
+    assert sequence_tags(["x", "x"], [cfg("a" * 64), cfg("b" * 64, kind="ego-compensated")]) \
+        == ["radial Doppler", "ego-compensated Doppler"]
+    # two attributes needed: both, joined by ", "; a name with one content before another
+    three = [cfg("a" * 64), cfg("b" * 64, frames=190), cfg("c" * 64, kind="ego-compensated")]
+    assert sequence_tags(["one", "x", "x", "x"], [cfg("e" * 64), *three]) == \
+        ["", "frames 0-399, radial Doppler", "frames 0-189, radial Doppler",
+         "frames 0-399, ego-compensated Doppler"]
