@@ -555,3 +555,26 @@ def test_the_sequence_key_and_tags_read_what_older_runs_and_stores_record(tmp_pa
     assert sequence_tags(["one", "x", "x", "x"], [cfg("e" * 64), *three]) == \
         ["", "frames 0-399, radial Doppler", "frames 0-189, radial Doppler",
          "frames 0-399, ego-compensated Doppler"]
+
+
+def test_malformed_records_are_ignored_not_trusted(tmp_path):
+    """A store without provenance, a cut that is not a mapping, a content or SHA-256 that is
+    empty or not text: each is as if not recorded; an empty tag adds nothing to a name."""
+    import h5py
+
+    from bench.runs.sequence_identity import content_key, frames_text, tagged
+
+    bare = tmp_path / "bare.h5"
+    with h5py.File(bare, "w") as f:
+        f.create_dataset("frames/stamp", data=np.arange(3.0))
+    assert frames_text({"sequence": {"store": str(bare), "frames": 3}}) == "frames 0-2"
+    listed = _h5(tmp_path / "listed.h5")
+    with h5py.File(listed, "a") as f:
+        f.attrs["provenance"] = json.dumps({"frame_range": [60, 100]})
+    assert frames_text({"sequence": {"store": str(listed), "frames": 3}}) == "frames 0-2"
+    assert frames_text({"sequence": {"store_frame_range": [60, 100], "frames": 3}}) == \
+        "frames 0-2"
+    assert content_key({"identity": {"store_sha256": ""}, "sequence": {}}) is None
+    assert content_key({"identity": {"store_sha256": "a" * 64},
+                        "sequence": {"content_sha256": 123}}) == ("a" * 64, None)
+    assert tagged("data1", "") == "data1" and tagged("data1", "x") == "data1 [x]"
