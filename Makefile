@@ -109,8 +109,9 @@ speed: $(RUNTIME_STAMP)
 # are named after them) on each mutant, one worker, and lists the survivors; a scratch copy of
 # the working tree in .mutate/ (git-ignored) holds its state. ONLY=<paths> narrows the modules,
 # ARGS passes more options (--depth 1, --tests ...).
-mutate: $(DEV_STAMP)
+mutate:
 	@test -n "$(BASE)" || { echo "usage: make mutate BASE=<commit> [ONLY='metrics/units.py ...']"; exit 2; }
+	@$(MAKE) --no-print-directory $(DEV_STAMP)
 	@$(PY) -c 'import mutmut' 2>/dev/null || $(PY) -m pip install --quiet 'mutmut>=3.2'
 	$(PY) tools/mutate.py --base $(BASE) $(if $(ONLY),--only $(ONLY)) $(ARGS)
 
