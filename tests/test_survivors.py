@@ -9,7 +9,11 @@ here by a test that fails on the mutant (checked by applying each mutation by ha
 9. the forest plot never ranks a figure on one independent segment;
 10. a paired interval's block is the longest of both estimates' (and their difference's), not
     one estimate's.
-(3, 5, 6 and 7 are pinned on the branches that rewrite that code.)"""
+(3, 5, 6 and 7 are pinned on the branches that rewrite that code.)
+Then the survivors of `make mutate BASE=942ccd0` on metrics/units.py, metrics/intervals.py,
+bench/report/tables/significance.py and bench/runs/sequence_identity.py that are not
+equivalent mutants (each test checked against its mutants applied by hand, and the intervals'
+by a second mutmut run)."""
 
 from __future__ import annotations
 
