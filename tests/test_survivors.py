@@ -582,3 +582,33 @@ def test_malformed_records_are_ignored_not_trusted(tmp_path):
     assert content_key({"identity": {"store_sha256": "a" * 64},
                         "sequence": {"content_sha256": 123}}) == ("a" * 64, None)
     assert tagged("data1", "") == "data1" and tagged("data1", "x") == "data1 [x]"
+
+
+def test_the_resampling_primitives_at_their_edges():
+    from metrics.intervals import (
+        _resampled,
+        block_counts,
+        block_start_chunks,
+        block_starts,
+        correlation_length,
+        independent_count,
+    )
+
+    # a unit that starts where the previous one ends does not overlap it
+    assert independent_count(np.array([0, 5, 10]), np.array([5, 10, 15])) == 3
+    assert independent_count(np.array([0, 4, 10]), np.array([5, 10, 15])) == 2
+    # too short or constant: blocks of one
+    assert correlation_length(np.arange(7.0)) == 1
+    assert correlation_length(np.full(50, 3.0)) == 1
+    # chunks of one resample, and the default seed: the same draws as block_starts
+    one = np.concatenate([s for _, s in block_start_chunks(20, 3, 5, seed=0, chunk=1)])
+    np.testing.assert_array_equal(one, block_starts(20, 3, 5, seed=0))
+    default = np.concatenate([s for _, s in block_start_chunks(20, 3, 5)])
+    np.testing.assert_array_equal(default, one)
+    # one unit drawn once is a resample (not "nothing drawn"); an RMSE below 1 stays so
+    stats = _resampled(4, 1, 200, 0, np.array([0]), [np.array([2.0])], False)[0]
+    drawn = block_counts(4, 1, 200, seed=0)[:, 0]
+    assert np.array_equal(np.isfinite(stats), drawn > 0) and np.any(drawn == 1)
+    assert np.all(stats[drawn > 0] == 2.0)
+    rms = _resampled(10, 2, 50, 0, np.arange(10), [np.full(10, 0.5)], True)[0]
+    np.testing.assert_allclose(rms, 0.5)
