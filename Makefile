@@ -14,7 +14,8 @@ DEV_STAMP := $(VENV)/.installed-dev
 PIP_TOOLS := pip-tools==7.6.2
 LOCK_VENV := .venv-lock
 
-.PHONY: install install-dev system-deps test fuzz lint docs reproduce-table figures speed lock clean
+.PHONY: install install-dev system-deps test fuzz lint docs reproduce-table figures speed lock \
+	clean mutate
 
 # System packages the tests need, installed with apt when missing and we may (root), else we
 # say what to run: libusb-1.0 for Open3D's wheel (a dev extra: the DICP cross-check) and
@@ -111,6 +112,17 @@ figures: $(RUNTIME_STAMP)
 
 speed: $(RUNTIME_STAMP)
 	$(BENCH) speed
+
+# mutation testing of what changed since BASE (tools/mutate.py): mutmut mutates the modules of
+# bench, loaders, methods, metrics changed since BASE, runs the test files that import them (or
+# are named after them) on each mutant, one worker, and lists the survivors; a scratch copy of
+# the working tree in .mutate/ (git-ignored) holds its state. ONLY=<paths> narrows the modules,
+# ARGS passes more options (--depth 1, --tests ...).
+mutate:
+	@test -n "$(BASE)" || { echo "usage: make mutate BASE=<commit> [ONLY='metrics/units.py ...']"; exit 2; }
+	@$(MAKE) --no-print-directory $(DEV_STAMP)
+	@$(PY) -c 'import mutmut' 2>/dev/null || $(PY) -m pip install --quiet 'mutmut>=3.2'
+	$(PY) tools/mutate.py --base $(BASE) $(if $(ONLY),--only $(ONLY)) $(ARGS)
 
 # Refresh the lock files with pip-tools (in a venv of its own) for Python 3.11: keeps every pin
 # that still satisfies pyproject.toml and resolves what changed; `make lock UPGRADE=1` moves

@@ -30,10 +30,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from bench.report.dataframe import load_results
+from bench.report.dataframe import results_frame
 from bench.report.names import order_key, overrides_note, run_label, seed_tag, sequence_key
 from bench.report.tables.model import md_escape
 from bench.report.tables.significance import Stat, shown_interval, worse
+from bench.runs.folders import RunRecord, load_runs, with_sequence_tags
 
 RUN_KEYS = ["sequence", "method", "label", "seed", "overrides"]
 QUANTITIES = ("rot_deg_mean", "trans_m_mean")
@@ -45,15 +46,15 @@ def _seed(x) -> bool | None:
     return None if x is None or (isinstance(x, float) and math.isnan(x)) else bool(x)
 
 
-def _frame(path: Path) -> pd.DataFrame:
-    df = load_results(path)
+def _frame(path: Path, runs: list[RunRecord]) -> pd.DataFrame:
+    df = results_frame(runs)
     if df.empty:
         raise FileNotFoundError(f"{path}: no finished runs with relative errors (no "
                                 "metrics.json of a run with ground truth found)")
+    base = {r.sequence: r.result.sequence for r in runs}
+    df["sequence_name"] = [base.get(s, s) for s in df["sequence"]]
     df["label"] = df["label"].fillna("")
-    from bench.runs.folders import load_runs
-
-    configs = {str(r.dir): r.config for r in load_runs(Path(path))}
+    configs = {str(r.dir): r.config for r in runs}
     df["overrides"] = [overrides_note(configs.get(d) or {}) for d in df["run_dir"]]
     df["params"] = [_params(configs.get(d) or {}) for d in df["run_dir"]]
     seeds = [_seed(s) for s in df["seed"]]
@@ -85,9 +86,15 @@ def params_differ(pa, pb) -> str:
 
 
 def _pair(a: Path, b: Path) -> tuple[pd.DataFrame, pd.DataFrame, list[str]]:
-    """Both sides and the keys that match a run of A with a run of B."""
+    """Both sides and the keys that match a run of A with a run of B. The sequences of both
+    sides are told apart together (``bench.runs.sequence_identity``): a sequence name that A
+    and B hold with different content (another store of that name, other frames) gets its
+    content tag on each side, so the two are never paired as one sequence."""
     single = (Path(a) / "metrics.json").exists() and (Path(b) / "metrics.json").exists()
-    return _frame(a), _frame(b), ["sequence"] if single else RUN_KEYS
+    runs_a, runs_b = load_runs(Path(a)), load_runs(Path(b))
+    both = with_sequence_tags(runs_a + runs_b)
+    return (_frame(a, both[:len(runs_a)]), _frame(b, both[len(runs_a):]),
+            ["sequence"] if single else RUN_KEYS)
 
 
 def _finite(x) -> bool:
@@ -112,6 +119,7 @@ def compare(a: Path, b: Path, threshold: float = 0.10) -> pd.DataFrame:
     da, db, run_keys = _pair(a, b)
     keys = [*run_keys, "length_m"]
     merged = da.merge(db, on=keys, suffixes=("_a", "_b"), how="outer", indicator=True)
+    labels = {side: _labels_by_name(d) for side, d in (("A", da), ("B", db))}
     rows = []
     for _, r in merged.iterrows():
         row = {k: r[k] for k in keys}
@@ -138,6 +146,7 @@ def compare(a: Path, b: Path, threshold: float = 0.10) -> pd.DataFrame:
         if differ:
             row["note"] = "; ".join(x for x in (f"parameters differ: {differ}", row["note"])
                                     if x)
+        row["note"] += _other_content(row, r, labels)
         rows.append(row)
     _name_other_parameters(rows, [k for k in keys if k != "overrides"])
     df = pd.DataFrame(rows).drop(columns=["_params"], errors="ignore")
@@ -168,6 +177,31 @@ def _name_other_parameters(rows: list[dict], same: list[str]) -> None:
             f"B {in_b[0]['overrides'].strip() or 'defaults'}"
         for row, other in ((in_a[0], "B"), (in_b[0], "A")):
             row["note"] += f" ({other} has this run with other parameters: {differ})"
+
+
+def _labels_by_name(df: pd.DataFrame) -> dict[str, set[str]]:
+    """Sequence name -> the sequence labels (name and content tag) a side holds under it."""
+    out: dict[str, set[str]] = {}
+    for name, label in zip(df["sequence_name"], df["sequence"], strict=True):
+        out.setdefault(name, set()).add(label)
+    return out
+
+
+def _other_content(row: dict, r, labels: dict[str, dict[str, set[str]]]) -> str:
+    """For a run on one side only: "; B holds data1 [b.h5]: another content of data1, not
+    compared" when the other side holds that sequence name with other content."""
+    side = row["only_in"]
+    if not side:
+        return ""
+    other = "B" if side == "A" else "A"
+    name = r.get(f"sequence_name_{side.lower()}")
+    if not isinstance(name, str):
+        return ""
+    theirs = sorted(labels[other].get(name, set()) - {row["sequence"]})
+    if not theirs:
+        return ""
+    return (f"; {other} holds {', '.join(theirs)}: another content of {name} (other store "
+            "or frames), not compared")
 
 
 def _in_table_order(df: pd.DataFrame, run_keys: list[str]) -> pd.DataFrame:
@@ -255,7 +289,7 @@ def compare_times(a: Path, b: Path) -> pd.DataFrame:
     return _in_table_order(pd.DataFrame(rows), run_keys) if rows else pd.DataFrame(rows)
 
 
-#: per-run quantities of the third table: (column of load_results, title, digits)
+#: per-run quantities of the third table: (column of results_frame, title, digits)
 RUN_QUANTITIES = (("ape_trans_m", "APE [m]", 3), ("kitti_trans_pct", "KITTI trans. [%]", 2),
                   ("kitti_rot_deg_per_100m", "KITTI rot. [deg/100 m]", 2),
                   ("velocity_err_mps", "Velocity err. [m/s]", 3))

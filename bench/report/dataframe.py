@@ -93,8 +93,14 @@ def load_runs_frame(results_dir: str | Path) -> pd.DataFrame:
 def load_results(results_dir: str | Path) -> pd.DataFrame:
     """Every finished run under ``results_dir`` as a DataFrame with one row per sequence x
     method x seed x segment length (``COLUMNS``)."""
+    return results_frame(load_runs(Path(results_dir)))
+
+
+def results_frame(runs: list[RunRecord]) -> pd.DataFrame:
+    """``runs`` as ``load_results``' DataFrame (each run's sequence as tagged among the runs
+    it was read with: ``bench.runs.folders.with_sequence_tags``)."""
     rows = []
-    for run in load_runs(Path(results_dir)):
+    for run in runs:
         base = run_row(run)
         for r in run.result.relative_error:
             rows.append({**base, "length_m": r.length_m, "rot_deg_mean": r.rot_deg_mean,

@@ -32,6 +32,7 @@ from bench.runs.evaluate import Scoring, evaluate_run
 from bench.runs.folders import clear_run, is_finished, run_dir_name, write_failure, write_run
 from bench.runs.identity import code_identity, host_identity, run_key, store_identity
 from bench.runs.libraries import imported_libraries
+from bench.runs.sequence_identity import content_or_none
 from bench.runs.timed import timed_run
 from loaders.errors import DataError, validation_problems
 from loaders.scan import FrameRange, Sequence
@@ -172,6 +173,8 @@ def prepare(job: Job) -> Prepared:
         config = {
             "sequence": {"name": name, "display_name": display, "sensor_class": klass,
                          "store": str(job.store), "frames": len(seq),
+                         # its numbers, whatever its name (two names, one content: one sequence)
+                         "content_sha256": content_or_none(job.store),
                          "frame_range": list(job.frame_range) if job.frame_range else None,
                          # the frames of its source the store holds (bench convert --start ...)
                          "store_frame_range": store.provenance.get("frame_range"),

@@ -53,15 +53,15 @@ EXECUTORS = ("process", "dask")
 WORKERS = 2
 
 
-def child(argv: list[str], timeout_s: float = 3600) -> dict:
+def child(argv: list[str], timeout_s: float = 3600, entry: str = "bench.cli") -> dict:
     """``bench ARGV`` in a child process: wall and CPU time [s] (the child's own and its
     waited-for children's: worker processes) and peak RSS [MB]; a failing command is an
-    error naming it."""
+    error naming it. ``entry``: the module whose ``main()`` is the command."""
     code = ("import resource, sys\n"
-            "import bench.cli\n"
+            f"import {entry}\n"
             f"sys.argv = ['bench', *{argv!r}]\n"
             "status = 0\n"
-            "try:\n    bench.cli.main()\n"
+            f"try:\n    {entry}.main()\n"
             "except SystemExit as e:\n    status = e.code or 0\n"
             "own, kids = (resource.getrusage(w) for w in (resource.RUSAGE_SELF,\n"
             "                                              resource.RUSAGE_CHILDREN))\n"

@@ -13,7 +13,8 @@ independent segments is not marked, so not counted. A method run in the folder b
 sensor class says why (a Doppler method on stores without raw Doppler; an external trajectory
 (``bench score``) not scored on that class's stores; otherwise: not run on that class).
 "Sequences" counts the sequences a method has a finished run on (its seed and no-seed runs of
-one sequence are one sequence).
+one sequence are one sequence; two names holding one content are one sequence, named in the
+caption: ``bench.report.summary.ranks.counted_as``).
 Across sequences, pairwise (``bench.report.summary.pairwise``): on how many sequences each
 method ranks better than another and whether that holds (an exact sign test).
 
@@ -31,7 +32,13 @@ from pathlib import Path
 
 from bench.report.names import order_key
 from bench.report.summary.pairwise import pairwise_table
-from bench.report.summary.ranks import contender_name, figure_ranks, ranked_lengths
+from bench.report.summary.ranks import (
+    contender_name,
+    counted_as,
+    figure_ranks,
+    ranked_lengths,
+    same_content_note,
+)
 from bench.report.tables.model import Cell, Part, Row, Table
 from bench.report.tables.paper import RunRow
 from bench.runs.result import EXTERNAL_MARK
@@ -59,6 +66,7 @@ def summary_table(rows: list[RunRow], lengths_m: tuple[float, ...] | None = None
     usable = [L for L in (ranked_lengths(rows) if lengths_m is None else lengths_m)
               if any(rr.result.relative(L) is not None for rr in rows)]
     ranks = {(L, q): figure_ranks(rows, L, q) for L in usable for q in ("rot_deg", "trans_m")}
+    counted = counted_as(rows)
     table = Table(["Sensor class", "Method"],
                   ["Sequences", "Mean mark", "Bold", "Failed", "Diverged", "Fell back"], [])
     classes = sorted({rr.sensor_class for rr in rows}, key=lambda c: (class_rank(c), c))
@@ -77,7 +85,8 @@ def summary_table(rows: list[RunRow], lengths_m: tuple[float, ...] | None = None
                                       {"method": method, "label": label or None}))
                 continue
             key = (method, label or None)
-            seqs = sorted({rr.sequence for rr in mine if not rr.failed})  # scored on
+            # scored on (two names of one content: one sequence)
+            seqs = sorted({counted[rr.sequence] for rr in mine if not rr.failed})
             got = [per_q[seq][key] for per_q in ranks.values() for seq in seqs
                    if key in per_q.get(seq, {})]
             mean = sum(got) / len(got) if got else math.nan
@@ -118,7 +127,7 @@ def summary_table(rows: list[RunRow], lengths_m: tuple[float, ...] | None = None
         "of a class is bold (by value: a summary, not a test). "
         "Failed / Diverged: runs that did not finish / diverged; Fell back: runs with more "
         "than 5 % of their frames replaced by the motion prior or not converged."
-        + _unknown_classes_note(classes))
+        + _unknown_classes_note(classes) + same_content_note(rows))
     return table
 
 

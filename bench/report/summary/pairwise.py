@@ -15,7 +15,13 @@ from __future__ import annotations
 
 import math
 
-from bench.report.summary.ranks import contender_name, figure_ranks, ranked_lengths
+from bench.report.summary.ranks import (
+    contender_name,
+    counted_as,
+    figure_ranks,
+    ranked_lengths,
+    same_content_note,
+)
 from bench.report.tables.model import BEST, OTHER, Cell, Part, Row, Table
 from bench.report.tables.paper import RunRow
 from loaders.sensor_classes import class_rank
@@ -76,7 +82,8 @@ def pairwise_table(rows: list[RunRow], lengths_m: tuple[float, ...] | None = Non
     and the sign test's p (see the module's doc); bold where the verdict holds (p < 0.05)."""
     lengths = ranked_lengths(rows) if lengths_m is None else tuple(lengths_m)
     per_seq = _per_sequence(rows, lengths)
-    class_of = {rr.sequence: rr.sensor_class for rr in rows}
+    counted = counted_as(rows)  # two names of one content: one sequence
+    class_of = {counted[rr.sequence]: rr.sensor_class for rr in rows}
     classes = sorted({class_of[s] for s in per_seq}, key=lambda c: (class_rank(c), c))
     found = {}
     for cls_name in classes:
@@ -117,5 +124,6 @@ def pairwise_table(rows: list[RunRow], lengths_m: tuple[float, ...] | None = Non
         f"the mean rotation and translation relative error at {at or 'no length'}; equal is a "
         "tie), and p is a two-sided exact sign test (binomial, 1/2) over the untied sequences, "
         "sequences taken as independent. Bold: the verdict holds across sequences (p < 0.05), "
-        "which needs at least 6 untied sequences all one way; \"-\": never ranked together.")
+        "which needs at least 6 untied sequences all one way; \"-\": never ranked together."
+        + same_content_note(rows))
     return table

@@ -3,7 +3,10 @@
 mark the tables of the page give it (``significance.interval_marks`` over every row of the
 sequence: 1 = bold, 2 = underlined, 3 = neither; a method's seed and no-seed rows: its better
 mark), the lengths ranked at, and a contender's name. One rule per page: a method bold in
-every table cell ranks 1 here, one underlined anywhere does not."""
+every table cell ranks 1 here, one underlined anywhere does not. Sequences under two names that
+hold one content (``bench.runs.sequence_identity.one_content``: one store run under two names,
+one recording converted twice) are one sequence here, counted once under the first name
+(``counted_as``) and named in the captions (``same_content_note``)."""
 
 from __future__ import annotations
 
@@ -13,6 +16,25 @@ from bench.report.tables.model import Row
 from bench.report.tables.paper import RunRow, stat_part
 from bench.report.tables.significance import contender, interval_marks
 from bench.runs.result import EXTERNAL_MARK
+from bench.runs.sequence_identity import one_content
+
+
+def counted_as(rows: list[RunRow]) -> dict[str, str]:
+    """Sequence label -> the label it is counted under across sequences (itself, or the first
+    label holding the same content)."""
+    return one_content([rr.sequence for rr in rows], [rr.run.config for rr in rows])
+
+
+def same_content_note(rows: list[RunRow]) -> str:
+    """" Sequences holding one content, counted once: a = b." (with a leading space), or ""."""
+    groups: dict[str, set[str]] = defaultdict(set)
+    for label, first in counted_as(rows).items():
+        groups[first].add(label)
+    alike = [sorted(g) for g in groups.values() if len(g) > 1]
+    if not alike:
+        return ""
+    return (" Sequences holding one content under different names, counted once (as the "
+            "first): " + "; ".join(" = ".join(g) for g in sorted(alike)) + ".")
 
 
 def figure_ranks(rows: list[RunRow], length_m: float,
@@ -21,6 +43,7 @@ def figure_ranks(rows: list[RunRow], length_m: float,
     2 underlined, 3 neither), decided as the tables decide it: every row of the sequence
     marked together by the printed intervals, a contender's better row counted."""
     by_seq: dict[str, list[tuple[tuple, object]]] = defaultdict(list)
+    counted = counted_as(rows)
     for rr in rows:
         if rr.failed or rr.diverged:
             continue
@@ -33,13 +56,14 @@ def figure_ranks(rows: list[RunRow], length_m: float,
         if not part.stat.rankable:
             continue
         key = contender(Row([rr.label], (), [], {"method": rr.method, "label": rr.run.label}))
-        by_seq[rr.sequence].append((key, part.stat))
+        by_seq[counted[rr.sequence]].append((key, part.stat))
     out: dict[str, dict[tuple, int]] = {}
     for seq, entries in by_seq.items():
         marks = interval_marks([stat for _, stat in entries])  # the tables' marks, per row
         best: dict[tuple, int] = {}
         for (key, _), mark in zip(entries, marks, strict=True):
-            best[key] = min(best.get(key, mark + 1), mark + 1)  # a method's better row
+            # a method's better row (of either name of one content)
+            best[key] = min(best.get(key, mark + 1), mark + 1)
         out[seq] = best
     return out
 
