@@ -170,7 +170,13 @@ def _ar1(n, phi, seed):
 
 def test_a_paired_interval_blocks_by_the_more_correlated_estimate():
     """Per-frame units, A white and B strongly correlated: whichever comes first, the paired
-    interval's block is B's correlation length (not A's one frame)."""
+    interval's block is the tables' rule over both series and their difference -
+    ceil(BLOCK_FACTOR x the longest correlation length), B's or the difference's, never A's
+    one frame."""
+    import math
+
+    from metrics.intervals import BLOCK_FACTOR
+
     n = 400
     anchor = np.arange(n)
     white = 1.0 + 0.1 * np.random.default_rng(1).normal(size=n)
@@ -178,7 +184,9 @@ def test_a_paired_interval_blocks_by_the_more_correlated_estimate():
     assert block_frames(n, 1, white) < block_frames(n, 1, walk)
     ab = paired_interval(n, anchor, anchor + 5, white, walk, reps=50)
     ba = paired_interval(n, anchor, anchor + 5, walk, white, reps=50)
-    assert ab.block_frames == ba.block_frames == block_frames(n, 5, walk)
+    longest = max(block_frames(n, 5, v) for v in (white, walk, white - walk))
+    assert longest >= block_frames(n, 5, walk) > block_frames(n, 5, white)
+    assert ab.block_frames == ba.block_frames == min(math.ceil(BLOCK_FACTOR * longest), n // 2)
 
 
 def test_a_paired_ape_interval_blocks_by_both_estimates_step_errors():
@@ -452,7 +460,7 @@ def test_unit_intervals_without_an_interval_still_record_their_block():
 
 def test_the_block_rule_for_single_frames_and_for_units_in_any_order():
     """Single-frame units: blocks of at least ceil(n / APE_MIN_BLOCKS) frames (times the
-    figure's BLOCK_FACTOR 1.5; the paired interval's factor is 1); units spanning 2 frames
+    BLOCK_FACTOR 1.5, for a figure and for a paired difference alike); units spanning 2 frames
     have no such floor. The units' order does not matter: the values are ordered by anchor."""
     from metrics.intervals import _percentiles, unit_intervals
 
@@ -462,7 +470,7 @@ def test_the_block_rule_for_single_frames_and_for_units_in_any_order():
     single = unit_intervals(n, anchor, anchor + 1, {"v": white}, reps=20)["v"]
     assert single.block_frames == 17  # ceil(1.5 * 11)
     paired = paired_interval(n, anchor, anchor + 1, white, white + 0.01, reps=20)
-    assert paired.block_frames == 11
+    assert paired.block_frames == 17  # the tables' rule: ceil(1.5 * 11)
     # single frames: the independent pieces are the whole blocks (42 // 17)
     assert (single.n_independent, single.level) == (2, 0.95)
     assert isinstance(single.n_independent, int)
