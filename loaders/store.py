@@ -205,18 +205,17 @@ class _Block:
 
 def _check_header(seq) -> None:
     """The values a store's attributes and ground truth must hold (a DataError naming what is
-    wrong): the fields a list of names, a name that can name a folder (runs of the store are
-    filed under it), a provenance mapping, ground-truth poses that are finite rigid transforms
+    wrong): the fields a list of names, a name that is not empty (a label: the harness makes
+    any name one results folder), a provenance mapping, ground-truth poses that are finite rigid transforms
     at finite stamps."""
     path = seq.path
     if not (isinstance(seq.fields, list) and all(isinstance(f, str) for f in seq.fields)):
         raise DataError(f"{path}: damaged store: attribute fields is {seq.fields!r}; expected "
                         "a list of field names")
-    name = seq.name
-    if (not name.strip() or name in (".", "..") or "/" in name or "\\" in name
-            or "\0" in name):
-        raise DataError(f"{path}: damaged store: attribute name {name!r} cannot name the "
-                        "sequence's results folder; expected one folder name")
+    name = seq.name  # a label: separators and dots are made one folder by the harness
+    if not name.strip() or "\0" in name:
+        raise DataError(f"{path}: damaged store: attribute name {name!r} is empty or holds a "
+                        "NUL byte; expected the sequence's name")
     if not isinstance(seq.provenance, dict):
         raise DataError(f"{path}: damaged store: attribute provenance is not a mapping")
     if not np.isfinite(seq._stamps).all():
