@@ -17,7 +17,7 @@ without a warning (the run's metrics give ``frames_scored``): the table counts t
 the GT's positions and a stalled GT (poses repeated) have no check in ``bench run``
 (``bench inspect`` reports repeats, not jumps).
 
-Correct inputs: the vendored NTU4DRadLM sample (whole, halves, frames 60-190) and synthetic
+Correct inputs: the vendored NTU4DRadLM sample (whole, halves, frames 60-189) and synthetic
 sequences (a loop with the NTU GT pipeline at 10 Hz, a straight drive, a flat speed profile,
 campus with its GT pipeline); realistic perturbations of each: GT positions jittered by 5 mm,
 the GT resampled to 5 Hz, the GT lagged by 20 ms. Segment lengths are set from each input's
@@ -59,7 +59,7 @@ def inputs(frames: int = 250) -> list[tuple[str, np.ndarray, Trajectory]]:
         seq.close()
     n = len(stamps)
     for label, a, b in (("sample whole", 0, n), ("sample first half", 0, n // 2),
-                        ("sample second half", n // 2, n), ("sample frames 60-190", 60, 190)):
+                        ("sample second half", n // 2, n), ("sample frames 60-189", 60, 190)):
         s = stamps[a:b]
         keep = (gt.stamps >= s[0] - 1e-6) & (gt.stamps <= s[-1] + 1e-6)
         out.append((label, s, Trajectory(gt.stamps[keep], gt.poses[keep])))
