@@ -7,6 +7,10 @@ the intervals could not have told them apart. So they *agree* only when the inte
 narrow enough to show a difference that matters: the combined half-width at most the
 resolution asked for (``bench calibrate --max-width``, the widest interval it applies). Wider
 than that, the verdict is *cannot tell*, with the widths that made it so.
+
+A verdict may carry a floor (``floor_deg``): then *apart* also needs the difference to exceed
+it. The pieces of one range use ``MIN_CHANGE_DEG`` (``bench.data.calibration.pieces``); the
+Doppler and hand-eye estimates use none.
 """
 
 from __future__ import annotations
@@ -26,10 +30,12 @@ class Verdict:
     diff_deg: float
     combined_deg: float
     resolution_deg: float
+    floor_deg: float = 0.0
 
     @property
     def kind(self) -> str:
-        if math.isfinite(self.combined_deg) and abs(self.diff_deg) > self.combined_deg:
+        if math.isfinite(self.combined_deg) and \
+                abs(self.diff_deg) > max(self.combined_deg, self.floor_deg):
             return APART
         if math.isfinite(self.combined_deg) and self.combined_deg <= self.resolution_deg:
             return AGREE
@@ -55,8 +61,11 @@ def summary(verdicts: list[Verdict], what: str, resolution_deg: float) -> list[s
     cannot = [v for v in verdicts if v.kind == CANNOT_TELL]
     if agree:
         widest = max(v.combined_deg for v in agree)
+        floor = max(v.floor_deg for v in agree)
+        below = (f" (or by less than {floor:g} deg, not called a change)"
+                 if any(abs(v.diff_deg) > v.combined_deg for v in agree) else "")
         lines.append(f"  {what} agree on {', '.join(dict.fromkeys(v.angle for v in agree))}: "
-                     f"within combined half-widths of at most +-{widest:.2f} deg, narrow "
+                     f"within combined half-widths of at most +-{widest:.2f} deg{below}, narrow "
                      f"enough to show a difference above --max-width {resolution_deg:g} deg")
     if cannot:
         lines.append(f"  CANNOT TELL whether {what} agree on "
