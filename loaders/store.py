@@ -206,8 +206,8 @@ class _Block:
 def _check_header(seq) -> None:
     """The values a store's attributes and ground truth must hold (a DataError naming what is
     wrong): the fields a list of names, a name that is not empty (a label: the harness makes
-    any name one results folder), a provenance mapping, ground-truth poses that are finite rigid transforms
-    at finite stamps."""
+    any name one results folder), a provenance mapping, ground-truth poses that are finite
+    rigid transforms at finite stamps."""
     path = seq.path
     if not (isinstance(seq.fields, list) and all(isinstance(f, str) for f in seq.fields)):
         raise DataError(f"{path}: damaged store: attribute fields is {seq.fields!r}; expected "
