@@ -65,8 +65,10 @@ def test_an_external_runs_identity_is_its_trajectory_topic_and_store(config, tmp
 
 
 def test_an_external_kind_without_its_blocks_reads_as_nothing_known():
-    assert run_identity({"identity": {"kind": "external"}, "external": "x", "sequence": 3}) == {
-        "trajectory": None, "topic": None, "store": None}
+    # the identity's kind alone makes it an external run, with or without an external block
+    for config in ({"identity": {"kind": "external"}, "sequence": 3},
+                   {"identity": {"kind": "external"}, "external": "x", "sequence": 3}):
+        assert run_identity(config) == {"trajectory": None, "topic": None, "store": None}
 
 
 def _folder(tmp_path, config):
@@ -142,3 +144,25 @@ def test_a_scored_run_of_another_trajectory_names_the_trajectory_first(tmp_path,
             "would replace it with topic '/odom': choose") in str(err.value)
     # a key the folder's run does not have is not compared
     foreign_run(run, dict(held, method="x"), "bench score")
+
+
+def test_parameters_held_against_none_asked_are_shown_whole(tmp_path):
+    """Only a dict against a dict is narrowed to its differing entries: parameters held, none
+    asked, show every held entry and None."""
+    config = _harness(tmp_path)
+    run = _folder(tmp_path, config)
+    with pytest.raises(DataError) as err:
+        foreign_run(run, dict(run_identity(config), parameters=None), "bench run")
+    assert ("holds another run (method 'doppler-ego', parameters {'a': 1, 'b': 2}); bench run "
+            "would replace it with parameters None: choose") in str(err.value)
+
+
+def test_an_identity_asked_with_sets_compares_by_its_items(tmp_path):
+    """A value JSON cannot write as it is (a set) is compared as the list of its items, never
+    a crash: one topic asked as a set is the run that holds it as a list."""
+    config = _harness(tmp_path, params={"topics": ["/radar"]})
+    run = _folder(tmp_path, config)
+    foreign_run(run, dict(run_identity(config), parameters={"topics": {"/radar"}}), "bench run")
+    with pytest.raises(DataError, match="holds another run"):
+        foreign_run(run, dict(run_identity(config), parameters={"topics": {"/lidar"}}),
+                    "bench run")
