@@ -48,8 +48,9 @@ def test_a_contenders_name_is_its_method_and_label_or_an_external_label_alone():
     assert contender_name("kiss", f"kiss-ext{EXTERNAL_MARK}") == f"kiss-ext{EXTERNAL_MARK}"
 
 
-def _rel(rot, trans, n=10, n_independent=10, width=0.1):
-    return SimpleNamespace(n=n, rot_deg_mean=rot, rot_deg_mean_ci=(rot - width, rot + width),
+def _rel(rot, trans, n=10, n_independent=10, width=0.1, rot_width=None):
+    rw = width if rot_width is None else rot_width
+    return SimpleNamespace(n=n, rot_deg_mean=rot, rot_deg_mean_ci=(rot - rw, rot + rw),
                            trans_m_mean=trans, trans_m_mean_ci=(trans - width, trans + width),
                            spread=SimpleNamespace(n_independent=n_independent))
 
@@ -105,3 +106,19 @@ def test_the_lengths_ranked_at_are_the_shortest_and_longest_with_segments():
     assert ranked_lengths(rows[:1] + [_run_row("b", None, lengths=((8.0, 1),))]) == (8.0, 100.0)
     assert ranked_lengths([_run_row("a", None, lengths=((8.0, 4),))]) == (8.0,)
     assert ranked_lengths([]) == ()
+
+
+def test_each_quantity_is_marked_by_its_own_interval():
+    """Translations 1.00 +- 0.10 and 1.05 +- 0.05: the first's interval reaches the second's
+    value, both bold; their rotations, far apart with narrow intervals, are bold and
+    underlined - the translation's intervals, not the rotation's, decide its marks."""
+    rows = [_run_row("a", _rel(1.0, 1.0, rot_width=0.01)),
+            _run_row("b", _rel(5.0, 1.05, width=0.05, rot_width=0.01))]
+    assert figure_ranks(rows, 8.0, "trans_m") == {"s": {("a", ""): 1, ("b", ""): 1}}
+    assert figure_ranks(rows, 8.0, "rot_deg") == {"s": {("a", ""): 1, ("b", ""): 2}}
+
+
+def test_a_row_without_a_method_name_is_its_own_contender_by_its_label():
+    rows = [_run_row("", _rel(1.0, 1.0)), _run_row("b", _rel(2.0, 1.0))]
+    rows[0].label = "external x"
+    assert figure_ranks(rows, 8.0, "rot_deg") == {"s": {("external x",): 1, ("b", ""): 2}}
