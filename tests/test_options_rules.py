@@ -48,6 +48,7 @@ def test_a_command_of_its_own_overrides_the_names_rule():
 
 def test_number_lists_are_checked_item_by_item_and_said_whole():
     assert options.number_list("8,48", "--lengths", "lengths") == (8.0, 48.0)
+    assert options.number_list("0.5,8", "--lengths", "lengths") == (0.5, 8.0)
     assert options.number_list("1000,64000", "--sizes", "sizes") == (1000, 64000)
     assert all(isinstance(v, int) for v in options.number_list("1,2", "--sizes", "sizes"))
     with pytest.raises(DataError) as err:
@@ -92,7 +93,7 @@ def test_path_texts_no_nul_no_empty_input_names_the_file_system_takes():
                               "4096")
     path = "/".join(["y" * 200] * 20)  # short names, a long path
     assert len(path) == 4019
-    options.check_path_text(path[:options.PATH_MAX], "--out", False)
+    options.check_path_text(path + "/" + "z" * 76, "--out", False)  # 4096 bytes: at the limit
     with pytest.raises(DataError, match="a path of 4097 bytes with a name of 200"):
         options.check_path_text(path + "/" + "z" * 77, "--out", False)
 
@@ -116,6 +117,7 @@ def test_a_parameter_is_named_as_typed():
     assert options.flag(_param("store", ["store"], "STORE_PATH")) == "STORE_PATH"
     assert options.flag(_param("store", ["store"])) == "STORE"
     assert options.flag(_param(None)) == "VALUE"
+    assert options.flag(SimpleNamespace(name="jobs", metavar=None)) == "JOBS"  # no opts at all
 
 
 def test_values_are_checked_by_kind(tmp_path):
@@ -146,7 +148,7 @@ def test_values_are_checked_by_kind(tmp_path):
     # paths: an input exists, an output need not
     check(tmp_path, "run", _param("data"), "--data")
     check(tmp_path / "new", "run", _param("out"), "--out")
-    with pytest.raises(DataError, match="not found"):
+    with pytest.raises(DataError, match="^--data .*no.h5: not found$"):
         check(tmp_path / "no.h5", "run", _param("data"), "--data")
     # texts: number lists, registry names, fixed forms
     with pytest.raises(DataError, match=r"^--lengths '8,-1'"):
@@ -176,3 +178,112 @@ def test_raw_texts_flatten_nested_values():
     assert options._raw_texts(("a", ["b", ("c",)], 3, None)) == ["a", "b", "c"]
     assert options._raw_texts(Path("a")) == []
     assert options._raw_texts(os.sep) == [os.sep]
+
+
+def test_a_number_is_shown_whole_up_to_40_characters():
+    rule = Number(0, 1, "x")
+    with pytest.raises(DataError, match=rf"^--n {10**39}: expected"):
+        options._check_number(10**39, rule, "--n")  # 40 digits
+    with pytest.raises(DataError, match=r"^--n 10000000000000000000\.\.\. \(41 digits\)"):
+        options._check_number(10**40, rule, "--n")
+    # only numbers are checked: a flag or a text is never refused as one
+    options._check_number(True, Number(2, 3, "x"), "--n")
+    options._check_number("5", Number(2, 3, "x"), "--n")
+
+
+def test_the_items_of_a_list_keep_the_commands_own_rule():
+    with pytest.raises(DataError, match=r"^--frames 1: expected a number of frames, at least 2"):
+        options._check_value([3, 1], "synth", _param("frames"), "--frames")
+
+
+def test_a_value_of_another_kind_is_not_checked_as_a_number():
+    import enum
+
+    class Mode(enum.Enum):
+        FAST = 1
+
+    options._check_value(Mode.FAST, "x", _param("new_option"), "--mode")
+    options._check_value(Mode.FAST, "run", _param("frames"), "--frames")
+
+
+def _typed(annotation, **more):
+    return SimpleNamespace(type_descriptor=SimpleNamespace(annotation=annotation), **more)
+
+
+def test_numeric_parameters_are_ints_floats_and_tuples_holding_one():
+    assert options.is_numeric(_typed(int)) and options.is_numeric(_typed(float))
+    assert options.is_numeric(_typed(tuple[Path, int], is_flag=False))
+    assert not options.is_numeric(_typed(str)) and not options.is_numeric(_typed(tuple[str, str]))
+    assert not options.is_numeric(_typed(int, is_flag=True))  # a counting flag is no option
+    assert not options.is_numeric(SimpleNamespace())  # no type known
+    assert not options.is_numeric(SimpleNamespace(type_descriptor=None, is_flag=False))
+
+
+def test_numeric_parameters_are_found_with_their_command_path():
+    n, t = _typed(int, name="n"), _typed(str, name="t")
+    leaf = SimpleNamespace(params=[n, t])
+    group = SimpleNamespace(commands={"npy": leaf}, params=[])
+    top = SimpleNamespace(commands={"convert": group}, params=[_typed(float, name="f")])
+    found = [(path, p.name) for path, p in options.numeric_params(top)]
+    assert found == [(("convert", "npy"), "n"), ((), "f")]
+
+
+def _app(calls):
+    import typer
+
+    app = typer.Typer()
+
+    def version(value: bool):
+        return value
+
+    @app.command()
+    def run(data: Path = typer.Option(None, "--data"), out: Path = typer.Option(None, "--out"),
+            frames: int = typer.Option(1, "-n", "--frames"),
+            verbose: bool = typer.Option(False, "--verbose"),
+            show: bool = typer.Option(False, "--version", is_eager=True, callback=version)):
+        calls.append(("run", data, out, frames))
+
+    @app.command()
+    def synth(frames: int = typer.Option(10, "--frames")):
+        calls.append(("synth", frames))
+
+    return typer.main.get_command(app)
+
+
+def test_attach_checks_every_parameter_by_its_commands_rules_before_the_body(tmp_path):
+    calls = []
+    command = _app(calls)
+    options.attach(command)
+    command.main(["run", "--frames", "5", "--data", str(tmp_path)], standalone_mode=False)
+    assert calls == [("run", tmp_path, None, 5)]  # the converted values reach the command
+    command.main(["run", "--frames", "1"], standalone_mode=False)
+    for args, says in ((["run", "-n", "0"], "--frames 0: expected a number of frames"),
+                       (["synth", "--frames", "1"], "--frames 1: expected a number of frames, "
+                                                    "at least 2"),
+                       (["run", "--data", ""], "--data '': expected a path, got an empty one"),
+                       (["run", "--out", "a\0b"], "--out 'a\\x00b': a path cannot hold a NUL"),
+                       (["run", "--data", str(tmp_path / "no")], f"--data {tmp_path / 'no'}: "
+                                                                 "not found")):
+        with pytest.raises(DataError) as err:
+            command.main(args, standalone_mode=False)
+        assert str(err.value).startswith(says), str(err.value)
+    assert len(calls) == 2  # no refused command ran
+    command.main(["run", "--out", ""], standalone_mode=False)  # an output may be empty
+
+
+def test_attach_wraps_each_parameter_once_and_skips_flags(monkeypatch):
+    seen = []
+    monkeypatch.setattr(options, "_check_value",
+                        lambda value, command, param, option: seen.append((command, option)))
+    command = _app([])
+    options.attach(command)
+    options.attach(command)  # a second walk wraps nothing again
+    command.main(["run", "--frames", "3", "--verbose"], standalone_mode=False)
+    assert sorted(seen) == [("run", "--data"), ("run", "--frames"), ("run", "--out")]
+
+
+def test_path_parameters_are_those_typed_path():
+    assert options._is_path_param(_typed(Path)) and options._is_path_param(_typed(Path | None))
+    assert options._is_path_param(_typed(list[Path]))
+    assert not options._is_path_param(_typed(str)) and not options._is_path_param(_typed(int))
+    assert not options._is_path_param(SimpleNamespace())
