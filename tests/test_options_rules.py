@@ -287,3 +287,79 @@ def test_path_parameters_are_those_typed_path():
     assert options._is_path_param(_typed(list[Path]))
     assert not options._is_path_param(_typed(str)) and not options._is_path_param(_typed(int))
     assert not options._is_path_param(SimpleNamespace())
+
+
+def test_arguments_eager_options_and_the_context_of_a_wrapped_parameter(tmp_path):
+    """An argument (no is_flag of its own) is checked like an option; an eager option that is
+    no flag is left to its own callback (--seeds -5 would be refused); the parameter's
+    callback still gets the context."""
+    import click
+
+    seen = []
+
+    def doubled(ctx, param, value):
+        seen.append(ctx.info_name)
+        return value * 2
+
+    cmd = click.Command("gen", callback=lambda **kw: seen.append(kw), params=[
+        click.Argument(["store"], type=click.Path(path_type=Path)),
+        click.Option(["--seeds"], is_eager=True, type=int, default=-5),
+        click.Option(["--frames"], type=int, default=5),
+        click.Option(["--stride"], type=int, default=5, callback=doubled)])
+    cmd.params[0].type_descriptor = SimpleNamespace(annotation=Path)
+    group = click.Group("top", commands={})
+    group.add_command(cmd, name="synth")  # registered under another name than its own
+    options.attach(group)
+    with pytest.raises(DataError, match=f"^STORE {tmp_path / 'no'}: not found$"):
+        group.main(["synth", str(tmp_path / "no")], standalone_mode=False)
+    group.main(["synth", str(tmp_path)], standalone_mode=False)
+    assert seen == ["synth", {"store": tmp_path, "seeds": -5, "frames": 5,
+                    "stride": 10}]
+    # the name it is registered under picks the rule: synth's frames are 2 and more
+    with pytest.raises(DataError, match=r"^--frames 1: expected a number of frames, at least 2"):
+        group.main(["synth", str(tmp_path), "--frames", "1"], standalone_mode=False)
+
+
+def test_a_command_attached_alone_is_checked_under_its_own_name():
+    import click
+
+    cmd = click.Command("synth", callback=lambda **kw: None,
+                        params=[click.Option(["--frames"], type=int, default=5)])
+    options.attach(cmd)
+    with pytest.raises(DataError, match=r"^--frames 1: expected a number of frames, at least 2"):
+        cmd.main(["--frames", "1"], standalone_mode=False)
+
+
+@pytest.fixture
+def plugins(tmp_path, monkeypatch):
+    from methods import registry
+
+    monkeypatch.syspath_prepend(str(tmp_path))
+    yield tmp_path
+    monkeypatch.delenv("DOPPLER_BENCH_METHODS", raising=False)
+    registry.load_plugins("")  # the built-in methods only, for the tests after this one
+
+
+def test_the_environment_is_checked_variable_by_variable(plugins, monkeypatch):
+    from methods import registry
+
+    monkeypatch.delenv("DOPPLER_BENCH_METHODS", raising=False)
+    options.check_environment()
+    monkeypatch.setenv("BENCH_MAX_FRAME_MB", "nan")
+    with pytest.raises(DataError, match="BENCH_MAX_FRAME_MB"):
+        options.check_environment()
+    monkeypatch.delenv("BENCH_MAX_FRAME_MB")
+    monkeypatch.setenv("DOPPLER_BENCH_TIMING_LOCK", str(plugins / "missing" / "t.lock"))
+    with pytest.raises(DataError, match="DOPPLER_BENCH_TIMING_LOCK"):
+        options.check_environment()
+    monkeypatch.delenv("DOPPLER_BENCH_TIMING_LOCK")
+    (plugins / "good_plugin_rules.py").write_text(
+        "from methods.icp import PointToPointIcp\n\n\nclass Mine(PointToPointIcp):\n"
+        "    name = 'mine-rules'\n\n\nMETHODS = [Mine]\n")
+    monkeypatch.setenv("DOPPLER_BENCH_METHODS", "good_plugin_rules")
+    options.check_environment()
+    assert registry.get_method("mine-rules").__name__ == "Mine"
+    monkeypatch.delenv("DOPPLER_BENCH_METHODS")
+    options.check_environment()  # unset: the plugins of the earlier value are forgotten
+    with pytest.raises(Exception, match="mine-rules"):
+        registry.get_method("mine-rules")
