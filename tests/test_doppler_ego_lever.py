@@ -177,7 +177,7 @@ def test_the_lever_estimates_first_steps_are_its_forgotten_ridge_least_squares(m
     from methods.doppler_ego import EgoTranslation, LeverArm
 
     monkeypatch.setattr(doppler_ego, "DIAG", [])
-    memory, prior, noise, dt = 0.7, 0.5, 0.2, 0.1
+    memory, prior, noise, dt = 0.7, 0.6, 0.2, 0.1
     lam = np.exp(-dt / memory)
     arm = LeverArm(memory, prior_m=prior, noise_m=noise)
     still = EgoTranslation(_T((1.0, 2.0, 0.0)), np.zeros(3), np.zeros(3), dt)
