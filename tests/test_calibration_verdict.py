@@ -75,3 +75,28 @@ def test_doppler_and_hand_eye_cannot_tell_with_wide_intervals():
     assert "CANNOT TELL whether the two estimates agree on roll, pitch" in text
     (agree,) = [line for line in text.splitlines() if line.startswith("  the two estimates agree")]
     assert agree.startswith("  the two estimates agree on yaw:")
+
+
+def test_combined_half_width_is_the_root_sum_of_squares():
+    """The module's rule sqrt(h_1^2 + h_2^2): a 3-4-5 triangle, and each half counts."""
+    from bench.data.calibration.verdict import combined
+    assert combined(3.0, 4.0) == pytest.approx(5.0)
+    assert combined(6.0, 6.0) == pytest.approx(6.0 * np.sqrt(2.0))
+    assert combined(0.0, 2.0) == pytest.approx(2.0)
+    assert combined(2.0, 0.0) == pytest.approx(2.0)
+
+
+def test_summary_lists_every_angle_and_every_reason_in_full():
+    """Two angles agree, two cannot tell (one with no finite interval): each sentence names
+    all its angles comma-separated and gives every reason, separated by "; "."""
+    from bench.data.calibration.verdict import summary
+    vs = [Verdict("roll", 0.1, 1.0, 2.0), Verdict("pitch", -0.2, 1.5, 2.0),
+          Verdict("yaw", 2.8, 6.0, 2.0), Verdict("x", -1.0, float("inf"), 2.0)]
+    agree, cannot = summary(vs, "the pieces", 2.0)
+    assert agree.startswith("  the pieces agree on roll, pitch: within combined half-widths "
+                            "of at most +-1.50 deg")
+    assert cannot == ("  CANNOT TELL whether the pieces agree on yaw, x: the intervals are "
+                      "wider than the differences they test and than --max-width 2 deg "
+                      "(yaw 2.80 deg apart, combined half-widths +-6.00 deg; "
+                      "x 1.00 deg apart, combined half-widths no finite interval deg): "
+                      "not shown apart, but not shown to agree either")

@@ -141,3 +141,60 @@ def test_the_lever_tie_is_used_only_on_a_sensor_that_re_publishes_its_detections
     on = poses(free_vertical=True, lever_memory_s=30.0)
     assert step_rotation_errors(seq, on).max() < 0.01
     assert step_rotation_errors(seq, off).max() < 0.01
+
+
+def _T(t=(0.0, 0.0, 0.0), yaw=0.0):
+    T = np.eye(4)
+    c, s = np.cos(yaw), np.sin(yaw)
+    T[:3, :3] = [[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]
+    T[:3, 3] = t
+    return T
+
+
+def test_one_velocity_alone_moves_over_the_whole_step():
+    """Without v_curr: the displacement is dT v_prev in the previous frame and the lever is
+    zero (the offset alone with one); without v_prev: the lever is dT v_curr."""
+    from methods.doppler_ego import EgoTranslation
+
+    tr = EgoTranslation(_T((1.0, 0.0, 0.0), np.pi / 2), np.array([2.0, 0.0, 0.0]), None, 0.5)
+    np.testing.assert_allclose(tr(np.eye(3)), [1.0, 1.0, 0.0], atol=1e-12)
+    np.testing.assert_array_equal(tr.lever, np.zeros(3))
+    off = EgoTranslation(_T(), np.array([2.0, 0.0, 0.0]), None, 0.5, offset=[0, 3, 0])
+    np.testing.assert_array_equal(off.lever, [0.0, 3.0, 0.0])
+    alone = EgoTranslation(_T(), None, np.array([4.0, 0.0, 0.0]), 0.5)
+    np.testing.assert_allclose(alone.lever, [2.0, 0.0, 0.0])
+    both = EgoTranslation(_T(), np.array([4.0, 0.0, 0.0]), np.array([4.0, 0.0, 0.0]), 0.5)
+    np.testing.assert_allclose(both.lever, [1.0, 0.0, 0.0])
+
+
+def test_the_lever_estimates_first_steps_are_its_forgotten_ridge_least_squares(monkeypatch):
+    """Two steps by the class's model d = (R_prev_curr - I) r: after them r solves
+    (lam S_1 + S_2 + ridge I) r = lam b_1 + b_2 with S_k = A_k^T A_k, b_k = A_k^T d_k, and
+    ridge = (ss / n) / prior_m^2 from the residuals measured before each update (ss starts at
+    noise_m^2 with a count of 1, each step adds its two horizontal rows). The Doppler step of
+    each update is recorded for the diagnostics when asked."""
+    from methods import doppler_ego
+    from methods.doppler_ego import EgoTranslation, LeverArm
+
+    monkeypatch.setattr(doppler_ego, "DIAG", [])
+    memory, prior, noise, dt = 0.7, 0.6, 0.2, 0.1
+    lam = np.exp(-dt / memory)
+    arm = LeverArm(memory, prior_m=prior, noise_m=noise)
+    still = EgoTranslation(_T((1.0, 2.0, 0.0)), np.zeros(3), np.zeros(3), dt)
+    steps = [(0.3, np.array([0.05, 0.3, 0.0])), (-0.4, np.array([-0.2, 0.1, 0.0]))]
+    ss, n, S, b, r = noise**2, 1.0, np.zeros((2, 2)), np.zeros(2), np.zeros(2)
+    for yaw, step in steps:
+        T_geo = _T((1.0, 2.0, 0.0) + step, yaw)
+        arm.update(_T((1.0, 2.0, 0.0)), T_geo, still, dt)
+        A = (_T(yaw=yaw)[:3, :3] - np.eye(3))[:2, :2]
+        e = step[:2] - A @ r
+        ss, n = lam * ss + e @ e, lam * n + 2.0
+        S, b = lam * S + A.T @ A, lam * b + A.T @ step[:2]
+        r = np.linalg.solve(S + (ss / n) / prior**2 * np.eye(2), b)
+        np.testing.assert_allclose(arm.value()[:2], r, rtol=1e-10)
+    assert abs(arm.value()[1]) > 0.1 and arm.value()[2] == 0.0
+    # the Doppler step in the previous frame: a vehicle standing still moved nowhere; the
+    # geometry's step is all of the difference
+    assert len(doppler_ego.DIAG) == 2
+    np.testing.assert_allclose(doppler_ego.DIAG[0][2], np.zeros(3), atol=1e-12)
+    np.testing.assert_allclose(doppler_ego.DIAG[1][1], steps[1][1], atol=1e-12)
