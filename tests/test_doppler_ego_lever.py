@@ -198,3 +198,27 @@ def test_the_lever_estimates_first_steps_are_its_forgotten_ridge_least_squares(m
     assert len(doppler_ego.DIAG) == 2
     np.testing.assert_allclose(doppler_ego.DIAG[0][2], np.zeros(3), atol=1e-12)
     np.testing.assert_allclose(doppler_ego.DIAG[1][1], steps[1][1], atol=1e-12)
+
+
+def test_the_lever_estimates_defaults_are_the_documented_prior_and_noise():
+    """LeverArm's defaults are those the manual states (a 2 m zero-mean prior, 1 cm residual
+    noise to start from): after the same small turning steps the default estimate equals the
+    explicit one, and a 1 m prior or 2 cm noise would give another (the steps are small enough
+    for the prior to matter)."""
+    from methods.doppler_ego import EgoTranslation, LeverArm
+
+    dt = 0.1
+    still = EgoTranslation(_T((0.0, 0.0, 0.0)), np.zeros(3), np.zeros(3), dt)
+    steps = [(0.02, np.array([0.001, 0.03, 0.0])), (-0.015, np.array([-0.002, 0.02, 0.0])),
+             (0.03, np.array([0.0, 0.05, 0.0]))]
+
+    def estimate(arm):
+        for yaw, step in steps:
+            arm.update(_T((0.0, 0.0, 0.0)), _T(tuple(step), yaw), still, dt)
+        return arm.value()
+
+    default = estimate(LeverArm(30.0))
+    np.testing.assert_allclose(default, estimate(LeverArm(30.0, prior_m=2.0, noise_m=0.01)),
+                               rtol=1e-12, atol=1e-15)
+    for other in (LeverArm(30.0, prior_m=1.0), LeverArm(30.0, noise_m=0.02)):
+        assert np.max(np.abs(estimate(other) - default)) > 1e-3 * np.max(np.abs(default))
