@@ -118,3 +118,42 @@ def test_the_weightings_cost_on_exact_data_that_re_publish_every_point(seed):
     rot = np.array([float(rotation_angle_deg(E[:3, :3])) for E in steps])
     assert max(np.linalg.norm(E[:3, 3]) for E in steps) < 1e-3
     assert rot.max() < 0.15 and np.median(rot) < 0.05
+
+
+def test_the_weight_is_publications_to_the_power_and_the_flag_a_radius():
+    """Known answers of the re-weighted step, on the scene above (copies rolled 0.1 deg: 0 to
+    2.1 cm off their map copies; new detections mostly far from any map point):
+    - the weight is (count + 1) ** -power: copies of a detection published three times at
+      power 1 and of one published once at power 2 weigh 1/4 alike, so the poses are equal;
+      published once at power 1 (1/2) is another pose;
+    - the flag is a radius [m] compared with the pair's distance: radii of 2.5 and 3 cm both
+      hold every copy (the same pose, far from the plain solve), 1 mm holds almost none (the
+      plain solve)."""
+    rng = np.random.default_rng(1)
+    world = scene(rng, 1200)
+    covs_w = scan_covariances(world, 10, 0.02)
+
+    def published(times):
+        m = LocalMap(5, 3.0)
+        for _ in range(times):
+            m.add(world, covs_w, np.eye(4), replace_within_m=0.05)
+        return m
+
+    thrice, once = published(3), published(1)
+    err = Rotation.from_rotvec([np.radians(0.1), 0.0, 0.0]).as_matrix()
+    src = np.vstack([world @ err, scene(rng, 1200) + rng.normal(0, 0.02, (1200, 3))])
+    covs = scan_covariances(src, 10, 0.02)
+
+    def roll(m, power, within=0.05):
+        return roll_deg(register_to_map(m, src, covs, np.eye(4), None, 1.0, max_iterations=30,
+                                        repeat_power=power,
+                                        repeat_within_m=within).T_world_sensor)
+
+    quarter = roll(thrice, 1.0)
+    assert quarter == pytest.approx(roll(once, 2.0), abs=1e-9)
+    assert abs(roll(once, 1.0) - quarter) > 0.005
+    plain = roll(thrice, 0.0)
+    every_copy = roll(thrice, 4.0, within=0.03)
+    assert every_copy == pytest.approx(roll(thrice, 4.0, within=0.025), abs=1e-9)
+    assert abs(every_copy) < 0.3 * abs(plain)
+    assert roll(thrice, 4.0, within=0.001) == pytest.approx(plain, abs=1e-4)
