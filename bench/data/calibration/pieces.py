@@ -106,6 +106,15 @@ def disagreements(pieces: list[Piece]) -> list[Disagreement]:
     finite interval, and the estimates lie further apart than ``sqrt(h_1^2 + h_2^2)`` and than
     ``MIN_CHANGE_DEG``."""
     out = []
+    for i, j, ax, diff, combined in _compared(pieces):
+        if np.isfinite(combined) and abs(diff) > max(combined, MIN_CHANGE_DEG):
+            out.append(Disagreement(ax, i, j, diff, combined))
+    return out
+
+
+def _compared(pieces: list[Piece]):
+    """(i, j, angle, difference piece j - piece i [deg], combined half-width [deg]) for every
+    pair of fitted pieces and every angle both fitted from the same cue."""
     for i, p in enumerate(pieces):
         for j in range(i + 1, len(pieces)):
             q = pieces[j]
@@ -116,10 +125,7 @@ def disagreements(pieces: list[Piece]) -> list[Disagreement]:
                         p.result.source[ax] != q.result.source[ax]:
                     continue
                 combined = float(np.hypot(_half_width(p.result, ax), _half_width(q.result, ax)))
-                diff = q.result.angles_deg[ax] - p.result.angles_deg[ax]
-                if np.isfinite(combined) and abs(diff) > max(combined, MIN_CHANGE_DEG):
-                    out.append(Disagreement(ax, i, j, diff, combined))
-    return out
+                yield i, j, ax, q.result.angles_deg[ax] - p.result.angles_deg[ax], combined
 
 
 def _cell(cal: CalibrationResult, ax: str) -> str:
@@ -137,19 +143,10 @@ def verdicts(pieces: list[Piece], resolution_deg: float = WRITE_MAX_WIDTH_DEG
     the one the intervals cannot tell with the widest combined half-width, else the agreeing
     pair with the widest; angles with a pair apart are left to ``disagreements``."""
     by_angle: dict[str, list[Verdict]] = {}
-    for i, p in enumerate(pieces):
-        for q in pieces[i + 1:]:
-            if p.result is None or q.result is None:
-                continue
-            for ax in ANGLES:
-                if p.result.source[ax] == "not observable" or \
-                        p.result.source[ax] != q.result.source[ax]:
-                    continue
-                width = float(np.hypot(_half_width(p.result, ax), _half_width(q.result, ax)))
-                by_angle.setdefault(ax, []).append(Verdict(
-                    ax, q.result.angles_deg[ax] - p.result.angles_deg[ax],
-                    width if np.isfinite(width) else float("inf"), resolution_deg,
-                    MIN_CHANGE_DEG))
+    for _, _, ax, diff, width in _compared(pieces):
+        by_angle.setdefault(ax, []).append(Verdict(
+            ax, diff, width if np.isfinite(width) else float("inf"), resolution_deg,
+            MIN_CHANGE_DEG))
     out = []
     for found in by_angle.values():
         cannot = [v for v in found if v.kind == CANNOT_TELL]
