@@ -12,9 +12,10 @@ from scipy.optimize import least_squares
 from scipy.spatial.transform import Rotation
 
 from conftest import constant_twist_sequence
-from loaders.se3 import inv_T, make_T, rotation_angle_deg
+from loaders.se3 import make_T, rotation_angle_deg
 from methods.doppler_ego import DopplerEgo
 from methods.local_map import LocalMap, register_to_map, scan_covariances
+from test_doppler_ego import step_errors
 
 FLOOR_M = 0.05  # every point's covariance: FLOOR_M^2 I (one neighbour: no surface term)
 VERTICAL = np.array([[0.0, 0.0, 1.0]])
@@ -112,17 +113,6 @@ def test_a_direction_error_of_the_measured_translation_turns_only_the_exact_tie(
     loose = fit(world, scan, init, tied, 1.0, VERTICAL).T_world_sensor
     assert float(rotation_angle_deg(R_true.T @ exact[:3, :3])) > 0.01
     assert float(rotation_angle_deg(R_true.T @ loose[:3, :3])) < 1e-4
-
-
-def step_errors(seq, result):
-    """Per-step translation [m] and rotation [deg] errors of T_prev_curr against GT."""
-    gt, est = seq.ground_truth.poses, result.poses
-    trans, rot = [], []
-    for k in range(1, len(gt)):
-        E = inv_T(inv_T(gt[k - 1]) @ gt[k]) @ (inv_T(est[k - 1]) @ est[k])
-        trans.append(np.linalg.norm(E[:3, 3]))
-        rot.append(float(rotation_angle_deg(E[:3, :3])))
-    return np.array(trans), np.array(rot)
 
 
 @pytest.mark.parametrize("seed", [True, False])
