@@ -73,8 +73,11 @@ install: $(RUNTIME_STAMP)
 
 install-dev: system-deps $(DEV_STAMP)
 
+# the suite in one worker per core (pytest-xdist, at most 4: each worker compiles numba's kernels
+# and builds the session fixtures once), a test file's tests in one worker (--dist loadfile, so a
+# file's module fixtures are built once); `$(PY) -m pytest tests/test_x.py` runs in one process
 test: system-deps $(DEV_STAMP)
-	$(PY) -m pytest
+	$(PY) -m pytest -n auto --maxprocesses 4 --dist loadfile
 
 # the property tests (Hypothesis) with many random examples: `make test` runs them with the
 # fast profile (a few fixed examples each), this with the long one (tests/strategies.py)
