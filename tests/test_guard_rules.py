@@ -42,14 +42,17 @@ def test_check_name_refuses_what_is_not_one_folder_name_naming_the_option(name):
     with pytest.raises(DataError) as err:
         guard.check_name(name, "--run-name")
     text = str(err.value)
-    assert text.startswith(f"--run-name {name!r}: ") and "one path component" in text
+    assert text == (f"--run-name {name!r}: expected one path component (a folder name: no "
+                    "'/', '\\', '.' or '..', not empty)")
     with pytest.raises(DataError, match=r"^--name "):  # the default option
         guard.check_name(name)
 
 
 def test_one_component_names_the_option_and_refuses_a_nul():
-    with pytest.raises(DataError, match=r"^--tag 'a\\x00b': expected one folder name"):
+    with pytest.raises(DataError) as err:
         guard.one_component("a\0b", "--tag")
+    assert str(err.value) == ("--tag 'a\\x00b': expected one folder name (no '/', '\\', '.' or "
+                              "'..', not empty); it names a folder inside the results root")
     with pytest.raises(DataError, match=r"^--name '': expected one folder name"):
         guard.one_component("")
     assert guard.one_component("a b.c") == "a b.c"
@@ -58,8 +61,9 @@ def test_one_component_names_the_option_and_refuses_a_nul():
 def test_one_component_refuses_the_systems_separators(monkeypatch):
     """Whatever the system's separators (os.sep, os.altsep: Windows' '\\' and '/')."""
     monkeypatch.setattr(os, "sep", ":")
-    with pytest.raises(DataError, match="expected one folder name"):
-        guard.one_component("a:b")
+    for name in ("a:b", "a/b", "a\\b"):  # '/' and '\\' are refused on every system
+        with pytest.raises(DataError, match="expected one folder name"):
+            guard.one_component(name)
     monkeypatch.setattr(os, "altsep", "|")
     with pytest.raises(DataError, match="expected one folder name"):
         guard.one_component("a|b")
@@ -170,10 +174,14 @@ def test_an_output_through_a_symlink_onto_an_input_is_refused(tmp_path):
     (tmp_path / "via").symlink_to(data, target_is_directory=True)
     with pytest.raises(guard.Refused) as err:
         guard.not_an_input(tmp_path / "via" / "s.h5", [None, store])
-    assert str(err.value).startswith(f"--out {tmp_path / 'via' / 's.h5'}: is an input of "
-                                     f"this command ({store})")
-    with pytest.raises(guard.Refused, match=r"^--into .*: holds an input of this command"):
+    assert str(err.value) == (f"--out {tmp_path / 'via' / 's.h5'}: is an input of this "
+                              f"command ({store}); write to another path, the input is never "
+                              "overwritten")
+    with pytest.raises(guard.Refused) as err:
         guard.not_an_input(tmp_path / "via", [store], "--into")
+    assert str(err.value) == (f"--into {tmp_path / 'via'}: holds an input of this command "
+                              f"({store}); write to another path, the input is never "
+                              "overwritten")
     with pytest.raises(guard.Refused, match=r"^--out .*: is an input"):
         guard.not_an_input(data, [data])  # a folder that is the input itself
     assert store.read_bytes() == b"input"
@@ -229,6 +237,12 @@ def test_is_store_by_signature_and_format(tmp_path):
     folder = tmp_path / "d.h5"
     folder.mkdir()
     assert not guard.is_store(folder) and not guard.is_store(tmp_path / "absent.h5")
+    from loaders.store import FORMAT_NAME
+
+    shifted = tmp_path / "shifted.h5"  # HDF5 behind a user block: no signature at the start
+    with h5py.File(shifted, "w", userblock_size=512) as f:
+        f.attrs["format"] = FORMAT_NAME
+    assert not guard.is_store(shifted)
 
 
 def test_a_synthetic_store_by_its_provenance(tmp_path):
@@ -289,6 +303,9 @@ def test_the_mark_counts_near_the_top_only(tmp_path):
     edge = tmp_path / "c.html"
     edge.write_bytes(b"x" * (65536 - len(guard.MARK)) + guard.MARK.encode())
     assert guard.has_mark(edge)
+    past = tmp_path / "d.html"  # the mark's last byte one past the first 64 KiB
+    past.write_bytes(b"x" * (65537 - len(guard.MARK)) + guard.MARK.encode())
+    assert not guard.has_mark(past)
     assert not guard.has_mark(tmp_path)
 
 
@@ -307,6 +324,7 @@ def _write_run(folder: Path, config: str | None = None, record: str | None = "me
     ("method: {name: doppler}\n", None, guard.HARNESS),  # a run's config alone
     ("run_key: k\n", None, guard.HARNESS),
     ("other: 1\n", "metrics.json", guard.HARNESS),  # a record makes it a run
+    ("other: 1\n", "failed.json", guard.HARNESS),
     ("method: {name: x}\nexternal: {trajectory: t.txt}\n", None, guard.EXTERNAL),
     ("method: {name: x}\nidentity: {kind: external}\n", "metrics.json", guard.EXTERNAL),
     ("method: {name: x}\nidentity: {kind: harness}\n", "metrics.json", guard.HARNESS),
@@ -412,6 +430,18 @@ def test_run_folder_new_empty_or_of_its_own_kind(tmp_path):
     assert str(err.value) == (f"{harness}: holds a run made by bench run (harness); bench score "
                               "does not replace it: choose another name, or --force to replace "
                               "that run")
+    with pytest.raises(guard.Refused, match="or --force to replace that run"):
+        guard.run_folder(harness, guard.EXTERNAL)  # by default: replaced only when asked
+    said = []
+    guard.run_folder(harness, guard.EXTERNAL, True, say=said.append)
+    assert said == [f"replacing the harness run in {harness} (bench run's), as --force asks"]
+    other = tmp_path / "other"
+    other.mkdir()
+    (other / "thesis.tex").write_text("mine")
+    with pytest.raises(guard.Refused) as err:
+        guard.run_folder(other, guard.HARNESS, True)
+    assert str(err.value) == (f"{other}: holds files that are not a run's; it is left as it "
+                              "is: choose another name or folder")
 
 
 def test_run_folder_refusals_name_the_folder(tmp_path):
@@ -487,7 +517,7 @@ def test_output_folder_refusals(tmp_path):
         guard.output_folder("", "--figs")
     dangling = tmp_path / "link"
     dangling.symlink_to(tmp_path / "nowhere")
-    with pytest.raises(guard.Refused, match="is a file; expected a folder"):
+    with pytest.raises(guard.Refused, match=r"^--out .*link: is a file; expected a folder"):
         guard.output_folder(dangling)
     guard.output_folder(tmp_path / "new" / "figs")
 
@@ -564,6 +594,12 @@ def test_the_mark_makes_figures_and_pages_the_harnesss_not_text(tmp_path):
     tail = tmp_path / "b.pdf"
     tail.write_bytes(b"%PDF" + b"x" * 200_000 + mark + b"%%EOF")  # a PDF's metadata at its end
     assert guard.derived(tail)
+    size = 200_000  # a figure's metadata counts in its last 64 KiB: not a byte before
+    for start, inside_window in ((size - 65536, True), (size - 65537, False)):
+        pdf = tmp_path / f"w{start}.pdf"
+        pdf.write_bytes(b"x" * start + mark + b"x" * (size - start - len(mark)))
+        assert pdf.stat().st_size == size
+        assert guard.derived(pdf) is inside_window
     middle = tmp_path / "c.svg"
     middle.write_bytes(b"x" * 100_000 + mark + b"x" * 100_000)
     assert not guard.derived(middle)
@@ -651,6 +687,8 @@ def test_write_via_writes_through_a_temporary_beside_the_file(tmp_path):
     assert guard.derived(tmp_path / "t.csv")
     with pytest.raises(guard.Refused, match="g.bin: exists and is not a plot"):
         guard.write_via(tmp_path / "g.bin", writer, None, "a plot")
+    with pytest.raises(guard.Refused, match="g.bin: exists and is not a file the harness"):
+        guard.write_via(tmp_path / "g.bin", writer)
 
 
 def test_write_via_failing_leaves_the_old_file_and_no_temp(tmp_path):
@@ -727,6 +765,8 @@ def test_remove_folder_only_the_harnesss_own(tmp_path):
         guard.remove_folder(mine, guard.is_rosbag2_folder, "a rosbag2 folder")
     assert str(err.value) == f"{mine}: is not a rosbag2 folder the harness made; it is left " \
                              "as it is"
+    with pytest.raises(guard.Refused, match=r"mine: is not a folder the harness made"):
+        guard.remove_folder(mine, guard.is_rosbag2_folder)
     assert (mine / "f").read_text() == "x"
     bag = tmp_path / "bag"
     (bag / "sub").mkdir(parents=True)
@@ -739,6 +779,31 @@ def test_remove_folder_only_the_harnesss_own(tmp_path):
     f = tmp_path / "file"
     f.write_text("x")
     assert guard.remove_folder(f, lambda p: True) is True and not f.exists()
+
+
+def test_move_into_place_recognises_the_destination_by_its_owner(tmp_path):
+    made = tmp_path / "made.html"
+    made.write_text(f"<!-- {guard.MARK} --> new")
+    page = tmp_path / "page.html"
+    page.write_text("my page")
+    with pytest.raises(guard.Refused) as err:
+        guard.move_into_place(made, page, guard.has_mark)
+    assert str(err.value) == f"{page}: exists and is not an output the harness wrote; it is " \
+                             "left as it is"
+    assert page.read_text() == "my page" and made.exists()
+    page.write_text(f"<!-- {guard.MARK} --> old")
+    guard.move_into_place(made, page, guard.has_mark)
+    assert page.read_text().endswith("new") and not made.exists()
+
+
+def test_move_into_place_failing_leaves_the_old_file(tmp_path):
+    """The old file is replaced in one step, never removed first: a move that fails (here the
+    made file is gone) leaves it as it was."""
+    dest = tmp_path / "s.bag"
+    dest.write_bytes(guard.ROS1_MAGIC + b"old")
+    with pytest.raises(FileNotFoundError):
+        guard.move_into_place(tmp_path / "gone.bag", dest, guard.is_ros1_bag)
+    assert dest.read_bytes() == guard.ROS1_MAGIC + b"old"
 
 
 def test_move_into_place(tmp_path):
@@ -781,8 +846,10 @@ def test_write_store_new_or_a_store_only(tmp_path):
 
     base = constant_twist_sequence(n_frames=3, n_points=50)
     seq = MemorySequence("s", base.sensor, list(base), base.ground_truth)
-    out = guard.write_store(seq, tmp_path / "sub" / "s.h5")
+    frames = []
+    out = guard.write_store(seq, tmp_path / "sub" / "s.h5", progress=frames.append)
     assert out == tmp_path / "sub" / "s.h5" and guard.is_store(out)
+    assert len(frames) == 3  # the writer's options reach it (a progress call per frame)
     guard.write_store(seq, out)  # a store: the default owner recognises it
     mine = tmp_path / "mine.h5"
     mine.write_text("mine")
@@ -847,6 +914,44 @@ def test_saving_a_failed_block_leaves_the_old_file_and_no_temp(tmp_path):
         with guard.saving(_Stream(), out, guard.is_recording):
             raise RuntimeError("logging failed")
     assert out.read_bytes() == b"RRF old" and _temps(tmp_path) == []
+
+
+def test_the_writers_make_the_files_folder_and_nothing_else(tmp_path, monkeypatch):
+    """Each writer makes the folders of its file, nothing in the working folder."""
+    work = tmp_path / "cwd"
+    work.mkdir()
+    monkeypatch.chdir(work)
+    guard.write_text(tmp_path / "a" / "t.md", "x")
+    guard.write_via(tmp_path / "b" / "f.png", lambda t: Path(t).write_bytes(b"x"))
+    with guard.saving(_Stream(), tmp_path / "c" / "v.rrd"):
+        pass
+    from conftest import constant_twist_sequence
+    from loaders.scan import MemorySequence
+
+    base = constant_twist_sequence(n_frames=2, n_points=20)
+    guard.write_store(MemorySequence("s", base.sensor, list(base), base.ground_truth),
+                      tmp_path / "d" / "s.h5")
+    assert sorted(os.listdir(work)) == []
+    assert [p.name for p in sorted(tmp_path.rglob("*")) if p.is_file()] == [
+        "t.md", "f.png", "v.rrd", "s.h5"]
+
+
+def test_a_writer_through_a_file_names_it_as_the_output(tmp_path):
+    notes = tmp_path / "notes"
+    notes.write_text("mine")
+    out = notes / "f.txt"
+    expected = f"output {notes}: {notes} is a file, expected a folder; it is left as it is"
+    for write in (lambda: guard.write_text(out, "x"),
+                  lambda: guard.write_via(out, lambda t: Path(t).write_text("x")),
+                  lambda: guard.write_store(None, out)):
+        with pytest.raises(guard.Refused) as err:
+            write()
+        assert str(err.value) == expected
+    with pytest.raises(guard.Refused) as err:
+        with guard.saving(_Stream(), out):
+            pass
+    assert str(err.value) == expected
+    assert notes.read_text() == "mine"
 
 
 def test_make_folder(tmp_path):
