@@ -99,8 +99,8 @@ def test_a_dotted_module_name_loads(plugin, tmp_path):
 ])
 def test_a_module_that_does_not_import_is_one_error_naming_it(plugin, body, error):
     name = plugin(body)
-    _refused(name, f"cannot import method module {name!r} ({error}",
-             "fix the module or leave it out of the variable")
+    text = _refused(name, f"cannot import method module {name!r} ({error}")
+    assert text.endswith("); fix the module or leave it out of the variable"), text
 
 
 def test_a_missing_module_is_named(plugin):
