@@ -124,19 +124,13 @@ def test_check_out_limits_the_whole_path(tmp_path):
 
 def test_check_out_measures_a_relative_path_from_the_working_folder(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    room = 4095 - len(str(tmp_path)) - 1  # "/" + the relative path
-    parts, left = [], room
-    while left > 0:
-        n = min(200, left)
-        parts.append("r" * n)
-        left -= n + 1
-    rel = "/".join(parts)
-    if len(rel) < room:  # the last step's separator
-        rel += "s"
-    rel = rel[:room]
-    assert len(os.path.abspath(rel)) == 4095 or rel.endswith("/")
+    room = 4095 - len(str(tmp_path)) - 1  # the absolute path: the folder, "/", the relative one
+    k = (room - 1) // 201
+    rel = ("r" * 200 + "/") * k + "s" * (room - 201 * k)  # names of at most 201 bytes
+    assert len(os.path.abspath(rel)) == 4095
+    assert guard.check_out(rel) == Path(rel)
     with pytest.raises(DataError, match="longer than 4095 bytes"):
-        guard.check_out(rel + "xx")
+        guard.check_out(rel + "x")  # 4096 bytes from /, far fewer as written
 
 
 # -- paths -------------------------------------------------------------------------------------

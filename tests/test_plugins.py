@@ -5,6 +5,7 @@ are in tests/test_options.py)."""
 
 from __future__ import annotations
 
+import importlib
 import itertools
 import textwrap
 
@@ -32,6 +33,7 @@ def plugin(tmp_path, monkeypatch):
     def write(body: str) -> str:
         name = f"plugin_unit_{next(_serial)}"
         (tmp_path / f"{name}.py").write_text(textwrap.dedent(body))
+        importlib.invalidate_caches()  # the folder's listing may be cached from an earlier one
         return name
 
     return write
