@@ -363,3 +363,45 @@ def test_the_environment_is_checked_variable_by_variable(plugins, monkeypatch):
     options.check_environment()  # unset: the plugins of the earlier value are forgotten
     with pytest.raises(Exception, match="mine-rules"):
         registry.get_method("mine-rules")
+
+
+def _fresh_check(env: dict, plugin_dir) -> list[str]:
+    """check_environment in a fresh interpreter (the package this test imported first on its
+    path, so a mutated copy is the one run): which of the registry and a plugin it loaded."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import bench
+
+    code = ("import sys\nfrom bench import options\noptions.check_environment()\n"
+            "print('registry' if 'methods.registry' in sys.modules else 'no-registry')\n"
+            "if 'methods.registry' in sys.modules:\n"
+            "    from methods import registry\n"
+            "    print(sorted(n for n in registry.METHODS if n.startswith('fresh-')))\n")
+    root = Path(bench.__file__).resolve().parents[1]
+    path = os.pathsep.join([str(root), str(plugin_dir)])
+    run_env = {k: v for k, v in os.environ.items() if k != "DOPPLER_BENCH_METHODS"}
+    run_env.update(PYTHONPATH=path, **env)
+    # run from the package's root, as a user in a checkout would (mutmut's trampolines find
+    # their configuration there); the check writes nothing
+    out = subprocess.run([sys.executable, "-c", code], env=run_env, cwd=root,
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    return out.stdout.split("\n")[:2]
+
+
+def test_a_fresh_process_imports_the_registry_only_to_load_plugins(tmp_path, monkeypatch):
+    """The registry (every method's module) is imported by the environment check only when the
+    variable names plugins: without it a command's check stays cheap; with it the plugin's
+    method is registered before any work. (The check runs here too, so that mutation testing,
+    which picks a mutant's tests by the functions they call in-process, runs this test.)"""
+    monkeypatch.delenv("DOPPLER_BENCH_METHODS", raising=False)
+    options.check_environment()
+    (tmp_path / "fresh_plugin_rules.py").write_text(
+        "from methods.icp import PointToPointIcp\n\n\nclass Fresh(PointToPointIcp):\n"
+        "    name = 'fresh-rules'\n\n\nMETHODS = [Fresh]\n")
+    assert _fresh_check({}, tmp_path)[0] == "no-registry"
+    assert _fresh_check({"DOPPLER_BENCH_METHODS": " , "}, tmp_path)[0] == "no-registry"
+    assert _fresh_check({"DOPPLER_BENCH_METHODS": "fresh_plugin_rules"}, tmp_path) == [
+        "registry", "['fresh-rules']"]
