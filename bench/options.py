@@ -246,7 +246,6 @@ def _check_value(value: Any, command: str, param, option: str) -> None:
             return
         rule = number_rule(command, name)
         if rule is None:  # a new option without a rule: at least finite
-            rule = Number(-math.inf, math.inf, "a finite number")
             if not math.isfinite(value):
                 raise DataError(f"{option} {value!r}: expected a finite number")
             return
