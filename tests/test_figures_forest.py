@@ -209,6 +209,9 @@ def test_one_method_keeps_a_readable_panel_with_its_value_inside_the_frame(resul
     frame."""
     import warnings
 
+    from bench.report.figures.style import use_paper_style
+
+    use_paper_style()  # as plot_forest does (alone, this test would draw in matplotlib's style)
     rows = [r for r in table_rows(results) if r.run.dir.name == "doppler"]
     panels = dict(forest_panels(rows))["drive-rotation"]
     assert all(len(p.entries) == 1 for p in panels)
@@ -227,3 +230,105 @@ def test_one_method_keeps_a_readable_panel_with_its_value_inside_the_frame(resul
             box = t.get_window_extent(renderer)
             assert frame.y0 < box.y0 and box.y1 < frame.y1, (box, frame)
             assert box.x1 <= frame.x1 + 1, (box, frame)
+
+
+def _panel_axes(entries, bounds, length_m=8.0):
+    """draw_panel on its own axes, for a handmade panel."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from bench.report.figures.forest import Panel, draw_panel
+    from bench.report.figures.style import use_paper_style
+
+    use_paper_style()
+
+    fig, ax = plt.subplots()
+    draw_panel(ax, Panel("seq", "rotation", "deg", length_m, entries, bounds))
+    return fig, ax
+
+
+def _run(method="doppler", seed=True):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(method=method, seed=seed, label=None)
+
+
+def test_a_panel_draws_what_its_note_says():
+    """The contract of one panel, read off its artists: one bar per interval at its row, the
+    bold thickest and the unmarked thinnest; an unranked figure grey with a hollow dot; a
+    diverged or empty row named, not drawn; U of bold dashed black, U of underlined dotted grey;
+    the table's first row on top; bold labels bold, underlined ones underlined; every end and
+    value inside the x range; the title names the sequence and the length, the axis the error
+    and its unit."""
+    from matplotlib.colors import to_rgba
+
+    from bench.report.figures.forest import Entry
+    from bench.report.figures.style import color
+
+    entries = [Entry("A", _run(), 1.0, 0.8, 1.2, rankable=True, mark=BOLD),
+               Entry("B", _run("icp-p2p"), 1.5, 1.3, 1.7, rankable=True, mark=UNDERLINED),
+               Entry("C", _run("gicp"), 2.5, 2.2, 2.9, rankable=True, mark=UNMARKED),
+               Entry("D", _run("vgicp"), 0.5, 0.1, 3.5, rankable=False, mark=UNMARKED),
+               Entry("E$x", _run("kiss-icp"), status="Div.")]
+    fig, ax = _panel_axes(entries, [1.2, 1.7])
+    try:
+        bars = {tuple(line.get_xdata()): line for line in ax.lines
+                if len(line.get_xdata()) == 2 and line.get_linestyle() == "-"}
+        assert set(bars) == {(0.8, 1.2), (1.3, 1.7), (2.2, 2.9), (0.1, 3.5)}
+        assert [tuple(bars[k].get_ydata()) for k in ((0.8, 1.2), (1.3, 1.7), (2.2, 2.9))] == \
+            [(0, 0), (1, 1), (2, 2)]
+        widths = [bars[k].get_linewidth() for k in ((0.8, 1.2), (1.3, 1.7), (2.2, 2.9))]
+        assert widths[0] > widths[1] > widths[2]
+        assert to_rgba(bars[(0.8, 1.2)].get_color()) == to_rgba(color("doppler"))
+        assert to_rgba(bars[(0.1, 3.5)].get_color()) == to_rgba("0.6")  # unranked: grey
+        dots = {(float(line.get_xdata()[0]), float(line.get_ydata()[0])): line
+                for line in ax.lines if len(line.get_xdata()) == 1}
+        assert set(dots) == {(1.0, 0.0), (1.5, 1.0), (2.5, 2.0), (0.5, 3.0)}
+        assert to_rgba(dots[(0.5, 3.0)].get_markerfacecolor()) == to_rgba("white")
+        assert to_rgba(dots[(1.0, 0.0)].get_markerfacecolor()) == to_rgba(color("doppler"))
+        # the diverged row: its status written at its row, nothing drawn there
+        texts = {t.get_text().strip(): t for t in ax.texts}
+        assert texts["Div."].get_position()[1] == 4
+        assert not [line for line in ax.lines if 4 in list(line.get_ydata())]
+        # every figure printed beside its bar, right of its interval's end
+        for value, high, y in ((1.0, 1.2, 0), (2.5, 2.9, 2)):
+            t = texts[f"{value:.3f}"]
+            assert t.get_position() == (high, y)
+        u_lines = [line for line in ax.lines if len(set(line.get_xdata())) == 1
+                   and len(line.get_xdata()) == 2 and line.get_linestyle() != "-"]
+        assert sorted(float(line.get_xdata()[0]) for line in u_lines) == [1.2, 1.7]
+        bold_u = next(line for line in u_lines if line.get_xdata()[0] == 1.2)
+        under_u = next(line for line in u_lines if line.get_xdata()[0] == 1.7)
+        assert to_rgba(bold_u.get_color()) == to_rgba("black")
+        assert to_rgba(under_u.get_color()) != to_rgba("black")
+        low, high = ax.get_xlim()
+        assert low < 0.1 and high > 3.5  # every end and value inside
+        bottom, top = ax.get_ylim()
+        assert top < 0 < 4 < bottom  # the first row on top, all five rows shown
+        labels = ax.get_yticklabels()
+        assert [label.get_fontweight() for label in labels].count("bold") == 1
+        assert labels[0].get_fontweight() == "bold"
+        assert r"\underline" in labels[1].get_text() and "B" in labels[1].get_text()
+        assert labels[4].get_text() == r"E\$x"  # a dollar is no mathtext
+        assert "seq" in ax.get_title(loc="right") and "8 m" in ax.get_title(loc="right")
+        assert ax.get_xlabel() == "mean relative rotation error [deg]"
+    finally:
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
+
+
+def test_a_short_panel_keeps_three_rows_its_rows_centred():
+    from bench.report.figures.forest import Entry
+
+    fig, ax = _panel_axes([Entry("A", _run(), 1.0, 0.9, 1.1, rankable=True, mark=BOLD)], [1.1])
+    try:
+        bottom, top = ax.get_ylim()
+        assert bottom - top == pytest.approx(3.0)  # the height of three rows
+        assert (bottom + top) / 2 == pytest.approx(0.0)  # the one row in the middle
+    finally:
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
