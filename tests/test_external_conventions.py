@@ -52,7 +52,7 @@ def test_each_format_checks_its_own_misreading():
     kitti = conv.alternatives("kitti")
     assert list(kitti) == ["inverse"]
     assert kitti["inverse"].startswith("the inverse poses") and kitti["inverse"].endswith(
-        "belongs)")
+        "(T_frame_world where T_world_frame belongs)")
     assert conv.alternatives("csv") == {} and conv.alternatives("") == {}
 
 
@@ -137,14 +137,18 @@ def test_a_translation_gives_a_direction_only_beyond_min_step():
             (scale_a, scale_b)
 
 
+def _cos(a, b):
+    """The cosine as pair_errors computes it (rows)."""
+    a, b = np.atleast_2d(a), np.atleast_2d(b)
+    return ((a * b).sum(axis=1) / (np.linalg.norm(a, axis=1) * np.linalg.norm(b, axis=1)))[0]
+
+
 def test_parallel_and_opposite_translations_are_0_and_180_deg_despite_rounding():
-    v = np.array([-0.5369532353602852, 0.5811181041963531, 0.36457239618607573])
-    assert (v * v).sum() / np.linalg.norm(v) ** 2 > 1.0  # the cosine rounds above 1
+    v = np.array([2.041, -2.556, 0.418])
+    assert _cos(v, v) > 1.0 and _cos(v, -v) < -1.0  # the cosine rounds beyond +-1
     est, gt = _two(v, v)
     assert conv.pair_errors(est, gt, 1) == pytest.approx([0.0], abs=1e-6)
-    w = np.array([-0.7819084623568421, -0.2571922406188707, 0.008142180518343508])
-    assert (w * -w).sum() / np.linalg.norm(w) ** 2 < -1.0  # ... and below -1
-    est, gt = _two(w, -w)
+    est, gt = _two(v, -v)
     assert conv.pair_errors(est, gt, 1) == pytest.approx([180.0], abs=1e-6)
 
 
@@ -236,6 +240,7 @@ def _scripted_compare(monkeypatch, results):
     asked = []
 
     def compare_at(read, other, gt, period_s, name, pair_s, seed=0):
+        assert name == "x"  # the reading's name goes with its check
         asked.append((pair_s, seed))
         return results[pair_s]
 
@@ -309,12 +314,14 @@ def test_a_tum_file_with_wxyz_quaternions_is_refused_with_the_fix_and_a_right_on
     assert _awk_print(awk, ["t", "x", "y", "z", "qw", "qx", "qy", "qz"]) == \
         ["t", "x", "y", "z", "qx", "qy", "qz", "qw"]
     # the numbers said are the two readings' mean errors: the other (right) one near 0
-    m = re.search(r"relative motion error ([\d.]+) deg as read, ([\d.]+) deg read as", msg)
+    m = re.search(r"relative motion error ([\d.]+) deg as read, ([\d.]+) deg read as wxyz "
+                  r"\(difference interval", msg)
     assert float(m.group(1)) > 1.0 and float(m.group(2)) < 0.01
     # the same drive written right: as read, no refusal
     line = conv.check_conventions("tum", truth, lambda name: conv.reread(truth, name), truth,
                                   0.1, "est.tum")
     assert line.startswith("wxyz: as read (relative motion error 0.00 deg as read")
+    assert " deg read as wxyz (difference interval [" in line
 
 
 def test_a_boreas_file_of_the_inverse_poses_is_refused_and_other_formats_are_not_checked():
@@ -325,13 +332,25 @@ def test_a_boreas_file_of_the_inverse_poses_is_refused_and_other_formats_are_not
                                0.1, "poses.txt")
     msg = str(err.value)
     assert msg.startswith("poses.txt: read as boreas, its relative motions disagree")
+    assert " deg read as inverse (difference interval [" in msg
     assert "the file holds the poses T_i_k where the format holds T_k_i (their inverses)? " \
            "invert its poses (each row the inverse transform) before scoring" in msg
     line = conv.check_conventions("kitti", truth, lambda name: conv.reread(truth, name), truth,
                                   0.1, "poses.txt")
-    assert line.startswith("inverse: as read (")
+    assert line.startswith("inverse: as read (") and " deg read as inverse (" in line
     assert conv.check_conventions("csv", truth, None, truth, 0.1, "x") == \
         "no other reading of csv to check"
     short = conv.check_conventions("tum", truth[:15], lambda name: conv.reread(truth[:15], name),
                                    truth[:15], 0.1, "x")
     assert short == "wxyz: convention not checked: too few pairs of scans with both poses"
+
+
+def test_the_bootstrap_is_seeded_so_a_check_repeats():
+    truth = drive()
+    read = misread_wxyz(truth)
+    first = conv.compare_at(read, conv.reread(read, "wxyz"), truth, 0.1, "wxyz", 1.0)
+    again = conv.compare_at(read, conv.reread(read, "wxyz"), truth, 0.1, "wxyz", 1.0)
+    assert first == again
+    other = conv.compare_at(read, conv.reread(read, "wxyz"), truth, 0.1, "wxyz", 1.0, seed=1)
+    assert other.diff_interval_deg != first.diff_interval_deg  # the seed is the only chance
+    assert other.mean_read_deg == first.mean_read_deg
