@@ -89,13 +89,14 @@ def test_pair_error_is_the_rotation_difference_plus_the_translation_angle():
     assert len(err) == n - 3
     np.testing.assert_allclose(err, 9.0, atol=1e-9)
     # translation direction only: both straight, the estimate 30 deg off the gt's heading
-    gt = _poses(0.0, np.outer(np.arange(n), [1.0, 0.0, 0.0]))
+    # (steps of 2 m and 3 m: the angle is the directions', whatever the lengths)
+    gt = _poses(0.0, np.outer(np.arange(n), [2.0, 0.0, 0.0]))
     c, s = np.cos(np.radians(30.0)), np.sin(np.radians(30.0))
-    est = _poses(0.0, np.outer(np.arange(n), [c, s, 0.0]))
+    est = _poses(0.0, np.outer(np.arange(n), [3 * c, 3 * s, 0.0]))
     np.testing.assert_allclose(conv.pair_errors(est, gt, 1), 30.0, atol=1e-9)
     # both: the two angles add up (a turning estimate; its translation in its own frame is
     # rotated by its heading, so the pairs' direction errors are the heading plus 30 deg)
-    est = _poses(1.0, np.outer(np.arange(n), [c, s, 0.0]))
+    est = _poses(1.0, np.outer(np.arange(n), [3 * c, 3 * s, 0.0]))
     err = conv.pair_errors(est, gt, 1)
     heading = np.arange(n - 1) * 1.0  # the estimate's heading at the pair's first scan
     np.testing.assert_allclose(err, 1.0 + np.abs(30.0 - heading), atol=1e-9)
