@@ -90,6 +90,11 @@ def test_a_folder_of_other_files_is_refused_even_when_replacing(tmp_path):
     ({"config.yaml": "- a\n- b\n"}, "?"),  # no mapping
     ({"config.yaml": ""}, "?"),
     ({"config.yaml": "method: {seed: true}\n"}, "?"),
+    # no mapping where a run's config has one (by hand, another tool's): a run of unknown
+    # method, not an AttributeError
+    ({"config.yaml": "identity: null\nmethod: {name: icp-p2p}\n"}, "icp-p2p"),
+    ({"config.yaml": "identity: external\nmethod: sgd\n"}, "?"),
+    ({"config.yaml": "identity: [kind, external]\nmethod: [name, gicp]\n"}, "?"),
 ])
 def test_a_harness_run_is_replaced_only_when_asked(tmp_path, files, method):
     for name, text in files.items():
