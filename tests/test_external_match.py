@@ -200,6 +200,7 @@ def test_a_scan_a_hair_outside_the_estimates_span_takes_the_end_pose(shift):
     m = match_to_scans(est, GRID, tolerance_s=0.0, max_gap_s=0.3)
     assert m.covered.all() and not m.matched.any()
     np.testing.assert_allclose(m.poses, straight(GRID), atol=1e-6)
+    assert m.report["widest_bridged_s"] == pytest.approx(0.25, abs=1e-12)
 
 
 def test_widest_bridged_is_the_gap_around_the_interpolated_scans():
@@ -212,6 +213,10 @@ def test_widest_bridged_is_the_gap_around_the_interpolated_scans():
                                  ([False, False, False], 0.0)):
         assert widest_bridged(s, q, np.array(interpolated)) == widest, interpolated
     assert widest_bridged(np.array([0.0, 2.0]), np.array([1.0]), np.array([True])) == 2.0
+    # a scan a hair before the first pose or after the last (inside the coverage's 1 ns):
+    # the end gap
+    assert widest_bridged(s, np.array([-5e-10]), np.array([True])) == 1.0
+    assert widest_bridged(s, np.array([3.5 + 5e-10]), np.array([True])) == 0.5
     assert widest_bridged(np.array([0.0]), np.array([0.0]), np.array([True])) == 0.0
 
 
@@ -229,6 +234,12 @@ def test_stamps_written_with_few_digits_name_the_tolerance_that_takes_them():
     assert rounding_hint(GRID + OFF, GRID, np.nextafter(OFF, 0)) is not None
     half = GRID + np.where(np.arange(16) % 2, OFF, OFF / 4)  # half of them beyond OFF / 2
     assert "8 of them beyond --tolerance 0.000244141: " in rounding_hint(half, GRID, OFF / 2)
+    # a stamp exactly at the tolerance is within it (as matching's |d| <= tolerance)
+    assert "8 of them beyond --tolerance 0.00012207: " in rounding_hint(half, GRID, OFF / 4)
+    # stamps beyond the scans' span are not counted (20 stamps, the 16 inside all rounded)
+    longer = np.r_[GRID + OFF, 10.0, 11.0, 12.0, 13.0]
+    assert rounding_hint(longer, GRID, 0.0).startswith("16 of its stamps lie within 0.000488 s")
+    assert "16 of them beyond" in rounding_hint(longer, GRID, 0.0)
     tiny = rounding_hint(GRID + 2.0 ** -30, GRID, 0.0)
     assert tiny.endswith("--tolerance 1e-06 takes them")  # never below a microsecond
     assert rounding_hint(GRID + 100.0, GRID, 0.0) is None  # none inside the scans' span
@@ -272,3 +283,22 @@ def test_a_refusal_says_what_would_have_matched_and_what_to_try():
     msg = str(err.value)
     assert "different clocks? 16 of its stamps lie within 0.000488 s" in msg
     assert "--tolerance 0.00049 takes them; set the time offset: try --time-offset" in msg
+
+
+def test_a_scan_without_a_pose_is_minus_one():
+    """Poses at 0.1 and 0.9 s, scans each 0.25 s: the poses go to scans 0 and 4, the others
+    take none (-1, whatever the distance)."""
+    from bench.runs.external.match import one_pose_a_scan
+
+    np.testing.assert_array_equal(one_pose_a_scan(np.array([0.1, 0.9]), GRID[:6]),
+                                  [0, -1, -1, -1, 1, -1])
+
+
+@pytest.mark.parametrize("option, cause", [
+    ({"time_offset_s": float("nan")}, "(est_stamp + offset = the scans' clock)"),
+    ({"max_gap_s": 0.0}, "(or no --max-gap: no interpolation)"),
+])
+def test_an_option_error_says_what_the_option_means(option, cause):
+    with pytest.raises(DataError) as err:
+        match_to_scans(Trajectory(SCANS, straight(SCANS)), SCANS, **option)
+    assert str(err.value).endswith(cause)
