@@ -166,3 +166,139 @@ def test_a_scan_keeps_the_index_of_the_pose_it_took():
     m = match_to_scans(Trajectory(t_est, straight(t_est)), scans, tolerance_s=0.3)
     np.testing.assert_array_equal(m.pose_index, [0, 1])
     np.testing.assert_array_equal(m.poses, straight(t_est))
+
+
+# --- the report, the ends of an interpolation, and what a refusal says ------------------------
+
+def test_the_report_counts_what_took_a_pose_and_how():
+    """Poses at 0, 0.25, 0.5, 1.25, 1.5 s (written 10 s early) on the 4 Hz grid: five scans
+    matched, the two in the 0.75 s gap interpolated (--max-gap 0.8), the rest none."""
+    e = np.array([0.0, 0.25, 0.5, 1.25, 1.5]) - 10.0
+    m = match_to_scans(Trajectory(e, straight(e + 10.0)), GRID, time_offset_s=10.0,
+                       tolerance_s=0.01, max_gap_s=0.8)
+    assert m.report == {"time_offset_s": 10.0, "tolerance_s": 0.01, "max_gap_s": 0.8,
+                        "scans": 16, "poses": 5, "matched": 5, "interpolated": 2, "covered": 7,
+                        "widest_bridged_s": 0.75}
+    np.testing.assert_array_equal(m.pose_index, [0, 1, 2, -1, -1, 3, 4] + [-1] * 9)
+    np.testing.assert_allclose(m.poses[:7], straight(GRID[:7]), atol=1e-12)
+
+
+def test_two_poses_are_enough_to_interpolate_between():
+    t = np.array([0.0, 1.0])
+    m = match_to_scans(Trajectory(t, straight(t)), GRID, tolerance_s=0.0, max_gap_s=1.0)
+    np.testing.assert_array_equal(m.covered, GRID <= 1.0)
+    assert m.report["interpolated"] == 3 and m.report["widest_bridged_s"] == 1.0
+    np.testing.assert_allclose(m.poses[GRID <= 1.0], straight(GRID[GRID <= 1.0]), atol=1e-12)
+
+
+@pytest.mark.parametrize("shift", [5e-10, -5e-10])
+def test_a_scan_a_hair_outside_the_estimates_span_takes_the_end_pose(shift):
+    """Stamps 0.5 ns after (before) the scans: the first (last) scan lies just outside the
+    estimate's span but within the coverage's 1 ns; it is interpolated at the span's end, so it
+    takes the end pose (not its neighbour's, 0.5 m away)."""
+    est = Trajectory(GRID + shift, straight(GRID))
+    m = match_to_scans(est, GRID, tolerance_s=0.0, max_gap_s=0.3)
+    assert m.covered.all() and not m.matched.any()
+    np.testing.assert_allclose(m.poses, straight(GRID), atol=1e-6)
+    assert m.report["widest_bridged_s"] == pytest.approx(0.25, abs=1e-12)
+
+
+def test_widest_bridged_is_the_gap_around_the_interpolated_scans():
+    from bench.runs.external.match import widest_bridged
+
+    s = np.array([0.0, 1.0, 3.0, 3.5])
+    q = np.array([0.5, 2.0, 3.25])
+    for interpolated, widest in (([True, False, False], 1.0), ([False, True, False], 2.0),
+                                 ([False, False, True], 0.5), ([True, True, True], 2.0),
+                                 ([False, False, False], 0.0)):
+        assert widest_bridged(s, q, np.array(interpolated)) == widest, interpolated
+    assert widest_bridged(np.array([0.0, 2.0]), np.array([1.0]), np.array([True])) == 2.0
+    # a scan a hair before the first pose or after the last (inside the coverage's 1 ns):
+    # the end gap
+    assert widest_bridged(s, np.array([-5e-10]), np.array([True])) == 1.0
+    assert widest_bridged(s, np.array([3.5 + 5e-10]), np.array([True])) == 0.5
+    assert widest_bridged(np.array([0.0]), np.array([0.0]), np.array([True])) == 0.0
+
+
+OFF = 2.0 ** -11  # 0.000488 s: within a millisecond of a scan, exact in binary
+
+
+def test_stamps_written_with_few_digits_name_the_tolerance_that_takes_them():
+    from bench.runs.external.match import rounding_hint
+
+    hint = rounding_hint(GRID + OFF, GRID, 0.0)
+    assert hint.startswith("16 of its stamps lie within 0.000488 s of a scan's")
+    assert "16 of them beyond --tolerance 0: " in hint
+    assert hint.endswith("--tolerance 0.00049 takes them")  # 1 % above the widest
+    assert rounding_hint(GRID + OFF, GRID, OFF) is None  # the tolerance takes them already
+    assert rounding_hint(GRID + OFF, GRID, np.nextafter(OFF, 0)) is not None
+    half = GRID + np.where(np.arange(16) % 2, OFF, OFF / 4)  # half of them beyond OFF / 2
+    assert "8 of them beyond --tolerance 0.000244141: " in rounding_hint(half, GRID, OFF / 2)
+    # a stamp exactly at the tolerance is within it (as matching's |d| <= tolerance)
+    assert "8 of them beyond --tolerance 0.00012207: " in rounding_hint(half, GRID, OFF / 4)
+    # stamps beyond the scans' span are not counted (20 stamps, the 16 inside all rounded)
+    longer = np.r_[GRID + OFF, 10.0, 11.0, 12.0, 13.0]
+    assert rounding_hint(longer, GRID, 0.0).startswith("16 of its stamps lie within 0.000488 s")
+    assert "16 of them beyond" in rounding_hint(longer, GRID, 0.0)
+    tiny = rounding_hint(GRID + 2.0 ** -30, GRID, 0.0)
+    assert tiny.endswith("--tolerance 1e-06 takes them")  # never below a microsecond
+    assert rounding_hint(GRID + 100.0, GRID, 0.0) is None  # none inside the scans' span
+
+
+def test_the_rounding_hint_needs_nine_in_ten_stamps_on_the_scans():
+    from bench.runs.external.match import rounding_hint
+
+    nine = np.r_[GRID[:9] + OFF, GRID[9] + 0.1]  # 9 of the 10 within 1 ms of a scan
+    assert rounding_hint(nine, GRID, 0.0).startswith("9 of its stamps")
+    eight = np.r_[GRID[:8] + OFF, GRID[8:10] + 0.1]
+    assert rounding_hint(eight, GRID, 0.0) is None
+
+
+def test_the_rounding_hints_millisecond_is_inclusive():
+    from bench.runs.external.match import rounding_hint
+
+    scan = np.array([0.0])
+    for stamp in (0.001, -0.001):  # exactly a millisecond off (0 +- 0.001 is exact)
+        assert rounding_hint(np.array([stamp]), scan, 0.0).startswith(
+            "1 of its stamps lie within 0.001 s")
+    assert rounding_hint(np.array([0.0011]), scan, 0.0) is None
+
+
+def test_a_refusal_says_what_would_have_matched_and_what_to_try():
+    far = Trajectory(SCANS + 100.0, straight(SCANS))
+    with pytest.raises(DataError) as err:
+        match_to_scans(far, SCANS, max_gap_s=0.5, hint="try this")
+    msg = str(err.value)
+    assert ("no scan has a pose within 0.01 s, or two poses at most 0.5 s apart around it; the "
+            "estimate spans [100.000, 103.900] s (offset +0.000 s applied), the 40 scans span "
+            "[0.000, 3.900] s; different clocks? try this") in msg
+    with pytest.raises(DataError) as err:
+        match_to_scans(far, SCANS)
+    msg = str(err.value)
+    assert "no scan has a pose within 0.01 s; the estimate spans" in msg
+    assert "different clocks? set the time offset: try --time-offset -100 " in msg
+    # stamps rounded off the scans' (a tolerance of 0): the tolerance that takes them first
+    with pytest.raises(DataError) as err:
+        match_to_scans(Trajectory(GRID + OFF, straight(GRID)), GRID, tolerance_s=0.0)
+    msg = str(err.value)
+    assert "different clocks? 16 of its stamps lie within 0.000488 s" in msg
+    assert "--tolerance 0.00049 takes them; set the time offset: try --time-offset" in msg
+
+
+def test_a_scan_without_a_pose_is_minus_one():
+    """Poses at 0.1 and 0.9 s, scans each 0.25 s: the poses go to scans 0 and 4, the others
+    take none (-1, whatever the distance)."""
+    from bench.runs.external.match import one_pose_a_scan
+
+    np.testing.assert_array_equal(one_pose_a_scan(np.array([0.1, 0.9]), GRID[:6]),
+                                  [0, -1, -1, -1, 1, -1])
+
+
+@pytest.mark.parametrize("option, cause", [
+    ({"time_offset_s": float("nan")}, "(est_stamp + offset = the scans' clock)"),
+    ({"max_gap_s": 0.0}, "(or no --max-gap: no interpolation)"),
+])
+def test_an_option_error_says_what_the_option_means(option, cause):
+    with pytest.raises(DataError) as err:
+        match_to_scans(Trajectory(SCANS, straight(SCANS)), SCANS, **option)
+    assert str(err.value).endswith(cause)

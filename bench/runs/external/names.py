@@ -49,15 +49,22 @@ def check_run_folder(run_dir: Path, replace_run: bool) -> str:
     if not is_run:
         raise DataError(f"{run_dir} holds files that are no run; bench score writes only into "
                         "a new folder or one of its own runs: choose another --name or --out")
-    kind = (config or {}).get("identity", {}).get("kind") if isinstance(config, dict) else None
+    kind = _mapping(config, "identity").get("kind")
     if kind == EXTERNAL or isinstance((config or {}).get("external"), dict):
         return ""
-    method = ((config or {}).get("method") or {}).get("name", "?")
+    method = _mapping(config, "method").get("name", "?")
     what = f"a harness run (method {method})"
     if not replace_run:
         raise DataError(f"{run_dir} holds {what}; bench score does not replace it: choose "
                         "another --name (or --replace-run to replace that run)")
     return what
+
+
+def _mapping(config: dict | None, key: str) -> dict:
+    """``config[key]`` when it is a mapping, else {} (a config.yaml written by hand or by another
+    tool may hold anything there)."""
+    value = (config or {}).get(key)
+    return value if isinstance(value, dict) else {}
 
 
 def _config(run_dir: Path) -> dict | None:
