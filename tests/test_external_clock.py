@@ -94,3 +94,20 @@ def test_a_part_of_the_drive_at_a_standstill_is_no_unit_problem():
     assert unit_misfit(t[stop], poses[stop, :3, 3], gt, "s", "e", "s") is None
     assert "positions in millimetres" in unit_misfit(t, poses[:, :3, 3] * 1e3, gt, "s", "e", "s")
     assert "--stamp-unit ms" in unit_misfit(t * 1e3, poses[:, :3, 3], gt, "s", "e", "s")
+
+
+def test_stamps_in_picoseconds_are_no_unit_of_stamp_unit():
+    """Stamps 1000 times too long read in ns (picoseconds) or 10^6 times read in us: no
+    --stamp-unit fits (a picosecond is not within np.isclose's default 1e-8 of a nanosecond
+    for the unit advice); 1000 times too long read in us are nanoseconds."""
+    from bench.runs.external.clock_check import unit_misfit
+    from loaders.trajectory import Trajectory
+
+    t = np.arange(0, 60, 0.1)
+    poses = drive(t, lambda t: 3 + np.sin(t), yaw_rate=0.05)
+    gt = Trajectory(t, poses)
+    for unit, scale in (("ns", 1e3), ("us", 1e6), ("ms", 1e9)):
+        text = unit_misfit(t * scale, poses[:, :3, 3], gt, unit, "e", "s")
+        assert "stamps in another unit" in text and "--stamp-unit" not in text, unit
+        assert f"its seconds look {scale:g} times too long" in text
+    assert "--stamp-unit ns" in unit_misfit(t * 1e3, poses[:, :3, 3], gt, "us", "e", "s")
