@@ -111,3 +111,19 @@ def test_stamps_in_picoseconds_are_no_unit_of_stamp_unit():
         assert "stamps in another unit" in text and "--stamp-unit" not in text, unit
         assert f"its seconds look {scale:g} times too long" in text
     assert "--stamp-unit ns" in unit_misfit(t * 1e3, poses[:, :3, 3], gt, "us", "e", "s")
+
+
+def test_the_aligned_offset_moves_at_most_half_a_period():
+    scans = np.arange(100) * 0.125
+    est = scans - 0.3125
+    # shifted by 0.25 every stamp is exactly half a period (0.0625 s) from two scans: moved
+    # to either
+    assert aligned_offset(est, scans, 0.25, 0.125) in (0.1875, 0.3125)
+    assert aligned_offset(est, scans, 0.25, 0.12) == 0.25  # beyond half a period: kept
+    # no scan inside the shifted span, or a single scan: kept
+    assert aligned_offset(est + 100, scans, 0.25, 0.125) == 0.25
+    assert aligned_offset(est, scans[:1], 0.3, 0.125) == 0.3
+    # the median: 10 % of the stamps elsewhere do not move it
+    odd = est.copy()
+    odd[::10] += 0.05
+    assert aligned_offset(odd, scans, 0.3, 0.125) == pytest.approx(0.3125, abs=1e-12)
