@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from bench.runs.external.clock import aligned_offset, fit_clock, motion_profiles
+from bench.runs.external.clock import aligned_offset, fit_clock, motion_profiles, path_speed
 from bench.runs.external.clock_check import _power_of_1000
 from loaders.se3 import make_T
 
@@ -111,6 +111,285 @@ def test_stamps_in_picoseconds_are_no_unit_of_stamp_unit():
         assert "stamps in another unit" in text and "--stamp-unit" not in text, unit
         assert f"its seconds look {scale:g} times too long" in text
     assert "--stamp-unit ns" in unit_misfit(t * 1e3, poses[:, :3, 3], gt, "us", "e", "s")
+
+
+# --- the pieces of the fit, each against its definition -----------------------------------------
+
+def straight(t, speed):
+    """Straight motion along x at ``speed(t)`` [m/s] (no turn: the speed channel alone)."""
+    t = np.asarray(t, dtype=np.float64)
+    fine = np.arange(t[0] - 1, t[-1] + 1, 1e-4)
+    x = np.interp(t, fine, np.cumsum(speed(fine)) * 1e-4)
+    return make_T(np.repeat(np.eye(3)[None], len(t), 0),
+                  np.column_stack([x, np.zeros_like(t), np.zeros_like(t)]))
+
+
+def curve(t, yaw):
+    """2 m/s along a heading ``yaw(t)`` [rad] (a turn rate that varies, a speed that hardly
+    does: the turn channel alone)."""
+    t = np.asarray(t, dtype=np.float64)
+    fine = np.arange(t[0] - 1, t[-1] + 1, 1e-4)
+    xy = np.cumsum(2.0 * np.column_stack([np.cos(yaw(fine)), np.sin(yaw(fine))]), axis=0) * 1e-4
+    x, y = np.interp(t, fine, xy[:, 0]), np.interp(t, fine, xy[:, 1])
+    R = Rotation.from_euler("z", yaw(t)[:, None]).as_matrix()
+    return make_T(R, np.column_stack([x, y, np.zeros_like(t)]))
+
+
+def test_the_path_speed_is_the_path_length_over_the_time_span():
+    xyz = np.array([[0.0, 0, 0], [3, 4, 0], [3, 4, 2]])
+    assert path_speed(np.array([0.0, 1.0, 3.0]), xyz) == pytest.approx(7 / 3)
+    assert path_speed(np.array([1.0, 1.0, 1.0]), xyz) == 0.0  # no span
+
+
+def test_the_profiles_window_stays_inside_the_span_and_off_gaps():
+    """Exact binary stamps 0.125 s apart, a grid of 0.0625 s, windows of +/- 1 s: defined from
+    1 s after the first pose to 1 s before the last, and not where a 2 s gap (10 .. 12 s) lies
+    under the window (t in (9, 13)); a gap of exactly the largest allowed is no gap."""
+    t = np.arange(0, 30, 0.125)
+    poses = straight(t, lambda s: 2.0 + 0 * s)
+    speed, _ = motion_profiles(t, poses, 0.0625, 1.0, 0.3)
+    assert len(speed) == 479
+    np.testing.assert_array_equal(np.flatnonzero(np.isfinite(speed)), np.arange(16, 463))
+    holed = (t <= 10) | (t >= 12)
+    grid = 0.0625 * np.arange(479)
+    speed, rate = motion_profiles(t[holed], poses[holed], 0.0625, 1.0, 0.3)
+    nan = ~np.isfinite(speed)
+    np.testing.assert_array_equal(nan, (grid < 1) | (grid > 28.875) | ((grid > 9) & (grid < 13)))
+    np.testing.assert_array_equal(nan, ~np.isfinite(rate))
+    np.testing.assert_allclose(speed[~nan], 2.0, rtol=1e-3)
+    speed, _ = motion_profiles(t[holed], poses[holed], 0.0625, 1.0, 2.0)  # the gap: 2 s
+    np.testing.assert_array_equal(np.flatnonzero(np.isfinite(speed)), np.arange(16, 463))
+    speed, _ = motion_profiles(t[holed], poses[holed], 0.0625, 1.0, 1.99)
+    assert np.isnan(speed[grid == 11]).all()
+
+
+def test_the_range_maximum_is_the_maximum_of_each_range():
+    from bench.runs.external.clock import _range_max
+
+    rng = np.random.default_rng(3)
+    values = rng.normal(size=37)
+    lo = rng.integers(0, 38, 500)
+    hi = np.minimum(lo + rng.integers(0, 40, 500), 37)
+    want = [values[a:b].max() if b > a else 0.0 for a, b in zip(lo, hi, strict=True)]
+    np.testing.assert_array_equal(_range_max(values, lo, hi), want)
+    np.testing.assert_array_equal(_range_max(values[:1], np.array([0, 0, 1]),
+                                             np.array([1, 0, 1])), [values[0], 0.0, 0.0])
+    np.testing.assert_array_equal(_range_max(np.array([]), np.array([0]), np.array([0])), [0.0])
+
+
+def test_the_lags_run_from_minus_half_the_size():
+    from bench.runs.external.clock import _lags
+
+    k, order = _lags(8)
+    np.testing.assert_array_equal(k, [-4, -3, -2, -1, 0, 1, 2, 3])
+    np.testing.assert_array_equal(order, [4, 5, 6, 7, 0, 1, 2, 3])
+
+
+def pearson(x, y, k, w=None):
+    """Pearson's r of x[i] with y[i - k] over the i both have, weighted by w[i]; (r, n)."""
+    i = np.arange(len(x))
+    j = i - k
+    ok = (j >= 0) & (j < len(y))
+    i, j = i[ok], j[ok]
+    both = np.isfinite(x[i]) & np.isfinite(y[j])
+    a, b = x[i][both], y[j][both]
+    wt = np.ones(len(a)) if w is None else w[i][both]
+    if len(a) == 0 or wt.sum() == 0:
+        return float("nan"), 0
+    ma, mb = np.average(a, weights=wt), np.average(b, weights=wt)
+    cov = np.sum(wt * (a - ma) * (b - mb))
+    var = np.sum(wt * (a - ma) ** 2) * np.sum(wt * (b - mb) ** 2)
+    return (cov / np.sqrt(var) if var > 0 else float("nan")), len(a)
+
+
+def test_the_correlation_per_lag_is_pearsons_over_the_overlap():
+    """x: 40 samples (36 finite), y: 30 (26 finite): r at every lag where they overlap over at
+    least half the shorter (13 samples), -inf elsewhere; with weights, a weighted Pearson."""
+    from bench.runs.external.clock import _Channel, _ncc
+
+    rng = np.random.default_rng(4)
+    x, y = rng.normal(size=40), rng.normal(size=30)
+    x[[3, 10, 11, 30]] = np.nan
+    y[[0, 5, 6, 29]] = np.nan
+    k, r = _ncc(x, y)
+    assert len(k) == 128  # the FFT size: the next power of 2 above 70 samples
+    for lag, got in zip(k, r, strict=True):
+        want, n = pearson(x, y, lag)
+        if n >= 13:
+            assert got == pytest.approx(want, abs=1e-9), lag
+        else:
+            assert got == -np.inf, lag
+    w = np.zeros(40)
+    w[:12] = [2, 1, 2, 1, 2, 1, 1, 2, 1, 2, 1, 1]  # 6 of them finite on both sides at lag 0:
+    # below half the overlap, yet weighed (the overlap rule is the unweighted profiles')
+    c = _Channel(x, y)
+    rw = c.correlation(w)
+    zero = int(np.flatnonzero(c.k == 0)[0])
+    assert rw[zero] == pytest.approx(pearson(x, y, 0, w)[0], abs=1e-9)
+    # a constant side has no correlation at any lag
+    assert np.all(_Channel(np.full(40, 2.0), y).correlation() == -np.inf)
+
+
+def test_at_least_eight_samples_overlap():
+    from bench.runs.external.clock import _ncc
+
+    rng = np.random.default_rng(5)
+    x, y = rng.normal(size=10), rng.normal(size=10)
+    k, r = _ncc(x, y)
+    # equal lengths: 10 - |k| overlap; at least 8 (half of 10 is less)
+    np.testing.assert_array_equal(np.isfinite(r), np.abs(k) <= 2)
+
+
+def test_the_peak_is_the_vertex_of_the_parabola_through_its_neighbours():
+    from bench.runs.external.clock import _peak
+
+    # through (-1, 0), (0, 1), (1, 0.5): vertex at (0 - 0.5) / (2 (0 - 2 + 0.5)) = 1/6
+    assert _peak(np.array([0.0, 1.0, 0.5]), 1) == pytest.approx(1 / 6)
+    assert _peak(np.array([0.5, 1.0, 0.0]), 1) == pytest.approx(-1 / 6)
+    assert _peak(np.array([0.0, 1.0, 0.5]), 0) == 0.0  # no neighbour on one side
+    assert _peak(np.array([0.0, 0.5, 1.0]), 2) == 0.0
+    assert _peak(np.array([-np.inf, 1.0, 0.5]), 1) == 0.0
+    assert _peak(np.array([0.0, 1.0, np.nan]), 1) == 0.0
+    assert _peak(np.array([1.0, 1.0, 1.0]), 1) == 0.0  # flat: no vertex
+
+
+def test_the_correlation_at_a_fractional_lag_is_interpolated():
+    from bench.runs.external.clock import _at
+
+    k = np.array([-2, -1, 0, 1, 2])
+    r = np.array([0.1, 0.3, 0.9, 0.5, -np.inf])
+    assert _at(k, r, 0.25) == pytest.approx(0.8)
+    assert _at(k, r, -1.5) == pytest.approx(0.2)
+    assert _at(k, r, -2.0) == pytest.approx(0.1)
+    assert _at(k, r, 0.0) == pytest.approx(0.9)
+    assert np.isnan(_at(k, r, 1.5))  # a neighbour without a correlation
+    assert np.isnan(_at(k, r, 2.0)) and np.isnan(_at(k, r, 7.0))  # at or beyond the last lag
+
+
+def test_the_block_bootstrap_draws_whole_circular_blocks():
+    from bench.runs.external.clock import block_weights
+
+    rng = np.random.default_rng(6)
+    np.testing.assert_array_equal(block_weights(10, 10, rng), np.ones(10))  # one whole turn
+    np.testing.assert_array_equal(block_weights(10, 25, rng), np.ones(10))  # at most n
+    for n, block in ((10, 3), (97, 8), (50, 0)):
+        w = block_weights(n, block, rng)
+        assert len(w) == n and w.sum() == n
+    # blocks of 1 are single draws: some samples twice or more, some not at all
+    w = block_weights(1000, 1, rng)
+    assert (w == 0).any() and (w >= 2).any()
+    # blocks of 5 over 20: 4 starts, each 5 consecutive samples (mod 20)
+    w = block_weights(20, 5, np.random.default_rng(7))
+    starts = np.random.default_rng(7).integers(0, 20, 4)
+    want = np.zeros(20)
+    for s in starts:
+        want[(s + np.arange(5)) % 20] += 1
+    np.testing.assert_array_equal(w, want)
+
+
+def test_a_shift_decides_only_outside_the_widened_interval_and_with_a_gain_above_0():
+    from bench.runs.external.clock import ClockFit
+
+    def f(lo, hi, gain=0.01, at_zero=0.8):
+        return ClockFit(0.3, 0.9, at_zero, interval_s=(lo, hi), gain_low=gain, grid_s=0.0125)
+
+    assert f(0.0126, 0.6).decisive and not f(0.0125, 0.6).decisive
+    assert f(-0.6, -0.0126).decisive and not f(-0.6, -0.0125).decisive
+    assert not f(0.1, 0.5, gain=0.0).decisive
+    assert not f(0.1, 0.5, gain=float("nan")).decisive  # no gain worked out: not decisive...
+    assert f(0.1, 0.5, gain=float("nan"), at_zero=float("nan")).decisive  # ...unless no overlap
+    assert not ClockFit(0.3, 0.9, 0.8, gain_low=0.5).decisive  # no interval
+
+
+# --- the fit on known motions -------------------------------------------------------------------
+
+def test_the_correlation_unshifted_is_pearsons_of_the_profiles_at_equal_times():
+    """A straight drive stamped 0.5 s early (40 grid steps of 0.0125 s): the best shift 0.5 s,
+    decisively; the correlation at no shift is Pearson's of the two speed profiles sampled at
+    the same times (est sample j + 40 at gt sample j)."""
+    t = np.arange(0, 30, 0.1)
+    poses = straight(t, lambda s: 5 + 3 * np.sin(0.7 * s) + 2 * np.sin(1.9 * s))
+    fit = fit_clock(t - 0.5, poses, t, poses, 0.1, replicates=40)
+    assert fit.offset_s == pytest.approx(0.5, abs=1e-3)
+    assert fit.correlation == pytest.approx(1.0, abs=1e-6)
+    assert fit.grid_s == pytest.approx(0.1 / 8)
+    h = 0.1 / 8
+    gt_speed, _ = motion_profiles(t, poses, h, 1.0, 2.0)
+    est_speed, _ = motion_profiles(t - 0.5, poses, h, 1.0, 2.0)
+    want, _ = pearson(gt_speed, est_speed, -40)
+    assert want < 0.95 and fit.correlation_at_zero == pytest.approx(want, abs=1e-6)
+    lo, hi = fit.interval_s
+    assert lo <= 0.5 <= hi and fit.gain_low > 0 and fit.decisive
+    assert fit.gain_low <= fit.correlation - fit.correlation_at_zero + 1e-9
+
+
+def test_no_shift_is_never_decisive():
+    t = np.arange(0, 30, 0.1)
+    poses = drive(t, lambda s: 5 + 3 * np.sin(0.7 * s) + 2 * np.sin(1.9 * s), yaw_rate=0.05)
+    noisy = poses.copy()
+    noisy[:, :3, 3] += np.random.default_rng(8).normal(0, 0.05, (len(t), 3))
+    fit = fit_clock(t, noisy, t, poses, 0.1, replicates=40)
+    assert abs(fit.offset_s) < 0.02 and fit.correlation_at_zero == pytest.approx(
+        fit.correlation, abs=0.01)
+    assert not fit.decisive
+
+
+def test_a_turn_rate_that_varies_tells_the_shift_where_the_speed_cannot():
+    t = np.arange(0, 30, 0.1)
+    poses = curve(t, lambda s: 0.4 * np.sin(0.8 * s) + 0.2 * np.sin(2.3 * s))
+    fit = fit_clock(t - 0.37, poses, t, poses, 0.1, replicates=40)
+    assert fit.offset_s == pytest.approx(0.37, abs=2e-3) and fit.decisive
+    assert fit.correlation == pytest.approx(1.0, abs=1e-6)
+
+
+def test_profiles_that_do_not_overlap_unshifted_have_no_gain_the_interval_decides():
+    """The first half of the drive stamped 100 s late: no overlap at no shift."""
+    t = np.arange(0, 30, 0.1)
+    poses = drive(t, lambda s: 5 + 3 * np.sin(0.7 * s) + 2 * np.sin(1.9 * s), yaw_rate=0.05)
+    half = t < 15
+    fit = fit_clock(t[half] + 100, poses[half], t, poses, 0.1, replicates=40)
+    assert fit.offset_s == pytest.approx(-100, abs=2e-3)
+    assert np.isnan(fit.correlation_at_zero) and np.isnan(fit.gain_low) and fit.decisive
+
+
+def test_unrelated_profiles_are_no_fit():
+    """A speed of another drive (other frequencies): no shift lines it up."""
+    t = np.arange(0, 30, 0.1)
+    gt = straight(t, lambda s: 5 + 3 * np.sin(0.7 * s) + 2 * np.sin(1.9 * s))
+    other = straight(t, lambda s: 5 + 3 * np.sin(3.1 * s + 1) * np.sin(0.23 * s))
+    fit = fit_clock(t, other, t, gt, 0.1, replicates=5)
+    assert fit.offset_s is None and fit.correlation < 0.5
+    assert fit.why == (f"the speed profiles do not line up at any shift (best correlation "
+                       f"{fit.correlation:.2f})")
+
+
+def test_too_few_or_too_short_is_no_fit():
+    t = np.arange(0, 30, 0.125)
+    poses = straight(t, lambda s: 5 + 3 * np.sin(0.7 * s))
+    assert fit_clock(t[:2], poses[:2], t, poses, 0.125).why == "too few poses for a speed profile"
+    assert fit_clock(t, poses, t[:2], poses[:2], 0.125).why == "too few poses for a speed profile"
+    assert fit_clock(t[:3], poses[:3], t, poses, 0.125).why != "too few poses for a speed profile"
+    assert fit_clock(t, poses, t, poses, 0.0).why == "too few poses for a speed profile"
+    # a grid of 0.125 / 8 s, windows of +/- 1 s: a span of 2 s + 7 steps has 8 samples, of
+    # 2 s + 6 steps 7 (too short)
+    for steps, short in ((7, False), (6, True)):
+        s = np.r_[np.arange(0, 2.0, 0.125), 2.0 + steps * 0.015625]
+        p = straight(s, lambda u: 5 + 3 * np.sin(0.7 * u))
+        fit = fit_clock(s, p, t, poses, 0.125, replicates=5)
+        assert (fit.why == "too short for a speed profile") == short, steps
+        fit = fit_clock(t, poses, s, p, 0.125, replicates=5)
+        assert (fit.why == "too short for a speed profile") == short, steps
+
+
+def test_a_long_recording_gets_a_coarser_grid():
+    """At most 2^15 samples a profile: 0.5 s scans over 2500 s are sampled every
+    2500 / 2^15 s (0.076 s), not every 0.5 / 8 s."""
+    t = np.arange(0, 2500.5, 0.5)
+    x = 5 * t - 3 / 0.2 * np.cos(0.2 * t) - 2 / 0.53 * np.cos(0.53 * t)  # 5 + 3 sin + 2 sin
+    poses = make_T(np.repeat(np.eye(3)[None], len(t), 0), np.column_stack([x, 0 * t, 0 * t]))
+    fit = fit_clock(t - 3.0, poses, t, poses, 0.5, replicates=2)
+    assert fit.grid_s == pytest.approx(2500 / 2**15)
+    assert fit.offset_s == pytest.approx(3.0, abs=0.01)
 
 
 def test_the_aligned_offset_moves_at_most_half_a_period():
