@@ -247,6 +247,8 @@ def test_stamps_on_the_scans_with_a_profile_fitting_elsewhere_are_warned_not_ref
     est = Trajectory(SCANS, drive(T + 0.5, varied, yaw_rate=0.05))  # poses 0.5 s late
     v = check_clock(est, np.eye(4), GT, SCANS, 0.0, False, "est.tum", "store.h5")
     assert v.on_scans and v.fit.offset_s == pytest.approx(0.5, abs=2e-3)
+    # the fit's shift (microseconds off 0.5 s) is suggested lined up with the scans
+    assert v.fit.suggested_s == pytest.approx(0.5, abs=1e-9)
     assert v.line.startswith("on the store's clock (one stamp per scan, each its scan's); the "
                              "speed and turn-rate profile fits best shifted by +0.50")
     assert len(v.warnings) == 1
@@ -383,3 +385,184 @@ def test_a_unit_misfit_is_refused_before_the_fit():
     with pytest.raises(DataError, match="positions in millimetres"):
         check_clock(Trajectory(SCANS, est.poses), np.eye(4), GT, SCANS, 0.0, False, "e", "s",
                     unit="ms")
+
+
+# --- survivors of mutation: bounds and what the messages say -----------------------------------
+
+def straight_at(stamps, speed=5.0):
+    """Poses moving straight along x at a constant ``speed`` [m/s] (chords are the path)."""
+    stamps = np.asarray(stamps, dtype=float)
+    return make_T(np.repeat(np.eye(3)[None], len(stamps), 0),
+                  np.column_stack([speed * stamps, 0 * stamps, 0 * stamps]))
+
+
+def test_a_factor_of_exactly_ten_from_a_power_of_1000_is_that_unit():
+    assert cc._power_of_1000(100.0) == 1 and cc._power_of_1000(1e4) == 1
+
+
+def test_the_ground_truth_is_taken_over_the_estimates_span_when_it_covers_half_of_it():
+    """Positions in mm (5 m/s straight): the ground truth rows inside the estimate's span
+    (10 .. 20 s) are its own when at least 3 of them span at least half of it; the refusal's
+    ground-truth span says which were taken."""
+    est_t = np.arange(80, 161) * 0.125  # 10 .. 20 s exactly
+    est_xyz = straight_at(est_t)[:, :3, 3] * 1e3
+
+    def gt_span(gt_stamps):
+        gt = Trajectory(np.asarray(gt_stamps, float), straight_at(gt_stamps))
+        text = unit_misfit(est_t, est_xyz, gt, "s", "e", "s")
+        assert "positions in millimetres" in text
+        return text.split(" m over ")[1].split(" s")[0]
+
+    assert gt_span([0, 10, 15, 20, 40]) == "10"  # 3 rows inside, at both ends
+    assert gt_span([0, 10, 12.5, 15, 40]) == "5"  # 3 rows over exactly half the span
+    assert gt_span([0, 10, 12.4, 14.9, 40]) == "40"  # less than half: the whole
+    assert gt_span([0, 10, 15, 40]) == "40"  # 2 rows inside: the whole
+    # 3 rows spanning more than half, the last 1 s before the estimate's end
+    est_t = np.arange(80, 169) * 0.125  # 10 .. 21 s
+    est_xyz = straight_at(est_t)[:, :3, 3] * 1e3
+    assert gt_span([0, 10, 15, 20, 40]) == "10"
+
+
+def test_the_refusal_states_the_paths_and_spans():
+    """Ground truth rows at 50 .. 60 s and 150 .. 180 s (10 rows a second, 5 m/s straight), an
+    estimate of 50 .. 80 s in mm: inside its span the ground truth covers a third, so the
+    whole is compared: 650 m over 130 s against 1.5e+05 (mm) over 30 (s)."""
+    gt_t = np.r_[np.arange(500, 601), np.arange(1500, 1801)] * 0.1
+    gt = Trajectory(gt_t, straight_at(gt_t))
+    est_t = np.arange(500, 801) * 0.1
+    text = unit_misfit(est_t, straight_at(est_t)[:, :3, 3] * 1e3, gt, "s", "e", "store")
+    assert "Its path is 1.5e+05 (position units) over 30 (stamp units), the ground truth's 650 " \
+           "m over 130 s" in text
+    assert "where the ground truth of store moves at 5 m/s" in text
+    assert "(a stamp unit would not help)" in text and "write them in metres" in text
+
+
+def test_a_ground_truth_of_exactly_a_tenth_of_a_metre_a_second_is_compared():
+    gt = Trajectory(np.array([0.0, 5.0, 10.0]), straight_at([0.0, 5.0, 10.0], 0.1))
+    est_xyz = gt.poses[:, :3, 3] * 1e3
+    assert "millimetres" in unit_misfit(gt.stamps, est_xyz, gt, "s", "e", "s")  # 1.0 m / 10 s
+
+
+def test_a_short_ground_truth_is_compared_by_its_own_length_and_span():
+    """Ground truth 0.05 m over 0.05 s: stamps in ms read as seconds (a span 1000 times too
+    long), and positions in mm (a path 1000 times too long), each settled."""
+    gt = Trajectory(np.array([100.0, 100.05]), straight_at([0.0, 0.05], 1.0))
+    ms = unit_misfit(np.array([1e5, 1e5 + 50]), gt.poses[:, :3, 3], gt, "s", "e", "s")
+    assert "stamps in milliseconds (the path fits, the span is 1000 times too long); score it " \
+           "with --stamp-unit ms (or --trust-clock to score it as it is)" in ms
+    mm = unit_misfit(gt.stamps, gt.poses[:, :3, 3] * 1e3, gt, "s", "e", "s")
+    assert "positions in millimetres" in mm
+    gt3 = Trajectory(np.array([0.0, 0.25, 0.5]), straight_at([0.0, 0.25, 0.5], 0.1))
+    assert "positions in millimetres" in unit_misfit(gt3.stamps, gt3.poses[:, :3, 3] * 1e3,
+                                                     gt3, "s", "e", "s")
+
+
+def test_positions_in_kilometres_are_another_unit_and_a_speed_split_between_both_is_unsettled():
+    t, xyz = GT.stamps, GT.poses[:, :3, 3]
+    km = unit_misfit(t, xyz * 1e-3, GT, "s", "e", "s")
+    assert "positions in another unit (the span fits, the path is 0.001 times too long)" in km
+    # path sqrt(1000) times too short over a span sqrt(1000) times too long: the speed is 1000
+    # times off, yet neither settles it
+    r = np.sqrt(1000.0)
+    split = unit_misfit(t * r, xyz / r, GT, "s", "e", "s")
+    assert "(position units) over" in split
+    assert "the path length cannot settle which" in split
+    assert "check the units the file was written in (or --trust-clock to score it as it is)" \
+        in split
+    us = unit_misfit(t * 1e6, xyz, GT, "s", "e", "s")
+    assert "the span is 1e+06 times too long" in us
+
+
+def test_offsets_alike_at_the_bounds():
+    q = np.arange(0, 30, 0.125)
+    # the interval's ends are in: 0.125 .. 0.375 around 0.25
+    assert sorted(alike_offsets(q - 0.25, q, fit(0.25, (0.125, 0.375), grid=0.0), 0.125,
+                                0.01)) == [0.125, 0.25, 0.375]
+    # a stamp exactly at the last scan is inside the scans' span
+    est = np.array([2.875, 3.0, 3.125, 3.25]) - 0.25
+    assert len(alike_offsets(est, q[:24], fit(0.25, (0.0, 0.5), grid=0.0), 0.125, 0.01)) == 5
+    # 2 of 10 stamps exactly the tolerance off their scans: on the scans
+    near = np.arange(10) * 0.125
+    near[[3, 7]] += 0.0625
+    f = fit(0.0, (-0.3, 0.3), grid=0.0)
+    assert len(alike_offsets(near, q, f, 0.125, 0.0625)) == 5
+    # no period: the fit's own offset
+    assert alike_offsets(SCANS - 0.3, SCANS, fit(0.3, (0.12, 0.47)), 0.0, 0.01) == (0.3,)
+    # on the scans once shifted by 0.03 s (not by -0.03 s)
+    got = alike_offsets(SCANS - 0.03, SCANS, fit(0.03, (-0.2, 0.25)), 0.1, 0.01)
+    assert sorted(got) == pytest.approx([-0.17, -0.07, 0.03, 0.13, 0.23], abs=1e-9)
+    # stamps beyond the scans' span do not count against those inside
+    wide = np.arange(-150, 300) * 0.1 - 0.3
+    assert len(alike_offsets(wide, SCANS, fit(0.31, (0.12, 0.47)), 0.1, 0.01)) == 3
+
+
+def test_negative_zero_interval_ends_print_as_zero():
+    text = cc._fit_text(fit(-0.0, (-0.1, -0.0)))
+    assert "[-0.1000, +0.0000]" in text
+
+
+def test_poses_beyond_the_span_are_counted_beyond_a_period():
+    q = np.arange(0, 10, 0.125)
+    # stamps at -0.5 .. : those before -0.125 (a period before the first scan): 3
+    assert "3 of its poses" in cc._outside(q - 0.5, q, 0.01, 0.125, "e")[0]
+    assert "3 of its poses" in cc._outside(q + 0.5, q, 0.01, 0.125, "e")[0]
+
+
+def test_misfits_and_small_shifts_as_check_clock_reads_them(monkeypatch):
+    """On the scans: a shift of 0.07 s (beyond half of the 0.1 s period) is warned, one of
+    0.03 s (beyond the 0.01 s tolerance only) is not; off the scans the same 0.07 s is a
+    misfit (refused), 0.03 s is within half a period."""
+    on = Trajectory(SCANS, GT.poses)
+    off = Trajectory(SCANS - 0.03, GT.poses)
+    got = {}
+    for name, est in (("on", on), ("off", off)):
+        for size in (0.07, 0.03):
+            f = fit(size, (size - 0.01, size + 0.01))
+            monkeypatch.setattr(cc, "fit_clock", lambda *a, f=f, **k: f)
+            got[name, size] = check_clock(est, np.eye(4), GT, SCANS, 0.0, False, "e", "s")
+    assert len(got["on", 0.07].warnings) == 1 and got["on", 0.03].warnings == []
+    assert "within half a scan period" not in got["off", 0.07].line
+    with pytest.raises(DataError, match=r"or --trust-clock to score it as it is$"):
+        refuse_misfit(got["off", 0.07], 0.0, 0.01, "e", "s")
+    small = got["off", 0.03]
+    assert "within half a scan period" in small.line and small.fit is not None
+    refuse_misfit(small, 0.0, 0.01, "e", "s")
+    # an interval whose upper end, widened, is exactly 0: it holds no shift
+    monkeypatch.setattr(cc, "fit_clock", lambda *a, **k: fit(-0.3, (-0.6, -0.0125)))
+    edge = check_clock(off, np.eye(4), GT, SCANS, 0.0, False, "e", "s")
+    assert "its interval holds no shift" in edge.line
+    assert edge.fit is not None and edge.on_scans is False and edge.warnings == []
+    # an undecided fit of poses beyond the scans' span: warned, naming the estimate
+    late = Trajectory(T + 2.05, GT.poses)
+    v = check_clock(late, np.eye(4), GT, SCANS, 0.0, False, "est.tum", "s")
+    assert v.warnings[0].startswith("est.tum: 20 of its poses")
+
+
+def test_two_scans_have_a_period(monkeypatch):
+    seen = {}
+
+    def spy(est_stamps, est_poses, gt_stamps, gt_poses, period_s, *a, **k):
+        seen["period"] = period_s
+        return ClockFit(None, why="spied")
+
+    monkeypatch.setattr(cc, "fit_clock", spy)
+    check_clock(Trajectory(T, GT.poses), np.eye(4), GT, SCANS[:2], 0.0, False, "e", "s")
+    assert seen["period"] == pytest.approx(0.1)
+
+
+def test_the_messages_name_the_cause_and_what_to_do():
+    est = Trajectory(1.0 + np.arange(5) * 1e-7, np.repeat(np.eye(4)[None], 5, 0))
+    with pytest.raises(DataError, match="expected an offset of the size of the clocks' "
+                                        "difference"):
+        check_clock(est, np.eye(4), GT, SCANS, 1e10, False, "e", "s")
+    with pytest.raises(DataError) as e:
+        check_clock(Trajectory(np.arange(300.0), GT.poses), np.eye(4), GT, SCANS, 0.0, False,
+                    "e", "s")
+    assert "expected stamps in seconds on the sensor's clock; write each pose's scan stamp " \
+           "(the scans' stamps are those of the bag `bench export` writes), or --trust-clock " \
+           "to score it as it is" in str(e.value)
+    # the unit refusal: read in seconds unless told, naming the store
+    mm = Trajectory(T - 0.37, make_T(GT.poses[:, :3, :3], GT.poses[:, :3, 3] * 1e3))
+    with pytest.raises(DataError, match=r"^e: read in seconds, .* where the ground truth of "
+                                        r"store.h5 moves at"):
+        check_clock(mm, np.eye(4), GT, SCANS, 0.0, False, "e", "store.h5")
