@@ -50,6 +50,7 @@ def test_a_constant_speed_straight_drive_is_inconclusive():
     poses = drive(T, yaw_rate=0.0)
     fit = fit_clock(T - 0.37, poses, T, poses, 0.1)
     assert fit.offset_s is None and "speed and turn rate hardly vary" in fit.why
+    assert fit.why.endswith("a constant motion shows no clock")
 
 
 def test_a_power_of_1000_within_10x():
@@ -406,3 +407,158 @@ def test_the_aligned_offset_moves_at_most_half_a_period():
     odd = est.copy()
     odd[::10] += 0.05
     assert aligned_offset(odd, scans, 0.3, 0.125) == pytest.approx(0.3125, abs=1e-12)
+
+
+# --- survivors of mutation: bounds, windows, spans and the refinement --------------------------
+
+def test_the_edges_of_the_pieces():
+    from bench.runs.external.clock import _at, _peak, _range_max
+
+    k = np.array([-2, -1, 0, 1, 2])
+    r = np.array([0.1, 0.3, 0.9, 0.5, 0.7])
+    assert _at(k, r, 1.5) == pytest.approx(0.6)  # between the last two lags
+    assert np.isnan(_at(k, r, 2.0))  # the last lag has no right neighbour to interpolate with
+    # (0.2, 0.5, 0.4): vertex at (0.2 - 0.4) / (2 (0.2 - 1.0 + 0.4)) = 0.25
+    assert _peak(np.array([0.2, 0.5, 0.4]), 1) == pytest.approx(0.25)
+    assert _peak(np.array([0.0, 1.0, -np.inf]), 1) == 0.0
+    assert _peak(np.array([1.0, 0.5, 0.2]), 0) == 0.0  # the first has no left neighbour
+    # a range from 0 of a power-of-2 length: the next value is not in it
+    values = np.array([0.0, 0.0, 0.0, 0.0, 9.0])
+    np.testing.assert_array_equal(_range_max(values, np.array([0, 1]), np.array([4, 5])),
+                                  [0.0, 9.0])
+
+
+def test_the_profiles_of_any_window_and_start():
+    """Stamps from 10 s, windows of +/- 0.5 s: the grid runs from the first stamp to the last,
+    the speed (2 m/s) and turn rate (0.1 rad/s) are per second whatever the window."""
+    t = 10 + np.arange(0, 20, 0.125)
+    poses = drive(t, yaw_rate=0.1)
+    speed, rate = motion_profiles(t, poses, 0.0625, 0.5, 0.3)
+    assert len(speed) == int((t[-1] - t[0]) / 0.0625) + 1
+    ok = np.isfinite(speed)
+    # the chord of a circle of 20 m over 1 s, per second: 40 sin(0.05) = 1.99917 m/s
+    np.testing.assert_allclose(speed[ok], 40 * np.sin(0.05), rtol=1e-4)
+    np.testing.assert_allclose(rate[ok], 0.1, rtol=1e-9)
+
+
+def test_a_gap_in_the_first_or_last_step_is_under_the_windows_that_reach_it():
+    t = np.r_[0.0, np.arange(2.5, 10, 0.125)]
+    speed, _ = motion_profiles(t, straight(t, lambda s: 2.0 + 0 * s), 0.0625, 1.0, 0.3)
+    assert np.isnan(speed[16])  # t = 1 s: its window [0, 2] s lies over the 2.5 s step
+    t = np.r_[np.arange(0, 10, 0.125), 12.5]
+    speed, _ = motion_profiles(t, straight(t, lambda s: 2.0 + 0 * s), 0.0625, 1.0, 0.3)
+    assert np.isnan(speed[int(11.5 / 0.0625)])  # t = 11.5 s: its window ends at the last pose
+
+
+def test_the_path_speed_of_a_span_under_a_second():
+    xyz = np.array([[0.0, 0, 0], [1.0, 0, 0]])
+    assert path_speed(np.array([0.0, 0.5]), xyz) == pytest.approx(2.0)
+
+
+def test_the_aligned_offset_at_the_scans_bounds():
+    q = np.array([0.0, 0.125, 0.25, 0.375])
+    # two scans are enough: 0.01 s is 0.01 s past the first, 0.11 s 0.015 s before the second
+    assert aligned_offset(np.array([0.01, 0.11]), q[:2], 0.0, 0.125) == pytest.approx(0.0025)
+    assert aligned_offset(np.array([0.36]), q, 0.0, 0.125) == pytest.approx(0.015)  # last scan
+    # stamps exactly on the first or last scan are inside
+    assert aligned_offset(np.array([0.0, 0.135]), q, 0.0, 0.125) == pytest.approx(-0.005)
+    assert aligned_offset(np.array([0.365, 0.375]), q, 0.0, 0.125) == pytest.approx(0.005)
+    # stamps beyond the scans' span do not move it
+    est = np.r_[q[:3] + 0.01, 5 + np.arange(10) * 0.125 + 0.05]
+    assert aligned_offset(est, q, 0.0, 0.125) == pytest.approx(-0.01)
+
+
+def test_single_draws_are_a_multinomial_of_the_samples():
+    from bench.runs.external.clock import block_weights
+
+    w = block_weights(20, 1, np.random.default_rng(9))
+    want = np.bincount(np.random.default_rng(9).integers(0, 20, 20), minlength=20)
+    np.testing.assert_array_equal(w, want)
+    np.testing.assert_array_equal(block_weights(20, 0, np.random.default_rng(9)), want)
+
+
+def test_a_nearly_constant_profile_has_no_correlation():
+    """A side varying by less than 1e-6 of the other's spread (relative variance below 1e-12)
+    is constant; one varying by 3e-6 is not."""
+    from bench.runs.external.clock import _ncc
+
+    rng = np.random.default_rng(10)
+    y = rng.normal(size=200)
+    k, r = _ncc(1 + 0.5e-6 * rng.normal(size=200), y)
+    assert np.all(r == -np.inf)
+    k, r = _ncc(1 + 3e-6 * rng.normal(size=200), y)
+    assert np.isfinite(r[k == 0]).all()
+
+
+def test_the_shift_is_refined_between_grid_steps_the_right_way():
+    """Poses at 0.033 s past the ground truth's stamps, stamped 0.37 s early: the shift is 2.64
+    grid steps from the grids' start; the parabola refines it to 0.37 s, and the bootstrap's
+    interval (noise-free: all but a point) lies there too."""
+    def speed(t):
+        return 5 + 3 * np.sin(0.7 * t) + 2 * np.sin(1.9 * t)
+
+    gt = drive(T, speed, yaw_rate=0.05)
+    est = drive(T + 0.033, speed, yaw_rate=0.05)
+    fit = fit_clock(T + 0.033 - 0.37, est, T, gt, 0.1, replicates=10)
+    assert fit.offset_s == pytest.approx(0.37, abs=1e-3)
+    lo, hi = fit.interval_s
+    assert lo - 1e-3 <= 0.37 <= hi + 1e-3
+
+
+def test_the_correlation_at_no_shift_of_a_part_of_the_drive():
+    """The estimate covers 5 .. 25 s of the drive, stamped 0.5 s early: its grid starts at
+    4.5 s, the ground truth's at 0, so equal times are 360 grid steps apart (4.5 / 0.0125)."""
+    t = np.arange(0, 30, 0.1)
+    poses = straight(t, lambda s: 5 + 3 * np.sin(0.7 * s) + 2 * np.sin(1.9 * s))
+    part = (t >= 5) & (t < 25)
+    fit = fit_clock(t[part] - 0.5, poses[part], t, poses, 0.1, replicates=5)
+    h = 0.1 / 8
+    gt_speed, _ = motion_profiles(t, poses, h, 1.0, 2.0)
+    est_speed, _ = motion_profiles(t[part] - 0.5, poses[part], h, 1.0, 2.0)
+    want, _ = pearson(gt_speed, est_speed, 360)
+    assert fit.correlation_at_zero == pytest.approx(want, abs=1e-6)
+
+
+def test_the_ground_truth_needs_three_poses_and_the_blocks_are_four_seconds(monkeypatch):
+    from bench.runs.external import clock
+
+    t = np.arange(0, 30, 0.125)
+    poses = straight(t, lambda s: 5 + 3 * np.sin(0.7 * s))
+    assert fit_clock(t, poses, t[:3], poses[:3], 0.125).why != "too few poses for a speed profile"
+    seen = []
+    real = clock.block_weights
+
+    def spy(n, block, rng):
+        seen.append((n, block))
+        return real(n, block, rng)
+
+    monkeypatch.setattr(clock, "block_weights", spy)
+    fit_clock(t - 0.5, poses, t, poses, 0.125, replicates=3)
+    h = 0.125 / 8
+    assert seen == [(int((t[-1] - t[0]) / h) + 1, int(np.ceil(4.0 / h)))] * 3
+
+
+def test_the_grid_follows_the_longer_span():
+    """0.5 s scans; the ground truth over 100 .. 2600 s, the estimate over part of it (and the
+    reverse): the grid is 2500 s / 2^15 either way."""
+    t = 100 + np.arange(0, 2500.5, 0.5)
+    x = 5 * t - 3 / 0.2 * np.cos(0.2 * t) - 2 / 0.53 * np.cos(0.53 * t)
+    poses = make_T(np.repeat(np.eye(3)[None], len(t), 0), np.column_stack([x, 0 * t, 0 * t]))
+    part = slice(0, 4001)  # 100 .. 2100 s
+    fit = fit_clock(t[part] - 3.0, poses[part], t, poses, 0.5, replicates=2)
+    assert fit.grid_s == pytest.approx(2500 / 2**15, rel=1e-12)
+    fit = fit_clock(t - 3.0, poses, t[part], poses[part], 0.5, replicates=2)
+    assert fit.grid_s == pytest.approx(2500 / 2**15, rel=1e-12)
+
+
+def test_a_hole_wider_than_the_window_is_left_out_of_the_profile():
+    """The estimate lacks 2.5 s of poses (wider than the 2 s window): no speed is made up
+    across the hole, so the profile fits the ground truth's exactly at its shift."""
+    def speed(t):
+        return 5 + 3 * np.sin(0.7 * t) + 2 * np.sin(1.9 * t)
+
+    poses = drive(T, speed, yaw_rate=0.05)
+    keep = (T < 12) | (T > 14.45)
+    fit = fit_clock(T[keep] - 0.37, poses[keep], T, poses, 0.1, replicates=5)
+    assert fit.correlation == pytest.approx(1.0, abs=1e-9)
+    assert fit.why == "" and fit.offset_s == pytest.approx(0.37, abs=1e-3)
