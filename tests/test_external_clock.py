@@ -562,3 +562,47 @@ def test_a_hole_wider_than_the_window_is_left_out_of_the_profile():
     fit = fit_clock(T[keep] - 0.37, poses[keep], T, poses, 0.1, replicates=5)
     assert fit.correlation == pytest.approx(1.0, abs=1e-9)
     assert fit.why == "" and fit.offset_s == pytest.approx(0.37, abs=1e-3)
+
+
+def test_a_hole_is_bridged_up_to_twice_the_window_or_three_pose_steps():
+    """Poses every 0.625 s (3 steps: 1.875 s, less than the 2 s of two windows): a 2.5 s hole
+    is left out (the profile fits exactly at its 5-grid-step shift); with 1.25 s scans (windows
+    of +/- 1.25 s) a 2.1875 s hole in poses every 0.3125 s is bridged (its chord is in the
+    profile: no exact fit)."""
+    def speed(t):
+        return 5 + 3 * np.sin(0.7 * t) + 2 * np.sin(1.9 * t)
+
+    t = np.arange(0, 40, 0.625)
+    poses = drive(t, speed, yaw_rate=0.05)
+    keep = (t <= 12.5) | (t >= 15.0)  # 12.5 -> 15.0: 2.5 s
+    shift = 5 * 0.625 / 8
+    fit = fit_clock(t[keep] - shift, poses[keep], t, poses, 0.625, replicates=5)
+    assert fit.correlation == pytest.approx(1.0, abs=1e-9)
+    t = np.arange(0, 60, 0.3125)
+    poses = drive(t, speed, yaw_rate=0.05)
+    keep = (t <= 20) | (t >= 22.1875)  # 7 steps: 2.1875 s, within 2 x 1.25 s
+    shift = 4 * 1.25 / 8
+    fit = fit_clock(t[keep] - shift, poses[keep], t, poses, 1.25, replicates=5)
+    assert fit.correlation < 1 - 1e-6
+
+
+def test_the_intervals_are_the_bootstraps_central_95_percent(monkeypatch):
+    """With the replicates' refinements and gains replaced by known values, the shift's
+    interval is their 2.5th and 97.5th percentiles (in grid steps from the fit's lag) and the
+    gain's lower end their 2.5th."""
+    from bench.runs.external import clock
+
+    t = np.arange(0, 30, 0.1)
+    poses = straight(t, lambda s: 5 + 3 * np.sin(0.7 * s) + 2 * np.sin(1.9 * s))
+    steps = np.linspace(-0.9, 0.9, 40) ** 3  # the replicates' refinements [grid steps]
+    gains = np.linspace(-0.2, 0.6, 40) ** 2
+    peaks = iter([0.0, *steps])
+    monkeypatch.setattr(clock, "_peak", lambda r, best: next(peaks))
+    ats = iter([0.5] + [v for g in gains for v in (0.7 + g, 0.7)])
+    monkeypatch.setattr(clock, "_at", lambda k, r, lag: next(ats))
+    fit = fit_clock(t - 0.5, poses, t, poses, 0.1, replicates=40)
+    h = 0.1 / 8
+    lo, hi = fit.interval_s
+    assert lo == pytest.approx(fit.offset_s + np.percentile(steps, 2.5) * h, abs=1e-12)
+    assert hi == pytest.approx(fit.offset_s + np.percentile(steps, 97.5) * h, abs=1e-12)
+    assert fit.gain_low == pytest.approx(np.percentile(gains, 2.5), abs=1e-12)
