@@ -8,11 +8,13 @@ import re
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
 from bench.runs.external.checks import _bridged, check_estimate
 from bench.runs.external.score import ExternalSpec
 from loaders.errors import DataError
 from loaders.estimate import Estimate
+from loaders.gt import time_span
 from loaders.se3 import make_T
 from loaders.trajectory import Trajectory
 from test_external_clock import drive
@@ -157,3 +159,71 @@ def test_a_gap_bridged_wider_than_three_periods_is_warned():
     assert check(SCANS[::3], POSES[::3], max_gap_s=0.6, trust_clock=True).warnings == []
     assert _bridged({"max_gap_s": 1.0, "widest_bridged_s": 0.5}, SCANS[:1], "e") == []
     assert _bridged({"max_gap_s": 1.0}, SCANS, "e") == []
+
+
+def misread_wxyz(poses):
+    """The poses a reader of x y z w gets from a file holding them in w x y z order."""
+    out = poses.copy()
+    q = Rotation.from_matrix(poses[:, :3, :3]).as_quat()  # x y z w
+    out[:, :3, :3] = Rotation.from_quat(q[:, [3, 0, 1, 2]]).as_matrix()
+    return out
+
+
+def test_the_other_reading_is_of_the_same_frame_and_named_with_the_file():
+    """A file of w x y z quaternions of a frame turned and 3 m ahead of the sensor: the other
+    reading, through the extrinsic, is the sensor's motion: refused, naming the file."""
+    T_frame_sensor = make_T(Rotation.from_euler("zx", [90, 30], degrees=True).as_matrix(),
+                            np.array([3.0, 0.0, 0.0]))
+    frame = POSES @ np.linalg.inv(T_frame_sensor)
+    with pytest.raises(DataError, match=r"^e.tum: read as tum, its relative motions disagree .*"
+                                        r"quaternions in w x y z order"):
+        check(SCANS, misread_wxyz(frame), T_frame_sensor=T_frame_sensor, trust_clock=True)
+    with pytest.raises(DataError, match=r"^e.tum: read as kitti, .*the inverse poses"):
+        check(SCANS, np.linalg.inv(frame), T_frame_sensor=T_frame_sensor, fmt="kitti",
+              trust_clock=True)
+
+
+def test_the_clock_check_gets_the_files_unit_raw_stamps_and_names():
+    mm = make_T(POSES[:, :3, :3], POSES[:, :3, 3] * 1e3)
+    spec = ExternalSpec("e.tum", "probe")
+    est = Estimate(Trajectory(SCANS - 0.33, mm), stamp_unit="ms")
+    with pytest.raises(DataError, match=r"^e.tum: read in milliseconds, .* the ground truth of "
+                                        r"store.h5 moves"):
+        check_estimate(Store(), est, spec, np.eye(4), "e.tum", "store.h5")
+    raw = np.arange(240.0)
+    est = Estimate(Trajectory(raw * 1e-3, POSES), stamp_unit="ms", raw_stamps=raw)
+    with pytest.raises(DataError, match=r"^e.tum: its stamps are frame indices"):
+        check_estimate(Store(), est, spec, np.eye(4), "e.tum", "store.h5")
+
+
+def test_clock_warnings_are_kept_with_the_bridged_gaps():
+    """Stamps on the scans, poses 0.5 s late: the clock's warning is among the warnings."""
+    late = drive(SCANS + 0.5, varied, yaw_rate=0.05)
+    found = check(SCANS, late)
+    assert len(found.warnings) == 1 and "its stamps are the scans' own" in found.warnings[0]
+
+
+def test_one_scan_with_ground_truth_is_the_whole_share():
+    found = check(SCANS, POSES, Store(gt_rows=slice(0, 1)), trust_clock=True)
+    assert found.coverage["scans_with_gt"] == 1 and found.coverage["share_scored"] == 1.0
+
+
+def test_ground_truth_out_of_order_is_named_by_the_store():
+    store = Store()
+    order = np.arange(240)
+    order[[10, 11]] = [11, 10]
+    store.ground_truth = Trajectory(SCANS[order], POSES[order])
+    with pytest.raises(DataError, match=r"^store.h5"):
+        check(SCANS, POSES, store, trust_clock=True)
+
+
+def test_the_coverage_refusal_states_the_span_with_the_offset():
+    with pytest.raises(DataError) as e:
+        check(SCANS[:119] - 100.0, POSES[:119], time_offset_s=100.0, min_coverage=0.5,
+              trust_clock=True)
+    assert f"spans {time_span(SCANS[:119])}, the scans with ground truth" in str(e.value)
+
+
+def test_a_bridged_gap_needs_a_scan_period():
+    assert _bridged({"max_gap_s": 1.0, "widest_bridged_s": 0.5}, SCANS[:2], "e")  # 4 periods
+    assert _bridged({"max_gap_s": 10.0, "widest_bridged_s": 5.0}, SCANS[:1], "e") == []
