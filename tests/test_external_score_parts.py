@@ -62,6 +62,8 @@ def test_the_minimum_coverage_is_a_share_from_0_to_1():
             check_options_of(ExternalSpec("e.tum", "e", min_coverage=share))
     with pytest.raises(DataError, match="--tolerance -1"):  # the association's options too
         check_options_of(ExternalSpec("e.tum", "e", tolerance_s=-1.0))
+    with pytest.raises(DataError, match="--max-gap 0"):
+        check_options_of(ExternalSpec("e.tum", "e", max_gap_s=0.0))
 
 
 def test_the_frame_of_the_poses():
@@ -130,10 +132,20 @@ def test_an_estimate_too_short_is_told_its_coverage_and_path(monkeypatch):
     one = np.array([True, False, False, False, False])
     with pytest.raises(DataError, match="about 0.000 m of path"):
         score._evaluate(None, result, Scoring(lengths_m=(10.0,)), one, idx, coverage, "e", "s")
+    two = np.array([True, True, False, False, False])
+    with pytest.raises(DataError, match="about 3.000 m of path"):
+        score._evaluate(None, result, Scoring(lengths_m=(10.0,)), two, idx, coverage, "e", "s")
+
+    seen = {}
 
     def other(*a, **k):
+        seen.update(k)
         raise DataError("store.h5: something else")
 
     monkeypatch.setattr(score, "evaluate_run", other)
+    scoring = Scoring()
     with pytest.raises(DataError, match="^store.h5: something else$"):
-        score._evaluate(None, result, Scoring(), with_gt, idx, coverage, "e", "s")
+        score._evaluate(None, result, scoring, with_gt, idx, coverage, "e", "store.h5")
+    # scored as a run is: named by the store, its scoring, the scans without ground truth out
+    assert seen["name"] == "store.h5" and seen["scoring"] is scoring
+    np.testing.assert_array_equal(seen["excluded"], [False, False, False, True])
