@@ -294,11 +294,13 @@ def aligned_offset(est_stamps: np.ndarray, scan_stamps: np.ndarray, offset_s: fl
     up, for an estimate stamped at the scans), else ``offset_s``."""
     s = np.asarray(est_stamps, dtype=np.float64) + offset_s
     q = np.asarray(scan_stamps, dtype=np.float64)
-    hi = np.clip(np.searchsorted(q, s), 1, max(len(q) - 1, 1))
+    if len(q) < 2:
+        return offset_s
+    hi = np.clip(np.searchsorted(q, s), 1, len(q) - 1)
     lo = hi - 1
     near = np.where(np.abs(q[hi] - s) < np.abs(s - q[lo]), q[hi], q[lo])
     inside = (s >= q[0]) & (s <= q[-1])
-    if len(q) < 2 or not inside.any():
+    if not inside.any():
         return offset_s
     delta = float(np.median((near - s)[inside]))
     return offset_s + delta if abs(delta) <= 0.5 * period_s else offset_s

@@ -114,7 +114,9 @@ def unit_misfit(est_stamps: np.ndarray, est_xyz: np.ndarray, gt: Trajectory, uni
     path_k = _power_of_1000(length(est_xyz) / max(length(gt_xyz), 1e-12))
     span_k = _power_of_1000((est_stamps[-1] - est_stamps[0]) / max(gt_t[-1] - gt_t[0], 1e-12))
     seconds = STAMP_UNITS[unit] * 1000.0 ** -k  # what one raw stamp unit looks to be
-    fits = next((u for u, s in STAMP_UNITS.items() if np.isclose(s, seconds)), None)
+    # (relative: np.isclose's default absolute 1e-8 would take a picosecond for a nanosecond)
+    fits = next((u for u, s in STAMP_UNITS.items()
+                 if np.isclose(s, seconds, rtol=1e-6, atol=0.0)), None)
     head = (f"{where}: read in {UNIT_NAMES[unit]}, its stamps move it at {est_speed:.3g} m/s "
             f"where the ground truth of {store} moves at {gt_speed:.3g} m/s "
             f"({1000.0 ** abs(k):g} times {'slower' if k > 0 else 'faster'}): stamps in another "
