@@ -104,6 +104,19 @@ def test_the_floor_decides_when_the_half_widths_are_narrow():
     assert disagreements([piece(0, 50, fit(-2.0)), piece(50, 100, fit(-1.71))]) == []
 
 
+def test_exactly_at_the_floor_or_the_half_widths_is_not_apart():
+    """"Further apart than": a difference of exactly MIN_CHANGE_DEG (half-widths 0.125,
+    combined 0.177) is not apart, nor one of exactly the combined half-widths (0.375 and 0.5
+    combine to 0.625, all exact in binary)."""
+    assert disagreements([piece(0, 50, fit(0.0, 0.125)),
+                          piece(50, 100, fit(MIN_CHANGE_DEG, 0.125))]) == []
+    assert disagreements([piece(0, 50, fit(0.0, halves={"pitch": 0.375})),
+                          piece(50, 100, fit(0.625, halves={"pitch": 0.5}))]) == []
+    (d,) = disagreements([piece(0, 50, fit(0.0, halves={"pitch": 0.375})),
+                          piece(50, 100, fit(0.6875, halves={"pitch": 0.5}))])
+    assert d.combined_deg == 0.625
+
+
 def test_the_half_widths_decide_when_they_are_wider_than_the_floor():
     """Half-widths 0.6 and 0.8 (combined exactly 1.0): 1.05 deg apart disagrees, 0.95 does
     not; the other angles, equal, are never reported."""
@@ -221,6 +234,8 @@ def test_the_level_comes_from_the_first_fitted_piece_or_95():
     assert "(80 % intervals)" in lines[0]
     lines = format_pieces([piece(0, 50, None, "x"), piece(50, 100, None, "y")])
     assert "(95 % intervals)" in lines[0]
+    # frames numbered from 0 by default
+    assert lines[1] == "  frames 0-49      x" and lines[2] == "  frames 50-99     y"
     assert "no angle is fitted by two pieces from the same cue: nothing to compare" in lines[-1]
 
 
@@ -231,7 +246,7 @@ def test_agreeing_pieces_say_one_rotation_fits_and_a_floor_note_when_beyond_the_
     text = "\n".join(format_pieces([piece(0, 50, fit(-2.0)), piece(50, 100, fit(-2.2))]))
     assert "the pieces agree on roll, pitch, yaw" in text
     assert "or by less than 0.3 deg, not called a change" in text
-    assert "one rotation fits the range on every angle compared" in text
+    assert "  one rotation fits the range on every angle compared" in text.splitlines()
     assert "CHANGES" not in text
     # one angle cannot tell: not "one rotation fits"
     wide = "\n".join(format_pieces([piece(0, 50, fit(-2.0, halves={"roll": 3.0})),
@@ -255,5 +270,10 @@ def test_a_change_names_the_angle_both_estimates_pieces_and_numbers():
     assert ("pitch -2.00 (frames 100-224) vs -3.00 (frames 225-349), 1.00 deg apart against "
             "combined half-widths 0.14") in last
     assert ("pitch -3.00 (frames 225-349) vs -2.00 (frames 350-474), 1.00 deg apart") in last
-    assert "; " in last and "is corrected by that average on every frame" in last
+    assert ("1.00 deg apart against combined half-widths 0.14; pitch -3.00 (frames 225-349)"
+            in last)
+    # what the change means for the estimate and a store written with it
+    assert last.endswith(". The GT frame's tilt (or the mount) is not the same over the whole "
+                         "range: the estimate above is an average over it, and a store written "
+                         "with it is corrected by that average on every frame")
     assert not any("pieces agree" in line or "CANNOT TELL" in line for line in lines)
