@@ -1,0 +1,181 @@
+"""Hand-eye alignment (bench.data.calibration.hand_eye) on noise-free synthetic drives with a
+known mounting rotation: the segment vectors follow ``A R = R B`` (GT vectors = R x odometry
+vectors), the thresholds on movement and turn, the two-stage fit recovers the rotation
+(checked against scipy's align_vectors), which cue fixes which angle, and the errors."""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from bench.data.calibration import hand_eye as he_mod
+from bench.data.calibration.hand_eye import (
+    DISPLACEMENTS,
+    HE_BLOCK_S,
+    TURN_AXES,
+    hand_eye_on,
+    hand_eye_rotation,
+    segment_vectors,
+)
+from loaders.errors import DataError
+
+#: the mounting: R_gt_sensor = Rz(yaw) Ry(pitch) Rx(roll), roll 1, pitch 2, yaw -1.5 deg
+MOUNT = Rotation.from_euler("ZYX", [-1.5, 2.0, 1.0], degrees=True).as_matrix()
+
+
+def pose(R, t):
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, t
+    return T
+
+
+def drive(n=200, period=0.1, speed=10.0, tilt=0.0, wiggle=0.3):
+    """GT poses of a car at ``speed`` m/s whose heading wanders (yaw 0.6 sin(0.3 t) + ...)
+    and whose body pitches and rolls by ``tilt`` rad (default none: every turn is about the
+    body's vertical, so the turn axes fix roll and pitch exactly)."""
+    t = np.arange(n) * period
+    yaw = 0.6 * np.sin(wiggle * t) + 0.2 * t
+    pitch = tilt * np.sin(0.7 * t)
+    roll = tilt * np.sin(0.5 * t + 1.0)
+    R = Rotation.from_euler("ZYX", np.c_[yaw, pitch, roll]).as_matrix()
+    pos = np.cumsum(R[:, :, 0] * speed * period, axis=0)
+    return np.array([pose(r, p) for r, p in zip(R, pos, strict=True)])
+
+
+def sensor_poses(gt, R_gt_sensor=MOUNT):
+    """The sensor's poses on the GT's drive: P_k = G_k T, T = (R_gt_sensor, no lever arm)."""
+    return gt @ pose(R_gt_sensor, np.zeros(3))
+
+
+def test_segment_vectors_are_the_mount_turned_odometry_vectors():
+    gt = drive(60)
+    v = segment_vectors(gt, sensor_poses(gt), step=10)
+    np.testing.assert_allclose(v.gt, v.odometry @ MOUNT.T, atol=1e-9)
+    np.testing.assert_allclose(np.linalg.norm(v.odometry, axis=1), 1.0, atol=1e-12)
+    moves = ~v.turn
+    # every segment moves 10 m: one displacement per start 0..49
+    np.testing.assert_array_equal(v.start[moves], np.arange(50))
+    np.testing.assert_array_equal(v.weight[moves], 1.0)
+    # a turn's weight is its angle / 10 deg, at most 1
+    for k, w in zip(v.start[v.turn], v.weight[v.turn], strict=True):
+        A = np.linalg.inv(gt[k]) @ gt[k + 10]
+        angle = np.degrees(Rotation.from_matrix(A[:3, :3]).magnitude())
+        assert angle >= 2.0 and w == pytest.approx(min(angle / 10.0, 1.0))
+        R_A = Rotation.from_matrix(A[:3, :3]).as_rotvec()
+        row = (v.start == k) & v.turn
+        np.testing.assert_allclose(v.gt[row][0], R_A / np.linalg.norm(R_A), atol=1e-9)
+
+
+def test_segment_thresholds_at_their_bounds():
+    """A straight drive at 1 m per segment: displacements kept at min_move_m = 1.0, none at
+    1.0 + 1e-9; no turn at all. A steady turn of 2 deg (+1e-7) per segment is kept at
+    min_turn_deg 2, not at 2 + 1e-6."""
+    n = 5
+    straight = np.array([pose(np.eye(3), [k * 1.0, 0, 0]) for k in range(n)])
+    v = segment_vectors(straight, straight, step=1)
+    assert len(v.start) == n - 1 and not v.turn.any()
+    np.testing.assert_array_equal(v.start, np.arange(n - 1))
+    assert len(segment_vectors(straight, straight, 1, min_move_m=1.0 + 1e-9).start) == 0
+    turning = np.array([pose(Rotation.from_euler("z", (2.0 + 1e-7) * k,
+                                                       degrees=True).as_matrix(),
+                             [0.0, 0.0, 0.0]) for k in range(n)])
+    v = segment_vectors(turning, turning, step=1)
+    assert v.turn.all() and len(v.start) == n - 1
+    np.testing.assert_allclose(v.weight, 0.2)
+    np.testing.assert_allclose(v.gt, np.tile([0, 0, 1.0], (n - 1, 1)), atol=1e-12)
+    assert len(segment_vectors(turning, turning, 1, min_turn_deg=2.0 + 1e-6).start) == 0
+    # step 2: segments k -> k + 2, starts 0 .. n - 3
+    v = segment_vectors(straight, straight, step=2)
+    np.testing.assert_array_equal(v.start, np.arange(n - 2))
+    np.testing.assert_allclose(v.odometry, np.tile([1.0, 0, 0], (n - 2, 1)))
+
+
+def test_hand_eye_recovers_the_mount_on_a_noise_free_drive():
+    """Turns about the near-vertical spread around x and y (roll, pitch from the turn axes);
+    yaw from the displacement directions. Recovered to 1e-6 deg, like scipy's
+    align_vectors of all the segment vectors; intervals hold the truth."""
+    gt = drive(300)
+    res = hand_eye_rotation(gt, sensor_poses(gt), 0.1, odometry="odo", bootstrap=20)
+    truth = {"roll": 1.0, "pitch": 2.0, "yaw": -1.5}
+    for ax, deg in truth.items():
+        assert res.angles_deg[ax] == pytest.approx(deg, abs=1e-6)
+        lo, hi = res.interval_deg[ax]
+        assert lo - 1e-9 <= deg <= hi + 1e-9
+    v = segment_vectors(gt, sensor_poses(gt), 10)
+    ref, _ = Rotation.align_vectors(v.gt, v.odometry)
+    np.testing.assert_allclose(res.R_gt_sensor, ref.as_matrix(), atol=1e-9)
+    assert res.source == {"roll": TURN_AXES, "pitch": TURN_AXES, "yaw": DISPLACEMENTS}
+    assert res.observable == {"roll": True, "pitch": True, "yaw": True}
+    assert res.odometry == "odo" and res.segments == len(v.start)
+    assert res.frames_total == 300 and res.level == 0.95 and res.resamples == 20
+    # blocks of at least HE_BLOCK_S (10 s = 100 frames at 10 Hz)
+    assert HE_BLOCK_S == 10.0
+    assert res.block.frames >= 100 and res.block.wanted >= 100
+    assert all(isinstance(x, float) for x in res.angles_deg.values())
+
+
+def test_a_shorter_block_and_level_are_passed_on():
+    gt = drive(300)
+    res = hand_eye_rotation(gt, sensor_poses(gt), 0.1, bootstrap=10, block_s=2.0, level=0.8)
+    assert res.level == 0.8 and res.resamples == 10
+    # the floor: max(one segment + 1 = 11, 2 s = 20 frames); noise-free residuals add little
+    assert 20 <= res.block.frames < 100
+
+
+def test_without_turns_the_displacements_fix_what_they_spread_around():
+    """A straight drive along x that never turns: no turn axes; the displacements spread
+    around y and z (pitch and yaw) but not around x: roll not observable. Pitch and yaw are
+    recovered to second order (the fit holds the x axis of its own rotation vector, not the
+    Euler roll, at 0: 1 deg x 1.5 deg ~ 0.03 deg)."""
+    n, period = 100, 0.1
+    gt = np.array([pose(np.eye(3), [k * 1.0, 0.0, 0.0]) for k in range(n)])
+    res = hand_eye_rotation(gt, sensor_poses(gt), period, bootstrap=5)
+    assert res.source == {"roll": "not observable", "pitch": DISPLACEMENTS, "yaw": DISPLACEMENTS}
+    assert res.observable == {"roll": False, "pitch": True, "yaw": True}
+    assert res.angles_deg["pitch"] == pytest.approx(2.0, abs=0.05)
+    assert res.angles_deg["yaw"] == pytest.approx(-1.5, abs=0.05)
+    # the direction of travel itself is matched exactly
+    np.testing.assert_allclose(res.R_gt_sensor @ MOUNT.T @ [1.0, 0, 0], [1.0, 0, 0],
+                               atol=1e-9)
+
+
+def test_too_few_segments_is_an_error_naming_them():
+    gt = np.array([pose(np.eye(3), [k * 0.05, 0, 0]) for k in range(30)])
+    with pytest.raises(DataError, match=r"hand-eye alignment: only 0 usable segments of 1.0 s "
+                                        r"\(the sensor must move at least 1 m per segment\)"):
+        hand_eye_rotation(gt, gt, 0.1)
+
+
+def test_hand_eye_on_runs_the_odometry_and_aligns_it(monkeypatch):
+    """The odometry named is made with the sequence's sensor and run (seeded); its poses are
+    aligned to the GT at the result's stamps; a sequence without GT is refused."""
+    import methods.base
+    import methods.registry
+    from loaders.trajectory import Trajectory
+
+    gt = drive(300)
+    stamps = np.arange(300) * 0.1
+    made = {}
+
+    def make_method(name, params, sensor):
+        made["method"] = (name, params, sensor)
+        return "the method"
+
+    def run_timed(method, sequence, seed):
+        made["run"] = (method, sequence, seed)
+        return SimpleNamespace(stamps=stamps, poses=sensor_poses(gt))
+
+    monkeypatch.setattr(methods.registry, "make_method", make_method)
+    monkeypatch.setattr(methods.base, "run_timed", run_timed)
+    sensor = SimpleNamespace(period_s=0.1)
+    seq = SimpleNamespace(name="seq", ground_truth=Trajectory(stamps, gt), sensor=sensor)
+    res = hand_eye_on(seq, "geo", bootstrap=5)
+    assert made["method"] == ("geo", {}, sensor) and made["run"] == ("the method", seq, True)
+    assert res.odometry == "geo" and res.resamples == 5
+    assert res.angles_deg["pitch"] == pytest.approx(2.0, abs=1e-6)
+    with pytest.raises(DataError, match="seq: hand-eye alignment needs ground truth"):
+        hand_eye_on(SimpleNamespace(name="seq", ground_truth=None, sensor=sensor))
+    assert he_mod.HE_BLOCK_S == 10.0
