@@ -178,6 +178,20 @@ def test_estimates_disagree_beyond_the_combined_half_widths():
     assert [s.split()[0] for s in cm.disagreements(he_blind, cal)] == ["yaw"]
 
 
+def test_no_interval_is_not_a_disagreement():
+    """Hand-eye without an interval on yaw (too few resamples fitted), 1 deg from Doppler: not
+    "DISAGREE beyond their stated uncertainties" (there is none) but cannot tell, as the
+    verdicts say (was: "yaw (+1.00 deg apart, combined +- nan)")."""
+    cal = _cal(angles=(0.0, -2.0, 1.0), half=0.1)
+    he = _he(angles=(0.0, -2.0, 2.0), half=0.1)
+    he.interval_deg["yaw"] = (np.nan, np.nan)
+    assert cm.disagreements(he, cal) == []
+    text = "\n".join(cm.format_hand_eye(he, cal))
+    assert "DISAGREE" not in text
+    assert "CANNOT TELL whether the two estimates agree on yaw" in text
+    assert "yaw 1.00 deg apart, combined half-widths no finite interval deg" in text
+
+
 def test_hand_eye_verdicts():
     """Per angle both observe: the difference hand-eye - Doppler, the combined half-width, the
     resolution (default 2 deg, the write bound) and no floor; no interval -> infinite width."""
