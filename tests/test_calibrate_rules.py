@@ -77,6 +77,10 @@ def test_few_blocks_name_the_longest_correlated_residuals():
     residuals (correlated over 30 frames, the longest) and the counts."""
     lines = cm._blocks_lines(_blocked(42, 42, 120))
     assert len(lines) == 2
+    # what the wide intervals mean, and what they do not
+    assert lines[1].endswith("every interval is wide: the fit's error wanders along the range "
+                             "(the pieces show how far), it does not mean an angle is "
+                             "unobservable; each is printed with its estimate")
     assert lines[1].startswith("  few blocks: the pitch residuals stay correlated over 30 "
                                "frames, so the blocks are 42 of the 120 frames (2.9 blocks, "
                                "1.9 degrees of freedom)")
@@ -138,6 +142,13 @@ def test_the_doppler_table_without_road_and_with_an_unseen_angle():
     assert lines[5] == ("  not observable: roll (held at 0 in the fit; --write leaves them "
                         "alone)")
     assert lines[6] == "road plane: not found (too few points below the sensor)"
+    # two angles not observable, one without a reason
+    cal = _cal(source={"roll": "not observable", "yaw": "not observable"},
+               reasons={"yaw": "no turns"})
+    lines = cm.format_result(cal)
+    assert lines[1] == "  roll  not observable" and lines[3] == "  yaw   not observable: no turns"
+    assert lines[4] == ("  not observable: roll, yaw (held at 0 in the fit; --write leaves them "
+                        "alone)")
     # a resample count reaches the "no interval" line
     cal = _cal()
     cal.interval_deg["yaw"] = (np.nan, np.nan)
@@ -173,6 +184,11 @@ def test_estimates_disagree_beyond_the_combined_half_widths():
     assert cm.disagreements(he, unseen) == []
     he_blind = _he(angles=(5.0, -2.0, 1.0), half=0.3, observable={"roll": False})
     assert cm.disagreements(he_blind, cal) == []
+    # exactly the combined half-widths apart (0.375 and 0.5 combine to 0.625): not apart
+    exact = _cal(angles=(0.0, -2.0, 1.0), half=0.5)
+    assert cm.disagreements(_he(angles=(0.0, -2.0, 1.625), half=0.375), exact) == []
+    assert cm.disagreements(_he(angles=(0.0, -2.0, 1.6875), half=0.375), exact) == [
+        "yaw (+0.69 deg apart, combined +- 0.62)"]
     # yaw, after the skipped roll, is still compared
     he_blind = _he(angles=(5.0, -2.0, 2.0), half=0.3, observable={"roll": False})
     assert [s.split()[0] for s in cm.disagreements(he_blind, cal)] == ["yaw"]
@@ -215,7 +231,7 @@ def test_the_hand_eye_table():
     cal = _cal(angles=(0.0, -2.0, 1.0), half=0.4, source={"yaw": "not observable"})
     he = _he(angles=(0.3, -1.9, 1.0), half=0.3, observable={"roll": False},
              block=BlockChoice(20, 1.6, 20, (8,)))
-    lines = cm.format_hand_eye(he, cal, 2.0)
+    lines = cm.format_hand_eye(he, cal, 1.5)
     assert lines[0] == ("hand-eye alignment of kiss-icp (no Doppler): R_gt_sensor from 42 "
                         "segments (turn axes first, then displacement directions):")
     assert lines[1] == ("  roll  not observable: neither the turn axes nor the displacement "
@@ -230,6 +246,7 @@ def test_the_hand_eye_table():
                           * Rotation.from_matrix(cal.R_gt_sensor).inv()).magnitude())
     assert lines[5] == f"  the two rotations differ by {between:.3f} deg in all"
     assert lines[6].startswith("  the two estimates agree on pitch")
+    assert lines[6].endswith("--max-width 1.5 deg")
     # no interval on the hand-eye side: how many resamples could be fitted
     he.interval_deg["pitch"] = (np.nan, np.nan)
     assert "no interval (60 resamples could be fitted)" in cm.format_hand_eye(he, cal)[2]
@@ -242,7 +259,10 @@ def test_the_hand_eye_table_says_disagree_and_names_the_angles():
     assert len(lines) == 6  # no block: no uncertainty line
     assert lines[-1].startswith("  DISAGREE beyond their stated uncertainties in pitch (+1.00 "
                                 "deg apart, combined +- 0.14), yaw (+1.00 deg apart")
-    assert "check with `bench inspect` before applying one" in lines[-1]
+    assert lines[-1].endswith(": at least one estimate is biased (Doppler: the GT's own velocity "
+                              "and the road plane; hand-eye: the odometry's drift and the lever "
+                              "arm), so neither is exact; check with `bench inspect` before "
+                              "applying one")
 
 
 # ---------------------------------------------------------------- frames and ground truth
@@ -286,17 +306,18 @@ def test_ground_truth_check_needs_three_covered_scans_of_the_range():
     without poses, is named."""
     cm._check_ground_truth(_seq(_GT([101.2, 101.4], lambda s: s >= 101.15)), "s.store", 5, 15)
     with pytest.raises(DataError) as err:
-        cm._check_ground_truth(_seq(_GT([101.3, 101.4], lambda s: s >= 101.25)), "s.store",
-                               5, 15)
+        cm._check_ground_truth(_seq(_GT([101.3, 101.35, 101.4], lambda s: s >= 101.25)),
+                               "s.store", 5, 15)
     msg = str(err.value)
     assert msg.startswith("s.store: only 2 of the 10 scans of frames 5-14 has ground truth "
                           "(the store's ground truth spans 101.300-101.400 s, the scans "
                           "100.500-101.400 s)")
-    assert "3 or more scans" in msg and "bench inspect" in msg
+    assert msg.endswith("calibration needs the GT velocity at 3 or more scans: check the GT's "
+                        "clock (`bench inspect` shows its coverage)")
     with pytest.raises(DataError, match=r"s.store: no scan of frames 5-14 has ground truth "
                                         r"\(the store's ground truth spans 0.000-1.000 s"):
         cm._check_ground_truth(_seq(_GT([0.0, 1.0], lambda s: s < 0)), "s.store", 5, 15)
-    with pytest.raises(DataError, match="the store's ground truth has no poses"):
+    with pytest.raises(DataError, match=r"\(the store's ground truth has no poses, the scans"):
         cm._check_ground_truth(_seq(_GT([], lambda s: s < 0)), "s.store", 5, 15)
     with pytest.raises(DataError, match="s.store: calibration needs ground truth; this store "
                                         "has none"):
@@ -331,17 +352,22 @@ def flow(monkeypatch):
     fits): records what each was called with."""
     calls = {}
     cal = _cal(angles=(0.5, -2.0, 1.0), half=0.2, source={"roll": "not observable"})
-    he = _he(angles=(0.3, -1.5, 1.25), half=0.4, observable={"yaw": False})
+    cal.interval_deg["yaw"] = (0.5, 1.5)  # 1 deg wide
+    he = _he(angles=(0.3, -1.9, 1.25), half=0.2, observable={"yaw": False})
+    cues = SimpleNamespace()
 
     def collect(part, min_speed, name):
         calls["collect"] = (int(part.indices[0]), len(part), min_speed, name)
-        return SimpleNamespace(n_frames=len(part))
+        cues.n_frames = len(part)
+        return cues
 
-    def calibrate(cues, bootstrap, name):
+    def calibrate(got, bootstrap, name):
+        assert got is cues
         calls["calibrate"] = (bootstrap, name)
         return cal
 
-    def fit_pieces(cues, bounds, bootstrap, name):
+    def fit_pieces(got, bounds, bootstrap, name):
+        assert got is cues
         calls["pieces"] = (bounds, bootstrap, name)
         return ["the pieces"]
 
@@ -380,12 +406,20 @@ def test_calibrate_store_estimates_on_the_asked_frames_and_says_what_write_would
                             "store score only the others)")
     assert out.lines[1:1 + len(cm.format_result(flow.cal))] == cm.format_result(flow.cal)
     assert "PIECES" in out.lines
-    assert cm.format_hand_eye(flow.he, flow.cal, 0.5)[0] in out.lines
+    table = cm.format_hand_eye(flow.he, flow.cal, 0.5)
+    start = out.lines.index(table[0])
+    assert out.lines[start:start + len(table)] == table
+    assert table[-1].endswith("--max-width 0.5 deg")  # pitch agrees at that resolution
     assert not any(line.startswith("note: every frame") for line in out.lines)
-    # the Doppler estimate's angles with intervals narrower than 0.5 deg: pitch and yaw
+    # the Doppler estimate's angles with intervals narrower than 0.5 deg: pitch only
     assert out.lines[-1] == ("--write would apply the angles whose 95 % interval is narrower "
-                             "than 0.5 deg (--max-width): pitch -2.000, yaw +1.000; left alone "
-                             "(0 in the written rotation): roll (not observable)")
+                             "than 0.5 deg (--max-width): pitch -2.000; left alone (0 in the "
+                             "written rotation): roll (not observable), yaw (interval 1.00 deg "
+                             "wide, not narrower than 0.5)")
+    # 2 + 8 frames of 12: not every frame
+    out = _Lines()
+    cm.calibrate_store(store, console=out, start=2, frames=8)
+    assert not any(line.startswith("note: every frame") for line in out.lines)
 
 
 def test_calibrate_store_defaults_and_every_frame_used(store, flow):
@@ -413,7 +447,7 @@ def test_calibrate_store_hand_eye_only_when_asked_or_applied(store, flow):
     # the hand-eye estimate's observable angles narrower than 2 deg: roll and pitch
     assert out.lines[-1].startswith("--write would apply the angles whose 95 % interval is "
                                     "narrower than 2 deg (--max-width): roll +0.300, pitch "
-                                    "-1.500; left alone (0 in the written rotation): yaw (not "
+                                    "-1.900; left alone (0 in the written rotation): yaw (not "
                                     "observable)")
     flow.calls["hand_eye_fails"] = True
     out = _Lines()
@@ -428,6 +462,56 @@ def test_calibrate_store_refuses_an_unknown_estimate(store, flow):
     with pytest.raises(DataError, match=r"--apply 'both': choose from doppler, hand-eye"):
         cm.calibrate_store(store, apply="both")
     assert flow.calls == {}
+
+
+@pytest.mark.parametrize("width", [0.0, -1.0, float("nan"), float("inf")])
+def test_calibrate_store_refuses_a_max_width_that_is_not_a_positive_number(store, flow, width):
+    with pytest.raises(DataError, match=rf"--max-width {width}: expected a positive number of "
+                                        "degrees"):
+        cm.calibrate_store(store, max_width_deg=width)
+    assert flow.calls == {}
+
+
+def test_calibrate_store_refuses_a_store_without_doppler(flow, tmp_path):
+    """A store whose scans carry no Doppler: the words bench run refuses it with, naming the
+    store and "calibration from Doppler"; nothing is estimated."""
+    from loaders.scan import MemorySequence, Scan
+    from loaders.store import write_store
+    from loaders.synthetic import SyntheticSequence
+
+    seq = SyntheticSequence("loop", "radar-sparse", frames=8, seed=2)
+    plain = MemorySequence("p", seq.sensor, [Scan(s.stamp, s.points) for s in seq],
+                           seq.ground_truth, {})
+    path = write_store(plain, tmp_path / "plain.h5")
+    with pytest.raises(DataError, match=rf"^{path}: calibration from Doppler needs Doppler, "
+                                        "but the store has no Doppler values"):
+        cm.calibrate_store(path)
+    assert flow.calls == {}
+
+
+def test_calibrate_store_checks_the_ground_truth_of_the_asked_frames(flow, tmp_path):
+    """GT 1000 s after the scans: the store and the frames asked are named."""
+    from loaders.scan import MemorySequence
+    from loaders.store import write_store
+    from loaders.synthetic import SyntheticSequence
+    from loaders.trajectory import Trajectory
+
+    seq = SyntheticSequence("loop", "radar-sparse", frames=12, seed=2)
+    gt = seq.ground_truth
+    late = MemorySequence("l", seq.sensor, list(seq), Trajectory(gt.stamps + 1000.0, gt.poses),
+                          {})
+    path = write_store(late, tmp_path / "late.h5")
+    with pytest.raises(DataError, match=rf"^{path}: no scan of frames 3-8 has ground truth"):
+        cm.calibrate_store(path, start=3, frames=6)
+    assert flow.calls == {}
+
+
+def test_calibrate_store_write_below_a_file_is_refused_naming_the_option(store, flow, tmp_path):
+    (tmp_path / "f").write_text("a file")
+    target = tmp_path / "f" / "out.h5"
+    with pytest.raises(DataError, match=rf"^--write {target}: {tmp_path / 'f'} is a file; "
+                                        "expected a folder"):
+        cm.calibrate_store(store, target)
 
 
 def test_calibrate_store_writes_the_chosen_estimates_applied_angles(store, flow, tmp_path):
@@ -447,11 +531,11 @@ def test_calibrate_store_writes_the_chosen_estimates_applied_angles(store, flow,
         assert c["applied_estimate"] == "hand-eye"
         assert c["frames"] == [1, 6]
         assert c["doppler_rpy_deg"] == [0.5, -2.0, 1.0]
-        assert c["hand_eye_rpy_deg"] == [0.3, -1.5, 1.25]
-        assert c["applied_rpy_deg"] == [0.3, -1.5, 0.0]
+        assert c["hand_eye_rpy_deg"] == [0.3, -1.9, 1.25]
+        assert c["applied_rpy_deg"] == [0.3, -1.9, 0.0]
         assert c["left_alone"] == {"yaw": "not observable"}
         assert c["max_width_deg"] == 1.5
-        R = applied_rotation({"roll": 0.3, "pitch": -1.5})
+        R = applied_rotation({"roll": 0.3, "pitch": -1.9})
         np.testing.assert_allclose(c["R_gt_sensor"], R, atol=1e-12)
         T = np.eye(4)
         T[:3, :3] = R
