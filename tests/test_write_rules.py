@@ -115,7 +115,8 @@ def test_never_the_input_store(stores, tmp_path):
     for target in (plain, tmp_path / "sub" / ".." / ".." / plain.parent.name / plain.name,
                    tmp_path / "hard.h5"):
         for force in (False, True):
-            with pytest.raises(DataError, match="never writes onto its own input"):
+            with pytest.raises(DataError, match=r"never writes onto its own input \(not even "
+                                                r"with --force\): give another path$"):
                 check_write_target(plain, target, force)
     # the input does not exist yet: the paths are compared
     with pytest.raises(DataError, match=r"that is the input store .*a\.h5"):
@@ -129,10 +130,12 @@ def test_an_existing_target_only_with_force_and_only_a_calibrated_store(stores, 
     check_write_target(source, tmp_path / "new.h5", False)  # a new file: fine
     with pytest.raises(DataError, match=r"--write .*: is a folder"):
         check_write_target(source, tmp_path, True)
-    with pytest.raises(DataError, match=r"exists; give another path, or --force"):
+    with pytest.raises(DataError, match=r"exists; give another path, or --force to replace a "
+                                        r"store bench calibrate wrote$"):
         check_write_target(source, made, False)
     check_write_target(source, made, True)
     for other in (plain, tmp_path / "notes.txt"):
         other.touch()
-        with pytest.raises(DataError, match="exists and is not a store bench calibrate wrote"):
+        with pytest.raises(DataError, match=r"exists and is not a store bench calibrate wrote; "
+                                            r"--force replaces only those: give another path$"):
             check_write_target(source, other, True)
