@@ -252,6 +252,17 @@ def test_the_hand_eye_table():
     assert "no interval (60 resamples could be fitted)" in cm.format_hand_eye(he, cal)[2]
 
 
+def test_the_hand_eye_table_judges_at_the_resolution_asked():
+    """Combined half-widths 1.70 deg (1.2 each): at --max-width 1.5 the intervals cannot tell,
+    at 2 they agree."""
+    cal = _cal(angles=(0.0, -2.0, 1.0), half=1.2)
+    he = _he(angles=(0.0, -2.1, 1.1), half=1.2)
+    assert "CANNOT TELL whether the two estimates agree on roll, pitch, yaw" in \
+        "\n".join(cm.format_hand_eye(he, cal, 1.5))
+    assert cm.format_hand_eye(he, cal, 2.0)[-1].startswith(
+        "  the two estimates agree on roll, pitch, yaw")
+
+
 def test_the_hand_eye_table_says_disagree_and_names_the_angles():
     cal = _cal(angles=(0.0, -2.0, 1.0), half=0.1)
     he = _he(angles=(0.0, -1.0, 2.0), half=0.1)
