@@ -131,15 +131,26 @@ def test_resamples_that_cannot_be_fitted_are_left_out():
     only = bootstrap_angles(n, block, 3, 0, lambda idx: (calls.append(1) or
                                                          (np.ones(3) if len(calls) == 1
                                                           else None)), np.zeros(3))
-    assert only.resamples == 1 and np.isnan(only.high_deg).all()
+    assert only.resamples == 1 and np.isnan(only.high_deg).all() and only.level == 0.95
     # fewer than two resamples or frames asked: nothing fitted
     for args in ((n, 1), (1, 10)):
         none = bootstrap_angles(args[0], block, args[1], 0, lambda idx: 1 / 0, np.zeros(3),
                                 level=0.8)
-        assert none.resamples == 0 and none.level == 0.8 and np.isnan(none.sd_deg).all()
+        assert none.resamples == 0 and none.level == 0.8
+        for values in (none.sd_deg, none.low_deg, none.high_deg):
+            assert values.shape == (3,) and np.isnan(values).all()
     two = bootstrap_angles(2, BlockChoice(1, 0.1, 1, ()), 2, 0,
                            lambda idx: np.array(idx, float)[[0, 0, 1]], np.zeros(3))
     assert two.resamples == 2
+    # exactly two fitted resamples are enough for an interval
+    calls.clear()
+    pair = bootstrap_angles(n, block, 4, 0, lambda idx: (calls.append(1) or
+                                                         (np.full(3, len(calls))
+                                                          if len(calls) <= 2 else None)),
+                            np.zeros(3))
+    assert pair.resamples == 2
+    np.testing.assert_allclose(pair.sd_deg, np.std([1, 2], ddof=1))
+    assert np.isfinite(pair.low_deg).all() and np.isfinite(pair.high_deg).all()
 
 
 def test_a_block_as_long_as_the_range_does_not_divide_by_zero():
@@ -175,5 +186,14 @@ def test_residual_series_are_the_cross_product_components_in_frame_order():
     # ties keep the rows' order (stable)
     out = residual_series(fitted, target, np.array([False, False, True]), np.array([1, 0, 1]))
     np.testing.assert_allclose(out[0], np.sin(np.radians([0.1, 0.3, 0.2])), rtol=1e-12)
+    # many ties (500 rows, 5 frames): still the rows' order within a frame
+    rng = np.random.default_rng(0)
+    order = rng.integers(0, 5, 500)
+    angles = np.radians(np.arange(500) * 1e-3)
+    fitted = np.tile([1.0, 0.0, 0.0], (500, 1))
+    target = np.c_[np.cos(angles), np.sin(angles), np.zeros(500)]
+    (z,) = residual_series(fitted, target, np.array([False, False, True]), order)
+    expected = np.concatenate([np.sin(angles[order == f]) for f in range(5)])
+    np.testing.assert_allclose(z, expected, rtol=1e-12)
     assert residual_series(np.empty((0, 3)), np.empty((0, 3)), np.ones(3, bool),
                            np.empty(0)) == []
