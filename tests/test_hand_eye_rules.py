@@ -179,3 +179,152 @@ def test_hand_eye_on_runs_the_odometry_and_aligns_it(monkeypatch):
     with pytest.raises(DataError, match="seq: hand-eye alignment needs ground truth"):
         hand_eye_on(SimpleNamespace(name="seq", ground_truth=None, sensor=sensor))
     assert he_mod.HE_BLOCK_S == 10.0
+
+
+# ---------------------------------------------------------------- rules, one at a time
+
+
+def test_spread_is_the_weighted_rms_sine_to_each_axis():
+    """z and x with weights 3 and 1: around x the sines are 1 and 0, around y 1 and 1,
+    around z 0 and 1 -> sqrt(3/4), 1, sqrt(1/4); no vectors: 0."""
+    v = np.array([[0, 0, 1.0], [1.0, 0, 0]])
+    np.testing.assert_allclose(he_mod._spread(v, np.array([3.0, 1.0])),
+                               [np.sqrt(0.75), 1.0, 0.5], rtol=1e-12)
+    tilted = np.array([[np.sqrt(0.5), 0, np.sqrt(0.5)]])
+    np.testing.assert_allclose(he_mod._spread(tilted, np.ones(1)),
+                               [np.sqrt(0.5), 1.0, np.sqrt(0.5)], rtol=1e-12)
+    np.testing.assert_array_equal(he_mod._spread(np.empty((0, 3)), np.empty(0)), np.zeros(3))
+
+
+def test_weighted_fit_agrees_with_scipy_weighted_alignment():
+    """All axes free: the rotation minimising sum w |b - R a|^2 (scipy's align_vectors with
+    weights), on noisy pairs whose weights matter."""
+    rng = np.random.default_rng(3)
+    a = rng.normal(size=(40, 3))
+    a /= np.linalg.norm(a, axis=1)[:, None]
+    b = a @ MOUNT.T + rng.normal(scale=0.05, size=(40, 3))
+    w = rng.uniform(0.05, 1.0, 40)
+    ref, _ = Rotation.align_vectors(b, a, weights=w)
+    R = he_mod._weighted_fit(a, b, w, np.ones(3, bool))
+    np.testing.assert_allclose(R, ref.as_matrix(), atol=1e-8)
+    plain, _ = Rotation.align_vectors(b, a)
+    assert not np.allclose(R, plain.as_matrix(), atol=1e-6)  # the weights mattered
+
+
+def test_a_segment_counts_only_when_both_trajectories_move_enough():
+    """The odometry at half the GT's scale: GT segments of 1.5 m, odometry 0.75 m: none."""
+    gt = np.array([pose(np.eye(3), [k * 1.5, 0, 0]) for k in range(5)])
+    half = np.array([pose(np.eye(3), [k * 0.75, 0, 0]) for k in range(5)])
+    assert len(segment_vectors(gt, half, 1).start) == 0
+    assert len(segment_vectors(half, gt, 1).start) == 0
+
+
+def test_defaults_kiss_icp_200_resamples_and_the_segment_step():
+    """Defaults: odometry "kiss-icp", 200 resamples; one segment per frame when the segment
+    is one period long; exactly 5 segments are enough, 4 are not (an error saying to use more
+    frames)."""
+    gt = np.array([pose(np.eye(3), [k * 2.0, 0.0, 0.0]) for k in range(6)])
+    res = hand_eye_rotation(gt, sensor_poses(gt), 1.0)
+    assert res.odometry == "kiss-icp" and res.resamples == 200 and res.segments == 5
+    with pytest.raises(DataError, match=r"only 4 usable segments of 1.0 s .*; use more frames$"):
+        hand_eye_rotation(gt[:5], sensor_poses(gt[:5]), 1.0)
+
+
+def test_exactly_three_turns_are_trusted():
+    """One segment per frame, 2 m apart; the heading turns by 5 deg on exactly three
+    segments: their axes (vertical) fix roll and pitch; with two turns, they do not."""
+    def turns(count):
+        yaw = np.cumsum([0.0] * 4 + [5.0] * count + [0.0] * 6)
+        R = Rotation.from_euler("z", yaw[:, None], degrees=True).as_matrix()
+        pos = np.cumsum(R[:, :, 0] * 2.0, axis=0)
+        return np.array([pose(r, p) for r, p in zip(R, pos, strict=True)])
+
+    gt = turns(3)
+    assert segment_vectors(gt, sensor_poses(gt), 1).turn.sum() == 3
+    res = hand_eye_rotation(gt, sensor_poses(gt), 1.0, bootstrap=5)
+    assert res.source["roll"] == TURN_AXES and res.source["pitch"] == TURN_AXES
+    gt = turns(2)
+    res = hand_eye_rotation(gt, sensor_poses(gt), 1.0, bootstrap=5)
+    assert TURN_AXES not in res.source.values()
+
+
+def test_spread_thresholds_are_at_least():
+    """An angle is fitted from a cue spreading around it by at least the threshold: exactly
+    the drive's own spread passes, a hair more does not."""
+    gt = drive(300)
+    v = segment_vectors(gt, sensor_poses(gt), 10)
+    turn = he_mod._spread(v.odometry[v.turn], v.weight[v.turn])
+    moves = he_mod._spread(v.odometry[~v.turn], v.weight[~v.turn])
+    res = hand_eye_rotation(gt, sensor_poses(gt), 0.1, bootstrap=3, min_turn_spread=turn[0],
+                            min_spread=moves[2])
+    assert res.source["roll"] == TURN_AXES and res.source["yaw"] == DISPLACEMENTS
+    res = hand_eye_rotation(gt, sensor_poses(gt), 0.1, bootstrap=3,
+                            min_turn_spread=turn[0] + 1e-9, min_spread=moves[2] + 1e-9)
+    assert res.source["roll"] != TURN_AXES and res.source["yaw"] == "not observable"
+
+
+def test_the_block_floor_is_the_asked_seconds_and_one_segment():
+    """At 10 Hz: 10 s is 100 frames exactly (not 101); 0.1 s is less than a segment (10
+    frames) plus one: 11. The residuals (noise-free) may ask for more, by their own rule."""
+    gt = drive(300)
+    for block_s, floor in ((10.0, 100), (0.1, 11)):
+        res = hand_eye_rotation(gt, sensor_poses(gt), 0.1, bootstrap=3, block_s=block_s)
+        wanted = max([floor, *(2 * c for c in res.block.correlation)])
+        assert res.block.wanted == wanted
+        assert len(res.block.correlation) == 3  # roll, pitch from turns; yaw from displacements
+
+
+def _noisy(gt, seed, sd_deg=0.3):
+    """The sensor's poses with a per-frame attitude error (white, sd_deg per axis)."""
+    rng = np.random.default_rng(seed)
+    noise = Rotation.from_rotvec(np.radians(rng.normal(scale=sd_deg, size=(len(gt), 3))))
+    out = sensor_poses(gt).copy()
+    out[:, :3, :3] = out[:, :3, :3] @ noise.as_matrix()
+    return out
+
+
+def test_noisy_odometry_gets_a_bootstrap_spread_at_the_asked_level():
+    """Per-frame attitude noise: the resamples differ (sd > 0); the interval at level 0.8 is
+    t(0.9) / t(0.975) of the 95 % one (same block, same resamples); the block's correlation
+    lengths are those of the residuals of each fitted angle in frame order."""
+    from scipy.stats import t as student_t
+
+    from bench.data.calibration.bootstrap import residual_series
+    from metrics.intervals import correlation_length
+
+    gt = drive(300)
+    est = _noisy(gt, 1)
+    a = hand_eye_rotation(gt, est, 0.1, bootstrap=30, block_s=2.0)
+    b = hand_eye_rotation(gt, est, 0.1, bootstrap=30, block_s=2.0, level=0.8)
+    assert all(s > 1e-4 for s in a.std_deg.values())
+    assert a.std_deg == b.std_deg and a.block == b.block
+    dof = a.block.dof(300)
+    for ax in ("roll", "pitch", "yaw"):
+        half_a = 0.5 * (a.interval_deg[ax][1] - a.interval_deg[ax][0])
+        half_b = 0.5 * (b.interval_deg[ax][1] - b.interval_deg[ax][0])
+        assert half_b / half_a == pytest.approx(student_t.ppf(0.9, dof)
+                                                / student_t.ppf(0.975, dof), rel=1e-9)
+    v = segment_vectors(gt, est, 10)
+    R, t = a.R_gt_sensor, v.turn
+    series = residual_series(v.odometry[t] @ R.T, v.gt[t], np.array([True, True, False]),
+                             v.start[t])
+    series += residual_series(v.odometry[~t] @ R.T, v.gt[~t], np.array([False, False, True]),
+                              v.start[~t])
+    assert a.block.correlation == tuple(int(correlation_length(s)) for s in series)
+
+
+def test_hand_eye_on_defaults_to_kiss_icp(monkeypatch):
+    import methods.base
+    import methods.registry
+    from loaders.trajectory import Trajectory
+
+    gt = drive(200)
+    stamps = np.arange(200) * 0.1
+    made = []
+    monkeypatch.setattr(methods.registry, "make_method",
+                        lambda name, params, sensor: made.append(name))
+    monkeypatch.setattr(methods.base, "run_timed", lambda m, s, seed: SimpleNamespace(
+        stamps=stamps, poses=sensor_poses(gt)))
+    seq = SimpleNamespace(name="s", ground_truth=Trajectory(stamps, gt),
+                          sensor=SimpleNamespace(period_s=0.1))
+    assert hand_eye_on(seq, bootstrap=3).odometry == "kiss-icp" and made == ["kiss-icp"]
