@@ -230,14 +230,36 @@ def test_defaults_kiss_icp_200_resamples_and_the_segment_step():
         hand_eye_rotation(gt[:5], sensor_poses(gt[:5]), 1.0)
 
 
+def turns(count):
+    """One segment per frame, 2 m apart; the heading turns by 5 deg on ``count`` segments
+    (starting at frame 3), 13 + count - 3 frames."""
+    yaw = np.cumsum([0.0] * 4 + [5.0] * count + [0.0] * 6)
+    R = Rotation.from_euler("z", yaw[:, None], degrees=True).as_matrix()
+    pos = np.cumsum(R[:, :, 0] * 2.0, axis=0)
+    return np.array([pose(r, p) for r, p in zip(R, pos, strict=True)])
+
+
+def test_a_resample_is_fitted_only_with_three_turns_and_three_displacements():
+    """Three turns in 13 frames, blocks of half the frames: a resample draws each segment as
+    often as its start frame; those with fewer than 3 turn rows are left out (counted here
+    from the same draws, metrics.intervals.block_indices)."""
+    from metrics.intervals import block_indices
+
+    gt = turns(3)
+    res = hand_eye_rotation(gt, sensor_poses(gt), 1.0, bootstrap=60)
+    v = segment_vectors(gt, sensor_poses(gt), 1)
+    counts = []
+    for idx in block_indices(len(gt), res.block.frames, 60, 0):
+        drawn = np.bincount(idx, minlength=len(gt))[v.start]
+        counts.append((drawn[v.turn].sum(), drawn[~v.turn].sum()))
+    counts = np.array(counts)
+    assert (counts[:, 0] == 3).any() and (counts[:, 0] < 3).any()  # both sides of the bound
+    assert res.resamples == int(((counts[:, 0] >= 3) & (counts[:, 1] >= 3)).sum())
+
+
 def test_exactly_three_turns_are_trusted():
-    """One segment per frame, 2 m apart; the heading turns by 5 deg on exactly three
-    segments: their axes (vertical) fix roll and pitch; with two turns, they do not."""
-    def turns(count):
-        yaw = np.cumsum([0.0] * 4 + [5.0] * count + [0.0] * 6)
-        R = Rotation.from_euler("z", yaw[:, None], degrees=True).as_matrix()
-        pos = np.cumsum(R[:, :, 0] * 2.0, axis=0)
-        return np.array([pose(r, p) for r, p in zip(R, pos, strict=True)])
+    """The heading turns by 5 deg on exactly three segments: their axes (vertical) fix roll
+    and pitch; with two turns, they do not."""
 
     gt = turns(3)
     assert segment_vectors(gt, sensor_poses(gt), 1).turn.sum() == 3
