@@ -285,6 +285,22 @@ def test_spread_thresholds_are_at_least():
     assert res.source["roll"] != TURN_AXES and res.source["yaw"] == "not observable"
 
 
+def test_the_turn_spread_is_weighted_by_the_turns():
+    """A body that pitches and rolls (turn axes off the vertical by varying amounts, turns of
+    varying size): yaw is fitted from the turn axes exactly when their turn-weighted spread
+    around z reaches the threshold."""
+    gt = drive(300, tilt=0.05)
+    v = segment_vectors(gt, sensor_poses(gt), 10)
+    weighted = he_mod._spread(v.odometry[v.turn], v.weight[v.turn])[2]
+    plain = he_mod._spread(v.odometry[v.turn], np.ones(v.turn.sum()))[2]
+    assert abs(weighted - plain) > 1e-6  # the weights matter on this drive
+    res = hand_eye_rotation(gt, sensor_poses(gt), 0.1, bootstrap=3, min_turn_spread=weighted)
+    assert res.source["yaw"] == TURN_AXES
+    res = hand_eye_rotation(gt, sensor_poses(gt), 0.1, bootstrap=3,
+                            min_turn_spread=weighted + 1e-9)
+    assert res.source["yaw"] != TURN_AXES
+
+
 def test_the_block_floor_is_the_asked_seconds_and_one_segment():
     """At 10 Hz: 10 s is 100 frames exactly (not 101); 0.1 s is less than a segment (10
     frames) plus one: 11. The residuals (noise-free) may ask for more, by their own rule."""
