@@ -257,6 +257,29 @@ def test_a_resample_is_fitted_only_with_three_turns_and_three_displacements():
     assert res.resamples == int(((counts[:, 0] >= 3) & (counts[:, 1] >= 3)).sum())
 
 
+def test_a_resample_needs_three_displacement_rows_too():
+    """Three 2 m moves (frames 0-3), then nine 5 deg turns in place: the displacement rows
+    (yaw) are the scarce ones; resamples with fewer than 3 of them are left out, those with
+    exactly 3 kept (counted from the same draws)."""
+    from metrics.intervals import block_indices
+
+    yaw = np.r_[np.zeros(4), 5.0 * np.arange(1, 10)]
+    R = Rotation.from_euler("z", yaw[:, None], degrees=True).as_matrix()
+    pos = np.r_[np.c_[2.0 * np.arange(4), np.zeros((4, 2))], np.tile([6.0, 0, 0], (9, 1))]
+    gt = np.array([pose(r, p) for r, p in zip(R, pos, strict=True)])
+    res = hand_eye_rotation(gt, sensor_poses(gt), 1.0, bootstrap=60)
+    assert res.source == {"roll": TURN_AXES, "pitch": TURN_AXES, "yaw": DISPLACEMENTS}
+    v = segment_vectors(gt, sensor_poses(gt), 1)
+    assert (~v.turn).sum() == 3 and v.turn.sum() == 9
+    counts = []
+    for idx in block_indices(len(gt), res.block.frames, 60, 0):
+        drawn = np.bincount(idx, minlength=len(gt))[v.start]
+        counts.append((drawn[v.turn].sum(), drawn[~v.turn].sum()))
+    counts = np.array(counts)
+    assert (counts[:, 1] == 3).any() and (counts[:, 1] < 3).any()
+    assert res.resamples == int(((counts[:, 0] >= 3) & (counts[:, 1] >= 3)).sum())
+
+
 def test_exactly_three_turns_are_trusted():
     """The heading turns by 5 deg on exactly three segments: their axes (vertical) fix roll
     and pitch; with two turns, they do not."""
