@@ -114,7 +114,9 @@ def _half_width(interval: tuple[float, float]) -> float:
 
 def disagreements(he: HandEyeResult, cal: CalibrationResult) -> list[str]:
     """The angles both estimates observe on which their difference exceeds the combined
-    half-widths of their stated intervals, ``sqrt(h_he^2 + h_doppler^2)``."""
+    half-widths of their stated intervals, ``sqrt(h_he^2 + h_doppler^2)`` (an angle without
+    a finite interval on either side is not apart: ``hand_eye_verdicts`` says the intervals
+    cannot tell)."""
     out = []
     for ax in ANGLES:
         if not he.observable[ax] or ax in cal.not_observable:
@@ -122,7 +124,7 @@ def disagreements(he: HandEyeResult, cal: CalibrationResult) -> list[str]:
         diff = he.angles_deg[ax] - cal.angles_deg[ax]
         width = float(np.hypot(_half_width(he.interval_deg[ax]),
                                _half_width(cal.interval_deg[ax])))
-        if not abs(diff) <= width:
+        if np.isfinite(width) and abs(diff) > width:
             out.append(f"{ax} ({diff:+.2f} deg apart, combined +- {width:.2f})")
     return out
 
