@@ -93,11 +93,17 @@ def test_a_figure_without_a_value_sets_no_bound_wherever_it_stands():
 
 
 def test_panels_at_the_shortest_and_longest_lengths_with_segments():
-    rows = [_row("doppler", [_rel(8.0, n=0), _rel(16.0, n=1), _rel(24.0), _rel(48.0, n=0)]),
+    rows = [_row("doppler", [_rel(8.0, n=0), _rel(12.0, n=1), _rel(24.0), _rel(48.0, n=0)]),
             _row("icp-p2p", [_rel(16.0, rot=2.0, rot_ci=(1.9, 2.1)), _rel(32.0, n=2)])]
     (stem, panels), (stem2, panels2) = forest_panels(rows)
     assert (stem, stem2) == ("seq-rotation", "seq-translation")
-    assert [p.length_m for p in panels] == [16.0, 32.0]  # n = 1 counts, n = 0 does not
+    assert [p.length_m for p in panels] == [12.0, 32.0]  # n = 1 counts, n = 0 does not
+    assert [e.status for e in panels[0].entries] == ["", "-"]  # icp-p2p: no figure at 12 m
+    rows[0].result.relative_error[1].n = 5
+    rows[1].result.relative_error[0].length_m = 12.0
+    rows[1].result.relative = {12.0: rows[1].result.relative_error[0],
+                               32.0: rows[1].result.relative_error[1]}.get
+    (stem, panels), _ = forest_panels(rows)
     p = panels[0]
     assert (p.sequence, p.error, p.unit) == ("seq", "rotation", "deg")
     assert (panels2[0].error, panels2[0].unit) == ("translation", "m")
@@ -233,3 +239,21 @@ def test_a_dot_keeps_its_priors_marker_but_a_cross_which_cannot_be_hollow():
         assert dots == {1.0: prior_style(seeded)[1], 2.0: "o", 3.0: prior_style(variant)[1]}
     finally:
         plt.close(fig)
+
+
+def test_a_forest_is_as_tall_as_its_rows():
+    """A panel's height grows with its rows (0.15 in each, at least 3 rows, plus its title and
+    axis): a one-row and a twelve-row forest stay within a page, the taller by the rows."""
+    import matplotlib.pyplot as plt
+
+    from bench.report.figures.forest import Entry
+
+    run = SimpleNamespace(method="doppler", seed=True, label=None)
+    heights = []
+    for n in (1, 12):
+        fig = _drawn([Entry(f"M{i}", run, 1.0 + i, 0.9 + i, 1.1 + i, rankable=True)
+                      for i in range(n)], [])
+        heights.append(fig.get_figheight())
+        plt.close(fig)
+    assert 1.0 < heights[0] < 4.0 and heights[1] < 6.0
+    assert heights[1] - heights[0] == pytest.approx((12 - 3) * 0.15, abs=0.05)
