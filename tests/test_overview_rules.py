@@ -1,0 +1,267 @@
+"""The cross-dataset summary (bench.report.summary.overview) on hand-made runs and marks.
+
+The marks per sequence (``figure_ranks``) and which name a sequence is counted under
+(``counted_as``) are given by hand, the runs are stand-ins with just what the summary reads, so
+every figure below follows from the module's definition: a method's mean mark over the figures
+it is marked on (1 bold, 2 underlined, 3 neither), how many of them are bold, the sequences it
+finished on (two names of one content: one), its failed / diverged / fell-back runs, and why a
+method has no row's figures on a class."""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from bench.report.summary import overview
+from bench.report.summary.overview import (
+    _dataset_and_licence,
+    _unknown_classes_note,
+    _why_not,
+    sources,
+    sources_table,
+    summary_table,
+)
+from loaders.registry import LOADERS
+from loaders.sensor_classes import SEMI_DENSE_RADAR, SPARSE_RADAR
+
+CUSTOM = "Custom radar"
+LENGTHS = (8.0, 48.0)
+FIGS = [(L, q) for L in LENGTHS for q in ("rot_deg", "trans_m")]
+
+
+def _run(seq, cls, method, label="", failed=False, diverged=False, fell_back=False,
+         kind="radial", lengths=LENGTHS):
+    result = SimpleNamespace(relative=lambda L: SimpleNamespace(n=5) if L in lengths else None,
+                             fell_back=fell_back)
+    run = SimpleNamespace(label=label or None, doppler_kind=kind, config={}, dir=Path("."))
+    return SimpleNamespace(sequence=seq, sensor_class=cls, method=method, run=run,
+                           result=result, failed=failed, diverged=diverged)
+
+
+IP, GI, DO = ("icp-p2p", None), ("gicp", None), ("doppler", None)
+#: sequence -> contender -> its marks on the four figures (None: not marked)
+MARKS = {
+    "s1": {IP: [2, 2, 2, 2], GI: [1, 1, 1, 1]},
+    "s2": {IP: [1, 1, 3, 3], GI: [1, 1, None, 1]},
+    "t1": {DO: [1, 2, 1, 2]},
+}
+
+
+def _figures(marks=MARKS):
+    return {fig: {s: {k: r[j] for k, r in ks.items() if r[j] is not None}
+                  for s, ks in marks.items()} for j, fig in enumerate(FIGS)}
+
+
+@pytest.fixture
+def rows(monkeypatch):
+    figures = _figures()
+    calls = []
+
+    def figure_ranks(rows, length_m, quantity):
+        calls.append((length_m, quantity))
+        return figures[(length_m, quantity)]
+
+    monkeypatch.setattr(overview, "figure_ranks", figure_ranks)
+    monkeypatch.setattr(overview, "counted_as",
+                        lambda rows: {r.sequence: ("s2" if r.sequence == "s2b" else r.sequence)
+                                      for r in rows})
+    monkeypatch.setattr(overview, "ranked_lengths", lambda rows: LENGTHS)
+    monkeypatch.setattr(overview, "same_content_note",
+                        lambda rows: " Sequences holding one content: s2 = s2b.")
+    out = [
+        # semi-dense radar (ego-motion Doppler only)
+        _run("s1", SEMI_DENSE_RADAR, "icp-p2p", kind="ego"),
+        _run("s2", SEMI_DENSE_RADAR, "icp-p2p", kind="ego", fell_back=True),
+        _run("s2b", SEMI_DENSE_RADAR, "icp-p2p", kind="ego"),  # s2 under another name
+        _run("s1", SEMI_DENSE_RADAR, "gicp", kind="ego", diverged=True),
+        _run("s2", SEMI_DENSE_RADAR, "gicp", kind="ego"),
+        _run("s3", SEMI_DENSE_RADAR, "gicp", kind="ego", failed=True, diverged=True,
+             fell_back=True),
+        # sparse radar (raw Doppler): only the Doppler method
+        _run("t1", SPARSE_RADAR, "doppler"),
+        # a class outside the paper's three: one failed run
+        _run("c1", CUSTOM, "icp-p2p", failed=True),
+        # an external trajectory scored on sparse radar
+        _run("t1", SPARSE_RADAR, "kiss", label="kiss-ext (external)", lengths=()),
+    ]
+    return out, calls
+
+
+def _by(table):
+    return {(r.keys[0], r.keys[1]): r for r in table.rows}
+
+
+def test_rows_per_class_and_method_in_the_papers_order(rows):
+    rr, calls = rows
+    table = summary_table(rr)
+    assert sorted(set(calls)) == sorted(FIGS)
+    assert table.keys == ["Sensor class", "Method"]
+    assert table.columns == ["Sequences", "Mean mark", "Bold", "Failed", "Diverged",
+                             "Fell back"]
+    # classes in the paper's order, the unknown one last; methods by their order, then name
+    assert [tuple(r.keys) for r in table.rows] == [
+        (c, m) for c in (SPARSE_RADAR, SEMI_DENSE_RADAR, CUSTOM)
+        for m in ("icp-p2p", "gicp", "doppler", "kiss-ext (external)")]
+    assert all(r.group == (r.keys[0],) for r in table.rows)
+    assert all(len(r.cells) == 6 for r in table.rows)
+    b = _by(table)
+    assert b[(SPARSE_RADAR, "kiss-ext (external)")].meta == {"method": "kiss",
+                                                             "label": "kiss-ext (external)"}
+    assert b[(SEMI_DENSE_RADAR, "gicp")].meta == {"method": "gicp", "label": None}
+    assert b[(SPARSE_RADAR, "gicp")].meta == {"method": "gicp", "label": None}
+
+
+def test_mean_mark_bold_count_and_the_lowest_in_bold(rows):
+    rr, _ = rows
+    b = _by(summary_table(rr))
+    ip = b[(SEMI_DENSE_RADAR, "icp-p2p")].cells
+    gi = b[(SEMI_DENSE_RADAR, "gicp")].cells
+    # icp-p2p: s1 and s2 (s2b is s2): eight marks, an independent mean with numpy
+    ip_marks = MARKS["s1"][IP] + MARKS["s2"][IP]
+    assert ip[0].parts[0].text == "2" and ip[0].values == {"sequences": 2}
+    assert ip[1].values["mean_mark"] == pytest.approx(np.mean(ip_marks))
+    assert ip[1].values["marked_figures"] == 8
+    assert ip[1].parts[0].text == f"{np.mean(ip_marks):.2f}" == "2.00"
+    assert ip[2].parts[0].text == "2 of 8" and ip[2].values == {"bold_figures": 2}
+    # gicp: s3 failed, so two sequences; seven marks (one figure of s2 unmarked), all bold
+    assert gi[0].parts[0].text == "2"
+    assert gi[1].values["marked_figures"] == 7
+    assert gi[1].values["mean_mark"] == pytest.approx(1.0)
+    assert gi[2].parts[0].text == "7 of 7"
+    # the lowest mean mark of the class is bold, the other is not
+    assert gi[1].parts[0].rank == 0 and ip[1].parts[0].rank != 0
+    # sparse radar: the Doppler method alone, mean 1.5, bold (the lowest of its class)
+    do = b[(SPARSE_RADAR, "doppler")].cells
+    assert do[1].values["mean_mark"] == pytest.approx(1.5) and do[1].parts[0].text == "1.50"
+    assert do[2].parts[0].text == "2 of 4" and do[1].parts[0].rank == 0
+
+
+def test_failed_diverged_and_fell_back_count_runs(rows):
+    rr, _ = rows
+    b = _by(summary_table(rr))
+    gi = b[(SEMI_DENSE_RADAR, "gicp")].cells
+    # s3 failed (its diverged / fell-back flags do not count: it did not finish); s1 diverged
+    assert [c.parts[0].text for c in gi[3:]] == ["1", "1", "0"]
+    assert gi[3].values == {"failed": 1} and gi[4].values == {"diverged": 1}
+    assert gi[5].values == {"fell_back": 0}
+    ip = b[(SEMI_DENSE_RADAR, "icp-p2p")].cells
+    assert [c.parts[0].text for c in ip[3:]] == ["0", "0", "1"]
+    # a class where the method only failed: no sequence, no mark, not bold
+    c = b[(CUSTOM, "icp-p2p")].cells
+    assert c[0].parts[0].text == "0" and c[3].parts[0].text == "1"
+    assert c[1].parts[0].text == "-" and c[2].parts[0].text == "-"
+    assert math.isnan(c[1].values["mean_mark"]) and c[1].values["marked_figures"] == 0
+    assert c[1].parts[0].rank != 0
+
+
+def test_why_a_method_has_no_runs_on_a_class(rows):
+    rr, _ = rows
+    b = _by(summary_table(rr))
+    why = {k: r.cells[0].status for k, r in b.items() if r.cells[0].status}
+    assert "needs raw (radial) Doppler" in why[(SEMI_DENSE_RADAR, "doppler")]
+    assert "these stores have ego Doppler" in why[(SEMI_DENSE_RADAR, "doppler")]
+    assert "did not ask for it" in why[(SPARSE_RADAR, "icp-p2p")]
+    # the Doppler method on raw-Doppler stores it was not run on: simply not asked for
+    assert "did not ask for it" in why[(CUSTOM, "doppler")]
+    assert "bench score" in why[(SEMI_DENSE_RADAR, "kiss-ext (external)")]
+    assert all(c.status == "" for c in b[(SPARSE_RADAR, "icp-p2p")].cells[1:])
+    # rows with figures have no status
+    assert (SEMI_DENSE_RADAR, "gicp") not in why
+    # a method that is not registered (a plugin not loaded): not asked for, no registry
+    assert "did not ask for it" in _why_not("my-plugin", "", [])
+    kinds = [_run("x", SPARSE_RADAR, "icp-p2p", kind=k) for k in ("ego", "none", "ego")]
+    assert _why_not("doppler", "", kinds).endswith("these stores have ego, none Doppler")
+    assert "did not ask" in _why_not("doppler", "", kinds + [_run("y", SPARSE_RADAR, "x")])
+    assert "did not ask" in _why_not("gicp", "", kinds)
+
+
+def test_the_caption_says_lengths_rule_and_notes(rows):
+    rr, _ = rows
+    caption = summary_table(rr).caption
+    assert "at 8 m and 48 m, the shortest and the longest" in caption
+    assert "1 = bold, 2 = underlined, 3 = neither" in caption
+    assert f" {CUSTOM}: stores whose loader does not know" in caption
+    assert caption.endswith(" Sequences holding one content: s2 = s2b.")
+    # lengths no run has are left out; none left: nothing ranked
+    t = summary_table(rr, (8.0, 100.0))
+    assert "at 8 m, the shortest" in t.caption
+    mean = _by(t)[(SEMI_DENSE_RADAR, "icp-p2p")].cells[1]
+    assert mean.values["marked_figures"] == 4  # two figures at 8 m on two sequences
+    assert mean.values["mean_mark"] == pytest.approx(np.mean([2, 2, 1, 1]))
+    t = summary_table(rr, (100.0,))
+    assert "nothing is ranked" in t.caption
+    assert all(not r.cells[1].parts or r.cells[1].parts[0].text == "-" for r in t.rows)
+
+
+def test_a_tie_for_the_lowest_mean_mark_bolds_both(monkeypatch, rows):
+    rr, _ = rows
+    marks = {"s1": {IP: [1, 2, 1, 2], GI: [2, 1, 2, 1]}, "s2": {}, "t1": {}}
+    monkeypatch.setattr(overview, "figure_ranks", lambda rows, L, q: _figures(marks)[(L, q)])
+    b = _by(summary_table(rr))
+    assert b[(SEMI_DENSE_RADAR, "icp-p2p")].cells[1].parts[0].rank == 0
+    assert b[(SEMI_DENSE_RADAR, "gicp")].cells[1].parts[0].rank == 0
+
+
+def test_unknown_classes_note():
+    assert _unknown_classes_note([SPARSE_RADAR, SEMI_DENSE_RADAR]) == ""
+    note = _unknown_classes_note([SPARSE_RADAR, "A", "B"])
+    assert note.startswith(" A, B: stores whose loader does not know the sensor's density")
+    assert "--model" in note
+
+
+def test_dataset_and_licence_in_order_of_trust():
+    ntu = LOADERS["ntu4dradlm"] if "ntu4dradlm" in LOADERS else next(
+        e for e in LOADERS.values() if "NTU4DRadLM" in e.dataset)
+    generic = next(e for e in LOADERS.values() if e.licence == "yours")
+    # the store's own metadata first
+    assert _dataset_and_licence({}, {"dataset": "D", "licence": "L"}, ntu) == ("D", "L")
+    # a licence named in the source text, the dataset its first words (generic route)
+    src = "NTU4DRadLM loop 1, first 300 frames (MIT); see its page"
+    assert _dataset_and_licence({}, {"source": src}, generic) == ("NTU4DRadLM loop 1", "MIT")
+    assert _dataset_and_licence({}, {"source": "Mine (CC BY 4.0)"}, None) == (
+        "Mine", "CC BY 4.0")
+    # the run's configuration names the dataset before the store
+    assert _dataset_and_licence({"dataset": "Cfg"}, {"dataset": "D"}, ntu)[0] == "Cfg"
+    # a known loader's catalogue entry
+    assert _dataset_and_licence({}, {}, ntu) == (ntu.dataset, ntu.licence)
+    # a generic route with an unlicensed source: not recorded, the source's first words
+    assert _dataset_and_licence({}, {"source": "my bag; 2024"}, generic) == (
+        "my bag", "not recorded (your own data)")
+    assert _dataset_and_licence({}, {}, generic) == (generic.dataset,
+                                                     "not recorded (your own data)")
+    assert _dataset_and_licence({}, {}, None) == ("", "")
+    # a known loader's own source text is the dataset only after its catalogue entry
+    assert _dataset_and_licence({}, {"source": "x, y"}, ntu)[0] == ntu.dataset
+
+
+def test_sources_one_per_sequence_in_class_order(monkeypatch):
+    prov = {"a.h5": {"loader": "npy", "options": {"k": 1, "z": None, "b": "x"},
+                     "source": "Own drive (MIT)"}}
+    monkeypatch.setattr(overview, "_provenance", lambda store, d: prov.get(store, {}))
+
+    def run(seq, cls, store=None, model=None):
+        r = _run(seq, cls, "icp-p2p")
+        r.run.config = {"sequence": {"store": store, "sensor_model": model}}
+        return r
+
+    rows = [run("b", SEMI_DENSE_RADAR, "a.h5"), run("a", SEMI_DENSE_RADAR),
+            run("b", SEMI_DENSE_RADAR, "other.h5"), run("z", SPARSE_RADAR)]
+    found = sources(rows)
+    assert [s["sequence"] for s in found] == ["z", "a", "b"]
+    b = found[2]
+    assert b["store"] == "a.h5" and b["loader"] == "npy" and b["options"] == {"k": 1, "b": "x"}
+    assert b["licence"] == "MIT" and b["source"] == "Own drive (MIT)"
+    assert b["sensor_class"] == SEMI_DENSE_RADAR
+    table = sources_table(rows)
+    assert table.columns == ["Dataset", "Licence", "Loader and options", "Store"]
+    last = table.rows[-1]
+    assert last.keys == [SEMI_DENSE_RADAR, "b"]
+    assert last.cells[2].parts[0].text == "npy (b=x, k=1)"
+    assert last.cells[3].parts[0].text == "a.h5"
+    first = table.rows[0]
+    assert [c.parts[0].text for c in first.cells] == ["-", "-", "", "-"]
+    assert "dataset and licence" in table.caption
