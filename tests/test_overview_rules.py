@@ -265,3 +265,68 @@ def test_sources_one_per_sequence_in_class_order(monkeypatch):
     first = table.rows[0]
     assert [c.parts[0].text for c in first.cells] == ["-", "-", "", "-"]
     assert "dataset and licence" in table.caption
+
+
+def test_provenance_is_read_from_the_store(tmp_path, monkeypatch):
+    import json
+
+    import h5py
+
+    store = tmp_path / "a.h5"
+    with h5py.File(store, "w") as f:
+        f.attrs["provenance"] = json.dumps({"loader": "npy", "source": "S (MIT)"})
+    with h5py.File(tmp_path / "bare.h5", "w"):
+        pass
+    (tmp_path / "broken.h5").write_text("not hdf5")
+    run_dir = tmp_path / "run"
+    run_dir.mkdir()
+    assert overview._provenance(str(store), run_dir) == {"loader": "npy", "source": "S (MIT)"}
+    assert overview._provenance(None, run_dir) == {} and overview._provenance("", run_dir) == {}
+    assert overview._provenance(str(tmp_path / "bare.h5"), run_dir) == {}
+    assert overview._provenance(str(tmp_path / "broken.h5"), run_dir) == {}
+    assert overview._provenance("missing.h5", run_dir) == {}
+    # a path relative to the working directory, or to the run's folder
+    monkeypatch.chdir(tmp_path)
+    assert overview._provenance("a.h5", run_dir)["loader"] == "npy"
+    monkeypatch.chdir(run_dir)
+    assert overview._provenance("../a.h5", run_dir)["loader"] == "npy"
+    monkeypatch.chdir("/")
+    assert overview._provenance("../a.h5", run_dir)["loader"] == "npy"
+
+
+def test_the_page_across_datasets_only_for_two_datasets_or_more(monkeypatch):
+    from bench.report.tables import paper
+
+    rows = [SimpleNamespace(sequence=s) for s in ("a1", "a2", "b1", "x1")]
+    datasets = {"a1": "A", "a2": "A", "b1": "B", "x1": ""}
+    built = []
+    monkeypatch.setattr(paper, "select", lambda d: (rows, [8.0]))
+    monkeypatch.setattr(paper, "build", lambda metric, rs, lengths, ci: built.append(
+        (metric, [r.sequence for r in rs], lengths, ci)) or f"table {len(built)}")
+    monkeypatch.setattr(overview, "sources",
+                        lambda rs: [{"sequence": r.sequence, "dataset": datasets[r.sequence]}
+                                    for r in rs])
+    monkeypatch.setattr(overview, "summary_table", lambda rs: "summary")
+    monkeypatch.setattr(overview, "sources_table", lambda rs: "sources")
+    pair = SimpleNamespace(rows=["a row"])
+    monkeypatch.setattr(overview, "pairwise_table", lambda rs: pair)
+    out = overview.cross_dataset(Path("r"))
+    assert [t for t, _ in out] == [
+        "Across datasets: mean mark per method",
+        "Across sequences: pairwise verdicts (k/n, sign test)", "Sources of the sequences",
+        "Dataset: A", "Dataset: B", "Dataset: dataset not recorded"]
+    assert out[0][1] == "summary" and out[1][1] is pair and out[2][1] == "sources"
+    assert built == [("relative", ["a1", "a2"], [8.0], True), ("relative", ["b1"], [8.0], True),
+                     ("relative", ["x1"], [8.0], True)]
+    # no class with two sequences: no pairwise table
+    pair.rows = []
+    assert "Across sequences: pairwise verdicts (k/n, sign test)" not in [
+        t for t, _ in overview.cross_dataset(Path("r"))]
+    # one dataset (besides unrecorded ones): nothing
+    datasets.update({"b1": "A"})
+    assert overview.cross_dataset(Path("r")) == []
+    for error in (FileNotFoundError, ValueError):
+        def fail(d, error=error):
+            raise error("x")
+        monkeypatch.setattr(paper, "select", fail)
+        assert overview.cross_dataset(Path("r")) == []
