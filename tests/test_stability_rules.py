@@ -8,6 +8,7 @@ mark differs and its cell is flagged."""
 
 from __future__ import annotations
 
+import dataclasses
 from types import SimpleNamespace
 
 import pytest
@@ -147,3 +148,58 @@ def test_half_leaves_runs_without_halves_alone():
                                      (False, False, False)):
         rr = SimpleNamespace(failed=failed, diverged=diverged, run=SimpleNamespace(has_gt=has_gt))
         assert st.half(rr, 0, [8.0]) is rr and st.half(rr, 1, [8.0]) is rr
+
+
+def test_the_caption_says_the_rule():
+    text = Stability({"d": (1, 2, 0)}, set()).text()
+    assert "A mark holds when both halves give it and each could have told otherwise" in text
+    assert "cannot tell where its figure rests on fewer than 2 independent segments or " \
+           "every figure of its column is bold" in text
+    assert text.endswith(f"{CHANGED} = a cell whose mark differs on a half.")
+
+
+def test_rows_and_table_must_match(halves):
+    made, _ = halves
+    whole = _table([[[(BEST, True)]], [[(SECOND, True)]]], ["d", "d"])
+    made[0] = made[1] = whole
+    with pytest.raises(ValueError):
+        st.stability([SimpleNamespace(sequence="d")], [8.0], whole)
+
+
+@dataclasses.dataclass
+class _Run:
+    gt: object
+    est: object
+    result: object
+    has_gt: bool = True
+
+
+class _Result:
+    finished, diverged = True, False
+
+    def model_copy(self, update):
+        return SimpleNamespace(**update)
+
+
+def test_half_scores_each_half_at_the_lengths_asked():
+    from bench.report.tables.paper import RunRow
+    from bench.runs.evaluate import relative_part
+    from bench.studies.coverage import NoiseModel, ground_truth, noisy_estimate
+    from metrics import relative_errors
+
+    gt = ground_truth(301)
+    est = noisy_estimate(gt, NoiseModel(), seed=4)
+    rr = RunRow(_Run(gt, est, _Result()), "row")
+    for which, part in ((0, slice(0, 150)), (1, slice(150, 301))):
+        h = st.half(rr, which, [5.0, 20.0])
+        assert h.label == "row" and h.run.gt is gt
+        figures = h.result.relative_error
+        ref = relative_part(gt[part], est[part], relative_errors(gt[part], est[part],
+                                                                 [5.0, 20.0]))
+        assert [f.length_m for f in figures] == [5.0, 20.0] == [f.length_m for f in ref]
+        for f, g in zip(figures, ref, strict=True):
+            assert f.n == g.n
+            assert f.rot_deg_mean == pytest.approx(g.rot_deg_mean, rel=1e-12)
+    # a half too short for any segment: no figure
+    short = RunRow(_Run(gt[:6], est[:6], _Result()), "row")
+    assert st.half(short, 0, [50.0]).result.relative_error == []
