@@ -61,9 +61,13 @@ def test_verdicts_compare_mean_marks_on_the_figures_both_are_marked_on():
     assert verdicts(per_seq, c, a) == (1, 0, 0)
     assert verdicts(per_seq, a, a) == (0, 0, 6)  # a with itself: tied on all six
     assert verdicts({}, a, b) == (0, 0, 0)
+    # the figures are one list in one order: lists of different lengths are an error
+    with pytest.raises(ValueError):
+        verdicts({"s": {a: [1, 1], b: [2]}}, a, b)
 
 
 A, B, V, D = ("gicp", None), ("icp-p2p", None), ("vgicp", "v1"), ("doppler", None)
+G = ("gicp", "Abc")  # a labelled variant of gicp: after plain gicp (labels "" first)
 LENGTHS = (8.0, 48.0)
 FIGS = [(L, q) for L in LENGTHS for q in ("rot_deg", "trans_m")]
 
@@ -78,6 +82,8 @@ def _marks():
         per[s] = {A: [1, 1, 1, 1], B: [2, 2, 2, 2]}
     # a variant marked on s2's first figure only, there as good as gicp and better than icp-p2p
     per["s2"][V] = [1, None, None, None]
+    # the variant alone on a sequence of its own: never ranked together with any other
+    per["s8"] = {G: [1, 1, 1, 1]}
     cls.update({s: SEMI_DENSE_RADAR for s in per})
     # Sparse radar (first in the paper's order, though "Semi" sorts before it): two sequences;
     # t1 is not in the last figure at all
@@ -100,7 +106,8 @@ def patched(monkeypatch):
     figures, cls = _marks()
     calls = []
 
-    def figure_ranks(rows, length_m, quantity):
+    def figure_ranks(rows_given, length_m, quantity):
+        assert rows_given is rows
         calls.append((length_m, quantity))
         return figures.get((length_m, quantity), {})
 
@@ -111,9 +118,17 @@ def patched(monkeypatch):
     monkeypatch.setattr(pairwise, "counted_as",
                         lambda rows: {r.sequence: ("s7" if r.sequence == "s7b" else r.sequence)
                                       for r in rows})
-    monkeypatch.setattr(pairwise, "ranked_lengths", lambda rows: LENGTHS)
-    monkeypatch.setattr(pairwise, "same_content_note",
-                        lambda rows: " Sequences holding one content: s7 = s7b.")
+
+    def ranked_lengths(rows_given):
+        assert rows_given is rows
+        return LENGTHS
+
+    def same_content_note(rows_given):
+        assert rows_given is rows
+        return " Sequences holding one content: s7 = s7b."
+
+    monkeypatch.setattr(pairwise, "ranked_lengths", ranked_lengths)
+    monkeypatch.setattr(pairwise, "same_content_note", same_content_note)
     return rows, calls
 
 
@@ -122,12 +137,13 @@ def test_the_matrix_per_class(patched):
     table = pairwise_table(rows)
     assert sorted(set(calls)) == sorted(FIGS)
     # classes in the paper's order, one with a single sequence left out
-    assert [r.keys[0] for r in table.rows] == [SPARSE_RADAR] * 2 + [SEMI_DENSE_RADAR] * 3
+    assert [r.keys[0] for r in table.rows] == [SPARSE_RADAR] * 2 + [SEMI_DENSE_RADAR] * 4
+    # by the methods' order, then name, then label (none first)
     assert [r.keys[1] for r in table.rows] == ["icp-p2p", "doppler",
-                                              "icp-p2p", "gicp", "vgicp [v1]"]
+                                              "icp-p2p", "gicp", "gicp [Abc]", "vgicp [v1]"]
     assert all(r.group == (r.keys[0],) for r in table.rows)
     assert [r.meta for r in table.rows][-1] == {"method": "vgicp", "label": "v1"}
-    assert table.columns == ["icp-p2p", "doppler", "gicp", "vgicp [v1]"]
+    assert table.columns == ["icp-p2p", "doppler", "gicp", "gicp [Abc]", "vgicp [v1]"]
     assert table.keys == ["Sensor class", "Method"]
     col = {name: i for i, name in enumerate(table.columns)}
     by = {(r.keys[0], r.keys[1]): r for r in table.rows}
@@ -153,16 +169,30 @@ def test_the_matrix_per_class(patched):
     c = cell(SEMI_DENSE_RADAR, "vgicp [v1]", "icp-p2p")
     assert (c.values["better"], c.values["worse"], c.values["sequences"]) == (1, 0, 1)
     assert c.parts[0].text == "1/1, p 1" and c.parts[0].rank == OTHER
+    # the other way round, after a column it was never ranked with ("gicp [Abc]")
+    c = cell(SEMI_DENSE_RADAR, "icp-p2p", "vgicp [v1]")
+    assert c.parts[0].text == "0/1, p 1" and c.values["worse"] == 1
     # sparse radar: one each way, t1 ranked on three figures only
     c = cell(SPARSE_RADAR, "doppler", "icp-p2p")
     assert (c.values["better"], c.values["worse"], c.values["sequences"]) == (1, 1, 2)
     assert c.parts[0].text == "1/2, p 1" and c.parts[0].rank == OTHER
     # never ranked together, or a method with itself: "-"
     for cls, a, b in ((SPARSE_RADAR, "doppler", "gicp"), (SPARSE_RADAR, "icp-p2p", "icp-p2p"),
-                      (SEMI_DENSE_RADAR, "gicp", "doppler"), (SEMI_DENSE_RADAR, "gicp", "gicp")):
+                      (SEMI_DENSE_RADAR, "gicp", "doppler"), (SEMI_DENSE_RADAR, "gicp", "gicp"),
+                      (SEMI_DENSE_RADAR, "gicp [Abc]", "icp-p2p"),
+                      (SEMI_DENSE_RADAR, "icp-p2p", "gicp [Abc]")):
         assert cell(cls, a, b).status == "-" and not cell(cls, a, b).parts
     assert "at 8 m and 48 m" in table.caption
-    assert "p < 0.05" in table.caption and "6 untied" in table.caption
+    # how to read a cell, as the caption says it
+    for words in ('the cell of row A and column B reads "k/n, p": A ranks better than B on k '
+                  'of the n sequences where both are ranked',
+                  "Across sequences, pairwise, per sensor class with two or more sequences",
+                  "the lower mean mark, 1 bold, 2 underlined, 3 neither as the tables print it",
+                  "p is a two-sided exact sign test (binomial, 1/2) over the untied sequences",
+                  "sequences taken as independent. Bold: the verdict holds across sequences "
+                  "(p < 0.05), which needs at least 6 untied sequences all one way; "
+                  '"-": never ranked together.'):
+        assert words in table.caption
     assert table.caption.endswith(" Sequences holding one content: s7 = s7b.")
 
 
@@ -182,9 +212,10 @@ def test_the_lengths_given_replace_the_ranked_ones(patched):
 
 def test_a_class_needs_two_ranked_sequences(patched, monkeypatch):
     rows, _ = patched
-    # two semi-dense sequences ranked: a matrix; one: none
+    # two semi-dense sequences ranked: a matrix (after a sparse class with one: left out);
+    # one: none
     figures, _ = _marks()
-    keep = {"s1", "s2"}
+    keep = {"t1", "s1", "s2"}
     few = {fig: {s: v for s, v in f.items() if s in keep} for fig, f in figures.items()}
     monkeypatch.setattr(pairwise, "figure_ranks", lambda rows, L, q: few[(L, q)])
     table = pairwise_table(rows)
