@@ -241,28 +241,41 @@ def test_dataset_and_licence_in_order_of_trust():
 def test_sources_one_per_sequence_in_class_order(monkeypatch):
     prov = {"a.h5": {"loader": "npy", "options": {"k": 1, "z": None, "b": "x"},
                      "source": "Own drive (MIT)"}}
-    monkeypatch.setattr(overview, "_provenance", lambda store, d: prov.get(store, {}))
+
+    def provenance(store, run_dir):
+        assert run_dir == Path("runs") / str(store)  # each store looked up beside its run
+        return prov.get(store, {})
+
+    monkeypatch.setattr(overview, "_provenance", provenance)
 
     def run(seq, cls, store=None, model=None):
         r = _run(seq, cls, "icp-p2p")
         r.run.config = {"sequence": {"store": store, "sensor_model": model}}
+        r.run.dir = Path("runs") / str(store)
         return r
 
     rows = [run("b", SEMI_DENSE_RADAR, "a.h5"), run("a", SEMI_DENSE_RADAR),
-            run("b", SEMI_DENSE_RADAR, "other.h5"), run("z", SPARSE_RADAR)]
+            run("b", SEMI_DENSE_RADAR, "other.h5"), run("z", SPARSE_RADAR),
+            run("v", SPARSE_RADAR, "v.h5", model="vod")]
     found = sources(rows)
-    assert [s["sequence"] for s in found] == ["z", "a", "b"]
-    b = found[2]
+    assert [s["sequence"] for s in found] == ["v", "z", "a", "b"]
+    # no provenance: the loader named by the run's sensor model, its catalogue entry
+    v = found[0]
+    assert v["loader"] == "vod" and v["dataset"] == "View-of-Delft"
+    assert v["licence"] == LOADERS["vod"].licence and v["source"] == ""
+    b = found[3]
     assert b["store"] == "a.h5" and b["loader"] == "npy" and b["options"] == {"k": 1, "b": "x"}
     assert b["licence"] == "MIT" and b["source"] == "Own drive (MIT)"
     assert b["sensor_class"] == SEMI_DENSE_RADAR
     table = sources_table(rows)
+    assert table.keys == ["Sensor class", "Sequence"]
     assert table.columns == ["Dataset", "Licence", "Loader and options", "Store"]
+    assert [r.group for r in table.rows] == [(SPARSE_RADAR,)] * 2 + [(SEMI_DENSE_RADAR,)] * 2
     last = table.rows[-1]
     assert last.keys == [SEMI_DENSE_RADAR, "b"]
     assert last.cells[2].parts[0].text == "npy (b=x, k=1)"
     assert last.cells[3].parts[0].text == "a.h5"
-    first = table.rows[0]
+    first = table.rows[1]
     assert [c.parts[0].text for c in first.cells] == ["-", "-", "", "-"]
     assert "dataset and licence" in table.caption
 
