@@ -62,14 +62,19 @@ def rows(monkeypatch):
     calls = []
 
     def figure_ranks(rows, length_m, quantity):
+        assert rows is out
         calls.append((length_m, quantity))
         return figures[(length_m, quantity)]
+
+    def ranked_lengths(rows):
+        assert rows is out
+        return LENGTHS
 
     monkeypatch.setattr(overview, "figure_ranks", figure_ranks)
     monkeypatch.setattr(overview, "counted_as",
                         lambda rows: {r.sequence: ("s2" if r.sequence == "s2b" else r.sequence)
                                       for r in rows})
-    monkeypatch.setattr(overview, "ranked_lengths", lambda rows: LENGTHS)
+    monkeypatch.setattr(overview, "ranked_lengths", ranked_lengths)
     monkeypatch.setattr(overview, "same_content_note",
                         lambda rows: " Sequences holding one content: s2 = s2b.")
     out = [
@@ -167,12 +172,16 @@ def test_why_a_method_has_no_runs_on_a_class(rows):
     assert "did not ask for it" in why[(SPARSE_RADAR, "icp-p2p")]
     # the Doppler method on raw-Doppler stores it was not run on: simply not asked for
     assert "did not ask for it" in why[(CUSTOM, "doppler")]
-    assert "bench score" in why[(SEMI_DENSE_RADAR, "kiss-ext (external)")]
+    assert why[(SEMI_DENSE_RADAR, "kiss-ext (external)")] == (
+        "not scored on this class (an external trajectory: `bench score` it on these stores)")
+    assert why[(SPARSE_RADAR, "gicp")] == (
+        "not run on this class (the experiment did not ask for it)")
     assert all(c.status == "" for c in b[(SPARSE_RADAR, "icp-p2p")].cells[1:])
     # rows with figures have no status
     assert (SEMI_DENSE_RADAR, "gicp") not in why
     # a method that is not registered (a plugin not loaded): not asked for, no registry
-    assert "did not ask for it" in _why_not("my-plugin", "", [])
+    assert _why_not("my-plugin", "", []) == (
+        "not run on this class (the experiment did not ask for it)")
     kinds = [_run("x", SPARSE_RADAR, "icp-p2p", kind=k) for k in ("ego", "none", "ego")]
     assert _why_not("doppler", "", kinds).endswith("these stores have ego, none Doppler")
     assert "did not ask" in _why_not("doppler", "", kinds + [_run("y", SPARSE_RADAR, "x")])
@@ -277,7 +286,9 @@ def test_sources_one_per_sequence_in_class_order(monkeypatch):
     assert last.cells[3].parts[0].text == "a.h5"
     first = table.rows[1]
     assert [c.parts[0].text for c in first.cells] == ["-", "-", "", "-"]
-    assert "dataset and licence" in table.caption
+    assert table.caption.startswith("The source of every sequence: its dataset and licence")
+    assert table.caption.endswith("the loader and options that made its store (the store's "
+                                  "provenance).")
 
 
 def test_provenance_is_read_from_the_store(tmp_path, monkeypatch):
