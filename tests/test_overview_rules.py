@@ -48,12 +48,15 @@ MARKS = {
     "s1": {IP: [2, 2, 2, 2], GI: [1, 1, 1, 1]},
     "s2": {IP: [1, 1, 3, 3], GI: [1, 1, None, 1]},
     "t1": {DO: [1, 2, 1, 2]},
+    "c2": {GI: [3, 3, 3, 3]},
 }
 
 
 def _figures(marks=MARKS):
-    return {fig: {s: {k: r[j] for k, r in ks.items() if r[j] is not None}
-                  for s, ks in marks.items()} for j, fig in enumerate(FIGS)}
+    # a sequence nobody is marked on in a figure is not in it (as figure_ranks gives it)
+    out = {fig: {s: {k: r[j] for k, r in ks.items() if r[j] is not None}
+                 for s, ks in marks.items()} for j, fig in enumerate(FIGS)}
+    return {fig: {s: ks for s, ks in f.items() if ks} for fig, f in out.items()}
 
 
 @pytest.fixture
@@ -79,7 +82,7 @@ def rows(monkeypatch):
                         lambda rows: " Sequences holding one content: s2 = s2b.")
     out = [
         # semi-dense radar (ego-motion Doppler only)
-        _run("s1", SEMI_DENSE_RADAR, "icp-p2p", kind="ego"),
+        _run("s1", SEMI_DENSE_RADAR, "icp-p2p", kind="ego", diverged=True),
         _run("s2", SEMI_DENSE_RADAR, "icp-p2p", kind="ego", fell_back=True),
         _run("s2b", SEMI_DENSE_RADAR, "icp-p2p", kind="ego"),  # s2 under another name
         _run("s1", SEMI_DENSE_RADAR, "gicp", kind="ego", diverged=True),
@@ -90,6 +93,7 @@ def rows(monkeypatch):
         _run("t1", SPARSE_RADAR, "doppler"),
         # a class outside the paper's three: one failed run
         _run("c1", CUSTOM, "icp-p2p", failed=True),
+        _run("c2", CUSTOM, "gicp"),
         # an external trajectory scored on sparse radar
         _run("t1", SPARSE_RADAR, "kiss", label="kiss-ext (external)", lengths=()),
     ]
@@ -154,13 +158,17 @@ def test_failed_diverged_and_fell_back_count_runs(rows):
     assert gi[3].values == {"failed": 1} and gi[4].values == {"diverged": 1}
     assert gi[5].values == {"fell_back": 0}
     ip = b[(SEMI_DENSE_RADAR, "icp-p2p")].cells
-    assert [c.parts[0].text for c in ip[3:]] == ["0", "0", "1"]
+    assert [c.parts[0].text for c in ip[3:]] == ["0", "1", "1"]
     # a class where the method only failed: no sequence, no mark, not bold
     c = b[(CUSTOM, "icp-p2p")].cells
     assert c[0].parts[0].text == "0" and c[3].parts[0].text == "1"
     assert c[1].parts[0].text == "-" and c[2].parts[0].text == "-"
     assert math.isnan(c[1].values["mean_mark"]) and c[1].values["marked_figures"] == 0
     assert c[1].parts[0].rank != 0
+    # the only marked method of that class: the lowest of its class, bold, though others'
+    # are lower
+    c = b[(CUSTOM, "gicp")].cells
+    assert c[1].values["mean_mark"] == pytest.approx(3.0) and c[1].parts[0].rank == 0
 
 
 def test_why_a_method_has_no_runs_on_a_class(rows):
@@ -193,6 +201,11 @@ def test_the_caption_says_lengths_rule_and_notes(rows):
     caption = summary_table(rr).caption
     assert "at 8 m and 48 m, the shortest and the longest" in caption
     assert "1 = bold, 2 = underlined, 3 = neither" in caption
+    assert caption.startswith("Across datasets, per sensor class: the sequences each method "
+                              "was scored on and its mean mark over them (the mean rotation")
+    assert "NumPy frames, a ROS bag converted without --model" in caption
+    assert "(the Oculii Eagle: Semi-Dense 4D Radar)" in caption
+    assert "convert with --model (e.g. radar-semidense) to rank it in one." in caption
     assert f" {CUSTOM}: stores whose loader does not know" in caption
     assert caption.endswith(" Sequences holding one content: s2 = s2b.")
     # lengths no run has are left out; none left: nothing ranked
@@ -202,7 +215,7 @@ def test_the_caption_says_lengths_rule_and_notes(rows):
     assert mean.values["marked_figures"] == 4  # two figures at 8 m on two sequences
     assert mean.values["mean_mark"] == pytest.approx(np.mean([2, 2, 1, 1]))
     t = summary_table(rr, (100.0,))
-    assert "nothing is ranked" in t.caption
+    assert "(no run has segments at any length: nothing is ranked; on each figure" in t.caption
     assert all(not r.cells[1].parts or r.cells[1].parts[0].text == "-" for r in t.rows)
 
 
@@ -324,16 +337,16 @@ def test_the_page_across_datasets_only_for_two_datasets_or_more(monkeypatch):
     rows = [SimpleNamespace(sequence=s) for s in ("a1", "a2", "b1", "x1")]
     datasets = {"a1": "A", "a2": "A", "b1": "B", "x1": ""}
     built = []
-    monkeypatch.setattr(paper, "select", lambda d: (rows, [8.0]))
+    monkeypatch.setattr(paper, "select", lambda d: (rows, [8.0]) if d == Path("r") else None)
     monkeypatch.setattr(paper, "build", lambda metric, rs, lengths, ci: built.append(
         (metric, [r.sequence for r in rs], lengths, ci)) or f"table {len(built)}")
     monkeypatch.setattr(overview, "sources",
                         lambda rs: [{"sequence": r.sequence, "dataset": datasets[r.sequence]}
                                     for r in rs])
-    monkeypatch.setattr(overview, "summary_table", lambda rs: "summary")
-    monkeypatch.setattr(overview, "sources_table", lambda rs: "sources")
+    monkeypatch.setattr(overview, "summary_table", lambda rs: "summary" if rs is rows else None)
+    monkeypatch.setattr(overview, "sources_table", lambda rs: "sources" if rs is rows else None)
     pair = SimpleNamespace(rows=["a row"])
-    monkeypatch.setattr(overview, "pairwise_table", lambda rs: pair)
+    monkeypatch.setattr(overview, "pairwise_table", lambda rs: pair if rs is rows else None)
     out = overview.cross_dataset(Path("r"))
     assert [t for t, _ in out] == [
         "Across datasets: mean mark per method",
