@@ -285,5 +285,33 @@ def test_times_per_run_metrics_and_the_markdown(monkeypatch):
     assert [c.strip() for c in cell.strip("|").split("|")][2:6] == [
         "8", "1.000 [0.900, 1.100]", "1.000 [0.900, 1.100]", "+0.000 (+0.0%)"]
     assert lines[-1] == summary(cells, 0.10)
+
+    def split(line):
+        return [c.strip() for c in line.strip().strip("|").split("|")]
+
+    # the three tables: their headers, right-aligned number columns, a blank line and a
+    # sentence saying what they hold before each
+    heads = [i for i, x in enumerate(lines) if x.startswith("| Sequence")]
+    assert [split(lines[i]) for i in heads] == [
+        ["Sequence", "Run", "Length [m]", "Rot. A", "Rot. B", "Rot. change", "Trans. A",
+         "Trans. B", "Trans. change", "Note"],
+        ["Sequence", "Run", "Time A", "Time B", "Change", "Note"],
+        ["Sequence", "Run", "APE [m]", "KITTI trans. [%]", "KITTI rot. [deg/100 m]",
+         "Velocity err. [m/s]", "Note"]]
+    right = [[j for j, c in enumerate(split(lines[i + 1])) if c.endswith(":")] for i in heads]
+    assert right == [list(range(2, 9)), [2, 3, 4], [2, 3, 4, 5]]
+    for i in heads:
+        assert lines[i - 1] == "" and lines[i - 3] == "" and lines[i - 2].endswith(":")
+    assert lines[1] == "" and lines[heads[0] - 2].startswith(
+        "Mean relative error over the segments of each length: rotation [deg], translation "
+        "[m], each with its 95 % confidence interval [low, high]")
+    assert "change = B - A" in md and "A's and B's printed intervals do not meet:" in md
+    assert lines[heads[1] - 2] == "Mean time per frame [ms] (all per-frame work, `time_ms`):"
+    assert lines[heads[2] - 2].endswith("ego-velocity error (mean norm); A -> B:")
+    assert lines[-2] == ""
+    # a cell row in full: run, note
+    row = next(split(x) for x in lines if x.startswith("| run2") and "only in B" in x
+               and "[" in x)
+    assert row[1] == "(With Seed) gicp" and row[-1] == "only in B"
     # no per-run table when none is given
     assert "Per run:" not in cmp.to_markdown(cells, times, "A", "B", 0.10)
