@@ -65,13 +65,13 @@ def test_regressions_and_what_the_intervals_can_tell(monkeypatch):
          _cell("s1", 48.0, 1.0, 1.0, ci=0.5),      # both grow 20 %, intervals meet
          _cell("s2", 8.0, 1.0, 1.0, ci=NAN),       # grows 20 %, no intervals
          _cell("s3", 8.0, 1.0, 1.0, ci=0.05),      # better beyond the intervals
-         _cell("s4", 8.0, 1.0, 1.0, ci=0.5),       # 5 %: no regression at 10 %
+         _cell("s4", 8.0, 2.0, 2.0, ci=0.5),       # 5 %: no regression at 10 %
          _cell("s5", 8.0, 1.0, 1.0)]               # only in A
     b = [_cell("s1", 8.0, 1.5, 1.0, ci=0.05),
          _cell("s1", 48.0, 1.2, 1.2, ci=0.5),
          _cell("s2", 8.0, 1.2, 1.0, ci=NAN),
          _cell("s3", 8.0, 0.5, 1.0, ci=0.05),
-         _cell("s4", 8.0, 1.05, 1.05, ci=0.5),
+         _cell("s4", 8.0, 2.1, 2.1, ci=0.5),
          _cell("s6", 8.0, 1.0, 1.0)]               # only in B
     df = _run_compare(monkeypatch, a, b)
     r = _note(df, "s1", 8.0)
@@ -99,6 +99,15 @@ def test_regressions_and_what_the_intervals_can_tell(monkeypatch):
     assert _note(_run_compare(monkeypatch, a, b, 0.04), "s4", 8.0)["regression"]
     assert not _note(_run_compare(monkeypatch, a, b, 0.06), "s4", 8.0)["regression"]
     # rows in the table's order: sequences, then lengths
+    # growth by exactly the threshold is not more than it; from zero, no relative growth
+    e = _run_compare(monkeypatch, [_cell("s", 8.0, 1.0, 0.0)], [_cell("s", 8.0, 1.25, 0.5)],
+                     0.25)
+    assert not e.iloc[0]["regression"] and "regression" not in e.iloc[0]["note"]
+    assert set(df.columns) == {
+        *cmp.RUN_KEYS, "length_m", "run", "only_in", "regression", "note",
+        *(f"{q}_{x}" for q in cmp.QUANTITIES for x in ("a", "b", "delta")),
+        *(f"{q}_ci_{end}_{side}" for q in cmp.QUANTITIES for end in ("low", "high")
+          for side in "ab")}
     assert list(zip(df["sequence"], df["length_m"], strict=True)) == [
         ("s1", 8.0), ("s1", 48.0), ("s2", 8.0), ("s3", 8.0), ("s4", 8.0), ("s5", 8.0),
         ("s6", 8.0)]
@@ -138,15 +147,17 @@ def test_divergence_parameters_and_empty_lengths(monkeypatch):
 
 
 def test_a_newly_diverged_run_without_any_segments_keeps_one_row(monkeypatch):
-    a = [_cell("s1", 8.0, NAN, NAN), _cell("s1", 48.0, NAN, NAN)]
-    b = [_cell("s1", 8.0, NAN, NAN, diverged=True), _cell("s1", 48.0, NAN, NAN,
-                                                          diverged=True)]
+    a = [_cell("s1", L, NAN, NAN) for L in (8.0, 48.0, 100.0)]
+    b = [_cell("s1", L, NAN, NAN, diverged=True) for L in (8.0, 48.0, 100.0)]
     df = _run_compare(monkeypatch, a, b)
     assert len(df) == 1 and df.iloc[0]["regression"] and math.isnan(df.iloc[0]["length_m"])
     assert "! newly diverged" in df.iloc[0]["note"]
     # not diverged: no cell at all
     df = _run_compare(monkeypatch, a, a)
     assert df.empty or len(df) == 0
+    # nothing on either side: an empty frame
+    none = pd.DataFrame(columns=list(pd.DataFrame(a).columns))
+    assert _run_compare(monkeypatch, none, none).empty
 
 
 def test_a_run_under_other_parameters_on_each_side_is_named(monkeypatch):
@@ -219,6 +230,8 @@ def test_small_helpers():
     assert _fmt_ci(r, "q", "a", 1) == "0.5 [0.4, 0.6]"
     assert _fmt_ci(r, "q", "b") == "0.250"
     assert _fmt_ci(r, "q", "c") == "-"
+    r.update({"q_ci_low_c": 0.1, "q_ci_high_c": 0.2})
+    assert _fmt_ci(r, "q", "c") == "-"  # no value: no interval printed either
 
 
 def test_markdown_table_pads_and_aligns():
@@ -230,6 +243,9 @@ def test_markdown_table_pads_and_aligns():
     assert lines[3] == "| long name | 12345 |"
     # a narrow column is three wide; an escaped pipe is not escaped twice
     assert markdown_table(["x"], [[r"a\|"]], set()) == ["| x   |", "| --- |", r"| a\| |"]
+    assert markdown_table(["x"], [["a"]], {0}) == ["|   x |", "| --: |", "|   a |"]
+    with pytest.raises(ValueError):  # a row with more cells than the header
+        markdown_table(["x"], [["a", "b"]], set())
 
 
 def test_summary_counts():
@@ -313,5 +329,9 @@ def test_times_per_run_metrics_and_the_markdown(monkeypatch):
     row = next(split(x) for x in lines if x.startswith("| run2") and "only in B" in x
                and "[" in x)
     assert row[1] == "(With Seed) gicp" and row[-1] == "only in B"
+    # alignments not recorded: "-"
+    unaligned = per_run.assign(ape_alignment_a=NAN, ape_alignment_b=NAN)
+    assert "Per run: APE (alignment: -), KITTI" in cmp.to_markdown(cells, times, "A", "B",
+                                                                  0.10, unaligned)
     # no per-run table when none is given
     assert "Per run:" not in cmp.to_markdown(cells, times, "A", "B", 0.10)
