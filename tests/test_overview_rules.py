@@ -201,6 +201,13 @@ def test_the_caption_says_lengths_rule_and_notes(rows):
     caption = summary_table(rr).caption
     assert "at 8 m and 48 m, the shortest and the longest" in caption
     assert "1 = bold, 2 = underlined, 3 = neither" in caption
+    for words in ("the seed and no-seed rows of a method count as one, its better mark",
+                  "figures on fewer than 2 independent segments are not marked and not counted)",
+                  ". Bold: on how many of those figures the method is bold. The lowest mean "
+                  "mark of a class is bold (by value: a summary, not a test). Failed / "
+                  "Diverged: runs that did not finish / diverged; Fell back: runs with more "
+                  "than 5 % of their frames replaced by the motion prior or not converged."):
+        assert words in caption
     assert caption.startswith("Across datasets, per sensor class: the sequences each method "
                               "was scored on and its mean mark over them (the mean rotation")
     assert "NumPy frames, a ROS bag converted without --model" in caption

@@ -188,7 +188,8 @@ def test_the_matrix_per_class(patched):
                   'of the n sequences where both are ranked',
                   "Across sequences, pairwise, per sensor class with two or more sequences",
                   "the lower mean mark, 1 bold, 2 underlined, 3 neither as the tables print it",
-                  "p is a two-sided exact sign test (binomial, 1/2) over the untied sequences",
+                  "equal is a tie), and p is a two-sided exact sign test (binomial, 1/2) over "
+                  "the untied sequences, sequences taken as independent.",
                   "sequences taken as independent. Bold: the verdict holds across sequences "
                   "(p < 0.05), which needs at least 6 untied sequences all one way; "
                   '"-": never ranked together.'):
