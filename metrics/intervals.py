@@ -178,7 +178,9 @@ def correlation_length(values: np.ndarray) -> int:
     x = np.asarray(values, dtype=np.float64)
     x = x[np.isfinite(x)]
     n = x.size
-    if n < 8:
+    if n < 8 or x.min() == x.max():
+        # too short, or constant: the centred values of a constant whose mean is not exact in
+        # floating point (0.1) are rounding noise, not a correlation
         return 1
     x = x - x.mean()
     size = 1 << int(math.ceil(math.log2(2 * n)))

@@ -1,0 +1,115 @@
+"""metrics.intervals: known answers and an independent implementation for what the mutation
+run (``tools/mutate.py``) found untested.
+
+``correlation_length`` is checked against a plain-Python transcription of Politis & White
+(2004) with the correction of Patton, Politis & White (2009), written from the papers'
+definitions (direct sums, no FFT): the sample autocovariances ``R(k) = 1/n sum (x_t - xbar)
+(x_{t+k} - xbar)``, ``m`` the smallest lag after which ``K_N = max(5, ceil(sqrt(log10 n)))``
+consecutive autocorrelations lie inside ``+-2 sqrt(log10 n / n)``, ``M = 2 m`` (at least 2, at
+most ``n // 2 - 1`` lags), the flat-top window and ``b = (2 G^2 / D)^(1/3) n^(1/3)``."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+from metrics.intervals import correlation_length
+
+
+def _flat_top(t: float) -> float:
+    t = abs(t)
+    return 1.0 if t <= 0.5 else 2.0 * (1.0 - t) if t <= 1.0 else 0.0
+
+
+def reference_block(values) -> float:
+    """The Politis-White circular block length before rounding (``b``), from the definitions;
+    0.0 where the long-run variance estimate ``g(0)`` is not positive, NaN for fewer than 8
+    finite values or a constant series."""
+    x = [float(v) for v in values if math.isfinite(v)]
+    n = len(x)
+    if n < 8 or min(x) == max(x):
+        return math.nan
+    mean = math.fsum(x) / n
+    y = [v - mean for v in x]
+    r = [math.fsum(y[t] * y[t + k] for t in range(n - k)) / n for k in range(n)]
+    k_n = max(5, math.ceil(math.sqrt(math.log10(n))))
+    band = 2.0 * math.sqrt(math.log10(n) / n)
+    m = n // 2  # no lag qualifies
+    for lag in range(n - k_n):  # lags lag + 1 .. lag + K_N must exist (at most n - 1)
+        if all(abs(r[lag + j] / r[0]) < band for j in range(1, k_n + 1)):
+            m = lag
+            break
+    big_m = min(max(2 * m, 2), n // 2 - 1)
+    g = math.fsum(_flat_top(k / big_m) * abs(k) * r[abs(k)] for k in range(-big_m, big_m + 1))
+    g0 = math.fsum(_flat_top(k / big_m) * r[abs(k)] for k in range(-big_m, big_m + 1))
+    if g0 <= 0.0:
+        return 0.0
+    d = 4.0 / 3.0 * g0**2
+    return (2.0 * g**2 / d) ** (1.0 / 3.0) * n ** (1.0 / 3.0)
+
+
+def _series():
+    """Seeded series of every kind the rule branches on: white noise (blocks below one frame),
+    AR(1) of weak to strong positive and of negative correlation, lengths from the shortest
+    accepted (8) up, an offset and a scale far from 0 and 1, a single correlated lag beyond
+    the first K_N insignificant ones, and non-finite values to be dropped."""
+    out = []
+    for seed, n in enumerate((8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 20, 31, 32, 33, 64, 100,
+                              257, 600)):
+        e = np.random.default_rng(100 + seed).normal(size=n)
+        for phi in (0.0, 0.3, 0.7, 0.95, -0.6):
+            out.append(lfilter([1.0], [1.0, -phi], e))
+    e = np.random.default_rng(7).normal(size=300)
+    out.append(50.0 + 0.01 * lfilter([1.0], [1.0, -0.6], e))  # offset 50, scale 1/100
+    out.append(1e4 * lfilter([1.0], [1.0, -0.6], e))
+    seasonal = e.copy()
+    seasonal[12:] += 0.9 * e[:-12]  # correlated at lag 12 only
+    out.append(seasonal)
+    holes = lfilter([1.0], [1.0, -0.7], e)
+    holes[[3, 50, 51, 299]] = [np.nan, np.inf, -np.inf, np.nan]
+    out.append(holes)
+    return out
+
+
+def test_correlation_length_is_the_politis_white_block_of_an_independent_implementation():
+    """Whole frames: ``ceil(b)``, at least 1, on every series of :func:`_series`; the cases
+    cover b < 1 (white noise), g(0) <= 0 (negative correlation) and M capped at n // 2 - 1."""
+    refs = []
+    for x in _series():
+        b = reference_block(x)
+        refs.append(b)
+        if abs(b - round(b)) < 1e-9:  # an integer b: rounding decides, skip
+            continue
+        assert correlation_length(x) == max(1, math.ceil(b)), (len(x), b)
+    refs = np.array(refs)
+    assert np.any(refs == 0.0) and np.any((refs > 0.0) & (refs < 1.0)) and np.any(refs > 10.0)
+
+
+@pytest.mark.parametrize("value", [0.0, 3.0, 0.1, -2.7, 1e-7, 123.456])
+@pytest.mark.parametrize("n", [8, 50, 1000])
+def test_a_constant_series_has_blocks_of_one_frame(value, n):
+    """A constant series has no correlation to keep (the docstring: 1 for a series too short
+    or constant), whatever its value: a mean like 0.1 that is not exact in floating point
+    leaves centred values of rounding noise, which must not be read as a correlation."""
+    assert correlation_length(np.full(n, value)) == 1
+
+
+def test_a_series_too_short_has_blocks_of_one_frame_and_eight_values_are_enough():
+    walk = np.cumsum(np.random.default_rng(3).normal(size=8))  # strongly correlated
+    assert correlation_length(walk[:7]) == 1
+    assert correlation_length(np.append(walk[:7], np.nan)) == 1  # 7 finite values
+    assert correlation_length(walk) == max(1, math.ceil(reference_block(walk))) > 1
+
+
+def test_correlation_length_ignores_the_series_offset_scale_and_non_finite_values():
+    """b depends on the autocorrelations only: the same for ``a + c x`` (c != 0), and a
+    non-finite value is dropped as if it were not there."""
+    x = lfilter([1.0], [1.0, -0.8], np.random.default_rng(11).normal(size=400))
+    b = correlation_length(x)
+    assert b > 5
+    for a, c in ((0.0, 1e-3), (0.0, 1e3), (1e3, 1.0), (-5.0, -2.0)):
+        assert correlation_length(a + c * x) == b, (a, c)
+    assert correlation_length(np.concatenate([[np.nan], x, [np.inf, -np.inf]])) == b
