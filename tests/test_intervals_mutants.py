@@ -71,6 +71,14 @@ def _series():
     holes = lfilter([1.0], [1.0, -0.7], e)
     holes[[3, 50, 51, 299]] = [np.nan, np.inf, -np.inf, np.nan]
     out.append(holes)
+    lag6 = e.copy()
+    lag6[6:] += 0.9 * e[:-6]  # lags 1 .. K_N insignificant, lag 6 not: m = 0, not 6
+    out.append(lag6)
+    for n in range(8, 21):  # every autocorrelation significant: no m, M = n // 2 - 1
+        out.append((-1.0) ** np.arange(n))
+    # 8 values whose lag-one autocorrelation alone is significant: m = 1 (the last lag the
+    # search can take at n = 8)
+    out.append(np.array([-0.4, 0.6, -1.4, 2.1, -1.3, 0.9, -1.1, 1.2]))
     return out
 
 
@@ -81,7 +89,7 @@ def test_correlation_length_is_the_politis_white_block_of_an_independent_impleme
     for x in _series():
         b = reference_block(x)
         refs.append(b)
-        if abs(b - round(b)) < 1e-9:  # an integer b: rounding decides, skip
+        if b > 0.0 and abs(b - round(b)) < 1e-9:  # an integer b: rounding decides, skip
             continue
         assert correlation_length(x) == max(1, math.ceil(b)), (len(x), b)
     refs = np.array(refs)
@@ -97,6 +105,27 @@ def test_a_constant_series_has_blocks_of_one_frame(value, n):
     assert correlation_length(np.full(n, value)) == 1
 
 
+def test_an_alternating_series_of_eight_has_the_block_worked_out_by_hand():
+    """``x_t = (-1)^t``, n = 8: mean 0, ``R(k) = (-1)^k (8 - k) / 8``; ``|rho(1)|`` = 0.875 and
+    ``|rho(2)|`` = 0.75 exceed the band ``2 sqrt(log10 8 / 8)`` = 0.672, so no window of
+    K_N = 5 lags qualifies in the lags searched and M = n // 2 - 1 = 3; the flat-top weights
+    at k / 3 = 0, 1/3, 2/3 are 1, 1, 2/3, so ``g(0) = 1 + 2 (-7/8 + 2/3 * 6/8)`` = 1/4 and
+    ``G = 2 (7/8 * -1 + 2 * 2/3 * 6/8)`` = 1/4 (in units of R(0)), and
+    ``b = (2 G^2 / (4/3 g(0)^2))^(1/3) 8^(1/3) = 2 * 1.5^(1/3)`` = 2.29: 3 frames."""
+    assert reference_block((-1.0) ** np.arange(8)) == pytest.approx(2.0 * 1.5 ** (1 / 3))
+    assert correlation_length((-1.0) ** np.arange(8)) == 3
+
+
+def test_a_float32_series_has_the_block_of_its_float64_copy():
+    """The autocovariances are computed in float64 whatever the input: a float32 series far
+    from 0 (a float32 mean is off by up to about 1e-3, a tenth of the noise) gets the block of
+    the same values in float64."""
+    for seed in range(10):
+        x = 1e4 + 0.01 * lfilter([1.0], [1.0, -0.5], np.random.default_rng(seed).normal(size=300))
+        x32 = x.astype(np.float32)
+        assert correlation_length(x32) == correlation_length(x32.astype(np.float64)), seed
+
+
 def test_a_series_too_short_has_blocks_of_one_frame_and_eight_values_are_enough():
     walk = np.cumsum(np.random.default_rng(3).normal(size=8))  # strongly correlated
     assert correlation_length(walk[:7]) == 1
@@ -105,11 +134,14 @@ def test_a_series_too_short_has_blocks_of_one_frame_and_eight_values_are_enough(
 
 
 def test_correlation_length_ignores_the_series_offset_scale_and_non_finite_values():
-    """b depends on the autocorrelations only: the same for ``a + c x`` (c != 0), and a
-    non-finite value is dropped as if it were not there."""
+    """b depends on the autocorrelations only: the same for ``a + c x`` (c != 0), down to values
+    whose squares would underflow (1e-170: they were read as a constant, 1e-150: a division
+    by zero) and up to values whose squares would overflow; a non-finite value is dropped as
+    if it were not there."""
     x = lfilter([1.0], [1.0, -0.8], np.random.default_rng(11).normal(size=400))
     b = correlation_length(x)
     assert b > 5
-    for a, c in ((0.0, 1e-3), (0.0, 1e3), (1e3, 1.0), (-5.0, -2.0)):
+    for a, c in ((0.0, 1e-3), (0.0, 1e3), (1e3, 1.0), (-5.0, -2.0), (0.0, 1e-170),
+                 (0.0, 1e-150), (0.0, 1e150), (0.0, 1e200)):
         assert correlation_length(a + c * x) == b, (a, c)
     assert correlation_length(np.concatenate([[np.nan], x, [np.inf, -np.inf]])) == b
