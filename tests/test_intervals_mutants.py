@@ -11,12 +11,22 @@ most ``n // 2 - 1`` lags), the flat-top window and ``b = (2 G^2 / D)^(1/3) n^(1/
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 import pytest
 from scipy.signal import lfilter
+from scipy.stats import norm
+from scipy.stats import t as student_t
 
-from metrics.intervals import correlation_length
+from metrics.intervals import (
+    BLOCK_FACTOR,
+    block_counts,
+    correlation_length,
+    independent_count,
+    paired_interval,
+    unit_intervals,
+)
 
 
 def _flat_top(t: float) -> float:
@@ -145,3 +155,121 @@ def test_correlation_length_ignores_the_series_offset_scale_and_non_finite_value
                  (0.0, 1e-150), (0.0, 1e150), (0.0, 1e200)):
         assert correlation_length(a + c * x) == b, (a, c)
     assert correlation_length(np.concatenate([[np.nan], x, [np.inf, -np.inf]])) == b
+
+
+# ---- the rest of metrics/intervals.py ---------------------------------------------------------
+
+def _greedy_chain(start, end) -> int:
+    """Plain Python: units in order of their start (ties in their given order, Python's sort
+    is stable), the first taken, then the first unit starting at or after the taken one's
+    end."""
+    order = sorted(range(len(start)), key=lambda i: start[i])
+    count, k = 0, 0
+    while k < len(order):
+        count += 1
+        stop = end[order[k]]
+        nxt = k + 1
+        while nxt < len(order) and start[order[nxt]] < stop:
+            nxt += 1
+        k = nxt
+    return count
+
+
+def test_independent_count_is_the_greedy_chain_with_ties_in_their_given_order():
+    """Many units share a start, with different ends: which of them the chain takes (the first
+    given) decides the count. Units of zero span (end = start) follow each other."""
+    rng = np.random.default_rng(4)
+    for _ in range(5):
+        start = rng.integers(0, 60, size=200)
+        end = start + rng.integers(1, 15, size=200)
+        assert independent_count(start, end) == _greedy_chain(start.tolist(), end.tolist())
+    assert independent_count(np.arange(5), np.arange(5)) == 5
+    assert independent_count([3, 3, 0], [9, 3, 0]) == 2  # (0, 0), (3, 9) given first: 2
+    assert independent_count([3, 3, 0], [3, 9, 0]) == 3  # (0, 0), (3, 3), (3, 9)
+
+
+def test_units_anchored_at_tied_frames_are_ordered_as_given_for_the_block():
+    """The block follows the correlation length of the values ordered by anchor; units that
+    share an anchor keep their given order. Two units per frame, given in shuffled order, the
+    first given of each frame 5 above the frame's correlated level and the second 5 below:
+    ordered as given the values alternate (a strong negative lag-one correlation), ordered
+    otherwise within frames they would not."""
+    frames = 150
+    rng = np.random.default_rng(5)
+    level = lfilter([1.0], [1.0, -0.9], rng.normal(size=frames))
+    perm = rng.permutation(frames)
+    anchor = np.concatenate([perm, perm])  # every frame's +5 unit given before its -5 unit
+    values = np.concatenate([level[perm] + 5.0, level[perm] - 5.0])
+    end = anchor + 2
+    order = sorted(range(len(anchor)), key=lambda i: anchor[i])  # stable
+    want = min(math.ceil(BLOCK_FACTOR * max(2, correlation_length(values[order]))), frames // 2)
+    iv = unit_intervals(frames, anchor, end, {"v": values}, reps=20)["v"]
+    assert iv.block_frames == want
+    assert paired_interval(frames, anchor, end, values, np.zeros(len(values)),
+                           reps=20).block_frames == want
+
+
+def test_resamples_that_draw_no_unit_warn_nothing():
+    """Units anchored at 3 of 200 frames: with blocks of a frame most resamples draw none of
+    them (their statistic is NaN, dropped); no RuntimeWarning of the division reaches the
+    user."""
+    anchor = np.array([0, 1, 2])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        iv = unit_intervals(200, anchor, anchor + 1, {"v": np.array([1.0, 2.0, 4.0])},
+                            reps=50, block=1, small_sample=False)["v"]
+        rms = unit_intervals(200, anchor, anchor + 1, {"v": np.array([1.0, 2.0, 4.0])},
+                             rmse=True, reps=50, block=1, small_sample=False)["v"]
+    assert 1.0 <= iv.low <= iv.high <= 4.0 and 1.0 <= rms.low <= rms.high <= 4.0
+
+
+def test_whole_number_float_anchors_and_float32_values_give_the_float64_integer_intervals():
+    """Anchors and ends as floats (read back from a JSON file) and values in float32 are
+    converted: the same intervals as int64 anchors and the float64 values (the figure's mean
+    taken in float64, not float32)."""
+    n = 240
+    anchor = np.arange(0, 230)
+    end = anchor + 8
+    v = np.abs(lfilter([1.0], [1.0, -0.5], np.random.default_rng(6).normal(size=230))) + 0.1
+    v32 = v.astype(np.float32)
+    v64 = v32.astype(np.float64)
+    want = unit_intervals(n, anchor, end, {"v": v64}, reps=100)["v"]
+    got = unit_intervals(n, anchor.astype(float), end.astype(float), {"v": v32}, reps=100)["v"]
+    assert (got.low, got.high) == pytest.approx((want.low, want.high), rel=1e-13, abs=0.0)
+    assert (got.block_frames, got.n_independent) == (want.block_frames, want.n_independent)
+    w = 0.5 * v64[::-1]
+    want = paired_interval(n, anchor, end, v64, w, reps=100)
+    got = paired_interval(n, anchor.astype(float), end.astype(float), v32,
+                          w.astype(np.float32), reps=100)
+    assert (got.low, got.high) == pytest.approx((want.low, want.high), rel=1e-13, abs=0.0)
+
+
+@pytest.mark.parametrize("rmse", [False, True])
+def test_paired_interval_is_the_rule_written_out(rmse):
+    """``paired_interval`` against its rule with the resamples counted by ``block_counts``
+    (frames drawn, not block sums) and SciPy's quantiles: the percentile interval of the
+    paired differences, widened about the observed difference by ``t_nu / z sqrt(K / (K - 1))
+    / sqrt(1 - s / (3 b))``, ``nu = 1.5 (K - 1)``, K = n // b whole blocks (203 // 25 = 8, not
+    8.12), s the units' median span (10), and stretched to hold the difference."""
+    n, block, reps = 203, 25, 200
+    anchor = np.arange(0, 193)
+    end = anchor + 10
+    rng = np.random.default_rng(9)
+    a = np.abs(rng.normal(1.0, 0.5, 193))
+    b = np.abs(a + rng.normal(0.1, 0.3, 193))
+    counts = block_counts(n, block, reps, seed=0)[:, anchor]
+    if rmse:
+        stat = lambda x, w: np.sqrt(w @ x**2 / w.sum(axis=-1))  # noqa: E731
+    else:
+        stat = lambda x, w: w @ x / w.sum(axis=-1)  # noqa: E731
+    ones = np.ones(len(a))
+    observed = stat(a, ones) - stat(b, ones)
+    lo, hi = np.quantile(stat(a, counts) - stat(b, counts), [0.025, 0.975])
+    k = n // block
+    f = (student_t.ppf(0.975, 1.5 * (k - 1)) / norm.ppf(0.975) * math.sqrt(k / (k - 1))
+         / math.sqrt(1.0 - 10.0 / (3.0 * block)))
+    lo, hi = min(observed - (observed - lo) * f, observed), max(observed + (hi - observed) * f,
+                                                              observed)
+    iv = paired_interval(n, anchor, end, a, b, rmse=rmse, reps=reps, block=block)
+    assert (iv.low, iv.high) == pytest.approx((lo, hi), rel=1e-9)
+    assert iv.block_frames == block and iv.n_independent == independent_count(anchor, end)
