@@ -246,3 +246,61 @@ def test_the_pivot_of_draws_skips_non_finite_ones_and_needs_a_finite_figure():
     assert all(math.isnan(v) for v in _pivot(1.0, np.array([np.nan]), 0.95))
     assert all(math.isnan(v) for v in _pivot(math.nan, draws, 0.95))
     assert all(math.isnan(v) for v in _pivot(math.inf, draws, 0.95))
+
+
+def test_no_interval_is_nan_at_the_asked_level_with_no_block_and_no_pieces():
+    gt, est = _straight(30, 0.01)
+    bad = est.copy()
+    bad[3, 0, 3] = np.inf
+    for iv in (*ape_intervals(Drift(gt, bad), level=0.8, reps=10).values(),
+               paired_ape_interval(Drift(gt, est), Drift(gt, bad), level=0.8, reps=10),
+               paired_ape_interval(Drift(gt, est), Drift(gt, est, "sim3"), level=0.8,
+                                   reps=10)):
+        assert math.isnan(iv.low) and math.isnan(iv.high)
+        assert (iv.level, iv.block_frames, iv.n_independent) == (0.8, 0, 0)
+
+
+def test_the_paired_interval_is_the_pivot_of_the_seeded_reference_draws_widened_for_k():
+    """The paired APE interval written out: the reference draws (``draws_batched``) of both
+    estimates at the asked seed, the pivotal interval of their difference about the observed
+    difference, widened by ``t_{K-1} / z`` with K = 300 // 7 = 42 whole blocks (an int)."""
+    gt = ground_truth(301)
+    a = Drift(gt, noisy_estimate(gt, NoiseModel(0.05, 0.01), seed=5))
+    b = Drift(gt, noisy_estimate(gt, NoiseModel(0.1, 0.02), seed=6))
+    block, reps, seed = 7, 60, 3
+    diff = a.observed["trans_m"] - b.observed["trans_m"]
+    d = (draws_batched(a, block, reps, seed)["trans_m"]
+         - draws_batched(b, block, reps, seed)["trans_m"])
+    q_lo, q_hi = np.quantile(d, [0.05, 0.95])
+    lo, hi = diff - (q_hi - d.mean()), diff - (q_lo - d.mean())
+    k = 300 // block
+    f = student_t.ppf(0.95, k - 1) / norm.ppf(0.95)
+    iv = paired_ape_interval(a, b, "trans_m", level=0.9, reps=reps, seed=seed, block=block)
+    assert (iv.low, iv.high) == pytest.approx((diff - (diff - lo) * f, diff + (hi - diff) * f),
+                                              rel=1e-7)
+    assert (iv.level, iv.block_frames, iv.n_independent) == (0.9, block, k)
+    assert type(iv.n_independent) is int
+
+
+def test_every_draw_defaults_to_seed_zero():
+    gt = ground_truth(81)
+    drift = Drift(gt, noisy_estimate(gt, NoiseModel(0.05, 0.01), seed=2))
+    zero, one = draws_batched(drift, 4, 20, seed=0), draws_batched(drift, 4, 20, seed=1)
+    assert not np.allclose(zero["trans_m"], one["trans_m"])
+    np.testing.assert_array_equal(draws_batched(drift, 4, 20)["trans_m"], zero["trans_m"])
+    assert ape_intervals(drift, reps=20, block=4) == ape_intervals(drift, reps=20, block=4,
+                                                                   seed=0)
+    assert ape_intervals(drift, reps=20, block=4) != ape_intervals(drift, reps=20, block=4,
+                                                                   seed=1)
+
+
+def test_uncorrelated_or_constant_step_errors_have_blocks_of_one_step():
+    """Exactly constant step errors: every component's correlation length is 1, so the block
+    is 1 step (``ape_intervals``: ceil(1.5) = 2); three frames (two steps) have blocks of one
+    step and two pieces, an interval."""
+    e = np.eye(4)
+    e[1, 3] = 0.01
+    assert drift_block([np.repeat(e[None], 50, axis=0)]) == 1
+    gt, est = _straight(3, 0.01)
+    iv = ape_intervals(Drift(gt, est, "none"), reps=10)["trans_m"]
+    assert (iv.block_frames, iv.n_independent) == (1, 2) and np.isfinite(iv.low)
