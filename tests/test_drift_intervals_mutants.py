@@ -18,7 +18,7 @@ from scipy.stats import norm
 from scipy.stats import t as student_t
 
 from bench.studies.coverage import NoiseModel, ground_truth, noisy_estimate
-from metrics import drift_intervals
+from metrics import ape, drift_intervals
 from metrics.drift_intervals import (
     Drift,
     _pivot,
@@ -304,3 +304,51 @@ def test_uncorrelated_or_constant_step_errors_have_blocks_of_one_step():
     gt, est = _straight(3, 0.01)
     iv = ape_intervals(Drift(gt, est, "none"), reps=10)["trans_m"]
     assert (iv.block_frames, iv.n_independent) == (1, 2) and np.isfinite(iv.low)
+
+
+def _moved() -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A drive, a noisy estimate of it and the same estimate in another frame (rotated and
+    shifted: its first pose is not the GT's)."""
+    gt = ground_truth(60)
+    est = noisy_estimate(gt, NoiseModel(0.05, 0.01), seed=3)
+    t = np.eye(4)
+    t[:3, :3] = Rotation.from_rotvec([0.1, -0.2, 0.7]).as_matrix()
+    t[:3, 3] = [5.0, -3.0, 1.0]
+    return gt, est, t @ est
+
+
+def test_the_origin_alignment_moves_the_first_pose_onto_the_gts():
+    """``origin``: ``G_0 inv(P_0)`` applied to the estimate. The GT itself seen in another frame
+    has no error; a moved noisy estimate has metrics.ape's (evo's) origin-aligned APE, and
+    its draws are the batched reference's."""
+    gt, est, moved = _moved()
+    t = moved[0] @ np.linalg.inv(est[0])
+    exact = Drift(gt, t @ gt, "origin").observed
+    assert exact["trans_m"] == pytest.approx(0.0, abs=1e-9)
+    assert exact["rot_deg"] == pytest.approx(0.0, abs=1e-5)
+    reference = ape(gt, moved, "origin")
+    drift = Drift(gt, moved, "origin")
+    assert drift.observed["trans_m"] == pytest.approx(reference.trans_rmse_m, rel=1e-9)
+    assert drift.observed["rot_deg"] == pytest.approx(reference.rot_rmse_deg, rel=1e-7)
+    assert drift.observed["trans_m"] == pytest.approx(Drift(gt, est, "origin").observed["trans_m"],
+                                                      rel=1e-9)
+    new, old = drift.draws(5, 20, seed=1), draws_batched(drift, 5, 20, seed=1)
+    for q in ("trans_m", "rot_deg"):
+        np.testing.assert_allclose(new[q], old[q], rtol=1e-9, atol=1e-11)
+
+
+def test_three_poses_not_on_a_line_fix_the_fit_as_in_metrics_ape():
+    """An alignment fitted on the first 3 poses: three positions not on one line fix it (the
+    Umeyama fit, metrics.ape's ``se3-first-3``); fewer than three would not."""
+    n = 40
+    gt = np.repeat(np.eye(4)[None], n, axis=0)
+    angle = 0.3 * np.arange(n)
+    gt[:, :3, :3] = Rotation.from_rotvec(np.outer(angle, [0.0, 0.0, 1.0])).as_matrix()
+    gt[:, :3, 3] = np.stack([5 * np.cos(angle), 5 * np.sin(angle), 0.1 * np.arange(n)], axis=1)
+    est = noisy_estimate(gt, NoiseModel(0.05, 0.01), seed=4)
+    for alignment in ("se3-first-3", "sim3-first-3"):
+        reference = ape(gt, est, alignment)
+        assert reference.alignment == alignment  # not the orientation fallback
+        observed = Drift(gt, est, alignment).observed
+        assert observed["trans_m"] == pytest.approx(reference.trans_rmse_m, rel=1e-9)
+        assert observed["rot_deg"] == pytest.approx(reference.rot_rmse_deg, rel=1e-7)
