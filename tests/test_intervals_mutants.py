@@ -130,7 +130,7 @@ def test_a_float32_series_has_the_block_of_its_float64_copy():
     """The autocovariances are computed in float64 whatever the input: a float32 series far
     from 0 (a float32 mean is off by up to about 1e-3, a tenth of the noise) gets the block of
     the same values in float64."""
-    for seed in range(10):
+    for seed in range(20):
         x = 1e4 + 0.01 * lfilter([1.0], [1.0, -0.5], np.random.default_rng(seed).normal(size=300))
         x32 = x.astype(np.float32)
         assert correlation_length(x32) == correlation_length(x32.astype(np.float64)), seed
