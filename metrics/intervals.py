@@ -178,8 +178,13 @@ def correlation_length(values: np.ndarray) -> int:
     x = np.asarray(values, dtype=np.float64)
     x = x[np.isfinite(x)]
     n = x.size
-    if n < 8:
+    if n < 8 or x.min() == x.max():
+        # too short, or constant: the centred values of a constant whose mean is not exact in
+        # floating point (0.1) are rounding noise, not a correlation
         return 1
+    # b depends on the autocorrelations only: the values scaled to at most 1 in magnitude, so
+    # that no square of a tiny (1e-150) or huge (1e150) series underflows or overflows
+    x = x / np.max(np.abs(x))
     x = x - x.mean()
     size = 1 << int(math.ceil(math.log2(2 * n)))
     f = np.fft.rfft(x, size)
