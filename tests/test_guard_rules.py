@@ -105,11 +105,13 @@ def test_check_out_limits_the_whole_path(tmp_path):
     base = str(tmp_path)
 
     def path_of(length: int) -> str:
-        text = base
-        while len(text) < length:
-            room = length - len(text) - 1
-            text += "/" + "p" * min(200, room) if room > 0 else "/q"
-        return text
+        """``base`` and "/name" parts of 1-200 bytes, exactly ``length`` bytes long (whatever
+        the length of pytest's folder, which differs per worker)."""
+        room = length - len(base)
+        parts = -(-room // 201)  # each part "/" + at most 200 bytes
+        names = room - parts  # the bytes of the names, at least one per part
+        sizes = [names // parts + (i < names % parts) for i in range(parts)]
+        return base + "".join("/" + "p" * size for size in sizes)
 
     exact = path_of(4095)
     assert len(exact) == 4095
