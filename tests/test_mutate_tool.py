@@ -119,3 +119,21 @@ def test_results_are_read_per_module():
     assert results["bench.report.tables.significance.x_worse__mutmut_1"] == "no tests"
     assert mutate.scores(results) == {"bench.report.tables.significance": (1, 0, 1),
                                       "metrics.units": (1, 2, 0)}
+
+
+def test_a_second_run_re_tests_the_last_runs_survivors(tmp_path):
+    """Only survivors (exit code 0) are marked untested; kills, timeouts and the rest of
+    mutmut's state are kept."""
+    import json
+
+    meta = tmp_path / "mutants" / "metrics" / "units.py.meta"
+    meta.parent.mkdir(parents=True)
+    state = {"exit_code_by_key": {"a": 0, "b": 1, "c": None, "d": 0, "e": 36},
+             "hash_by_function_name": {"f": "123"}}
+    meta.write_text(json.dumps(state), encoding="utf-8")
+    (tmp_path / "mutants" / "metrics" / "units.py").write_text("x = 0\n", encoding="utf-8")
+    assert mutate.retest_survivors(tmp_path) == 2
+    after = json.loads(meta.read_text(encoding="utf-8"))
+    assert after["exit_code_by_key"] == {"a": None, "b": 1, "c": None, "d": None, "e": 36}
+    assert after["hash_by_function_name"] == {"f": "123"}
+    assert mutate.retest_survivors(tmp_path) == 0

@@ -17,8 +17,11 @@ Nothing is written into the checkout's tracked files: the working tree (tracked 
 files that git does not ignore, as they are now) is copied into a scratch folder, ``.mutate/``
 at the checkout's root (git-ignored; ``--scratch`` moves it), where mutmut keeps its
 ``mutants/`` and its configuration (a ``setup.cfg`` of the copy). A second run over the same
-scratch folder re-tests only what changed (mutmut's own cache). One worker (``--workers``), so
-that a run never takes more than its share of a shared machine.
+scratch folder re-tests the mutants of functions that changed (mutmut's own cache) and every
+survivor of the last run (``retest_survivors``: mutmut keeps a verdict while only the tests
+change, so without this a test written to kill a survivor would never be tried on it). The
+scratch folder must be one git ignores (``.mutate*/``), else the next copy would hold it. One
+worker (``--workers``), so that a run never takes more than its share of a shared machine.
 
 Numba-compiled functions (any decorated function) are not mutated by mutmut; their Python
 callers are.
@@ -143,6 +146,22 @@ def copy_tree(root: Path, dest: Path) -> int:
         if not target.exists() or (root / f).read_bytes() != target.read_bytes():
             shutil.copy2(root / f, target)
     return len(files)
+
+
+def retest_survivors(tree: Path) -> int:
+    """Mark every survivor recorded in the scratch copy's mutmut state (``mutants/**/*.meta``,
+    exit code 0) as not yet tested, so that the next run tries it on the tests as they are
+    now; returns how many."""
+    count = 0
+    for meta in sorted((tree / "mutants").rglob("*.py.meta")):
+        data = json.loads(meta.read_text(encoding="utf-8"))
+        codes = data.get("exit_code_by_key", {})
+        survivors = [k for k, code in codes.items() if code == 0]
+        if survivors:
+            codes.update(dict.fromkeys(survivors))
+            meta.write_text(json.dumps(data), encoding="utf-8")
+            count += len(survivors)
+    return count
 
 
 def mutmut_config(modules: list[str], tests: list[str]) -> str:
@@ -270,6 +289,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f"copying the working tree into {tree} ...", flush=True)
     copy_tree(root, tree)
     (tree / "setup.cfg").write_text(mutmut_config(modules, tests), encoding="utf-8")
+    again = retest_survivors(tree)
+    if again:
+        print(f"re-testing the last run's {again} survivor(s) on the tests as they are now")
     mutmut = Path(sys.executable).parent / "mutmut"
     env = {**os.environ, "PYTHONPATH": "", "PYTHONDONTWRITEBYTECODE": "1"}
     run = _run_quietly([str(mutmut), "run", "--max-children", str(args.workers)], tree, env)
