@@ -76,6 +76,9 @@ def test_check_stamps_names_the_first_bad_row():
     assert "line 9" not in msg
     error(lambda: check_stamps(np.array([5.0, 4.0]), "f"), "f",
           "f, pose 1: stamp 4.000000000 s does not increase from 5.000000000 s (1 such rows)")
+    # integer stamps (a bag's nanoseconds) compared as numbers, not wrapped around
+    error(lambda: check_stamps(np.array([5, 4], dtype=np.uint64), "f"), "f",
+          "f, pose 1: stamp 4.000000000 s does not increase")
 
 
 def test_read_stamps_one_per_line(tmp_path):
@@ -84,7 +87,7 @@ def test_read_stamps_one_per_line(tmp_path):
     back = write(tmp_path, ["1", "# c", "3", "2"], "back.txt")
     error(lambda: read_stamps(back), back, "line 4: stamp 2.000000000 s does not increase")
     wide = write(tmp_path, ["1", "2 3"], "wide.txt")
-    error(lambda: read_stamps(wide), wide, "line 2", "expected 1 values", "one stamp [s] a line")
+    error(lambda: read_stamps(wide), wide, "line 2", "expected 1 values (one stamp [s] a line)")
 
 
 # -- TUM ------------------------------------------------------------------------------------
@@ -98,7 +101,7 @@ def test_tum_estimate_is_scipy_poses_with_optional_times(tmp_path):
     timed = read_tum_estimate(write(tmp_path, tum_rows(times=[0.0, 2.5, 1.0]), "timed.txt"))
     np.testing.assert_array_equal(timed.frame_times_ms, [0.0, 2.5, 1.0])
     np.testing.assert_allclose(timed.trajectory.poses, poses(), atol=1e-12)
-    neg = write(tmp_path, ["# h", *tum_rows(times=[1.0, 2.0, -0.5])], "neg.txt")
+    neg = write(tmp_path, ["# h", *tum_rows(times=[0.0, 2.0, -0.5])], "neg.txt")
     error(lambda: read_tum_estimate(neg), neg, "line 4: negative time in the 9th column",
           "[ms] >= 0")
 
@@ -111,11 +114,12 @@ def test_poses_from_tum_normalises_near_unit_and_refuses_others():
                          (0.989, ["has norm 0.989"]),
                          (1e-3, ["has norm 0.001"]),
                          (2e-6, ["has norm 2e-06"]),
+                         (1e-6, ["has norm 1e-06"]),  # not shorter than 1e-6
                          (5e-7, ["quaternion (qx qy qz qw) has zero norm (1 such rows)",
                                  "expected a rotation"]),
                          (0.0, ["zero norm"])]:
         bad = ROT.as_quat()
-        bad[1] *= scale
+        bad[1] = [0, 0, 0, scale]
         error(lambda b=bad: poses_from_tum(XYZ, b, "f", [2, 4, 6]), "f", "f, line 4:", *words)
     two = ROT.as_quat() * 0.0
     error(lambda: poses_from_tum(XYZ, two * 0 + [[0, 0, 0, 1], [0, 0, 0, 2], [0, 0, 0, 3]], "f"),
@@ -134,7 +138,11 @@ def test_an_integer_index_column_is_refused_only_when_all_signs_say_so(tmp_path)
     error(lambda: read_estimate(path), path, "9 columns whose first is an integer index (0, 1, "
           "...)", "columns 6-9", "expected TUM rows t x y z qx qy qz qw [time_ms]")
     error(lambda: read_estimate(write(tmp_path, index_rows([3, 7, 8]), "i2.txt")), tmp_path,
-          "integer index (3, 7, ...)")
+          "integer index (3, 7, ...)", "drop the index column (e.g. cut -d' ' -f2-)")
+    # a quaternion in columns 6-9 of which qx is not zero
+    turned = [fmt([i, 100.0 + i, 0, 0, 0, 0.6, 0, 0, 0.8]) for i in range(3)]
+    error(lambda: read_estimate(write(tmp_path, turned, "i3.txt")), tmp_path,
+          "9 columns whose first is an integer index (0, 1, ...)")
     # not whole numbers: stamps, read as TUM (quaternion (1, 0, 0, 0), time 1 ms)
     est = read_estimate(write(tmp_path, index_rows([0.5, 1.5, 2.5]), "half.txt"))
     np.testing.assert_array_equal(est.trajectory.stamps, [0.5, 1.5, 2.5])
@@ -192,8 +200,11 @@ def test_kitti_estimate_with_its_stamps_file(tmp_path):
     est = read_kitti_estimate(write(tmp_path, kitti_rows(noisy), "n.txt"), times)
     U, _, Vt = np.linalg.svd(noisy[1, :3, :3])
     np.testing.assert_allclose(est.trajectory.poses[1, :3, :3], U @ Vt, atol=1e-12)
-    error(lambda: read_kitti_estimate(path, None), path, "a KITTI pose file has no stamps",
-          "--stamps")
+    error(lambda: read_kitti_estimate(path, None), path, "a KITTI pose file has no stamps; give "
+          "its stamps file (--stamps times.txt: one stamp [s] per pose row)")
+    wide = write(tmp_path, [r + " 1" for r in kitti_rows(poses())], "wide.txt")
+    error(lambda: read_kitti_estimate(wide, times), wide, "line 1: expected 12 values (12 values: "
+          "the 3x4 pose row-major), got 13")
     skew = poses()
     skew[2, :3, :3] *= 1.01
     bad = write(tmp_path, ["# poses", *kitti_rows(skew)], "skew.txt")
@@ -298,6 +309,8 @@ def test_read_estimate_defaults_and_refusals(tmp_path):
           "trajectory file not found")
     error(lambda: read_estimate(write(tmp_path, tum_rows()[:1], "one.txt")), tmp_path,
           "the estimate has 1 pose; expected a trajectory of at least 2 poses")
+    two = read_estimate(write(tmp_path, tum_rows()[:2], "two.txt"))
+    np.testing.assert_allclose(two.trajectory.poses, poses()[:2], atol=1e-12)
 
 
 def test_frame_times_file(tmp_path):
@@ -308,11 +321,67 @@ def test_frame_times_file(tmp_path):
     np.testing.assert_allclose(est.trajectory.stamps, STAMPS * 1e-3)
     assert est.stamp_unit == "ms"
     neg = write(tmp_path, ["# ms", "0", "1.5", "-2"], "neg.txt")
-    error(lambda: read_estimate(path, frame_times=neg), neg, "line 4: negative time",
+    error(lambda: read_estimate(path, frame_times=neg), neg, "line 4: negative time; "
           "expected a time per frame [ms] >= 0")
     few = write(tmp_path, ["1", "2"], "few.txt")
     error(lambda: read_estimate(path, frame_times=few), few,
           f"2 times but {path} has 3 poses; expected one time [ms] per pose")
     wide = write(tmp_path, ["1 2", "3 4", "5 6"], "wide.txt")
-    error(lambda: read_estimate(path, frame_times=wide), wide, "line 1", "expected 1 values",
-          "one time [ms] a line")
+    error(lambda: read_estimate(path, frame_times=wide), wide, "line 1",
+          "expected 1 values (one time [ms] a line)")
+
+
+# -- bags -----------------------------------------------------------------------------------
+
+
+def ros1_bag(path, topics: dict, stamps=STAMPS, xyz=XYZ):
+    """A ROS1 bag: ``topics`` {name: "odom" | "imu"}, one message per stamp each (odometry:
+    the poses ROT, ``xyz``)."""
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from helpers_bags import imu_msg, odometry_msg
+
+    store = get_typestore(Stores.ROS1_NOETIC)
+    T = np.tile(np.eye(4), (len(stamps), 1, 1))
+    T[:, :3, :3] = Rotation.from_euler("z", 0.3 * np.arange(len(stamps))[:, None]).as_matrix()
+    T[:, :3, 3] = xyz[:len(stamps)]
+    with Writer(path) as w:
+        for name, kind in topics.items():
+            msgtype = "nav_msgs/msg/Odometry" if kind == "odom" else "sensor_msgs/msg/Imu"
+            conn = w.add_connection(name, msgtype, typestore=store)
+            for k, t in enumerate(stamps):
+                msg = odometry_msg(store, t, k, T[k]) if kind == "odom" else imu_msg(store, t, k)
+                w.write(conn, int(1e9 * (1 + k)), store.serialize_ros1(msg, msgtype))
+    return path
+
+
+def test_a_bag_needs_exactly_one_pose_topic_or_a_named_one(tmp_path):
+    from loaders.rosbag import POSE_TYPES
+
+    two = ros1_bag(tmp_path / "two.bag", {"/odom": "odom", "/imu": "imu", "/odom2": "odom"})
+    error(lambda: read_estimate(two), two,
+          f"2 pose topics ({', '.join(POSE_TYPES)}); give the estimate's topic (--topic); the "
+          "bag has /imu (sensor_msgs/msg/Imu), /odom (nav_msgs/msg/Odometry), /odom2 "
+          "(nav_msgs/msg/Odometry)")
+    est = read_estimate(two, topic="/odom2")
+    assert est.fmt == "bag" and est.frame_times_ms is None
+    want = poses(Rotation.from_euler("z", 0.3 * np.arange(3)[:, None]))
+    np.testing.assert_allclose(est.trajectory.poses, want, atol=1e-9)
+    np.testing.assert_allclose(est.trajectory.stamps, STAMPS, atol=1e-9)
+    imu = ros1_bag(tmp_path / "imu.bag", {"/imu": "imu"})
+    error(lambda: read_estimate(imu), imu, "0 pose topics (", "(--topic); the bag has /imu "
+          "(sensor_msgs/msg/Imu)")
+    empty = ros1_bag(tmp_path / "empty.bag", {})
+    error(lambda: read_estimate(empty), empty, "0 pose topics", "the bag has no topics")
+
+
+def test_a_bag_with_repeated_stamps_or_non_finite_poses_is_refused(tmp_path):
+    rep = ros1_bag(tmp_path / "rep.bag", {"/odom": "odom"}, stamps=[1.0, 2.0, 2.0])
+    error(lambda: read_estimate(rep), rep, f"{rep}:/odom, pose 2: stamp 2.000000000 s does not "
+          "increase")
+    xyz = np.array([[0, 0, 0], [np.nan, 0, 0], [1, 1, 1], [0, np.inf, 0]], dtype=float)
+    bad = ros1_bag(tmp_path / "nan.bag", {"/odom": "odom"}, stamps=[1.0, 2.0, 3.0, 4.0],
+                   xyz=xyz)
+    error(lambda: read_estimate(bad), bad, f"{bad}: pose 1 is not finite (2 such poses); "
+          "expected finite poses")
