@@ -102,8 +102,8 @@ def test_tum_estimate_is_scipy_poses_with_optional_times(tmp_path):
     np.testing.assert_array_equal(timed.frame_times_ms, [0.0, 2.5, 1.0])
     np.testing.assert_allclose(timed.trajectory.poses, poses(), atol=1e-12)
     neg = write(tmp_path, ["# h", *tum_rows(times=[0.0, 2.0, -0.5])], "neg.txt")
-    error(lambda: read_tum_estimate(neg), neg, "line 4: negative time in the 9th column",
-          "[ms] >= 0")
+    error(lambda: read_tum_estimate(neg), neg, "line 4: negative time in the 9th column; expected "
+          "the method's time of the frame [ms] >= 0")
 
 
 def test_poses_from_tum_normalises_near_unit_and_refuses_others():
@@ -238,15 +238,15 @@ def test_read_boreas_inverts_t_k_i_and_keeps_microseconds(tmp_path):
     rows = boreas_rows(US, poses())
     rows[1] = rows[1].replace(str(US[1]), f"{US[1]}.25", 1)
     frac = write(tmp_path, rows, "frac.txt")
-    error(lambda: read_boreas(frac), frac, "line 2: stamp", "is not a whole number",
-          "an integer stamp [us] then 12 values")
+    error(lambda: read_boreas(frac), frac, "line 2: stamp", "is not a whole number; expected a "
+          "Boreas row: an integer stamp [us] then 12 values")
     mirror = poses()
     mirror[2, :3, 0] *= -1
     bad = write(tmp_path, boreas_rows(US, mirror), "m.txt")
     error(lambda: read_boreas(bad), bad, "line 3: the 3x3 block of T_k_i is no rotation")
     short = write(tmp_path, [r.rsplit(" ", 1)[0] for r in boreas_rows(US, poses())], "s.txt")
-    error(lambda: read_boreas(short), short, "line 1", "expected 13 values",
-          "stamp [us] and the 3x4 T_k_i row-major")
+    error(lambda: read_boreas(short), short, "line 1", "expected 13 values (13 values: stamp [us] "
+          "and the 3x4 T_k_i row-major)")
 
 
 def test_boreas_estimate_in_seconds_and_its_stamps_checked(tmp_path):

@@ -109,6 +109,19 @@ def test_plain_rows_give_their_line_numbers(tmp_path):
         np.testing.assert_allclose(data[:, 1:4], XYZ)
 
 
+def test_line_numbers_count_blank_lines_and_a_comment_after_a_row_is_refused(tmp_path):
+    quat = ROT.as_quat()
+    quat[2] *= 1.5
+    rows = tum_rows(quat=quat)
+    path = write(tmp_path, [rows[0], "", rows[1], rows[2]], name="gap.txt")
+    with raises(path, "line 4", "has norm 1.5"):
+        read_tum(path)
+    noted = write(tmp_path, [tum_rows()[0], tum_rows()[1] + " # note", tum_rows()[2]],
+                  name="noted.txt")
+    with raises(noted, "line 2", "expected 8 numbers"):
+        read_tum(noted)
+
+
 def test_a_non_utf8_byte_in_a_comment_is_no_crash(tmp_path):
     path = tmp_path / "latin.txt"
     path.write_bytes(b"# caf\xe9 \xff\n" + ("\n".join(tum_rows()) + "\n").encode())
@@ -126,7 +139,7 @@ def test_a_non_utf8_byte_in_a_comment_is_no_crash(tmp_path):
      ["line 2", "expected 8 values", "t x y z qx qy qz qw", "got 7"]),
     (lambda r: r[:2] + [r[2] + " 5"], ["line 3", "expected 8 values", "got 9"]),
     (lambda r: r[:1] + [setcol(r[1], 2, "abc")] + r[2:],
-     ["line 2", "expected 8 numbers", "t x y z qx qy qz qw", "abc"]),
+     ["line 2", "expected 8 numbers (t x y z qx qy qz qw)", "abc"]),
     (lambda r: r[:1] + [setcol(r[1], 3, "nan")] + r[2:],
      ["line 2", "non-finite", "t x y z qx qy qz qw"]),
     (lambda r: ["# c"] + r[:2] + [setcol(r[2], 1, "inf")],
@@ -232,8 +245,13 @@ def test_kitti_rows_are_the_3x4_matrices_row_major(tmp_path):
     np.testing.assert_array_equal(tr.stamps, STAMPS)
     # one row by hand: row-major [R | t]
     row = np.array([[0, -1, 0, 5], [1, 0, 0, 6], [0, 0, 1, 7]], dtype=float)
-    one = write(tmp_path, [" ".join(map(str, row.ravel()))] * 2, name="one.txt")
-    np.testing.assert_allclose(read_kitti(one).poses[0], np.vstack([row, [0, 0, 0, 1]]))
+    one = write(tmp_path, [" ".join(map(str, row.ravel()))], name="one.txt")
+    single = read_kitti(one)
+    assert len(single) == 1
+    np.testing.assert_allclose(single.poses[0], np.vstack([row, [0, 0, 0, 1]]))
+    # a shear of exactly the tolerance, max |R R^T - I| = 1e-3: read
+    edge = write(tmp_path, ["1 0.001 0 0 0 1 0 0 0 0 1 0"] * 2, name="edge.txt")
+    np.testing.assert_allclose(read_kitti(edge).poses[0, 0, :3], [1, 0.001, 0])
     with raises(path, "3 poses but 2 stamps"):
         read_kitti(path, STAMPS[:2])
 
@@ -251,7 +269,9 @@ def test_write_kitti_reads_back(tmp_path):
 @pytest.mark.parametrize("edit, words", [
     (lambda M: M[:, :, :3].__imul__(1.01), ["pose row 1", "not a rigid transform"]),
     (lambda M: M[1:, 0, :3].__imul__(-1), ["pose row 2", "not a rigid transform"]),
-    (lambda M: M[2:, 0, 1].__iadd__(0.5), ["pose row 3", "expected 12 values, a 3x4"]),
+    (lambda M: M[2:, 0, 1].__iadd__(0.5),
+     ["pose row 3: not a rigid transform (its 3x3 part is not a rotation, or a value is not "
+      "finite); expected 12 values, a 3x4 [R | t] row-major"]),
     (lambda M: M[2:, 1, 3].__iadd__(np.nan), ["pose row 3", "not finite"]),
 ])
 def test_kitti_rows_that_are_no_rigid_transform(tmp_path, edit, words):
@@ -303,7 +323,8 @@ def test_nearest_rotations_projects_slightly_off_blocks_and_refuses_others():
             nearest_rotations(bad, "f.txt", [4, 6, 8], "3x3 of X")
         msg = str(err.value)
         assert msg.startswith(f"f.txt, line {[4, 6, 8][k]}: the 3x3 of X is no rotation"), name
-        assert f"{count} such rows" in msg and "expected a rigid pose" in msg, (name, msg)
+        assert f"{count} such rows" in msg, (name, msg)
+        assert "sheared, scaled or mirrored; expected a rigid pose (a rotation block)" in msg
     # determinant 1 but sheared: refused
     shear = np.eye(3)[None].copy()
     shear[0, 0, 1] = 0.01
@@ -312,6 +333,12 @@ def test_nearest_rotations_projects_slightly_off_blocks_and_refuses_others():
     # just within the tolerance (1e-3): read
     ok = np.eye(3)[None] * 1.0004
     np.testing.assert_allclose(nearest_rotations(ok, "f", [1]), np.eye(3)[None], atol=1e-12)
+    # a shear of exactly the tolerance: max |R R^T - I| = 1e-3, read
+    edge = np.eye(3)[None].copy()
+    edge[0, 0, 1] = 1e-3
+    assert np.abs(edge[0] @ edge[0].T - np.eye(3)).max() == 1e-3
+    out = nearest_rotations(edge, "f", [1])
+    np.testing.assert_allclose(out[0] @ out[0].T, np.eye(3), atol=1e-12)
 
 
 # -- extrinsics -----------------------------------------------------------------------------
@@ -356,9 +383,16 @@ def test_parse_extrinsic_refuses(value, words):
         assert w in msg, (w, msg)
 
 
-def test_a_4x4_within_1e5_of_orthonormal_is_taken():
-    T = np.diag([1.0, 1.0, 1.000002, 1.0])
+def test_a_4x4_within_1e5_of_orthonormal_is_taken_as_floats():
+    T = np.eye(4)
+    T[0, 1] = 4e-6  # R R^T off the identity by 4e-6 off the diagonal
     np.testing.assert_array_equal(parse_extrinsic(T), T)
+    T[0, 1] = 2e-5
+    with pytest.raises(DataError, match="not a rigid transform"):
+        parse_extrinsic(T)
+    ints = parse_extrinsic(np.eye(4, dtype=int))
+    assert ints.dtype == np.float64
+    np.testing.assert_array_equal(ints, np.eye(4))
 
 
 # -- reference CSV --------------------------------------------------------------------------
@@ -387,6 +421,15 @@ def test_ref_csv_header_and_rows(tmp_path):
         assert read_gt_file(path).stamps.tolist() == tr.stamps.tolist()
 
 
+def test_ref_csv_velocity_columns_are_not_used_and_odd_bytes_pass(tmp_path):
+    rows = ref_rows()
+    rows[1] = ", ".join(rows[1].split(", ")[:8] + ["nan", "inf", "0"])
+    path = tmp_path / "v.csv"
+    path.write_bytes(b"# " + ", ".join(REF_CSV_COLUMNS).encode() + b"\n# caf\xe9\n"
+                     + "\n".join(rows).encode() + b"\n")
+    np.testing.assert_allclose(read_ref_csv(path).poses, expected_poses(), atol=1e-12)
+
+
 def test_ref_csv_nanosecond_stamps_become_seconds(tmp_path):
     ns = np.array([1_700_000_000_000_000_000, 1_700_000_000_500_000_000,
                    1_700_000_001_250_000_000])
@@ -404,12 +447,18 @@ def test_ref_csv_nanosecond_stamps_become_seconds(tmp_path):
     (lambda r: ["# time, x, y, z, qx, qy, qz, qw", *r], ["header columns time, x, y",
                                                          "expected time, M_p_L_x",
                                                          "Snail-Radar reference"]),
+    (lambda r: ["time, x, y, z, qx, qy, qz, qw, a, b, c, d", *r],
+     ["header columns time, x, y, z, qx, qy, qz, qw, a, b, c; expected "
+      + ", ".join(REF_CSV_COLUMNS) + " (the Snail-Radar"]),
     (lambda r: [r[0], "1, 2, x, 4, 0, 0, 0, 1, 0, 0, 0"],
      ["line 2", "expected comma-separated numbers", "time, M_p_L_x", "'1, 2, x"]),
     (lambda r: [r[0], "1, 2, 3, 4, 0, 0, 0, 1, 0"],
-     ["line 2", "9 values; expected 11", "or the first 8"]),
+     ["line 2: 9 values; expected 11 (" + ", ".join(REF_CSV_COLUMNS) + ") or the first 8"]),
     (lambda r: [r[0], ", ".join(r[1].split(", ")[:8])], ["line 2", "8 values; expected 11"]),
-    (lambda r: ["# " + ", ".join(REF_CSV_COLUMNS)], ["no pose rows", "expected lines of time"]),
+    (lambda r: ["# " + ", ".join(REF_CSV_COLUMNS)],
+     ["no pose rows; expected lines of " + ", ".join(REF_CSV_COLUMNS)]),
+    (lambda r: [r[0], "1, 2, " + "x" * 100],
+     ["line 2", ", got " + repr(("1, 2, " + "x" * 100)[:80])]),
     (lambda r: [r[0], "4, 1, 2, 3, 0, 0, 0, 1.5, 0, 0, 0"],
      ["line 2", "quaternion", "expected a unit quaternion"]),
     (lambda r: ["", r[0], "4, 1, 2, nan, 0, 0, 0, 1, 0, 0, 0"], ["line 3", "non-finite"]),
@@ -432,9 +481,9 @@ def test_a_ref_csv_comment_after_the_rows_is_no_header(tmp_path):
 
 
 def test_format_detection(tmp_path):
-    tum = write(tmp_path, ["# c", "t x y z qx qy qz qw", *tum_rows()], name="t.txt")
+    tum = write(tmp_path, ["#", "# c", "t x y z qx qy qz qw", *tum_rows()], name="t.txt")
     kitti = write(tmp_path, ["", "# c", *kitti_rows(expected_poses())], name="k.txt")
-    ref = write(tmp_path, ["", *ref_rows()], name="r.csv")
+    ref = write(tmp_path, ["", "# made by the TLS localisation", *ref_rows()], name="r.csv")
     named = write(tmp_path, ["# time M_p_L_x", *ref_rows(velocity=False)], name="n.csv")
     eight = write(tmp_path, ref_rows(velocity=False), name="e.csv")
     empty = write(tmp_path, ["", "# nothing"], name="empty.txt")
