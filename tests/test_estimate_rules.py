@@ -380,8 +380,8 @@ def test_a_bag_with_repeated_stamps_or_non_finite_poses_is_refused(tmp_path):
     rep = ros1_bag(tmp_path / "rep.bag", {"/odom": "odom"}, stamps=[1.0, 2.0, 2.0])
     error(lambda: read_estimate(rep), rep, f"{rep}:/odom, pose 2: stamp 2.000000000 s does not "
           "increase")
-    xyz = np.array([[0, 0, 0], [np.nan, 0, 0], [1, 1, 1], [0, np.inf, 0]], dtype=float)
-    bad = ros1_bag(tmp_path / "nan.bag", {"/odom": "odom"}, stamps=[1.0, 2.0, 3.0, 4.0],
+    xyz = np.array([[0, 0, 0], [np.nan, 0, 0], [1, 1, 1], [0, np.inf, 0], [2, 2, 2]], dtype=float)
+    bad = ros1_bag(tmp_path / "nan.bag", {"/odom": "odom"}, stamps=[1.0, 2.0, 3.0, 4.0, 5.0],
                    xyz=xyz)
     error(lambda: read_estimate(bad), bad, f"{bad}: pose 1 is not finite (2 such poses); "
           "expected finite poses")
