@@ -23,8 +23,8 @@ from bench.runs.folders import read_run
 from bench.runs.identity import code_identity, run_key
 from conftest import constant_twist_sequence
 from loaders.errors import DataError
-from loaders.scan import MemorySequence
-from loaders.se3 import tum_from_T
+from loaders.scan import MemorySequence, SensorInfo
+from loaders.se3 import inv_T, tum_from_T
 from loaders.store import StoreSequence, write_store
 
 N = 40
@@ -33,15 +33,21 @@ SCORING = Scoring(lengths_m=(2.0, 4.0), kitti_lengths_m=(3.0, 6.0), alignment="s
                   velocity_window_s=0.5)
 
 
-def write_tum(path: Path, stamps, poses) -> Path:
+def write_tum(path: Path, stamps, poses, times=None) -> Path:
     xyz, quat = tum_from_T(np.asarray(poses))
-    np.savetxt(path, np.column_stack([stamps, xyz, quat]), fmt="%.17g")
+    cols = [stamps, xyz, quat] + ([] if times is None else [times])
+    np.savetxt(path, np.column_stack(cols), fmt="%.17g")
     return path
 
 
-def make_store(path: Path, name: str = "twist") -> tuple[Path, object]:
+#: the store's sensor in its body frame
+T_BS = np.array([[0, -1, 0, 1.2], [1, 0, 0, 0.1], [0, 0, 1, 1.5], [0, 0, 0, 1.0]])
+
+
+def make_store(path: Path, with_gt: bool = True) -> tuple[Path, object]:
     base = constant_twist_sequence(n_frames=N, n_points=60, w=(0.0, 0.0, 0.0), max_range_m=70)
-    seq = MemorySequence(name, base.sensor, list(base), base.ground_truth,
+    seq = MemorySequence("twist", SensorInfo("lidar", 0.1, T_BS, "test"), list(base),
+                         base.ground_truth if with_gt else None,
                          {"display_name": "Twist drive", "sensor_class": "lidar-test"})
     return write_store(seq, path), base.ground_truth
 
@@ -156,6 +162,13 @@ def test_the_metrics_of_the_ground_truth_are_zero_and_its_times_are_the_methods(
     keep[GAP] = False
     np.testing.assert_allclose(ms[keep], scored.times, atol=1e-6)
     assert np.isnan(ms[GAP]).all()
+    # no points, correspondences or iterations of the harness; every pose is the method's own
+    header = (run_dir / "frames.csv").read_text().splitlines()[0].split(",")
+    table = [dict(zip(header, r.split(","), strict=True)) for r in rows]
+    assert [int(r["index"]) for r in table] == list(range(N))
+    for r in table:
+        assert (r["points"], r["correspondences"], r["iterations"]) == ("0", "0", "0")
+        assert (r["converged"], r["replaced"]) == ("1", "0")
 
 
 def test_the_notes_say_the_coverage_and_each_warning(scored):
@@ -254,16 +267,68 @@ def test_the_output_is_checked_before_the_estimate_is_read(scored, tmp_path):
 
 
 def test_without_out_the_run_goes_under_results_external(scored, tmp_path, monkeypatch):
+    """And times in a 9th TUM column are the trajectory file's."""
+    times = np.linspace(1.0, 3.0, N)
+    path = write_tum(tmp_path / "timed.tum", scored.gt.stamps, scored.gt.poses, times)
     monkeypatch.chdir(tmp_path)
-    o = score_external(scored.store, ExternalSpec(scored.path, "mine", max_gap_s=1.0))
+    o = score_external(scored.store, ExternalSpec(path, "mine"))
     assert o.status == "done" and o.run_dir == Path("results/external/twist/mine")
     assert (tmp_path / "results" / "external" / "twist" / "mine" / "metrics.json").exists()
-    res = read_run(tmp_path / o.run_dir).result
-    assert res.clock is None and res.clock_note == NOT_TIMED
-    assert NOT_TIMED in res.notes
-    config = read_run(tmp_path / o.run_dir).config
-    assert config["external"]["timing"] == "not timed"
-    assert config["lengths_m"] == list(Scoring().lengths_m)
+    run = read_run(tmp_path / o.run_dir)
+    assert run.result.clock == "reported by the method"
+    assert run.result.clock_note == (f"reported by the method: per-frame times from {path}, "
+                                     "not measured by the harness")
+    assert run.result.time_ms.mean == pytest.approx(times.mean(), rel=1e-9)
+    assert run.config["external"]["frame_times"] is None
+    assert run.config["lengths_m"] == list(Scoring().lengths_m)
+
+
+def test_a_kitti_file_of_body_poses_with_stamps_in_ms_untimed(scored, tmp_path):
+    """Its stamps file is hashed and recorded, its unit and frame as given; the body poses of
+    the ground truth through the store's T_body_sensor score zero; no times: not timed."""
+    body = scored.gt.poses @ inv_T(T_BS)
+    kitti = tmp_path / "est.kitti"
+    np.savetxt(kitti, body[:, :3, :].reshape(N, 12), fmt="%.17g")
+    stamps = tmp_path / "stamps_ms.txt"
+    stamps.write_text("".join(f"{t * 1000:.17g}\n" for t in scored.gt.stamps))
+    spec = ExternalSpec(kitti, "body", fmt="kitti", stamps=stamps, stamp_unit="ms",
+                        pose_frame="body")
+    o = score_external(scored.store, spec, tmp_path / "out", SCORING)
+    assert o.frame == "the store's T_body_sensor" and o.coverage["matched"] == N
+    run = read_run(o.run_dir)
+    ext, ident = run.config["external"], run.config["identity"]
+    assert ext["stamps"] == str(stamps) and ext["format"] == "kitti"
+    assert ext["stamp_unit"] == "ms" and ext["pose_frame"] == "body"
+    assert ident["stamps_sha256"] == hashlib.sha256(stamps.read_bytes()).hexdigest()
+    assert ident["frame_times_sha256"] is None and ident["stamp_unit"] == "ms"
+    np.testing.assert_allclose(ext["T_frame_sensor"], T_BS)
+    np.testing.assert_allclose(ident["T_frame_sensor"], T_BS)
+    assert ext["T_frame_sensor_from"] == "the store's T_body_sensor"
+    res = run.result
+    for r in res.relative_error:
+        assert r.n > 0 and r.trans_m_mean < 1e-9 and r.rot_deg_mean < 1e-6
+    assert res.clock is None and res.clock_note == NOT_TIMED and res.time_ms.mean is None
+    assert ext["timing"] == "not timed"
+    assert res.notes == [f"external trajectory: {N} of the {N} scans with ground truth scored "
+                         f"(100.0 %): {N} matched within 0.01 s, 0 interpolated (no --max-gap: "
+                         "no interpolation)", NOT_TIMED]
+
+
+def test_a_store_without_ground_truth_and_an_estimate_too_short_are_refused(scored, tmp_path):
+    store = make_store(tmp_path / "nogt.h5", with_gt=False)[0]
+    with pytest.raises(DataError) as err:
+        score_external(store, ExternalSpec(scored.path, "mine"), tmp_path / "out")
+    assert str(err.value) == (f"{store}: the store has no ground truth; nothing to score "
+                              f"{scored.path} against")
+    # 2 poses 0.1 s apart at 8 m/s: 0.8 m of path, below the shortest segment of 2 m
+    two = write_tum(tmp_path / "two.tum", scored.gt.stamps[:2], scored.gt.poses[:2])
+    with pytest.raises(DataError) as err:
+        score_external(scored.store, ExternalSpec(two, "two", min_coverage=0.0),
+                       tmp_path / "out", SCORING)
+    assert str(err.value) == (f"{two} is too short to score: it covers 2 of the {N} scans with "
+                              "ground truth (5.0 %), about 0.800 m of path, shorter than the "
+                              "shortest segment (2 m)")
+    assert not (tmp_path / "out").exists()
 
 
 def test_an_experiment_scores_each_entry_and_reports_the_failing_one(scored, tmp_path):
@@ -285,7 +350,8 @@ def test_an_experiment_scores_each_entry_and_reports_the_failing_one(scored, tmp
                                     entry("good")])
     done = score.score_experiment_external(exp)
     assert [d[:2] for d in done] == [("bad", "failed"), ("good", "done")]
-    assert "covers 35 of the 40 scans" in done[0][2] and "below --min-coverage 1" in done[0][2]
+    assert f"covers 35 of the 40 scans of {scored.store} with ground truth" in done[0][2]
+    assert "below --min-coverage 1" in done[0][2]
     run_dir = tmp_path / "exp" / "twist-exp" / "good"
     assert done[1][2] == (f"{run_dir}: {N} of the {N} scans with ground truth scored "
                           "(100.0 %); warning: " + f"{scored.path}: --max-gap 1 bridged a gap "
