@@ -9,6 +9,7 @@ the estimate is read; and an experiment's external entries (score_experiment_ext
 import hashlib
 import json
 import shutil
+import warnings
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -52,6 +53,14 @@ def make_store(path: Path, with_gt: bool = True) -> tuple[Path, object]:
     return write_store(seq, path), base.ground_truth
 
 
+def reused(scored):
+    """The fixture's run scored again (each test that reads it calls score_external itself, so
+    mutation testing runs it on score_external's mutants): the same run, reused."""
+    again = score_external(scored.store, scored.spec, scored.out, SCORING)
+    assert again.status == "skipped" and again.run_dir == scored.outcome.run_dir
+    return again
+
+
 @pytest.fixture(scope="module")
 def scored(tmp_path_factory):
     """The ground truth with 5 poses left out, scored with --max-gap 1 and per-row times."""
@@ -72,6 +81,7 @@ def scored(tmp_path_factory):
 
 
 def test_the_outcome_says_what_was_scored(scored):
+    reused(scored)
     o = scored.outcome
     assert o.status == "done" and o.run_dir == scored.out / "twist" / "mine"
     c = o.coverage
@@ -87,6 +97,7 @@ def test_the_outcome_says_what_was_scored(scored):
 
 
 def test_the_config_records_the_store_the_file_and_the_options_as_given(scored):
+    reused(scored)
     config = read_run(scored.outcome.run_dir).config
     seq = StoreSequence(scored.store, fields=())
     sensor = seq.sensor
@@ -115,6 +126,7 @@ def test_the_config_records_the_store_the_file_and_the_options_as_given(scored):
 
 
 def test_the_identity_holds_the_hashes_of_the_files_and_every_setting(scored):
+    reused(scored)
     config = read_run(scored.outcome.run_dir).config
     ident = config["identity"]
     assert ident["kind"] == "external"
@@ -140,6 +152,7 @@ def test_the_identity_holds_the_hashes_of_the_files_and_every_setting(scored):
 
 
 def test_the_metrics_of_the_ground_truth_are_zero_and_its_times_are_the_methods(scored):
+    reused(scored)
     run_dir = scored.outcome.run_dir
     res = read_run(run_dir).result
     assert res.method == "mine" and res.sequence == "twist" and res.frames == N
@@ -172,6 +185,7 @@ def test_the_metrics_of_the_ground_truth_are_zero_and_its_times_are_the_methods(
 
 
 def test_the_notes_say_the_coverage_and_each_warning(scored):
+    reused(scored)
     notes = read_run(scored.outcome.run_dir).result.notes
     assert notes == [
         f"external trajectory: {N} of the {N} scans with ground truth scored (100.0 %): "
@@ -180,35 +194,37 @@ def test_the_notes_say_the_coverage_and_each_warning(scored):
     assert NOT_TIMED not in notes  # timed by the method
 
 
-def test_a_rescore_of_the_same_file_is_its_own_run(scored):
+def test_a_rescore_of_the_same_file_is_its_own_run(scored, tmp_path):
     """Reused unchanged (with the same outcome), done again when forced; another file, topic
     or store under the name is refused, naming what the folder holds."""
+    out = tmp_path / "out"
+    shutil.copytree(scored.out, out)  # the fixture's folder is left as it is
     first = scored.outcome
-    again = score_external(scored.store, scored.spec, scored.out, SCORING)
-    assert again.status == "skipped" and again.run_dir == first.run_dir
+    again = score_external(scored.store, scored.spec, out, SCORING)
+    assert again.status == "skipped" and again.run_dir == out / "twist" / "mine"
     assert (again.coverage, again.frame, again.clock, again.warnings, again.convention) == \
         (first.coverage, first.frame, first.clock, first.warnings, first.convention)
-    other_scoring = score_external(scored.store, scored.spec, scored.out)  # a setting: rescored
+    other_scoring = score_external(scored.store, scored.spec, out)  # a setting: rescored
     assert other_scoring.status == "done"
-    assert read_run(first.run_dir).config["lengths_m"] == list(Scoring().lengths_m)
-    forced = score_external(scored.store, scored.spec, scored.out, force=True)
+    assert read_run(again.run_dir).config["lengths_m"] == list(Scoring().lengths_m)
+    forced = score_external(scored.store, scored.spec, out, force=True)
     assert forced.status == "done"
     assert forced.coverage == first.coverage and forced.warnings == first.warnings
 
     copy = Path(shutil.copy(scored.path, scored.root / "copy.tum"))
     with pytest.raises(DataError) as err:
-        score_external(scored.store, ExternalSpec(copy, "mine"), scored.out)
+        score_external(scored.store, ExternalSpec(copy, "mine"), out)
     text = str(err.value)
     assert f"holds another run (trajectory '{scored.path}')" in text
     assert f"bench score would replace it with trajectory '{copy}'" in text
     with pytest.raises(DataError, match=r"holds another run .*with topic '/odom'"):
         score_external(scored.store, ExternalSpec(scored.path, "mine", topic="/odom"),
-                       scored.out)
+                       out)
     elsewhere = scored.root / "elsewhere"
     elsewhere.mkdir()
     store2 = Path(shutil.copy(scored.store, elsewhere / "twist.h5"))  # same name, another store
     with pytest.raises(DataError, match=r"holds another run .*with store '.*elsewhere"):
-        score_external(store2, scored.spec, scored.out)
+        score_external(store2, scored.spec, out)
 
 
 def _as_harness_run(folder: Path, method: str = "icp-p2p") -> None:
@@ -333,7 +349,8 @@ def test_a_store_without_ground_truth_and_an_estimate_too_short_are_refused(scor
 
 def test_an_experiment_scores_each_entry_and_reports_the_failing_one(scored, tmp_path):
     """Filed under the sequence entry of the same store, scored with the experiment's settings
-    and the entry's options; an entry that fails is reported, the next still scored."""
+    and the entry's options; an entry that fails is reported, the next still scored; an
+    optional sequence whose store is absent is not said again (the plan says it)."""
     def entry(name, **options):
         given = {"name": name, "trajectory": scored.path, "store": scored.store,
                  "format": "tum", "stamps": None, "topic": None, "frame_times": None,
@@ -342,14 +359,30 @@ def test_an_experiment_scores_each_entry_and_reports_the_failing_one(scored, tmp
                  "min_coverage": 0.5, "trust_clock": True}
         return SimpleNamespace(**{**given, **options})
 
+    # 30 body poses as KITTI, its stamps and times files, the extrinsic given
+    body = scored.gt.poses[:30] @ inv_T(T_BS)
+    kitti = tmp_path / "part.kitti"
+    np.savetxt(kitti, body[:, :3, :].reshape(30, 12), fmt="%.17g")
+    stamps = tmp_path / "part_stamps.txt"
+    stamps.write_text("".join(f"{t:.17g}\n" for t in scored.gt.stamps[:30]))
+    times = tmp_path / "part_times.txt"
+    times.write_text("".join(f"{t:.17g}\n" for t in np.linspace(1.0, 2.0, 30)))
+    extrinsic = "1.2 0.1 1.5 0 0 0.7071067811865476 0.7071067811865476"  # T_BS
     sequence = SimpleNamespace(path=scored.store, name="twist-exp", display_name="Twist exp",
                                sensor_class="exp-class", is_glob=False, optional=False)
-    exp = SimpleNamespace(sequences=[sequence], lengths_m=[2.0], kitti_lengths_m=[6.0],
-                          alignment="se3", out_dir=tmp_path / "exp",
+    absent = SimpleNamespace(path=tmp_path / "absent.h5", name="absent", display_name=None,
+                             sensor_class=None, is_glob=False, optional=True, dataset=None)
+    exp = SimpleNamespace(sequences=[absent, sequence], lengths_m=[2.0], kitti_lengths_m=[6.0],
+                          alignment="sim3", out_dir=tmp_path / "exp",
                           external=[entry("bad", min_coverage=1.0, max_gap_s=None),
-                                    entry("good")])
-    done = score.score_experiment_external(exp)
-    assert [d[:2] for d in done] == [("bad", "failed"), ("good", "done")]
+                                    entry("good"),
+                                    entry("part", trajectory=kitti, format="kitti",
+                                          stamps=stamps, frame_times=times, max_gap_s=None,
+                                          extrinsic=extrinsic)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        done = score.score_experiment_external(exp)
+    assert [d[:2] for d in done] == [("bad", "failed"), ("good", "done"), ("part", "done")]
     assert f"covers 35 of the 40 scans of {scored.store} with ground truth" in done[0][2]
     assert "below --min-coverage 1" in done[0][2]
     run_dir = tmp_path / "exp" / "twist-exp" / "good"
@@ -357,16 +390,27 @@ def test_an_experiment_scores_each_entry_and_reports_the_failing_one(scored, tmp
                           "(100.0 %); warning: " + f"{scored.path}: --max-gap 1 bridged a gap "
                           "of 0.6 s (6.0 scan periods) between two of its poses: the scans "
                           "inside are scored on poses interpolated across it, not estimated")
+    part_dir = tmp_path / "exp" / "twist-exp" / "part"
+    assert done[2][2] == f"{part_dir}: 30 of the {N} scans with ground truth scored (75.0 %)"
     config = read_run(run_dir).config
     assert config["sequence"]["name"] == "twist-exp"
     assert config["sequence"]["display_name"] == "Twist exp"
     assert config["sequence"]["sensor_class"] == "exp-class"
     assert config["lengths_m"] == [2.0] and config["kitti_lengths_m"] == [6.0]
+    assert config["alignment"] == "sim3"
     ext = config["external"]
     assert (ext["format"], ext["stamp_unit"], ext["pose_frame"]) == ("tum", "s", "sensor")
     assert config["identity"]["association"] == {"time_offset_s": 0.0, "tolerance_s": 0.02,
                                                  "max_gap_s": 1.0}
     assert ext["clock_check"] == "not checked (--trust-clock)"
+    part = read_run(part_dir)
+    ext = part.config["external"]
+    assert (ext["format"], ext["stamps"], ext["frame_times"]) == ("kitti", str(stamps),
+                                                                 str(times))
+    assert ext["T_frame_sensor_from"] == "given (--extrinsic)"
+    np.testing.assert_allclose(ext["T_frame_sensor"], T_BS, atol=1e-12)
+    assert ext["timing"] == "reported by the method"
+    assert part.result.relative(2.0).trans_m_mean < 1e-9  # the ground truth's own poses
     assert score.score_experiment_external(exp)[1][1] == "skipped"
     assert score.score_experiment_external(exp, force=True)[1][1] == "done"
     # a store with no sequence entry: filed under the store's own name
