@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 import yaml
 
+from bench.data.export import export_store
 from bench.runs.evaluate import Scoring
 from bench.runs.external import score
 from bench.runs.external.score import NOT_TIMED, ExternalSpec, score_external
@@ -368,6 +369,8 @@ def test_an_experiment_scores_each_entry_and_reports_the_failing_one(scored, tmp
     times = tmp_path / "part_times.txt"
     times.write_text("".join(f"{t:.17g}\n" for t in np.linspace(1.0, 2.0, 30)))
     extrinsic = "1.2 0.1 1.5 0 0 0.7071067811865476 0.7071067811865476"  # T_BS
+    # the ground truth as a ROS1 bag's nav_msgs/Odometry topic (T_world_body)
+    bag = export_store(scored.store, "ros1", tmp_path / "gt.bag").path
     sequence = SimpleNamespace(path=scored.store, name="twist-exp", display_name="Twist exp",
                                sensor_class="exp-class", is_glob=False, optional=False)
     absent = SimpleNamespace(path=tmp_path / "absent.h5", name="absent", display_name=None,
@@ -378,11 +381,15 @@ def test_an_experiment_scores_each_entry_and_reports_the_failing_one(scored, tmp
                                     entry("good"),
                                     entry("part", trajectory=kitti, format="kitti",
                                           stamps=stamps, frame_times=times, max_gap_s=None,
-                                          extrinsic=extrinsic)])
+                                          extrinsic=extrinsic),
+                                    entry("odom", trajectory=bag, format="auto",
+                                          topic="/ground_truth", pose_frame="body",
+                                          max_gap_s=None, stamp_unit=None)])
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         done = score.score_experiment_external(exp)
-    assert [d[:2] for d in done] == [("bad", "failed"), ("good", "done"), ("part", "done")]
+    assert [d[:2] for d in done] == [("bad", "failed"), ("good", "done"), ("part", "done"),
+                                     ("odom", "done")]
     assert f"covers 35 of the 40 scans of {scored.store} with ground truth" in done[0][2]
     assert "below --min-coverage 1" in done[0][2]
     run_dir = tmp_path / "exp" / "twist-exp" / "good"
@@ -411,6 +418,10 @@ def test_an_experiment_scores_each_entry_and_reports_the_failing_one(scored, tmp
     np.testing.assert_allclose(ext["T_frame_sensor"], T_BS, atol=1e-12)
     assert ext["timing"] == "reported by the method"
     assert part.result.relative(2.0).trans_m_mean < 1e-9  # the ground truth's own poses
+    odom = read_run(tmp_path / "exp" / "twist-exp" / "odom").config
+    assert odom["method"]["description"] == f"external trajectory {bag}:/ground_truth"
+    assert odom["external"]["topic"] == odom["identity"]["topic"] == "/ground_truth"
+    assert odom["identity"]["trajectory_sha256"] == hashlib.sha256(bag.read_bytes()).hexdigest()
     assert score.score_experiment_external(exp)[1][1] == "skipped"
     assert score.score_experiment_external(exp, force=True)[1][1] == "done"
     # a store with no sequence entry: filed under the store's own name
