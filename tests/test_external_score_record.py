@@ -162,6 +162,9 @@ def test_the_metrics_of_the_ground_truth_are_zero_and_its_times_are_the_methods(
     for r in res.relative_error:  # poses of the ground truth, interpolated on a straight line
         assert r.n > 0 and r.trans_m_mean < 1e-9 and r.rot_deg_mean < 1e-6
     assert res.ape.trans_rmse_m < 1e-9
+    gt = np.loadtxt(run_dir / "gt_tum.txt")  # the ground truth at the scored scans
+    np.testing.assert_allclose(gt[:, 0], scored.gt.stamps, atol=1e-9)
+    np.testing.assert_allclose(gt[:, 1:4], scored.gt.poses[:, :3, 3], atol=1e-9)
     raw = json.loads((run_dir / "metrics.json").read_text())
     assert raw["seed"] is None and raw["frames"] == N
     assert res.clock == "reported by the method"
@@ -258,6 +261,8 @@ def test_a_harness_run_is_replaced_only_when_asked_and_then_with_a_warning(score
     said = [str(w.message) for w in caught]
     assert f"{o.run_dir}: replaced a harness run (method icp-p2p) by the external run theirs " \
         "(--replace-run)" in said
+    # said of the caller's line, not of score.py's
+    assert all(Path(w.filename).name != "score.py" for w in caught)
     run = read_run(o.run_dir)
     assert run.result.label == "theirs (external)" and run.config["identity"]["kind"] == \
         "external"
