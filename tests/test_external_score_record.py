@@ -289,9 +289,14 @@ def test_the_output_is_checked_before_the_estimate_is_read(scored, tmp_path):
 
 
 def test_without_out_the_run_goes_under_results_external(scored, tmp_path, monkeypatch):
-    """And times in a 9th TUM column are the trajectory file's."""
-    times = np.linspace(1.0, 3.0, N)
-    path = write_tum(tmp_path / "timed.tum", scored.gt.stamps, scored.gt.poses, times)
+    """And times in a 9th TUM column are the trajectory file's: the time of the run is of every
+    row the method reported, the rows between the scans (matched to none) too."""
+    extra = scored.gt.interpolate(scored.gt.stamps[:-1] + 0.05)  # halfway between the scans
+    stamps = np.concatenate([scored.gt.stamps, extra.stamps])
+    order = np.argsort(stamps)
+    poses = np.concatenate([scored.gt.poses, extra.poses])[order]
+    times = np.concatenate([np.linspace(1.0, 3.0, N), np.full(N - 1, 100.0)])[order]
+    path = write_tum(tmp_path / "timed.tum", stamps[order], poses, times)
     monkeypatch.chdir(tmp_path)
     o = score_external(scored.store, ExternalSpec(path, "mine"))
     assert o.status == "done" and o.run_dir == Path("results/external/twist/mine")
