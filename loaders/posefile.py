@@ -27,9 +27,10 @@ from loaders.trajectory import Trajectory
 def numeric_rows(path: str | Path, widths: tuple[int, ...], expected: str, kind: str = "pose"
                  ) -> tuple[np.ndarray, list[int]]:
     """The numeric rows of a text file (all of one width, one of ``widths``) and their line
-    numbers: '#' comments, blank lines and one leading header line that is not numeric are
-    skipped, commas count as spaces; one ``DataError`` naming the file and the line for a row
-    that is not numbers, of another width, or not finite (``expected`` says what a row holds)."""
+    numbers: '#' comments, blank lines and leading header lines (their first word not a
+    number) are skipped, commas count as spaces; one ``DataError`` naming the file and the line
+    for a row that is not numbers (the first row too: a pose row with a trailing comment is no
+    header), of another width, or not finite (``expected`` says what a row holds)."""
     path = Path(path)
     check_file_size(path, str(path))
     plain = _plain_rows(path, widths)
@@ -46,7 +47,7 @@ def numeric_rows(path: str | Path, widths: tuple[int, ...], expected: str, kind:
             try:
                 values = [float(v) for v in parts]
             except ValueError:
-                if not rows:  # a header line such as "timestamp x y z ..."
+                if not rows and not _is_number(parts[0]):  # a header: "timestamp x y z ..."
                     continue
                 want = " or ".join(map(str, widths))
                 raise DataError(f"{path}, line {lineno}: expected {want} numbers ({expected}), "
@@ -66,6 +67,14 @@ def numeric_rows(path: str | Path, widths: tuple[int, ...], expected: str, kind:
         raise DataError(f"{path}, line {lines[k]}: non-finite value (NaN or inf); expected "
                         f"finite numbers ({expected})")
     return data, lines
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
 
 
 def _plain_rows(path: Path, widths: tuple[int, ...]) -> tuple[np.ndarray, list[int]] | None:

@@ -120,6 +120,15 @@ def test_line_numbers_count_blank_lines_and_a_comment_after_a_row_is_refused(tmp
                   name="noted.txt")
     with raises(noted, "line 2", "expected 8 numbers"):
         read_tum(noted)
+    # the first pose row with a comment is refused as well: no header (its first word is a
+    # number), not a row to drop in silence
+    first = write(tmp_path, [tum_rows()[0] + " # first", *tum_rows()[1:]], name="first.txt")
+    with raises(first, "line 1", "expected 8 numbers"):
+        read_tum(first)
+    headed = write(tmp_path, ["# t x y z", "stamp x y z qx qy qz qw", tum_rows()[0] + " # a",
+                              *tum_rows()[1:]], name="headed.txt")
+    with raises(headed, "line 3", "expected 8 numbers"):
+        read_tum(headed)
 
 
 def test_a_non_utf8_byte_in_a_comment_is_no_crash(tmp_path):
