@@ -1,0 +1,189 @@
+"""The local map's contract (methods/local_map.py) against definitions and independent
+computations: neighbourhood covariances against a kd-tree and numpy, the replaced copies'
+publication counts, the registration's early exits, and the prior-held translation against
+scipy's optimiser."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize
+from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
+
+from loaders.se3 import make_T
+from methods.local_map import LocalMap, register_to_map, scan_covariances
+
+
+def test_scan_covariances_equal_a_kd_tree_neighbourhood_plus_the_floor():
+    """Each point's covariance is the sample covariance of its k nearest points (itself
+    included) plus floor^2 on the diagonal; k larger than the scan is the whole scan."""
+    rng = np.random.default_rng(11)
+    pts = rng.uniform(-5, 5, (60, 3))
+    cov = scan_covariances(pts, 6, 0.2)
+    _, nn = cKDTree(pts).query(pts, k=6)
+    ref = np.array([np.cov(pts[i].T) for i in nn]) + 0.04 * np.eye(3)
+    np.testing.assert_allclose(cov, ref, atol=1e-12)
+    few = pts[:5]
+    whole = scan_covariances(few, 50, 0.0)
+    np.testing.assert_allclose(whole, np.repeat(np.cov(few.T)[None], 5, 0), atol=1e-12)
+
+
+def test_fewer_than_three_neighbours_leave_only_the_noise():
+    """Below 3 neighbours there is no neighbourhood spread: floor^2 I plus the angular noise."""
+    rng = np.random.default_rng(12)
+    pts = rng.uniform(5, 20, (40, 3))
+    np.testing.assert_allclose(scan_covariances(pts, 2, 0.3),
+                               np.repeat(0.09 * np.eye(3)[None], 40, 0), atol=1e-15)
+    angular = scan_covariances(pts, 0, 0.0, (0.5, 1.0))
+    both = scan_covariances(pts, 2, 0.3, (0.5, 1.0))
+    np.testing.assert_allclose(both, angular + 0.09 * np.eye(3), atol=1e-12)
+    # the angles are in degrees: 1 deg of azimuth at horizontal range rh is (rh * pi / 180)^2
+    az_only = scan_covariances(pts, 0, 0.0, (1.0, 0.0))
+    rh2 = pts[:, 0] ** 2 + pts[:, 1] ** 2
+    np.testing.assert_allclose(np.trace(az_only, axis1=1, axis2=2), rh2 * np.radians(1.0) ** 2,
+                               rtol=1e-12)
+
+
+def test_a_re_published_detection_counts_its_publications():
+    """Replaced copies carry their copy's count + 1; new detections count 1; a scan added
+    without replacement counts 1 everywhere and replaces nothing."""
+    rng = np.random.default_rng(13)
+    pts = rng.uniform(-20, 20, (50, 3))
+    covs = np.repeat(np.eye(3)[None], 50, 0)
+    m = LocalMap(4, 1.0)
+    m.add(pts, covs, np.eye(4), replace_within_m=0.05)  # empty map: nothing to replace
+    assert len(m) == 50 and np.all(m.counts[m.alive] == 1)
+    for publications in (2, 3):
+        m.add(pts + rng.normal(0, 0.002, pts.shape), covs, np.eye(4), replace_within_m=0.05)
+        assert len(m) == 50
+        np.testing.assert_array_equal(m.counts[m.alive], publications)
+    far = pts + [0.5, 0.0, 0.0]  # beyond replace_within_m: new detections
+    m.add(far, covs, np.eye(4), replace_within_m=0.05)
+    assert len(m) == 100
+    idx, sq = m.nearest(far)
+    np.testing.assert_allclose(sq, 0.0, atol=1e-20)
+    np.testing.assert_array_equal(m.counts[idx], 1)
+    idx, _ = m.nearest(pts + [0.001, 0, 0])
+    np.testing.assert_array_equal(m.counts[idx], 3)
+
+
+def test_replacement_reaches_no_farther_than_the_search_radius():
+    """replace_within_m above the map's search radius is capped at it: a point 1.5 m from a
+    new one stays when the map searches 1 m."""
+    pts = np.array([[0.0, 0.0, 0.0], [10.0, 0.0, 0.0]])
+    covs = np.repeat(np.eye(3)[None], 2, 0)
+    m = LocalMap(3, 1.0)
+    m.add(pts, covs, np.eye(4))
+    m.add(pts + [[1.5, 0, 0], [0.5, 0, 0]], covs, np.eye(4), replace_within_m=3.0)
+    held = m.points[m.alive]
+    assert len(m) == 3
+    assert np.any(np.all(held == [0.0, 0.0, 0.0], axis=1))  # 1.5 m away: kept
+    assert not np.any(np.all(held == [10.0, 0.0, 0.0], axis=1))  # 0.5 m away: replaced
+
+
+def test_a_scan_is_added_in_the_world_frame_with_rotated_covariances():
+    rng = np.random.default_rng(14)
+    pts = rng.uniform(-5, 5, (20, 3))
+    A = rng.normal(size=(20, 3, 3))
+    covs = A @ A.transpose(0, 2, 1)
+    R = Rotation.from_rotvec([0.1, -0.2, 0.3]).as_matrix()
+    t = np.array([1.0, 2.0, -3.0])
+    m = LocalMap(2, 1.0)
+    m.add(pts, covs, make_T(R, t))
+    idx, sq = m.nearest(pts @ R.T + t)
+    np.testing.assert_allclose(sq, 0.0, atol=1e-20)
+    np.testing.assert_allclose(m.covs[idx], np.einsum("ij,njk,lk->nil", R, covs, R),
+                               atol=1e-12)
+
+
+def _map_and_scan(rng, n=300):
+    world = rng.uniform(-30, 30, (n, 3)) * [1, 1, 0.2] + [40, 0, 0]
+    m = LocalMap(1, 1.0)
+    m.add(world, scan_covariances(world, 1, 0.05), np.eye(4))
+    R_true = Rotation.from_rotvec([0.003, -0.004, 0.01]).as_matrix()
+    t_true = np.array([0.3, -0.1, 0.05])
+    scan = (world - t_true) @ R_true
+    return m, world, scan, R_true, t_true
+
+
+def test_an_empty_map_or_too_few_pairs_return_the_initial_pose():
+    rng = np.random.default_rng(15)
+    m, world, scan, R_true, t_true = _map_and_scan(rng)
+    covs = scan_covariances(scan, 1, 0.05)
+    init = make_T(Rotation.from_rotvec([0, 0, 0.01]).as_matrix(), [0.1, 0.2, 0.3])
+    empty = register_to_map(LocalMap(2, 1.0), scan, covs, init, None, 1.0)
+    np.testing.assert_allclose(empty.T_world_sensor, init, atol=1e-12)
+    assert (empty.correspondences, empty.iterations, empty.converged) == (0, 0, False)
+    few = register_to_map(m, scan[:5], covs[:5], make_T(R_true, t_true), None, 1.0)
+    assert (few.correspondences, few.iterations, few.converged) == (5, 1, False)
+    np.testing.assert_allclose(few.T_world_sensor, make_T(R_true, t_true), atol=1e-12)
+    just = register_to_map(m, scan[:10], covs[:10], make_T(R_true, t_true), None, 1.0)
+    assert just.correspondences == 10 and just.converged
+
+
+def test_a_pair_gate_beyond_the_search_radius_is_refused():
+    rng = np.random.default_rng(16)
+    m, world, scan, R_true, t_true = _map_and_scan(rng)
+    with pytest.raises(ValueError, match="exceeds the map's search radius"):
+        register_to_map(m, scan, scan_covariances(scan, 1, 0.05), np.eye(4), None, 1.5)
+
+
+def test_an_iteration_budget_is_respected_and_reported():
+    rng = np.random.default_rng(17)
+    m, world, scan, R_true, t_true = _map_and_scan(rng)
+    covs = scan_covariances(scan, 1, 0.05)
+    init = make_T(np.eye(3), [0.0, 0.0, 0.0])
+    one = register_to_map(m, scan, covs, init, None, 1.0, kernel_scale=1e6, max_iterations=1)
+    assert one.iterations == 1 and not one.converged
+    full = register_to_map(m, scan, covs, init, None, 1.0, kernel_scale=1e6,
+                           max_iterations=30, tolerance_rad=1e-9)
+    assert full.converged and 1 < full.iterations < 30
+    np.testing.assert_allclose(full.T_world_sensor, make_T(R_true, t_true), atol=1e-8)
+    # the one step moved towards the pose
+    err = np.linalg.norm(one.T_world_sensor[:3, 3] - t_true)
+    assert err < 0.5 * np.linalg.norm(t_true)
+
+
+class _Tied:
+    def __init__(self, t0, lever):
+        self.t0, self.lever = np.asarray(t0, float), np.asarray(lever, float)
+
+    def __call__(self, R):
+        return self.t0 + R @ self.lever
+
+
+def test_a_loosened_tie_minimises_the_geometric_cost_plus_its_prior():
+    """tie_sigma_m > 0: the solved pose minimises sum e^T (C_p + C_q)^-1 e + |P (t - tied(R))|^2
+    / sigma^2 (P: off the free axes) over all 6 unknowns, checked with scipy's BFGS."""
+    rng = np.random.default_rng(18)
+    m, world, scan, R_true, t_true = _map_and_scan(rng, 120)
+    scan = scan + rng.normal(0, 0.03, scan.shape)
+    covs = scan_covariances(scan, 1, 0.05)
+    lever = np.array([2.0, 0.5, -0.3])
+    tied = _Tied(t_true - R_true @ lever + [0.04, -0.03, 0.06], lever)
+    sigma = 0.02
+    free = np.array([[0.0, 0.0, 1.0]])
+    init = make_T(R_true, tied(R_true))
+    fit = register_to_map(m, scan, covs, init, tied, 1.0, kernel_scale=1e6, max_iterations=60,
+                          tolerance_rad=1e-13, free_axes_sensor=free, tie_sigma_m=sigma)
+    u = R_true @ free[0]
+    P = np.eye(3) - np.outer(u, u)
+    w = 1.0 / (2 * 0.05**2)  # both covariances are floor^2 I (one neighbour: no spread)
+
+    def cost(x):
+        R = Rotation.from_rotvec(x[:3]).as_matrix()
+        e = scan @ R.T + x[3:] - world
+        r = P @ (x[3:] - tied(R))
+        return w * float(np.sum(e * e)) + float(r @ r) / sigma**2
+
+    x0 = np.concatenate([Rotation.from_matrix(R_true).as_rotvec(), tied(R_true)])
+    best = minimize(cost, x0, method="BFGS", options={"gtol": 1e-10}).x
+    got = np.concatenate([Rotation.from_matrix(fit.T_world_sensor[:3, :3]).as_rotvec(),
+                          fit.T_world_sensor[:3, 3]])
+    np.testing.assert_allclose(got, best, atol=1e-5)
+    assert cost(got) <= cost(best) * (1 + 1e-9)  # at least as low as scipy's minimum
+    # and the prior matters: the free solve lands elsewhere
+    loose = register_to_map(m, scan, covs, init, None, 1.0, kernel_scale=1e6,
+                            max_iterations=60, tolerance_rad=1e-13)
+    assert np.linalg.norm(loose.T_world_sensor[:3, 3] - best[3:]) > 1e-3
