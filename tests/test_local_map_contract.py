@@ -187,3 +187,82 @@ def test_a_loosened_tie_minimises_the_geometric_cost_plus_its_prior():
     loose = register_to_map(m, scan, covs, init, None, 1.0, kernel_scale=1e6,
                             max_iterations=60, tolerance_rad=1e-13)
     assert np.linalg.norm(loose.T_world_sensor[:3, 3] - best[3:]) > 1e-3
+
+
+def _gn_step(scan, world, R, t, w):
+    """One free 6-DoF Gauss-Newton step of sum w_i |R p_i + t - q_i|^2 from (R, t), pairs
+    i <-> i, perturbation R <- exp(d) R, t <- t + dt (numpy, from the definition)."""
+    Rp = scan @ R.T
+    e = Rp + t - world
+    H, g = np.zeros((6, 6)), np.zeros(6)
+    for rp, ei, wi in zip(Rp, e, w, strict=True):
+        J = np.hstack([-np.array([[0, -rp[2], rp[1]], [rp[2], 0, -rp[0]],
+                                  [-rp[1], rp[0], 0]]), np.eye(3)])
+        H += wi * J.T @ J
+        g += wi * J.T @ ei
+    d = -np.linalg.solve(H, g)
+    return Rotation.from_rotvec(d[:3]).as_matrix() @ R, t + d[3:]
+
+
+def test_the_geometry_step_is_one_free_gauss_newton_step_from_the_solved_pose():
+    """Exact geometry, the tied translation 5 cm off: the solve absorbs it, and T_geometry is
+    one free step of the geometric cost from the solved pose (numpy), close to the true pose."""
+    rng = np.random.default_rng(19)
+    m, world, scan, R_true, t_true = _map_and_scan(rng, 150)
+    covs = scan_covariances(scan, 1, 0.05)
+    tied = _Tied(t_true + [0.0, 0.05, 0.0], np.zeros(3))
+    fit = register_to_map(m, scan, covs, make_T(R_true, tied(R_true)), tied, 1.0,
+                          kernel_scale=1e6, max_iterations=40, tolerance_rad=1e-12,
+                          geometry_step=True)
+    assert fit.converged and fit.correspondences == 150
+    R, t = fit.T_world_sensor[:3, :3], fit.T_world_sensor[:3, 3]
+    R_ref, t_ref = _gn_step(scan, world, R, t, np.ones(150))
+    np.testing.assert_allclose(fit.T_geometry[:3, :3], R_ref, atol=1e-9)
+    np.testing.assert_allclose(fit.T_geometry[:3, 3], t_ref, atol=1e-9)
+    np.testing.assert_allclose(fit.T_geometry[:3, 3], t_true, atol=1e-3)
+    plain = register_to_map(m, scan, covs, make_T(R_true, tied(R_true)), tied, 1.0,
+                            kernel_scale=1e6, max_iterations=40, tolerance_rad=1e-12)
+    assert plain.T_geometry is None
+    np.testing.assert_allclose(plain.T_world_sensor, fit.T_world_sensor, atol=1e-12)
+
+
+@pytest.mark.parametrize("geometry_step", [False, True])
+def test_re_published_copies_are_down_weighted_by_their_publications(geometry_step):
+    """repeat_power p: the last step re-weights each pair within repeat_within_m by
+    (map count + 1)^-p; that step equals one numpy Gauss-Newton step of the weighted cost from
+    the unweighted solution, and it moves the pose towards the fresh detections."""
+    rng = np.random.default_rng(20)
+    m, world, scan, R_true, t_true = _map_and_scan(rng, 200)
+    covs_w = scan_covariances(world, 1, 0.05)
+    m = LocalMap(3, 1.0)
+    for _ in range(3):  # the first 140 published 3 times, the rest once
+        m.add(world[:140], covs_w[:140], np.eye(4), replace_within_m=0.01)
+    m.add(world[140:], covs_w[140:], np.eye(4), replace_within_m=0.01)
+    idx, _ = m.nearest(world)
+    np.testing.assert_array_equal(m.counts[idx], [3] * 140 + [1] * 60)
+    # the copies exactly at the true pose, the fresh ones 4 cm off along x
+    scan = scan.copy()
+    scan[140:] += R_true.T @ np.array([0.04, 0.0, 0.0])
+    covs = scan_covariances(scan, 1, 0.05)
+    kw = dict(kernel_scale=1e6, max_iterations=40, tolerance_rad=1e-12)
+    plain = register_to_map(m, scan, covs, make_T(R_true, t_true), None, 1.0, **kw)
+    fit = register_to_map(m, scan, covs, make_T(R_true, t_true), None, 1.0, repeat_power=1.0,
+                          repeat_within_m=0.02, geometry_step=geometry_step, **kw)
+    assert plain.converged and fit.converged
+    R, t = plain.T_world_sensor[:3, :3], plain.T_world_sensor[:3, 3]
+    world_of = m.points[m.nearest(scan @ R.T + t)[0]]
+    near = np.linalg.norm(scan @ R.T + t - world_of, axis=1) < 0.02
+    # the copies (1.2 cm from the unweighted pose), not the fresh ones (2.8 cm)
+    np.testing.assert_array_equal(near, np.arange(200) < 140)
+    w = np.where(near, 1.0 / 4.0, 1.0)  # (3 + 1) ** -1
+    R_ref, t_ref = _gn_step(scan, world_of, R, t, w)
+    np.testing.assert_allclose(fit.T_world_sensor[:3, :3], R_ref, atol=1e-9)
+    np.testing.assert_allclose(fit.T_world_sensor[:3, 3], t_ref, atol=1e-9)
+    # the weighted mean of the offsets: 4 cm * 60 / (60 + 140 / 4) = 2.53 cm (unweighted 1.2)
+    shift = np.linalg.norm(fit.T_world_sensor[:3, 3] - t_true)
+    assert shift == pytest.approx(0.0253, abs=2e-3)
+    if geometry_step:  # the geometry step from the same (unweighted) pairs and pose
+        R_g, t_g = _gn_step(scan, world_of, R, t, np.ones(200))
+        np.testing.assert_allclose(fit.T_geometry[:3, 3], t_g, atol=1e-9)
+    else:
+        assert fit.T_geometry is None
