@@ -24,6 +24,9 @@ def test_scan_covariances_equal_a_kd_tree_neighbourhood_plus_the_floor():
     _, nn = cKDTree(pts).query(pts, k=6)
     ref = np.array([np.cov(pts[i].T) for i in nn]) + 0.04 * np.eye(3)
     np.testing.assert_allclose(cov, ref, atol=1e-12)
+    three = scan_covariances(pts, 3, 0.0)  # three neighbours: a (flat) neighbourhood
+    _, nn = cKDTree(pts).query(pts, k=3)
+    np.testing.assert_allclose(three, [np.cov(pts[i].T) for i in nn], atol=1e-12)
     few = pts[:5]
     whole = scan_covariances(few, 50, 0.0)
     np.testing.assert_allclose(whole, np.repeat(np.cov(few.T)[None], 5, 0), atol=1e-12)
@@ -58,7 +61,7 @@ def test_a_re_published_detection_counts_its_publications():
         m.add(pts + rng.normal(0, 0.002, pts.shape), covs, np.eye(4), replace_within_m=0.05)
         assert len(m) == 50
         np.testing.assert_array_equal(m.counts[m.alive], publications)
-    far = pts + [0.5, 0.0, 0.0]  # beyond replace_within_m: new detections
+    far = pts + [0.2, 0.0, 0.0]  # beyond replace_within_m: new detections
     m.add(far, covs, np.eye(4), replace_within_m=0.05)
     assert len(m) == 100
     idx, sq = m.nearest(far)
@@ -266,3 +269,56 @@ def test_re_published_copies_are_down_weighted_by_their_publications(geometry_st
         np.testing.assert_allclose(fit.T_geometry[:3, 3], t_g, atol=1e-9)
     else:
         assert fit.T_geometry is None
+
+
+def test_the_ring_forgets_exactly_the_oldest_scan_after_every_add():
+    """Equal scans (no growth) into a window of 4: after each add the map is the last
+    min(k, 4) scans, and a forgotten scan's points are no longer found."""
+    rng = np.random.default_rng(21)
+    m = LocalMap(4, 1.0)
+    assert len(m) == 0 and m.index is None
+    scans = [rng.uniform(-20, 20, (15, 3)) + [100.0 * k, 0, 0] for k in range(7)]
+    for k, pts in enumerate(scans):
+        m.add(pts, np.repeat(np.eye(3)[None], 15, 0), np.eye(4))
+        expected = np.vstack(scans[max(0, k - 3):k + 1])
+        assert len(m) == len(expected)
+        np.testing.assert_allclose(np.sort(m.points[m.alive], axis=0),
+                                   np.sort(expected, axis=0))
+        for j, old in enumerate(scans[:k + 1]):
+            idx, sq = m.nearest(old)
+            if j > k - 4:
+                np.testing.assert_allclose(sq, 0.0, atol=1e-20)
+                np.testing.assert_allclose(m.points[idx], old)
+            else:  # forgotten: nothing within the radius
+                assert np.all(idx == -1) and np.all(np.isinf(sq))
+
+
+def test_growing_the_ring_keeps_the_held_points_covariances_and_counts():
+    rng = np.random.default_rng(22)
+    m = LocalMap(3, 1.0)
+    small = rng.uniform(-20, 20, (10, 3))
+    A = rng.normal(size=(10, 3, 3))
+    covs = A @ A.transpose(0, 2, 1)
+    m.add(small, covs, np.eye(4))
+    m.add(small + rng.normal(0, 0.001, small.shape), covs, np.eye(4), replace_within_m=0.05)
+    m.add(rng.uniform(-20, 20, (50, 3)) + [100, 0, 0], np.repeat(np.eye(3)[None], 50, 0),
+          np.eye(4))  # grows the slots
+    assert len(m) == 60
+    idx, sq = m.nearest(small)
+    assert np.all(idx >= 0) and np.all(sq < 1e-4)
+    np.testing.assert_allclose(m.covs[idx], covs, atol=1e-12)
+    np.testing.assert_array_equal(m.counts[idx], 2)
+
+
+def test_a_map_that_forgot_everything_is_empty_again():
+    """Empty scans push the last points out: the map is empty, and registering to it returns
+    the initial pose without an iteration, as for a new map."""
+    rng = np.random.default_rng(23)
+    m = LocalMap(2, 1.0)
+    pts = rng.uniform(-5, 5, (30, 3))
+    m.add(pts, np.repeat(np.eye(3)[None], 30, 0), np.eye(4))
+    for _ in range(2):
+        m.add(np.zeros((0, 3)), np.zeros((0, 3, 3)), np.eye(4), replace_within_m=0.1)
+    assert len(m) == 0 and m.index is None
+    fit = register_to_map(m, pts, np.repeat(np.eye(3)[None], 30, 0), np.eye(4), None, 1.0)
+    assert (fit.correspondences, fit.iterations, fit.converged) == (0, 0, False)
