@@ -121,8 +121,9 @@ def test_an_empty_map_or_too_few_pairs_return_the_initial_pose():
     few = register_to_map(m, scan[:5], covs[:5], make_T(R_true, t_true), None, 1.0)
     assert (few.correspondences, few.iterations, few.converged) == (5, 1, False)
     np.testing.assert_allclose(few.T_world_sensor, make_T(R_true, t_true), atol=1e-12)
-    just = register_to_map(m, scan[:10], covs[:10], make_T(R_true, t_true), None, 1.0)
-    assert just.correspondences == 10 and just.converged
+    just = register_to_map(m, scan[:10], covs[:10], make_T(R_true, t_true), None, 1.0,
+                           geometry_step=True)  # exactly min_correspondences (10): enough
+    assert just.correspondences == 10 and just.converged and just.T_geometry is not None
 
 
 def test_a_pair_gate_beyond_the_search_radius_is_refused():
@@ -214,7 +215,7 @@ def test_the_geometry_step_is_one_free_gauss_newton_step_from_the_solved_pose():
     m, world, scan, R_true, t_true = _map_and_scan(rng, 150)
     covs = scan_covariances(scan, 1, 0.05)
     tied = _Tied(t_true + [0.0, 0.05, 0.0], np.zeros(3))
-    fit = register_to_map(m, scan, covs, make_T(R_true, tied(R_true)), tied, 1.0,
+    fit = register_to_map(m, scan, covs, make_T(R_true, tied(R_true)), tied, 0.5,
                           kernel_scale=1e6, max_iterations=40, tolerance_rad=1e-12,
                           geometry_step=True)
     assert fit.converged and fit.correspondences == 150
@@ -322,3 +323,100 @@ def test_a_map_that_forgot_everything_is_empty_again():
     assert len(m) == 0 and m.index is None
     fit = register_to_map(m, pts, np.repeat(np.eye(3)[None], 30, 0), np.eye(4), None, 1.0)
     assert (fit.correspondences, fit.iterations, fit.converged) == (0, 0, False)
+
+
+def test_each_iteration_is_one_gauss_newton_step_and_zero_iterations_change_nothing():
+    """Pairs found at the start (exact geometry, true rotation, translation 30 cm off): the
+    solve's first and second iterations equal one and two numpy Gauss-Newton steps; with no
+    iteration the initial pose comes back with no pairs counted."""
+    rng = np.random.default_rng(24)
+    m, world, scan, R_true, t_true = _map_and_scan(rng, 150)
+    covs = scan_covariances(scan, 1, 0.05)
+    R0 = Rotation.from_rotvec([0.0, 0.0, 0.004]).as_matrix() @ R_true
+    init = make_T(R0, np.zeros(3))
+    kw = dict(kernel_scale=1e9, tolerance_rad=1e-15)
+    R1, t1 = _gn_step(scan, world, R0, np.zeros(3), np.ones(150))
+    R2, t2 = _gn_step(scan, world, R1, t1, np.ones(150))
+    for n, (R, t) in ((1, (R1, t1)), (2, (R2, t2))):
+        fit = register_to_map(m, scan, covs, init, None, 1.0, max_iterations=n, **kw)
+        assert fit.iterations == n and not fit.converged and fit.correspondences == 150
+        np.testing.assert_allclose(fit.T_world_sensor[:3, :3], R, atol=1e-10)
+        np.testing.assert_allclose(fit.T_world_sensor[:3, 3], t, atol=1e-10)
+    none = register_to_map(m, scan, covs, init, None, 1.0, max_iterations=0,
+                           geometry_step=True, **kw)
+    assert (none.correspondences, none.iterations, none.converged) == (0, 0, False)
+    assert none.T_geometry is None
+    np.testing.assert_allclose(none.T_world_sensor, init, atol=1e-12)
+
+
+def test_convergence_needs_both_updates_below_their_tolerances():
+    """A translation error alone (along x): the first update is that translation, not below
+    1e-4 m, so the solve converges at the second iteration; a 0.1 deg rotation error with the
+    default tolerance (1e-4 rad) likewise takes more than one."""
+    rng = np.random.default_rng(25)
+    m, world, scan, R_true, t_true = _map_and_scan(rng, 150)
+    covs = scan_covariances(scan, 1, 0.05)
+    shifted = make_T(R_true, t_true - [0.3, 0.0, 0.0])
+    fit = register_to_map(m, scan, covs, shifted, None, 1.0, kernel_scale=1e9,
+                          tolerance_rad=1e-3)
+    assert fit.converged and fit.iterations == 2
+    np.testing.assert_allclose(fit.T_world_sensor, make_T(R_true, t_true), atol=1e-9)
+    turned = make_T(Rotation.from_rotvec([0, 0, np.radians(0.1)]).as_matrix() @ R_true,
+                    t_true)
+    fit = register_to_map(m, scan, covs, turned, None, 1.0, kernel_scale=1e9)
+    assert fit.converged and fit.iterations >= 2
+    np.testing.assert_allclose(fit.T_world_sensor[:3, :3], R_true, atol=1e-7)
+
+
+def test_pairs_beyond_the_gate_are_not_counted():
+    """Gate 0.5 m in a 1 m map: points 0.45 m from their map point pair, 0.7 m do not."""
+    rng = np.random.default_rng(26)
+    m, world, scan, R_true, t_true = _map_and_scan(rng, 150)
+    covs = scan_covariances(scan, 1, 0.05)
+    off = scan.copy()
+    off[:40] += R_true.T @ np.array([0.45, 0.0, 0.0])
+    off[40:70] += R_true.T @ np.array([0.0, 0.7, 0.0])
+    fit = register_to_map(m, off, covs, make_T(R_true, t_true), None, 0.5, max_iterations=1,
+                          min_correspondences=1)
+    assert fit.correspondences == 150 - 30
+
+
+def test_the_default_cauchy_kernel_is_the_minimum_of_its_robust_cost():
+    """Default kernel_scale (3, on the Mahalanobis distance): the pose minimises
+    sum log(1 + d^2 / 9), d^2 = e^T (C_p + C_q)^-1 e (scipy), with gross outliers present."""
+    rng = np.random.default_rng(27)
+    m, world, scan, R_true, t_true = _map_and_scan(rng, 150)
+    scan = scan + rng.normal(0, 0.03, scan.shape)
+    scan[:15] += R_true.T @ np.array([0.5, 0.3, 0.0])  # outliers, still within the gate
+    covs = scan_covariances(scan, 1, 0.05)
+    fit = register_to_map(m, scan, covs, make_T(R_true, t_true), None, 1.0, max_iterations=100,
+                          tolerance_rad=1e-13)
+    assert fit.converged and fit.correspondences == 150
+
+    def cost(x):
+        R = Rotation.from_rotvec(x[:3]).as_matrix()
+        e = scan @ R.T + x[3:] - world
+        return float(np.sum(np.log1p(np.sum(e * e, axis=1) / (2 * 0.05**2) / 9.0)))
+
+    x0 = np.concatenate([Rotation.from_matrix(R_true).as_rotvec(), t_true])
+    best = minimize(cost, x0, method="BFGS", options={"gtol": 1e-10}).x
+    got = np.concatenate([Rotation.from_matrix(fit.T_world_sensor[:3, :3]).as_rotvec(),
+                          fit.T_world_sensor[:3, 3]])
+    np.testing.assert_allclose(got, best, atol=2e-5)
+    plain = register_to_map(m, scan, covs, make_T(R_true, t_true), None, 1.0,
+                            kernel_scale=1e9, max_iterations=100, tolerance_rad=1e-13)
+    assert np.linalg.norm(plain.T_world_sensor[:3, 3] - best[3:]) > 1e-3  # it matters
+
+
+def test_a_degenerate_scene_stops_without_a_step():
+    """All points on one line through the sensor: the rotation about it is unobservable (a
+    singular system): the initial pose comes back, not converged, and no geometry step."""
+    x = np.linspace(5, 50, 40)
+    line = np.stack([x, np.zeros(40), np.zeros(40)], axis=1)
+    covs = np.repeat(0.01 * np.eye(3)[None], 40, 0)
+    m = LocalMap(1, 1.0)
+    m.add(line, covs, np.eye(4))
+    fit = register_to_map(m, line, covs, np.eye(4), None, 1.0, geometry_step=True)
+    assert (fit.correspondences, fit.iterations, fit.converged) == (40, 1, False)
+    assert fit.T_geometry is None
+    np.testing.assert_allclose(fit.T_world_sensor, np.eye(4), atol=1e-12)
