@@ -420,3 +420,23 @@ def test_a_degenerate_scene_stops_without_a_step():
     assert (fit.correspondences, fit.iterations, fit.converged) == (40, 1, False)
     assert fit.T_geometry is None
     np.testing.assert_allclose(fit.T_world_sensor, np.eye(4), atol=1e-12)
+
+
+def test_any_layout_of_the_inputs_reuses_the_compiled_kernel():
+    """Points and covariances of another dtype or a strided view (a subsample) are made
+    contiguous float64 first: after a warm-up no numba compilation happens in the solve (it
+    would land inside a timed frame) and the result is the one of the float64 copy."""
+    from methods import timing
+
+    rng = np.random.default_rng(28)
+    m, world, scan, R_true, t_true = _map_and_scan(rng, 200)
+    covs = scan_covariances(scan, 1, 0.05)
+    init = make_T(R_true, t_true + [0.1, 0.0, 0.0])
+    ref = register_to_map(m, scan[::2].copy(), covs[::2].copy(), init, None, 1.0)
+    pts32 = scan[::2].astype(np.float32)
+    with timing.stopwatch() as watch:
+        fit = register_to_map(m, pts32, covs[::2].astype(np.float32), init, None, 1.0)
+        strided = register_to_map(m, scan[::2], covs[::2], init, None, 1.0)
+    assert watch.compiles == 0
+    np.testing.assert_allclose(strided.T_world_sensor, ref.T_world_sensor, atol=1e-12)
+    assert fit.converged and fit.correspondences == 100
