@@ -7,6 +7,8 @@ from __future__ import annotations
 
 import fcntl
 import os
+import threading
+import time
 from types import SimpleNamespace
 
 import pytest
@@ -143,3 +145,79 @@ def test_the_median_is_the_runs_own_and_a_zero_median_flags_nothing():
     assert timing.timing_outliers([frame(0, float("nan"), compiles=2)]) == {}
     got = timing.timing_outliers([frame(0, 1.0), frame(1, 1.5, compiles=2)])
     assert got == {1: "numba compiled 2x inside it (1.5 ms)"}
+
+
+def _spin(seconds: float) -> None:
+    end = time.thread_time() + seconds
+    while time.thread_time() < end:
+        pass
+
+
+def test_the_harness_threads_work_is_left_out_of_the_process_time():
+    """A named harness thread's 60 ms of CPU during a section is not the method's: out of
+    ``process_ms``; the same work by an unnamed thread is in it. All clocks in milliseconds."""
+    def section(name_it: bool):
+        ready, go, done, stop = (threading.Event() for _ in range(4))
+
+        def harness():  # works 60 ms in the section, then lives on until it ends
+            ready.set()
+            go.wait()
+            _spin(0.06)
+            done.set()
+            stop.wait()
+
+        worker = threading.Thread(target=harness)
+        worker.start()
+        ready.wait()
+        timing.harness_threads([worker.ident] if name_it else [])
+        try:
+            with timing.stopwatch() as watch:
+                go.set()
+                done.wait()
+                _spin(0.02)  # the calling thread's own 20 ms
+        finally:
+            stop.set()
+            worker.join()
+            timing.harness_threads([])
+        return watch
+
+    named = section(True)
+    assert 15 < named.cpu_ms < 45 and 15 < named.process_ms < 45, vars(named)
+    assert named.wall_ms >= named.cpu_ms and named.ms("wall") == named.wall_ms
+    unnamed = section(False)
+    assert unnamed.process_ms > 70, vars(unnamed)
+
+
+def test_every_named_harness_thread_is_left_out():
+    """Two named threads (a helper and the calling one): the work of both is out of the
+    process time, while the thread clock still sees the caller's."""
+    stop = threading.Event()
+    helper = threading.Thread(target=stop.wait)
+    helper.start()
+    timing.harness_threads([helper.ident, threading.get_ident()])
+    try:
+        with timing.stopwatch() as watch:
+            _spin(0.03)
+        assert watch.cpu_ms > 25 and watch.process_ms < watch.cpu_ms / 2, vars(watch)
+    finally:
+        timing.harness_threads([])
+        stop.set()
+        helper.join()
+
+
+def test_a_numba_compilation_inside_a_section_is_counted():
+    import numba
+
+    with timing.stopwatch() as warm:
+        pass
+
+    @numba.njit(cache=False)
+    def fresh(x):  # a new function: compiled on its first call
+        return x * 2 + 1
+
+    with timing.stopwatch() as watch:
+        assert fresh(3) == 7
+    assert watch.compiles >= 1
+    with timing.stopwatch() as again:
+        assert fresh(4) == 9  # compiled already
+    assert again.compiles == 0 and warm.compiles == 0
