@@ -440,3 +440,118 @@ def test_any_layout_of_the_inputs_reuses_the_compiled_kernel():
     assert watch.compiles == 0
     np.testing.assert_allclose(strided.T_world_sensor, ref.T_world_sensor, atol=1e-12)
     assert fit.converged and fit.correspondences == 100
+
+
+def test_a_new_map_given_an_empty_scan_stays_empty_and_then_works():
+    m = LocalMap(2, 1.0)
+    m.add(np.zeros((0, 3)), np.zeros((0, 3, 3)), np.eye(4), replace_within_m=0.1)
+    assert len(m) == 0 and m.index is None
+    pts = np.array([[1.0, 2.0, 3.0], [5.0, 5.0, 5.0]])
+    m.add(pts, np.repeat(np.eye(3)[None], 2, 0), np.eye(4))
+    idx, sq = m.nearest(pts)
+    np.testing.assert_allclose(m.points[idx], pts)
+    np.testing.assert_array_equal(m.counts[idx], 1)
+
+
+def test_replacement_within_a_wide_radius_uses_the_distance_not_its_square():
+    """A 5 m map, replace_within_m 4: a new point 3 m from an old one replaces it, 4.5 m
+    does not."""
+    m = LocalMap(3, 5.0)
+    old = np.array([[0.0, 0.0, 0.0], [100.0, 0.0, 0.0]])
+    covs = np.repeat(np.eye(3)[None], 2, 0)
+    m.add(old, covs, np.eye(4))
+    m.add(old + [[3.0, 0, 0], [4.5, 0, 0]], covs, np.eye(4), replace_within_m=4.0)
+    held = m.points[m.alive]
+    assert len(m) == 3
+    assert not np.any(np.all(held == [0.0, 0.0, 0.0], axis=1))
+    assert np.any(np.all(held == [100.0, 0.0, 0.0], axis=1))
+
+
+def test_single_precision_points_give_the_covariances_of_their_double_values():
+    rng = np.random.default_rng(29)
+    pts32 = rng.uniform(5, 40, (50, 3)).astype(np.float32)
+    np.testing.assert_allclose(scan_covariances(pts32, 5, 0.1, (0.5, 1.0)),
+                               scan_covariances(pts32.astype(np.float64), 5, 0.1, (0.5, 1.0)),
+                               rtol=1e-12, atol=1e-15)
+
+
+def test_the_default_budget_is_fifteen_iterations():
+    rng = np.random.default_rng(30)
+    m, world, scan, R_true, t_true = _map_and_scan(rng, 100)
+    fit = register_to_map(m, scan, scan_covariances(scan, 1, 0.05), make_T(R_true, t_true),
+                          None, 1.0, tolerance_rad=0.0)  # never below: every iteration runs
+    assert fit.iterations == 15 and not fit.converged
+
+
+def test_a_tiny_translation_error_converges_at_once():
+    """50 um off in x alone: the first update (rotation 0, translation 5e-5 m) is below both
+    tolerances (the translation's is 0.1 mm, not the rotation's 1e-9 rad)."""
+    rng = np.random.default_rng(31)
+    m, world, scan, R_true, t_true = _map_and_scan(rng, 100)
+    fit = register_to_map(m, scan, scan_covariances(scan, 1, 0.05),
+                          make_T(R_true, t_true - [5e-5, 0, 0]), None, 1.0, kernel_scale=1e9,
+                          tolerance_rad=1e-9)
+    assert fit.converged and fit.iterations == 1
+    np.testing.assert_allclose(fit.T_world_sensor, make_T(R_true, t_true), atol=1e-9)
+
+
+def test_the_geometry_step_gates_its_pairs_at_the_solved_pose():
+    """Gate 0.5 m: pairs 0.45 m off count in the geometry step, pairs 0.7 m off do not; the
+    step equals a numpy Gauss-Newton step over exactly the gated pairs."""
+    rng = np.random.default_rng(32)
+    m, world, scan, R_true, t_true = _map_and_scan(rng, 150)
+    off = scan.copy()
+    off[:10] += R_true.T @ np.array([0.45, 0.0, 0.0])
+    off[10:20] += R_true.T @ np.array([0.0, 0.7, 0.0])
+    covs = scan_covariances(off, 1, 0.05)
+    fit = register_to_map(m, off, covs, make_T(R_true, t_true), None, 0.5, kernel_scale=1e9,
+                          max_iterations=40, tolerance_rad=1e-12, geometry_step=True)
+    assert fit.converged
+    R, t = fit.T_world_sensor[:3, :3], fit.T_world_sensor[:3, 3]
+    d = np.linalg.norm(off @ R.T + t - world, axis=1)
+    kept = d < 0.5
+    assert kept[:10].all() and not kept[10:20].any() and fit.correspondences == 140
+    R_ref, t_ref = _gn_step(off[kept], world[kept], R, t, np.ones(kept.sum()))
+    np.testing.assert_allclose(fit.T_geometry[:3, :3], R_ref, atol=1e-10)
+    np.testing.assert_allclose(fit.T_geometry[:3, 3], t_ref, atol=1e-10)
+
+
+def test_re_weighting_a_turned_scan_and_a_tie_with_a_free_axis():
+    """Fresh detections turned 1 mrad about the sensor: the re-weighted step and the geometry
+    step (from the pose the last pairs were found at, with those pairs) equal numpy steps; with
+    an exact tie and a free vertical the re-weighted pose still keeps t = tied(R) + s u."""
+    rng = np.random.default_rng(33)
+    m, world, scan, R_true, t_true = _map_and_scan(rng, 200)
+    covs_w = scan_covariances(world, 1, 0.05)
+    m = LocalMap(3, 1.0)
+    for _ in range(3):
+        m.add(world[:140], covs_w[:140], np.eye(4), replace_within_m=0.01)
+    m.add(world[140:], covs_w[140:], np.eye(4), replace_within_m=0.01)
+    scan = scan.copy()
+    scan[140:] = scan[140:] @ Rotation.from_rotvec([0, 0, 0.001]).as_matrix().T
+    covs = scan_covariances(scan, 1, 0.05)
+    kw = dict(kernel_scale=1e9, max_iterations=40, tolerance_rad=1e-13)
+    plain = register_to_map(m, scan, covs, make_T(R_true, t_true), None, 1.0, **kw)
+    fit = register_to_map(m, scan, covs, make_T(R_true, t_true), None, 1.0, repeat_power=1.0,
+                          repeat_within_m=0.02, geometry_step=True, **kw)
+    R, t = plain.T_world_sensor[:3, :3], plain.T_world_sensor[:3, 3]
+    near = np.linalg.norm(scan @ R.T + t - world, axis=1) < 0.02
+    assert near[:140].sum() > 100  # most copies are re-weighted, some fresh ones too
+    publications = np.where(np.arange(200) < 140, 3 + 1, 1 + 1)
+    R_w, t_w = _gn_step(scan, world, R, t, np.where(near, 1.0 / publications, 1.0))
+    np.testing.assert_allclose(fit.T_world_sensor[:3, :3], R_w, atol=1e-10)
+    np.testing.assert_allclose(fit.T_world_sensor[:3, 3], t_w, atol=1e-10)
+    assert Rotation.from_matrix(R_w @ R.T).magnitude() > 1e-4  # the weights turned it
+    R_g, t_g = _gn_step(scan, world, R, t, np.ones(200))
+    np.testing.assert_allclose(fit.T_geometry[:3, :3], R_g, atol=1e-10)
+    np.testing.assert_allclose(fit.T_geometry[:3, 3], t_g, atol=1e-10)
+    tied = _Tied(t_true + [0.0, 0.0, 0.03], np.zeros(3))
+    free = np.array([[0.0, 0.0, 1.0]])
+    fit = register_to_map(m, scan, covs, make_T(R_true, tied(R_true)), tied, 1.0,
+                          free_axes_sensor=free, repeat_power=1.0, repeat_within_m=0.02, **kw)
+    assert fit.converged
+    R, t = fit.T_world_sensor[:3, :3], fit.T_world_sensor[:3, 3]
+    along = R_true @ free[0]
+    rest = t - tied(R)
+    np.testing.assert_allclose(rest - along * (rest @ along), 0.0, atol=1e-9)
+    assert abs(rest @ along + 0.03) < 5e-3  # the vertical found (about -3 cm)
