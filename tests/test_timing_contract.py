@@ -83,8 +83,12 @@ def test_the_lock_file_is_opened_once_per_path(tmp_path):
     fd = timing._lock_fd(a)
     assert timing._lock_fd(a) == fd and timing._lock_fd(b) != fd
     assert os.path.exists(a) and os.fstat(fd).st_ino == os.stat(a).st_ino
-    with pytest.raises(DataError, match=timing.TIMING_LOCK_ENV):
+    mask = os.umask(0)
+    os.umask(mask)
+    assert os.stat(a).st_mode & 0o777 == 0o666 & ~mask  # any user may take the lock
+    with pytest.raises(DataError, match=timing.TIMING_LOCK_ENV) as err:
         timing._lock_fd(str(tmp_path / "missing" / "c.lock"))
+    assert "does not exist" in str(err.value)  # checked before opening
 
 
 @pytest.mark.parametrize("bad, says", [
@@ -103,6 +107,7 @@ def test_a_bad_lock_path_is_one_error_naming_the_variable_and_the_default(bad, s
     text = str(err.value)
     assert text.startswith(f"{timing.TIMING_LOCK_ENV}={path!r}: ")
     assert says in text and timing.DEFAULT_TIMING_LOCK in text
+    assert "[Errno" not in text  # the system's reason in words
     if says == "is a folder":
         assert os.path.join(path, "timing.lock") in text  # the suggested file
 
@@ -125,6 +130,7 @@ def test_the_cpu_leak_is_the_ratio_of_the_sums_over_timed_frames():
     # untimed frames (NaN in either clock) are left out of both sums
     frames = [_frame(2.0, 1.0), _frame(nan, 5.0), _frame(7.0, nan), _frame(1.0, 1.0)]
     assert timing.cpu_leak(frames) == pytest.approx(3.0 / 2.0)
+    assert timing.cpu_leak([_frame(0.3, 0.2), _frame(0.4, 0.3)]) == pytest.approx(1.4)
     for nothing in ([], [_frame(nan, nan)], [_frame(1.0, 0.0)]):
         assert timing.cpu_leak(nothing) != timing.cpu_leak(nothing)  # NaN
 
@@ -142,6 +148,10 @@ def test_the_median_is_the_runs_own_and_a_zero_median_flags_nothing():
     assert timing.timing_outliers([frame(0, 3.0), frame(1, 3.0), frame(2, 30.0)]) == {}
     assert timing.timing_outliers([frame(0, 0.0), frame(1, 0.0), frame(2, 5.0)]) == {}
     assert timing.timing_outliers([]) == {}
+    # a sub-millisecond median counts too; a frame without a compile count has none
+    bare = [SimpleNamespace(index=i, time_ms=ms) for i, ms in enumerate([0.4, 0.5, 0.6, 9.0])]
+    assert list(timing.timing_outliers(bare)) == [3]
+    assert "x the median" in timing.timing_outliers(bare)[3]
     assert timing.timing_outliers([frame(0, float("nan"), compiles=2)]) == {}
     got = timing.timing_outliers([frame(0, 1.0), frame(1, 1.5, compiles=2)])
     assert got == {1: "numba compiled 2x inside it (1.5 ms)"}
@@ -184,6 +194,7 @@ def test_the_harness_threads_work_is_left_out_of_the_process_time():
     named = section(True)
     assert 15 < named.cpu_ms < 45 and 15 < named.process_ms < 45, vars(named)
     assert named.wall_ms >= named.cpu_ms and named.ms("wall") == named.wall_ms
+    assert named.ms("cpu") == named.cpu_ms != named.wall_ms
     unnamed = section(False)
     assert unnamed.process_ms > 70, vars(unnamed)
 
@@ -194,7 +205,7 @@ def test_every_named_harness_thread_is_left_out():
     stop = threading.Event()
     helper = threading.Thread(target=stop.wait)
     helper.start()
-    timing.harness_threads([helper.ident, threading.get_ident()])
+    timing.harness_threads([threading.get_ident(), helper.ident])  # summed, in any order
     try:
         with timing.stopwatch() as watch:
             _spin(0.03)
