@@ -129,6 +129,13 @@ def test_line_numbers_count_blank_lines_and_a_comment_after_a_row_is_refused(tmp
                               *tum_rows()[1:]], name="headed.txt")
     with raises(headed, "line 3", "expected 8 numbers"):
         read_tum(headed)
+    # the first word decides: a corrupt first row is refused, a header with numbers after its
+    # first word is a header
+    corrupt = write(tmp_path, ["1 x 0 0 0 0 0 1", *tum_rows()[1:]], name="corrupt.txt")
+    with raises(corrupt, "line 1", "expected 8 numbers"):
+        read_tum(corrupt)
+    numbered = write(tmp_path, ["stamp 1 2 3 4 5 6 7", *tum_rows()], name="numbered.txt")
+    assert numeric_rows(numbered, (8,), "t x y z qx qy qz qw")[1] == [2, 3, 4]
 
 
 def test_a_non_utf8_byte_in_a_comment_is_no_crash(tmp_path):
