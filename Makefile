@@ -73,9 +73,10 @@ install: $(RUNTIME_STAMP)
 
 install-dev: system-deps $(DEV_STAMP)
 
-# the suite in one worker per core (pytest-xdist, at most 4: each worker compiles numba's kernels
-# and builds the session fixtures once), a test file's tests in one worker (--dist loadfile, so a
-# file's module fixtures are built once); `$(PY) -m pytest tests/test_x.py` runs in one process
+# the suite in one worker per core (pytest-xdist, at most 4: each worker loads numba's kernels,
+# compiled once into its cache, and builds the session fixtures once), a test file's tests in
+# one worker (--dist loadfile, so its module fixtures are built once); `$(PY) -m pytest
+# tests/test_x.py` runs in one process
 test: system-deps $(DEV_STAMP)
 	$(PY) -m pytest -n auto --maxprocesses 4 --dist loadfile
 
