@@ -51,6 +51,7 @@ OUTLIER_FACTOR = 10.0
 _lock_files: dict[str, int] = {}
 _compiles = [0]  # numba compilations and cache loads in this process (while listened to)
 _harness_clocks: list[int] = []  # CPU clocks of the threads whose work is not the method's
+_harness_last: dict[int, int] = {}  # each clock's last reading (ns): an ended thread's final time
 _listening: list[bool] = []
 
 
@@ -133,15 +134,19 @@ def harness_threads(idents) -> None:
         except (OSError, AttributeError):
             pass
     _harness_clocks[:] = clocks
+    _harness_last.clear()
 
 
 def _harness_ns() -> int:
+    """The named threads' CPU time (ns). A thread that has ended counts with its last reading:
+    its time no longer grows, and dropping it would add its whole life to the method's time."""
     total = 0
     for clock in _harness_clocks:
         try:
-            total += time.clock_gettime_ns(clock)
-        except OSError:  # that thread has ended: its time no longer grows
+            _harness_last[clock] = time.clock_gettime_ns(clock)
+        except OSError:
             pass
+        total += _harness_last.get(clock, 0)
     return total
 
 

@@ -199,6 +199,32 @@ def test_the_harness_threads_work_is_left_out_of_the_process_time():
     assert unnamed.process_ms > 70, vars(unnamed)
 
 
+def test_a_harness_thread_that_ends_inside_a_section_keeps_its_time_out():
+    """A named thread with 60 ms of CPU before the section that ends inside it: its clock can
+    no longer be read at the end, and its earlier time must not come back as the method's
+    (``process_ms`` near the caller's own 20 ms, not 80 ms)."""
+    spun, go = threading.Event(), threading.Event()
+
+    def harness():
+        _spin(0.06)  # before the section
+        spun.set()
+        go.wait()  # ends inside it
+
+    worker = threading.Thread(target=harness)
+    worker.start()
+    spun.wait()
+    timing.harness_threads([worker.ident])
+    try:
+        with timing.stopwatch() as watch:
+            go.set()
+            worker.join()
+            _spin(0.02)
+    finally:
+        timing.harness_threads([])
+    assert 15 < watch.cpu_ms < 45, vars(watch)
+    assert watch.process_ms < 45, vars(watch)
+
+
 def test_every_named_harness_thread_is_left_out():
     """Two named threads (a helper and the calling one): the work of both is out of the
     process time, while the thread clock still sees the caller's."""
