@@ -368,3 +368,29 @@ def test_marks_agree_with_the_printed_intervals_on_random_columns():
         u = np.min(np.round(v + half, 3))
         np.testing.assert_array_equal(ranks == BEST, v <= u + 1e-12)
         assert ranks[np.argmin(v)] == BEST
+
+
+def test_save_table_refuses_a_users_file_and_a_run_folder_naming_what_it_would_write(tmp_path):
+    from bench.guard import Refused
+
+    t = Table(["k"], ["c"], [Row(["a"], (), [Cell([Part("1")])])], caption="C")
+    save_table(t, tmp_path, "t")
+    save_table(t, tmp_path, "t")  # its own table: replaced
+    (tmp_path / "mine.csv").write_text("a user's file\n")
+    with pytest.raises(Refused) as err:
+        save_table(t, tmp_path, "mine")
+    assert str(err.value) == (f"{tmp_path / 'mine.csv'}: exists and is not a table the "
+                              "harness wrote; it is left as it is: choose another output")
+    assert not (tmp_path / "mine.md").exists()  # nothing half written
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "metrics.json").write_text("{}")
+    with pytest.raises(Refused, match="is a run folder"):
+        save_table(t, run, "t")
+    assert not (run / "t.md").exists()
+
+
+def test_csv_lines_end_in_a_bare_newline():
+    text = to_csv(Table(["k"], ["c"], [Row(["a"], (), [Cell([Part("1")], values={"q": 1})])]))
+    assert text == ("sequence,sensor_class,method,seed,label,status,row,column,quantity,value,"
+                    "note\n,,,,,,a,c,q,1.0,\n")
