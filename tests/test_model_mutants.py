@@ -230,6 +230,7 @@ def test_a_figures_text_has_its_digits_its_widened_interval_and_its_segment_coun
     ("loop_1", "loop_1"),  # inside a word: as is
     ("_x", r"\_x"), ("x_", r"x\_"), ("_", r"\_"), ("a _b", r"a \_b"), ("a_ b", r"a\_ b"),
     ("[x](url)", r"[x]\(url)"), ("(x)", "(x)"), ("a (b)", "a (b)"),
+    ("(a]", "(a]"), ("](x", r"]\(x"),
     (12, "12"),
 ])
 def test_markdown_escape(text, escaped):
@@ -394,3 +395,28 @@ def test_csv_lines_end_in_a_bare_newline():
     text = to_csv(Table(["k"], ["c"], [Row(["a"], (), [Cell([Part("1")], values={"q": 1})])]))
     assert text == ("sequence,sensor_class,method,seed,label,status,row,column,quantity,value,"
                     "note\n,,,,,,a,c,q,1.0,\n")
+
+
+def _two_notes() -> Table:
+    t = Table(["S", "M"], ["c"], [], caption="C")
+    first, second = t.note("first note"), t.note("second note")
+    t.rows = [Row(["a", "m1"], ("a", "p"), [Cell([Part("1")], note=second)]),
+              Row(["a", "m2"], ("a", "q"), [Cell(status="failed", note=first)]),
+              Row(["b", "m1"], ("b", "q"), [Cell([Part("2")])])]
+    return t
+
+
+def test_every_footnote_on_its_own_line_and_each_cell_names_its_own():
+    t = _two_notes()
+    md = to_markdown(t)
+    assert md.endswith("\n\n[1] first note\n[2] second note\n")
+    assert "| a | m1 | 1 [2] |" in md and "|  | m2 | failed [1] |" in md
+    rows = list(csv.DictReader(io.StringIO(to_csv(t))))
+    assert [r["note"] for r in rows] == ["second note", "first note", ""]
+
+
+def test_two_keys_a_cmidrule_under_the_same_first_key_and_a_midrule_between_first_keys():
+    body = to_latex(_two_notes()).splitlines()
+    i = body.index(r"a & m1 & 1\textsuperscript{2} \\")
+    assert body[i + 1:i + 5] == [r"\cmidrule{2-3}", r" & m2 & failed\textsuperscript{1} \\",
+                                 r"\midrule", r"b & m1 & 2 \\"]
