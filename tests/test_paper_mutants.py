@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from bench.report.names import run_label
-from bench.report.tables.model import BEST, OTHER, SECOND, to_markdown
+from bench.report.names import SEED_NOTE, run_label
+from bench.report.tables.model import BEST, OTHER, RULE, RULE_UNPRINTED, SECOND, to_markdown
 from bench.report.tables.paper import (
     FAILED_NOTE,
     REPORTED_NOTE,
@@ -411,3 +411,151 @@ def test_write_tables_writes_the_three_formats_beside_the_results(results, tmp_p
     default = write_tables([results], metric="kitti", marks="value", ci=True)
     assert (results / "table.md").read_text() == default["md"]
     assert "Trans. drift (%)" in default["md"] and "by value alone" in default["md"]
+
+
+# ---- survivors of make mutate: the exact captions and keys, what ``ci`` / ``marks`` reach ----
+
+def test_table_three_caption_written_out():
+    t = relative_table([row(record("a", relative_error=[rel(8, 1.0, 0.1)]))], [8.0])
+    assert t.caption == (
+        "Each cell: mean rotation [deg] / translation [m] relative error over the segments of "
+        "each length (evo_rpe's definition). " + TIME_NOTE + " Times have no interval: marked "
+        "by value. " + RULE_UNPRINTED + " Div. = diverged; " + SEED_NOTE)
+    reported = relative_table([row(record("a", clock=REPORTED_CLOCK))], [])
+    assert reported.caption.startswith(
+        "Each cell: mean rotation [deg] / translation [m] relative error over the segments of "
+        "each length (evo_rpe's definition). " + TIME_NOTE + " Times have no interval: marked "
+        "by value. " + REPORTED_NOTE + " " + RULE_UNPRINTED)
+
+
+def test_a_table_of_failed_runs_states_the_default_level():
+    t = relative_table([row(record("f", status="failed", diverged=None))], [], ci=True)
+    assert "[low, high] = the 95 % confidence interval (block bootstrap" in t.caption
+
+
+def test_the_value_rule_reaches_every_column_of_table_three():
+    # 1.0 [0.5, 1.5] and 1.2 [1.1, 1.3]: one bold pair by the intervals (U = 1.3), bold and
+    # underlined by value; times 1.0001 and 1.0002 ms print alike (1.00): equal marks by the
+    # printed figures, ranked apart by value
+    rows = [row(record("a", relative_error=[rel(8, 1.0, 0.1, [0.5, 1.5], [0.05, 0.15])],
+                       time_ms=TimingStats(mean=1.0001))),
+            row(record("b", relative_error=[rel(8, 1.2, 0.12, [1.1, 1.3], [0.11, 0.13])],
+                       time_ms=TimingStats(mean=1.0002)))]
+    by_interval, by_value = relative_table(rows, [8.0]), relative_table(rows, [8.0], "value")
+    for part in (0, 1):
+        assert ranks(by_interval, 0, part) == [BEST, BEST]
+        assert ranks(by_value, 0, part) == [BEST, SECOND]
+    assert texts(by_value, 1) == ["1.00", "1.00"]
+    assert ranks(by_interval, 1) == [BEST, BEST] and ranks(by_value, 1) == [BEST, SECOND]
+
+
+def test_segment_counts_decide_whether_a_length_has_a_figure():
+    none = rel(8, None, None, n=0, n_ind=0)
+    one = rel(16, 1.0, 0.1, n=1, n_ind=1)
+    t = relative_table([row(record("a", relative_error=[none, one]))], [8.0, 16.0])
+    assert texts(t, 0) == ["- / -"] and t.rows[0].cells[0].values["independent_segments"] is None
+    assert texts(t, 1) == ["1.000 (1 segment) / 0.100 (1 segment)"]
+    assert t.rows[0].cells[1].values["segments"] == 1
+
+
+def test_a_run_that_fell_back_with_only_a_time_column_gets_its_note_there():
+    many = record("b", frames=11, frames_replaced=2, time_ms=TimingStats(mean=1.0))
+    t = relative_table([row(many, "B")], [])
+    assert t.rows[0].cells[0].note == 1 and t.rows[0].keys[-1] == "B [fell back]"
+
+
+def test_a_failure_without_a_reason_says_only_its_status():
+    t = relative_table([row(record("c", status=" ", diverged=None), "C")], [8.0])
+    assert t.footnotes == ["C on s1:  : "]
+
+
+def test_kitti_and_velocity_tables_keys_captions_and_what_ci_and_marks_reach():
+    rows = [row(record("a", kitti=kitti([100], [(100, 6)], 1.0, 0.50, 6, 3, [0.5, 1.5],
+                                        [0.45, 0.55]),
+                       velocity=velocity([0.1, 0.2, 0.3], 0.40, 0.5, [0.3, 0.45]))),
+            row(record("b", kitti=kitti([100], [(100, 6)], 1.2, 0.52, 6, 3, [1.1, 1.3],
+                                        [0.51, 0.53]),
+                       velocity=velocity([0.2, 0.1, 0.4], 0.42, 0.4, [0.41, 0.43]))),
+            row(record("c", kitti=kitti([100], [(100, 6)], 0.1, 0.1, 6, 1, [0.0, 0.2],
+                                        [0.0, 0.2]),
+                       velocity=velocity([0.0, 0.0, 0.0], 0.0, 0.0, [0.0, 0.1], n_ind=1)))]
+    k, k_ci, k_value = kitti_table(rows), kitti_table(rows, ci=True), kitti_table(rows, "value")
+    assert k.keys == k_ci.keys == ["Sensor", "Sequence", "Method"]
+    assert texts(k, 0) == ["1.00", "1.20", "0.10 (1 segment)"]
+    assert texts(k_ci, 1) == ["0.50 [0.45, 0.55]", "0.52 [0.51, 0.53]",
+                              "0.10 [0.00, 0.20] (1 segment)"]
+    assert ranks(k, 0) == [BEST, BEST, OTHER] and ranks(k_value, 0) == [BEST, SECOND, OTHER]
+    assert ranks(k, 1) == [BEST, BEST, OTHER] and ranks(k_value, 1) == [BEST, SECOND, OTHER]
+    assert k.caption == (
+        "KITTI drift over segments of 100 m (6 segments per sequence) (the KITTI odometry "
+        "devkit's definition: a segment starts every 10 frames and ends at the first frame "
+        "beyond its length; translation error in % of the length, rotation error in deg per "
+        "100 m, averaged over every segment); - = the path is shorter than the shortest "
+        "length. Segments: every segment, in brackets the independent (non-overlapping) ones "
+        "behind the interval. " + RULE_UNPRINTED + " Div. = diverged; " + SEED_NOTE)
+    assert RULE in k_ci.caption and RULE_UNPRINTED not in k_ci.caption
+    v, v_ci = velocity_table(rows), velocity_table(rows, ci=True)
+    assert v.keys == ["Sensor", "Sequence", "Method"]
+    assert texts(v, 3) == ["0.400", "0.420", "0.000 (1 segment)"]
+    assert texts(v_ci, 3) == ["0.400 [0.300, 0.450]", "0.420 [0.410, 0.430]",
+                              "0.000 [0.000, 0.100] (1 segment)"]
+    assert texts(v_ci, 0)[0] == "0.100"  # no interval of its own
+    assert ranks(v, 3) == [BEST, BEST, OTHER]
+    assert v.caption == (
+        "Ego-velocity error [m/s] in the sensor frame: mean absolute error per axis (x, y, z) "
+        "and the mean and RMS of the error vector's norm. A frame's velocity is its relative "
+        "translation to the first frame at least 0.5 s later over the time between (the same "
+        "frames for the estimate and the ground truth). The reference is the GT over that "
+        "window, not frame to frame: a GT nearest-matched to the scans (NTU4DRadLM: 10 Hz "
+        "poses at 12 Hz scans) makes frame-to-frame GT velocities mostly artefact. [Doppler "
+        "ego velocity] rows: the method's own instantaneous Doppler estimate against the GT "
+        "velocity over a 0.5 s window centred on the frame. Only the norm mean has an "
+        "interval: the other columns are marked by value. " + RULE_UNPRINTED
+        + " Div. = diverged; " + SEED_NOTE)
+    assert RULE in v_ci.caption
+    assert [len(r.cells) for r in velocity_table([row(record("d")),
+                                                  row(record("e", diverged=True))]).rows] == \
+        [5, 5]
+    for metric in ("relative", "kitti", "velocity"):
+        shown = to_markdown(build(metric, rows, [], ci=True))
+        assert "[0.45, 0.55]" in shown or "[0.300, 0.450]" in shown or metric == "relative"
+        assert "[0.45, 0.55]" not in to_markdown(build(metric, rows, []))
+    assert RULE in build("relative", rows, [], ci=True).caption
+    assert RULE in build("kitti", rows, ci=True).caption
+    assert RULE_UNPRINTED in build("kitti", rows).caption
+
+
+def test_kitti_segments_name_the_most_common_count_and_every_odd_one():
+    def k(seq, n, lengths=(100, 200, 300, 400)):
+        return row(record("a", seq=seq, kitti=kitti(list(lengths), [(100, n)])))
+
+    rows = [row(record("x", seq="s0")), k("s1", 1), k("s2", 1), k("s3", 4), k("s4", 3),
+            row(record("f", seq="s5", status="failed", diverged=None,
+                       kitti=kitti([100, 800], [(100, 9), (800, 9)])))]
+    assert kitti_segments_text(rows) == ("segments of 100 m (1 segment per sequence; s3: 4, "
+                                         "s4: 3); none of 200-400 m (the paths are shorter)")
+
+
+def test_runs_and_select_of_chosen_folders_labels_and_gt_assisted_rows(tmp_path):
+    root = tmp_path / "res"
+    _write(root / "s1" / "icp_seed", {"label": "v1"}, method="icp", seed=True, label="v1",
+           relative_error=[rel(8, 1.0, 0.1)])
+    _write(root / "s1" / "dicp_seed",
+           {"sequence": {"name": "s1", "doppler_kind": "gt-reconstructed"}},
+           method="dicp", seed=True, relative_error=[rel(8, 1.0, 0.1)])
+    _write(root / "s2" / "icp_seed", {"label": "v1"}, method="icp", seed=True, label="v1",
+           relative_error=[rel(8, 1.0, 0.1)])
+    got = runs(root)
+    assert sorted(r.label for r in got) == sorted([
+        run_label("icp", True, "v1"), run_label("icp", True, "v1"),
+        run_label("dicp", True) + " [GT-assisted]"])
+    assert run_label("icp", True, "v1") == "(With Seed) v1"
+    chosen = {root / "s2" / "icp_seed"}
+    assert [r.sequence for r in runs(root, chosen)] == ["s2"]
+    rows, lengths = select(root, chosen)
+    assert [r.sequence for r in rows] == ["s2"] and lengths == [8.0]
+    empty = tmp_path / "empty"
+    with pytest.raises(FileNotFoundError) as err:
+        select([empty])
+    assert str(err.value).startswith(f"{empty}: no finished runs")
+    assert stat_part(1.0, [0.5, 1.5], 5).text == "1.000"
