@@ -261,3 +261,101 @@ def test_the_note_reaches_the_tables_footnote(tmp_path):
                      "from the ground truth's first pose (it begins at the identity, the "
                      "ground truth is in world coordinates): this APE includes that offset; "
                      "--alignment origin puts the first poses together"]
+
+
+# ---- survivors of make mutate ---------------------------------------------------------------
+
+def test_sequences_in_natural_order_rows_in_the_papers_order(tmp_path):
+    for seq in ("run10", "run2"):
+        write_run(tmp_path / seq / "dicp_seed", ape=ape(0.5, [0.4, 0.6]))
+        write_run(tmp_path / seq / "icp-p2p_seed", ape=ape(0.6, [0.5, 0.7]))
+    made = collect_ape(tmp_path)
+    assert made.sequences == ["run2", "run10"]
+    # ICP point-to-point is a baseline of the paper: before DICP, whatever the names' order
+    assert [label for label, _ in made.rows] == [run_label("icp-p2p", True), DICP]
+
+
+def test_a_labelled_gt_assisted_run_and_the_value_rule(tmp_path):
+    write_run(tmp_path / "s1" / "icp_seed", {"label": "v1"}, label="v1",
+              ape=ape(0.30, [0.25, 0.45]))
+    write_run(tmp_path / "s1" / "dicp_noseed",
+              {"sequence": {"name": "s1", "doppler_kind": "gt-reconstructed"}},
+              method="dicp", seed=False, ape=ape(0.40, [0.35, 0.50]))
+    made = collect_ape(tmp_path)
+    labelled, assisted = run_label("icp", True, "v1"), run_label("dicp", False) + \
+        " [GT-assisted]"
+    assert sorted(label for label, _ in made.rows) == sorted([labelled, assisted])
+    metas = {label: row.meta for label, row in made.rows}
+    assert metas[labelled] == {"method": "icp", "label": "v1", "seed": "with", "status": "done"}
+    assert metas[assisted] == {"method": "dicp", "label": None, "seed": "without",
+                               "status": "done"}
+    assert made.table.caption.startswith("GT-ASSISTED: ")
+    cells = _cells(made)
+    # U = 0.45: both bold by the intervals; by value 0.30 bold, 0.40 underlined
+    assert (cells[(labelled, "s1")].parts[0].rank, cells[(assisted, "s1")].parts[0].rank) == \
+        (BEST, BEST)
+    by_value = _cells(collect_ape(tmp_path, marks="value"))
+    assert (by_value[(labelled, "s1")].parts[0].rank,
+            by_value[(assisted, "s1")].parts[0].rank) == (BEST, SECOND)
+
+
+def test_runs_alike_in_everything_but_their_folder_are_told_apart_by_it(tmp_path):
+    write_run(tmp_path / "s1" / "icp_seed", ape=ape(0.5))
+    write_run(tmp_path / "s1" / "icp_seed_again", method="icp", ape=ape(0.6))
+    labels = [label for label, _ in collect_ape(tmp_path).rows]
+    assert labels == [f"{ICP} [run folder icp_seed]", f"{ICP} [run folder icp_seed_again]"]
+
+
+def test_a_few_frames_fallen_back_are_noted_without_the_flag(tmp_path):
+    write_run(tmp_path / "s1" / "icp_seed", frames=101, frames_replaced=1, ape=ape(0.5))
+    assert collect_ape(tmp_path).table.footnotes == [
+        f"{ICP} on s1: 1 of 100 frames replaced by the motion prior (no usable registration)"]
+
+
+def test_a_failure_without_a_reason_says_only_its_status(tmp_path):
+    write_failed(tmp_path / "s1" / "icp_seed", status=" ", error="")
+    assert collect_ape(tmp_path).table.footnotes == [f"{ICP} on s1:  : "]
+
+
+def test_the_offset_is_between_the_two_starts(tmp_path):
+    note = start_offset_note(_offset_run(tmp_path, gt=(3, 4, 0), est=(1, 1, 0)))
+    assert "starts 3.6 m / 0.0 deg from" in note  # |(2, 3, 0)| = 3.61
+
+
+def _tum_q(path: Path, q) -> None:
+    text = " ".join(repr(float(v)) for v in q)
+    path.write_text("".join(f"{t} 0 0 0 {text}\n" for t in (0.0, 1.0)))
+
+
+def _turned_run(tmp_path, k, q_gt, q_est) -> RunRecord:
+    d = tmp_path / f"run{k}"
+    d.mkdir()
+    _tum_q(d / "gt_tum.txt", q_gt)
+    _tum_q(d / "est_tum.txt", q_est)
+    return RunRecord(d, RunResult(sequence="s", method="icp", diverged=False,
+                                  ape=ape(1.0, requested="none")), {})
+
+
+def test_the_angle_between_the_starts_stays_defined_at_zero_and_half_a_turn(tmp_path):
+    # the cosine of the angle, from rotation matrices, may fall a rounding error outside
+    # [-1, 1]: the same orientation is 0 deg apart, one turned by 180 deg is 180 deg apart
+    rng = np.random.default_rng(7)
+    for k, q in enumerate(rng.normal(size=(12, 4))):
+        q = q / np.linalg.norm(q)
+        same = _turned_run(tmp_path, 2 * k, q, q)
+        assert len(same.gt) == 2  # read back
+        assert start_offset_note(same) is None
+        x, y, z, w = q  # turned by 180 deg about its own x axis: q * (1, 0, 0, 0)
+        half = np.array([w, z, -y, -x])
+        note = start_offset_note(_turned_run(tmp_path, 2 * k + 1, q, half))
+        assert note is not None and "0.0 m / 180.0 deg from" in note, note
+
+
+def test_write_ape_tables_passes_every_choice_on(results, tmp_path):
+    default = write_ape_tables(results, tmp_path / "d")["md"]
+    assert "Absolute pose error [m]: translation RMSE after" in default
+    assert "0.50" in default and "[0.40, 0.60]" not in default
+    chosen = write_ape_tables(results, tmp_path / "c", sequences=["s1"], ci=True,
+                              only={results / "s1" / "icp_seed"})["md"]
+    assert chosen.splitlines()[0] == "| Method | s1 |"
+    assert "0.50 [0.40, 0.60]" in chosen and "0.30" not in chosen
