@@ -93,3 +93,10 @@ def test_a_clash_with_the_same_configuration_is_told_apart_by_its_run_folder():
     assert _labels(items) == ["M [alignment=se3, run folder a]",
                               "M [alignment=se3, run folder b]", "M [alignment=sim3]"]
     assert _labels([]) == []
+
+
+def test_a_unique_label_before_a_clash_does_not_stop_the_clash_being_told_apart():
+    items = [{"label": "GICP", "seq": "s1", "config": {}, "dir": "gicp"},
+             {"label": "ICP", "seq": "s1", "config": {"alignment": "se3"}, "dir": "icp"},
+             {"label": "ICP", "seq": "s1", "config": {"alignment": "sim3"}, "dir": "icp_2"}]
+    assert _labels(items) == ["GICP", "ICP [alignment=se3]", "ICP [alignment=sim3]"]
