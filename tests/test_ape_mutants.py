@@ -359,3 +359,5 @@ def test_write_ape_tables_passes_every_choice_on(results, tmp_path):
                               only={results / "s1" / "icp_seed"})["md"]
     assert chosen.splitlines()[0] == "| Method | s1 |"
     assert "0.50 [0.40, 0.60]" in chosen and "0.30" not in chosen
+    reordered = write_ape_tables(results, tmp_path / "r", sequences=["s3", "s1"])["md"]
+    assert reordered.splitlines()[0] == "| Method | s3 | s1 |"

@@ -357,7 +357,8 @@ def _write(folder: Path, config: dict | None = None, **fields) -> None:
 def results(tmp_path):
     root = tmp_path / "res"
     _write(root / "s1" / "icp_seed", {"alignment": "se3"}, method="icp", seed=True,
-           relative_error=[rel(8, 1.0, 0.1)], time_ms=TimingStats(mean=3.0))
+           relative_error=[rel(8, 1.0, 0.1, [0.9, 1.1], [0.09, 0.11])],
+           time_ms=TimingStats(mean=3.0))
     _write(root / "s1" / "icp_seed_2", {"alignment": "sim3"}, method="icp", seed=True,
            relative_error=[rel(8, 2.0, 0.2), rel(16, 2.0, 0.2)])
     _write(root / "s1" / "gicp", method="gicp", seed=None)  # no ground truth: left out
@@ -559,3 +560,45 @@ def test_runs_and_select_of_chosen_folders_labels_and_gt_assisted_rows(tmp_path)
         select([empty])
     assert str(err.value).startswith(f"{empty}: no finished runs")
     assert stat_part(1.0, [0.5, 1.5], 5).text == "1.000"
+
+
+def test_sensor_classes_in_the_papers_order_not_by_name():
+    from loaders.sensor_classes import DENSE_LIDAR, SEMI_DENSE_RADAR, SPARSE_RADAR
+
+    rows = [row(record("a", sensor=k)) for k in (DENSE_LIDAR, SEMI_DENSE_RADAR, SPARSE_RADAR)]
+    assert [r.sensor_class for r in sorted(rows, key=RunRow.order)] == \
+        [SPARSE_RADAR, SEMI_DENSE_RADAR, DENSE_LIDAR]
+
+
+def test_the_caption_with_a_failed_run_written_out():
+    t = relative_table([row(record("f", status="failed", diverged=None))], [])
+    assert t.caption.endswith(" Div. = diverged; " + FAILED_NOTE + " " + SEED_NOTE)
+
+
+def test_the_doppler_row_with_intervals_its_fall_back_note_and_the_value_rule():
+    own = velocity([0.01, 0.02, 0.03], 0.040, 0.05, [0.035, 0.06])
+    rows = [row(record("a", frames=11, frames_replaced=1, velocity_own=own,
+                       velocity=velocity([0.1, 0.2, 0.3], 0.045, 0.5, [0.044, 0.046])), "A")]
+    t = velocity_table(rows, ci=True)
+    assert texts(t, 3) == ["0.045 [0.044, 0.046]", "0.040 [0.035, 0.060]"]
+    note = "A on s1: 1 of 10 frames replaced by the motion prior (no usable registration)"
+    assert t.footnotes == [note] and [r.cells[0].note for r in t.rows] == [1, 1]
+    # unlabelled: the CSV's label of the Doppler row is the mark alone, after a space
+    assert t.rows[1].meta["label"] == " [Doppler ego velocity]"
+    # norm mean: U = 0.046 holds both by the intervals; by value 0.040 first
+    assert ranks(t, 3) == [BEST, BEST]
+    assert ranks(velocity_table(rows, "value"), 3) == [SECOND, BEST]
+
+
+def test_write_tables_passes_every_choice_on(results, tmp_path):
+    def body(md):
+        return md.split("\n\n")[0].replace("**", "").replace("<u>", "").replace("</u>", "")
+
+    plain = body(write_tables(results, tmp_path / "p", lengths_m=[8.0])["md"])
+    assert "1.000 / 0.100" in plain and "[0.900, 1.100]" not in plain
+    chosen = body(write_tables(results, tmp_path / "c", only={results / "s1" / "icp_seed"},
+                               keep=lambda r: not r.failed, ci=True)["md"])
+    assert "1.000 [0.900, 1.100] / 0.100 [0.090, 0.110]" in chosen
+    assert "s2" not in chosen and "sim3" not in chosen
+    with pytest.raises(ValueError, match="no run matches"):
+        write_tables(results, tmp_path / "k", keep=lambda r: False)
