@@ -420,3 +420,9 @@ def test_two_keys_a_cmidrule_under_the_same_first_key_and_a_midrule_between_firs
     i = body.index(r"a & m1 & 1\textsuperscript{2} \\")
     assert body[i + 1:i + 5] == [r"\cmidrule{2-3}", r" & m2 & failed\textsuperscript{1} \\",
                                  r"\midrule", r"b & m1 & 2 \\"]
+
+
+def test_csv_refuses_a_row_whose_cells_do_not_match_the_columns():
+    t = Table(["k"], ["c", "d"], [Row(["a"], (), [Cell([Part("1")], values={"q": 1.0})])])
+    with pytest.raises(ValueError):
+        to_csv(t)
