@@ -160,6 +160,7 @@ import a.b.c
 from x.y import (p,
     q as r)
 from z import *
+from u import (Xa, bX)
 from m import (a, \\
     b)
 import c, \\
@@ -180,8 +181,9 @@ def test_imports_are_read_from_the_import_lines(tmp_path):
     path = tmp_path / "m.py"
     path.write_text(_SOURCE)
     assert _imports(path) == {"os", "sys", "a.b.c", "x.y", "x.y.p", "x.y.q", "z", "m", "m.a",
-                              "m.b", "c", "d", "e", "e.f", "e.g", "indented", "w", "w.v"}
-    assert file_imports(path) == {"os", "sys", "a", "x", "z", "m", "c", "d", "e", "indented",
+                              "m.b", "u", "u.Xa", "u.bX", "c", "d", "e", "e.f", "e.g",
+                              "indented", "w", "w.v"}
+    assert file_imports(path) == {"os", "sys", "a", "x", "z", "m", "u", "c", "d", "e", "indented",
                                   "w"}
 
 

@@ -218,6 +218,17 @@ def test_without_git_the_state_is_unknown(monkeypatch, error):
     assert _git_state() == {"commit": None, "dirty": None}
 
 
+def test_every_git_call_has_a_timeout(monkeypatch):
+    """A hanging git (a locked index, a network file system) must not hang a run."""
+    def git(args, cwd=None, capture_output=False, text=False, timeout=None):
+        assert timeout is not None and timeout > 0 and capture_output and text
+        out = "0123abcd\n" if args[1] == "rev-parse" else " M file\n"
+        return subprocess.CompletedProcess(args, 0, stdout=out, stderr="")
+
+    monkeypatch.setattr(provenance.subprocess, "run", git)
+    assert _git_state() == {"commit": "0123abcd", "dirty": True}
+
+
 # ---- run_meta -------------------------------------------------------------------------------
 
 def test_run_meta_records_where_and_when_the_run_was_made(monkeypatch):
