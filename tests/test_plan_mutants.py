@@ -322,3 +322,94 @@ def test_what_the_planning_says_goes_to_the_console_when_there_is_one(tmp_path):
     jobs, said = _said(lambda: planning.jobs_for_experiment(exp, console))
     assert len(jobs) == 1 and said == []
     assert console.export_text().startswith("e: skipped NTU: store ")
+
+
+# ---- synthetic sequences --------------------------------------------------------------------
+
+def test_a_suite_is_generated_and_its_stores_described(tmp_path, monkeypatch):
+    import loaders.synthetic
+
+    asked = []
+    entries = [SimpleNamespace(name="s1", display="Scene One", klass="4D Radar"),
+               SimpleNamespace(name="s2", display="Scene Two", klass="Dense LiDAR")]
+
+    def ensure(suite, data_dir, console):
+        asked.append((suite, data_dir, console))
+        return [data_dir / "s1.h5", data_dir / "s2.h5"]
+
+    monkeypatch.setattr(planning, "ensure_suite_with_progress", ensure)
+    monkeypatch.setattr(loaders.synthetic, "suite_entries",
+                        lambda suite: entries if suite == "mini" else pytest.fail(suite))
+    console = object()
+    got = planning.suite_sequences("mini", tmp_path, console)
+    assert asked == [("mini", tmp_path, console)]
+    assert [(s.path, s.name, s.display_name, s.sensor_class) for s in got] == [
+        (tmp_path / "s1.h5", "s1", "Scene One", "4D Radar"),
+        (tmp_path / "s2.h5", "s2", "Scene Two", "Dense LiDAR")]
+
+
+def test_an_experiments_own_synthetic_sequences_are_written_under_its_data_folder(
+        tmp_path, monkeypatch):
+    import bench.data.synth
+
+    asked = []
+
+    def ensure(entries, out_dir, console):
+        asked.append(([e.name for e in entries], out_dir, console))
+        return [out_dir / f"{e.name}.h5" for e in entries]
+
+    monkeypatch.setattr(bench.data.synth, "ensure_entries_with_progress", ensure)
+    exp = SimpleNamespace(data_dir=tmp_path / "data", synthetic=[
+        SimpleNamespace(suite_entry=lambda: SimpleNamespace(name="t1", display="T One",
+                                                            klass="4D Radar"))])
+    got = planning.synthetic_sequences(exp, "console")
+    assert asked == [(["t1"], tmp_path / "data" / "synthetic-entries", "console")]
+    assert [(s.path, s.name, s.display_name, s.sensor_class) for s in got] == [
+        (tmp_path / "data" / "synthetic-entries" / "t1.h5", "t1", "T One", "4D Radar")]
+
+
+# ---- run_single -----------------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def small_store(tmp_path_factory):
+    from conftest import constant_twist_sequence
+    from loaders.store import write_store
+
+    seq = constant_twist_sequence(n_frames=12, n_points=400, max_range_m=60)
+    return write_store(seq, tmp_path_factory.mktemp("data") / "small.h5")
+
+
+def test_run_single_runs_once_and_reuses_its_run(small_store, tmp_path):
+    out = tmp_path / "run"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        first = planning.run_single("doppler", small_store, params={"tau_spatial_m": 2.0},
+                                    out=out)
+        assert first.dir == out and first.method == "doppler" and first.result.finished
+        assert first.result.frames == 12
+        mtime = (out / "metrics.json").stat().st_mtime_ns
+        again = planning.run_single("doppler", small_store, params={"tau_spatial_m": 2.0},
+                                    out=str(out))
+        assert (out / "metrics.json").stat().st_mtime_ns == mtime  # reused, not run again
+        assert again.result == first.result
+        # a folder holding another method's run is never taken
+        with pytest.raises(DataError, match="bench run"):
+            planning.run_single("icp-p2p", small_store, out=out)
+
+
+def test_run_single_raises_the_failure_of_its_run(small_store, tmp_path, monkeypatch):
+    from bench.runs.job import JobOutcome
+
+    seen = []
+
+    def failing(job, force):
+        seen.append((job.method, job.seed, force, job.run_key is not None))
+        return JobOutcome(job, "failed", "it broke")
+
+    monkeypatch.setattr(planning, "run_job", failing)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(DataError, match=rf"^icp-p2p on {small_store}: it broke$"):
+            planning.run_single("icp-p2p", small_store, seed=False, out=tmp_path / "r",
+                                force=True)
+    assert seen == [("icp-p2p", False, True, True)]
