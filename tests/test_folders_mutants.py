@@ -301,9 +301,12 @@ def test_a_trajectory_file_is_read_once_per_version_and_given_as_a_copy(tmp_path
     first.poses[:] = 0.0
     again = read_run_tum(path)
     np.testing.assert_array_equal(again.poses[:, :3, 3], [[1, 2, 3], [2, 3, 4]])
-    path.write_text("0 9 9 9 0 0 0 1\n")
-    st = path.stat()
-    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    mtime = path.stat().st_mtime_ns
+    path.write_text("0 7 7 7 0 0 0 1\n1 8 8 8 0 0 0 1\n")  # the same size, a later time
+    os.utime(path, ns=(mtime, mtime + 10**9))
+    np.testing.assert_array_equal(read_run_tum(path).poses[:, :3, 3], [[7, 7, 7], [8, 8, 8]])
+    path.write_text("0 9 9 9 0 0 0 1\n")  # another size, the same time
+    os.utime(path, ns=(mtime, mtime + 10**9))
     np.testing.assert_array_equal(read_run_tum(path).poses[:, :3, 3], [[9, 9, 9]])
 
 
@@ -494,6 +497,51 @@ def test_an_older_record_takes_its_lengths_from_its_figures_without_a_config_and
     assert [r.length_m for r in run.result.relative_error] == [3.0]
     assert run.result.relative_error[0].trans_m_mean != 99.0  # re-scored
     assert run.result.frames_scored == 17
+
+
+def test_an_older_record_pairs_its_files_by_stamp(tmp_path):
+    """Frames 20 and 39 (the last) are missing from est_tum.txt: the 38 others are scored."""
+    from metrics import relative_errors
+
+    run_dir = tmp_path / "r" / "seq" / "doppler"
+    _old_run(run_dir)
+    lines = (run_dir / "est_tum.txt").read_text().splitlines(keepends=True)
+    (run_dir / "est_tum.txt").write_text("".join(lines[:20] + lines[21:39]))
+    run = read_run(run_dir)
+    assert run.result.frames_scored == 38
+    result = _result(40)
+    keep = np.r_[0:20, 21:39]
+    est = result.poses.copy()
+    est[:, 0, 3] *= 1.05
+    expected = relative_errors(result.poses[keep], est[keep], (2.0,))[2.0]
+    assert run.result.relative_error[0].n == expected.n
+    assert run.result.relative_error[0].trans_m_mean == pytest.approx(expected.trans_m_mean)
+
+
+def test_an_older_record_with_no_frame_to_pair_is_broken_naming_its_folder(tmp_path):
+    run_dir = tmp_path / "r" / "seq" / "doppler"
+    _old_run(run_dir)
+    rows = np.loadtxt(run_dir / "est_tum.txt")
+    rows[:, 0] += 1000.0
+    (run_dir / "est_tum.txt").write_text("".join(" ".join(f"{v:.17g}" for v in row) + "\n"
+                                                 for row in rows))
+    with pytest.raises(BrokenRecord) as raised:
+        read_run(run_dir)
+    assert str(raised.value) == (f"{run_dir / 'metrics.json'}: an older record that cannot be "
+                                 f"re-scored ({run_dir}: no frame has ground truth; nothing to "
+                                 "score)")
+
+
+def test_an_older_record_failing_without_a_message_names_the_error(tmp_path, monkeypatch):
+    run_dir = tmp_path / "r" / "seq" / "doppler"
+    _old_run(run_dir)
+
+    def fail(*args, **kwargs):
+        raise ZeroDivisionError
+
+    monkeypatch.setattr(folders, "read_tum", fail)
+    with pytest.raises(BrokenRecord, match=r"cannot be re-scored \(ZeroDivisionError\(\)\)$"):
+        read_run(run_dir)
 
 
 def test_an_older_record_of_a_run_without_a_verdict_is_read_as_it_is(tmp_path, capsys):
