@@ -248,6 +248,7 @@ def test_a_refused_pair_is_recorded_unless_the_folder_holds_a_finished_run(tmp_p
     planning._record_refusal(run_dir, {"run_key": "k"}, "no Doppler")
     info = json.loads((run_dir / "failed.json").read_text())
     assert info["status"] == REFUSED == "refused" and info["error"] == "no Doppler"
+    assert yaml.safe_load((run_dir / "config.yaml").read_text()) == {"run_key": "k"}
     finished = tmp_path / "seq" / "done"
     finished.mkdir(parents=True)
     (finished / "metrics.json").write_text("{}")
