@@ -585,3 +585,32 @@ def test_runs_of_two_contents_under_one_name_are_told_apart(tmp_path):
     runs = load_runs(tmp_path)
     assert [r.display_name for r in runs] == ["Seq One [frames 0-9]", "Seq One [frames 5-9]"]
     assert [r.sequence for r in runs] == ["seq [frames 0-9]", "seq [frames 5-9]"]
+
+
+# ---- what a refusal says --------------------------------------------------------------------
+
+def test_a_run_folder_under_a_file_is_refused_naming_it_as_the_run_folder(tmp_path):
+    from bench.guard import Refused
+
+    (tmp_path / "file").write_text("not a folder")
+    run_dir = tmp_path / "file" / "doppler"
+    with pytest.raises(Refused, match=rf"^run folder {run_dir}: {tmp_path / 'file'} is a file"):
+        write_failure(run_dir, None, "x")
+    with pytest.raises(Refused, match=rf"^run folder {run_dir}: {tmp_path / 'file'} is a file"):
+        _write(run_dir, None)
+
+
+def test_a_record_in_a_folder_that_is_no_run_is_left_alone_naming_it(tmp_path):
+    from bench.guard import Refused
+
+    run_dir = tmp_path / "seq" / "doppler"
+    run_dir.mkdir(parents=True)
+    (run_dir / "config.yaml").write_text("- someone else's list\n")
+    (run_dir / "metrics.json").write_text("{}")
+    with pytest.raises(Refused, match=r"metrics\.json: exists and is not a run's record the "
+                                      r"harness wrote"):
+        write_failure(run_dir, None, "x")
+    with pytest.raises(Refused, match=r"metrics\.json: exists and is not a run's record the "
+                                      r"harness wrote"):
+        clear_run(run_dir)
+    assert (run_dir / "metrics.json").read_text() == "{}"
