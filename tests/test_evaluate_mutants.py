@@ -282,6 +282,14 @@ def test_fallbacks_count_the_replaced_and_the_unconverged_registered_frames():
     assert fallbacks(result) == {"frames_replaced": 2, "frames_unconverged": 2}
 
 
+def test_frames_of_a_record_without_a_replaced_flag_count_as_not_replaced():
+    from types import SimpleNamespace
+
+    frames = [SimpleNamespace(converged=c) for c in (False, True, False, False)]
+    result = SimpleNamespace(frames=frames)
+    assert fallbacks(result) == {"frames_replaced": 0, "frames_unconverged": 2}
+
+
 def _result(poses, stamps, velocity=None):
     frames = [_frame(i, time_ms=1.0 + i, register_ms=0.5 * i, wall_ms=3.0 * i,
                      converged=i % 7 != 3) for i in range(len(stamps))]
