@@ -184,7 +184,9 @@ def test_a_failure_is_recorded_and_the_finished_record_removed(tmp_path):
     write_failure(run_dir, _config(run_key="k2"), "again")
     info = json.loads((run_dir / "failed.json").read_text())
     assert info["status"] == "failed" and info["traceback"] == ""
-    assert yaml.safe_load((run_dir / "config.yaml").read_text())["run_key"] == "k2"
+    config = yaml.safe_load((run_dir / "config.yaml").read_text())
+    assert config["run_key"] == "k2"
+    assert list(config) == ["run_key", "label", "method", "sequence"]  # the order given
 
 
 def _epoch(date: str) -> float:
@@ -355,7 +357,7 @@ def test_a_failed_run_with_config_is_named_by_it(tmp_path):
     run = read_run(run_dir, failed=True)
     assert run.result.status == "failed"  # a failure record never reads as finished
     assert run.result.sequence == "seq" and run.method == "doppler"
-    assert run.seed is Seed.WITHOUT and run.label == "L"
+    assert run.seed is Seed.WITHOUT and run.label == run.result.label == "L"
     assert run.result.display_name == "Seq One" and run.result.sensor_class == "radar"
 
 

@@ -46,7 +46,7 @@ def test_a_sequence_is_known_by_its_name_its_store_and_its_display_name():
 
 
 @pytest.mark.parametrize("name, pattern", [("seq*", True), ("seq?", True), ("[ab]", True),
-                                           ("seq", False), ("a.b-c", False)])
+                                           ("seq", False), ("a.b-c", False), ("SEQX", False)])
 def test_a_pattern_has_a_wildcard(name, pattern):
     assert _is_pattern(name) is pattern
 
@@ -319,10 +319,34 @@ def test_what_the_planning_says_goes_to_the_console_when_there_is_one(tmp_path):
 
     exp = _experiment(tmp_path, f"[{{path: {tmp_path / 'a.h5'}}}, {{path: {tmp_path / 'n.h5'}, "
                                 "optional: true, dataset: NTU}]", "[{name: doppler}]")
-    console = Console(record=True, width=200)
+    exp = exp.model_copy(update={"sequences": [
+        exp.sequences[0], exp.sequences[1].model_copy(update={"dataset": "[bold]NTU[/bold]"})]})
+    console = Console(record=True, width=30)
     jobs, said = _said(lambda: planning.jobs_for_experiment(exp, console))
     assert len(jobs) == 1 and said == []
-    assert console.export_text().startswith("e: skipped NTU: store ")
+    text = console.export_text()
+    # printed as it is (no markup) and on one line (no wrapping at the console's width)
+    assert text.startswith("e: skipped [bold]NTU[/bold]: store ") and text.count("\n") == 1
+
+
+def test_a_suite_and_synthetic_sequences_join_the_experiments_stores(tmp_path, monkeypatch):
+    exp = _experiment(tmp_path, f"[{{path: {tmp_path / 'a.h5'}, name: A}}]", "[{name: doppler}]")
+    exp = exp.model_copy(update={"suite": "mini", "synthetic": ["an entry"]})
+    asked = []
+
+    def suite(name, data_dir, console):
+        asked.append(("suite", name, data_dir, console))
+        return [_entry("S", tmp_path / "b.h5", None)]
+
+    def synthetic(experiment, console):
+        asked.append(("synthetic", experiment is exp, console))
+        return [_entry("T", tmp_path / "b.h5", None)]
+
+    monkeypatch.setattr(planning, "suite_sequences", suite)
+    monkeypatch.setattr(planning, "synthetic_sequences", synthetic)
+    jobs = planning.jobs_for_experiment(exp, "console")
+    assert [j.name for j in jobs] == ["A", "S", "T"]
+    assert asked == [("suite", "mini", exp.data_dir, "console"), ("synthetic", True, "console")]
 
 
 # ---- synthetic sequences --------------------------------------------------------------------
@@ -347,6 +371,22 @@ def test_a_suite_is_generated_and_its_stores_described(tmp_path, monkeypatch):
     assert [(s.path, s.name, s.display_name, s.sensor_class) for s in got] == [
         (tmp_path / "s1.h5", "s1", "Scene One", "4D Radar"),
         (tmp_path / "s2.h5", "s2", "Scene Two", "Dense LiDAR")]
+
+
+def test_a_suite_whose_stores_do_not_match_its_entries_is_an_error(tmp_path, monkeypatch):
+    import bench.data.synth
+    import loaders.synthetic
+
+    one = [SimpleNamespace(name="s1", display="S", klass="4D Radar")]
+    monkeypatch.setattr(planning, "ensure_suite_with_progress", lambda *a: [])
+    monkeypatch.setattr(loaders.synthetic, "suite_entries", lambda suite: one)
+    with pytest.raises(ValueError):
+        planning.suite_sequences("mini", tmp_path)
+    monkeypatch.setattr(bench.data.synth, "ensure_entries_with_progress", lambda *a: [])
+    entry = SimpleNamespace(suite_entry=lambda: one[0])
+    exp = SimpleNamespace(data_dir=tmp_path, synthetic=[entry])
+    with pytest.raises(ValueError):
+        planning.synthetic_sequences(exp)
 
 
 def test_an_experiments_own_synthetic_sequences_are_written_under_its_data_folder(
