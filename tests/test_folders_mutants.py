@@ -483,6 +483,8 @@ def test_an_older_record_without_trajectory_files_is_read_as_it_is(tmp_path, cap
 def test_an_older_record_read_alone_is_announced_once(tmp_path, capsys):
     run_dir = tmp_path / "alone" / "doppler"
     _old_run(run_dir)
+    assert check_record(run_dir / "metrics.json") is None
+    assert capsys.readouterr().err == ""  # checking a record says nothing
     assert read_run(run_dir).result.schema_version == 2
     assert f"under {run_dir} were written by an older" in capsys.readouterr().err
     read_run(run_dir)
