@@ -63,8 +63,10 @@ def _inside(ci, value):
 
 # ---- score: every part against the metric called directly ----------------------------------
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def scored(drive):
+    """Function-scoped: each test calls ``score`` itself (a cached fixture would hide from
+    ``make mutate`` which tests reach it)."""
     stamps, gt, est = drive
     own = np.tile([10.2, 0.1, 0.0], (N, 1))
     times = np.linspace(1.0, 5.0, N)
