@@ -278,8 +278,8 @@ def _frame(i, converged=True, replaced=False, time_ms=1.0, register_ms=0.5, wall
 
 def test_fallbacks_count_the_replaced_and_the_unconverged_registered_frames():
     frames = [_frame(0, converged=False, replaced=True),  # the first frame: not registered
-              _frame(1), _frame(2, converged=False), _frame(3, converged=False, replaced=True),
-              _frame(4, replaced=True), _frame(5, converged=False)]
+              _frame(1, converged=False), _frame(2, converged=False),
+              _frame(3, converged=False, replaced=True), _frame(4, replaced=True), _frame(5)]
     result = OdometryResult(np.arange(6) * DT, np.tile(np.eye(4), (6, 1, 1)), frames)
     assert fallbacks(result) == {"frames_replaced": 2, "frames_unconverged": 2}
 
