@@ -398,8 +398,10 @@ def read_run(run_dir: Path, failed: bool = False, _stale: list | None = None
         try:
             new = _rescored(run_dir, raw, config)
         except (ArithmeticError, LookupError, TypeError, ValueError, OSError) as err:
+            # the message's first line (a conversion inside the f-string field would quote it)
+            detail = str(err).splitlines()[0] if str(err) else repr(err)
             problem = BrokenRecord(f"{metrics_path}: an older record that cannot be re-scored "
-                                   f"({str(err).splitlines()[0] if str(err) else err!r})")
+                                   f"({detail})")
             if not failed:
                 raise problem from None
             return RunRecord(run_dir, _broken(run_dir, config, str(problem)), config)

@@ -94,8 +94,11 @@ def store_identity(path: Path) -> str:
     return digest
 
 
-_IMPORT = re.compile(r"^[ \t]*(?:from[ \t]+([\w.]+)[ \t]+import[ \t]+(\([^)]*\)|[^\n#]*)"
-                     r"|import[ \t]+([^\n#]+))", re.MULTILINE)
+#: an import line: ``from a import ...`` (a parenthesised list, or names up to the line's end
+#: or a comment, continued over backslash-newlines) or ``import ...`` (likewise)
+_IMPORT = re.compile(r"^[ \t]*(?:from[ \t]+([\w.]+)[ \t]+import[ \t]+"
+                     r"(\([^)]*\)|(?:[^\n#\\]|\\\n)*)"
+                     r"|import[ \t]+((?:[^\n#\\]|\\\n)+))", re.MULTILINE)
 
 
 def _imports(path: Path) -> set[str]:
