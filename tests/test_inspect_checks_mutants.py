@@ -188,6 +188,9 @@ def test_a_late_gt_is_timed_with_an_interval_and_the_offset_that_removes_it():
     assert lo <= est.lag_s <= hi and hi - lo < 0.05
     assert est.spread_s == pytest.approx((hi - lo) / 2)
     assert est.correlation > 0.99
+    # the observable flags as 0/1 numbers (as a store may keep them) mean the same
+    flags = ic.gt_clock_offset(t, speed, observable.astype(np.uint8), gt, converted_offset_s=0.2)
+    assert flags == est
 
 
 def test_no_ground_truth_or_too_little_gives_no_estimate():
@@ -333,6 +336,9 @@ def test_the_period_is_the_scans_median_step_or_the_nominal_one(monkeypatch):
     assert style == "green" and "one scan period 0.200 s" in line
     (style, line), _ = _lines(monkeypatch, _seq(period=0.05), 0.15, (0.1, 0.2))
     assert style == "yellow" and "one scan period 0.050 s" in line
+    # two scans are enough to measure it
+    (style, line), _ = _lines(monkeypatch, _seq(n=2, period=0.2), 0.15, (0.1, 0.2))
+    assert style == "green" and "one scan period 0.200 s" in line
     # a single scan: the sensor's nominal period (0.25 s)
     (style, line), _ = _lines(monkeypatch, _seq(n=1), 0.15, (0.1, 0.2))
     assert style == "green" and "one scan period 0.250 s" in line
