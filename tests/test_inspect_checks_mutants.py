@@ -376,3 +376,58 @@ def test_a_layer_at_or_above_the_sensor_gets_advice():
     assert ic.height_advice(ntu, {**z, "dominant_layer_z_m": 0.7}) == (
         "densest layer at z = +0.70 m: above; ntu4dradlm takes no elevation-sign option (its "
         "points' z is as the sensor recorded it): check the sensor's mounting and the extrinsic")
+
+
+# -- the interval's edges ----------------------------------------------------------------------
+
+def test_the_interval_needs_ten_scans_with_each_speed():
+    """Scans 2 s apart: a bootstrap block is 2 scans, so 10 scans are 5 blocks; only lag 0
+    keeps all 10 inside the GT, so every resample's best lag is 0."""
+    t = np.arange(10) * 2.0
+    v = np.random.default_rng(0).normal(size=10)
+    lo, hi = ic.lag_interval(t, v, v.copy())
+    assert lo == pytest.approx(0.0, abs=1e-9) and hi == pytest.approx(0.0, abs=1e-9)
+    gap = v.copy()
+    gap[5] = np.nan  # 9 GT speeds (still spanning every scan): no interval
+    assert ic.lag_interval(t, v, gap) is None
+    assert ic.lag_interval(t, gap, v) is None
+
+
+def test_the_interval_searches_the_same_lags_as_the_estimate():
+    """A GT 2.3 s late lies beyond the +-2 s search: every resample ends on its edge."""
+    t = np.arange(300) * PERIOD
+    bump = lambda x: 8 + 3 * np.exp(-((x - 15) / 1.5) ** 2)  # noqa: E731
+    lo, hi = ic.lag_interval(t, bump(t), bump(t - 2.3))
+    assert lo == pytest.approx(2.0, abs=1e-6) and hi == pytest.approx(2.0, abs=1e-6)
+
+
+def test_scans_shifted_outside_the_gt_are_left_out_of_the_interval():
+    """The GT speed only over 8-18 s of a 26 s drive, 0.3 s late: the scans whose shifted time
+    falls outside it say nothing, and the interval stays tight around 0.3 s."""
+    t = np.arange(260) * PERIOD
+    v_g = np.where((t >= 8) & (t <= 18), _speed(t - 0.3), np.nan)
+    lo, hi = ic.lag_interval(t, _speed(t), v_g)
+    assert 0.29 < lo <= hi < 0.31
+
+
+def test_a_constant_or_faint_curve_warns_nothing_and_correlates_exactly():
+    import warnings
+
+    rng = np.random.default_rng(8)
+    t = np.arange(40) * 0.1
+    faint = 1e-3 * rng.normal(size=40)  # a sum of squares far below 1
+    other = 1e-3 * rng.normal(size=40)
+    expected = np.corrcoef(faint, other)[0, 1]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no "invalid value" from numpy on a flat curve
+        assert np.isnan(ic._correlation(t, np.ones(40), t, other, 0.0))
+        assert ic._correlation(t, faint, t, other, 0.0) == pytest.approx(expected, abs=1e-9)
+
+
+def test_a_poor_match_still_reports_its_correlation():
+    t, v, gt = _curves(0.0)
+    noise = np.random.default_rng(0).normal(8, 2, len(t))
+    est = ic.gt_clock_offset(t, noise, np.ones(len(t), bool), gt)
+    assert est.lag_s is None and est.reason.startswith("the speeds agree poorly (correlation ")
+    assert isinstance(est.correlation, float) and -1 <= est.correlation < 0.5
+    assert f"(correlation {est.correlation:.2f})" in est.reason
