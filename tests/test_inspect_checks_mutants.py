@@ -435,3 +435,19 @@ def test_a_poor_match_still_reports_its_correlation():
     assert est.lag_s is None and est.reason.startswith("the speeds agree poorly (correlation ")
     assert isinstance(est.correlation, float) and -1 <= est.correlation < 0.5
     assert f"(correlation {est.correlation:.2f})" in est.reason
+
+
+@pytest.mark.parametrize("late", [0.535, -1.987, 1.987])
+def test_every_resample_refines_its_lag_between_grid_steps(late):
+    """Exact speeds shifted by a lag between the 0.01 s steps (next to the search's edges too):
+    every resample's peak, refined by the parabola through its neighbours, is the lag."""
+    t = np.arange(300) * PERIOD
+    lo, hi = ic.lag_interval(t, _speed(t), _speed(t - late))
+    assert lo == pytest.approx(late, abs=0.002) and hi == pytest.approx(late, abs=0.002)
+
+
+def test_a_gt_early_beyond_the_search_ends_on_its_lower_edge():
+    t = np.arange(300) * PERIOD
+    bump = lambda x: 8 + 3 * np.exp(-((x - 15) / 1.5) ** 2)  # noqa: E731
+    lo, hi = ic.lag_interval(t, bump(t), bump(t + 2.3))
+    assert lo == pytest.approx(-2.0, abs=1e-6) and hi == pytest.approx(-2.0, abs=1e-6)
