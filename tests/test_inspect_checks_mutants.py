@@ -122,14 +122,23 @@ def test_the_correlation_needs_ten_scans_inside_the_gt():
     assert np.isfinite(ic._correlation(t, v, t_gt, np.sin(t_gt), -1.0))
 
 
-@pytest.mark.parametrize("late", [0.535, -0.285, 0.0])
+@pytest.mark.parametrize("late", [0.535, -0.285, 0.0, 1.988, -1.988])
 def test_the_best_lag_finds_a_shift_between_grid_steps(late):
+    """Exact speeds: the parabola through the peak's neighbours finds the lag to a twentieth
+    of the 0.01 s search step, up to next to the search's +-2 s edges."""
     t = np.arange(300) * PERIOD
     v_g = _speed(t - late)
     lag, corr, why = ic._best_lag(t, _speed(t), v_g)
     assert why == "" and corr > 0.99
-    # within a fifth of the search step: the parabola through the peak's neighbours refines it
-    assert lag == pytest.approx(late, abs=0.002)
+    assert lag == pytest.approx(late, abs=0.0005)
+
+
+def test_a_lag_closest_to_the_search_edge_is_not_estimated():
+    """A GT 1.996 s late peaks on the last lag searched (2.00 s): refused as at the edge."""
+    t = np.arange(300) * PERIOD
+    for late in (1.996, -1.996):
+        lag, _, why = ic._best_lag(t, _speed(t), _speed(t - late))
+        assert lag is None and why == "the best lag is at the edge of the search (+-2 s)"
 
 
 def test_the_best_lag_says_why_there_is_none():
@@ -139,8 +148,11 @@ def test_the_best_lag_says_why_there_is_none():
     few[:9] = v[:9]
     assert ic._best_lag(t, few, v)[2].startswith("too few scans")
     assert ic._best_lag(t, v, few)[2].startswith("too few scans")
+    assert ic._best_lag(t, few, v)[2] == "too few scans with both a Doppler speed and ground " \
+                                         "truth"
     few[9] = v[9]  # ten are enough to go on
     assert not ic._best_lag(t, few, v)[2].startswith("too few scans")
+    assert not ic._best_lag(t, v, few)[2].startswith("too few scans")
     flat = 5 + 0.25 * np.sin(t)  # std 0.18 m/s
     lag, corr, why = ic._best_lag(t, v, flat)
     assert lag is None and np.isnan(corr)
