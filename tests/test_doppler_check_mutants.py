@@ -183,6 +183,9 @@ def test_the_sign_check_samples_at_most_max_frames_across_the_sequence():
     seq, poses = _moving(30, 8.0, n_points=40)
     assert dc.doppler_sign_check(seq, poses, max_frames=7).frames_used == 7
     assert dc.doppler_sign_check(seq, poses).frames_used == 30
+    # by default at most 200 frames
+    long, long_poses = _moving(230, 8.0, n_points=20)
+    assert dc.doppler_sign_check(long, long_poses).frames_used == 200
     # frames without ground truth (NaN poses) are skipped, not failed on
     poses[10:] = np.nan
     # the difference reaches 4 frames ahead: frames 0-5 have a GT velocity
@@ -421,6 +424,9 @@ def test_the_kind_check_samples_at_most_max_frames():
     seq, poses = _kind_seq({"radial": 20}, n_frames=12)
     assert dc.doppler_kind_check(seq, poses, max_frames=5).frames_used == 5
     assert dc.doppler_kind_check(seq, poses).frames_used == 12
+    # by default at most 100 frames
+    long, long_poses = _kind_seq({"radial": 12}, n_frames=115)
+    assert dc.doppler_kind_check(long, long_poses).frames_used == 100
 
 
 def test_a_gt_reconstructed_store_is_radial_and_says_gt_assisted():
