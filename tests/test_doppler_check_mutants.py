@@ -199,9 +199,14 @@ def test_the_densest_layer_is_the_median_of_the_fullest_quarter_metre():
     # bins of 0.25 m from -1: [-0.75, -0.5) holds 50 points, [1.25, 1.5) 40
     assert dc._densest_layer(z) == pytest.approx(-0.6)
     assert dc._densest_layer(np.full(7, 2.0)) == pytest.approx(2.0)
-    # a layer's median, both its edges included
-    z = np.array([0.25, 0.3, 0.4, 0.5, 0.5, 2.0, 2.1])
-    assert dc._densest_layer(z) == pytest.approx(0.4)
+    # a layer's median, both its edges included (not the points beyond its upper edge): the
+    # layer [0.25, 0.5) holds 4 points, [0.5, 0.75) 3; the median of 0.25 .. 0.5 inclusive
+    z = np.array([0.25, 0.3, 0.35, 0.4, 0.5, 0.5, 0.6, 2.0, 2.1])
+    assert dc._densest_layer(z) == pytest.approx(0.375)
+    # layers are a quarter metre, not a metre: 50 points at +0.6 m outnumber 36 at -0.6 m and
+    # 34 at -0.1 m, which share one metre
+    z = np.concatenate([np.full(36, -0.6), np.full(34, -0.1), np.full(50, 0.6)])
+    assert dc._densest_layer(z) == pytest.approx(0.6)
 
 
 def _frame(road_z: float, road: int = 30, near_above: int = 10, far: int = 100,
