@@ -247,6 +247,7 @@ def test_the_height_check_reads_the_road_below_and_says_what_it_used():
 def test_a_road_at_the_sensors_height_is_not_below_it():
     z = dc.low_points_median_z(_frames_seq([_frame(0.0, seed=k) for k in range(10)]))
     assert z["dominant_layer_z_m"] == 0.0 and "looks mirrored" in z["verdict"]
+    assert z["frames_below_sensor"] == 0.0
     assert z["share_above_sensor"] == pytest.approx(0.25)  # the road at 0 is not above
 
 
@@ -262,9 +263,23 @@ def test_the_per_frame_layers_decide_and_sparse_frames_give_none():
                                                           _frame(-0.5, road=10)]
     z = dc.low_points_median_z(_frames_seq(frames))
     assert z["frames_with_layer"] == 9
-    # the last frame is sampled too (it is the one with 19 near points)
-    frames = [_frame(-0.5, seed=k) for k in range(9)] + [_frame(-0.5, road=9)]
-    assert dc.low_points_median_z(_frames_seq(frames))["frames_with_layer"] == 9
+    # the first and the last frames are sampled too: the only frame with a layer of its own
+    frames = [_frame(-0.5, road=9, seed=k) for k in range(9)] + [_frame(-0.5)]
+    assert dc.low_points_median_z(_frames_seq(frames))["frames_with_layer"] == 1
+    assert dc.low_points_median_z(_frames_seq(frames[::-1]))["frames_with_layer"] == 1
+
+
+def test_without_a_frame_of_its_own_layer_the_pooled_near_points_decide():
+    """15 frames of 15 near points: 225 near points (enough), but no frame has 20."""
+    import warnings
+
+    frames = [_frame(-0.5, road=10, near_above=5, seed=k) for k in range(15)]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # no mean of an empty list of frames
+        z = dc.low_points_median_z(_frames_seq(frames))
+    assert z["basis"] == "points within 30 m" and z["frames_with_layer"] == 0
+    assert z["dominant_layer_z_m"] == pytest.approx(-0.5) and np.isnan(z["frames_below_sensor"])
+    assert z["verdict"] == "road below the sensor (sign looks right)"
 
 
 def test_with_too_few_near_points_every_point_is_used_and_said():
@@ -292,6 +307,11 @@ def test_the_low_points_are_the_lowest_tenth():
     assert out["median_z_m"] == pytest.approx(np.median(z))
     assert dc.low_points_median_z(_frames_seq([p]), quantile=0.2)["low_points_median_z_m"] == \
         pytest.approx(np.median(np.sort(z)[:50]))
+    # 201 heights: the 0.1 quantile is the 21st lowest, which counts as low
+    z = np.linspace(-1.0, 1.0, 201)
+    p = np.column_stack([np.full(201, 10.0), np.zeros(201), z])
+    assert dc.low_points_median_z(_frames_seq([p]))["low_points_median_z_m"] == \
+        pytest.approx(z[10])
 
 
 def test_an_empty_sequence_is_refused_by_name():
