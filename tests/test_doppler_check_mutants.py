@@ -191,7 +191,15 @@ def test_the_sign_check_says_why_it_checked_nothing():
     assert none.frames_used == 0 and none.verdict == "not checked (no ground truth)"
     assert none.describe() == "Doppler sign check: not checked (no ground truth)"
     no_doppler = _seq([seq[k].points for k in range(6)], [None] * 6)
+    for check in (none, dc.doppler_sign_check(no_doppler, poses)):
+        assert check.frames_used == 0
+        assert np.isnan(check.median_cosine) and np.isnan(check.median_speed_ratio)
     assert dc.doppler_sign_check(no_doppler, poses).verdict == "not checked (no Doppler)"
+    # standing still for 8 frames (1 s), then moving: the moving frames are checked
+    seq14, poses14 = _moving(14, 8.0, n_points=30)
+    still = np.concatenate([np.repeat(poses14[:1], 8, axis=0), poses14[:6]])
+    assert dc.gt_velocities(seq14.stamps, still)[0] == pytest.approx(np.zeros(3))
+    assert dc.doppler_sign_check(seq14, still).frames_used >= 1
     # slower than 0.5 m/s: no moving frame; just faster: checked
     slow, slow_poses = _moving(6, 0.45)
     assert dc.doppler_sign_check(slow, slow_poses).verdict == "inconclusive (no moving frames)"
