@@ -470,6 +470,13 @@ def test_the_kind_check_says_why_it_measured_nothing():
     assert not k.disagrees
     none = _seq([seq[k].points for k in range(3)], [None] * 3)
     assert dc.doppler_kind_check(none, poses).measured == "not checked (no Doppler)"
+    for check in (k, dc.doppler_kind_check(none, poses)):
+        assert check.frames_used == 0 and check.declared == "radial"
+        assert np.isnan(check.share_radial) and np.isnan(check.share_compensated)
+    # standing still for 8 frames (1 s), then moving: the moving frames are measured
+    seq14, poses14 = _kind_seq({"radial": 20}, n_frames=14)
+    still = np.concatenate([np.repeat(poses14[:1], 8, axis=0), poses14[:6]])
+    assert dc.doppler_kind_check(seq14, still).frames_used >= 1
     slow, slow_poses = _kind_seq({"radial": 30}, speed=0.95)
     assert dc.doppler_kind_check(slow, slow_poses).measured == "inconclusive (no moving frames)"
     quick, quick_poses = _kind_seq({"radial": 30}, speed=1.05)
