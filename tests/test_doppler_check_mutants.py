@@ -202,7 +202,9 @@ def test_the_sign_check_says_why_it_checked_nothing():
     assert dc.doppler_sign_check(seq14, still).frames_used >= 1
     # slower than 0.5 m/s: no moving frame; just faster: checked
     slow, slow_poses = _moving(6, 0.45)
-    assert dc.doppler_sign_check(slow, slow_poses).verdict == "inconclusive (no moving frames)"
+    still = dc.doppler_sign_check(slow, slow_poses)
+    assert still.verdict == "inconclusive (no moving frames)" and still.frames_used == 0
+    assert np.isnan(still.median_cosine) and np.isnan(still.median_speed_ratio)
     fast, fast_poses = _moving(6, 0.55)
     assert dc.doppler_sign_check(fast, fast_poses).verdict == "confirmed"
     assert dc.doppler_sign_check(fast, fast_poses, min_speed_mps=0.6).frames_used == 0
@@ -211,6 +213,10 @@ def test_the_sign_check_says_why_it_checked_nothing():
     dop = [seq[k].doppler for k in range(6)]
     pts[2] = pts[2] / np.linalg.norm(pts[2], axis=1, keepdims=True) * 0.4
     assert dc.doppler_sign_check(_seq(pts, dop), poses).frames_used == 5
+    # a first frame whose Doppler reads 0 everywhere gives no direction: skipped
+    dop[0] = np.zeros(len(dop[0]))
+    check = dc.doppler_sign_check(_seq(pts, dop), poses)
+    assert check.frames_used == 4 and check.verdict == "confirmed"
 
 
 def test_the_sign_check_samples_at_most_max_frames_across_the_sequence():
