@@ -521,3 +521,29 @@ def test_one_moving_frame_is_described_in_full():
     assert dc.SignCheck(1, 0.875, 1.03125, "confirmed").describe() == (
         "Doppler sign check over 1 moving frames: median cosine +0.875, median speed ratio "
         "1.031 -> receding-positive convention confirmed")
+
+
+def test_points_a_metre_away_and_just_beyond_three_tolerances_tell():
+    """At 10 m/s (tolerance 1 m/s): 60 forward points reading 0, 10 radial ones 1 m away and
+    10 radial ones whose predicted value is -3.5 m/s (just beyond 3 tolerances) - 20 of 80
+    fit the radial velocity."""
+    seq, poses = _kind_seq({"zero": 60}, n_frames=2)
+    rng = np.random.default_rng(12)
+    v = np.array([SPEED, 0.0, 0.0])
+    near = _directions(10, rng, 25) * 1.0
+    a = rng.uniform(-np.pi, np.pi, 10)
+    s = np.sqrt(1 - 0.35 ** 2)
+    oblique = np.column_stack([np.full(10, 0.35), s * np.cos(a), s * np.sin(a)]) * 10.0
+    np.testing.assert_allclose(_radial(oblique, v), -3.5)
+    p = np.concatenate([seq[0].points, near, oblique])
+    d = np.concatenate([seq[0].doppler, _radial(near, v), _radial(oblique, v)])
+    k = dc.doppler_kind_check(_seq([p, p], [d, d]), poses)
+    assert k.share_radial == pytest.approx(0.25) and k.share_compensated == pytest.approx(0.75)
+
+
+def test_a_frame_with_too_few_telling_points_is_skipped_not_the_end():
+    seq, poses = _kind_seq({"radial": 20}, n_frames=3)
+    pts = [seq[0].points[:5]] + [seq[k].points for k in (1, 2)]
+    dop = [seq[0].doppler[:5]] + [seq[k].doppler for k in (1, 2)]
+    k = dc.doppler_kind_check(_seq(pts, dop), poses)
+    assert k.frames_used == 2 and k.measured == "radial"
