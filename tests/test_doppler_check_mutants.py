@@ -107,6 +107,7 @@ def test_the_half_window_is_half_a_second_of_frames_at_least_two():
     # repeated stamps do not count as a period; no step at all: a period of 1 s
     assert dc.half_window_frames(np.repeat(np.arange(20) * 0.125, 3)) == 4
     assert dc.half_window_frames(np.zeros(5)) == 2
+    assert dc.half_window_frames(np.zeros(5), half_window_s=3.0) == 3
 
 
 def test_gt_velocities_are_in_the_sensor_frame():
@@ -483,8 +484,11 @@ def test_the_kind_check_says_why_it_measured_nothing():
     seq14, poses14 = _kind_seq({"radial": 20}, n_frames=14)
     still = np.concatenate([np.repeat(poses14[:1], 8, axis=0), poses14[:6]])
     assert dc.doppler_kind_check(seq14, still).frames_used >= 1
-    slow, slow_poses = _kind_seq({"radial": 30}, speed=0.95)
-    assert dc.doppler_kind_check(slow, slow_poses).measured == "inconclusive (no moving frames)"
+    slow, slow_poses = _kind_seq({"radial": 30}, speed=0.95, kind="ego-compensated")
+    still = dc.doppler_kind_check(slow, slow_poses)
+    assert still.measured == "inconclusive (no moving frames)" and still.frames_used == 0
+    assert np.isnan(still.share_radial) and np.isnan(still.share_compensated)
+    assert still.declared == "ego-compensated"
     quick, quick_poses = _kind_seq({"radial": 30}, speed=1.05)
     assert dc.doppler_kind_check(quick, quick_poses).measured == "radial"
     nan_poses = poses.copy()
