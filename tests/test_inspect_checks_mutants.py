@@ -463,3 +463,20 @@ def test_a_gt_early_beyond_the_search_ends_on_its_lower_edge():
     bump = lambda x: 8 + 3 * np.exp(-((x - 15) / 1.5) ** 2)  # noqa: E731
     lo, hi = ic.lag_interval(t, bump(t), bump(t + 2.3))
     assert lo == pytest.approx(-2.0, abs=1e-6) and hi == pytest.approx(-2.0, abs=1e-6)
+
+
+def test_the_interval_is_the_central_95_percent_of_the_resampled_lags(monkeypatch):
+    """The interval's ends are the 2.5 and 97.5 percentiles of the resamples' lags."""
+    asked = []
+    percentile = np.percentile
+
+    def spy(values, q, *args, **kwargs):
+        asked.append((len(values), list(np.atleast_1d(q))))
+        return percentile(values, q, *args, **kwargs)
+
+    monkeypatch.setattr(np, "percentile", spy)
+    t = np.arange(200) * PERIOD
+    ic.lag_interval(t, _speed(t), _speed(t - 0.3))
+    ((count, q),) = asked
+    assert count == 200  # every resample found a lag
+    np.testing.assert_allclose(q, [2.5, 97.5])
