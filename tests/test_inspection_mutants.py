@@ -341,3 +341,83 @@ def test_the_speed_plot_is_a_png_marked_as_ours(monkeypatch, tmp_path):
         assert image.format == "PNG"
         assert image.info["Software"] == f"{guard.MARK} (bench inspect)"
         assert image.size == (960, 384)  # 8 x 3.2 in at 120 dpi
+
+
+def test_the_plot_may_not_be_the_input_and_its_refusal_names_the_option(tmp_path):
+    store = tmp_path / "x.h5"
+    store.write_bytes(b"\x89HDF\r\n\x1a\n")
+    with pytest.raises(guard.Refused, match=rf"^--plot {store}: is an input of this command"):
+        insp.inspect_path(store, None, Recorder(), store)
+    mine = tmp_path / "notes.png"
+    mine.write_bytes(b"not a plot of ours")
+    with pytest.raises(guard.Refused) as err:
+        insp.inspect_path(store, None, Recorder(), mine)
+    assert str(err.value) == (f"--plot {mine}: exists and is not a speed plot this command "
+                              "wrote; it is left as it is: choose another --plot")
+
+
+def test_the_table_is_titled_by_the_input_and_the_period_is_passed_on(monkeypatch, tmp_path):
+    seen = {}
+    seq = MemorySequence("n", SensorInfo("radar", PERIOD), _scans())
+
+    def opened(path, period_s):
+        seen["args"] = (path, period_s)
+        return seq
+
+    monkeypatch.setattr(insp, "open_sequence", opened)
+    monkeypatch.setattr(insp, "inspect_sequence", lambda s: {
+        "rows": [("name", "n"), ("frames", "6")], "gt_findings": ["a gap"], "sign": CONFIRMED,
+        "kind": RADIAL, "counts": None})
+    printed = []
+
+    class Keep:
+        def print(self, what="", **kwargs):
+            printed.append((what, kwargs))
+
+    insp.inspect_path(tmp_path / "x.h5", 0.25, Keep())
+    assert seen["args"] == (tmp_path / "x.h5", 0.25)
+    table, kwargs = printed[0]
+    assert table.title == str(tmp_path / "x.h5") and table.title_justify == "left"
+    assert table.show_header is False and kwargs == {}
+    assert [c._cells for c in table.columns] == [["[bold]name[/]", "[bold]frames[/]"],
+                                                 ["n", "6"]]
+    # the findings and verdicts are printed as they are, no number highlighted
+    assert all(kwargs == {"highlight": False} for _, kwargs in printed[1:])
+
+
+def test_the_speed_plot_shows_both_speeds_against_time_from_the_first_scan(monkeypatch,
+                                                                         tmp_path):
+    t = np.arange(20) * PERIOD
+    seq = MemorySequence("drive", SensorInfo("radar", PERIOD), _scans())
+    given = []
+
+    def speeds(s):
+        given.append(s)
+        return {"stamps": t + 100, "speed_gt": 4 + 0 * t, "speed_doppler": 4 + 0.1 * np.sin(t)}
+
+    monkeypatch.setattr(insp, "speed_from_doppler", speeds)
+    figures = []
+    save = guard.savefig
+
+    def keep(fig, *args, **kwargs):
+        ax = fig.axes[0]
+        figures.append({
+            "lines": [(line.get_xdata(), line.get_ydata(), line.get_label(), line.get_marker())
+                      for line in ax.lines],
+            "xlabel": ax.get_xlabel(), "ylabel": ax.get_ylabel(), "title": ax.get_title(),
+            "legend": [x.get_text() for x in ax.get_legend().get_texts()]})
+        return save(fig, *args, **kwargs)
+
+    monkeypatch.setattr(insp.guard, "savefig", keep)
+    insp.plot_speed(seq, tmp_path / "speed.png")
+    assert given == [seq]
+    (fig,) = figures
+    (x_gt, y_gt, label_gt, _), (x_d, y_d, label_d, marker) = fig["lines"]
+    np.testing.assert_allclose(x_gt, t, atol=1e-12)
+    np.testing.assert_allclose(x_d, t, atol=1e-12)
+    np.testing.assert_allclose(y_gt, 4.0)
+    np.testing.assert_allclose(y_d, 4 + 0.1 * np.sin(t))
+    assert (label_gt, label_d, marker) == ("ground truth", "Doppler ego velocity", ".")
+    assert fig["legend"] == ["ground truth", "Doppler ego velocity"]
+    assert (fig["xlabel"], fig["ylabel"]) == ("time [s]", "speed [m/s]")
+    assert fig["title"] == "drive: speed from Doppler vs ground truth"
