@@ -239,6 +239,7 @@ def _show(monkeypatch, tmp_path, seq, kind, sign, findings=(), warn=None, plot=N
     monkeypatch.setattr(estimate, "rotation_consistent_text", lambda cal: f"consistent {cal}")
 
     def plotted(s, path):
+        assert s is seq
         calls["plot"] = path
         return path
 
@@ -299,6 +300,7 @@ def test_a_rotation_warning_and_the_plot(monkeypatch, tmp_path):
     assert "[yellow]warning:[/] rotated \\[by] 3 deg" in console.lines
     assert not any(line.startswith("consistent") for line in console.lines)
     assert console.lines[-1] == f"speed from Doppler vs GT: {plot}"
+    assert console.kwargs[-1] == {"markup": False}  # a path is no markup
     assert calls["plot"] == plot
     # no calibration could be made and no warning: nothing about the rotation
     console, _ = _show(monkeypatch, tmp_path, _with_gt(), RADIAL, CONFIRMED)
@@ -421,3 +423,30 @@ def test_the_speed_plot_shows_both_speeds_against_time_from_the_first_scan(monke
     assert fig["legend"] == ["ground truth", "Doppler ego velocity"]
     assert (fig["xlabel"], fig["ylabel"]) == ("time [s]", "speed [m/s]")
     assert fig["title"] == "drive: speed from Doppler vs ground truth"
+
+
+def test_a_single_scan_with_gt_and_doppler_gets_the_gt_checks(monkeypatch, tmp_path):
+    seq = MemorySequence("one", SensorInfo("radar", PERIOD), _scans(n=1), _gt(6))
+    console, calls = _show(monkeypatch, tmp_path, seq, RADIAL, CONFIRMED,
+                           rotation=("CAL", None))
+    assert calls == {"rotation": ("CAL", None)}
+    assert console.lines[-2:] == ["consistent CAL", "[green]clock of one \\[ok][/]"]
+
+
+def test_a_frame_folder_is_opened_with_the_period_given(sample_dir):
+    with pytest.warns(UserWarning, match="GT rows repeat the previous pose"):  # the sample's
+        seq = insp.open_sequence(sample_dir, 0.125)
+    assert type(seq).__name__ == "NpyFramesSequence" and len(seq) == 60
+    np.testing.assert_allclose(np.diff(seq.stamps), 0.125)
+
+
+def test_the_plot_is_not_written_over_a_file_of_someone_elses(monkeypatch, tmp_path):
+    t = np.arange(20) * PERIOD
+    monkeypatch.setattr(insp, "speed_from_doppler", lambda s: {
+        "stamps": t, "speed_gt": 4 + 0 * t, "speed_doppler": 4 + 0 * t})
+    theirs = tmp_path / "speed.png"
+    theirs.write_bytes(b"a photo")
+    seq = MemorySequence("n", SensorInfo("radar", PERIOD), _scans())
+    with pytest.raises(guard.Refused, match="a speed plot"):
+        insp.plot_speed(seq, theirs)
+    assert theirs.read_bytes() == b"a photo"
