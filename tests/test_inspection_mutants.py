@@ -450,3 +450,16 @@ def test_the_plot_is_not_written_over_a_file_of_someone_elses(monkeypatch, tmp_p
     with pytest.raises(guard.Refused, match="a speed plot"):
         insp.plot_speed(seq, theirs)
     assert theirs.read_bytes() == b"a photo"
+
+
+def test_ground_truth_without_poses_is_a_finding_not_a_crash():
+    """A store whose ground truth has no poses: inspect says so (it raised KeyError)."""
+    empty = Trajectory(np.zeros(0), np.zeros((0, 4, 4)))
+    seq = MemorySequence("e", SensorInfo("lidar", PERIOD), _scans(), empty)
+    report = insp.inspect_sequence(seq)
+    rows = dict(report["rows"])
+    assert rows["ground truth"] == "0 poses, path length 0.00 m"
+    assert rows["GT coverage of scans"] == "0.0 % (no poses)"
+    assert rows["frames scored"] == "0 of 6 have ground truth (the others run, unscored)"
+    assert report["gt_findings"] == ["ground truth has no poses"]
+    assert report["sign"].verdict == "inconclusive (no moving frames)"
