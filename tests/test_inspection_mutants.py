@@ -128,6 +128,10 @@ def test_the_calibration_applied_is_said_in_full():
     assert insp.calibration_text({"calibration": plain}) == (
         "applied roll +1.000, pitch +0.000, yaw -0.125 deg (R_gt_sensor, to the ground truth) "
         "from the doppler estimate")
+    # a record without angles: none applied
+    assert insp.calibration_text({"calibration": {"frames": [0, 4]}}) == (
+        "applied none deg (R_gt_sensor, to the ground truth) from the doppler estimate on "
+        "frames 0-3")
     # the applied angles win over the estimated ones; everything left alone: none applied
     both = {"applied_rpy_deg": [0.0, 0.0, 0.0], "roll_pitch_yaw_deg": [9.0, 9.0, 9.0],
             "left_alone": {"roll": "a", "pitch": "b", "yaw": "c"}}
