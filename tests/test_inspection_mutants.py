@@ -196,6 +196,7 @@ def test_the_rows_with_ground_truth_and_the_sign_checked():
     assert report["kind"].measured == "ego-compensated"
     assert report["sign"].verdict == "not checked (the Doppler is ego-compensated)"
     assert report["sign"].frames_used == 0
+    assert np.isnan(report["sign"].median_cosine) and np.isnan(report["sign"].median_speed_ratio)
 
 
 def test_ground_truth_out_of_time_order_is_a_finding_not_a_crash():
@@ -270,6 +271,8 @@ def test_agreeing_checks_are_green_and_the_gt_checks_follow(monkeypatch, tmp_pat
         f"[green]{RADIAL.describe()}[/]", f"[green]{CONFIRMED.describe()}[/]",
         "consistent CAL", "[green]clock of g \\[ok][/]"]
     assert console.kwargs[-2] == {"highlight": False, "markup": False}
+    # the warning and the clock line are printed as they are, no number highlighted
+    assert console.kwargs[0] == console.kwargs[-1] == {"highlight": False}
     assert "plot" not in calls
 
 
@@ -451,8 +454,10 @@ def test_the_plot_is_not_written_over_a_file_of_someone_elses(monkeypatch, tmp_p
     theirs = tmp_path / "speed.png"
     theirs.write_bytes(b"a photo")
     seq = MemorySequence("n", SensorInfo("radar", PERIOD), _scans())
-    with pytest.raises(guard.Refused, match="a speed plot"):
+    with pytest.raises(guard.Refused) as err:
         insp.plot_speed(seq, theirs)
+    assert str(err.value) == (f"{theirs}: exists and is not a speed plot the harness wrote; it "
+                              "is left as it is: choose another output")
     assert theirs.read_bytes() == b"a photo"
 
 
@@ -467,3 +472,9 @@ def test_ground_truth_without_poses_is_a_finding_not_a_crash():
     assert rows["frames scored"] == "0 of 6 have ground truth (the others run, unscored)"
     assert report["gt_findings"] == ["ground truth has no poses"]
     assert report["sign"].verdict == "inconclusive (no moving frames)"
+
+
+def test_the_duration_is_from_the_first_scan_to_the_last():
+    scans = [Scan(100.0 + k * PERIOD, np.ones((3, 3)) * (k + 2)) for k in range(6)]
+    seq = MemorySequence("late", SensorInfo("lidar", PERIOD), scans)
+    assert dict(insp.inspect_sequence(seq)["rows"])["duration"] == "0.625 s"
