@@ -177,9 +177,12 @@ def inspect_sequence(seq: Sequence) -> dict:
         rows.append(("ground truth", f"{len(gt)} poses, path length {gt.path_length_m():.2f} m"))
         sanity = gt_sanity_report(gt, stamps)
         gt_findings = list(sanity["findings"])
-        coverage = sanity.get("scan_coverage_pct", float("nan"))
-        rows.append(("GT coverage of scans", f"{coverage:.1f} %, {sanity['repeated_poses']} "
-                     f"repeated poses, {len(sanity['gaps'])} gaps"))
+        if len(gt) == 0:  # the report has only its finding ("ground truth has no poses")
+            rows.append(("GT coverage of scans", "0.0 % (no poses)"))
+        else:
+            rows.append(("GT coverage of scans", f"{sanity['scan_coverage_pct']:.1f} %, "
+                         f"{sanity['repeated_poses']} repeated poses, {len(sanity['gaps'])} "
+                         "gaps"))
         try:
             poses, scored = gt_for_frames(gt, stamps)
             rows.append(("frames scored", scored_text(scored, seq.provenance or {})))
