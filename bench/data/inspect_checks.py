@@ -135,7 +135,7 @@ def gt_clock_offset(stamps: np.ndarray, speed_doppler: np.ndarray, observable: n
                     gt, converted_offset_s: float = 0.0) -> ClockOffset:
     """The GT's clock lag: Doppler speeds at the scan ``stamps`` (``observable`` marks the
     frames where the ego velocity was observable) against the speed of the ground truth
-    ``gt`` (a ``Trajectory`` of T_world_sensor), on the whole sequence and on each half;
+    ``gt`` (a ``Trajectory`` of T_world_sensor), with its block-bootstrap interval;
     ``converted_offset_s``: the time offset the store was converted with (the suggested
     ``--time-offset`` adds to it)."""
     t = np.asarray(stamps, float)
@@ -208,7 +208,8 @@ def converted_offset(provenance: dict) -> float:
 def clock_offset_lines(seq: Sequence, speeds: dict) -> list[tuple[str, str]]:
     """(style, line) to print: the estimated GT clock lag (``speeds``: the output of
     ``methods.ego_velocity.speed_from_doppler``), and a warning with the ``--time-offset`` to
-    use when it exceeds one scan period and the spread of the two halves' estimates."""
+    use when the whole bootstrap interval lies beyond one scan period (a lag beyond a period
+    whose interval reaches within it: inconclusive)."""
     est = gt_clock_offset(speeds["stamps"], speeds["speed_doppler"], speeds["observable"],
                           seq.ground_truth, converted_offset(seq.provenance))
     if est.lag_s is None:
