@@ -17,8 +17,10 @@ import pytest
 from metrics.relative import (
     MetricError,
     SegmentErrors,
+    check_pose_pair,
     relative_errors,
     relative_segments,
+    rotation_angle_deg,
     segment_errors,
     segment_pairs,
     stats_from_segments,
@@ -180,3 +182,66 @@ def test_an_estimate_whose_translation_overflows_keeps_its_rotation_error():
         seg = segment_errors(gt, est, 1.0)
     assert seg.trans_m.size == 5 and not np.isfinite(seg.trans_m).any()
     np.testing.assert_array_equal(seg.rot_deg, 0.0)
+
+
+def test_rotation_angles_of_non_finite_or_huge_matrices_warn_nothing():
+    inf = np.tile(np.eye(3), (3, 1, 1))
+    inf[0] = np.inf  # inf - inf in the axis vector
+    inf[1, 0, 0] = np.inf
+    huge = np.tile(np.eye(3), (2, 1, 1)) * 1e308  # the trace overflows
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        angles = rotation_angle_deg(inf)
+        assert np.isnan(angles[:2]).all() and angles[2] == 0.0
+        np.testing.assert_array_equal(rotation_angle_deg(huge), 0.0)  # atan2(0, inf)
+
+
+def test_integer_poses_are_read_as_float():
+    gt = line_poses(np.arange(0.0, 12.0)).astype(int)
+    est = gt.copy()
+    est[:, 0, 3] *= 2
+    checked_gt, checked_est = check_pose_pair(gt, est)
+    assert checked_gt.dtype == np.float64 and checked_est.dtype == np.float64
+    np.testing.assert_allclose(segment_errors(gt, est, 4.0).trans_m, 4.0)
+
+
+def test_pose_arrays_are_named_in_their_messages():
+    gt = line_poses(np.arange(5.0))
+    for bad, name in (((gt[:, :3], gt), "gt_poses"), ((gt, gt[:, :, :3]), "est_poses")):
+        shape = bad[0].shape if name == "gt_poses" else bad[1].shape
+        with pytest.raises(MetricError, match="^" + re.escape(
+                f"{name} must have shape (N, 4, 4), got {shape}") + "$"):
+            check_pose_pair(*bad)
+    with pytest.raises(MetricError, match="^" + re.escape(
+            "gt_poses and est_poses must be associated 1:1, got 5 GT poses and 3 estimated "
+            "poses") + "$"):
+        check_pose_pair(gt, gt[:3])
+    nonfinite = gt.copy()
+    nonfinite[3, 1, 3] = np.nan
+    nonfinite[4, 0, 0] = np.inf
+    with pytest.raises(MetricError, match="^" + re.escape(
+            "gt_poses contain non-finite values at 2 poses (first: index 3)") + "$"):
+        check_pose_pair(nonfinite, gt)
+
+
+def test_an_empty_trajectory_is_refused_and_one_pose_is_a_trajectory():
+    empty = np.zeros((0, 4, 4))
+    with pytest.raises(MetricError, match="^empty trajectory: no poses given$"):
+        check_pose_pair(empty, empty)
+    one = line_poses([3.0])
+    gt, est = check_pose_pair(one, one)
+    assert gt.shape == est.shape == (1, 4, 4)
+    assert segment_errors(one, one, 1.0).trans_m.size == 0
+
+
+def test_a_pause_at_the_start_pairs_as_evo_does_with_a_wide_tolerance():
+    """GT pauses for three poses, then jumps 30 m: with tolerance 1 (a segment may be 0..2 L
+    long) the closest pose to 8 m from a pose in the pause is the next one in the pause (0 m,
+    8 m off; the jump is 22 m off); evo's first minimum of |d - L| over the later poses."""
+    from evo.core.filters import filter_pairs_by_path
+
+    dist = np.array([0.0, 0.0, 0.0, 30.0, 31.0])
+    start, end = segment_pairs(dist, 8.0, tolerance=1.0)
+    expected = filter_pairs_by_path(list(line_poses(dist)), 8.0, 8.0, all_pairs=True)
+    assert list(zip(start.tolist(), end.tolist(), strict=True)) == expected
+    assert expected[:2] == [(0, 1), (1, 2)]
