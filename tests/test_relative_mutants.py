@@ -245,3 +245,14 @@ def test_a_pause_at_the_start_pairs_as_evo_does_with_a_wide_tolerance():
     expected = filter_pairs_by_path(list(line_poses(dist)), 8.0, 8.0, all_pairs=True)
     assert list(zip(start.tolist(), end.tolist(), strict=True)) == expected
     assert expected[:2] == [(0, 1), (1, 2)]
+
+
+def test_an_infinite_segment_error_is_summarised_without_warnings():
+    seg = SegmentErrors(np.arange(3), np.arange(3) + 1, np.array([1.0, 2.0, np.inf]),
+                        np.array([0.5, np.inf, 0.5]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        stats = stats_from_segments(seg)
+    assert stats.trans_m_mean == np.inf and stats.trans_m_median == 0.5
+    assert np.isnan(stats.trans_m_std)  # inf - inf about the mean: undefined
+    assert stats.rot_deg_median == 2.0 and stats.rot_deg_rmse == np.inf
