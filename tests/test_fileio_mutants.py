@@ -160,3 +160,16 @@ def test_the_hdf5_writer_truncates_and_is_given_the_options(tmp_path):
         h5.create_dataset("x", data=[1, 2, 3])
     with h5py.File(path, "r") as h5:
         assert list(h5["x"][:]) == [1, 2, 3]
+
+
+def test_a_temporary_removed_by_someone_else_meanwhile_is_no_error(tmp_path, monkeypatch):
+    dest = tmp_path / "s.h5"
+    stale = temp_path(dest, 777)
+    stale.write_text("")
+
+    def gone_while_asking(pid):
+        stale.unlink()  # another process's clean-up got there first
+        return False
+
+    monkeypatch.setattr(fileio, "_pid_alive", gone_while_asking)
+    assert remove_stale_temps(dest) == []

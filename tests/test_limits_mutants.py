@@ -9,6 +9,7 @@ import pytest
 from loaders.errors import DataError
 from loaders.limits import (
     ENV_VAR,
+    NO_LIMIT,
     check_file_size,
     check_frame_bytes,
     file_number,
@@ -98,3 +99,18 @@ def test_a_file_name_without_a_number_is_refused(text):
     with pytest.raises(DataError, match=rf"^q\.bin: expected a number in the file name, got "
                                         rf"'{text}'$".replace(".5", r"\.5")):
         file_number(text, "q.bin")
+
+
+def test_sizes_in_the_message_are_rounded_megabytes(monkeypatch):
+    # 2,001.5 MB and 1.5 MB round (half to even) to 2,002 and 2: the sizes are bytes / 10^6
+    monkeypatch.setenv(ENV_VAR, "1.5")
+    with pytest.raises(DataError, match=r"^f: the frame would take 2,002 MB, above the "
+                                        r"per-frame limit of 2 MB"):
+        check_frame_bytes(2_001_500_000, "f")
+
+
+def test_a_limit_beyond_what_int64_holds_is_no_limit(monkeypatch):
+    monkeypatch.setenv(ENV_VAR, "1e13")  # 10^19 bytes > 2^63 - 1
+    assert max_frame_bytes() == NO_LIMIT
+    monkeypatch.setenv(ENV_VAR, "9223372000000")  # 9.223372e18 bytes: just below 2^63 - 1
+    assert max_frame_bytes() == 9_223_372_000_000_000_000 < NO_LIMIT
