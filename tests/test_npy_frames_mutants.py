@@ -197,15 +197,6 @@ def test_repeated_gt_poses_are_counted_and_warned_about(tmp_path):
     assert seq.repeated_gt_poses == 0 and msgs == []
 
 
-def test_the_repeated_pose_warning_points_at_the_callers_line(tmp_path):
-    folder = write_frames(tmp_path / "d", [1, 2])
-    write_tum(folder / "gt.txt", [0.0, 0.1], x=[0.0, 0.0])
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        NpyFramesSequence(folder, period_s=0.1)
-    assert caught[0].filename == __file__
-
-
 def test_an_unknown_association_is_refused(tmp_path):
     folder = write_frames(tmp_path / "d", [1, 2])
     write_tum(folder / "gt.txt", [0.0, 0.1])
