@@ -273,3 +273,104 @@ def test_a_header_promising_more_than_the_limit_is_refused_before_reading(tmp_pa
         f.write(b"\0" * 64)
     with pytest.raises(DataError, match=r"frame_002\.npy, frame 1: cannot read the frame \("):
         seq.scan(1)
+
+
+def test_unpadded_numbers_are_ordered_as_numbers(tmp_path):
+    folder = tmp_path / "d"
+    folder.mkdir()
+    for k in (10, 9, 100):
+        np.save(folder / f"frame_{k}.npy", np.full((2, 3), float(k)))
+        np.save(folder / f"frame_{k}_dop.npy", np.zeros(2))
+    assert [f.name for f in find_frames(folder)[1]] == ["frame_9.npy", "frame_10.npy",
+                                                       "frame_100.npy"]
+
+
+def test_two_files_of_one_number_record_no_frame_range(tmp_path):
+    folder = write_frames(tmp_path / "d", [5])
+    np.save(folder / "frame_5.npy", np.zeros((5, 3)))
+    np.save(folder / "frame_5_dop.npy", np.zeros(5))
+    seq, _ = load(folder, period_s=0.1)
+    assert len(seq) == 2 and "frame_range" not in seq.provenance
+
+
+def test_two_files_with_a_stride_record_it(tmp_path):
+    seq, _ = load(write_frames(tmp_path / "d", [4, 6]), period_s=0.1)
+    assert seq.provenance["frame_range"] == {"start": 4, "frames": 2, "stride": 2,
+                                             "from": "file numbers"}
+
+
+def test_a_folder_without_gt_records_no_repeated_poses(tmp_path):
+    seq, _ = load(write_frames(tmp_path / "d", [1, 2]), period_s=0.1)
+    assert seq.repeated_gt_poses == 0 and seq.provenance["repeated_gt_poses"] == 0
+    assert seq.provenance["gt"] is None
+
+
+def test_the_messages_that_ask_for_an_option_name_it(tmp_path):
+    folder = write_frames(tmp_path / "d", [1, 2, 3])
+    with pytest.raises(DataError, match=re.escape(
+            "give the scan period (--period SECONDS, e.g. 0.0833333 for a 12 Hz radar), or "
+            "--stamps-from-gt when the TUM file's stamps are the sensor clock") + "$"):
+        NpyFramesSequence(folder)
+    with pytest.raises(DataError, match=re.escape(
+            "(3 frames, 0 rows); give the scan period (--period SECONDS) instead") + "$"):
+        NpyFramesSequence(folder, stamps_from_gt=True)
+    gt = write_tum(folder / "gt.txt", [0.0, 0.1])
+    with pytest.raises(DataError, match="^" + re.escape(
+            f"{gt}: 2 GT rows but 3 frames in {folder}; association by order needs one row "
+            "per frame (use associate='time')") + "$"):
+        NpyFramesSequence(folder, period_s=0.1)
+    (folder / "other.txt").write_text("")
+    with pytest.raises(DataError, match=re.escape(
+            "(gt.txt, other.txt); name the ground truth with --gt FILE (option gt)") + "$"):
+        NpyFramesSequence(folder, period_s=0.1)
+
+
+def test_options_pass_the_association_on(tmp_path):
+    folder = write_frames(tmp_path / "d", [1, 2, 3])
+    write_tum(folder / "gt.txt", [0.0, 0.1, 0.2, 0.3, 0.4])  # 5 rows: only time can associate
+    seq = NpyFramesSequence.open([folder], Options(period_s=0.1, associate="time"))
+    assert seq.provenance["gt_association"] == "time"
+    np.testing.assert_allclose(seq.ground_truth.stamps, [0.0, 0.1, 0.2])
+
+
+def test_time_association_names_the_files_in_its_report_and_warning(tmp_path):
+    folder = write_frames(tmp_path / "d", [1, 2, 3, 4, 5, 6])
+    gt = write_tum(folder / "gt.txt", [0.0, 0.1, 0.2, 0.3])  # frames at 0.4, 0.5 uncovered
+    seq, msgs = load(folder, period_s=0.1, associate="time")
+    assert len(seq) == 6 and len(seq.ground_truth) == 4
+    assert seq.gt_report["gt_file"] == str(gt)
+    assert any(m.startswith(f"{folder}: ") and str(gt) in m for m in msgs), msgs
+
+
+def test_a_gt_with_repeated_stamps_bridges_gaps_of_its_moving_steps(tmp_path):
+    """Rows repeat each stamp (a 5 Hz GT written three times a step): the largest gap bridged
+    is 3 of its steps that advance (0.2 s: 0.6 s), not 3 x 0 s, so every frame is scored."""
+    folder = write_frames(tmp_path / "d", range(1, 8))
+    t = np.repeat([0.0, 0.2, 0.4, 0.6], 3)
+    write_tum(folder / "gt.txt", t, x=t * 10.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the duplicate rows are reported
+        seq = NpyFramesSequence(folder, period_s=0.1, associate="time")
+    np.testing.assert_allclose(seq.ground_truth.stamps, np.arange(7) * 0.1, atol=1e-12)
+    np.testing.assert_allclose(seq.ground_truth.poses[:, 0, 3], np.arange(7) * 1.0, atol=1e-9)
+
+
+def test_a_doppler_file_above_the_limit_names_the_frame(tmp_path, monkeypatch):
+    folder = write_frames(tmp_path / "d", [1, 2], n_points=3)
+    np.save(folder / "frame_002_dop.npy", np.zeros(2000))  # 16 kB
+    seq, _ = load(folder, period_s=0.1)
+    monkeypatch.setenv(ENV_VAR, "0.01")
+    with pytest.raises(DataError, match=r"^" + re.escape(str(folder / "frame_002.npy")) +
+                       r", frame 1: the file \(16,128 bytes\)"):
+        seq.scan(1)
+
+
+def test_a_header_claiming_petabytes_is_refused_without_allocating(tmp_path):
+    folder = write_frames(tmp_path / "d", [1, 2])
+    with open(folder / "frame_002.npy", "wb") as f:
+        np.lib.format.write_array_header_1_0(f, {"descr": "<f8", "fortran_order": False,
+                                                 "shape": (10**15, 3)})
+        f.write(b"\0" * 240)
+    seq, _ = load(folder, period_s=0.1)
+    with pytest.raises(DataError, match=r"frame_002\.npy, frame 1: cannot read the frame"):
+        seq.scan(1)
