@@ -90,7 +90,8 @@ def test_file_numbers_up_to_int64_are_read(text, value):
 def test_file_numbers_beyond_int64_or_19_digits_are_refused(text, digits):
     with pytest.raises(DataError, match=rf"^dir/{text}\.bin: the number in the file name has "
                                         rf"{digits} digits; expected a frame index or a stamp "
-                                        r"of at most 19 digits"):
+                                        r"of at most 19 digits \(below 2\^63\): a stray file\? "
+                                        r"move it out of the folder$"):
         file_number(text, f"dir/{text}.bin")
 
 
