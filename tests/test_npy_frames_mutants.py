@@ -132,11 +132,14 @@ def test_options_open_the_sequence_with_every_option(tmp_path):
 
 def test_stamps_from_the_gt_file_set_the_period_to_their_median_step(tmp_path):
     folder = write_frames(tmp_path / "d", [1, 2, 3, 4, 5])
-    write_tum(folder / "gt.txt", [1.0, 1.1, 1.2, 1.5, 1.6])  # steps 0.1, 0.1, 0.3, 0.1
+    write_tum(folder / "gt.txt", [1.0, 1.2, 1.4, 1.9, 2.1])  # steps 0.2, 0.2, 0.5, 0.2
     seq, _ = load(folder, stamps_from_gt=True)
-    np.testing.assert_allclose(seq.stamps, [1.0, 1.1, 1.2, 1.5, 1.6])
-    assert seq.sensor.period_s == pytest.approx(0.1)
-    assert seq.provenance["period_s"] == pytest.approx(0.1)
+    np.testing.assert_allclose(seq.stamps, [1.0, 1.2, 1.4, 1.9, 2.1])
+    assert seq.sensor.period_s == pytest.approx(0.2)
+    assert seq.provenance["period_s"] == pytest.approx(0.2)
+    two = write_frames(tmp_path / "two", [1, 2])
+    write_tum(two / "gt.txt", [5.0, 5.3])
+    assert load(two, stamps_from_gt=True)[0].sensor.period_s == pytest.approx(0.3)
 
 
 def test_a_single_frame_stamped_from_the_gt_gets_a_tenth_of_a_second(tmp_path):
