@@ -217,9 +217,10 @@ def test_the_frame_range_is_recorded_and_composes_with_an_earlier_cut():
 
 def test_on_finds_values_within_a_microsecond_of_unsorted_stamps():
     stamps = np.array([3.0, 1.0, 2.0])
-    values = np.array([1.0 + 0.9e-6, 2.0 - 0.9e-6, 3.0 + 1.1e-6, 0.0, 5.0, 1.5])
-    assert _on(values, stamps).tolist() == [True, True, False, False, False, False]
-    assert _on(np.array([1.0, 2.0]), np.array([])).tolist() == [False, False]
+    values = np.array([1.0 + 0.9e-6, 2.0 - 0.9e-6, 3.0 + 1.1e-6, 0.0, 5.0, 1.5, 2.0 + 0.5e-6])
+    assert _on(values, stamps).tolist() == [True, True, False, False, False, False, True]
+    none = _on(np.array([1.0, 2.0]), np.array([]))
+    assert none.dtype == bool and none.tolist() == [False, False]
     assert _on(np.array([2.5]), stamps, tolerance_s=0.5).tolist() == [True]
     assert _all_on(np.array([1.0, 3.0]), stamps) is True
     assert _all_on(np.array([1.0, 3.1]), stamps) is False
@@ -243,3 +244,10 @@ def test_range_names():
     assert range_name("data1", np.arange(60, 250)) == "data1_frames60-249"
     assert range_name("data1", np.arange(60, 439, 2)) == "data1_frames60-438_every2"
     assert range_name("d", np.array([7])) == "d_frames7-7"
+    assert range_name("d", np.array([4, 7])) == "d_frames4-7_every3"
+
+
+def test_a_range_starts_at_the_first_frame_by_default():
+    cut = FrameRange(sequence(10), frames=2)
+    np.testing.assert_array_equal(cut.indices, [0, 1])
+    assert cut.provenance["frame_range"] == {"start": 0, "frames": 2, "stride": 1}
