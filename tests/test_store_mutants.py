@@ -11,6 +11,7 @@ every expected message or value is the one the damage implies."""
 import json
 import pickle
 import re
+import warnings
 from pathlib import Path
 
 import h5py
@@ -347,7 +348,7 @@ def test_a_stream_of_small_scans_is_read_in_one_block(tmp_path, monkeypatch):
     real = seq._read_block
     monkeypatch.setattr(seq, "_read_block", lambda lo, hi: (reads.append((lo, hi)),
                                                             real(lo, hi))[1])
-    for k in (0, 1, 5, 2):
+    for k in (0, 1, 5, 2, 0):
         np.testing.assert_array_equal(seq[k].points[:, 0], [k, k, k])
     assert reads == [(0, 3)]
     block = seq._block
@@ -400,3 +401,45 @@ def test_scans_carry_the_arrays_asked_for_that_the_store_has(tmp_path):
     no_doppler = stored(tmp_path, "n.h5", doppler=False, fields=())
     seq = StoreSequence(no_doppler)
     assert not seq.has_doppler and seq.reads == () and seq[0].doppler is None
+
+
+@pytest.mark.parametrize("value", [np.inf, np.nan, 1e200])
+def test_non_finite_or_huge_gt_poses_are_refused_without_runtime_warnings(tmp_path, value):
+    path = bad_gt(tmp_path, 1, np.full((4, 4), value))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(DataError, match="ground-truth pose 1 .* is not a rigid transform"):
+            StoreSequence(path)
+
+
+def test_a_file_that_is_not_hdf5_says_to_convert_it(tmp_path):
+    path = tmp_path / "run.bag"
+    path.write_bytes(b"#ROSBAG V2.0\n")
+    with pytest.raises(DataError, match="^" + re.escape(
+            f"{path}: not an HDF5 file (truncated, or not a store: a raw recording is converted "
+            "first with `bench convert LOADER`)") + "$"):
+        StoreSequence(path)
+
+
+class FailingOnce:
+    """A dataset whose first read fails (a checksum error), later reads succeed."""
+
+    def __init__(self, ds):
+        self.ds, self.failed = ds, False
+
+    def __getitem__(self, key):
+        if not self.failed:
+            self.failed = True
+            raise OSError("Can't read data (checksum)")
+        return self.ds[key]
+
+
+def test_a_failed_block_read_is_retried_on_the_next_scan(tmp_path, monkeypatch):
+    monkeypatch.setattr(store_module, "CHUNK_POINTS", 4)
+    monkeypatch.setattr(store_module, "BLOCK_POINTS", 5)
+    seq = StoreSequence(stored(tmp_path, n=8, points=3))
+    seq[0]  # block 0 .. 8
+    seq._datasets["xyz"] = FailingOnce(seq._datasets["xyz"])
+    with pytest.raises(DataError, match=r"frame 7: cannot read points"):
+        seq[7]
+    np.testing.assert_array_equal(seq[7].points[:, 0], [7, 7, 7])
