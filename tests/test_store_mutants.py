@@ -11,6 +11,7 @@ every expected message or value is the one the damage implies."""
 import json
 import pickle
 import re
+import time
 import warnings
 from pathlib import Path
 
@@ -443,3 +444,17 @@ def test_a_failed_block_read_is_retried_on_the_next_scan(tmp_path, monkeypatch):
     with pytest.raises(DataError, match=r"frame 7: cannot read points"):
         seq[7]
     np.testing.assert_array_equal(seq[7].points[:, 0], [7, 7, 7])
+
+
+def test_a_store_written_a_second_later_is_byte_identical(tmp_path):
+    """No dataset carries its creation time (HDF5 records it in whole seconds)."""
+    first = stored(tmp_path, "a.h5").read_bytes()
+    time.sleep(1.1)
+    assert stored(tmp_path, "b.h5").read_bytes() == first
+
+
+def test_a_frame_without_the_doppler_of_frame_0_is_named(tmp_path):
+    scans = [Scan(0.0, np.ones((2, 3)), np.zeros(2)), Scan(0.1, np.ones((2, 3)))]
+    with pytest.raises(DataError, match=r"^d, frame 1: Doppler is missing but was present in "
+                                        r"frame 0$"):
+        write_store(MemorySequence("d", SensorInfo("radar", 0.1), scans), tmp_path / "d.h5")
