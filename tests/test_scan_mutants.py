@@ -86,7 +86,7 @@ def test_non_finite_rows_are_counted_once_per_row():
                                         r"expected finite values \(drop NaN points in the "
                                         r"loader and report the count\)$"):
         Scan(0.0, pts)
-    with pytest.raises(DataError, match=r"doppler has 1 non-finite rows \(first at row 4\)"):
+    with pytest.raises(DataError, match=r"^doppler has 1 non-finite rows \(first at row 4\)"):
         Scan(0.0, points(5), [0, 0, 0, 0, np.nan])
 
 

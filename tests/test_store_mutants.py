@@ -458,3 +458,12 @@ def test_a_frame_without_the_doppler_of_frame_0_is_named(tmp_path):
     with pytest.raises(DataError, match=r"^d, frame 1: Doppler is missing but was present in "
                                         r"frame 0$"):
         write_store(MemorySequence("d", SensorInfo("radar", 0.1), scans), tmp_path / "d.h5")
+
+
+def test_a_sequence_without_a_name_is_named_by_its_store_path(tmp_path):
+    seq = MemorySequence("x", SensorInfo("radar", 0.1), [])
+    del seq.name
+    path = tmp_path / "out.h5"
+    with pytest.raises(DataError, match="^" + re.escape(
+            f"{path}: the sequence has no frames; nothing to store") + "$"):
+        write_store(seq, path)
