@@ -173,7 +173,8 @@ class NpyFramesSequence(OpensFromOptions, Sequence):
                     f"{path}: {len(traj)} GT rows but {n} frames in {self.frame_dir}; "
                     "association by order needs one row per frame (use associate='time')"
                 )
-            steps = np.abs(np.diff(traj.poses[:, :3, :], axis=0)).reshape(n - 1, -1).max(axis=1)
+            # the largest change of any pose entry per step (none for a single frame)
+            steps = np.abs(np.diff(traj.poses[:, :3, :], axis=0)).max(axis=(1, 2))
             self.repeated_gt_poses = int((steps == 0).sum())
             if self.repeated_gt_poses:
                 warnings.warn(

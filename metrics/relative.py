@@ -110,9 +110,9 @@ def rotation_angle_deg(rotations: np.ndarray) -> np.ndarray:
     (the tests compare the two), where ``arccos`` of the trace loses half the digits near 0;
     vectorised, a fifth of scipy's time."""
     r = np.asarray(rotations, dtype=np.float64)
-    v = np.stack([r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0], r[:, 1, 0] - r[:, 0, 1]],
-                 axis=1)
-    with np.errstate(invalid="ignore", over="ignore"):
+    with np.errstate(invalid="ignore", over="ignore"):  # inf - inf in v: NaN, set below
+        v = np.stack([r[:, 2, 1] - r[:, 1, 2], r[:, 0, 2] - r[:, 2, 0],
+                      r[:, 1, 0] - r[:, 0, 1]], axis=1)
         out = np.degrees(np.arctan2(np.linalg.norm(v, axis=1),
                                     r[:, 0, 0] + r[:, 1, 1] + r[:, 2, 2] - 1.0))
     out[~np.all(np.isfinite(r), axis=(1, 2))] = np.nan
