@@ -65,7 +65,8 @@ class RelativeErrorStats:
 
 
 def check_pose_pair(gt_poses: np.ndarray, est_poses: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Validate (N,4,4) GT/est arrays of equal length with finite GT; return float64 copies."""
+    """Validate (N,4,4) GT/est arrays of equal length with finite GT; return them as float64 (the
+    same arrays when they already are: callers must not change them)."""
     gt = np.asarray(gt_poses, dtype=np.float64)
     est = np.asarray(est_poses, dtype=np.float64)
     for name, arr in (("gt_poses", gt), ("est_poses", est)):
