@@ -1,0 +1,511 @@
+"""loaders.rosbag on tiny bags written here with rosbags' own writers (a few clouds of a few
+points, in-process): random access in a ROS2 bag, the stamps, the fields by name, the ground
+truth topics, the description of a bag `bench export` wrote, and one clear error for each bad
+input (make mutate's survivors; the broad cases: test_loader_rosbag.py)."""
+
+import struct
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from loaders.errors import DataError
+from loaders.rosbag import (
+    DESCRIPTION_TOPIC,
+    Options,
+    RosbagSequence,
+    _cdr_header_stamp,
+    bag_topics,
+    described_options,
+    read_description,
+    read_gt_topic,
+)
+
+CLOUD2 = "sensor_msgs/msg/PointCloud2"
+CLOUD1 = "sensor_msgs/msg/PointCloud"
+ODOM = "nav_msgs/msg/Odometry"
+POSE = "geometry_msgs/msg/PoseStamped"
+POSE_COV = "geometry_msgs/msg/PoseWithCovarianceStamped"
+STRING = "std_msgs/msg/String"
+
+
+def typestore(ros1: bool):
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+
+
+def header(T, t: float, ros1: bool, frame: str = "radar"):
+    sec = int(np.floor(t))
+    stamp = T["builtin_interfaces/msg/Time"](sec=sec, nanosec=int(round((t - sec) * 1e9)))
+    if ros1:
+        return T["std_msgs/msg/Header"](seq=0, stamp=stamp, frame_id=frame)
+    return T["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
+
+
+def cloud2(store, t, cols: dict[str, np.ndarray], ros1: bool):
+    """A PointCloud2 of float32 fields ``cols`` (name -> values), packed at 4-byte steps."""
+    T = store.types
+    names = list(cols)
+    arr = np.zeros(len(cols[names[0]]), dtype=[(n, "<f4") for n in names])
+    for n in names:
+        arr[n] = cols[n]
+    PF = T["sensor_msgs/msg/PointField"]
+    return T[CLOUD2](
+        header=header(T, t, ros1), height=1, width=len(arr),
+        fields=[PF(name=n, offset=4 * i, datatype=7, count=1) for i, n in enumerate(names)],
+        is_bigendian=False, point_step=4 * len(names), row_step=4 * len(names) * len(arr),
+        data=np.frombuffer(arr.tobytes(), dtype=np.uint8), is_dense=True)
+
+
+def cloud1(store, t, points: np.ndarray, channels: dict[str, np.ndarray], ros1: bool):
+    T = store.types
+    P32, CH = T["geometry_msgs/msg/Point32"], T["sensor_msgs/msg/ChannelFloat32"]
+    return T[CLOUD1](
+        header=header(T, t, ros1),
+        points=[P32(x=float(x), y=float(y), z=float(z)) for x, y, z in points],
+        channels=[CH(name=n, values=np.asarray(v, dtype=np.float32))
+                  for n, v in channels.items()])
+
+
+def pose_msg(store, msgtype, t, xyz, quat, ros1: bool):
+    T = store.types
+    pose = T["geometry_msgs/msg/Pose"](
+        position=T["geometry_msgs/msg/Point"](x=xyz[0], y=xyz[1], z=xyz[2]),
+        orientation=T["geometry_msgs/msg/Quaternion"](x=quat[0], y=quat[1], z=quat[2],
+                                                      w=quat[3]))
+    h = header(T, t, ros1, "map")
+    if msgtype == POSE:
+        return T[POSE](header=h, pose=pose)
+    with_cov = T["geometry_msgs/msg/PoseWithCovariance"](pose=pose, covariance=np.zeros(36))
+    if msgtype == POSE_COV:
+        return T[POSE_COV](header=h, pose=with_cov)
+    zero = T["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+    return T[ODOM](header=h, child_frame_id="base_link", pose=with_cov,
+                   twist=T["geometry_msgs/msg/TwistWithCovariance"](
+                       twist=T["geometry_msgs/msg/Twist"](linear=zero, angular=zero),
+                       covariance=np.zeros(36)))
+
+
+def write(path, topics, ros1: bool | None = None, storage: str = "sqlite3"):
+    """A bag at ``path`` (ROS1 when it ends in .bag) of ``topics``: [(topic, msgtype,
+    [(record time [s], message)])]."""
+    ros1 = path.suffix == ".bag" if ros1 is None else ros1
+    T = typestore(ros1)
+    if ros1:
+        from rosbags.rosbag1 import Writer
+
+        writer = Writer(path)
+    else:
+        from rosbags.rosbag2 import StoragePlugin, Writer
+
+        plugin = StoragePlugin.MCAP if storage == "mcap" else StoragePlugin.SQLITE3
+        writer = Writer(path, version=9, storage_plugin=plugin)
+    with writer as w:
+        for topic, msgtype, msgs in topics:
+            conn = w.add_connection(topic, msgtype, typestore=T)
+            for t, msg in msgs:
+                data = T.serialize_ros1(msg, msgtype) if ros1 else T.serialize_cdr(msg, msgtype)
+                w.write(conn, int(round(t * 1e9)), data)
+    return path
+
+
+RNG = np.random.default_rng(7)
+PTS = [RNG.uniform(-10, 10, (4, 3)) for _ in range(4)]
+VEL = [RNG.uniform(-3, 3, 4) for _ in range(4)]
+
+
+def xyzv(k: int, **extra) -> dict[str, np.ndarray]:
+    p = PTS[k]
+    return {"x": p[:, 0], "y": p[:, 1], "z": p[:, 2], "velocity": VEL[k], **extra}
+
+
+def cloud_bag(path, stamps, records=None, ros1=None, storage="sqlite3", extra=None):
+    """Clouds of frame k = 0, 1, ... at header stamps ``stamps`` and record times
+    ``records`` (default: the stamps + 3 ms)."""
+    ros1 = path.suffix == ".bag" if ros1 is None else ros1
+    T = typestore(ros1)
+    records = [t + 0.003 for t in stamps] if records is None else records
+    msgs = [(r, cloud2(T, t, xyzv(k, **(extra or {})), ros1))
+            for k, (t, r) in enumerate(zip(stamps, records, strict=True))]
+    return write(path, [("/radar", CLOUD2, msgs)], ros1, storage)
+
+
+def f32(a):
+    return np.asarray(a, dtype=np.float32).astype(np.float64)
+
+
+# -- stamps and random access ------------------------------------------------------------------
+
+@pytest.mark.parametrize("name", ["rec.bag", "rec"])
+def test_clouds_recorded_out_of_stamp_order_are_read_in_stamp_order(tmp_path, name):
+    # frame k is at stamp s[k]; recorded in the order 2, 0, 3, 1 at times 1..4 s; frames 0
+    # and 1 share record time 2 s
+    stamps = [10.2, 10.0, 10.3, 10.1]
+    path = cloud_bag(tmp_path / name, stamps, records=[3.0, 2.0, 4.0, 2.0])
+    seq = RosbagSequence(path, doppler_field="velocity")
+    try:
+        np.testing.assert_allclose(seq.stamps, [10.0, 10.1, 10.2, 10.3], rtol=0, atol=1e-9)
+        by_time = [1, 3, 0, 2]  # the frame at each sorted stamp
+        for i in (2, 0, 3, 1, 1, 2, 3, 0):  # random order, repeats
+            s = seq.scan(i)
+            k = by_time[i]
+            np.testing.assert_array_equal(s.points, f32(PTS[k]))
+            np.testing.assert_array_equal(s.doppler, f32(VEL[k]))
+            assert s.stamp == pytest.approx(stamps[k], abs=1e-9)
+        assert [seq.scan(i).stamp for i in range(4)] == pytest.approx(sorted(stamps), abs=1e-9)
+    finally:
+        seq.close()
+    assert seq.sensor.period_s == pytest.approx(0.1)
+
+
+def test_ros2_messages_sharing_a_record_time_are_each_found_again(tmp_path):
+    stamps = [1.0, 1.1, 1.2, 1.3]
+    path = cloud_bag(tmp_path / "same", stamps, records=[5.0, 5.0, 5.0, 6.0])
+    seq = RosbagSequence(path, doppler_field="velocity")
+    try:
+        for i in (2, 1, 0, 3, 2, 3, 0, 1, 2):
+            np.testing.assert_array_equal(seq.scan(i).points, f32(PTS[i]))
+    finally:
+        seq.close()
+    again = RosbagSequence(path, doppler_field="velocity")  # after close: opened again
+    try:
+        np.testing.assert_array_equal(again.scan(1).points, f32(PTS[1]))
+        again.close()
+        np.testing.assert_array_equal(again.scan(2).points, f32(PTS[2]))
+    finally:
+        again.close()
+
+
+@pytest.mark.parametrize("name", ["r.bag", "r"])
+def test_record_stamps_are_the_record_times(tmp_path, name):
+    path = cloud_bag(tmp_path / name, [0.0, 0.0, 0.0], records=[2.5, 2.6, 2.75])
+    seq = RosbagSequence(path, doppler_field="velocity", stamp="record")
+    np.testing.assert_allclose(seq.stamps, [2.5, 2.6, 2.75], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(seq.scan(2).points, f32(PTS[2]))
+    seq.close()
+
+
+def test_a_repeated_header_stamp_drops_the_later_frame_with_a_warning(tmp_path):
+    path = cloud_bag(tmp_path / "rep", [1.0, 1.1, 1.1, 1.2])
+    with pytest.warns(UserWarning, match="1 scans with a repeated header stamp dropped"):
+        seq = RosbagSequence(path, doppler_field="velocity")
+    assert len(seq) == 3 and seq.provenance["repeated_stamps_dropped"] == 1
+    assert seq.provenance["messages"] == 4
+    np.testing.assert_array_equal(seq.scan(2).points, f32(PTS[3]))
+    seq.close()
+
+
+def test_cdr_header_stamp_reads_either_byte_order():
+    little = bytes([0, 1, 0, 0]) + struct.pack("<iI", 7, 250_000_000) + b"rest"
+    big = bytes([0, 0, 0, 0]) + struct.pack(">iI", 7, 250_000_000)
+    assert _cdr_header_stamp(little) == pytest.approx(7.25, abs=1e-12)
+    assert _cdr_header_stamp(big) == pytest.approx(7.25, abs=1e-12)
+    assert _cdr_header_stamp(bytes([0, 1, 0, 0]) + struct.pack("<iI", -3, 5)) == \
+        pytest.approx(-3 + 5e-9, abs=1e-15)
+    assert np.isnan(_cdr_header_stamp(b"\x00\x01\x00\x00" + b"\x00" * 7))
+
+
+def test_one_cloud_has_the_default_period_and_the_bags_stem_as_name(tmp_path):
+    seq = RosbagSequence(cloud_bag(tmp_path / "drive_7.bag", [3.0]), doppler_field="velocity")
+    assert seq.name == "drive_7" and len(seq) == 1
+    assert seq.sensor.period_s == 0.1  # no step between stamps: the default
+    seq.close()
+
+
+# -- fields -------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("name", ["f.bag", "f"])
+def test_fields_by_name_lowercased_and_clashes_renamed(tmp_path, name):
+    extra = {"Power": np.arange(4.0), "power": 10 + np.arange(4.0), "Doppler": -np.ones(4),
+             "X": 5 * np.ones(4)}
+    path = cloud_bag(tmp_path / name, [1.0, 1.1], extra=extra)
+    seq = RosbagSequence(path, doppler_field="velocity", doppler_sign=-1)
+    s = seq.scan(1)
+    assert sorted(s.fields) == ["field_doppler", "field_power", "field_x", "power"]
+    np.testing.assert_array_equal(s.fields["power"], np.arange(4.0))  # the first of the name
+    np.testing.assert_array_equal(s.fields["field_power"], 10 + np.arange(4.0))
+    np.testing.assert_array_equal(s.fields["field_doppler"], -np.ones(4))
+    np.testing.assert_array_equal(s.fields["field_x"], 5 * np.ones(4))
+    assert s.fields["power"].dtype == np.float32
+    np.testing.assert_array_equal(s.doppler, -f32(VEL[1]))  # the sign applied
+    np.testing.assert_array_equal(s.points, f32(PTS[1]))
+    seq.close()
+
+
+def test_scans_without_doppler_keep_the_velocity_as_a_field(tmp_path):
+    seq = RosbagSequence(cloud_bag(tmp_path / "n.bag", [1.0, 1.1]), doppler_field="none")
+    s = seq.scan(0)
+    assert s.doppler is None and sorted(s.fields) == ["velocity"]
+    np.testing.assert_array_equal(s.fields["velocity"], f32(VEL[0]))
+    assert seq.provenance["doppler_field"] == "none"
+    seq.close()
+
+
+def test_a_cloud_without_z_names_the_missing_field(tmp_path):
+    T = typestore(False)
+    msgs = [(1.0, cloud2(T, 1.0, {"x": np.ones(2), "y": np.ones(2), "v": np.ones(2)}, False))]
+    path = write(tmp_path / "noz", [("/radar", CLOUD2, msgs)], False)
+    seq = RosbagSequence(path, doppler_field="v")
+    with pytest.raises(DataError, match=r"no z field\(s\); fields are x y v$") as err:
+        seq.scan(0)
+    assert str(path) in str(err.value) and "(frame 0)" in str(err.value)
+    seq.close()
+
+
+def test_a_missing_doppler_field_says_how_to_name_it(tmp_path):
+    seq = RosbagSequence(cloud_bag(tmp_path / "m.bag", [1.0]))
+    with pytest.raises(DataError, match="no Doppler field 'doppler'; the sensor_msgs/msg/"
+                       "PointCloud2 has x y z velocity \\(name it with --doppler-field, option "
+                       "doppler_field; --doppler-field none: scans without Doppler\\)"):
+        seq.scan(0)
+    seq.close()
+
+
+@pytest.mark.parametrize("ros1", [True, False])
+def test_pointcloud_channels_are_fields_the_first_of_a_name_kept(tmp_path, ros1):
+    T = typestore(ros1)
+    pts = np.array([[1.0, 2.0, 3.0], [4.0, 5.0, 6.0], [-1.0, 0.5, 2.0]])
+    chans = {"velocity": np.array([0.5, -1.0, 2.0]), "power": np.array([1.0, 2.0, 3.0])}
+    msg = cloud1(T, 2.0, pts, chans, ros1)
+    msg.channels.append(T.types["sensor_msgs/msg/ChannelFloat32"](
+        name="power", values=np.array([9.0, 9.0, 9.0], dtype=np.float32)))
+    path = write(tmp_path / ("p.bag" if ros1 else "p"), [("/pc", CLOUD1, [(2.0, msg)])], ros1)
+    seq = RosbagSequence(path, doppler_field="velocity")
+    s = seq.scan(0)
+    np.testing.assert_array_equal(s.points, pts)
+    np.testing.assert_array_equal(s.doppler, chans["velocity"])
+    assert list(s.fields) == ["power"]
+    np.testing.assert_array_equal(s.fields["power"], chans["power"])
+    seq.close()
+
+
+def test_a_ros2_channel_of_the_wrong_length_is_refused(tmp_path):
+    T = typestore(False)
+    msg = cloud1(T, 2.0, np.ones((3, 3)), {"velocity": np.ones(3), "power": np.ones(2)}, False)
+    path = write(tmp_path / "bad", [("/pc", CLOUD1, [(2.0, msg)])], False)
+    seq = RosbagSequence(path, doppler_field="velocity")
+    with pytest.raises(DataError, match="channel 'power' has 2 values for 3 points; expected "
+                       "one per point"):
+        seq.scan(0)
+    seq.close()
+
+
+# -- ground truth topics -----------------------------------------------------------------------
+
+POSES_T = [5.2, 5.0, 5.1]  # recorded out of stamp order
+XYZ = np.array([[2.0, 0.0, 0.0], [0.0, 0.0, 0.0], [1.0, 0.5, 0.0]])
+ROTVEC = np.array([[0, 0, 0.2], [0, 0, 0.0], [0.1, 0, 0.1]])
+
+
+def gt_bag(path, msgtype, scale=1.0, ros1=None):
+    ros1 = path.suffix == ".bag" if ros1 is None else ros1
+    T = typestore(ros1)
+    msgs = []
+    for k, t in enumerate(POSES_T):
+        q = Rotation.from_rotvec(ROTVEC[k]).as_quat() * scale
+        msgs.append((1.0 + k, pose_msg(T, msgtype, t, XYZ[k], q, ros1)))
+    return write(path, [("/gt", msgtype, msgs)], ros1)
+
+
+@pytest.mark.parametrize("msgtype", [ODOM, POSE, POSE_COV])
+@pytest.mark.parametrize("name", ["g.bag", "g"])
+def test_a_pose_topic_is_read_sorted_by_header_stamp(tmp_path, msgtype, name):
+    path = gt_bag(tmp_path / name, msgtype, scale=1.0004)  # within 1e-3 of unit: normalised
+    traj = read_gt_topic([path], "/gt")
+    np.testing.assert_allclose(traj.stamps, [5.0, 5.1, 5.2], rtol=0, atol=1e-9)
+    for row, k in enumerate((1, 2, 0)):
+        np.testing.assert_allclose(traj.poses[row][:3, 3], XYZ[k], atol=1e-12)
+        np.testing.assert_allclose(traj.poses[row][:3, :3],
+                                   Rotation.from_rotvec(ROTVEC[k]).as_matrix(), atol=1e-12)
+
+
+def test_a_pose_topic_with_a_quaternion_not_of_unit_length_is_refused(tmp_path):
+    path = gt_bag(tmp_path / "q", ODOM, scale=1.002)
+    with pytest.raises(DataError, match=r", /gt pose 0: orientation quaternion is not unit "
+                       r"length \(norm 1.0020\)") as err:
+        read_gt_topic([path], "/gt")
+    assert str(path) in str(err.value)
+    path = gt_bag(tmp_path / "q2", ODOM, scale=0.998)
+    with pytest.raises(DataError, match=r"norm 0.9980"):
+        read_gt_topic([path], "/gt")
+
+
+def test_pose_topic_errors_name_the_topic_and_what_is_there(tmp_path):
+    path = gt_bag(tmp_path / "e", POSE)
+    with pytest.raises(DataError, match=r"no ground-truth topic /odom; the bag has /gt "
+                       r"\(geometry_msgs/msg/PoseStamped\)"):
+        read_gt_topic([path], "/odom")
+    with pytest.raises(DataError, match="no reference topic /odom"):
+        read_gt_topic([path], "/odom", what="reference")
+    clouds = cloud_bag(tmp_path / "c", [1.0])
+    with pytest.raises(DataError, match="ground-truth topic /radar has type sensor_msgs/msg/"
+                       "PointCloud2; expected one of nav_msgs/msg/Odometry, geometry_msgs/msg/"
+                       "PoseStamped, geometry_msgs/msg/PoseWithCovarianceStamped"):
+        read_gt_topic([clouds], "/radar")
+    empty = write(tmp_path / "empty", [("/gt", ODOM, [])], False)
+    with pytest.raises(DataError, match="ground-truth topic /gt has no messages"):
+        read_gt_topic([empty], "/gt")
+
+
+def test_gt_topic_of_the_bag_gives_sensor_poses_with_the_extrinsic(tmp_path):
+    T = typestore(False)
+    stamps = [5.0, 5.1, 5.2]
+    clouds = [(t, cloud2(T, t, xyzv(k), False)) for k, t in enumerate(stamps)]
+    poses = [(t, pose_msg(T, ODOM, t, [t, 0.0, 0.0], [0, 0, 0, 1], False)) for t in stamps]
+    path = write(tmp_path / "b", [("/radar", CLOUD2, clouds), ("/odom", ODOM, poses)], False)
+    seq = RosbagSequence(path, doppler_field="velocity", gt_topic="/odom",
+                         T_body_sensor="0 1 0 0 0 0 1")
+    # T_world_sensor = T_world_body @ T_body_sensor: x = t, y = 1
+    np.testing.assert_allclose(seq.ground_truth.poses[:, :3, 3],
+                               [[t, 1.0, 0.0] for t in stamps], atol=1e-9)
+    assert seq.provenance["gt_association"]["with_gt"] == 3
+    seq.close()
+
+
+# -- the description of a bag bench export wrote ------------------------------------------------
+
+def described_bag(path, text, topic=DESCRIPTION_TOPIC):
+    T = typestore(False)
+    msgs = [] if text is None else [(0.5, T.types[STRING](data=text))]
+    clouds = [(t, cloud2(T, t, xyzv(k), False)) for k, t in enumerate([1.0, 1.1])]
+    return write(path, [("/radar", CLOUD2, clouds), (topic, STRING, msgs)], False)
+
+
+def test_a_description_that_is_no_json_object_is_ignored_with_a_warning(tmp_path):
+    for k, text in enumerate(("[1, 2]", "not json", "")):
+        path = described_bag(tmp_path / f"d{k}", text)
+        with pytest.warns(UserWarning, match=f"{DESCRIPTION_TOPIC} is not a JSON object; "
+                          "ignored"):
+            assert read_description([path]) is None
+    assert read_description([described_bag(tmp_path / "none", None)]) is None
+    assert read_description([described_bag(tmp_path / "other", "{}", "/x")]) is None
+    assert read_description([described_bag(tmp_path / "obj", '{"a": 1}')]) == {"a": 1}
+
+
+def test_a_described_bag_reads_with_the_descriptions_options(tmp_path):
+    text = ('{"points_topic": "/radar", "fields": ["x", "y", "z", "velocity"], '
+            '"sensor_kind": "lidar", "sensor_model": "m1", "doppler_kind": "ego-compensated", '
+            '"sequence": "seq9"}')
+    path = described_bag(tmp_path / "desc", text)
+    seq = RosbagSequence(path)
+    assert (seq.name, seq.sensor.kind, seq.sensor.model, seq.sensor.doppler_kind) == (
+        "seq9", "lidar", "m1", "ego-compensated")
+    assert seq.provenance["description"] == DESCRIPTION_TOPIC
+    assert seq.scan(0).doppler is None  # no "doppler" among its fields
+    plain = RosbagSequence(cloud_bag(tmp_path / "plain", [1.0]), doppler_field="velocity")
+    assert plain.provenance["description"] is None
+    seq.close()
+    plain.close()
+
+
+T4 = [[1.0, 0, 0, 0.5], [0, 1.0, 0, -0.25], [0, 0, 1.0, 2.0], [0, 0, 0, 1.0]]
+FULL = {"points_topic": "/p", "ground_truth_topic": "/g", "T_body_sensor": T4,
+        "sensor_kind": "lidar", "sensor_model": "m", "doppler_kind": "ego-compensated",
+        "fields": ["x", "y", "z", "doppler"], "sequence": "s"}
+TOPICS = {"/p": CLOUD2, "/g": ODOM}
+
+
+def test_described_options_take_every_value_not_given():
+    o = described_options(Options(), FULL, TOPICS)
+    assert (o.topic, o.gt_topic, o.sensor_kind, o.model, o.doppler_kind, o.doppler_field,
+            o.name) == ("/p", "/g", "lidar", "m", "ego-compensated", "doppler", "s")
+    assert o.T_body_sensor.split() == ["1", "0", "0", "0.5", "0", "1", "0", "-0.25", "0", "0",
+                                       "1", "2", "0", "0", "0", "1"]
+
+
+def test_described_options_given_options_win_and_bad_values_are_skipped():
+    given = Options(topic="/q", gt_topic="/h", sensor_kind="radar", model="mine",
+                    doppler_kind="radial", doppler_field="v", name="n", T_body_sensor="0 0 0")
+    assert described_options(given, FULL, TOPICS).model_dump() == given.model_dump()
+    with_file = described_options(Options(gt="poses.txt"), FULL, TOPICS)
+    assert with_file.gt_topic is None and str(with_file.gt) == "poses.txt"
+    bad = {"points_topic": "/missing", "ground_truth_topic": "/missing", "T_body_sensor":
+           [[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0]], "sensor_kind": "sonar", "sensor_model": 3,
+           "doppler_kind": "gt-reconstructed", "fields": "x y z", "sequence": ""}
+    o = Options()
+    assert described_options(o, bad, TOPICS) is o
+    assert described_options(o, {"T_body_sensor": "1 0 0"}, TOPICS) is o
+    assert described_options(o, {"fields": ["x", "y", "z"]}, TOPICS).doppler_field == "none"
+
+
+# -- one clear error for each bad input ----------------------------------------------------------
+
+def test_bad_inputs_give_one_clear_error(tmp_path):
+    with pytest.raises(DataError, match="^rosbag: no bag given$"):
+        RosbagSequence([])
+    missing = tmp_path / "gone.bag"
+    with pytest.raises(DataError, match="gone.bag: bag not found$"):
+        RosbagSequence(missing)
+    a, b = cloud_bag(tmp_path / "a", [1.0]), cloud_bag(tmp_path / "b", [1.0])
+    with pytest.raises(DataError, match="give several ROS1 .bag files or exactly one ROS2 bag"):
+        RosbagSequence([a, b])
+    with pytest.raises(DataError, match="(?s)^rosbag options: .*sensor_kind"):
+        RosbagSequence(a, sensor_kind="sonar")
+    with pytest.raises(DataError, match="nope.txt: ground-truth file not found$"):
+        RosbagSequence(a, doppler_field="velocity", gt=tmp_path / "nope.txt")
+    junk = tmp_path / "junk.bag"
+    junk.write_bytes(b"junk")
+    with pytest.raises(DataError, match="junk.bag: cannot open the bag .*expected ROS1 .bag "
+                       "file\\(s\\) or one ROS2 bag"):
+        bag_topics([junk])
+
+
+def test_two_ros1_bags_are_one_recording_in_time_order(tmp_path):
+    a = cloud_bag(tmp_path / "a.bag", [1.2, 1.3])
+    b = cloud_bag(tmp_path / "b.bag", [1.0, 1.1])
+    seq = RosbagSequence([a, b], doppler_field="velocity")
+    np.testing.assert_allclose(seq.stamps, [1.0, 1.1, 1.2, 1.3], atol=1e-9)
+    assert seq.provenance["bags"] == [str(a), str(b)] and seq.provenance["format"] == "ros1"
+    assert seq.name == "a"
+    seq.close()
+
+
+def test_a_bag_of_several_or_no_cloud_topics_asks_for_the_topic(tmp_path):
+    T = typestore(False)
+    one = [(1.0, cloud2(T, 1.0, xyzv(0), False))]
+    two = write(tmp_path / "two", [("/b", CLOUD2, one), ("/a", CLOUD2, one)], False)
+    with pytest.raises(DataError, match=r": 2 PointCloud2 / PointCloud topics; choose one with "
+                       r"--topic \(the bag has /a \(sensor_msgs/msg/PointCloud2\), /b "
+                       r"\(sensor_msgs/msg/PointCloud2\)\)"):
+        RosbagSequence(two)
+    seq = RosbagSequence(two, topic="/b", doppler_field="velocity")
+    assert seq.topic == "/b" and seq.provenance["topic"] == "/b"
+    seq.close()
+    none = gt_bag(tmp_path / "none", ODOM)
+    with pytest.raises(DataError, match=r"0 PointCloud2 / PointCloud topics; choose one with "
+                       r"--topic \(the bag has /gt \(nav_msgs/msg/Odometry\)\)"):
+        RosbagSequence(none)
+
+
+def test_ros2_topic_errors_name_the_topic_and_the_types(tmp_path):
+    path = gt_bag(tmp_path / "g", ODOM)
+    with pytest.raises(DataError, match=r": no topic /radar; the bag has /gt "
+                       r"\(nav_msgs/msg/Odometry\)$"):
+        RosbagSequence(path, topic="/radar")
+    with pytest.raises(DataError, match="topic /gt has message type nav_msgs/msg/Odometry; "
+                       "expected one of sensor_msgs/msg/PointCloud2, sensor_msgs/msg/PointCloud$"):
+        RosbagSequence(path, topic="/gt")
+    empty = write(tmp_path / "e", [("/radar", CLOUD2, [])], False)
+    with pytest.raises(DataError, match="topic /radar has no messages$"):
+        RosbagSequence(empty, topic="/radar")
+
+
+def test_the_provenance_records_how_the_bag_was_read(tmp_path):
+    path = cloud_bag(tmp_path / "pv", [1.0, 1.1, 1.2])
+    seq = RosbagSequence(path, doppler_field="velocity", doppler_sign=-1,
+                         T_body_sensor="1 2 3 0 0 0 1")
+    p = seq.provenance
+    assert {k: p[k] for k in ("loader", "bags", "format", "topic", "msgtype", "doppler_field",
+                              "doppler_sign", "stamp", "messages", "repeated_stamps_dropped",
+                              "nan_points_dropped", "description")} == {
+        "loader": "rosbag", "bags": [str(path)], "format": "ros2", "topic": "/radar",
+        "msgtype": CLOUD2, "doppler_field": "velocity", "doppler_sign": -1.0,
+        "stamp": "header", "messages": 3, "repeated_stamps_dropped": 0,
+        "nan_points_dropped": 0, "description": None}
+    want = np.eye(4)
+    want[:3, 3] = [1, 2, 3]
+    np.testing.assert_allclose(p["T_body_sensor"], want)
+    np.testing.assert_allclose(seq.sensor.T_body_sensor, want)
+    assert seq.ground_truth is None and "gt_association" not in p
+    seq.close()
