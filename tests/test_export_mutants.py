@@ -331,6 +331,8 @@ def test_the_reimport_command_without_ground_truth_model_or_doppler():
                            "radial", np.eye(4), out="x.h5")
     args = shlex.split(cmd)
     assert "--gt-topic" not in args and "--model" not in args and "--doppler-kind" not in args
+    assert args[3:6] == ["out dir/b.bag", "--topic", "/points"]
+    assert args[args.index("--T-body-sensor") + 2] == "--sensor-kind"
     assert args[args.index("--doppler-field") + 1] == "none"
     assert args[-2:] == ["--out", "x.h5"] and args[args.index("--sensor-kind") + 1] == "lidar"
     assert args[args.index("--T-body-sensor") + 1] == "0 0 0 0 0 0 1"
@@ -345,6 +347,8 @@ def test_the_reimport_command_declares_the_doppler_kinds_the_loader_takes(kind, 
     got = args[args.index("--doppler-kind"):args.index("--doppler-kind") + 2] \
         if "--doppler-kind" in args else []
     assert got == option and "--doppler-field" not in args
+    opts = dict(zip(args[4::2], args[5::2], strict=True))
+    assert (opts["--model"], opts["--name"], opts["--gt-topic"]) == ("m", "r", "/ground_truth")
 
 
 def test_the_doppler_kind_note_only_for_a_kind_the_loader_does_not_take():
@@ -394,3 +398,80 @@ def test_export_command_says_a_store_without_doppler_has_none(tmp_path):
                              "/doppler_bench/description; no Doppler field: the store has no "
                              "Doppler (methods that need it cannot run on this bag)")
     assert "--doppler-field none" in lines[1]
+
+
+# -- make mutate's survivors of the first run ------------------------------------------------
+
+def test_an_empty_out_is_one_error_naming_the_option(store):
+    for fmt in ("ros1", "mcap"):
+        with pytest.raises(DataError, match=r"^--out '': empty; expected the path of a file or "
+                           "folder to write$"):
+            export_store(store, fmt, "")
+
+
+def test_the_store_itself_or_its_folder_is_refused_as_an_input(tmp_path):
+    store = tiny_store(tmp_path / "s" / "run.bag")  # a store named like a ROS1 bag
+    before = store.read_bytes()
+    for fmt, out in (("ros1", store), ("mcap", store.parent), ("ros2", store)):
+        with pytest.raises(DataError, match="is an input of this command|holds an input of "
+                           "this command"):
+            export_store(store, fmt, out, force=True)
+    assert store.read_bytes() == before and sorted(store.parent.iterdir()) == [store]
+
+
+def test_an_existing_bag_without_force_names_what_it_is(store, tmp_path):
+    export_store(store, "mcap", tmp_path / "m")
+    with pytest.raises(DataError, match=r"exists \(a rosbag2 folder \(metadata.yaml and its "
+                       r"storage files only\)\); give another --out or --force to replace it"):
+        export_store(store, "mcap", tmp_path / "m")
+    export_store(store, "ros1", tmp_path / "o.bag")
+    with pytest.raises(DataError, match=r"exists \(a ROS1 bag\); give another --out or --force"):
+        export_store(store, "ros1", tmp_path / "o.bag")
+
+
+@pytest.mark.parametrize("fmt", ["ros1", "mcap"])
+def test_progress_is_called_once_a_scan_in_order(store, tmp_path, fmt):
+    seen = []
+    summary = export_store(store, fmt, out_for(tmp_path, fmt), progress=seen.append)
+    assert seen == [0, 1, 2, 3] and summary.frames == 4
+
+
+@pytest.mark.parametrize("fmt", ["ros1", "ros2"])
+def test_the_description_in_the_bag_names_the_store(store, tmp_path, fmt):
+    path = export_store(store, fmt, out_for(tmp_path, fmt)).path
+    (info,) = [m for topic, _, m in read_bag(path) if topic == "/doppler_bench/description"]
+    assert json.loads(info.data)["store"] == str(store)
+
+
+def test_a_work_folder_left_by_a_crashed_export_of_this_process_is_cleared(store, tmp_path):
+    import os
+
+    stale = tmp_path / f".b.{os.getpid()}.export"
+    (stale / "b").mkdir(parents=True)
+    (stale / "b" / "half.db3").write_bytes(b"half written")
+    summary = export_store(store, "ros2", tmp_path / "b")
+    assert summary.frames == 4 and (tmp_path / "b" / "metadata.yaml").exists()
+    assert not stale.exists()
+
+
+def test_export_command_without_force_refuses_an_existing_bag_and_with_force_replaces_it(
+        store, tmp_path):
+    printed(store, "ros1", tmp_path / "x.bag")
+    with pytest.raises(DataError, match=r"give another --out or --force to replace it$"):
+        printed(store, "ros1", tmp_path / "x.bag")
+    assert printed(store, "ros1", tmp_path / "x.bag", force=True)[0].startswith("wrote ")
+
+
+def test_export_command_prints_brackets_in_paths_and_notes_as_they_are(tmp_path, monkeypatch):
+    """Rich would read ``[i]`` or ``[b]`` as markup: every line is printed as plain text."""
+    prov = {"loader": "x", "clock_origin_s": 1000.0, "stamp_source": "1000 s + frame [i] x "
+            "0.1 s"}
+    path = tiny_store(tmp_path / "st[b].h5", stamps=(1000.0, 1000.1), provenance=prov)
+    monkeypatch.chdir(tmp_path)
+    lines = printed(path, "ros1", tmp_path / "out[b]")
+    assert lines[0].startswith(f"wrote {tmp_path / 'out[b].bag'} (ros1): 2 scans")
+    assert lines[1].startswith("note: the store's stamps are 1000 s + frame [i] x 0.1 s, set")
+    args = shlex.split(lines[2].removeprefix("read it back with: "))
+    assert args[3] == str(tmp_path / "out[b].bag")
+    assert args[args.index("--sensor-kind") + 1] == "radar"
+    assert args[args.index("--doppler-kind") + 1] == "radial"
