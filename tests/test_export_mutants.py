@@ -192,6 +192,9 @@ def test_a_store_without_ground_truth_has_no_ground_truth_topic(tmp_path):
     assert summary.gt_poses == 0 and summary.frames == 4
     topics = {topic for topic, _, _ in read_bag(tmp_path / "n")}
     assert topics == {"/points", "/tf_static", "/doppler_bench/description"}
+    from loaders.rosbag import bag_topics
+
+    assert set(bag_topics([tmp_path / "n"])) == topics  # no empty ground-truth connection
 
 
 @pytest.mark.parametrize("fmt", ["ros1", "ros2", "mcap"])
@@ -475,3 +478,25 @@ def test_export_command_prints_brackets_in_paths_and_notes_as_they_are(tmp_path,
     assert args[3] == str(tmp_path / "out[b].bag")
     assert args[args.index("--sensor-kind") + 1] == "radar"
     assert args[args.index("--doppler-kind") + 1] == "radial"
+
+
+@pytest.mark.parametrize("fmt", ["ros1", "ros2", "mcap"])
+def test_the_extrinsic_and_the_description_are_latched_the_scans_and_poses_not(store, tmp_path,
+                                                                               fmt):
+    """A node started after playback began still gets /tf_static and the description (ROS1:
+    latched; ROS2: transient local, depth 1)."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.interfaces import QosDurability
+
+    path = export_store(store, fmt, out_for(tmp_path, fmt)).path
+    with AnyReader([path]) as reader:
+        conns = {c.topic: c for c in reader.connections}
+    latched = {"/tf_static", "/doppler_bench/description"}
+    assert set(conns) == latched | {"/points", "/ground_truth"}
+    for topic, conn in conns.items():
+        if fmt == "ros1":
+            assert (conn.ext.latching or 0) == (1 if topic in latched else 0), topic
+        else:
+            qos = conn.ext.offered_qos_profiles
+            assert ([(q.durability, q.depth) for q in qos] ==
+                    ([(QosDurability.TRANSIENT_LOCAL, 1)] if topic in latched else [])), topic
