@@ -63,6 +63,7 @@ def test_a_clock_from_zero_or_before_is_said_and_kept(first):
 
 def test_a_vod_store_from_zero_is_told_to_be_converted_again_for_the_frame_clock():
     note = clock_note(store_like({"loader": "vod"}, first=0.0))
+    assert note.startswith("the store's clock starts at 0 s (its dataset publishes no stamps")
     assert note.endswith("; convert the View-of-Delft folder again for a clock that does not "
                          "start at 0 s (frame NNNNN at 1000 s + NNNNN x period)")
 
@@ -74,7 +75,19 @@ def test_a_published_clock_after_zero_says_nothing(first):
     assert clock_note(SimpleNamespace(stamps=np.array([first]))) is None
 
 
-def test_a_clock_a_loader_made_up_is_said_with_its_first_stamp_as_ros_shows_it():
+@pytest.fixture
+def tokyo_time(monkeypatch):
+    """The machine's local time 9 h ahead of UTC (UTC shown whatever the machine's zone)."""
+    import time
+
+    monkeypatch.setenv("TZ", "JST-9")  # POSIX rule: no zone database needed
+    time.tzset()
+    yield
+    monkeypatch.undo()
+    time.tzset()
+
+
+def test_a_clock_a_loader_made_up_is_said_with_its_first_stamp_as_ros_shows_it(tokyo_time):
     first = 1000.0 + 17 * 0.1  # View-of-Delft frame 17 at 1000 s + 17 x period
     prov = {"loader": "vod", "clock_origin_s": 1000.0,
             "stamp_source": "1000 s + frame number x 0.1 s"}

@@ -223,6 +223,7 @@ def test_the_bag_holds_scans_extrinsic_and_description_at_the_stores_stamps(stor
         assert [t for t, _ in clouds] == [round(s * NS) for s in src.stamps]
         for i, (_, m) in enumerate(clouds):
             assert m.header.frame_id == "radar"
+            assert [f.name for f in m.fields] == ["x", "y", "z", "doppler", "power", "rcs"]
             rows = np.frombuffer(bytes(m.data), dtype="<f4").reshape(-1, 6)
             scan = src.scan(i)
             np.testing.assert_array_equal(rows[:, :3], scan.points.astype(np.float32))
