@@ -509,3 +509,40 @@ def test_the_provenance_records_how_the_bag_was_read(tmp_path):
     np.testing.assert_allclose(seq.sensor.T_body_sensor, want)
     assert seq.ground_truth is None and "gt_association" not in p
     seq.close()
+
+
+# -- make mutate's survivors of the first run ------------------------------------------------
+
+@pytest.mark.parametrize("name", ["bad.bag", "bad"])
+def test_a_malformed_cloud_names_the_bag_and_the_frame(tmp_path, name):
+    """A PointField of unknown datatype (ROS1 and ROS2) and a ROS1 PointCloud channel of the
+    wrong length: one error naming the bag, the topic message and the frame."""
+    ros1 = name.endswith(".bag")
+    T = typestore(ros1)
+    msg = cloud2(T, 1.0, xyzv(0), ros1)
+    msg.fields[3].datatype = 42
+    path = write(tmp_path / name, [("/radar", CLOUD2, [(1.0, msg)])], ros1)
+    seq = RosbagSequence(path, doppler_field="velocity")
+    with pytest.raises(DataError, match="PointField 'velocity' has unknown datatype 42") as err:
+        seq.scan(0)
+    assert str(path) in str(err.value) and "/radar message 0 (frame 0)" in str(err.value)
+    seq.close()
+    if ros1:
+        pc = cloud1(T, 2.0, np.ones((3, 3)), {"velocity": np.ones(3), "power": np.ones(2)}, True)
+        path = write(tmp_path / "pc.bag", [("/pc", CLOUD1, [(2.0, pc)])], True)
+        seq = RosbagSequence(path, doppler_field="velocity")
+        with pytest.raises(DataError, match="channel 'power' has 2 values for 3 points") as err:
+            seq.scan(0)
+        assert str(path) in str(err.value) and "(frame 0)" in str(err.value)
+        seq.close()
+
+
+def test_open_from_loader_options_takes_the_description_for_what_is_not_given(tmp_path):
+    text = '{"points_topic": "/radar", "fields": ["x", "y", "z"], "sequence": "seq9"}'
+    path = described_bag(tmp_path / "desc", text)
+    seq = RosbagSequence.open([path], Options())
+    assert seq.name == "seq9" and seq.topic == "/radar" and seq.options.doppler_field == "none"
+    seq.close()
+    named = RosbagSequence.open([path], Options(name="mine"))
+    assert named.name == "mine"
+    named.close()
