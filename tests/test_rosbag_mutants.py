@@ -3,6 +3,7 @@ points, in-process): random access in a ROS2 bag, the stamps, the fields by name
 truth topics, the description of a bag `bench export` wrote, and one clear error for each bad
 input (make mutate's survivors; the broad cases: test_loader_rosbag.py)."""
 
+import re
 import struct
 
 import numpy as np
@@ -546,3 +547,19 @@ def test_open_from_loader_options_takes_the_description_for_what_is_not_given(tm
     named = RosbagSequence.open([path], Options(name="mine"))
     assert named.name == "mine"
     named.close()
+
+
+def test_errors_about_several_bags_name_each_bag(tmp_path):
+    a, b = cloud_bag(tmp_path / "a.bag", [1.0]), cloud_bag(tmp_path / "b.bag", [1.1])
+    # the topic both bags have is named once
+    with pytest.raises(DataError, match=f"^{re.escape(f'{a}, {b}')}: no ground-truth topic "
+                       r"/odom; the bag has /radar \(sensor_msgs/msg/PointCloud2\)$"):
+        read_gt_topic([a, b], "/odom")
+    c, d = cloud_bag(tmp_path / "c", [1.0]), cloud_bag(tmp_path / "d", [1.0])
+    with pytest.raises(DataError, match=f"^{re.escape(f'{c}, {d}')}: give several ROS1 .bag "
+                       "files or exactly one ROS2 bag$"):
+        RosbagSequence([c, d])
+    junk = tmp_path / "junk.bag"
+    junk.write_bytes(b"junk")
+    with pytest.raises(DataError, match=f"^{re.escape(f'{a}, {junk}')}: cannot open the bag"):
+        bag_topics([a, junk])
