@@ -563,3 +563,15 @@ def test_errors_about_several_bags_name_each_bag(tmp_path):
     junk.write_bytes(b"junk")
     with pytest.raises(DataError, match=f"^{re.escape(f'{a}, {junk}')}: cannot open the bag"):
         bag_topics([a, junk])
+
+
+@pytest.mark.parametrize("name", ["empty.bag", "empty"])
+def test_a_missing_pose_topic_lists_every_topic_or_says_there_is_none(tmp_path, name):
+    empty = write(tmp_path / name, [], name.endswith(".bag"))
+    with pytest.raises(DataError, match="no ground-truth topic /gt; the bag has no topics$"):
+        read_gt_topic([empty], "/gt")
+    path = described_bag(tmp_path / "two", "{}")
+    with pytest.raises(DataError, match=r"no ground-truth topic /gt; the bag has "
+                       r"/doppler_bench/description \(std_msgs/msg/String\), /radar "
+                       r"\(sensor_msgs/msg/PointCloud2\)$"):
+        read_gt_topic([path], "/gt")
