@@ -575,3 +575,50 @@ def test_a_missing_pose_topic_lists_every_topic_or_says_there_is_none(tmp_path, 
                        r"/doppler_bench/description \(std_msgs/msg/String\), /radar "
                        r"\(sensor_msgs/msg/PointCloud2\)$"):
         read_gt_topic([path], "/gt")
+
+
+def test_the_first_pose_off_unit_length_in_stamp_order_is_named(tmp_path):
+    T = typestore(False)
+    msgs = []
+    for k, (t, scale) in enumerate(zip(POSES_T, (1.0, 1.0, 1.01), strict=True)):
+        q = Rotation.from_rotvec(ROTVEC[k]).as_quat() * scale
+        msgs.append((1.0 + k, pose_msg(T, ODOM, t, XYZ[k], q, False)))
+    path = write(tmp_path / "q", [("/gt", ODOM, msgs)], False)
+    # the third recorded pose has stamp 5.1 s: row 1 in stamp order
+    with pytest.raises(DataError, match=r"/gt pose 1: orientation quaternion is not unit length "
+                       r"\(norm 1.0100\)"):
+        read_gt_topic([path], "/gt")
+
+
+def test_a_ros2_bag_changed_after_its_index_is_one_clear_error(tmp_path):
+    import shutil
+
+    path = cloud_bag(tmp_path / "ch", [1.0, 1.1, 1.2])
+    seq = RosbagSequence(path, doppler_field="velocity")
+    shutil.rmtree(path)
+    cloud_bag(path, [1.0])  # one message where the index has three
+    with pytest.raises(DataError, match=r"ch, /radar message 2: message missing on re-reading "
+                       "the bag$"):
+        seq.scan(2)
+    seq.close()
+
+
+def test_frames_read_in_order_continue_one_read_of_the_ros2_bag(tmp_path, monkeypatch):
+    from rosbags.rosbag2 import Reader
+
+    path = cloud_bag(tmp_path / "ord", [1.0, 1.1, 1.2, 1.3], records=[2.0, 2.0, 3.0, 4.0])
+    seq = RosbagSequence(path, doppler_field="velocity")
+    reads = []
+    messages = Reader.messages
+
+    def counted(self, *args, **kwargs):
+        reads.append(kwargs.get("start"))
+        return messages(self, *args, **kwargs)
+
+    monkeypatch.setattr(Reader, "messages", counted)
+    for i in range(4):
+        np.testing.assert_array_equal(seq.scan(i).points, f32(PTS[i]))
+    assert len(reads) == 1  # one read from the first frame on
+    np.testing.assert_array_equal(seq.scan(1).points, f32(PTS[1]))  # back: read again
+    assert len(reads) == 2 and reads[1] == 2 * 10**9
+    seq.close()
