@@ -622,3 +622,22 @@ def test_frames_read_in_order_continue_one_read_of_the_ros2_bag(tmp_path, monkey
     np.testing.assert_array_equal(seq.scan(1).points, f32(PTS[1]))  # back: read again
     assert len(reads) == 2 and reads[1] == 2 * 10**9
     seq.close()
+
+
+@pytest.mark.parametrize("name", ["be.bag", "be"])
+def test_a_big_endian_cloud_reads_the_same_values(tmp_path, name):
+    ros1 = name.endswith(".bag")
+    T = typestore(ros1)
+    cols = xyzv(2)
+    msg = cloud2(T, 1.0, cols, ros1)
+    big = np.zeros(4, dtype=[(n, ">f4") for n in cols])
+    for n in cols:
+        big[n] = cols[n]
+    msg.is_bigendian = True
+    msg.data = np.frombuffer(big.tobytes(), dtype=np.uint8)
+    path = write(tmp_path / name, [("/radar", CLOUD2, [(1.0, msg)])], ros1)
+    seq = RosbagSequence(path, doppler_field="velocity")
+    s = seq.scan(0)
+    np.testing.assert_array_equal(s.points, f32(PTS[2]))
+    np.testing.assert_array_equal(s.doppler, f32(VEL[2]))
+    seq.close()
