@@ -641,3 +641,29 @@ def test_a_big_endian_cloud_reads_the_same_values(tmp_path, name):
     np.testing.assert_array_equal(s.points, f32(PTS[2]))
     np.testing.assert_array_equal(s.doppler, f32(VEL[2]))
     seq.close()
+
+
+def test_a_ros2_cloud_that_does_not_deserialize_names_the_frame(tmp_path):
+    from rosbags.rosbag2 import Writer
+
+    T = typestore(False)
+    good = T.serialize_cdr(cloud2(T, 1.0, xyzv(0), False), CLOUD2)
+    path = tmp_path / "cut"
+    with Writer(path, version=9) as w:
+        conn = w.add_connection("/radar", CLOUD2, typestore=T)
+        w.write(conn, 10**9, bytes(good[:40]))  # the header, then cut short
+    seq = RosbagSequence(path, doppler_field="velocity")
+    with pytest.raises(DataError, match=r"cut, /radar message 0 \(frame 0\): cannot deserialize "
+                       r"sensor_msgs/msg/PointCloud2 \("):
+        seq.scan(0)
+    seq.close()
+
+
+def test_a_cloud_without_y_and_z_names_both(tmp_path):
+    T = typestore(False)
+    msgs = [(1.0, cloud2(T, 1.0, {"x": np.ones(2), "v": np.ones(2)}, False))]
+    seq = RosbagSequence(write(tmp_path / "xy", [("/radar", CLOUD2, msgs)], False),
+                         doppler_field="v")
+    with pytest.raises(DataError, match=r"no y, z field\(s\); fields are x v$"):
+        seq.scan(0)
+    seq.close()
