@@ -667,3 +667,50 @@ def test_a_cloud_without_y_and_z_names_both(tmp_path):
     with pytest.raises(DataError, match=r"no y, z field\(s\); fields are x v$"):
         seq.scan(0)
     seq.close()
+
+
+def test_fields_named_like_the_coordinates_in_capitals_are_renamed(tmp_path):
+    extra = {"Y": np.full(4, 2.0), "Z": np.full(4, 3.0)}
+    seq = RosbagSequence(cloud_bag(tmp_path / "yz", [1.0], extra=extra),
+                         doppler_field="velocity")
+    s = seq.scan(0)
+    assert sorted(s.fields) == ["field_y", "field_z"]
+    np.testing.assert_array_equal(s.fields["field_y"], np.full(4, 2.0))
+    np.testing.assert_array_equal(s.points, f32(PTS[0]))
+    seq.close()
+
+
+def test_a_float64_field_is_stored_as_float32(tmp_path):
+    T = typestore(False)
+    arr = np.zeros(2, dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("v", "<f4"),
+                             ("range", "<f8")])
+    arr["x"], arr["range"] = [1.0, 2.0], [1.0 + 1e-12, 2.5]
+    PF = T.types["sensor_msgs/msg/PointField"]
+    msg = T.types[CLOUD2](
+        header=header(T.types, 1.0, False), height=1, width=2,
+        fields=[PF(name=n, offset=4 * i, datatype=7, count=1) for i, n in
+                enumerate("xyzv")] + [PF(name="range", offset=16, datatype=8, count=1)],
+        is_bigendian=False, point_step=24, row_step=48,
+        data=np.frombuffer(arr.tobytes(), dtype=np.uint8), is_dense=True)
+    seq = RosbagSequence(write(tmp_path / "f8", [("/radar", CLOUD2, [(1.0, msg)])], False),
+                         doppler_field="v")
+    s = seq.scan(0)
+    assert s.fields["range"].dtype == np.float32
+    np.testing.assert_array_equal(s.fields["range"], np.array([1.0, 2.5], dtype=np.float32))
+    seq.close()
+
+
+def test_nan_points_are_dropped_counted_and_named(tmp_path):
+    cols = xyzv(1)
+    cols["x"] = cols["x"].copy()
+    cols["x"][2] = np.nan
+    T = typestore(False)
+    path = write(tmp_path / "nan", [("/radar", CLOUD2, [(1.0, cloud2(T, 1.0, cols, False))])],
+                 False)
+    seq = RosbagSequence(path, doppler_field="velocity")
+    with pytest.warns(UserWarning, match=r"nan, /radar message 0 \(frame 0\): dropped 1 of 4 "
+                      "points"):
+        s = seq.scan(0)
+    assert len(s.points) == 3 and seq.provenance["nan_points_dropped"] == 1
+    np.testing.assert_array_equal(s.points, f32(PTS[1])[[0, 1, 3]])
+    seq.close()
