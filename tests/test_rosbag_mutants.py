@@ -714,3 +714,22 @@ def test_nan_points_are_dropped_counted_and_named(tmp_path):
     assert len(s.points) == 3 and seq.provenance["nan_points_dropped"] == 1
     np.testing.assert_array_equal(s.points, f32(PTS[1])[[0, 1, 3]])
     seq.close()
+
+
+def test_a_ros2_topic_index_names_what_it_cannot_open_or_find(tmp_path):
+    from loaders.rosbag import CLOUD_TYPES, _Ros2Topic
+
+    junk = tmp_path / "junk.mcap"
+    junk.write_bytes(b"not a bag")
+    with pytest.raises(DataError, match=r"junk.mcap: cannot open the ROS2 bag \(\w+Error: .*\); "
+                       "expected a folder with metadata.yaml, a .db3 or a .mcap file$") as err:
+        _Ros2Topic(junk, "/radar", CLOUD_TYPES)
+    assert str(err.value).startswith(str(junk))
+    empty = write(tmp_path / "empty", [], False)
+    with pytest.raises(DataError, match="empty: no topic /radar; the bag has no topics$"):
+        RosbagSequence(empty, topic="/radar")
+    two = described_bag(tmp_path / "two", "{}")
+    with pytest.raises(DataError, match=r"two: no topic /points; the bag has "
+                       r"/doppler_bench/description \(std_msgs/msg/String\), /radar "
+                       r"\(sensor_msgs/msg/PointCloud2\)$"):
+        RosbagSequence(two, topic="/points")
