@@ -728,6 +728,9 @@ def test_a_ros2_topic_index_names_what_it_cannot_open_or_find(tmp_path):
     empty = write(tmp_path / "empty", [], False)
     with pytest.raises(DataError, match="empty: no topic /radar; the bag has no topics$"):
         RosbagSequence(empty, topic="/radar")
+    with pytest.raises(DataError, match=r"empty: 0 PointCloud2 / PointCloud topics; choose one "
+                       r"with --topic \(the bag has no topics\)$"):
+        RosbagSequence(empty)
     two = described_bag(tmp_path / "two", "{}")
     with pytest.raises(DataError, match=r"two: no topic /points; the bag has "
                        r"/doppler_bench/description \(std_msgs/msg/String\), /radar "
