@@ -736,3 +736,15 @@ def test_a_ros2_topic_index_names_what_it_cannot_open_or_find(tmp_path):
                        r"/doppler_bench/description \(std_msgs/msg/String\), /radar "
                        r"\(sensor_msgs/msg/PointCloud2\)$"):
         RosbagSequence(two, topic="/points")
+
+
+def test_an_explicit_gt_format_is_read_as_given_not_detected(tmp_path):
+    path = cloud_bag(tmp_path / "k", [1.0, 1.1, 1.2])
+    tum = tmp_path / "gt.txt"
+    tum.write_text("".join(f"{t} {k} 0 0 0 0 0 1\n" for k, t in enumerate((1.0, 1.1, 1.2))))
+    seq = RosbagSequence(path, doppler_field="velocity", gt=tum)  # detected: TUM
+    np.testing.assert_allclose(seq.ground_truth.poses[:, 0, 3], [0.0, 1.0, 2.0], atol=1e-9)
+    seq.close()
+    with pytest.raises(DataError, match="expected 12 values per KITTI row, got 8") as err:
+        RosbagSequence(path, doppler_field="velocity", gt=tum, gt_format="kitti")
+    assert str(tum) in str(err.value)
