@@ -748,3 +748,12 @@ def test_an_explicit_gt_format_is_read_as_given_not_detected(tmp_path):
     with pytest.raises(DataError, match="expected 12 values per KITTI row, got 8") as err:
         RosbagSequence(path, doppler_field="velocity", gt=tum, gt_format="kitti")
     assert str(tum) in str(err.value)
+
+
+def test_a_kitti_file_of_another_length_says_it_needs_one_row_per_scan(tmp_path):
+    path = cloud_bag(tmp_path / "k", [1.0, 1.1, 1.2])
+    kitti = tmp_path / "poses.txt"
+    kitti.write_text("1 0 0 0 0 1 0 0 0 0 1 0\n" * 2)
+    with pytest.raises(DataError, match=r"poses.txt: 2 KITTI pose rows but /radar has 3 scans; a "
+                       "KITTI file has no stamps and needs exactly one row per scan$"):
+        RosbagSequence(path, doppler_field="velocity", gt=kitti)
