@@ -757,3 +757,19 @@ def test_a_kitti_file_of_another_length_says_it_needs_one_row_per_scan(tmp_path)
     with pytest.raises(DataError, match=r"poses.txt: 2 KITTI pose rows but /radar has 3 scans; a "
                        "KITTI file has no stamps and needs exactly one row per scan$"):
         RosbagSequence(path, doppler_field="velocity", gt=kitti)
+
+
+def test_the_association_report_names_the_ground_truth_source(tmp_path):
+    stamps = (1.0, 1.1, 1.2)
+    path = cloud_bag(tmp_path / "k", list(stamps))
+    tum = tmp_path / "gt.txt"
+    tum.write_text("".join(f"{t} {k} 0 0 0 0 0 1\n" for k, t in enumerate(stamps)))
+    kitti = tmp_path / "poses.txt"
+    kitti.write_text("".join(f"1 0 0 {k} 0 1 0 0 0 0 1 0\n" for k in range(3)))
+    for gt in (tum, kitti):
+        seq = RosbagSequence(path, doppler_field="velocity", gt=gt)
+        assert seq.provenance["gt_association"]["gt_file"] == str(gt)
+        np.testing.assert_allclose(seq.ground_truth.poses[:, 0, 3], [0.0, 1.0, 2.0], atol=1e-9)
+        seq.close()
+    with pytest.raises(DataError, match="expected 8 values"):  # told TUM: not read as KITTI
+        RosbagSequence(path, doppler_field="velocity", gt=kitti, gt_format="tum")
