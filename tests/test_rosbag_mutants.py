@@ -773,3 +773,16 @@ def test_the_association_report_names_the_ground_truth_source(tmp_path):
         seq.close()
     with pytest.raises(DataError, match="expected 8 values"):  # told TUM: not read as KITTI
         RosbagSequence(path, doppler_field="velocity", gt=kitti, gt_format="tum")
+
+
+def test_gt_given_twice_and_a_repeat_across_bags_are_said_plainly(tmp_path):
+    a = cloud_bag(tmp_path / "a.bag", [1.0, 1.1])
+    b = cloud_bag(tmp_path / "b.bag", [1.1, 1.2])
+    with pytest.raises(DataError, match=r"^give the ground truth either as a file \(gt\) or as a "
+                       r"topic \(gt_topic\), not both$"):
+        RosbagSequence(a, doppler_field="velocity", gt=a, gt_topic="/odom")
+    with pytest.warns(UserWarning, match=f"^{re.escape(f'{a}, {b}')}: 1 scans with a repeated "
+                      "header stamp dropped"):
+        seq = RosbagSequence([a, b], doppler_field="velocity")
+    assert len(seq) == 3
+    seq.close()
