@@ -786,3 +786,17 @@ def test_gt_given_twice_and_a_repeat_across_bags_are_said_plainly(tmp_path):
         seq = RosbagSequence([a, b], doppler_field="velocity")
     assert len(seq) == 3
     seq.close()
+
+
+def test_a_ros2_message_too_short_for_a_header_is_named(tmp_path):
+    from rosbags.rosbag2 import Writer
+
+    T = typestore(False)
+    path = tmp_path / "short"
+    with Writer(path, version=9) as w:
+        conn = w.add_connection("/radar", CLOUD2, typestore=T)
+        w.write(conn, 10**9, T.serialize_cdr(cloud2(T, 1.0, xyzv(0), False), CLOUD2))
+        w.write(conn, 2 * 10**9, b"\x00\x01\x00\x00\x05")
+    with pytest.raises(DataError, match=r"short, /radar message 1: message too short for a "
+                       r"std_msgs/Header stamp; is /radar a point cloud\?$"):
+        RosbagSequence(path, doppler_field="velocity")
