@@ -800,3 +800,27 @@ def test_a_ros2_message_too_short_for_a_header_is_named(tmp_path):
     with pytest.raises(DataError, match=r"short, /radar message 1: message too short for a "
                        r"std_msgs/Header stamp; is /radar a point cloud\?$"):
         RosbagSequence(path, doppler_field="velocity")
+
+
+def test_the_gap_and_uncovered_options_reach_the_association(tmp_path):
+    """GT at 1.0 and 2.0 s, scans at 0.9, 1.0, 1.5, 2.0 s: a 1 s gap is not bridged with the
+    default largest gap 0.5 s, it is with 2 s; the scan before the GT is kept unscored, trimmed,
+    or refused naming the bag and the GT file."""
+    path = cloud_bag(tmp_path / "gap", [0.9, 1.0, 1.5, 2.0])
+    tum = tmp_path / "gt.txt"
+    tum.write_text("1.0 0 0 0 0 0 0 1\n2.0 1 0 0 0 0 0 1\n")
+    opts = {"doppler_field": "velocity", "gt": tum}
+    with pytest.warns(UserWarning, match="2 of the 4 scans kept have no ground truth"):
+        seq = RosbagSequence(path, **opts)
+    np.testing.assert_allclose(seq.ground_truth.stamps, [1.0, 2.0], atol=1e-9)
+    assert len(seq) == 4
+    seq.close()
+    with pytest.warns(UserWarning, match="1 scans before/after its span trimmed"):
+        seq = RosbagSequence(path, max_gap_s=2.0, uncovered="trim", **opts)
+    np.testing.assert_allclose(seq.ground_truth.stamps, [1.0, 1.5, 2.0], atol=1e-9)
+    np.testing.assert_allclose(seq.ground_truth.poses[1][0, 3], 0.5, atol=1e-9)
+    assert len(seq) == 3
+    seq.close()
+    with pytest.raises(DataError, match=f"^{re.escape(str(path))}, frame 0: scan stamp 0.900 s "
+                       f"is not covered by {re.escape(str(tum))} "):
+        RosbagSequence(path, uncovered="error", **opts)
