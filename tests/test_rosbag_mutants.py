@@ -766,9 +766,12 @@ def test_the_association_report_names_the_ground_truth_source(tmp_path):
     tum.write_text("".join(f"{t} {k} 0 0 0 0 0 1\n" for k, t in enumerate(stamps)))
     kitti = tmp_path / "poses.txt"
     kitti.write_text("".join(f"1 0 0 {k} 0 1 0 0 0 0 1 0\n" for k in range(3)))
-    for gt in (tum, kitti):
+    # a TUM file is interpolated at the scans; KITTI rows are the scans' own (1 us tolerance)
+    for gt, mode, tolerance in ((tum, "interpolate", 0.0), (kitti, "nearest", 1e-6)):
         seq = RosbagSequence(path, doppler_field="velocity", gt=gt)
-        assert seq.provenance["gt_association"]["gt_file"] == str(gt)
+        report = seq.provenance["gt_association"]
+        assert (report["gt_file"], report["mode"]) == (str(gt), mode)
+        assert report["tolerance_s"] == tolerance and report["max_gap_s"] == 0.5
         np.testing.assert_allclose(seq.ground_truth.poses[:, 0, 3], [0.0, 1.0, 2.0], atol=1e-9)
         seq.close()
     with pytest.raises(DataError, match="expected 8 values"):  # told TUM: not read as KITTI
