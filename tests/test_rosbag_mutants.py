@@ -827,3 +827,24 @@ def test_the_gap_and_uncovered_options_reach_the_association(tmp_path):
     with pytest.raises(DataError, match=f"^{re.escape(str(path))}, frame 0: scan stamp 0.900 s "
                        f"is not covered by {re.escape(str(tum))} "):
         RosbagSequence(path, uncovered="error", **opts)
+
+
+def test_the_description_is_its_topics_first_message_whatever_comes_before(tmp_path):
+    T = typestore(False)
+    text = '{"points_topic": "/radar", "fields": ["x", "y", "z"], "sequence": "late"}'
+    clouds = [(t, cloud2(T, t, xyzv(k), False)) for k, t in enumerate([1.0, 1.1])]
+    path = write(tmp_path / "late", [("/radar", CLOUD2, clouds),
+                                     (DESCRIPTION_TOPIC, STRING,
+                                      [(5.0, T.types[STRING](data=text))])], False)
+    assert read_description([path])["sequence"] == "late"
+    seq = RosbagSequence(path, model="mine")  # an option given: the others still described
+    assert (seq.name, seq.sensor.model, seq.options.doppler_field) == ("late", "mine", "none")
+    seq.close()
+
+
+def test_a_description_topic_of_another_type_is_ignored_with_a_warning(tmp_path):
+    T = typestore(False)
+    odom = pose_msg(T, ODOM, 1.0, [0.0, 0.0, 0.0], [0, 0, 0, 1], False)
+    path = write(tmp_path / "odd", [(DESCRIPTION_TOPIC, ODOM, [(1.0, odom)])], False)
+    with pytest.warns(UserWarning, match="is not a JSON object; ignored"):
+        assert read_description([path]) is None
