@@ -848,3 +848,18 @@ def test_a_description_topic_of_another_type_is_ignored_with_a_warning(tmp_path)
     path = write(tmp_path / "odd", [(DESCRIPTION_TOPIC, ODOM, [(1.0, odom)])], False)
     with pytest.warns(UserWarning, match="is not a JSON object; ignored"):
         assert read_description([path]) is None
+
+
+def test_a_bag_rosbags_cannot_open_names_rosbags_error(tmp_path):
+    from rosbags.highlevel import AnyReader
+
+    junk = tmp_path / "junk.bag"
+    junk.write_bytes(b"junk")
+    try:
+        AnyReader([junk]).open()
+    except Exception as err:  # noqa: BLE001 - whatever rosbags raises is named
+        name = type(err).__name__
+    with pytest.raises(DataError, match=f"^{re.escape(str(junk))}: cannot open the bag \\({name}: "
+                       ".*\\); expected ROS1 .bag file\\(s\\) or one ROS2 bag \\(folder with "
+                       "metadata.yaml, .db3 or .mcap\\)$"):
+        bag_topics([junk])
