@@ -64,7 +64,8 @@ class Cursor:
 
 
 def parse_pointcloud(data: bytes, where: str) -> tuple[float, np.ndarray, dict[str, np.ndarray]]:
-    """``sensor_msgs/PointCloud`` -> (stamp, points (N,3) float32, {channel name: (N,)})."""
+    """``sensor_msgs/PointCloud`` -> (stamp, points (N,3) float32, {channel name: (N,)}; a
+    name given twice: its first channel)."""
     c = Cursor(data, where)
     stamp, _ = c.header()
     n = c.u32()
@@ -78,7 +79,7 @@ def parse_pointcloud(data: bytes, where: str) -> tuple[float, np.ndarray, dict[s
             raise DataError(
                 f"{where}: channel {name!r} has {m} values for {n} points; expected one per point"
             )
-        channels[name] = values
+        channels.setdefault(name, values)  # a repeated name: the first kept, as in ROS2
     return stamp, points, channels
 
 

@@ -271,7 +271,7 @@ def read_gt_topic(paths: list[Path], topic: str, what: str = "ground-truth") -> 
     try:
         conns = [c for c in reader.connections if c.topic == topic]
         if not conns:
-            have = sorted(f"{c.topic} ({c.msgtype})" for c in reader.connections)
+            have = sorted({f"{c.topic} ({c.msgtype})" for c in reader.connections})  # once
             raise DataError(f"{', '.join(map(str, paths))}: no {what} topic {topic}; the "
                             f"bag has {', '.join(have) or 'no topics'}")
         msgtype = conns[0].msgtype
