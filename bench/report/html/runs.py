@@ -97,7 +97,9 @@ def read_page_runs(results_dir: Path) -> list[PageRun]:
             frames_replaced=int(metrics.get("frames_replaced") or 0),
             frames_unconverged=int(metrics.get("frames_unconverged") or 0),
             damaged=tuple(file_problems(d, status == "finished"))))
-        configs.append(config)
+        # a part of the wrong kind is left out, as the run folders' reader does
+        configs.append({k: v for k, v in config.items()
+                        if k not in ("sequence", "identity") or isinstance(v, dict)})
     # two contents under one name are two sequences here too (bench.runs.sequence_identity)
     tags = sequence_tags([r.sequence for r in runs], configs)
     return [replace(r, sequence=tagged(r.sequence, t)) for r, t in zip(runs, tags, strict=True)]
