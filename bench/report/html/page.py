@@ -255,7 +255,7 @@ def _problems_section(runs: list[PageRun], coverage: dict) -> str:
                 "shown as a failed row in every table, never as a result; `bench run` runs it "
                 "again)" if broken else "")
         parts.append(f"<h3>Runs that did not finish ({len(bad)})</h3>"
-                     f'<p class="caption">{esc(what.lstrip("; "))}</p>' * bool(broken)
+                     + f'<p class="caption">{esc(what.lstrip("; "))}</p>' * bool(broken)
                      + "<table><thead><tr>"
                      f"<th>run folder</th><th>status</th><th>error</th></tr></thead>"
                      f"<tbody>{rows}</tbody></table>")
