@@ -188,7 +188,7 @@ def test_page_notes_short_sentences_repeat_and_footnotes():
 
 def test_page_notes_boundary_40_chars():
     forty = "A" * 38 + "x."
-    thirty_nine = "B" * 37 + "x."
+    thirty_nine = "B" * 18 + " " + "B" * 18 + "x."  # words: its length counts one space
     assert len(forty) == 40 and len(thirty_nine) == 39
     notes = PageNotes()
     notes.shorten(f"{forty} {thirty_nine}", "A")
@@ -230,3 +230,43 @@ def test_markdown_html_with_notes_shortens_captions_and_escapes_title():
                     "&quot;One &lt;b&gt;&quot; above.</p>")
     # without notes nothing is shortened
     assert markdown_html(LONG)[0] == f'<p class="caption">{LONG}</p>'
+
+
+def test_outer_pipes_without_spaces():
+    out, _ = markdown_html("|ab | cd|\n|---|---|\n|1 | 22|")
+    assert "<th>ab</th><th>cd</th>" in out
+    assert '<td class="num">1</td><td class="num">22</td>' in out
+
+
+def test_header_and_rule_at_the_end_are_a_table():
+    out, n = markdown_html("| a |\n|---|")
+    assert n == 1
+    assert out == ('<div class="scroll"><table><thead><tr><th>a</th></tr></thead>'
+                   "<tbody></tbody></table></div>")
+
+
+def test_rows_are_adjacent():
+    out, _ = markdown_html("| a |\n|---|\n| x |\n| y |")
+    assert "<tbody><tr><td>x</td></tr><tr><td>y</td></tr></tbody>" in out
+
+
+def test_heading_text_starting_with_x():
+    assert markdown_html("# Xray")[0] == "<h3>Xray</h3>"
+
+
+def test_indented_list_first_line_and_two_line_paragraph_at_end():
+    assert markdown_html("  - a\n- b")[0] == "<ul><li>a</li><li>b</li></ul>"
+    assert markdown_html("one\ntwo")[0] == '<p class="caption">one two</p>'
+
+
+def test_footnote_keeps_a_shared_sentence():
+    notes = PageNotes()
+    notes.shorten(LONG, "A")
+    assert notes.shorten(f"[2] Short. {LONG}", "B") == f"[2] Short. {LONG}"
+
+
+def test_default_title_of_markdown_html_is_empty():
+    notes = PageNotes()
+    markdown_html(LONG, notes)
+    assert notes.shorten(LONG, "B") == ("The other notes of this caption are given once, "
+                                        'under "" above.')
