@@ -303,3 +303,37 @@ def test_write_page_writes_the_page(tmp_path):
     assert path.read_text().startswith("<!DOCTYPE html>")
     other = tmp_path / "out.html"
     assert P.write_page(res, other)[0] == other and other.exists()
+
+
+def test_table_files_known_names_in_the_pages_order(tmp_path):
+    names = ["table3.md", "table4.md", "table5.md", "table.md", "table_ape.md", "pivot.md",
+             "fidelity.md"]
+    for name in reversed(names):
+        (tmp_path / name).write_text("x")
+    (tmp_path / "a.md").write_text("x")
+    assert [p.name for p in P.table_files(tmp_path)] == [*names, "a.md"]
+
+
+def test_page_loads_nothing_and_links_its_sections(tmp_path):
+    res = tmp_path / "r"
+    _record(res / "s" / "a", config={"run_key": "k"})
+    page, _ = P.render_page(res)
+    csp = re.search(r'http-equiv="Content-Security-Policy" content="([^"]*)"', page).group(1)
+    rules = {r.split()[0]: r.split()[1:] for r in csp.split("; ")}
+    assert rules == {"default-src": ["'none'"], "img-src": ["data:"],
+                     "style-src": ["'unsafe-inline'"], "base-uri": ["'none'"],
+                     "form-action": ["'none'"]}
+    for anchor in ("tables", "figures", "problems", "provenance"):
+        assert f'<a href="#{anchor}">' in page
+        assert f'<section id="{anchor}"><h2>' in page
+    assert "<script" not in page
+    assert page.startswith("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">")
+
+
+def test_made_tables_have_their_titles(tmp_path):
+    res = tmp_path / "r"
+    _record(res / "s" / "a", failed={"status": "failed"}, config={"run_key": "k"})
+    page, _ = P.render_page(res)
+    for title in ("Relative error per segment length (Table III)", "KITTI drift",
+                  "Absolute pose error (Tables IV / V)", "Ego-velocity error"):
+        assert f"<h3>{title}</h3>" in page
