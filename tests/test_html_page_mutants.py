@@ -337,3 +337,77 @@ def test_made_tables_have_their_titles(tmp_path):
     for title in ("Relative error per segment length (Table III)", "KITTI drift",
                   "Absolute pose error (Tables IV / V)", "Ego-velocity error"):
         assert f"<h3>{title}</h3>" in page
+
+
+def test_sections_have_no_stray_text_and_exact_captions(tmp_path):
+    bad = [run("a", "failed", message="m"), run("b", "broken", message="n"),
+           run("c", damaged=("p",)),
+           *[run(f"w{i}", meta={"warnings": ["one", "two"]}, has_gt=False) for i in range(4)],
+           run("fb", frames=11, frames_replaced=1), run("fc", frames=11, frames_unconverged=2)]
+    html = P._problems_section(bad, {"data": "d", "missing": ["m1", "m2"]})
+    assert "XX" not in html
+    assert "(4 run(s): w0, w1, w2, ...)" in html
+    assert ("1 with a broken record (its metrics.json is no valid run record: shown as a failed "
+            "row in every table, never as a result; `bench run` runs it again)") in html
+    assert ("A finished run keeps its row (its figures come from metrics.json), but without "
+            "readable trajectory files its per-segment errors, and so its significance marks "
+            "and figures, are missing.</p><table><thead><tr><th>run folder</th><th>problem</th>"
+            "</tr></thead>") in html
+    assert ("Replaced: the registration gave no usable transform and the step was replaced by "
+            "the motion prior (the identity without a seed); not converged: the registration "
+            "stopped before converging and its last iterate was kept.") in html
+    assert ("table.</p><table><thead><tr><th>run folder</th><th>replaced</th>"
+            "<th>not converged</th><th>registered frames</th><th>share</th></tr></thead>") in html
+    # only "missing" recorded: both lines are shown
+    assert "<p>Found (0): none</p>" in html
+    assert '<p class="failed">Missing (2): m1, m2</p>' in html
+    prov = P._provenance_section([
+        run("x", meta={"git": {"dirty": True}, "date": "2024-03-01"}, store="/s1",
+            clock="cpu", threads=1),
+        run("y", meta={"date": "2024-01-01", "cpu": "c"}, store="/s2", clock="cpu"),
+        run("z", meta={"date": "2024-02-01"})])
+    assert "XX" not in prov
+    items = dict(re.findall(r"<dt>(.*?)</dt><dd>(.*?)</dd>", prov))
+    assert items["code (git commit)"] == "not recorded"  # dirty without a commit: no code
+    assert items["run dates"] == "2024-01-01 to 2024-03-01"
+    assert items["machine"].startswith("?, ? cores, host ?, Python ? (2 runs)")
+    assert "<th>SHA-256 of the store</th>" in prov
+    figs = tmp_path / "figures"
+    (figs / "boxplots").mkdir(parents=True)
+    (figs / "boxplots" / "a.png").write_bytes(b"A")
+    (figs / "boxplots" / "b.png").write_bytes(b"B")
+    assert "XX" not in P._figures_section(figs, 0.0)[0]
+
+
+def test_stale_note_text(tmp_path):
+    f = tmp_path / "t.md"
+    f.write_text("x")
+    os.utime(f, (1.0, 1.0))
+    assert P._stale_note(f, 5.0) == (
+        '<p class="stale">Written before the latest run record of this folder: it may not show '
+        "every run (<code>bench table</code> / <code>bench figures</code> rewrite it).</p>")
+
+
+def test_tables_section_of_a_failed_run(tmp_path):
+    res = tmp_path / "r"
+    _record(res / "s" / "a", failed={"status": "failed"}, config={"run_key": "k"})
+    long = "This long caption sentence is shared by both written tables of the folder."
+    (res / "pivot.md").write_text(f"| a |\n|---|\n| 1 |\n\n{long}\n")
+    (res / "sub").mkdir()
+    (res / "sub" / "x.md").write_bytes(f"| b \xff |\n|---|\n| 2 |\n\n{long}\n".encode("latin-1"))
+    html, n = P._tables_section(res, 0.0)
+    assert "XX" not in html
+    assert n == 4 + 2  # the four metrics' tables (each with the failed row) and the two files
+    assert "No table" not in html
+    assert "<th>b \ufffd</th>" in html
+    assert 'given once, under &quot;pivot.md&quot; above.' in html
+    # the made tables share the marking rule: said once, under the first made table
+    assert 'under &quot;Relative error per segment length (Table III)&quot; above.' in html
+    assert ("<p>Tables of the folder's finished runs, made for this page: every figure with its "
+            "95 % confidence interval [low, high]; bold / underlined read from the printed "
+            "intervals alone (the caption states the rule: check any mark against the "
+            "cells).</p>") in html
+    empty = tmp_path / "e"
+    _record(empty / "s" / "a", config={"run_key": "k"})
+    assert P._tables_section(empty, 0.0) == (
+        "<p>No table: no finished run with ground truth.</p>", 0)

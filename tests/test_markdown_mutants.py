@@ -252,6 +252,7 @@ def test_rows_are_adjacent():
 
 def test_heading_text_starting_with_x():
     assert markdown_html("# Xray")[0] == "<h3>Xray</h3>"
+    assert markdown_html("#Xray")[0] == "<h3>Xray</h3>"
 
 
 def test_indented_list_first_line_and_two_line_paragraph_at_end():
