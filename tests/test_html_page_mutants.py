@@ -411,3 +411,36 @@ def test_tables_section_of_a_failed_run(tmp_path):
     _record(empty / "s" / "a", config={"run_key": "k"})
     assert P._tables_section(empty, 0.0) == (
         "<p>No table: no finished run with ground truth.</p>", 0)
+
+
+def test_render_page_counts_figures_banner_and_provenance(tmp_path, monkeypatch):
+    res = tmp_path / "r"
+    _record(res / "s" / "fin", metrics={"sequence": "s (synthetic)", "method": "m",
+                                        "seed": None, "frames": 3, "frames_scored": 3,
+                                        "diverged": False, "clock": "cpu", "threads": 1})
+    (res / "figures" / "speed").mkdir(parents=True)
+    png = res / "figures" / "speed" / "a.png"
+    png.write_bytes(b"P")
+    os.utime(png, (1.0, 1.0))
+    (res / "reproduction.json").write_text('{"missing": ["q"]}')
+    page, counts = P.render_page(res)
+    assert (counts["figures"], counts["failed"], counts["runs"]) == (1, 0, 1)
+    assert "1 run folder(s): 1 finished, 0 not;" in page
+    assert 'class="stale"' in page  # the figure is older than the run record
+    assert "XX" not in page
+    assert ('<p class="banner"><strong>Synthetic data.</strong> Sequences marked (synthetic) '
+            "were made by this repository&#x27;s generator") in page or (
+        "were made by this repository's generator to imitate the paper's sequences; they are "
+        "not the paper's data.</p>") in page
+    assert ('<p class="banner">1 of the paper\'s sequences are missing from this reproduction '
+            "(listed under Failed runs and missing data).</p>") in page
+    assert "<dt>clock</dt><dd>cpu time, 1 thread(s) (1 run)</dd>" in page
+    monkeypatch.chdir(res)
+    page, _ = P.render_page(Path("."))
+    assert "<title>doppler-bench results: r</title>" in page
+
+
+def test_render_page_of_a_folder_without_runs(tmp_path):
+    page, counts = P.render_page(tmp_path)
+    assert counts["runs"] == 0
+    assert "<p>No run records.</p>" in page

@@ -202,3 +202,20 @@ def test_two_contents_under_one_name_are_tagged(tmp_path):
     assert a != b
     assert a.startswith("s [") and b.startswith("s [")
     assert runs["z/s/a"].sequence == "other"
+
+
+def test_a_config_that_is_not_a_mapping_is_left_out(tmp_path):
+    run_folder(tmp_path, "s/r", metrics=METRICS, config="- 1\n- 2\n")
+    [r] = read_page_runs(tmp_path)
+    assert r.sequence == "rec_seq" and r.status == "finished"
+    assert r.damaged == (f"{tmp_path / 's/r/config.yaml'}: expected a mapping, found list",)
+
+
+def test_trajectory_files_are_checked_for_finished_runs_only(tmp_path):
+    run_folder(tmp_path, "s/fin", metrics=METRICS, gt="garbage line\n")
+    run_folder(tmp_path, "s/fail", failed={"status": "failed"}, gt="garbage line\n")
+    runs = by_folder(tmp_path)
+    assert runs["s/fail"].damaged == ()
+    [p] = runs["s/fin"].damaged
+    assert str(tmp_path / "s/fin/gt_tum.txt") in p
+    assert not p.endswith(": None")
