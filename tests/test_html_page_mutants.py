@@ -444,3 +444,22 @@ def test_render_page_of_a_folder_without_runs(tmp_path):
     page, counts = P.render_page(tmp_path)
     assert counts["runs"] == 0
     assert "<p>No run records.</p>" in page
+
+
+def test_write_page_never_replaces_a_file_it_did_not_write(tmp_path):
+    from bench.guard import Refused
+
+    res = tmp_path / "r"
+    _record(res / "s" / "a", failed={"status": "failed"}, config={"run_key": "k"})
+    mine = tmp_path / "notes.html"
+    mine.write_text("my notes")
+    try:
+        P.write_page(res, mine)
+    except Refused as err:
+        assert "exists and is not a report page this command wrote" in str(err)
+    else:
+        raise AssertionError("replaced a file it did not write")
+    assert mine.read_text() == "my notes"
+    first, _ = P.write_page(res)
+    again, _ = P.write_page(res)  # its own page is replaced
+    assert first == again and again.read_text().startswith("<!DOCTYPE html>")
