@@ -253,7 +253,7 @@ def test_render_page_without_banners_and_unreadable_coverage(tmp_path):
             "paper&#x27;s coverage of this folder is unknown") in page
     (res / "reproduction.json").write_text('{"missing": []}')
     page, _ = P.render_page(res)
-    assert 'class="banner"' not in page and "not readable" not in page
+    assert 'class="banner"' not in page and "not readable" not in page and "XX" not in page
 
 
 def test_render_page_without_any_table(tmp_path):
@@ -463,3 +463,26 @@ def test_write_page_never_replaces_a_file_it_did_not_write(tmp_path):
     first, _ = P.write_page(res)
     again, _ = P.write_page(res)  # its own page is replaced
     assert first == again and again.read_text().startswith("<!DOCTYPE html>")
+
+
+def test_written_tables_without_made_ones_and_exact_texts(tmp_path):
+    res = tmp_path / "r"
+    _record(res / "s" / "a", config={"run_key": "k"})  # unfinished: no made table
+    (res / "pivot.md").write_text("| a |\n|---|\n| 1 |\n")
+    page, counts = P.render_page(res)
+    assert counts["tables"] == 1
+    assert "No table" not in page and "XX" not in page
+    html = P._problems_section([run(meta={"warnings": ["w"]})], {})
+    assert html.endswith("(1 run(s): s/r)</span></li></ul>")
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    from loaders.errors import DataError
+    try:
+        P.write_page(empty)
+    except DataError as err:
+        assert str(err) == (
+            f"{empty}: no run records in this folder (no metrics.json, failed.json or run "
+            "config.yaml under it); expected a results folder of `bench run` or "
+            "`bench reproduce`")
+    else:
+        raise AssertionError("no error")
