@@ -63,7 +63,9 @@ def test_the_messages_when_few_scans_have_gt():
         est.collect_cues(_drive(gt_frames=[2, 3, 4]))  # 3 scans with GT: enough to try
     with pytest.raises(DataError, match=r"^m: only 2 scan\(s\) have ground truth \(its ground "
                                         r"truth spans 0\.200-0\.300 s, the 10 scans "
-                                        r"0\.000-0\.900 s\)"):
+                                        r"0\.000-0\.900 s\); calibration needs the GT "
+                                        r"velocity at 3 or more scans: check the GT's clock "
+                                        r"\(`bench inspect` shows its coverage\)$"):
         est.collect_cues(_drive(gt_frames=[2, 3]))
     seq = _drive()
     empty = MemorySequence("m", seq.sensor, [], seq.ground_truth)

@@ -252,6 +252,11 @@ def test_two_disagreeing_cues_each_stationary_in_their_own_angles():
     for k in (1, 2):
         assert abs(_dtrace(S_v, ang, k)) < 1e-6
     assert abs(_dtrace(S_r, ang, 0)) < 1e-6
+    # pitch alone free, the other angles held at 0
+    ang = est.fit_angles([(S_v, np.array([False, True, False]))])
+    assert ang[0] == 0 and ang[2] == 0 and abs(_dtrace(S_v, ang, 1)) < 1e-6
+    ang = est.fit_angles([(S_v, np.array([False, True, True])),
+                          (S_r, np.array([True, False, False]))])
     # a fit away from the identity (the roll the road holds turns pitch and yaw somewhat)
     assert np.degrees(ang[2]) > 25 and np.degrees(ang[1]) > 10
 

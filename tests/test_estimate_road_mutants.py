@@ -22,9 +22,9 @@ def _ring(r_low, r_high, n=200, seed=0):
 
 
 def test_the_40_m_limit_is_horizontal_distance():
-    # 39-39.9 m away horizontally, 3 m down: over 40 m in 3-D, still candidates
-    out = est.road_normal(Scan(0.0, _plane(_ring(39.0, 39.9), 3.0)))
-    assert out is not None and abs(out[1] - 3.0) < 1e-9
+    # 39.8-39.95 m away horizontally, 4 m down: over 40 m in 3-D, still candidates
+    out = est.road_normal(Scan(0.0, _plane(_ring(39.8, 39.95), 4.0)))
+    assert out is not None and abs(out[1] - 4.0) < 1e-9
     # 40.2-40.8 m away: beyond the limit
     assert est.road_normal(Scan(0.0, _plane(_ring(40.2, 40.8), 1.5))) is None
 
