@@ -41,6 +41,9 @@ def test_run_labels():
     assert names.run_label("x", True, "kiss (external)", "gt-reconstructed") == \
         "kiss (external) [GT-assisted]"
     assert names.seed_tag("icp", False) == "No Seed"
+    # KISS-ICP predicts with its own motion model (methods/kiss.py's motion_prior)
+    assert names.seed_tag("kiss-icp", True) == "With Seed, own model"
+    assert names.run_label("kiss-icp", True, "k") == "(With Seed, own model) k"
 
 
 def test_the_overrides_note():
