@@ -48,3 +48,61 @@ def test_without_rerun_the_message_says_what_to_install(monkeypatch):
     with pytest.raises(DataError, match=r"^bench view needs rerun-sdk: pip install "
                                         r"'doppler-bench\[viewer\]'$"):
         _rerun()
+
+
+class _Rec:
+    """Records what _log_sequence logs (a stand-in for rerun's RecordingStream)."""
+
+    def __init__(self):
+        self.logged, self.times = [], []
+
+    def log(self, path, item, static=False):
+        self.logged.append((path, item, static))
+
+    def set_time(self, name, **value):
+        self.times.append((name, value))
+
+
+def _fake_rr():
+    from types import SimpleNamespace
+
+    return SimpleNamespace(LineStrips3D=lambda strips, **kw: ("lines", strips, kw),
+                           Points3D=lambda pts, **kw: ("points", pts, kw))
+
+
+def test_what_the_sequence_logs():
+    from bench.report.view import _log_sequence
+    from loaders.scan import MemorySequence, Scan, SensorInfo
+
+    def at(x):
+        return make_T(np.eye(3), np.array([x, 0.0, 0.0]))
+
+    t = np.array([5.0, 5.1, 5.2])
+    pts = np.array([[1.0, 0, 0], [0, 1.0, 0], [0, 0, 1.0], [1.0, 1.0, 1.0]])
+    dop = np.array([-4.0, 0.0, 4.0, 2.0])  # 95th percentile of |d|: 4 m/s
+    scans = [Scan(s, pts, dop) for s in t]
+    gt = Trajectory(t[:2], np.array([at(10), at(11)]))  # the last scan has no GT
+    est = Trajectory(t, np.array([at(0), at(1), at(2)]))
+    rec = _Rec()
+    _log_sequence(_fake_rr(), rec, MemorySequence("m", SensorInfo("radar", 0.1), scans, gt),
+                  gt, est, 1)
+    (p0, e, s0), (p1, g, s1) = rec.logged[:2]
+    assert (p0, s0, p1, s1) == ("world/estimate", True, "world/ground_truth", True)
+    np.testing.assert_allclose(e[1][0], [[10, 0, 0], [11, 0, 0], [12, 0, 0]])  # aligned
+    assert e[2] == {"colors": [[255, 140, 0]]}
+    np.testing.assert_allclose(g[1][0], [[10, 0, 0], [11, 0, 0]])
+    assert g[2] == {"colors": [[20, 20, 20]]}
+    assert [n for n, _ in rec.times] == ["frame", "time"] * 3
+    assert [v["sequence"] for n, v in rec.times if n == "frame"] == [0, 1, 2]
+    np.testing.assert_allclose([v["duration"] for n, v in rec.times if n == "time"],
+                               [0.0, 0.1, 0.2], atol=1e-12)
+    rest = rec.logged[2:]
+    assert [p for p, _, _ in rest] == ["world/scan", "world/sensor"] * 3
+    for k, x in enumerate([10.0, 11.0, 12.0]):  # placed by the GT, the last by the estimate
+        (_, (kind, p, kw), static), (_, (kind2, c, kw2), _) = rest[2 * k], rest[2 * k + 1]
+        assert kind == kind2 == "points" and not static
+        np.testing.assert_allclose(p, pts + [x, 0, 0])
+        assert kw["radii"] == 0.05
+        np.testing.assert_array_equal(kw["colors"], doppler_colors(dop, 4.0))
+        np.testing.assert_allclose(c, [[x, 0, 0]])
+        assert kw2 == {"radii": 0.4, "colors": [[0, 160, 0]]}
