@@ -106,3 +106,25 @@ def test_what_the_sequence_logs():
         np.testing.assert_array_equal(kw["colors"], doppler_colors(dop, 4.0))
         np.testing.assert_allclose(c, [[x, 0, 0]])
         assert kw2 == {"radii": 0.4, "colors": [[0, 160, 0]]}
+
+
+def test_what_the_sequence_logs_without_gt_with_a_stride():
+    from bench.report.view import _log_sequence
+    from loaders.scan import MemorySequence, Scan, SensorInfo
+
+    t = np.array([1.0, 1.1, 1.2])
+    pts = np.array([[1.0, 0, 0], [0, 1.0, 0]])
+    scans = [Scan(t[0], pts, np.array([1.0, -1.0])), Scan(t[1], pts), Scan(t[2], pts)]
+    est = Trajectory(t[:2], np.array([make_T(np.eye(3), np.array([x, 0.0, 0.0]))
+                                      for x in (3.0, 4.0)]))
+    rec = _Rec()
+    _log_sequence(_fake_rr(), rec, MemorySequence("m", SensorInfo("radar", 0.1), scans), None,
+                  est, 2)
+    (p0, e, _), *rest = rec.logged
+    assert p0 == "world/estimate"
+    np.testing.assert_allclose(e[1][0], [[0, 0, 0], [1, 0, 0]])  # aligned at the identity
+    assert [p for p, _, _ in rest] == ["world/scan", "world/sensor", "world/scan"]
+    np.testing.assert_allclose(rest[0][1][1], pts)  # frame 0: the estimate's first pose
+    np.testing.assert_allclose(rest[2][1][1], pts)  # frame 2: no pose, as measured
+    assert rest[2][1][2]["colors"] is None  # no Doppler
+    assert [v["sequence"] for n, v in rec.times if n == "frame"] == [0, 2]
