@@ -206,3 +206,140 @@ def test_why_an_angle_is_not_observable():
                "0.030, below 0.05)"}
     assert est._reasons(spread, 0.05, 9, np.array([False, True, False]),
                         np.array([True, False, True])) == {}
+
+
+# --- tests written against the survivors of a mutation run (tools/mutate.py) ---
+
+
+def test_the_exponential_of_a_tiny_rotation_turns_the_right_way():
+    w = np.array([1e-13, -2e-13, 3e-13])
+    R = est._exp_so3(w)
+    # first order: R = I + [w]x, so R[2, 1] = w_x, R[0, 2] = w_y, R[1, 0] = w_z
+    np.testing.assert_allclose([R[2, 1], R[0, 2], R[1, 0]], w, rtol=1e-6)
+
+
+def test_kabsch_of_mirrored_pairs_is_still_a_rotation():
+    a = _unit(np.random.default_rng(7), 30)
+    out = est.kabsch(a, a * [1, 1, -1])  # a reflection in z would fit them exactly
+    assert np.linalg.det(out) == pytest.approx(1.0)
+    np.testing.assert_allclose(out @ out.T, np.eye(3), atol=1e-12)
+
+
+def test_free_axes_given_as_zero_one_flags():
+    a = _unit(np.random.default_rng(8), 40)
+    R = Rotation.from_euler("z", 12, degrees=True).as_matrix()
+    np.testing.assert_allclose(est.fit_rotation(a, a @ R.T, [0, 0, 1]), R, atol=1e-9)
+
+
+def _dtrace(S, ang, k, h=1e-6):
+    """d tr(R(ang) S) / d ang_k by central differences of scipy's Z-Y-X Euler matrix."""
+    def f(x):
+        return np.trace(Rotation.from_euler("ZYX", x[::-1]).as_matrix() @ S)
+    e = np.zeros(3)
+    e[k] = h
+    return (f(ang + e) - f(ang - e)) / (2 * h)
+
+
+def test_two_disagreeing_cues_each_stationary_in_their_own_angles():
+    rng = np.random.default_rng(9)
+    a, n = _unit(rng, 50), _unit(rng, 20) * [0.3, 0.3, 1.0]
+    n /= np.linalg.norm(n, axis=1, keepdims=True)
+    R1 = Rotation.from_euler("ZYX", [40, 20, 8], degrees=True).as_matrix()
+    R2 = Rotation.from_euler("ZYX", [35, 15, -10], degrees=True).as_matrix()
+    S_v, S_r = a.T @ (a @ R1.T), n.T @ (n @ R2.T)
+    ang = est.fit_angles([(S_v, np.array([False, True, True])),
+                          (S_r, np.array([True, False, False]))])
+    for k in (1, 2):
+        assert abs(_dtrace(S_v, ang, k)) < 1e-6
+    assert abs(_dtrace(S_r, ang, 0)) < 1e-6
+    # pitch alone free, the other angles held at 0
+    ang = est.fit_angles([(S_v, np.array([False, True, False]))])
+    assert ang[0] == 0 and ang[2] == 0 and abs(_dtrace(S_v, ang, 1)) < 1e-6
+    ang = est.fit_angles([(S_v, np.array([False, True, True])),
+                          (S_r, np.array([True, False, False]))])
+    # a fit away from the identity (the roll the road holds turns pitch and yaw somewhat)
+    assert np.degrees(ang[2]) > 25 and np.degrees(ang[1]) > 10
+
+
+def test_one_cue_with_large_angles_gives_them_back():
+    # (Newton from zero: up to some 45 deg; beyond about 60 deg it no longer converges)
+    a = _unit(np.random.default_rng(10), 60)
+    for true_deg, free in (([-15.0, 22.5, 45.0], [True, True, True]),
+                           ([0.0, 22.5, 45.0], [False, True, True])):
+        R = Rotation.from_euler("ZYX", true_deg[::-1], degrees=True).as_matrix()
+        ang = est.fit_angles([(a.T @ (a @ R.T), np.array(free))])
+        np.testing.assert_allclose(np.degrees(ang), true_deg, atol=1e-8)
+
+
+def test_gt_velocity_and_up_in_the_gt_frame():
+    t = np.arange(6) * 0.1
+    rot = Rotation.from_euler("ZYX", [30, 0, 10], degrees=True)
+    poses = np.array([make_T(rot.as_matrix(), np.array([4.0 * s, 0, 0])) for s in t[1:4]])
+    gt = Trajectory(t[1:4], poses)  # covers exactly 3 of the 6 stamps
+    vel, up = est.gt_velocity_directions(gt, t)
+    inside = np.array([False, True, True, True, False, False])
+    assert np.isnan(vel[~inside]).all() and np.isnan(up[~inside]).all()
+    np.testing.assert_allclose(vel[inside], np.tile(rot.inv().apply([4.0, 0, 0]), (3, 1)),
+                               atol=1e-9)
+    np.testing.assert_allclose(up[inside], np.tile(rot.inv().apply([0, 0, 1.0]), (3, 1)),
+                               atol=1e-12)
+
+
+def _tilted(a, deg, rng):
+    """Each a_i turned by ``deg`` degrees about a random axis perpendicular to it."""
+    axis = np.cross(a, _unit(rng, len(a)))
+    axis /= np.linalg.norm(axis, axis=1, keepdims=True)
+    return Rotation.from_rotvec(np.radians(np.asarray(deg))[:, None] * axis).apply(a)
+
+
+def test_the_outlier_cut_threshold_is_three_robust_sigmas():
+    rng = np.random.default_rng(11)
+    a = _unit(rng, 300)
+    errs = np.full(300, 0.1)
+    errs[:3] = [0.3, 0.52, 1.0]  # 3 x 1.4826 x 0.1 deg = 0.445 deg
+    keep = est.outlier_cut(a, _tilted(a, errs, rng))
+    assert keep[0] and not keep[1] and not keep[2] and keep[3:].all()
+
+
+def _cues():
+    # 10 frames; velocity rows at frames 0, 2, 5, 9; road rows at frames 0, 1, 5, 8
+    return est.FrameCues(10, 0.1, np.array([0, 2, 5, 9]), np.arange(12.0).reshape(4, 3),
+                         -np.arange(12.0).reshape(4, 3), np.array([0, 1, 5, 8]),
+                         np.arange(12.0).reshape(4, 3) + 100, np.arange(12.0).reshape(4, 3) + 200,
+                         np.array([1.0, 1.1, 1.2, 1.3]))
+
+
+def test_rows_of_drawn_frames_with_the_first_and_missing_rows():
+    v, r = _cues().rows(np.array([0, 1, 9, 0, 3, 8]))
+    assert list(v) == [0, 3, 0] and list(r) == [0, 1, 0, 3]
+    v, r = _cues().rows(np.array([3, 4]))
+    assert list(v) == [] and list(r) == []
+
+
+def test_a_piece_keeps_its_own_road_rows_renumbered():
+    p = _cues().piece(1, 8)
+    assert p.n_frames == 7 and p.period_s == 0.1
+    assert list(p.vel_frame) == [1, 4] and list(p.road_frame) == [0, 4]
+    np.testing.assert_array_equal(p.a, [[3, 4, 5], [6, 7, 8]])
+    np.testing.assert_array_equal(p.b, [[-3, -4, -5], [-6, -7, -8]])
+    np.testing.assert_array_equal(p.normals, [[103, 104, 105], [106, 107, 108]])
+    np.testing.assert_array_equal(p.ups, [[203, 204, 205], [206, 207, 208]])
+    np.testing.assert_allclose(p.heights, [1.1, 1.2])
+
+
+def test_what_inspect_says_at_the_edge_of_the_limit():
+    # 3 sd equal to the limit is still consistent; 0.15 sd: 3 sd = 0.45 < 0.5
+    cal = _cal([0.25, 0.15, 0.3], ["velocity", "velocity", "velocity"])
+    assert est.rotation_consistent_text(cal, limit_deg=0.75) == (
+        "sensor-to-GT rotation (Doppler ego velocity vs GT velocity): roll, pitch consistent "
+        "within 0.75 deg; known only loosely, none found off: yaw +-0.30 deg (sd); see "
+        "`bench calibrate`")
+    cal = _cal([0.15, 0.4, 0.5], ["velocity", "velocity", "velocity"])
+    assert est.rotation_consistent_text(cal) == (
+        "sensor-to-GT rotation (Doppler ego velocity vs GT velocity): roll consistent within "
+        "0.5 deg; known only loosely, none found off: pitch +-0.40 deg (sd), yaw +-0.50 deg "
+        "(sd); see `bench calibrate`")
+    cal = _cal([2.0, 2.0, 0.1], ["not observable", "not observable", "velocity"])
+    assert est.rotation_consistent_text(cal) == (
+        "sensor-to-GT rotation (Doppler ego velocity vs GT velocity): yaw consistent within "
+        "0.5 deg; not observable: roll, pitch; see `bench calibrate`")
