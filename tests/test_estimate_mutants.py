@@ -262,13 +262,29 @@ def test_two_disagreeing_cues_each_stationary_in_their_own_angles():
 
 
 def test_one_cue_with_large_angles_gives_them_back():
-    # (Newton from zero: up to some 45 deg; beyond about 60 deg it no longer converges)
+    # (from zero, Newton found up to some 45 deg only; it starts from the free fit now: a
+    # sensor mounted sideways or backwards is found too)
     a = _unit(np.random.default_rng(10), 60)
     for true_deg, free in (([-15.0, 22.5, 45.0], [True, True, True]),
-                           ([0.0, 22.5, 45.0], [False, True, True])):
+                           ([0.0, 22.5, 45.0], [False, True, True]),
+                           ([30.0, -40.0, 90.0], [True, True, True]),
+                           ([0.0, 10.0, 170.0], [False, True, True]),
+                           ([0.0, 0.0, -120.0], [False, False, True])):
         R = Rotation.from_euler("ZYX", true_deg[::-1], degrees=True).as_matrix()
         ang = est.fit_angles([(a.T @ (a @ R.T), np.array(free))])
         np.testing.assert_allclose(np.degrees(ang), true_deg, atol=1e-8)
+
+
+def test_large_angles_split_between_velocity_and_road():
+    """Yaw and pitch from velocity pairs, roll from road normals, a sensor turned 100 deg in
+    yaw: both cues fitted together give the angles back (scipy's ZYX Euler angles)."""
+    rng = np.random.default_rng(11)
+    a, n = _unit(rng, 60), _unit(rng, 20)
+    true_deg = [12.0, -8.0, 100.0]
+    R = Rotation.from_euler("ZYX", true_deg[::-1], degrees=True).as_matrix()
+    ang = est.fit_angles([(a.T @ (a @ R.T), np.array([False, True, True])),
+                          (n.T @ (n @ R.T), np.array([True, False, False]))])
+    np.testing.assert_allclose(np.degrees(ang), true_deg, atol=1e-8)
 
 
 def test_gt_velocity_and_up_in_the_gt_frame():

@@ -189,8 +189,9 @@ def fit_angles(cues: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
     held. Newton steps on these equations together: a change of the angles turns R (on the
     left) about the columns of ``W = [Rz Ry e_x, Rz e_y, e_z]``; the gradient of ``tr(exp(th)
     M)`` (``M = R S_ab``) is ``axial(M)`` and its Hessian ``sym(M) - tr(M) I``, pulled back
-    through W."""
-    ang = np.zeros(3)
+    through W. Newton starts from ``start_angles`` (from zero it finds angles up to some
+    45 deg only)."""
+    ang = start_angles(cues)
     for _ in range(30):
         R = euler_matrix(ang)
         cy, sy, cp, sp = np.cos(ang[2]), np.sin(ang[2]), np.cos(ang[1]), np.sin(ang[1])
@@ -206,6 +207,16 @@ def fit_angles(cues: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
         if np.abs(step).max() < 1e-12:
             break
     return ang
+
+
+def start_angles(cues: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
+    """Where ``fit_angles`` starts: the (roll, pitch, yaw) [rad] of the rotation with all three
+    axes free that best fits every cue's pairs together (``kabsch`` on the summed ``S_ab``),
+    the angles in no cue's mask 0."""
+    u, _, vt = np.linalg.svd(sum(S_ab for S_ab, _ in cues).T)
+    R = u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt)) or 1.0]) @ vt
+    free = np.any([np.asarray(m, dtype=bool) for _, m in cues], axis=0)
+    return np.where(free, np.radians(rotation_angles(R)), 0.0)
 
 
 def fit_rotation(a: np.ndarray, b: np.ndarray, free: np.ndarray) -> np.ndarray:
