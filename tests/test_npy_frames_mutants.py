@@ -16,6 +16,7 @@ import pytest
 from loaders.errors import DataError
 from loaders.limits import ENV_VAR
 from loaders.npy_frames import NpyFramesSequence, Options, find_frames, find_tum
+from test_npy_frames import _load as load  # the shared helper: the sequence and its warnings
 
 
 def write_frames(folder, numbers, n_points=5):
@@ -37,13 +38,6 @@ def write_tum(path, stamps, x=None):
     rows = np.column_stack([stamps, x, np.zeros((len(stamps), 5)), np.ones(len(stamps))])
     np.savetxt(path, rows)
     return path
-
-
-def load(folder, **kw):
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        seq = NpyFramesSequence(folder, **kw)
-    return seq, [str(w.message) for w in caught]
 
 
 def test_frames_are_ordered_by_number_and_only_exact_names_count(tmp_path):

@@ -213,8 +213,7 @@ def start_angles(cues: list[tuple[np.ndarray, np.ndarray]]) -> np.ndarray:
     """Where ``fit_angles`` starts: the (roll, pitch, yaw) [rad] of the rotation with all three
     axes free that best fits every cue's pairs together (``kabsch`` on the summed ``S_ab``),
     the angles in no cue's mask 0."""
-    u, _, vt = np.linalg.svd(sum(S_ab for S_ab, _ in cues).T)
-    R = u @ np.diag([1.0, 1.0, np.sign(np.linalg.det(u @ vt)) or 1.0]) @ vt
+    R = kabsch_sums(sum(S_ab for S_ab, _ in cues))
     free = np.any([np.asarray(m, dtype=bool) for _, m in cues], axis=0)
     return np.where(free, np.radians(rotation_angles(R)), 0.0)
 
@@ -320,7 +319,12 @@ def collect_cues(sequence: Sequence, min_speed_mps: float = 2.0,
 
 def kabsch(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """The rotation R minimising sum |b - R a|^2 (all three axes free; SVD, no reflection)."""
-    u, _, vt = np.linalg.svd(b.T @ a)
+    return kabsch_sums(a.T @ b)
+
+
+def kabsch_sums(S_ab: np.ndarray) -> np.ndarray:
+    """``kabsch`` from the pairs' sum ``S_ab = sum a b^T`` alone."""
+    u, _, vt = np.linalg.svd(S_ab.T)
     d = np.sign(np.linalg.det(u @ vt)) or 1.0
     return u @ np.diag([1.0, 1.0, d]) @ vt
 
