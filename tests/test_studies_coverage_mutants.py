@@ -323,3 +323,66 @@ def test_the_command_refuses_an_unknown_noise_model(monkeypatch, capsys):
         _main(monkeypatch, capsys, "--noise", "pink")
     assert exit_.value.code == 2
     assert "--noise" in capsys.readouterr().err
+
+
+# ---- killing the first run's survivors ----------------------------------------------------
+
+def test_the_drive_follows_its_documented_construction():
+    """From ``default_rng(seed)``: three amplitudes uniform in [0.05, 0.25] rad/s, then three
+    periods uniform in [8, 30] s; yaw rate sum a_i sin(2 pi t / p_i), integrated by steps
+    (the yaw of pose k holds the rates before it)."""
+    for seed, rate in ((7, 10.0), (3, 20.0)):
+        gt = ground_truth(900, rate_hz=rate, seed=seed)
+        rng = np.random.default_rng(seed)
+        amps, periods = rng.uniform(0.05, 0.25, 3), rng.uniform(8.0, 30.0, 3)
+        t = np.arange(900) / rate
+        rate_of = sum(a * np.sin(2 * np.pi * t / p) for a, p in zip(amps, periods, strict=True))
+        want = np.r_[0.0, np.cumsum(rate_of[:-1]) / rate]
+        np.testing.assert_allclose(np.unwrap(_yaw(gt)), want, atol=1e-9)
+
+
+def test_a_relative_figure_maker_is_relative_units_at_its_length():
+    """``_relative`` called here (FIGURES' makers are made at import)."""
+    gt = ground_truth(400)
+    est = noisy_estimate(gt, NoiseModel(), 2)
+    for length in (8.0, 24.0):
+        got = coverage._relative(length)(gt, est)
+        want = relative_units(gt, est, length)
+        for key in ("rot_deg", "trans_m"):
+            np.testing.assert_allclose(got.values[key], want.values[key], rtol=1e-12)
+        np.testing.assert_array_equal(got.anchor, want.anchor)
+        np.testing.assert_array_equal(got.end, want.end)
+    assert len(coverage._relative(8.0)(gt, est)) != len(coverage._relative(24.0)(gt, est))
+
+
+def test_ar1_noise_of_coefficient_one_stays_at_its_first_draw():
+    """phi = 1: x_k = x_{k-1} + 0 w_k, the first draw for ever."""
+    got = coverage._ar1(np.random.default_rng(8), 1.0, 1.0, (30, 3))
+    first = np.random.default_rng(8).normal(0.0, 1.0, (30, 3))[0]
+    np.testing.assert_allclose(got, np.tile(first, (30, 1)), atol=0)
+
+
+def test_the_commands_help_describes_every_option(monkeypatch, capsys):
+    monkeypatch.setattr(sys, "argv", ["coverage", "--help"])
+    with pytest.raises(SystemExit) as exit_:
+        coverage.main()
+    assert exit_.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    first = " ".join(coverage.__doc__.split("\n\n")[0].split())
+    assert first.startswith("How often the harness's 95 % intervals contain the long-run mean")
+    assert first in text
+    assert "``python -m" not in text  # the first paragraph only
+    for option, help_ in (
+            ("--frames FRAMES", "poses per trajectory"),
+            ("--speed SPEED", "driving speed [m/s] (10 Hz poses); e.g. --frames 250 --speed "
+                              "4.4 for a drive like the real 250-frame sample (110 m)"),
+            ("--trials TRIALS", "trajectories checked"),
+            ("--truth-seeds TRUTH_SEEDS", "trajectories averaged for the long-run mean"),
+            ("--first-seed FIRST_SEED", "the first noise seed (trials, then the long-run "
+                                        "mean's drives)"),
+            ("--reps REPS", "bootstrap resamples"),
+            ("--block-factor BLOCK_FACTOR", "metrics.intervals.BLOCK_FACTOR for this study "
+                                            "(default: the harness's, "
+                                            f"{metric_intervals.BLOCK_FACTOR:g}): how it was "
+                                            "chosen")):
+        assert f"{option} {help_}" in text, option
