@@ -386,3 +386,87 @@ def test_the_commands_help_describes_every_option(monkeypatch, capsys):
                                             f"{metric_intervals.BLOCK_FACTOR:g}): how it was "
                                             "chosen")):
         assert f"{option} {help_}" in text, option
+
+
+class _Spread:
+    def __init__(self, block: float, independent: float):
+        self.block_frames, self.n_independent = block, independent
+
+
+def test_interval_ends_count_as_inside(monkeypatch):
+    """Without noise every estimate is the ground truth, so each trial's figure is the long-run
+    mean exactly; intervals ending at it ([x, x+1], [x-1, x]) hold it, one above it
+    ([x+1, x+2]) does not: coverage and own-figure share 2/3, widths 1, the spreads' medians."""
+    calls = []
+
+    def fake_intervals(units, n_frames, keys, reps):
+        calls.append((n_frames, keys, reps))
+        x = units.statistic("trans_m")
+        ends = ([x, x + 1.0], [x - 1.0, x], [x + 1.0, x + 2.0])[len(calls) - 1]
+        return {"trans_m": ends, "rot_deg": None,
+                "spread": _Spread(10.0 * len(calls), len(calls))}
+
+    monkeypatch.setattr(coverage, "intervals", fake_intervals)
+    (got,) = study(n_frames=120, trials=3, truth_seeds=2, noise=NoiseModel(0.0, 0.0),
+                   figures=("relative 8 m translation",), reps=17)
+    assert calls == [(120, {"rot_deg": "rot_deg", "trans_m": "trans_m"}, 17)] * 3
+    assert got.trials == 3
+    np.testing.assert_allclose(got.coverage, 2 / 3, rtol=1e-12)
+    np.testing.assert_allclose(got.contains_own, 2 / 3, rtol=1e-12)
+    np.testing.assert_allclose(got.median_width, 1.0, rtol=1e-9)
+    assert (got.median_block, got.median_independent) == (20.0, 2.0)
+
+
+def test_a_figure_without_interval_leaves_the_next_ones_measured():
+    got = study(n_frames=200, trials=1, truth_seeds=1, figures=(
+        "KITTI rotation drift", "velocity error"), reps=20)
+    assert got[0].trials == 0 and math.isnan(got[0].coverage)
+    assert got[1].figure == "velocity error" and got[1].trials == 1
+
+
+def test_the_studys_defaults_reach_its_parts(monkeypatch):
+    """``study()`` as the command's defaults leave it: 1500 poses at 5 m/s, 400 truth seeds
+    after 200 trial seeds from 10,000, white noise, every figure, REPS resamples (its parts
+    replaced by recorders: the real study at this size takes minutes)."""
+    seen = {"gt": [], "seeds": [], "noise": set(), "figures": set(), "reps": set()}
+
+    class Units:
+        def statistic(self, key):
+            return 1.0
+
+    def fake_gt(n, speed_mps):
+        seen["gt"].append((n, speed_mps))
+        return np.zeros((2, 4, 4))
+
+    def fake_estimate(gt, noise, seed):
+        seen["seeds"].append(seed)
+        seen["noise"].add(noise)
+        return gt
+
+    def fake_units(gt, est, figures):
+        seen["figures"].add(tuple(figures))
+        return {f: (Units(), FIGURES[f][1]) for f in figures}
+
+    def fake_intervals(units, n_frames, keys, reps):
+        seen["reps"].add((n_frames, reps))
+        return {**{k: [0.0, 2.0] for k in keys}, "spread": _Spread(1, 1)}
+
+    monkeypatch.setattr(coverage, "ground_truth", fake_gt)
+    monkeypatch.setattr(coverage, "noisy_estimate", fake_estimate)
+    monkeypatch.setattr(coverage, "_units_by_maker", fake_units)
+    monkeypatch.setattr(coverage, "intervals", fake_intervals)
+    got = study()
+    assert seen["gt"] == [(1500, 5.0)]
+    assert seen["seeds"] == list(range(10_200, 10_600)) + list(range(10_000, 10_200))
+    assert seen["noise"] == {NoiseModel()}
+    assert seen["figures"] == {tuple(FIGURES)}
+    assert seen["reps"] == {(1500, metric_intervals.REPS)}
+    assert [c.figure for c in got] == list(FIGURES)
+    assert all(c.trials == 200 and c.coverage == 1.0 for c in got)
+
+
+def test_the_command_takes_both_noise_models_by_name(monkeypatch, capsys):
+    calls, _ = _main(monkeypatch, capsys, "--noise", "both")
+    assert [c["noise"] for c in calls] == [NOISE_MODELS["white"], NOISE_MODELS["correlated"]]
+    calls, _ = _main(monkeypatch, capsys, "--noise", "correlated")
+    assert [c["noise"] for c in calls] == [NOISE_MODELS["correlated"]]
