@@ -489,3 +489,11 @@ def test_the_commands_defaults():
     assert defaults == {"poses": (2500, 10_000, 40_000), "frames": 2000, "sequences": 3,
                         "sample": ROOT / "samples" / "ntu4dradlm-loop1.h5",
                         "executors": ("process", "dask")}
+
+
+def test_the_probe_runs_bench_itself_by_default():
+    """No ``entry``: the command is ``bench`` (bench.cli's main); its help ends well."""
+    got = scale.child(["--help"])
+    assert 0 < got["cpu_s"] < 60 and got["peak_mb"] > 10
+    with pytest.raises(RuntimeError, match=r"`bench no-such-command` failed \(exit 2\)"):
+        scale.child(["no-such-command"])
