@@ -375,27 +375,35 @@ def test_the_held_out_rows(monkeypatch):
             made.append((scene, sensor, frames, seed, opts))
             self.n = frames
 
+    collected = []
+
     def collect(seq, name=None):
         made.append(name)
-        return identity_cues(seq.n)
+        collected.append(identity_cues(seq.n))
+        return collected[-1]
 
     pieces_seen = []
+
+    def disagreements(pieces):
+        assert pieces == ["p", "q"]
+        return [SimpleNamespace(angle="yaw")] * 2
+
     monkeypatch.setattr(ccs, "HELD_OUT", [("loop", "radar-x", {"a": 1}, 4)])
     monkeypatch.setattr(ccs, "SyntheticSequence", Syn)
     monkeypatch.setattr(ccs, "collect_cues", collect)
     monkeypatch.setattr(ccs, "fit_pieces", lambda c, bounds, bootstrap, name: pieces_seen.append(
-        (bounds, bootstrap, name)) or ["p", "q"])
+        (c, bounds, bootstrap, name)) or ["p", "q"])
     monkeypatch.setattr(ccs, "piece_bounds", lambda n: [(0, n)])
-    monkeypatch.setattr(ccs, "disagreements", lambda pieces: [SimpleNamespace(angle="yaw")] * 2)
+    monkeypatch.setattr(ccs, "disagreements", disagreements)
     rows = ccs.held_out(frames=40)
     name = "held out: loop radar-x seed 4"
     assert made == [("loop", "radar-x", 40, 4, {"a": 1}), name]
-    assert pieces_seen == [([(0, 40)], 200, name)]
+    assert pieces_seen == [(collected[0], [(0, 40)], 200, name)]
     assert rows == [{"input": name, "case": "as is", "size": "", "pieces": 2,
                      "apart": ["yaw"]}]
-    import inspect
-
-    assert inspect.signature(ccs.held_out).parameters["frames"].default == 250
+    made.clear()
+    ccs.held_out()  # 250 frames by default
+    assert made[0] == ("loop", "radar-x", 250, 4, {"a": 1})
 
 
 # ---- the table and the command ------------------------------------------------------------

@@ -318,3 +318,13 @@ def test_the_command_fails_on_a_false_alarm_only(monkeypatch, capsys):
     code, asked, out = _main(monkeypatch, capsys, alarm, "--frames", "40", "--verbose")
     assert (code, asked) == (1, [40])
     assert out.splitlines()[-2:] == [str(r) for r in alarm]
+
+
+def test_the_commands_help(capsys):
+    with pytest.raises(SystemExit) as exit_:
+        rcs.main(["--help"])
+    assert exit_.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "false alarms and detections of bench run's ground-truth checks" in text
+    assert "--frames FRAMES synthetic frames" in text
+    assert "--verbose every row and its message" in text

@@ -211,13 +211,16 @@ def fake_children(monkeypatch, figures: dict) -> list:
 def test_a_scale_row_is_cpu_per_pose_and_against_the_scorings(tmp_path, monkeypatch):
     store = tmp_path / "s.h5"
     ests = [tmp_path / "e0.txt", tmp_path / "e1.txt"]
-    monkeypatch.setattr(scale, "drive", lambda poses, folder: (store, ests))
+    drives = []
+    monkeypatch.setattr(scale, "drive", lambda poses, folder: drives.append(
+        (poses, folder)) or (store, ests))
     calls = fake_children(monkeypatch, {
         "score": [{"cpu_s": 2.0, "wall_s": 5.0, "peak_mb": 300.0},
                   {"cpu_s": 4.0, "wall_s": 3.0, "peak_mb": 200.0}],
         "table": {"cpu_s": 3.0, "wall_s": 4.0, "peak_mb": 150.0},
         "report": {"cpu_s": 9.0, "wall_s": 12.0, "peak_mb": 400.0}})
     row = scale.scale_row(1000, tmp_path)
+    assert drives == [(1000, tmp_path)]
     results = str(tmp_path / "results-1000")
     assert calls == [["score", str(ests[0]), "--store", str(store), "--name", "estimate-0",
                       "--out", results],
