@@ -328,3 +328,35 @@ def test_the_commands_help(capsys):
     assert "false alarms and detections of bench run's ground-truth checks" in text
     assert "--frames FRAMES synthetic frames" in text
     assert "--verbose every row and its message" in text
+
+
+# ---- killing the first run's survivors ----------------------------------------------------
+
+def test_the_checks_name_the_store_as_bench_run_does():
+    """Messages name the sequence ``store`` (the scratch job's store ``store.h5``)."""
+    dup = check(rcs._duplicates(line(), 2))
+    assert dup["warnings"][0].startswith("store: ")
+    back = check(rcs._backwards(line(), 0.1))
+    assert back["refusal"].startswith("store, pose row 50: stamp 7.800000 s goes backwards")
+    apart = check(rcs._shifted(line(), 1.5))
+    assert apart["refusal"] == "store: no frame has ground truth; nothing to score"
+    some = check(line(), lengths=(4.0, 50.0))
+    assert some["warnings"][0].startswith("store: the ground truth's path is 9.9 m long: no "
+                                          "segments of 50 m")
+    none = check(line(), lengths=(50.0,))
+    assert none["refusal"].startswith("store.h5: the ground truth's path is 9.9 m long, too "
+                                      "short")
+
+
+def test_a_dropped_window_is_closed():
+    """A 2 s window around the middle (8.0 s) takes 7.0 and 9.0 s with it."""
+    gt = line(101)
+    got = rcs._drop_window(gt, 2.0)
+    np.testing.assert_allclose(got.stamps, np.r_[gt.stamps[:40], gt.stamps[61:]], atol=0)
+
+
+def test_a_repeated_stamps_other_pose_is_moved_from_its_own():
+    gt = line(11)
+    gt.poses[:, 1, 3] = 2.0
+    got = rcs._two_poses(gt, 1)  # row 1 twice: the second 1 cm further along y
+    np.testing.assert_allclose(got.poses[:, 1, 3], [2.0, 2.0, 2.01] + [2.0] * 9, atol=1e-12)
