@@ -210,9 +210,9 @@ def test_the_held_out_drives_are_not_those_the_floor_was_chosen_on():
 class FakeSeq:
     """A sequence of ``n`` scans at 10 Hz with a GT along them."""
 
-    def __init__(self, n: int = 40):
-        self.stamps = np.arange(n) / 10.0
-        self.ground_truth = line(n)
+    def __init__(self, n: int = 40, t0: float = 0.0):
+        self.stamps = t0 + np.arange(n) / 10.0
+        self.ground_truth = line(n, t0=t0)
         self.name = "fake"
         self.sensor = SensorInfo("radar", 0.1)
         self.provenance = {}
@@ -346,13 +346,14 @@ def test_the_gt_moved_past_the_scans_starts_after_their_end(monkeypatch):
             moved.append(seq.ground_truth.stamps.copy())
         return fake_collect(seq, name)
 
-    monkeypatch.setattr(ccs, "_bases", lambda frames: [("x", FakeSeq())])
+    monkeypatch.setattr(ccs, "_bases", lambda frames: [("x", FakeSeq(t0=100.0))])
     monkeypatch.setattr(ccs, "collect_cues", collect)
     monkeypatch.setattr(ccs, "verdict", fake_verdict)
     ccs.study(sizes=(), steps=())
     (stamps,) = moved
-    span = 3.9
-    np.testing.assert_allclose(stamps, np.arange(40) / 10.0 + 1.01 * span + 1.0, atol=1e-9)
+    span = 3.9  # moved by 1.01 spans and 1 s: 4.939 s
+    np.testing.assert_allclose(stamps, 100.0 + np.arange(40) / 10.0 + 1.01 * span + 1.0,
+                               atol=1e-9)
 
 
 def test_the_study_passes_its_frame_count(monkeypatch):
@@ -464,3 +465,29 @@ def test_the_command_takes_no_arguments(capsys):
     assert help_.value.code == 0
     assert "false alarms and detections of bench calibrate's verdicts" in \
         " ".join(capsys.readouterr().out.split())
+
+
+def test_each_check_names_its_input_and_turns_one_axis(monkeypatch):
+    """Every cue collection and verdict gets the input's name (their messages name it); the
+    injected rotation is about the named axis only (the fit finds size there, 0 elsewhere)."""
+    names, found = [], []
+
+    def collect(seq, name=None):
+        names.append(("collect", name))
+        return fake_collect(seq, name)
+
+    def verdict(cues_, name):
+        names.append(("verdict", name))
+        v = fake_verdict(cues_, name)
+        found.append([v["cal"].angles_deg[a] for a in ("roll", "pitch", "yaw")])
+        return v
+
+    monkeypatch.setattr(ccs, "_bases", lambda frames: [("synthetic straight", FakeSeq())])
+    monkeypatch.setattr(ccs, "collect_cues", collect)
+    monkeypatch.setattr(ccs, "verdict", verdict)
+    ccs.study(sizes=(4.0,), steps=(1.0,))
+    assert names == [("collect", "synthetic straight"), ("verdict", "synthetic straight")] + [
+        ("collect", "synthetic straight"), ("verdict", "synthetic straight")] * 2 + [
+        ("collect", "synthetic straight")] + [("verdict", "synthetic straight")] * 3
+    # as is, jittered, resampled (identity), pitch 4, yaw 4; then the half-way change
+    np.testing.assert_allclose(found[:5], [[0, 0, 0]] * 3 + [[0, 4, 0], [0, 0, 4]], atol=1e-9)
