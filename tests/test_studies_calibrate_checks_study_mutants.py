@@ -220,10 +220,10 @@ class FakeSeq:
 
 def identity_cues(n: int = 40) -> FrameCues:
     """Cues of a sensor aligned with the GT frame (b = a, ups = normals)."""
-    a = unit_rows(n, 5)
-    normals = unit_rows(n // 2, 6)
-    return FrameCues(n, 0.1, np.arange(n), a, a.copy(), np.arange(0, n, 2), normals,
-                     normals.copy(), np.ones(n // 2))
+    a, road = unit_rows(n, 5), np.arange(0, n, 2)
+    normals = unit_rows(len(road), 6)
+    return FrameCues(n, 0.1, np.arange(n), a, a.copy(), road, normals, normals.copy(),
+                     np.ones(len(road)))
 
 
 def fake_verdict(cues_: FrameCues, name: str) -> dict:
@@ -491,3 +491,26 @@ def test_each_check_names_its_input_and_turns_one_axis(monkeypatch):
         ("collect", "synthetic straight")] + [("verdict", "synthetic straight")] * 3
     # as is, jittered, resampled (identity), pitch 4, yaw 4; then the half-way change
     np.testing.assert_allclose(found[:5], [[0, 0, 0]] * 3 + [[0, 4, 0], [0, 0, 4]], atol=1e-9)
+
+
+def test_the_pitch_changes_half_way_in_pitch_only(monkeypatch):
+    """41 frames: GT cues of frames 20 on turned by (0, step, 0), those before left alone."""
+    seen = []
+
+    def verdict(cues_, name):
+        seen.append(cues_)
+        return fake_verdict(cues_, name)
+
+    monkeypatch.setattr(ccs, "_bases", lambda frames: [("x", FakeSeq(41))])
+    monkeypatch.setattr(ccs, "collect_cues", fake_collect)
+    monkeypatch.setattr(ccs, "verdict", verdict)
+    ccs.study(sizes=(), steps=(2.5,))
+    half = seen[-1]
+    assert half.n_frames == 41
+    later = half.vel_frame >= 20
+    assert later.sum() == 21
+    np.testing.assert_allclose(half.b[later], half.a[later] @ euler((0, 2.5, 0)).T, atol=1e-12)
+    np.testing.assert_allclose(half.b[~later], half.a[~later], atol=0)
+    road = half.road_frame >= 20
+    np.testing.assert_allclose(half.ups[road], half.normals[road] @ euler((0, 2.5, 0)).T,
+                               atol=1e-12)

@@ -449,6 +449,7 @@ def test_the_command_runs_its_parts_and_writes_both_tables(tmp_path, monkeypatch
 
     def executor_rows(folder, sequences, frames, executors):
         calls.append(("executors", sequences, frames, executors))
+        assert folder.is_dir()
         return [{"executor": e, "sequences": sequences, "frames": frames, "timed_frames": 1,
                  "method_ms": 2.0, "method_median_ms": 2.0, "harness_ms": 1.0, "cpu_ms": 3.0,
                  "wall_ms": 1.0, "main_peak_mb": 9.0} for e in executors]
@@ -500,3 +501,40 @@ def test_the_probe_runs_bench_itself_by_default():
     assert 0 < got["cpu_s"] < 60 and got["peak_mb"] > 10
     with pytest.raises(RuntimeError, match=r"`bench no-such-command` failed \(exit 2\)"):
         scale.child(["no-such-command"])
+
+
+def test_the_commands_messages_print_paths_and_names_as_they_are(tmp_path, monkeypatch):
+    """Paths and executor names holding brackets (rich's markup) are printed verbatim."""
+    monkeypatch.setattr(scale, "doppler_on_sample", lambda sample: 0.75)
+    monkeypatch.setattr(scale, "scale_row", lambda n, folder: dict(ROWS[0], poses=n))
+    monkeypatch.setattr(scale, "executor_rows", lambda folder, sequences, frames, executors: [
+        {"executor": e, "sequences": sequences, "frames": frames, "timed_frames": 1,
+         "method_ms": 2.0, "method_median_ms": 2.0, "harness_ms": 1.0, "cpu_ms": 3.0,
+         "wall_ms": 1.0, "main_peak_mb": 9.0} for e in executors])
+    console = Console(record=True, width=300)
+    sample, out = tmp_path / "s[bold].h5", tmp_path / "out[red]"
+    scale.run_scale(out, console, poses=(200,), frames=7, sequences=2, sample=sample,
+                    executors=("[bold]process", "dask"))
+    text = console.export_text()
+    assert f"timing doppler on {sample}" in text
+    assert "`bench run` of 2 x 7 frames on [bold]process, dask" in text
+    assert f"wrote {out}/scale.csv and scale_executors.csv" in text
+
+
+def test_the_long_stores_are_the_same_each_time(tmp_path, monkeypatch):
+    """The thinning is seeded: two builds of the stores hold the same points."""
+    import bench.studies.harness as harness
+    from loaders.scan import MemorySequence, SensorInfo
+    from loaders.store import StoreSequence
+
+    radar = MemorySequence("radar", SensorInfo("radar", 0.1), [_scan(0.0, 3000, 0.0)])
+    monkeypatch.setattr(harness, "synthetic_scenarios", lambda: iter([("radar", radar)]))
+    points = []
+    for k in range(2):
+        (path,) = scale.long_stores(tmp_path / str(k), 1, 1)
+        seq = StoreSequence(path)
+        try:
+            points.append(seq.scan(0).points)
+        finally:
+            seq.close()
+    np.testing.assert_array_equal(points[0], points[1])
