@@ -538,3 +538,35 @@ def test_the_long_stores_are_the_same_each_time(tmp_path, monkeypatch):
         finally:
             seq.close()
     np.testing.assert_array_equal(points[0], points[1])
+
+
+def test_the_tables_titles_and_captions_in_full():
+    flat = " ".join(_text(scale.print_scale, ROWS, 0.75).split())
+    assert ("The harness at dataset scale: CPU time per pose [ms] (wall in brackets), peak "
+            "memory [MB], and the table / report against the scorings that made them") in flat
+    assert ("marginal per pose 1,000 -> 3,000: scoring 1.500 ms (2.00x doppler's per-frame "
+            "time), table 0.750 ms, report 1.500 ms. Per pose: the command's CPU time (start-up "
+            "included) over the poses it covers (two runs: 2N; scoring: the two scorings over "
+            "2N); doppler: median per-frame time on the real radar sample "
+            "(ntu4dradlm-loop1.h5), measured in this command") in flat
+    rows = [{"executor": "dask", "sequences": 3, "frames": 6000, "timed_frames": 5997,
+             "method_ms": 2.0, "method_median_ms": 1.9, "harness_ms": 3.0, "cpu_ms": 5.0,
+             "wall_ms": 2.5, "main_peak_mb": 200.4}]
+    text = _text(scale.print_executors, rows, 1.5)
+    flat = " ".join(text.split())
+    assert ("An experiment's whole cost per frame: `bench run` of 3 long synthetic radar "
+            "sequences with doppler, 2 workers [ms per frame]") in flat
+    assert ("harness CPU: the whole command's CPU time (planning, start-up, workers, reading, "
+            "scoring, writing) less the method's own time_ms, over every frame; all CPU: the "
+            "whole command's CPU time per frame; wall: its wall time per frame on 2 workers; "
+            "scans thinned to 1000 points, tiled along a straight path") in flat
+    # the executor column is left-justified, the figures right-justified under their headers
+    header = next(ln for ln in text.splitlines() if "executor" in ln and "harness" in ln)
+    row = next(ln for ln in text.splitlines() if "dask" in ln and "│" in ln)
+    heads, cells = header.split("┃")[1:-1], row.split("│")[1:-1]
+    assert cells[0].startswith(" dask ") and cells[0].strip() == "dask"
+    assert heads[0].strip() == "executor" and len(cells[0]) > len(" dask ")
+    for head, cell in zip(heads[1:], cells[1:], strict=True):
+        assert cell.endswith(cell.strip() + " "), cell
+        if len(head.strip()) > len(cell.strip()):  # padded: on the left
+            assert cell.startswith("  "), (head, cell)
