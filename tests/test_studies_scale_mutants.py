@@ -570,3 +570,58 @@ def test_the_tables_titles_and_captions_in_full():
         assert cell.endswith(cell.strip() + " "), cell
         if len(head.strip()) > len(cell.strip()):  # padded: on the left
             assert cell.startswith("  "), (head, cell)
+
+
+# ---- the scratch files go through the guard ------------------------------------------------
+
+def test_a_drive_rebuilt_in_the_same_folder_replaces_its_own_files(tmp_path):
+    scale.drive(100, tmp_path)
+    store, estimates = scale.drive(100, tmp_path)  # the harness's own files: replaced
+    assert store.is_file() and all(p.is_file() for p in estimates)
+
+
+@pytest.mark.parametrize("name, what", [("drive-100.h5", "a scratch store"),
+                                        ("drive-100-estimate-0.txt", "a scratch estimate"),
+                                        ("drive-100-estimate-1.txt", "a scratch estimate")])
+def test_a_drive_leaves_a_users_file_alone(tmp_path, name, what):
+    (tmp_path / name).write_text("mine\n")
+    with pytest.raises(DataError, match=f"exists and is not {what} the harness wrote"):
+        scale.drive(100, tmp_path)
+    assert (tmp_path / name).read_text() == "mine\n"
+
+
+def _fake_run(tmp_path, monkeypatch):
+    monkeypatch.setattr(scale, "long_stores", lambda folder, sequences, frames: [])
+
+    def child(argv, timeout_s=3600, entry="bench.cli"):
+        executor = argv[argv.index("--executor") + 1]
+        _write_frames(tmp_path / f"experiment-{executor}" / "r", [1.0])
+        return {"cpu_s": 1.0, "wall_s": 1.0, "peak_mb": 1.0}
+
+    monkeypatch.setattr(scale, "child", child)
+
+
+def test_an_experiment_config_is_replaced_but_a_users_file_is_not(tmp_path, monkeypatch):
+    _fake_run(tmp_path, monkeypatch)
+    scale.executor_rows(tmp_path, 1, 1, executors=("dask",))
+    scale.executor_rows(tmp_path, 1, 1, executors=("dask",))  # its own config: replaced
+    (tmp_path / "experiment-process.yaml").write_text("mine\n")
+    with pytest.raises(DataError, match="exists and is not a scratch experiment the harness"):
+        scale.executor_rows(tmp_path, 1, 1, executors=("process",))
+    assert (tmp_path / "experiment-process.yaml").read_text() == "mine\n"
+
+
+def test_the_scale_table_right_justifies_its_figures_and_spans_first_to_last():
+    rows = [ROWS[0], dict(ROWS[1], poses=2000), ROWS[1]]
+    text = _text(scale.print_scale, rows, 0.75)
+    flat = " ".join(text.split())
+    # the caption spans the smallest and the largest drive, not the second
+    assert "marginal per pose 1,000 -> 3,000: scoring 1.500 ms" in flat
+    header = next(ln for ln in text.splitlines() if "poses" in ln and "┃" in ln)
+    row = next(ln for ln in text.splitlines() if "1,000" in ln and "│" in ln)
+    heads, cells = header.split("┃")[1:-1], row.split("│")[1:-1]
+    assert len(heads) == len(cells) == 10
+    for head, cell in zip(heads, cells, strict=True):
+        assert cell.endswith(cell.strip() + " "), cell
+        if len(head.strip()) > len(cell.strip()):
+            assert cell.startswith("  "), (head, cell)
