@@ -360,3 +360,40 @@ def test_a_repeated_stamps_other_pose_is_moved_from_its_own():
     gt.poses[:, 1, 3] = 2.0
     got = rcs._two_poses(gt, 1)  # row 1 twice: the second 1 cm further along y
     np.testing.assert_allclose(got.poses[:, 1, 3], [2.0, 2.0, 2.01] + [2.0] * 9, atol=1e-12)
+
+
+def test_the_inputs_keep_the_gt_rows_within_a_microsecond_of_each_span(monkeypatch):
+    """A recorded sample of 250 whole-second scans and GT rows just inside (1 us before the
+    first scan, 1 us after the last) and just outside its span; synthetic drives of the
+    frames asked for (250 by default) with their options; stamps as float64."""
+    stamps = list(range(250))  # whole seconds, as integers
+    gt_stamps = np.sort(np.r_[np.arange(250.0), -1e-6, 249.0 + 1e-6, -3e-6, 249.0 + 3e-6])
+    poses = np.repeat(np.eye(4)[None], len(gt_stamps), axis=0)
+
+    class Store:
+        def __init__(self, path):
+            assert path == rcs.SAMPLE
+            self.stamps, self.ground_truth = stamps, Trajectory(gt_stamps, poses)
+
+        def close(self):
+            pass
+
+    made = []
+
+    class Syn:
+        def __init__(self, scene, sensor, frames, **opts):
+            made.append((scene, sensor, frames, opts))
+            self.stamps = list(range(3))
+            self.ground_truth = Trajectory(np.arange(3.0), np.repeat(np.eye(4)[None], 3, 0))
+
+    monkeypatch.setattr(rcs, "StoreSequence", Store)
+    monkeypatch.setattr(rcs, "SyntheticSequence", Syn)
+    got = rcs.inputs()
+    whole = got[0]
+    assert whole[1].dtype == np.float64
+    np.testing.assert_allclose(whole[2].stamps, np.r_[-1e-6, np.arange(250.0), 249.0 + 1e-6],
+                               atol=0)
+    assert made == [(scene, sensor, 250, opts) for scene, sensor, opts in
+                    rcs.SYNTHETIC.values()]
+    for _, s, _ in got[4:]:
+        assert s.dtype == np.float64

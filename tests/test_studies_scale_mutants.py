@@ -625,3 +625,25 @@ def test_the_scale_table_right_justifies_its_figures_and_spans_first_to_last():
         assert cell.endswith(cell.strip() + " "), cell
         if len(head.strip()) > len(cell.strip()):
             assert cell.startswith("  "), (head, cell)
+
+
+def test_a_command_vanishing_without_the_probes_line_is_an_error(tmp_path, monkeypatch):
+    """Exit status 0 but no probe line (the command ended the process itself)."""
+    entry = _entry(tmp_path, "vanish", """
+        def main():
+            os._exit(0)
+        """)
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path))
+    with pytest.raises(RuntimeError, match=r"^`bench x` failed \(exit 0\)"):
+        scale.child(["x"], entry=entry)
+
+
+def test_the_peak_memory_is_whole_kibibytes_in_mebibytes(tmp_path, monkeypatch):
+    """/proc's VmHWM is whole kB: the figure times 1024 is a whole number."""
+    entry = _entry(tmp_path, "small", """
+        def main():
+            pass
+        """)
+    monkeypatch.setenv("PYTHONPATH", str(tmp_path))
+    kb = scale.child([], entry=entry)["peak_mb"] * 1024
+    assert kb == pytest.approx(round(kb), abs=1e-6)
