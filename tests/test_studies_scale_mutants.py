@@ -9,6 +9,7 @@ Issue 46's planted bug: the scale benchmark's CPU figure left out the worker pro
 
 from __future__ import annotations
 
+import ast
 import csv
 import textwrap
 from pathlib import Path
@@ -104,7 +105,7 @@ def test_the_probe_passes_the_arguments_and_imports_this_checkout(tmp_path, monk
         """)
     monkeypatch.setenv("PYTHONPATH", str(tmp_path))
     scale.child(["score", "a b", "--x"], entry=entry)
-    argv, bench_file = eval((tmp_path / "seen").read_text())
+    argv, bench_file = ast.literal_eval((tmp_path / "seen").read_text())
     assert argv == ["bench", "score", "a b", "--x"]
     assert Path(bench_file).resolve() == Path(bench.__file__).resolve()
     assert Path(bench_file).resolve().parents[1] == ROOT
