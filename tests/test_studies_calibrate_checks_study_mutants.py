@@ -456,7 +456,8 @@ def test_the_command_fails_on_a_false_alarm_only(monkeypatch, capsys):
         assert _main(monkeypatch, capsys, [_r(case, ["yaw"])], [])[0] == 1
 
 
-def test_the_command_takes_no_arguments(capsys):
+def test_the_command_takes_no_arguments(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "1000")  # argparse wraps (at hyphens too) to the terminal
     with pytest.raises(SystemExit) as exit_:
         ccs.main(["--frames", "3"])
     assert exit_.value.code == 2

@@ -364,6 +364,7 @@ def test_ar1_noise_of_coefficient_one_stays_at_its_first_draw():
 
 def test_the_commands_help_describes_every_option(monkeypatch, capsys):
     monkeypatch.setattr(sys, "argv", ["coverage", "--help"])
+    monkeypatch.setenv("COLUMNS", "1000")  # argparse wraps (at hyphens too) to the terminal
     with pytest.raises(SystemExit) as exit_:
         coverage.main()
     assert exit_.value.code == 0

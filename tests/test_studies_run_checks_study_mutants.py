@@ -320,7 +320,8 @@ def test_the_command_fails_on_a_false_alarm_only(monkeypatch, capsys):
     assert out.splitlines()[-2:] == [str(r) for r in alarm]
 
 
-def test_the_commands_help(capsys):
+def test_the_commands_help(capsys, monkeypatch):
+    monkeypatch.setenv("COLUMNS", "1000")  # argparse wraps (at hyphens too) to the terminal
     with pytest.raises(SystemExit) as exit_:
         rcs.main(["--help"])
     assert exit_.value.code == 0
