@@ -88,16 +88,17 @@ def test_base_seq_is_what_the_checks_read():
     assert base.piece == "whole"
 
 
-def planned_drive() -> sc.Base:
-    """200 scans at 10 Hz: speed constant only over steps 70-168 (the flattest 100-frame
-    window starts at 70), heading constant only over steps 20-118 (the straightest at 20).
+def planned_drive(flat: int = 70, straight: int = 20) -> sc.Base:
+    """200 scans at 10 Hz: speed constant only over steps flat .. flat + 98 (the flattest
+    100-frame window starts at ``flat``), heading constant only over steps straight ..
+    straight + 98 (the straightest window starts at ``straight``).
     The estimate's and ground truth's stamps sit 0.5 ns before the even scans and after the odd
     ones (each window starts on an even scan, ends on an odd one)."""
     n = 200
     scans = np.arange(n) * 0.1
     k = np.arange(n - 1)
-    speed = np.where((k >= 70) & (k < 169), 3.0, 3.0 + 0.5 * np.sin(1.3 * k))
-    turn = np.where((k >= 20) & (k < 119), 0.0, 0.01 + 0.004 * np.cos(k))
+    speed = np.where((k >= flat) & (k < flat + 99), 3.0, 3.0 + 0.5 * np.sin(1.3 * k))
+    turn = np.where((k >= straight) & (k < straight + 99), 0.0, 0.01 + 0.004 * np.cos(k))
     yaw = np.r_[0.0, np.cumsum(turn)]
     step = speed * 0.1
     x = np.r_[0.0, np.cumsum(step * np.cos(yaw[:-1]))]
@@ -123,6 +124,14 @@ def test_pieces_are_the_halves_frames_60_190_and_the_flattest_and_straightest_wi
         np.testing.assert_array_equal(p.poses, base.poses[a:b])
         np.testing.assert_array_equal(p.gt.stamps, base.gt.stamps[a:b])
         np.testing.assert_array_equal(p.gt.poses, base.gt.poses[a:b])
+
+
+def test_the_last_100_frames_are_a_candidate_window():
+    """Windows start every 10 frames up to the last one that fits (frames 100-199 of 200)."""
+    cut = {p.piece: p for p in sc.pieces(planned_drive(flat=100, straight=100))}
+    scans = np.arange(200) * 0.1
+    np.testing.assert_array_equal(cut["flat speed"].scans, scans[100:])
+    np.testing.assert_array_equal(cut["straight"].scans, scans[100:])
 
 
 def test_frames_60_190_stop_at_the_end_of_a_shorter_base():
