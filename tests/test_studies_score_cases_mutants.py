@@ -13,22 +13,24 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from bench.studies import score_cases as sc
+from loaders.errors import DataError
 from loaders.posefile import read_tum
 from loaders.trajectory import Trajectory
 
 
-def pose(x: float, y: float, yaw: float) -> np.ndarray:
+def pose(x: float, y: float, yaw: float, pitch: float = 0.1, roll: float = -0.2) -> np.ndarray:
     T = np.eye(4)
-    T[:3, :3] = Rotation.from_euler("z", yaw).as_matrix()
+    T[:3, :3] = Rotation.from_euler("ZYX", [yaw, pitch, roll]).as_matrix()
     T[:3, 3] = (x, y, 0.3 * np.sin(x))
     return T
 
 
-def drive(n: int, period: float = 1 / 12) -> sc.Base:
-    """A turning drive at 12 Hz, its estimate the ground truth itself."""
-    t = np.arange(n) * period
-    poses = np.array([pose(2.0 * s, 0.5 * np.sin(s), 0.2 * s) for s in t])
-    return sc.Base("my drive", "synthetic", t, poses, t.copy(), Trajectory(t, poses.copy()))
+def drive(n: int, period: float = 1 / 12, t0: float = 0.0) -> sc.Base:
+    """A turning drive at 12 Hz from ``t0``, its estimate the ground truth itself; a piece."""
+    t = t0 + np.arange(n) * period
+    poses = np.array([pose(2.0 * s, 0.5 * np.sin(s), 0.2 * s) for s in t - t0])
+    return sc.Base("my drive", "synthetic", t, poses, t.copy(), Trajectory(t, poses.copy()),
+                   "second half")
 
 
 def test_text_writes_each_row_in_the_format():
@@ -85,27 +87,35 @@ def test_base_seq_is_what_the_checks_read():
     assert seq.stamps is base.scans and seq.ground_truth is base.gt and seq.provenance == {}
     case = sc.Case(base, "v", Path("x"))
     assert case.options == {} and case.cause is None and case.size is None
-    assert base.piece == "whole"
+    assert sc.Base("b", "real", *(np.zeros(1),) * 3, None).piece == "whole"
 
 
-def planned_drive(flat: int = 70, straight: int = 20) -> sc.Base:
-    """200 scans at 10 Hz: speed constant only over steps flat .. flat + 98 (the flattest
-    100-frame window starts at ``flat``), heading constant only over steps straight ..
-    straight + 98 (the straightest window starts at ``straight``).
-    The estimate's and ground truth's stamps sit 0.5 ns before the even scans and after the odd
-    ones (each window starts on an even scan, ends on an odd one)."""
-    n = 200
-    scans = np.arange(n) * 0.1
+def planned_drive(flat: int = 70, straight: int = 20, n: int = 200) -> sc.Base:
+    """``n`` scans about 10 Hz apart: the speed constant over steps flat .. flat + 98 (the
+    flattest 100-frame window starts at ``flat``; the scans unevenly spaced there, the positions
+    following, so only distance over time is constant), a jump of 3 m/s right after, slight
+    variations elsewhere; the heading constant over steps straight .. straight + 98 (the
+    straightest window), a 0.5 rad turn right after, slight turns elsewhere; the roll rocks
+    throughout (the heading is the intrinsic yaw). The estimate's and ground truth's stamps sit
+    0.5 ns before the even scans and after the odd ones (each window starts on an even scan,
+    ends on an odd one)."""
     k = np.arange(n - 1)
-    speed = np.where((k >= flat) & (k < flat + 99), 3.0, 3.0 + 0.5 * np.sin(1.3 * k))
-    turn = np.where((k >= straight) & (k < straight + 99), 0.0, 0.01 + 0.004 * np.cos(k))
-    yaw = np.r_[0.0, np.cumsum(turn)]
-    step = speed * 0.1
+    in_flat = (k >= flat) & (k < flat + 99)
+    dt = np.where(in_flat, 0.1 * (1 + 0.3 * np.sin(2.1 * k)), 0.1)
+    scans = np.r_[0.0, np.cumsum(dt)]
+    speed = np.where(in_flat, 3.0, 3.0 + 0.01 * np.sin(1.3 * k))
+    speed[k == flat + 99] = 6.0
+    turn = np.where((k >= straight) & (k < straight + 99), 0.0, 0.001 * (1 + 0.5 * np.cos(k)))
+    turn[k == straight + 99] = 0.5
+    yaw = 0.7 + np.r_[0.0, np.cumsum(turn)]
+    step = speed * dt
     x = np.r_[0.0, np.cumsum(step * np.cos(yaw[:-1]))]
     y = np.r_[0.0, np.cumsum(step * np.sin(yaw[:-1]))]
-    poses = np.array([pose(a, b, c) for a, b, c in zip(x, y, yaw, strict=True)])
+    roll = 0.05 * np.sin(3.0 * np.arange(n))
+    poses = np.array([pose(a, b, c, 0.0, r) for a, b, c, r in zip(x, y, yaw, roll, strict=True)])
     poses[:, 2, 3] = 0.0
     off = np.where(np.arange(n) % 2, 5e-10, -5e-10)
+    off[-1] = 5e-10  # the ground truth spans every scan
     gt = Trajectory(scans + off, poses)
     return sc.Base("planned", "real", scans + off, poses.copy(), scans, gt)
 
@@ -128,10 +138,23 @@ def test_pieces_are_the_halves_frames_60_190_and_the_flattest_and_straightest_wi
 
 def test_the_last_100_frames_are_a_candidate_window():
     """Windows start every 10 frames up to the last one that fits (frames 100-199 of 200)."""
-    cut = {p.piece: p for p in sc.pieces(planned_drive(flat=100, straight=100))}
-    scans = np.arange(200) * 0.1
-    np.testing.assert_array_equal(cut["flat speed"].scans, scans[100:])
-    np.testing.assert_array_equal(cut["straight"].scans, scans[100:])
+    base = planned_drive(flat=100, straight=100)
+    cut = {p.piece: p for p in sc.pieces(base)}
+    np.testing.assert_array_equal(cut["flat speed"].scans, base.scans[100:])
+    np.testing.assert_array_equal(cut["straight"].scans, base.scans[100:])
+    # 199 scans: the last window that fits starts at 90 (frames 90-189), never at 100
+    base = planned_drive(flat=100, straight=100, n=199)
+    cut = {p.piece: p for p in sc.pieces(base)}
+    np.testing.assert_array_equal(cut["flat speed"].scans, base.scans[90:190])
+    np.testing.assert_array_equal(cut["straight"].scans, base.scans[90:190])
+
+
+def test_windows_start_every_10_frames():
+    """A flat stretch from frame 73: the chosen window starts on a multiple of 10."""
+    base = planned_drive(flat=73, straight=33)
+    cut = {p.piece: p for p in sc.pieces(base)}
+    assert cut["flat speed"].scans[0] in (base.scans[70], base.scans[80])
+    assert cut["straight"].scans[0] in (base.scans[30], base.scans[40])
 
 
 def test_frames_60_190_stop_at_the_end_of_a_shorter_base():
@@ -146,9 +169,10 @@ def read(case) -> Trajectory:
 
 
 def test_correct_cases_hold_the_variants_they_name(tmp_path):
-    base = drive(240)
+    base = drive(242)  # its last 5 Hz stamp falls between the last two scans
     t, P = base.stamps, base.poses
     cases = sc.correct_cases(base, tmp_path, np.random.default_rng(3))
+    assert all(c.base is base for c in cases[:5])
     assert [c.variant for c in cases] == [
         "as is", "jittered (2 cm, 2 ms)", "every other pose (6 Hz)",
         "resampled at 5 Hz off the scans", "lagged 5 ms",
@@ -161,7 +185,7 @@ def test_correct_cases_hold_the_variants_they_name(tmp_path):
     np.testing.assert_allclose(asis.stamps, t, atol=1e-9)
     np.testing.assert_allclose(asis.poses, P, atol=1e-7)
     dt = jit.stamps - t
-    assert np.abs(dt).max() <= 0.002 + 1e-9 and np.abs(dt).max() > 0.0015
+    assert np.abs(dt).max() <= 0.002 + 1e-9 and dt.min() < -0.0015 and dt.max() > 0.0015
     dp = (jit.poses[:, :3, 3] - P[:, :3, 3]).ravel()
     assert 0.016 < np.std(dp) < 0.024 and abs(np.mean(dp)) < 0.005
     np.testing.assert_allclose(jit.poses[:, :3, :3], P[:, :3, :3], atol=1e-7)
@@ -181,9 +205,39 @@ def test_correct_cases_hold_the_variants_they_name(tmp_path):
     np.testing.assert_array_equal(lagged.gt.poses, base.gt.poses)
     np.testing.assert_array_equal(jittered.gt.stamps, base.gt.stamps)
     dg = (jittered.gt.poses[:, :3, 3] - base.gt.poses[:, :3, 3]).ravel()
-    assert 0.016 < np.std(dg) < 0.024
+    assert 0.016 < np.std(dg) < 0.024 and abs(np.mean(dg)) < 0.005
     np.testing.assert_array_equal(jittered.gt.poses[:, :3, :3], base.gt.poses[:, :3, :3])
     assert np.any(dg != dp[:len(dg)])
+
+
+def test_case_files_are_named_after_their_base_so_bases_share_a_folder(tmp_path):
+    """The study writes every base's cases into one folder: no two bases' files collide (a
+    file that exists is never overwritten: the write would be refused)."""
+    one, two = drive(120), drive(120)
+    two.name = "other drive"
+    paths = []
+    for base in (one, two):
+        cases = (sc.correct_cases(base, tmp_path, np.random.default_rng(0))
+                 + sc.fault_cases(base, tmp_path))
+        assert all(c.path.name.startswith(sc._tag(base) + "-") for c in cases)
+        paths += {c.path for c in cases}
+    assert len(paths) == len(set(paths))
+
+
+def test_a_case_file_never_replaces_a_file(tmp_path):
+    P = np.array([pose(1.0, 2.0, 0.3)])
+    for write in (lambda p: sc.write_tum(p, [0.0], P), lambda p: sc.write_rows(p, P)):
+        path = tmp_path / "taken.txt"
+        path.write_text("mine")
+        with pytest.raises(DataError, match="exists and is not a case file the harness wrote"):
+            write(path)
+        assert path.read_text() == "mine"
+        path.unlink()
+    base = drive(120)
+    times = tmp_path / f"{sc._tag(base)}-times.txt"
+    times.write_text("mine")
+    with pytest.raises(DataError, match=r"-times.txt: exists and is not a case file the harness"):
+        sc.fault_cases(base, tmp_path)
 
 
 def shifts(cases):
@@ -210,9 +264,11 @@ def test_shift_faults_cover_every_size_both_signs_with_and_without_a_max_gap(tmp
 
 
 def test_other_faults_hold_the_mistake_they_name(tmp_path):
-    base = drive(120)
+    base = drive(120, t0=100.0)
     t, P = base.stamps, base.poses
-    cases = [c for c in sc.fault_cases(base, tmp_path) if c.cause != "clock"]
+    cases = sc.fault_cases(base, tmp_path)
+    assert all(c.base is base for c in cases)
+    cases = [c for c in cases if c.cause != "clock"]
     assert [(c.variant, c.cause) for c in cases] == [
         ("positions in mm", "positions in"), ("stamps in ms", "stamps in milliseconds"),
         ("frame indices as stamps", "frame indices"), ("quaternions w x y z", "w x y z"),
@@ -247,7 +303,7 @@ def test_other_faults_hold_the_mistake_they_name(tmp_path):
         np.testing.assert_allclose(rows, want, atol=1e-9)
     assert s1.path != s2.path
     got = read(hole)
-    mid = t[0] + 0.4 * (t[-1] - t[0])
+    mid = 100.0 + 0.4 * (t[-1] - 100.0)  # 40 % into the drive
     keep = (t < mid) | (t > mid + 3.3)
     assert (~keep).sum() in (39, 40)  # 3.3 s of 12 Hz poses removed
     np.testing.assert_allclose(got.stamps, t[keep], atol=1e-9)
@@ -284,20 +340,17 @@ def test_simulated_odometry_noise_is_2_cm_and_0_2_deg_per_step():
     steps = np.linalg.inv(out[:-1]) @ out[1:]
     angles = Rotation.from_matrix(steps[:, :3, :3]).as_rotvec()
     np.testing.assert_allclose(np.std(angles, axis=0), np.radians(0.2), rtol=0.1)
+    assert np.abs(np.mean(angles, axis=0)).max() < np.radians(0.02)
     np.testing.assert_allclose(np.std(steps[:, :3, 3], axis=0), 0.02, rtol=0.1)
     assert np.abs(np.mean(steps[:, :3, 3], axis=0)).max() < 0.003
-
-
-@pytest.fixture(scope="module")
-def synthetic():
-    return sc.synthetic_bases(np.random.default_rng(0))
 
 
 def heading(poses: np.ndarray) -> np.ndarray:
     return np.unwrap(Rotation.from_matrix(poses[:, :3, :3]).as_euler("ZYX")[:, 0])
 
 
-def test_synthetic_bases_are_four_drives_each_with_exact_and_ntu_like_ground_truth(synthetic):
+def test_synthetic_bases_are_four_drives_each_with_exact_and_ntu_like_ground_truth():
+    synthetic = sc.synthetic_bases(np.random.default_rng(0))
     names = ["straight, flat 4.4 m/s", "curve", "gentle turns", "U-turn"]
     assert [(b.name, b.piece) for b in synthetic] == [
         (f"synthetic {n}", p) for n in names for p in ("exact GT", "NTU-like GT")]
@@ -320,9 +373,7 @@ def test_synthetic_bases_are_four_drives_each_with_exact_and_ntu_like_ground_tru
         est_len = np.linalg.norm(np.diff(exact.poses[:, :3, 3], axis=0), axis=1).sum()
         gt_len = np.linalg.norm(np.diff(exact.gt.poses[:, :3, 3], axis=0), axis=1).sum()
         assert 1.0 < est_len / gt_len < 1.05
-
-
-def test_synthetic_drives_keep_their_speeds_and_curvature(synthetic):
+    # (one test: mutation testing credits a module fixture's calls to its first test only)
     ranges = {"straight, flat 4.4 m/s": (4.3, 4.5), "curve": (4.0, 6.0),
               "gentle turns": (3.0, 8.0), "U-turn": (4.8, 9.0)}
     for b in synthetic[::2]:
