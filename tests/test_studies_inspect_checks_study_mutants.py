@@ -115,16 +115,13 @@ def test_flags_reads_each_check_in_its_own_words():
         "sign": False, "kind": False, "height": False, "gt": True}
 
 
-class Sample(StoreSequence):
-    closed = 0
-
-    def close(self):
-        type(self).closed += 1
-        super().close()
-
-
 def test_study_inspects_every_piece_correct_and_with_each_fault(monkeypatch):
-    seen = []
+    seen, closed = [], []
+
+    class Sample(StoreSequence):
+        def close(self):
+            closed.append(self)
+            super().close()
 
     def inspect(seq):
         seen.append(seq)
@@ -138,7 +135,7 @@ def test_study_inspects_every_piece_correct_and_with_each_fault(monkeypatch):
     monkeypatch.setattr(ics, "inspect_sequence", inspect)
     monkeypatch.setattr(ics, "StoreSequence", Sample)
     rows = ics.study()
-    assert Sample.closed == 1
+    assert len(closed) == 1
     pieces = [("whole", 0, 250), ("first half", 0, 125), ("second half", 125, 250),
               ("frames 0-100", 0, 100), ("frames 50-150", 50, 150),
               ("frames 100-200", 100, 200), ("frames 150-250", 150, 250)]

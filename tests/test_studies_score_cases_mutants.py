@@ -95,10 +95,10 @@ def planned_drive(flat: int = 70, straight: int = 20, n: int = 200) -> sc.Base:
     flattest 100-frame window starts at ``flat``; the scans unevenly spaced there, the positions
     following, so only distance over time is constant), a jump of 3 m/s right after, slight
     variations elsewhere; the heading constant over steps straight .. straight + 98 (the
-    straightest window), a 0.5 rad turn right after, slight turns elsewhere; the roll rocks
-    throughout (the heading is the intrinsic yaw). The estimate's and ground truth's stamps sit
-    0.5 ns before the even scans and after the odd ones (each window starts on an even scan,
-    ends on an odd one)."""
+    straightest window), a 0.5 rad turn right after, slight turns elsewhere; roll and pitch
+    rock on the straight stretch only (the heading is the intrinsic yaw). The estimate's and
+    ground truth's stamps sit 0.5 ns before the even scans and after the odd ones (each window
+    starts on an even scan, ends on an odd one)."""
     k = np.arange(n - 1)
     in_flat = (k >= flat) & (k < flat + 99)
     dt = np.where(in_flat, 0.1 * (1 + 0.3 * np.sin(2.1 * k)), 0.1)
@@ -111,8 +111,12 @@ def planned_drive(flat: int = 70, straight: int = 20, n: int = 200) -> sc.Base:
     step = speed * dt
     x = np.r_[0.0, np.cumsum(step * np.cos(yaw[:-1]))]
     y = np.r_[0.0, np.cumsum(step * np.sin(yaw[:-1]))]
-    roll = 0.05 * np.sin(3.0 * np.arange(n))
-    poses = np.array([pose(a, b, c, 0.0, r) for a, b, c, r in zip(x, y, yaw, roll, strict=True)])
+    frames = np.arange(n)
+    rocks = (frames >= straight) & (frames < straight + 100)
+    roll = np.where(rocks, 0.2 * np.sin(3.0 * frames), 0.0)
+    pitch = np.where(rocks, 0.2 * np.sin(2.3 * frames + 1), 0.0)
+    poses = np.array([pose(a, b, c, p, r)
+                      for a, b, c, p, r in zip(x, y, yaw, pitch, roll, strict=True)])
     poses[:, 2, 3] = 0.0
     off = np.where(np.arange(n) % 2, 5e-10, -5e-10)
     off[-1] = 5e-10  # the ground truth spans every scan
