@@ -217,7 +217,7 @@ def test_correct_cases_hold_the_variants_they_name(tmp_path):
 def test_case_files_are_named_after_their_base_so_bases_share_a_folder(tmp_path):
     """The study writes every base's cases into one folder: no two bases' files collide (a
     file that exists is never overwritten: the write would be refused)."""
-    one, two = drive(120), drive(120)
+    one, two = drive(60), drive(60)
     two.name = "other drive"
     paths = []
     for base in (one, two):
