@@ -92,7 +92,10 @@ def test_nearest_rows_picks_the_nearest_stamp_the_earlier_on_a_tie():
     stamps = np.array([0.0, 1.0, 3.0, 4.0])
     query = np.array([-5.0, 0.4, 0.6, 2.0, 2.1, 3.9, 9.0, 1.0])
     np.testing.assert_array_equal(ic.nearest_rows(stamps, query), [0, 0, 1, 1, 2, 3, 3, 1])
-    np.testing.assert_array_equal(ic.nearest_rows(np.array([2.0]), query[:3]), [0, 0, 0])
+    np.testing.assert_array_equal(ic.nearest_rows(np.array([0.0, 1.0]), query[:3]), [0, 0, 1])
+    one = ic.nearest_rows(np.array([2.0]), query[:3])
+    np.testing.assert_array_equal(one, [0, 0, 0])
+    assert one.dtype.kind == "i"  # indices, for poses[idx]
 
 
 @pytest.fixture(scope="module")

@@ -195,7 +195,17 @@ def test_main_help_describes_the_study(monkeypatch, capsys):
     with pytest.raises(SystemExit):
         pc.main()
     out = " ".join(capsys.readouterr().out.split())
-    assert "Does the paired comparison hold its level?" in out
-    for words in ("pairs of equal methods", "poses per drive (10 Hz)", "driving speed [m/s]",
-                  "the first noise seed", "bootstrap resamples", "white", "correlated", "both"):
-        assert words in out, words
+    # the description is the docstring's first paragraph only
+    assert "Does the paired comparison hold its level?" in out and "Each drive" not in out
+    for option, words in (("--trials TRIALS", "pairs of equal methods"),
+                          ("--frames FRAMES", "poses per drive (10 Hz)"),
+                          ("--speed SPEED", "driving speed [m/s]"),
+                          ("--first-seed FIRST_SEED", "the first noise seed"),
+                          ("--noise {white,correlated,both}", "--reps REPS"),
+                          ("--reps REPS", "bootstrap resamples")):
+        assert f"{option} {words} " in out + " ", (option, out)
+
+
+def test_main_noise_both_is_a_choice(monkeypatch, capsys):
+    seen, _ = run_main(monkeypatch, capsys, "--noise", "both", "--trials", "3")
+    assert [s[2] for s in seen] == [NOISE_MODELS["white"], NOISE_MODELS["correlated"]]

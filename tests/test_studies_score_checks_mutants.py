@@ -110,7 +110,7 @@ def stub_base(name, kind="real", piece="whole"):
 def test_study_runs_every_case_faults_on_whole_bases_flat_and_straight_pieces(monkeypatch,
                                                                                tmp_path):
     real = stub_base("sample: GT copy")
-    calls = {"draws": [], "runs": None}
+    calls = {"draws": [], "runs": None, "correct": [], "faults": []}
 
     def sample_bases(runs, kiss):
         calls["runs"] = (runs, kiss)
@@ -128,10 +128,12 @@ def test_study_runs_every_case_faults_on_whole_bases_flat_and_straight_pieces(mo
 
     def correct(b, folder, rng):
         assert folder == tmp_path and rng is calls["rng"]
+        calls["correct"].append((b.name, b.piece))
         return [Case(b, "ok", folder / "ok")]
 
     def faults(b, folder):
         assert folder == tmp_path
+        calls["faults"].append((b.name, b.piece))
         return [Case(b, "bad", folder / "bad", {}, "clock", -0.5)]
 
     def run(c):
@@ -161,6 +163,10 @@ def test_study_runs_every_case_faults_on_whole_bases_flat_and_straight_pieces(mo
     assert (bad["cause"], bad["size"], bad["outcome"], bad["verdict"]) == (
         "clock", -0.5, "refused", "detected")
     assert bad["message"] == "y" * 400
+    assert calls["correct"] == [(b, p) for b, p, v in got if v == "ok"]
+    assert calls["faults"] == [(b, p) for b, p, v in got if v == "bad"]
+    sk.study([], None, tmp_path)  # the default seed is 0 (the published tables')
+    assert calls["draws"][-1] == np.random.default_rng(0).random()
 
 
 def row(variant, kind, outcome, verdict, cause=None, size=None):
@@ -240,6 +246,7 @@ def test_main_prints_the_table_the_json_and_fails_on_a_false_alarm(monkeypatch, 
     head, sep, first, rest = out.split("\n", 3)  # a table of one row, then the JSON
     assert first.startswith("| as is | real | 3 |")
     assert json.loads(rest) == [dict(r, message="m") for r in TABLE_ROWS[:3]]
+    assert rest.split("\n")[:3] == ["[", " {", '  "variant": "as is",']  # indented by one
     monkeypatch.setattr(sk, "study", lambda runs, kiss, folder: [TABLE_ROWS[0]])
     assert sk.main([]) == 0
 
@@ -250,6 +257,6 @@ def test_main_help_names_the_options(capsys):
     assert stop.value.code == 0
     out = " ".join(capsys.readouterr().out.split())
     assert "false alarms and detections of bench score's checks" in out
-    assert "est_tum.txt files of the harness's own runs on the sample" in out
-    assert "kiss-icp pipeline's TUM poses on the sample's exported bag" in out
-    assert "print every case as JSON after the table" in out
+    assert ("--runs [RUNS ...] est_tum.txt files of the harness's own runs on the sample "
+            "--kiss KISS kiss-icp pipeline's TUM poses on the sample's exported bag --json print "
+            "every case as JSON after the table") in out
