@@ -76,11 +76,31 @@ def test_run_case_joins_several_warnings(tmp_path, gt_copy, monkeypatch):
     case = correct_cases(gt_copy, tmp_path, np.random.default_rng(0))[2]
     assert sk.run_case(case) == ("warned", "first | second")
     assert seen["spec"].max_gap_s == 0.25 and seen["spec"].name == "study"
+    assert seen["spec"].trajectory == case.path
     assert seen["name"] == str(case.path) and seen["store"] == "store"
     np.testing.assert_array_equal(seen["T"], np.eye(4))
     assert seen["seq"].stamps is gt_copy.scans
     Found.warnings = []
     assert sk.run_case(case) == ("passed", "clock line")
+
+
+def test_run_case_reads_with_the_cases_stamp_unit(tmp_path, gt_copy, monkeypatch):
+    """A TUM file of millisecond stamps with the option stamp_unit "ms" is read in seconds."""
+    seen = []
+
+    class Found:
+        warnings = []
+        clock = "ok"
+
+    def fake_check(seq, est, spec, T, name, store):
+        seen.append(est)
+        return Found()
+
+    monkeypatch.setattr(sk, "check_estimate", fake_check)
+    ms = [c for c in fault_cases(gt_copy, tmp_path) if c.variant == "stamps in ms"][0]
+    assert sk.run_case(Case(gt_copy, "ms read as ms", ms.path, {"stamp_unit": "ms"})) == (
+        "passed", "ok")
+    np.testing.assert_allclose(seen[0].trajectory.stamps, gt_copy.stamps, atol=1e-6)
 
 
 def case(cause=None):
