@@ -111,7 +111,7 @@ def pieces(base: Base) -> list[Base]:
     speed = np.linalg.norm(np.diff(xyz, axis=0), axis=1) / np.diff(base.scans)
     yaw = Rotation.from_matrix(gt_at[:, :3, :3]).as_euler("ZYX")[:, 0]
     turn = np.abs(np.diff(np.unwrap(yaw)))
-    starts = range(0, n - 100, 10)
+    starts = range(0, n - 99, 10)  # every 10 frames, the last window ending on the last scan
     flat = min(starts, key=lambda a: float(np.std(speed[a:a + 99])))
     straight = min(starts, key=lambda a: float(turn[a:a + 99].sum()))
     out += [("flat speed", slice(flat, flat + 100)), ("straight", slice(straight, straight + 100))]
