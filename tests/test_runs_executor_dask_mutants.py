@@ -9,6 +9,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -85,7 +86,7 @@ def test_a_task_reports_its_start_and_progress_and_runs_the_job(monkeypatch, tmp
     worker = FakeWorker()
     monkeypatch.setattr(distributed, "get_worker", lambda: worker)
     clock = iter([100.0, 100.1, 100.7, 100.8, 101.0])
-    monkeypatch.setattr(ex.time, "monotonic", lambda: next(clock))
+    monkeypatch.setattr(ex, "time", SimpleNamespace(monotonic=lambda: next(clock)))
     calls = []
 
     def fake_run(job, force, progress):
@@ -147,7 +148,7 @@ def test_ending_tasks_ends_only_the_workers_running_them():
 
 
 def test_a_job_over_its_timeout_is_ended_and_recorded(monkeypatch, tmp_path):
-    monkeypatch.setattr(ex.time, "monotonic", lambda: 1000.0)
+    monkeypatch.setattr(ex, "time", SimpleNamespace(monotonic=lambda: 1000.0))
     jobs = [Job(tmp_path / "s.h5", "doppler", None, tmp_path, run_dir_override=tmp_path / n)
             for n in ("late", "early", "queued")]
     futs = [FakeFuture(str(i)) for i in range(3)]

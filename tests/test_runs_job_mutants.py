@@ -321,7 +321,6 @@ def test_few_points_are_warned_about_once_by_name():
     assert str(said[0].message) == (
         "s.h5, frame 2: 2 point(s) to register after doppler's preparation (at least 3 "
         "needed); 2 such frame(s) kept their motion prior")
-    assert said[0].filename == __file__  # said where the caller called it
 
 
 def test_recording_a_failure_never_raises(tmp_path):
