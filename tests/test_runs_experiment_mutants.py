@@ -102,6 +102,7 @@ def test_an_invalid_experiment_lists_each_problem_with_a_suggestion(tmp_path):
     assert head == f"{path}: invalid experiment:"
     assert len(problems) == 2
     assert any(p.startswith("jobs: ") for p in problems)
+    assert all(p.startswith(("jobs: ", "unknown key 'lenghts_m'")) for p in problems)
     unknown = next(p for p in problems if "lenghts_m" in p)
     assert "did you mean 'lengths_m'" in unknown and "known keys: name, suite" in unknown
 

@@ -188,8 +188,10 @@ def test_the_index_is_written_as_a_derived_file_and_read_back(tmp_path):
 
 def test_a_users_file_is_not_replaced(tmp_path):
     (tmp_path / INDEX).write_text("{}")
-    with pytest.raises(DataError, match="an experiment's sweep index"):
+    with pytest.raises(DataError) as caught:
         write_sweep_index(tmp_path, {"experiment": "e"})
+    assert str(caught.value).startswith(
+        f"{tmp_path / INDEX}: exists and is not an experiment's sweep index the harness wrote")
 
 
 def test_a_missing_or_broken_index_is_one_clear_error(tmp_path):
