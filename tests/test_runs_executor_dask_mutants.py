@@ -105,6 +105,12 @@ def test_a_task_reports_its_start_and_progress_and_runs_the_job(monkeypatch, tmp
     # the start, then at most one event per half second, and always the last frame
     assert worker.events == [("t", (3, 0, 0)), ("t", (3, 1, 5)), ("t", (3, 3, 5)),
                              ("t", (3, 5, 5))]
+    # exactly half a second after the last event is not yet more than half a second
+    worker.events.clear()
+    clock = iter([200.0, 200.5, 200.75, 201.0, 201.1])
+    ex._dask_task(1, job, False, {}, "u")
+    assert worker.events == [("u", (1, 0, 0)), ("u", (1, 1, 5)), ("u", (1, 3, 5)),
+                             ("u", (1, 5, 5))]
 
 
 class FakeFuture:
@@ -161,6 +167,7 @@ def test_a_job_over_its_timeout_is_ended_and_recorded(monkeypatch, tmp_path):
     assert late == {futs[0]} and futs[0].cancelled and not futs[1].cancelled
     message = "timeout: ended after 30 s (--job-timeout)"
     assert done == [(0, JobOutcome(jobs[0], "failed", message))]
+    assert client.ran == [(ex._exit_worker, ["w"])]  # its worker ended
     failed = json.loads(Path(tmp_path / "late" / "failed.json").read_text())
     assert (failed["status"], failed["error"]) == ("timeout", message)
     assert not (tmp_path / "early").exists()

@@ -44,7 +44,7 @@ from conftest import SAMPLE_STORE
 from loaders.errors import DataError
 from loaders.scan import FrameRange, MemorySequence, Scan, SensorInfo
 from loaders.sensor_classes import DENSE_LIDAR
-from methods.registry import make_method
+from methods.registry import get_method, make_method
 from metrics.kitti import KITTI_LENGTHS_M
 from metrics.relative import DEFAULT_LENGTHS_M
 
@@ -155,13 +155,21 @@ def test_an_extrinsic_fitted_to_the_gt():
 
 
 def test_a_method_error_names_the_method_and_the_parameter(tmp_path):
-    j = Job(Path("x.h5"), "doppler", None, tmp_path, params={"tau_spatial_m": -1})
+    given = {"tau_spatail_m": 2.0, "tau_doppler": "x"}
+    j = Job(Path("x.h5"), "doppler", None, tmp_path, params=given)
     try:
-        make_method("doppler", {"tau_spatial_m": "x"}, SensorInfo("radar", 0.1), None)
+        make_method("doppler", given, SensorInfo("radar", 0.1), None)
     except Exception as err:  # noqa: BLE001 - the pydantic error, whatever its class
         text = str(_method_error(j, err))
-    assert text.startswith("method 'doppler': invalid parameters {'tau_spatial_m': -1}: ")
-    assert "tau_spatial_m" in text.split(": ", 2)[2]
+    head = f"method 'doppler': invalid parameters {given}: "
+    assert text.startswith(head)
+    known = ", ".join(get_method("doppler").Params.model_fields)
+    unknown = (f"unknown parameter 'tau_spatail_m' (did you mean 'tau_spatial_m'?); "
+               f"known parameters: {known}")
+    # two problems, one after the other: the bad value, then the unknown name
+    bad, _, rest = text[len(head):].partition("; ")
+    assert bad.startswith("tau_doppler: ") and bad.endswith("(got 'x')")
+    assert rest == unknown
     other = _method_error(j, ValueError("bad"))
     assert isinstance(other, DataError) and str(other) == "method 'doppler': bad"
 
@@ -339,7 +347,8 @@ def test_an_unfinished_job_is_recorded_only_in_its_own_folder(tmp_path):
     j = Job(Path("x.h5"), "doppler", None, tmp_path, run_dir_override=tmp_path / "r")
     record_unfinished(j, "ended", "interrupted")
     failed = json.loads((tmp_path / "r" / "failed.json").read_text())
-    assert (failed["status"], failed["error"]) == ("interrupted", "ended")
+    assert (failed["status"], failed["error"], failed["traceback"]) == ("interrupted", "ended",
+                                                                         "")
     assert not (tmp_path / "r" / "config.yaml").exists()
 
 
