@@ -168,6 +168,8 @@ def _dynamic(scan, rng, count=150, speed=5.0):
 
 CASES = {
     "defaults": {},
+    "no kernels": {"geometric_kernel": 0.0, "doppler_kernel": 0.0},
+    "no geometric kernel": {"geometric_kernel": 0.0},
     "kernels later": {"geometric_kernel_from": 2, "doppler_kernel_from": 1,
                       "geometric_kernel": 0.05, "doppler_kernel": 0.5},
     "heavy doppler": {"lambda_doppler": 0.6, "max_correspondence_m": 0.5},
