@@ -146,7 +146,7 @@ def test_a_non_finite_step_is_replaced_by_its_start():
     guess = scale_motion(STEPS[0], 1.0)
     np.testing.assert_allclose(result.poses[2], result.poses[1] @ inv_T(guess), atol=1e-12)
     f = result.frames[2]
-    assert f.replaced and not f.converged and (f.correspondences, f.iterations) == (20, 2)
+    assert f.replaced and f.converged is False and (f.correspondences, f.iterations) == (20, 2)
     assert not result.frames[1].replaced and not result.frames[3].replaced
     np.testing.assert_allclose(m.inits[2], guess, atol=1e-12)  # the next step's guess: it
     inf = STEPS[0].copy()
@@ -174,6 +174,8 @@ def test_frame_record_reads_the_methods_clock():
     assert np.isnan(r.register_ms) and r.time_ms == 9.0
     r = m.frame_record(0, 0.0, None, reg, 7, 0, 0, True, replaced=True)
     assert np.isnan(r.time_ms) and r.register_ms == 3.0 and r.replaced
+    r = _Scripted().frame_record(0, 0.0, None, reg, 7, 0, 0, True)  # by the CPU clock
+    assert r.register_ms == 1.5 and not r.replaced
     assert np.isnan(r.wall_ms) and np.isnan(r.thread_ms) and r.compiles == 0
 
 
@@ -229,20 +231,23 @@ def test_the_warm_up_pair(n, pair):
     m = _Scripted(STEPS)
     runs = []
     m.run = lambda sequence, seed, on_frame=None: runs.append(
-        ([s.stamp for s in sequence], seed, sequence.name))
-    m.warm_up(_sequence([0.1 * k for k in range(n)]))
+        ([s.stamp for s in sequence], seed, sequence.name, sequence.sensor))
+    seq = _sequence([0.1 * k for k in range(n)])
+    m.warm_up(seq)
     if pair is None:
         assert runs == []
     else:
-        (stamps, seed, name), = runs
+        (stamps, seed, name, sensor), = runs
         np.testing.assert_allclose(stamps, pair)
-        assert seed is True and name == "s"
+        assert seed is True and name == "s" and sensor is seq.sensor
 
 
 def test_run_timed_warms_up_then_runs():
     calls = []
     m = _Scripted(STEPS)
-    m.warm_up = lambda sequence: calls.append("warm")
-    m.run = lambda sequence, seed, on_frame=None: calls.append(("run", seed, on_frame)) or 7
-    assert run_timed(m, _sequence([0.0, 0.1]), False, print) == 7
-    assert calls == ["warm", ("run", False, print)]
+    seq = _sequence([0.0, 0.1])
+    m.warm_up = lambda sequence: calls.append(("warm", sequence))
+    m.run = lambda sequence, seed, on_frame=None: calls.append(
+        ("run", sequence, seed, on_frame)) or 7
+    assert run_timed(m, seq, False, print) == 7
+    assert calls == [("warm", seq), ("run", seq, False, print)]

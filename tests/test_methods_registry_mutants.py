@@ -53,10 +53,10 @@ class _Mine(Registration):
 
 
 class _Bare(Odometry):
-    """A method without parameters."""
+    """A method without parameters, declaring a colour that is also the first spare one."""
 
     name = "bare"
-    presentation = Presentation("Bare one", None, 2.5)
+    presentation = Presentation("Bare one", registry._SPARE_COLORS[0], 2.5)
 
     def run(self, sequence, seed, on_frame=None):  # pragma: no cover - not run
         raise NotImplementedError
@@ -191,15 +191,17 @@ def test_presentation(extra):
 def test_colours_are_distinct_while_spares_last(extra):
     declared = {n: c.presentation.color for n, c in METHODS.items() if c.presentation.color}
     assert color("doppler") == "#d62728" and color("dicp") == "#9467bd"
+    assert color("bare") == registry._SPARE_COLORS[0]
     spares = [c for c in registry._SPARE_COLORS if c not in declared.values()]
+    assert spares[0] == registry._SPARE_COLORS[1]  # the declared one is not handed out again
     # the registered methods without a colour first (registry order), then others as used
-    assert color("other") == spares[2]
-    assert color("mine") == spares[0] and color("bare") == spares[1]
-    assert color("more") == spares[3]
-    assert color("other") == spares[2]  # the same colour again
-    names = [f"x{i}" for i in range(len(spares) - 4)]
+    assert color("other") == spares[1]
+    assert color("mine") == spares[0]
+    assert color("more") == spares[2]
+    assert color("other") == spares[1]  # the same colour again
+    names = [f"x{i}" for i in range(len(spares) - 3)]
     got = [color(n) for n in names]
-    assert got == spares[4:]
+    assert got == spares[3:]
     # spares exhausted: cycling through them by the count assigned
     n = len(registry._assigned)
     assert color("late") == registry._SPARE_COLORS[n % len(registry._SPARE_COLORS)]
