@@ -101,6 +101,8 @@ def test_the_extrinsic_comes_from_the_sensor_unless_given():
     sensor = SensorInfo("radar", 0.1, T_body_sensor=T)
     np.testing.assert_array_equal(Dicp().T_vehicle_sensor, np.eye(4))
     np.testing.assert_allclose(Dicp().configured_for(sensor).T_vehicle_sensor, T)
+    kept = Dicp(max_iterations=7, downsample=3).configured_for(sensor)
+    assert (kept.params.max_iterations, kept.params.downsample) == (7, 3)
     given = Dicp(T_vehicle_sensor=np.eye(4).tolist())
     assert given.configured_for(sensor) is given
 

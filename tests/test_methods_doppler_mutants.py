@@ -25,6 +25,7 @@ from methods.doppler import (
     register_numpy,
     register_ransac,
 )
+from methods.rigid import fit_rigid_t
 
 DT = 0.1
 R_TRUE = Rotation.from_euler("zyx", [0.03, -0.01, 0.02]).as_matrix()
@@ -260,9 +261,12 @@ def test_ransac_threshold_is_a_distance_in_metres():
 def test_ransac_without_three_agreeing_pairs_has_no_answer():
     P, Q, _ = _ransac_data()
     T, mask = ransac_rigid(P[:, :2], Q[:, :2], 10, 1.0, 0.8, np.random.default_rng(0))
-    assert T is None and mask.tolist() == [False, False]
+    assert T is None and mask.tolist() == [False, False] and mask.dtype == bool
     T, mask = ransac_rigid(P, Q, 0, 1.0, 0.8, np.random.default_rng(0))
-    assert T is None and not mask.any() and mask.shape == (16,)
+    assert T is None and not mask.any() and mask.shape == (16,) and mask.dtype == bool
+    T, mask = ransac_rigid(P[:, :3], Q[:, :3], 1, 1.0, 0.8, np.random.default_rng(0))
+    np.testing.assert_allclose(T, T_TRUE, atol=1e-9)  # three pairs are enough
+    assert mask.tolist() == [True] * 3
     rng = np.random.default_rng(1)
     P3, Q3 = rng.uniform(-5, 5, (3, 6)), rng.uniform(-5, 5, (3, 6))
     # random pairs: a three-pair fit passes through none of them
@@ -273,6 +277,46 @@ def test_ransac_without_three_agreeing_pairs_has_no_answer():
     T, mask = ransac_rigid(P3, Q3, 1, 1e-6, 0.8, _Scripted([[0, 1, 2]]))
     assert mask.tolist() == [True] * 3 + [False] * 3
     np.testing.assert_allclose(T, T_TRUE, atol=1e-9)
+
+
+def test_the_best_hypothesis_is_kept_even_with_a_single_inlier():
+    """Three pairs that no rigid motion explains: the fit to all three leaves one residual
+    below a threshold set between the smallest two: no answer, the mask of that one pair."""
+    rng = np.random.default_rng(7)
+    P, Q = rng.uniform(-5, 5, (3, 3)), rng.uniform(-5, 5, (3, 3))
+    T = fit_rigid_t(P, Q)
+    residuals = np.sort(np.linalg.norm(T[:3, :3] @ P + T[:3, 3:] - Q, axis=0))
+    threshold = float(np.mean(residuals[:2]))
+    T, mask = ransac_rigid(P, Q, 1, threshold, 0.8, _Scripted([[0, 1, 2]]))
+    assert T is None and mask.sum() == 1
+
+
+def test_register_ransac_draws_from_its_seed():
+    """One hypothesis: which pairs it draws (a seeded PCG64, afresh per call) decides the
+    answer; the same as RANSAC on the gated pairs with that seed's generator."""
+    source, target, _ = _moved_pair(n=12, perm=False)
+    Q = target.points_t.astype(np.float64).copy()
+    Q[:, ::4] *= 1.0 + 0.5 / np.linalg.norm(Q[:, ::4], axis=0)  # 3 of 12 pairs 0.5 m off
+    P = source.points_t.astype(np.float64)
+    v = ((np.linalg.norm(Q, axis=0) - np.linalg.norm(P, axis=0)) / DT).astype(np.float32)
+    src = DopplerScan(source.stamp, source.points_t, v)
+    tgt = DopplerScan(target.stamp, np.ascontiguousarray(Q, np.float32), v)
+    answers = set()
+    for seed in range(8):
+        params = DopplerCorrespondence.Params(ransac_iterations=1, ransac_threshold_m=0.05,
+                                              ransac_seed=seed)
+        T, n = register_ransac(params, src, tgt)
+        i, j = doppler_pairs(src, tgt, params.tau_spatial_m, params.tau_doppler)
+        P64 = src.points_t[:, i].astype(np.float64)
+        Q64 = tgt.points_t[:, j].astype(np.float64)
+        T_ref, mask = ransac_rigid(P64, Q64, 1, 0.05, 0.8, np.random.default_rng(seed))
+        assert n == mask.sum()
+        assert (T is None) == (T_ref is None)
+        if T is not None:
+            np.testing.assert_array_equal(T, T_ref)
+        assert register_ransac(params, src, tgt)[1] == n  # afresh in every call
+        answers.add(None if T is None else T.tobytes())
+    assert len(answers) == 2  # the seed matters: no answer, or the good pairs' answer
 
 
 def test_register_ransac_recovers_the_motion_despite_bad_doppler_pairs():

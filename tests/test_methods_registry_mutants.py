@@ -81,7 +81,8 @@ def test_get_method_and_its_error(monkeypatch):
     assert text.startswith("unknown method 'dopler' (did you mean 'doppler'?); registered: "
                            + ", ".join(METHODS) + "; a method of your own: name its module in "
                            f"{PLUGINS_ENV}=my_module")
-    assert "see docs/extending.md" in text
+    assert text.endswith(f"{PLUGINS_ENV}=my_module (on PYTHONPATH; it lists its classes in "
+                         "METHODS), see docs/extending.md")
     monkeypatch.setenv(PLUGINS_ENV, " my_plugins ")
     with pytest.raises(DataError, match=r"'zzz'; registered: .*; plugin modules loaded from "
                                         rf"{PLUGINS_ENV}=my_plugins$"):
