@@ -232,6 +232,21 @@ def test_ransac_skips_a_collinear_draw_and_keeps_the_first_of_equals():
     np.testing.assert_allclose(T, T_TRUE, atol=1e-9)
 
 
+def test_ransac_keeps_the_first_of_two_equally_good_hypotheses():
+    """Two groups of six pairs, each moved rigidly by its own motion: each group's hypothesis
+    has six inliers; the first drawn wins (a tie never replaces it)."""
+    rng = np.random.default_rng(8)
+    P = rng.uniform(-10, 10, (3, 12))
+    T_b = np.eye(4)
+    T_b[:3, 3] = [5.0, 0.0, 0.0]
+    Q = np.hstack([R_TRUE @ P[:, :6] + T_TRUE[:3, 3:], P[:, 6:] + T_b[:3, 3:]])
+    for first, T_first in (([0, 1, 2], T_TRUE), ([6, 7, 8], T_b)):
+        second = [9, 10, 11] if first[0] == 0 else [3, 4, 5]
+        T, mask = ransac_rigid(P, Q, 2, 0.5, 0.9, _Scripted([first, second]))
+        np.testing.assert_allclose(T, T_first, atol=1e-9)
+        assert mask.tolist() == [k // 6 == first[0] // 6 for k in range(12)]
+
+
 def test_ransac_stops_once_more_than_the_ratio_agree():
     P, Q, _ = _ransac_data(n_in=10, n_out=0)
     early = _Scripted([[0, 1, 2]])

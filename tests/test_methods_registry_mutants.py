@@ -116,6 +116,9 @@ def test_plugins_load_once_per_value(tmp_path, monkeypatch):
         monkeypatch.setenv(PLUGINS_ENV, "registry_mutants_plugin")
         registry.load_plugins()
         assert "theirs" in METHODS and calls[-1] == "registry_mutants_plugin"
+        monkeypatch.delenv(PLUGINS_ENV)
+        registry.load_plugins()  # unset: the built-ins only, as an empty value
+        assert calls[-1] == "" and METHODS == registry.BUILTIN
     finally:
         registry.load_plugins("")
     assert "theirs" not in METHODS
