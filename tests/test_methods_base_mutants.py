@@ -104,6 +104,12 @@ def test_run_chains_the_inverse_steps():
     assert result.velocity_mps is None
 
 
+def test_a_single_scan_is_the_identity_pose():
+    result = _Scripted().run(_sequence([5.0]), seed=True)
+    np.testing.assert_array_equal(result.poses, [np.eye(4)])
+    assert len(result.frames) == 1 and result.frames[0].index == 0
+
+
 def test_a_seeded_step_starts_from_the_last_motion_scaled_to_its_time():
     m = _Scripted(STEPS)
     m.run(_sequence([0.0, 0.1, 0.3, 0.35]), seed=True)
