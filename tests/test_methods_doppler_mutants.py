@@ -400,6 +400,10 @@ def test_register_results(params):
         r = method.register(a, b, init)
         assert r.T_target_source is init and (r.correspondences, r.iterations,
                                               r.converged) == (0, 1, False)
+    three_s, three_t, _ = _moved_pair(n=3, perm=False)  # three points are enough
+    r = method.register(three_s, three_t, init)
+    assert (r.correspondences, r.converged) == (3, True)
+    np.testing.assert_allclose(r.T_target_source, T_TRUE, atol=2e-5)
     far = DopplerCorrespondence(tau_spatial_m=0.01, **params).register(source, target, init)
     assert far.T_target_source is init
     assert (far.correspondences, far.iterations, far.converged) == (0, 1, False)
