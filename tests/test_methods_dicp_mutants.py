@@ -148,6 +148,25 @@ def test_no_pair_at_the_start_gives_the_identity():
     np.testing.assert_array_equal(r.T_target_source, np.eye(4))
 
 
+def test_the_pair_gate_is_the_correspondence_distance():
+    """Started 0.2 m off the truth, every point's true partner is within the 0.3 m gate: the
+    motion is found; started 0.45 m off, none is (and no other target point is, checked by
+    brute force): no pair, the identity."""
+    source, target, T_true = _pair(n=500, seed=4)
+    for offset, found in ((0.2, True), (0.45, False)):
+        init = T_true.copy()
+        init[:3, 3] += [offset, 0.0, 0.0]
+        moved = source.points @ init[:3, :3].T + init[:3, 3]
+        gaps = np.linalg.norm(moved[::2, None, :] - target.points[None, ::2, :], axis=2)
+        assert (gaps.min() < 0.3) == found
+        r = _run(source, target, init)
+        if found:
+            assert r.converged and r.correspondences == len(source.points[::2])
+            np.testing.assert_allclose(r.T_target_source, T_true, atol=1e-6)
+        else:
+            assert (r.correspondences, r.iterations, r.converged) == (0, 0, False)
+
+
 def test_a_singular_step_ends_the_run_at_its_start():
     """A flat scan without a Doppler term (lambda 0): every normal is the plane's, so the
     normal equations hold no rotation about it nor translation in it (exactly singular)."""
