@@ -148,7 +148,8 @@ def test_no_pair_at_the_start_gives_the_identity():
     np.testing.assert_array_equal(r.T_target_source, np.eye(4))
 
 
-def test_the_pair_gate_is_the_correspondence_distance():
+@pytest.mark.parametrize("threads", [1, 2])
+def test_the_pair_gate_is_the_correspondence_distance(threads):
     """Started 0.2 m off the truth, every point's true partner is within the 0.3 m gate: the
     motion is found; started 0.45 m off, none is (and no other target point is, checked by
     brute force): no pair, the identity."""
@@ -159,7 +160,7 @@ def test_the_pair_gate_is_the_correspondence_distance():
         moved = source.points @ init[:3, :3].T + init[:3, 3]
         gaps = np.linalg.norm(moved[::2, None, :] - target.points[None, ::2, :], axis=2)
         assert (gaps.min() < 0.3) == found
-        r = _run(source, target, init)
+        r = _run(source, target, init, num_threads=threads)
         if found:
             assert r.converged and r.correspondences == len(source.points[::2])
             np.testing.assert_allclose(r.T_target_source, T_true, atol=1e-6)
