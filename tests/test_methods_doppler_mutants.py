@@ -420,3 +420,39 @@ def test_warm_up_compiles_every_path_then_runs_the_pair(monkeypatch):
         m.run = lambda sequence, seed, on_frame=None: calls.append("run")
         m.warm_up(seq)
         assert calls == expected
+
+
+def _spy_sorts(monkeypatch):
+    """Record each compiled sort's thread and the address its sorted points go to."""
+    import threading
+
+    calls = []
+    real = doppler_kernel.sorted_scan_into
+
+    def spy(*args):
+        calls.append((threading.get_ident(), args[7].__array_interface__["data"][0]))
+        return real(*args)
+
+    monkeypatch.setattr(doppler_kernel, "sorted_scan_into", spy)
+    return calls
+
+
+@pytest.mark.parametrize("backend, threads, sorts, threaded", [
+    ("numba", 1, 2, False), ("numba", 2, 2, True), ("numpy", 1, 0, False),
+    ("numpy", 2, 0, False)])
+def test_the_backend_and_its_threads_are_the_ones_asked_for(monkeypatch, backend, threads,
+                                                            sorts, threaded):
+    import threading
+
+    calls = _spy_sorts(monkeypatch)
+    method = DopplerCorrespondence(backend=backend, num_threads=threads)
+    source, target, _ = _moved_pair()
+    for _ in range(2):
+        method.register(source, target, np.eye(4))
+    assert len(calls) == 2 * sorts
+    if sorts:
+        main = threading.get_ident()
+        assert any(t != main for t, _ in calls) == threaded
+        # the sorting scratch is reused from call to call (one workspace per scan role)
+        first, second = {a for _, a in calls[:2]}, {a for _, a in calls[2:]}
+        assert first == second and len(first) == 2
