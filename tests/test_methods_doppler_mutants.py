@@ -102,7 +102,7 @@ def test_nearest_1d_at_the_ends_and_between_two_values():
 
 
 def test_nearest_1d_needs_a_value():
-    with pytest.raises(ValueError, match="at least one value"):
+    with pytest.raises(ValueError, match="^nearest_1d needs at least one value$"):
         nearest_1d(np.array([]), np.array([1.0]))
 
 
