@@ -245,3 +245,53 @@ def test_a_missing_open3d_is_one_error_naming_the_install(monkeypatch):
         "apt-get install libusb-1.0-0); import failed: import of open3d halted; None in "
         "sys.modules")
     assert err.value.__suppress_context__
+
+
+def test_a_zero_point_is_prepared_without_a_warning():
+    import warnings
+
+    raw = np.array([[0.0, 0.0, 0.0], [1.0, 2.0, 2.0], [3.0, 0.0, 4.0], [0.0, 5.0, 0.0]])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        prepared = Dicp(downsample=1).preprocess(Scan(0.0, raw, np.zeros(4)))
+    np.testing.assert_array_equal(prepared.directions[0], [0.0, 0.0, 0.0])
+
+
+def test_three_points_have_their_planes_normal():
+    raw = np.array([[1.0, 0.0, 0.0], [0.0, 2.0, 0.0], [0.0, 0.0, 3.0]])
+    normals = Dicp(downsample=1).preprocess(Scan(0.0, raw, np.zeros(3))).normals
+    unit = np.cross(raw[1] - raw[0], raw[2] - raw[0])
+    unit /= np.linalg.norm(unit)
+    np.testing.assert_allclose(np.abs(normals @ unit), 1.0, atol=1e-9)
+
+
+def test_six_points_are_enough_to_register():
+    rng = np.random.default_rng(9)
+    pts = rng.uniform(-3, 3, (6, 3))
+    m = Dicp(downsample=1)
+    a, b = (m.preprocess(Scan(t, pts, np.zeros(6))) for t in (0.0, 0.1))
+    r = m.register(a, b, np.eye(4))
+    assert r.correspondences == 6 and r.iterations >= 1
+
+
+def test_the_period_is_the_stamps_difference():
+    source, target, T_true = _pair(v=(0.6, 0.3, 0.0))
+    late = [Scan(s.stamp + 50.0, s.points, s.doppler) for s in (source, target)]
+    r = _run(*late, np.eye(4))
+    np.testing.assert_allclose(r.T_target_source, T_true, atol=1e-5)
+
+
+def test_the_open3d_backend_runs_open3d(monkeypatch):
+    calls = []
+
+    def fake(params, source, target, T_init, period_s, T_vs):
+        calls.append(period_s)
+        return np.eye(4), 7, 3, True
+
+    monkeypatch.setattr(dicp_open3d, "register_open3d", fake)
+    monkeypatch.setattr(dicp_open3d, "estimate_normals_open3d",
+                        lambda points, radius_m, k: np.tile([0.0, 0.0, 1.0], (len(points), 1)))
+    source, target, _ = _pair(n=300)
+    r = _run(source, target, np.eye(4), backend="open3d")
+    assert (r.correspondences, r.iterations, r.converged) == (7, 3, True)
+    assert calls == [pytest.approx(0.1)]
