@@ -71,6 +71,17 @@ def test_normals_of_a_plane_and_of_isolated_points(threads):
     np.testing.assert_allclose(np.abs(few @ unit), 1.0, atol=1e-9)
 
 
+@pytest.mark.parametrize("threads", [1, 2])
+def test_normals_use_the_neighbours_within_the_radius(threads):
+    """A tilted triangle (sides 2.8 m, in the plane x = 100) and a fourth point 4.3 m from
+    each corner: within a 3 m radius each corner has the triangle's normal (1, 0, 0)."""
+    pts = np.array([[100.0, 0.0, 0.0], [100.0, 2.8, 0.0], [100.0, 1.4, 2.42],
+                    [104.0, 1.4, 0.8]])
+    normals = estimate_normals(pts, 3.0, 30, threads)
+    np.testing.assert_allclose(np.abs(normals[:3, 0]), 1.0, atol=1e-9)
+    np.testing.assert_array_equal(normals[3], [0.0, 0.0, 1.0])  # alone within 3 m
+
+
 def test_preprocess_puts_points_and_directions_in_the_vehicle_frame():
     T_vs = _extrinsic()
     raw = np.array([[3.0, 4.0, 0.0], [0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0, 2.0, 0],

@@ -101,6 +101,11 @@ def test_nearest_1d_at_the_ends_and_between_two_values():
     assert nearest_1d(values, queries).dtype == np.int64
 
 
+def test_nearest_1d_takes_the_lower_value_on_a_tie():
+    values = np.array([3.0, 1.0, 7.0])
+    np.testing.assert_array_equal(nearest_1d(values, np.array([2.0, 5.0])), [1, 0])
+
+
 def test_nearest_1d_needs_a_value():
     with pytest.raises(ValueError, match="^nearest_1d needs at least one value$"):
         nearest_1d(np.array([]), np.array([1.0]))
