@@ -435,7 +435,8 @@ def _spy_sorts(monkeypatch):
     real = doppler_kernel.sorted_scan_into
 
     def spy(*args):
-        calls.append((threading.get_ident(), args[7].__array_interface__["data"][0]))
+        # the array is kept alive: a buffer allocated afresh cannot take its address
+        calls.append((threading.get_ident(), args[7].__array_interface__["data"][0], args[7]))
         return real(*args)
 
     monkeypatch.setattr(doppler_kernel, "sorted_scan_into", spy)
@@ -457,7 +458,7 @@ def test_the_backend_and_its_threads_are_the_ones_asked_for(monkeypatch, backend
     assert len(calls) == 2 * sorts
     if sorts:
         main = threading.get_ident()
-        assert any(t != main for t, _ in calls) == threaded
+        assert any(t != main for t, _, _ in calls) == threaded
         # the sorting scratch is reused from call to call (one workspace per scan role)
-        first, second = {a for _, a in calls[:2]}, {a for _, a in calls[2:]}
+        first, second = {a for _, a, _ in calls[:2]}, {a for _, a, _ in calls[2:]}
         assert first == second and len(first) == 2
