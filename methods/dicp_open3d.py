@@ -37,6 +37,15 @@ def estimate_normals_open3d(points: np.ndarray, radius_m: float, max_neighbours:
     return np.asarray(cloud.normals)
 
 
+def _tukey(kernel, k: float):
+    """Open3D's Tukey kernel of width ``k``; k = 0 (the parameter's "none") is plain least
+    squares, as in ``methods.dicp_kernel``: Open3D's Tukey of width 0 weighs every residual 0
+    (its solve then fails on a singular system)."""
+    if k <= 0:
+        return kernel.RobustKernel(kernel.RobustKernelMethod.L2Loss, 1.0)
+    return kernel.RobustKernel(kernel.RobustKernelMethod.TukeyLoss, k)
+
+
 def register_open3d(params, source, target, T_init: np.ndarray, period_s: float,
                     T_vehicle_sensor: np.ndarray) -> tuple[np.ndarray, int, int, bool]:
     """(T_target_source in the vehicle frame, pairs, iterations, converged)."""
@@ -48,7 +57,6 @@ def register_open3d(params, source, target, T_init: np.ndarray, period_s: float,
     src.point["directions"] = o3d.core.Tensor(source.directions, f64)
     tgt = o3d.t.geometry.PointCloud(o3d.core.Tensor(target.points, f64))
     tgt.point.normals = o3d.core.Tensor(target.normals, f64)
-    kernel = reg.robust_kernel
     estimation = reg.TransformationEstimationForDopplerICP(
         period=period_s, lambda_doppler=params.lambda_doppler,
         reject_dynamic_outliers=params.reject_dynamic,
@@ -56,10 +64,8 @@ def register_open3d(params, source, target, T_init: np.ndarray, period_s: float,
         outlier_rejection_min_iteration=params.reject_from,
         geometric_robust_loss_min_iteration=params.geometric_kernel_from,
         doppler_robust_loss_min_iteration=params.doppler_kernel_from,
-        geometric_kernel=kernel.RobustKernel(kernel.RobustKernelMethod.TukeyLoss,
-                                             params.geometric_kernel),
-        doppler_kernel=kernel.RobustKernel(kernel.RobustKernelMethod.TukeyLoss,
-                                           params.doppler_kernel),
+        geometric_kernel=_tukey(reg.robust_kernel, params.geometric_kernel),
+        doppler_kernel=_tukey(reg.robust_kernel, params.doppler_kernel),
         transform_vehicle_to_sensor=o3d.core.Tensor(T_vehicle_sensor, f64))
     iterations = []
     result = reg.icp(src, tgt, params.max_correspondence_m, o3d.core.Tensor(T_init, f64),
