@@ -67,12 +67,23 @@ def register_open3d(params, source, target, T_init: np.ndarray, period_s: float,
         geometric_kernel=_tukey(reg.robust_kernel, params.geometric_kernel),
         doppler_kernel=_tukey(reg.robust_kernel, params.doppler_kernel),
         transform_vehicle_to_sensor=o3d.core.Tensor(T_vehicle_sensor, f64))
-    iterations = []
-    result = reg.icp(src, tgt, params.max_correspondence_m, o3d.core.Tensor(T_init, f64),
-                     estimation,
-                     reg.ICPConvergenceCriteria(params.convergence, params.convergence,
-                                                params.max_iterations),
-                     -1.0, lambda info: iterations.append(1))
+    iterations = []  # the transform after each step (Open3D's callback)
+    T_start = o3d.core.Tensor(T_init, f64)
+    try:
+        result = reg.icp(src, tgt, params.max_correspondence_m, T_start, estimation,
+                         reg.ICPConvergenceCriteria(params.convergence, params.convergence,
+                                                    params.max_iterations),
+                         -1.0, lambda info: iterations.append(info["transformation"].numpy()))
+    except RuntimeError as error:
+        if "Singular" not in str(error):
+            raise
+        # as the numba backend: a step whose system is singular ends the registration, not
+        # converged, at the transform before it, with that transform's pairs; the failed
+        # step counts
+        T = iterations[-1] if iterations else T_init
+        fit = reg.evaluate_registration(src, tgt, params.max_correspondence_m,
+                                        o3d.core.Tensor(T, f64))
+        return T, int(round(fit.fitness * len(source.points))), len(iterations) + 1, False
     pairs = int(round(result.fitness * len(source.points)))
     # iterations: Gauss-Newton steps, counted by the callbacks (Open3D 0.20's num_iterations
     # equals them, measured; the source of 0.17-0.19 reads as counting one fewer on converging)

@@ -306,3 +306,23 @@ def test_the_open3d_backend_runs_open3d(monkeypatch):
     r = _run(source, target, np.eye(4), backend="open3d")
     assert (r.correspondences, r.iterations, r.converged) == (7, 3, True)
     assert calls == [pytest.approx(0.1)]
+
+
+@pytest.mark.parametrize("kernel_from", [0, 2])
+def test_a_singular_step_ends_open3d_as_it_ends_the_numba_backend(kernel_from):
+    """Kernels of width 1e-12 weigh every residual ~0 from step ``kernel_from`` on: the system
+    is singular. Both backends stop there, not converged, at the transform before that step
+    with its pairs (Open3D raised a RuntimeError traceback before)."""
+    dev_dependency("open3d")
+    source, target, _ = _pair(v=(1.0, 0.2, 0.0), w=(0.0, 0.0, 0.3), n=300)
+    params = dict(geometric_kernel=1e-12, doppler_kernel=1e-12, lambda_doppler=0.5,
+                  geometric_kernel_from=kernel_from, doppler_kernel_from=kernel_from,
+                  max_correspondence_m=2.0)
+    ours = _run(source, target, np.eye(4), **params)
+    theirs = _run(source, target, np.eye(4), backend="open3d", **params)
+    assert not ours.converged and not theirs.converged
+    assert ours.iterations == theirs.iterations == kernel_from + 1
+    assert theirs.correspondences == ours.correspondences > 0
+    np.testing.assert_allclose(theirs.T_target_source, ours.T_target_source, atol=1e-6)
+    if kernel_from:
+        assert not np.allclose(ours.T_target_source, np.eye(4))  # the steps before it moved
