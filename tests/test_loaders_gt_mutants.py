@@ -334,3 +334,86 @@ def test_gt_for_frames_empty_inputs_and_one_row():
     assert list(mask) == [False, True, True]
     with pytest.raises(DataError, match="g, pose row 1: stamp"):
         gt_for_frames(along_x([1.0, 0.5]), np.array([1.0]), name="g")
+
+
+# --- bounds worked out on exactly representable stamps ------------------------------------------
+
+
+def test_interpolate_mode_tolerance_bounds_are_inclusive():
+    gt = along_x([1.0, 1.5, 2.0])
+    a = associate(gt, np.array([0.75, 1.25, 2.25]), tolerance_s=0.25)
+    assert a.covered.all()
+    np.testing.assert_allclose(a.ground_truth.positions[:, 0], [1.0, 1.25, 2.0], atol=1e-12)
+
+
+def test_nearest_mode_tolerance_bound_is_inclusive():
+    gt = along_x([1.0, 2.0, 3.0])
+    a = associate(gt, np.array([1.25, 2.75]), mode="nearest", tolerance_s=0.25)
+    assert a.covered.all()
+    np.testing.assert_allclose(a.ground_truth.positions[:, 0], [1.0, 3.0], atol=0)
+
+
+def test_integer_scan_stamps_are_taken_as_seconds():
+    gt = along_x([0.5, 1.0, 1.5, 2.0])
+    a = associate(gt, [0, 1, 2], tolerance_s=0.5)
+    assert a.covered.all()
+    assert a.ground_truth.stamps.dtype == np.float64
+    np.testing.assert_allclose(a.ground_truth.positions[:, 0], [0.5, 1.0, 2.0], atol=1e-12)
+
+
+def test_default_file_names_in_messages():
+    gt = along_x([0.0, 1.0])
+    with pytest.raises(DataError) as err:
+        associate(gt, np.array([5.0]))
+    assert str(err.value).startswith("ground truth ground truth does not overlap the scans of "
+                                     "scans: GT spans")
+    with pytest.warns(GroundTruthWarning) as got:
+        associate(gt, np.array([0.5, 3.0]), max_gap_s=None)
+    assert str(got[0].message).startswith("scans: 1 of the 2 scans kept have no ground truth in "
+                                          "ground truth and are excluded")
+    back = along_x([0.0, 1.0, 0.5])
+    with pytest.raises(DataError, match=r"^g\.txt, pose row 2: stamp 0\.500000 s goes "):
+        associate(back, np.array([0.5]), gt_file="g.txt")
+    with pytest.raises(DataError, match=r"^ground truth, pose row 2: stamp"):
+        associate(back, np.array([0.5]))
+
+
+def test_same_stamp_poses_far_from_the_origin_are_compared_absolutely():
+    """Two rows at one instant 1 mm apart at x = 1000 km: different poses (a relative
+    tolerance would take them for one)."""
+    poses = np.stack([make_T(np.eye(3), [1e6, 0, 0]), make_T(np.eye(3), [1e6 + 1e-3, 0, 0])])
+    with pytest.raises(DataError, match="different pose"):
+        clean_trajectory(Trajectory(np.array([1.0, 1.0]), poses))
+
+
+def test_gt_for_frames_exact_bound_and_one_scan():
+    gt = along_x([1.0, 2.0])
+    poses, mask = gt_for_frames(gt, np.array([1.25, 2.0]), tolerance_s=0.25)
+    # sampled at the scans (each GT row within 0.25 s of one): the rows, not interpolation
+    assert list(mask) == [True, True]
+    np.testing.assert_allclose(poses[:, 0, 3], [1.0, 2.0], atol=0)
+    poses, mask = gt_for_frames(along_x([1.0, 1.1, 1.2]), np.array([1.1]))
+    assert list(mask) == [True] and poses[0, 0, 3] == pytest.approx(1.1)
+    poses, mask = gt_for_frames(Trajectory(np.zeros(0), np.zeros((0, 4, 4))), np.array([1.0]))
+    assert mask.dtype == bool
+
+
+def test_gt_for_frames_two_rows_at_their_own_rate_are_interpolated():
+    # rows at 0 and 1 s inside the scans' span and off them: interpolated at 0.5 s
+    poses, mask = gt_for_frames(along_x([0.0, 1.0]), np.array([-1.0, 0.5, 2.0]))
+    assert list(mask) == [False, True, False] and poses[1, 0, 3] == pytest.approx(0.5)
+
+
+def test_gt_rows_off_the_scans_inside_their_span_mean_its_own_rate():
+    # a row at 1.05 s between the first two scans: GT at its own rate, interpolated
+    poses, mask = gt_for_frames(along_x([1.0, 1.05, 1.1, 1.2]),
+                                np.array([1.0, 1.1, 1.15, 1.2]))
+    assert mask.all() and poses[2, 0, 3] == pytest.approx(1.15)
+    # a row at 1.15 s between the last two scans: the same
+    poses, mask = gt_for_frames(along_x([1.0, 1.1, 1.15, 1.2]),
+                                np.array([1.0, 1.05, 1.1, 1.2]))
+    assert mask.all() and poses[1, 0, 3] == pytest.approx(1.05)
+    # rows far outside the scans' span do not count: sampled at the scans
+    poses, mask = gt_for_frames(along_x([0.0, 5.0, 10.0, 10.5, 11.0, 20.0]),
+                                np.array([10.0, 10.25, 10.5, 11.0]))
+    assert list(mask) == [True, False, True, True]
