@@ -316,3 +316,34 @@ def test_write_pcd_ascii_rows_are_exact_and_read_back(tmp_path):
     back, _ = read_pcd(path)
     np.testing.assert_array_equal(back["x"], [0.1, 2.0])
     np.testing.assert_array_equal(back["k"], [-3, 4])
+
+
+def test_a_header_may_start_with_an_empty_line(tmp_path):
+    arr, names = read_pcd(write(tmp_path, b"\n" + header(width=1) + struct.pack("<3f", 1, 2, 3)))
+    assert names == ["x", "y", "z"] and arr["z"][0] == 3.0
+
+
+def test_non_ascii_header_bytes_are_replaced_not_an_error(tmp_path):
+    """The header is ASCII: a stray byte (here Latin-1 and UTF-8 text) becomes U+FFFD, one
+    per byte, in a comment as in a field name."""
+    raw = (b"# r\xe9sum\xc3\xa9 \xff\n"
+           + header(width=1).replace(b"FIELDS x y z", b"FIELDS x y \xc3\xa9")
+           + struct.pack("<3f", 1, 2, 3))
+    arr, names = read_pcd(write(tmp_path, raw))
+    assert names == ["x", "y", "\ufffd\ufffd"]
+    assert arr["\ufffd\ufffd"][0] == 3.0
+
+
+def test_read_pcd_header_from_the_path_reads_64_kib_only(tmp_path):
+    path = write(tmp_path, b"# " + b"c" * (64 * 1024) + b"\n" + header())
+    with pytest.raises(DataError, match=f"no DATA line in its first {64 * 1024} bytes"):
+        read_pcd_header(path)
+
+
+def test_the_huge_record_message_names_the_file(tmp_path):
+    path = tmp_path / "f.pcd"
+    with pytest.raises(DataError) as err:
+        read_pcd_header(path, header("a", "4", "F", "2000000000", width=1))
+    assert str(err.value).startswith(f"{path}: one point record of the PCD header "
+                                     "(8,000,000,000 bytes: SIZE x COUNT summed over FIELDS) "
+                                     "would take 8,000 MB, above the per-frame limit")
