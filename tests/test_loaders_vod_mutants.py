@@ -235,9 +235,9 @@ def test_rigid_tolerates_print_rounding_only():
     np.testing.assert_allclose(out, T, atol=1e-12)
     assert near[0, 0] != out[0, 0]  # a copy; the input is not changed
     far = T.copy()
-    far[:3, :3] *= 1.0011
+    far[:3, :3] *= 1.00123  # said to four decimals
     with pytest.raises(DataError, match=r"t: not a rigid transform \(singular values "
-                                        r"\[1\.0011 1\.0011 1\.0011\]\)"):
+                                        r"\[1\.0012 1\.0012 1\.0012\]\)"):
         rigid(far, "t")
     shrunk = T.copy()
     shrunk[:3, :3] *= 0.9989
@@ -295,26 +295,43 @@ def test_default_speed_limit_splits_a_41_m_per_s_step_not_a_39(tmp_path):
     assert len(quiet(root, period=0.2)) == 4
 
 
-def test_missing_and_many_segments_are_listed(tmp_path):
+def clips_of_one_frame(root, count):
     p, d, T = frames(1)
-    for first in range(0, 20, 2):  # ten clips of one frame
-        write_vod(tmp_path / "vod", p, d, T, first=first)
-    root = tmp_path / "vod"
+    for first in range(0, 2 * count, 2):
+        write_vod(root, p, d, T, first=first)
+    return root
+
+
+def test_missing_and_many_segments_are_listed(tmp_path):
+    root = clips_of_one_frame(tmp_path / "vod", 9)
     velo = root / "radar" / "training" / "velodyne"
     with pytest.raises(DataError) as err:
         quiet(root)
     shown = "; ".join(f"{k}: frames {2 * k:05d}-{2 * k:05d} (1)" for k in range(8))
     assert str(err.value) == (
-        f"{velo}: the frames form 10 clips separated by gaps (first gap: frame 00000 -> "
+        f"{velo}: the frames form 9 clips separated by gaps (first gap: frame 00000 -> "
         "00002); a sequence must not jump across a gap: choose one with segment=K (--segment "
         f"K): {shown}; ...")
-    last = quiet(root, segment=9)
-    assert last.provenance["frames"] == ["00018", "00018"] and last.provenance["segment"] == 9
-    assert last.provenance["segments_in_folder"] == 10
+    last = quiet(root, segment=8)
+    assert last.provenance["frames"] == ["00016", "00016"] and last.provenance["segment"] == 8
+    assert last.provenance["segments_in_folder"] == 9
     with pytest.raises(DataError) as err:
-        quiet(root, segment=10)
-    assert str(err.value) == (f"{velo}: segment 10 does not exist; the folder has 10 clip(s): "
+        quiet(root, segment=9)
+    assert str(err.value) == (f"{velo}: segment 9 does not exist; the folder has 9 clip(s): "
                               f"{shown}")
+
+
+def test_eight_clips_are_all_listed_without_an_ellipsis(tmp_path):
+    root = clips_of_one_frame(tmp_path / "vod", 8)
+    with pytest.raises(DataError) as err:
+        quiet(root)
+    shown = "; ".join(f"{k}: frames {2 * k:05d}-{2 * k:05d} (1)" for k in range(8))
+    assert str(err.value).endswith(f"(--segment K): {shown}")
+    root2 = clips_of_one_frame(tmp_path / "vod2", 2)
+    with pytest.raises(DataError) as err:
+        quiet(root2)
+    assert str(err.value).endswith("(--segment K): 0: frames 00000-00000 (1); 1: frames "
+                                   "00002-00002 (1)")
 
 
 def test_segment_option_on_a_one_clip_folder(tmp_path):
@@ -337,7 +354,8 @@ def test_a_second_calibration_that_differs_is_named(tmp_path):
         quiet(root)
     assert str(err.value) == (f"{calib / '00001.txt'}: Tr_velo_to_cam differs from frame "
                               "00000's; expected one radar calibration per clip")
-    T[0, 3] = VOD_T_CAMERA_RADAR[0, 3] + 5e-7  # within 1e-6: the same calibration
+    # 0.05 m + 9e-7: within 1e-6 + 1e-5 x 0.05 (np.allclose's atol and rtol): the same one
+    T[0, 3] = VOD_T_CAMERA_RADAR[0, 3] + 9e-7
     (calib / "00001.txt").write_text(calib_text(T))
     assert len(quiet(root)) == 3
 
@@ -432,3 +450,45 @@ def test_a_scan_holds_the_written_values(tmp_path):
     np.testing.assert_allclose(comp_seq[0].doppler, comp[0], rtol=1e-7)
     np.testing.assert_allclose(seq.ground_truth.poses, T, atol=1e-6)
     np.testing.assert_allclose(seq.ground_truth.stamps, [1000.7, 1000.8], rtol=0, atol=1e-12)
+
+
+def test_files_over_the_frame_limit_and_stray_names_are_named(tmp_path, monkeypatch):
+    root, *_ = folder(tmp_path, n=2)
+    base = root / "radar" / "training"
+    monkeypatch.setenv("BENCH_MAX_FRAME_MB", "0.0001")  # 100 bytes
+    pose = base / "pose" / "00000.json"
+    with pytest.raises(DataError, match=f"^{pose}: the file .* above the per-frame limit"):
+        read_pose_file(pose, "odomToCamera")
+    calib = base / "calib" / "00000.txt"
+    with pytest.raises(DataError, match=f"^{calib}: the file .* above the per-frame limit"):
+        read_calib(calib)
+    monkeypatch.delenv("BENCH_MAX_FRAME_MB")
+    stray = base / "velodyne" / ("1" * 20 + ".bin")
+    stray.write_bytes(b"")
+    with pytest.raises(DataError, match=f"^{stray}: the number in the file name has 20 digits"):
+        quiet(root)
+
+
+def test_bytes_that_are_not_utf8_are_replaced(tmp_path):
+    pose = tmp_path / "p.json"
+    pose.write_bytes(pose_text().encode() + b'\n{"note": "\xff\xfe"}\n')
+    np.testing.assert_allclose(read_pose_file(pose, "odomToCamera"), T_POSE, atol=1e-12)
+    calib = tmp_path / "c.txt"
+    calib.write_bytes(b"note: \xff\xfe\n" + calib_text().encode())
+    np.testing.assert_allclose(read_calib(calib), VOD_T_CAMERA_RADAR, atol=1e-9)
+
+
+def test_options_are_kept_and_dropped_points_are_named_and_counted(tmp_path):
+    p, d, T = frames(2)
+    p[1][2] = np.nan
+    root = write_vod(tmp_path / "vod", p, d, T)
+    opts = VodSequence.Options(period=0.2)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        seq = VodSequence(root, options=opts)
+    assert seq.options is opts
+    frame = root / "radar" / "training" / "velodyne" / "00001.bin"
+    with pytest.warns(UserWarning, match=f"^{frame}, frame 1: dropped 1 of 4 points"):
+        s = seq[1]
+    assert len(s.points) == 3
+    assert seq.provenance["nan_points_dropped"] == 1
