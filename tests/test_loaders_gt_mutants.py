@@ -417,3 +417,11 @@ def test_gt_rows_off_the_scans_inside_their_span_mean_its_own_rate():
     poses, mask = gt_for_frames(along_x([0.0, 5.0, 10.0, 10.5, 11.0, 20.0]),
                                 np.array([10.0, 10.25, 10.5, 11.0]))
     assert list(mask) == [True, False, True, True]
+
+
+def test_nearest_indices_are_integers_and_stay_in_range():
+    idx, dist = nearest_indices(np.array([0.0, 1.0]), np.array([-1.0, 0.2, 5.0]))
+    assert idx.dtype.kind == "i" and list(idx) == [0, 0, 1]
+    np.testing.assert_allclose(dist, [1.0, 0.2, 4.0])
+    idx, dist = nearest_indices(np.array([2.0]), np.array([1.0]))
+    assert idx.dtype.kind == "i" and list(idx) == [0] and dist[0] == 1.0
