@@ -259,3 +259,47 @@ def test_pointcloud2_data_shorter_than_its_length_prefix_is_refused():
     msg = pointcloud2_msg(xyz_fields(), 1, 1, 12, 12, bytes(12))
     with pytest.raises(DataError, match="message ends after"):
         parse_pointcloud2(msg[:-6], WHERE)
+
+
+# --- survivors of the first mutation run ---------------------------------------------------------
+
+
+def test_reads_that_end_exactly_at_the_end_of_the_message():
+    assert Cursor(b"\x05", WHERE).u8() == 5
+    assert Cursor(struct.pack("<I", 7), WHERE).u32() == 7
+
+
+def test_stamps_after_2038_are_unsigned():
+    """ROS1 time is two uint32: a second count of 2^31 + 5 is 2038-01-19, not 1901."""
+    c = Cursor(ros_header(2**31 + 5, 3_000_000_000 - 2**31), WHERE)
+    stamp, _ = c.header()
+    assert stamp == pytest.approx(2**31 + 5 + (3_000_000_000 - 2**31) * 1e-9, abs=1e-6)
+
+
+def test_trailing_padding_in_each_point_is_skipped():
+    """point_step 8 for one float32 field: each point carries 4 bytes of padding after it."""
+    data = struct.pack("<f4xf4xf4x", 1.0, 2.0, 3.0)
+    arr, _ = cloud2_array([("x", 0, 7, 1)], False, 1, 3, 8, 24, data, WHERE)
+    np.testing.assert_array_equal(arr["x"], [1.0, 2.0, 3.0])
+
+
+def test_padded_rows_with_extra_data_bytes_after_them():
+    fields = [("a", 0, 6, 1), ("b", 4, 6, 1)]
+    rows = [struct.pack("<4I", 1, 2, 3, 4) + b"\xee" * 4, struct.pack("<4I", 5, 6, 7, 8)
+            + b"\xee" * 4]
+    arr, _ = cloud2_array(fields, False, 2, 2, 8, 20, b"".join(rows) + b"\xdd" * 4, WHERE)
+    np.testing.assert_array_equal(arr["a"], [1, 3, 5, 7])
+    np.testing.assert_array_equal(arr["b"], [2, 4, 6, 8])
+
+
+def test_errors_of_whole_messages_name_the_message():
+    msg = pointcloud_msg(np.zeros((3, 3), np.float32), [])
+    with pytest.raises(DataError, match=f"^{WHERE}: message ends after"):
+        parse_pointcloud(msg[:-10], WHERE)
+    msg2 = pointcloud2_msg(xyz_fields(), 1, 1, 12, 12, bytes(12))
+    with pytest.raises(DataError, match=f"^{WHERE}: message ends after"):
+        parse_pointcloud2(msg2[:-6], WHERE)
+    bad = pointcloud2_msg([("x", 0, 11, 1)], 1, 1, 4, 4, bytes(4))
+    with pytest.raises(DataError) as err:
+        parse_pointcloud2(bad, WHERE)
+    assert str(err.value) == f"{WHERE}: PointField 'x' has unknown datatype 11"
