@@ -54,6 +54,9 @@ def test_a_time_zone_is_suggested_as_whole_hours():
         "set the time offset: try --time-offset 4201 (this lines up the first stamps; "
         "gt_stamp + offset = sensor clock)")
     assert "--time-offset -3600 (the ground truth's clock is 1 h ahead of" in hint(3000.0, -600.0)
+    # hours are diff / 3600 s rounded, however many: 2000 h (a clock 83 days off)
+    assert "--time-offset 7200000 (the ground truth's clock is 2000 h behind" in hint(
+        0.0, 7200000.0)
 
 
 def test_less_than_half_an_hour_lines_up_the_first_stamps():
@@ -200,10 +203,10 @@ def test_warning_counts_and_trim():
 def test_uncovered_error_names_the_first_uncovered_scan():
     gt = along_x([1.0, 1.1, 1.2])
     with pytest.raises(DataError) as err:
-        associate(gt, np.array([1.0, 1.1, 1.3, 1.4]), uncovered="error", gt_file="g",
+        associate(gt, np.array([1.0, 1.3, 1.4, 1.5]), uncovered="error", gt_file="g",
                   scan_file="s")
-    assert str(err.value) == ("s, frame 2: scan stamp 1.300 s is not covered by g (GT spans "
-                              "[1.000, 1.200] s, max gap 0.5 s); 2 of 4 scans uncovered")
+    assert str(err.value) == ("s, frame 1: scan stamp 1.300 s is not covered by g (GT spans "
+                              "[1.000, 1.200] s, max gap 0.5 s); 3 of 4 scans uncovered")
     a = associate(gt, np.array([1.0, 1.2]), uncovered="error")  # all covered: fine
     assert a.covered.all()
 
@@ -334,6 +337,8 @@ def test_gt_for_frames_empty_inputs_and_one_row():
     assert list(mask) == [False, True, True]
     with pytest.raises(DataError, match="g, pose row 1: stamp"):
         gt_for_frames(along_x([1.0, 0.5]), np.array([1.0]), name="g")
+    with pytest.raises(DataError, match="^ground truth, pose row 1: stamp"):
+        gt_for_frames(along_x([1.0, 0.5]), np.array([1.0]))
 
 
 # --- bounds worked out on exactly representable stamps ------------------------------------------
@@ -341,9 +346,11 @@ def test_gt_for_frames_empty_inputs_and_one_row():
 
 def test_interpolate_mode_tolerance_bounds_are_inclusive():
     gt = along_x([1.0, 1.5, 2.0])
-    a = associate(gt, np.array([0.75, 1.25, 2.25]), tolerance_s=0.25)
+    a = associate(gt, np.array([0.75, 1.25, 1.75, 2.25]), tolerance_s=0.25)
     assert a.covered.all()
-    np.testing.assert_allclose(a.ground_truth.positions[:, 0], [1.0, 1.25, 2.0], atol=1e-12)
+    # only the scans outside the span take an end pose; 1.75 s is interpolated
+    np.testing.assert_allclose(a.ground_truth.positions[:, 0], [1.0, 1.25, 1.75, 2.0],
+                               atol=1e-12)
 
 
 def test_nearest_mode_tolerance_bound_is_inclusive():
@@ -425,3 +432,14 @@ def test_nearest_indices_are_integers_and_stay_in_range():
     np.testing.assert_allclose(dist, [1.0, 0.2, 4.0])
     idx, dist = nearest_indices(np.array([2.0]), np.array([1.0]))
     assert idx.dtype.kind == "i" and list(idx) == [0] and dist[0] == 1.0
+
+
+def test_gt_for_frames_a_scan_just_past_the_gt_end_takes_the_end_pose():
+    """GT at its own rate (100 Hz) up to 1.0 s; scans 50 us before its start and after its end
+    are within STAMP_TOLERANCE_S (0.1 ms) of the end poses: they have ground truth, the end
+    poses (interpolation used to refuse them with a DataError)."""
+    s = np.arange(0.0, 1.00001, 0.01)
+    poses, mask = gt_for_frames(along_x(s), np.array([-5e-5, 0.505, 1.00005, 1.0002]))
+    assert list(mask) == [True, True, True, False]
+    np.testing.assert_allclose(poses[:3, 0, 3], [0.0, 0.505, 1.0], atol=1e-12)
+    assert np.isnan(poses[3]).all()
