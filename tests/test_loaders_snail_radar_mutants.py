@@ -460,3 +460,44 @@ def test_gt_gap_and_uncovered_policies(tmp_path):
                                      time_offset_s=-0.45)
     # GT moved 0.45 s earlier: its second block ends at 0.2 s; scans 0.3-0.5 s trimmed
     assert len(trimmed) == 3 and trimmed.provenance["gt_association"]["trimmed"] == 3
+
+
+# --- survivors of the first mutation run -------------------------------------------------------
+
+
+def test_a_repeated_stamp_is_dropped_with_a_warning_naming_the_folder(tmp_path):
+    seq = tmp_path / "20240123" / "data6"
+    frames = eagle_folder(seq, n=3)
+    folder = seq / "eagleg7" / "enhanced"
+    names = [stamp_name(t) for t, _ in frames]
+    (folder / "times.txt").write_text(f"{names[0]}\n{names[1]}\n{names[1]}\n{names[2]}\n")
+    with pytest.warns(UserWarning) as got:
+        s = SnailRadarSequence(seq)
+    assert [str(w.message) for w in got] == [
+        f"{folder}: 1 scans with a repeated header stamp dropped"]
+    assert len(s) == 3 and s.provenance["repeated_stamps_dropped"] == 1
+    assert s.provenance["messages"] == 4
+
+
+def test_bag_input_topic_stream_and_messages(tmp_path):
+    from helpers_snail import write_snail_bag
+
+    day = tmp_path / "20240123"
+    day.mkdir()
+    frames = items(n=3)
+    bag = write_snail_bag(day / "data2.bag", {"/radar_enhanced_pcl2": frames,
+                                              "/radar_pcl2": []})
+    s = SnailRadarSequence(bag)
+    assert s.name == "20240123_data2" and len(s) == 3
+    assert s.provenance["stream"] == "/radar_enhanced_pcl2"
+    np.testing.assert_allclose(s.stamps, [t for t, _ in frames], rtol=0, atol=1e-6)
+    np.testing.assert_array_equal(s[1].doppler, frames[1][1]["Doppler"].astype(np.float64))
+    with pytest.raises(DataError) as err:
+        SnailRadarSequence(bag, cloud="pcl")  # the topic is in the bag, without messages
+    assert str(err.value) == f"{bag}: topic /radar_pcl2 has no messages"
+    # GT covering the first two scans only: the warning names the bag
+    write_gt(day / "data2" / "tls_T_xt32.txt", T0 - 0.1 + 0.05 * np.arange(5),
+             np.zeros((5, 3)))
+    with pytest.warns(UserWarning, match=f"^{bag}: 1 of the 3 scans kept have no ground truth"):
+        part = SnailRadarSequence(bag)
+    assert len(part.ground_truth) == 2
