@@ -144,7 +144,9 @@ def test_find_calib_order(tmp_path):
 
 def test_what_a_run_states_and_reads(tmp_path):
     run, stamps, points, doppler = run_folder(tmp_path)
-    seq = ColoradarSequence(run)
+    opts = ColoradarSequence.Options()
+    seq = ColoradarSequence(run, options=opts)
+    assert seq.options is opts
     assert len(seq) == 4 and seq.name == "run0"
     assert ColoradarSequence(run, name="mine").name == "mine"
     np.testing.assert_allclose(seq.stamps, stamps, rtol=0, atol=1e-9)
@@ -254,8 +256,9 @@ def test_run_errors(tmp_path):
     with pytest.raises(DataError) as err:
         ColoradarSequence(run)
     gt_dir = run / "groundtruth"
-    assert str(err.value).startswith(f"{gt_dir / 'groundtruth_poses.txt'}: ")
-    assert "pose rows but" in str(err.value) and "expected one pose per stamp" in str(err.value)
+    rows = len(read_poses(gt_dir / "groundtruth_poses.txt"))
+    assert str(err.value) == (f"{gt_dir / 'groundtruth_poses.txt'}: {rows} pose rows but "
+                              f"{rows - 1} stamps in {gt_t}; expected one pose per stamp")
     for f in data.iterdir():
         f.unlink()
     with pytest.raises(DataError) as err:
