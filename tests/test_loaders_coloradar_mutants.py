@@ -264,3 +264,56 @@ def test_run_errors(tmp_path):
     with pytest.raises(DataError) as err:
         ColoradarSequence(run)
     assert str(err.value) == f"{data}: no radar_pointcloud_<i>.bin files"
+
+
+# --- survivors of the second mutation run ----------------------------------------------------
+
+
+def test_read_poses_rows_after_a_blank_line_long_lines_and_qx(tmp_path):
+    p = tmp_path / "poses.txt"
+    h = np.sqrt(0.5)
+    p.write_text(f"1 2 3 {h} 0 0 {h}\n\n4 5 6 0 0 0 1\n")  # 90 deg about x
+    T = read_poses(p)
+    assert len(T) == 2
+    np.testing.assert_allclose(T[0][:3, :3] @ [0, 1, 0], [0, 0, 1], atol=1e-12)
+    np.testing.assert_allclose(T[1], make_T(np.eye(3), [4, 5, 6]), atol=1e-12)
+    # qx carries the norm too: (0.6, 0, 0, 0.6) has norm 0.85, not a unit quaternion
+    p.write_text("1 2 3 0.6 0 0 0.6\n")
+    with pytest.raises(DataError, match="line 1: not a finite pose with a unit quaternion"):
+        read_poses(p)
+    p.write_text("1 2 3 0 0 0 1 " + "9" * 70 + "\n")  # eight values, the line cut at 60
+    with pytest.raises(DataError) as err:
+        read_poses(p)
+    assert str(err.value).endswith("got '1 2 3 0 0 0 1 " + "9" * 46 + "'")
+
+
+def test_readers_replace_bytes_that_are_not_utf8(tmp_path):
+    p = tmp_path / "poses.txt"
+    p.write_bytes(b"1 2 3 0 0 0 1\n\xff\xfe\n")
+    with pytest.raises(DataError, match="line 2: expected 7 numbers 'x y z qx qy qz qw', got "
+                                        "'\ufffd\ufffd'"):
+        read_poses(p)
+    t = tmp_path / "base_to_single_chip.txt"
+    t.write_bytes(b"0.1 0.2 0.3\n0 0 0 1\n# \xff\n")
+    np.testing.assert_allclose(read_transform(t), make_T(np.eye(3), [0.1, 0.2, 0.3]))
+
+
+def test_files_over_the_frame_limit_are_named(tmp_path, monkeypatch):
+    for name, read in (("stamps.txt", read_stamps), ("poses.txt", read_poses),
+                       ("transform.txt", read_transform)):
+        p = tmp_path / name
+        p.write_text("0 0 0 0 0 0 1\n" * 20)
+        monkeypatch.setenv("BENCH_MAX_FRAME_MB", "0.0001")  # 100 bytes
+        with pytest.raises(DataError, match=f"^{p}: the file .* above the per-frame limit"):
+            read(p)
+        monkeypatch.delenv("BENCH_MAX_FRAME_MB")
+
+
+def test_a_missing_transform_says_how_to_give_one(tmp_path):
+    with pytest.raises(DataError) as err:
+        read_transform(tmp_path / "none.txt")
+    assert str(err.value) == (
+        f"{tmp_path / 'none.txt'}: extrinsic not found; expected 'x y z' and 'qx qy qz qw' lines "
+        "(ColoRadar ships calib/ beside the run folders: give --calib DIR, or --extrinsic "
+        "'x y z qx qy qz qw' (radar -> base; '0 0 0 0 0 0 1' when the GT is the radar's own "
+        "pose))")
