@@ -201,7 +201,10 @@ def test_gap_option_offset_and_trim(tmp_path):
     keep = [i for i, t in enumerate(values) if not (100.12 < t < 100.38)]
     gt_t.write_text("".join(f"{values[i]:.6f}\n" for i in keep))
     poses_file.write_text("".join(rows[i] + "\n" for i in keep))
-    with pytest.warns(GroundTruthWarning, match=r"2 inside gaps > 0\.1499"):
+    clouds = run / "single_chip" / "pointclouds"
+    with pytest.warns(GroundTruthWarning, match=(
+            f"^{clouds}: 2 of the 6 scans kept have no ground truth in {poses_file} and are "
+            r"excluded from scoring \(0 before, 0 after its span, 2 inside gaps > 0\.1499")):
         seq = ColoradarSequence(run)  # default: 3 median steps = 0.15 s
     assert len(seq) == 6 and len(seq.ground_truth) == 4
     assert len(ColoradarSequence(run, max_gap=0.31).ground_truth) == 6
@@ -317,3 +320,18 @@ def test_a_missing_transform_says_how_to_give_one(tmp_path):
         "(ColoRadar ships calib/ beside the run folders: give --calib DIR, or --extrinsic "
         "'x y z qx qy qz qw' (radar -> base; '0 0 0 0 0 0 1' when the GT is the radar's own "
         "pose))")
+
+
+def test_one_gt_row_sets_no_gap_and_stray_names_are_named(tmp_path):
+    run, stamps, *_ = run_folder(tmp_path, n=1)
+    gt = run / "groundtruth"
+    (gt / "timestamps.txt").write_text(f"{stamps[0]:.6f}\n")
+    (gt / "groundtruth_poses.txt").write_text("0 0 0 0 0 0 1\n")
+    seq = ColoradarSequence(run)
+    assert seq.provenance["gt_association"]["max_gap_s"] is None
+    assert len(seq.ground_truth) == 1
+    stray = run / "single_chip" / "pointclouds" / "data" / ("radar_pointcloud_" + "1" * 20
+                                                           + ".bin")
+    stray.write_bytes(b"")
+    with pytest.raises(DataError, match=f"^{stray}: the number in the file name has 20 digits"):
+        ColoradarSequence(run)
