@@ -335,3 +335,30 @@ def test_one_gt_row_sets_no_gap_and_stray_names_are_named(tmp_path):
     stray.write_bytes(b"")
     with pytest.raises(DataError, match=f"^{stray}: the number in the file name has 20 digits"):
         ColoradarSequence(run)
+
+
+def test_calib_and_extrinsic_options_and_a_frame_named_in_scan_errors(tmp_path):
+    run, stamps, points, doppler = run_folder(tmp_path)
+    moved = tmp_path / "elsewhere" / "calib"
+    moved.parent.mkdir()
+    (run.parent / "calib").rename(moved)
+    with pytest.raises(DataError, match="extrinsic not found"):
+        ColoradarSequence(run)
+    seq = ColoradarSequence(run, calib=moved)
+    np.testing.assert_allclose(seq.sensor.T_body_sensor, COLORADAR_T_BASE_RADAR, atol=1e-9)
+    given = ColoradarSequence(run, extrinsic="1 2 3 0 0 0 1")
+    np.testing.assert_allclose(given.sensor.T_body_sensor, make_T(np.eye(3), [1, 2, 3]))
+    # a NaN point: dropped, named and counted
+    data = run / "single_chip" / "pointclouds" / "data"
+    rec = np.fromfile(data / "radar_pointcloud_1.bin", "<f4").reshape(-1, 5)
+    rec[0, 0] = np.nan
+    rec.tofile(data / "radar_pointcloud_1.bin")
+    f1 = data / "radar_pointcloud_1.bin"
+    with pytest.warns(UserWarning, match=f"^{f1}, frame 1: dropped 1 of 5 points"):
+        assert len(seq[1].points) == 4
+    assert seq.provenance["nan_points_dropped"] == 1
+    # a truncated frame: the layout is named
+    f2 = data / "radar_pointcloud_2.bin"
+    f2.write_bytes(f2.read_bytes()[:-3])
+    with pytest.raises(DataError, match=f"^{f2}, frame 2: .*ColoRadar single-chip radar N x 5"):
+        seq[2]
