@@ -501,3 +501,47 @@ def test_bag_input_topic_stream_and_messages(tmp_path):
     with pytest.warns(UserWarning, match=f"^{bag}: 1 of the 3 scans kept have no ground truth"):
         part = SnailRadarSequence(bag)
     assert len(part.ground_truth) == 2
+
+
+def test_gt_choice_errors_name_the_folder_and_ars548_dates_name_the_input(tmp_path):
+    seq = tmp_path / "20240123" / "data8"
+    eagle_folder(seq, n=2)
+    for name in ("tls_T_xt32.txt", "utm50r_T_xt32.txt"):
+        write_gt(seq / name, [T0], [(0, 0, 0)])
+    with pytest.raises(DataError) as err:
+        SnailRadarSequence(seq)
+    assert str(err.value) == (f"{seq}: both tls_T_xt32.txt and utm50r_T_xt32.txt are present; "
+                              "choose one with gt (--gt FILE)")
+    loose = tmp_path / "mine" / "data9"
+    loose.mkdir(parents=True)
+    tree = tmp_path / "mine" / "ref_trajs" / "20240123" / "data9"
+    for name in ("tls_T_xt32.txt", "utm50r_T_xt32.txt"):
+        write_gt(tree / name, [T0], [(0, 0, 0)])
+    with pytest.raises(DataError) as err:
+        find_gt_file(loose)
+    assert str(err.value).startswith(f"{tree}: both tls_T_xt32.txt and utm50r_T_xt32.txt")
+    ars = tmp_path / "20231101" / "data1"
+    write_snail_folder(ars / "ars548" / "points", items("ars548", n=2, period=0.05))
+    with pytest.raises(DataError) as err:
+        SnailRadarSequence(ars, sensor="ars548")
+    assert str(err.value).startswith(f"{ars}: no ARS548 before 2023-11-04 (date 2.02311e+07)")
+
+
+def test_reference_csv_gt_format_and_two_missing_fields(tmp_path):
+    seq = tmp_path / "20240123" / "data10"
+    eagle_folder(seq, n=3)
+    header = ("#time, M_p_L_x, M_p_L_y, M_p_L_z, M_q_L_x, M_q_L_y, M_q_L_z, M_q_L_w, W_v_L_x, "
+              "W_v_L_y, W_v_L_z")
+    rows = "".join(f"{T0 - 0.1 + 0.05 * k:.9f}, {k}, 0, 0, 0, 0, 0, 1, 0, 0, 0\n"
+                   for k in range(10))
+    (seq / "ref_tls_T_xt32.csv").write_text(header + "\n" + rows)
+    s = SnailRadarSequence(seq)
+    assert s.provenance["gt_format"] == ("reference CSV (time, M_p_L, M_q_L: the XT32 pose in "
+                                         "the map; W_v_L not used)")
+    assert len(s.ground_truth) == 3
+    bare = tmp_path / "20240123" / "data11"
+    arr = np.zeros(2, dtype=[("x", "<f4"), ("y", "<f4"), ("Power", "<f4")])
+    write_snail_folder(bare / "eagleg7" / "enhanced", [(T0, arr), (T0 + 0.1, arr)])
+    with pytest.raises(DataError, match=r"no field\(s\) z, Doppler; the frame has fields x y "
+                                        r"Power"):
+        SnailRadarSequence(bare)[0]
