@@ -545,3 +545,43 @@ def test_reference_csv_gt_format_and_two_missing_fields(tmp_path):
     with pytest.raises(DataError, match=r"no field\(s\) z, Doppler; the frame has fields x y "
                                         r"Power"):
         SnailRadarSequence(bare)[0]
+
+
+def test_third_run_survivors(tmp_path, monkeypatch):
+    # body_T_ars548 without a place: the message starts with ": "
+    with pytest.raises(DataError, match="^: no ARS548 before 2023-11-04"):
+        body_T_ars548(20231101)
+    # five runs of one name in the trees: four are listed
+    loose = tmp_path / "mine" / "data3"
+    loose.mkdir(parents=True)
+    trees = [write_gt(tmp_path / "mine" / "ref_trajs" / f"2024010{k}" / "data3" /
+                      "tls_T_xt32.txt", [T0], [(0, 0, 0)]) for k in range(1, 6)]
+    with pytest.raises(DataError) as err:
+        find_gt_file(loose)
+    assert f"5 reference trajectories are named data3 ({', '.join(map(str, trees[:4]))}); " \
+        "choose one" in str(err.value)
+    # times.txt over the frame limit, and with bytes that are not UTF-8
+    seq = tmp_path / "20240123" / "data12"
+    frames = eagle_folder(seq, n=2)
+    times = seq / "eagleg7" / "enhanced" / "times.txt"
+    monkeypatch.setenv("BENCH_MAX_FRAME_MB", "0.00001")  # 10 bytes
+    with pytest.raises(DataError, match=f"^{times}: the file .* above the per-frame limit"):
+        SnailRadarSequence(seq)
+    monkeypatch.delenv("BENCH_MAX_FRAME_MB")
+    times.write_bytes(stamp_name(frames[0][0]).encode() + b"\n\xff\n")
+    with pytest.raises(DataError, match=f"^{times}: a line is not a stamp"):
+        SnailRadarSequence(seq)
+    # a float64 field is stored as float32; a NaN point is named and counted
+    pcd_seq = tmp_path / "20240123" / "data13"
+    arr = np.zeros(3, dtype=[("x", "<f4"), ("y", "<f4"), ("z", "<f4"), ("Doppler", "<f4"),
+                             ("Power", "<f8")])
+    arr["x"] = [1.0, np.nan, 3.0]
+    arr["Power"] = [0.1, 0.2, 0.3]
+    write_snail_folder(pcd_seq / "eagleg7" / "enhanced", [(T0, arr), (T0 + 0.1, arr)])
+    s = SnailRadarSequence(pcd_seq)
+    f0 = pcd_seq / "eagleg7" / "enhanced" / f"{stamp_name(T0)}.pcd"
+    with pytest.warns(UserWarning, match=f"^{f0} \\(frame 0\\): dropped 1 of 3 points"):
+        scan = s[0]
+    assert scan.fields["power"].dtype == np.float32
+    np.testing.assert_allclose(scan.fields["power"], [0.1, 0.3], rtol=1e-7)
+    assert s.provenance["nan_points_dropped"] == 1
