@@ -585,3 +585,31 @@ def test_third_run_survivors(tmp_path, monkeypatch):
     assert scan.fields["power"].dtype == np.float32
     np.testing.assert_allclose(scan.fields["power"], [0.1, 0.3], rtol=1e-7)
     assert s.provenance["nan_points_dropped"] == 1
+
+
+def test_bag_topic_of_another_type_and_unset_header_stamps(tmp_path):
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from helpers_snail import write_snail_bag
+
+    day = tmp_path / "20240123"
+    day.mkdir()
+    store = get_typestore(Stores.ROS1_NOETIC)
+    text = "std_msgs/msg/String"
+    bag = day / "data1.bag"
+    with Writer(bag) as w:
+        conn = w.add_connection("/radar_enhanced_pcl2", text, typestore=store)
+        for i in range(3):
+            w.write(conn, int((T0 + 0.1 * i) * 1e9),
+                    store.serialize_ros1(store.types[text](data="x"), text))
+    with pytest.raises(DataError) as err:
+        SnailRadarSequence(bag)
+    assert str(err.value) == (f"{bag}: topic /radar_enhanced_pcl2 has message type {text}; "
+                              "expected one of sensor_msgs/msg/PointCloud2")
+    frames = items(n=3)
+    same = [(frames[0][0], arr) for _, arr in frames]  # one header stamp for all three
+    bag2 = write_snail_bag(day / "data2.bag", {"/radar_enhanced_pcl2": same})
+    with pytest.raises(DataError, match=f"^{bag2}: /radar_enhanced_pcl2: only 1 distinct header "
+                                        "stamps for 3 messages"):
+        SnailRadarSequence(bag2)
