@@ -315,5 +315,7 @@ def gt_for_frames(gt: Trajectory, stamps: np.ndarray, tolerance_s: float = STAMP
     step = float(np.median(np.diff(s)))
     mask = gt.coverage_mask(stamps, MAX_GAP_STEPS * step, tolerance_s)
     if mask.any():
-        poses[mask] = gt.interpolate(stamps[mask], name=name).poses
+        # a scan within tolerance_s outside the GT span is covered: it takes the end pose
+        query = np.clip(stamps[mask], s[0], s[-1])
+        poses[mask] = gt.interpolate(query, name=name).poses
     return poses, mask
