@@ -507,3 +507,19 @@ def test_synth_dispatch_runs_fidelity_realism_or_the_generator(monkeypatch, tmp_
                           frames=3) == 5
     assert asked[-1] == ("synth", console, {"data_dir": tmp_path / "d", "scene": "loop",
                                             "frames": 3})
+
+
+def test_external_trajectories_are_scored_and_each_said(monkeypatch):
+    from bench.commands import external_runs
+
+    asked = []
+    done = [("orb", "done", "scored 90 %"), ("vins", "failed", "no overlap")]
+    monkeypatch.setattr(external_score, "score_experiment_external",
+                        lambda exp, force: asked.append((exp.name, force)) or done)
+    console = _console()
+    assert external_runs(SimpleNamespace(external=[], name="e"), True, console) == []
+    assert asked == [] and _out(console) == []
+    assert external_runs(SimpleNamespace(external=["x"], name="e"), True, console) == done
+    assert asked == [("e", True)]
+    assert _out(console) == ["external orb: done: scored 90 %",
+                             "external vins: failed: no overlap"]
