@@ -260,7 +260,7 @@ def test_the_rule_s_defaults_and_the_method_s_default_as_reference(tmp_path, mon
     assert (args[2], args[4], args[6], args[7], kwargs) == (1, [], 0.95, 1000,
                                                             {"min_gain": 0.0})
     assert (c.point, c.value) == (None, None)
-    assert "95 % block-bootstrap" in sweep_markdown(tmp_path)
+    assert "better), 95 % block-bootstrap" in sweep_markdown(tmp_path)
 
 
 def test_a_missing_run_leaves_the_rule_a_missing_point(tmp_path, monkeypatch):
@@ -340,3 +340,77 @@ def test_same_is_equality_within_a_relative_1e_9():
     assert _same(2, 2) and not _same(2, 3)
     assert _same("x", "x") and not _same("x", "y") and not _same(1.0, None)
     assert _same([0.4, 2.6], [0.4, 2.6])
+
+
+def test_same_is_relative_to_the_larger_whichever_side_it_is_on():
+    small, large = 2165995.5381073398, 2165995.5402733353  # a pair found by search:
+    assert 1e-9 * small < large - small <= 1e-9 * large  # within 1e-9 of the larger only
+    assert _same(small, large) and _same(large, small)
+
+
+# --- second review round ----------------------------------------------------------------------
+
+def _two_key_sweep(root, criterion, drop=()):
+    """A plain sweep over two keys (a, b) on sequences s and t: point (1, x) errors 8 m (1, 0.1)
+    and 48 m (2, 0.2), point (2, x) 8 m (3, 0.3) and 48 m (4, 0.4); ``drop``: (point, seq,
+    length) segments that do not exist there."""
+    points = []
+    for i, (a, b) in enumerate(((1, "x"), (2, "x"))):
+        runs = []
+        for seq in "st":
+            rel = f"{seq}/{i}"
+            errors = {8: (1.0 + 2 * i, 0.1 + 0.2 * i, 3), 48: (2.0 + 2 * i, 0.2 + 0.2 * i, 1)}
+            for x in [x for p, q, x in drop if (p, q) == (i, seq)]:
+                errors[x] = (0.0, 0.0, 0)
+            _metrics(root, rel, seq, None, errors)
+            runs.append({"sequence": seq, "seed": None, "dir": rel})
+        points.append({"label": f"m a={a} b={b}", "point": {"a": a, "b": b}, "runs": runs})
+    write_sweep_index(root, {
+        "experiment": "s", "criterion": criterion, "default_differs": None,
+        "sweeps": [{"method": "m", "group": "g", "keys": ["a", "b"],
+                    "defaults": {"s": {"a": 1, "b": "x"}, "t": {"a": 2, "b": "x"}},
+                    "points": points}]})
+
+
+def test_a_sweep_over_two_keys_names_both_and_a_point_without_a_criterion_length(tmp_path):
+    # point (2, x) has no 48 m segments on t: 48 m is its "-", its criterion too; the 48 m
+    # column stays (point (1, x) has it on both)
+    _two_key_sweep(tmp_path, {"error": "rotation", "lengths_m": [8, 48]}, drop=[(1, "t", 48)])
+    assert sweep_markdown(tmp_path).splitlines()[:5] == [
+        "### g: sweep of a, b (no initial guess; mean over s, t)",
+        "",
+        "| Point | 8 m | 48 m | Criterion (rotation, 8, 48 m) |",
+        "|---|---|---|---|",
+        '| a=1 b="x" | **1.000** / **0.100** | **2.000** / **0.200** | **1.5000 chosen** |']
+    assert sweep_markdown(tmp_path).splitlines()[5] == \
+        '| a=2 b="x" | 3.000 / 0.300 | - | - |'
+
+
+def test_no_point_with_every_run_finished_is_no_choice(tmp_path):
+    _two_key_sweep(tmp_path, {"error": "rotation", "lengths_m": [8, 48]})
+    for seq in "st":
+        (tmp_path / seq / "1" / "metrics.json").unlink()
+    (tmp_path / "s" / "0" / "metrics.json").unlink()
+    (c,) = sweep_choices(tmp_path)
+    assert (c.point, c.value, c.missing) == (None, None, ["m a=1 b=x", "m a=2 b=x"])
+    assert sweep_markdown(tmp_path).endswith("\n\ng: no point has every run finished\n")
+
+
+def test_the_rule_decides_each_seed_option(tmp_path, monkeypatch):
+    asked = _rule_sweep(tmp_path, monkeypatch, RULE)
+    index = json.loads((tmp_path / "sweeps.json").read_text())
+    for p in index["sweeps"][0]["points"]:  # each run again without seed
+        p["runs"] += [dict(r, seed=False) for r in p["runs"]]
+    write_sweep_index(tmp_path, index)
+    choices = sweep_choices(tmp_path)
+    assert [(c.seed, c.point) for c in choices] == [(True, {"gate_m": 2.0}),
+                                                   (False, {"gate_m": 2.0})]
+    assert len(asked) == 2
+
+
+def test_the_rule_s_sentence_names_every_key_of_the_point():
+    c = Choice("m", "g", None, {"a": 2.0, "b": "x"}, 0.9, None, [],
+               SimpleNamespace(text="keeps the reference"))
+    assert c.describe({"folds": []}) == (
+        'chosen: m a=2.0 b="x" (the tuning rule of configs/splits.yaml: keeps the reference)'
+        "; the default differs by sequence")
