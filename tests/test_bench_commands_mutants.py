@@ -124,9 +124,9 @@ def runner(monkeypatch, tmp_path):
     monkeypatch.setattr(progress, "run_jobs",
                         lambda jobs, console, workers, *rest: state.asked.append(
                             ("run_jobs", jobs, workers, *rest)) or state.outcomes)
-    monkeypatch.setattr(job, "summarize", lambda outcomes: f"{len(outcomes)} run(s)")
+    monkeypatch.setattr(job, "summarize", lambda outcomes: f"{len(outcomes)} run(s) [b]done")
     monkeypatch.setattr(paper, "write_tables",
-                        lambda d: state.asked.append(("tables", d)) or {"md": "TABLE"})
+                        lambda d: state.asked.append(("tables", d)) or {"md": "[b]TABLE"})
     monkeypatch.setattr(commands, "print_sweeps", record("print_sweeps"))
     monkeypatch.setattr(commands, "print_run_summary", record("summary"))
     monkeypatch.setattr(commands, "external_runs",
@@ -180,7 +180,7 @@ def test_an_experiment_runs_its_jobs_then_prints_its_tables_and_sweeps(runner, t
     assert _names(runner)[-3:] == ["external", "tables", "print_sweeps"]
     assert runner.asked[-2] == ("tables", runner.exp.out_dir)
     assert runner.asked[-1][1:3] == (runner.exp.out_dir, {"sweeps": []})
-    assert _out(console) == ["1 run(s)", "TABLE"]
+    assert _out(console) == ["1 run(s) [b]done", "[b]TABLE"]
     assert (tmp_path / "results").is_dir() is False  # checked, not made
 
 
@@ -212,16 +212,16 @@ def test_external_trajectories_count_toward_the_tables_and_the_exit_code(runner)
 
 
 def test_refused_runs_are_listed_counted_and_fail_the_command(runner):
-    runner.refused = ["doppler on s.h5: no Doppler", "gicp on t.h5: too big"]
+    runner.refused = ["doppler on [b]s.h5: no Doppler", "gicp on t.h5: too big"]
     console = _console()
     assert _run(console, experiment=Path("e.yaml")) == 1
     assert _out(console)[-3:] == [
-        "refused doppler on s.h5: no Doppler", "refused gicp on t.h5: too big",
+        "refused doppler on [b]s.h5: no Doppler", "refused gicp on t.h5: too big",
         "2 run(s) refused (recorded as failed rows, status refused); the others ran"]
     runner.jobs = []
     with pytest.raises(DataError) as err:
         _run(_console(), experiment=Path("e.yaml"))
-    assert str(err.value) == ("every run of the experiment was refused:\ndoppler on s.h5: no "
+    assert str(err.value) == ("every run of the experiment was refused:\ndoppler on [b]s.h5: no "
                               "Doppler\ngicp on t.h5: too big")
 
 
@@ -335,6 +335,10 @@ def test_the_sweep_table_is_written_and_printed(tmp_path, monkeypatch):
 
 # --- a run's summary --------------------------------------------------------------------------
 
+#: a run folder's name that rich markup would eat
+RUN = "[b]run"
+
+
 def _result(**given):
     rel = {8.0: SimpleNamespace(rot_deg_mean=1.0, rot_deg_mean_ci=[0.5, 1.5], trans_m_mean=0.2,
                                 trans_m_mean_ci=None),
@@ -354,11 +358,13 @@ def _result(**given):
 
 
 def _summary(monkeypatch, tmp_path, result, diverged=False, offset=""):
+    folder = tmp_path / RUN
     run = SimpleNamespace(result=result, diverged=diverged)
-    monkeypatch.setattr(commands, "read_run", lambda d: run if result is not None else None)
-    monkeypatch.setattr(tables_ape, "start_offset_note", lambda r: offset)
+    monkeypatch.setattr(commands, "read_run",
+                        lambda d: run if result is not None and d == folder else None)
+    monkeypatch.setattr(tables_ape, "start_offset_note", lambda r: offset if r is run else "?")
     console = _console()
-    print_run_summary(tmp_path, console)
+    print_run_summary(folder, console)
     return _out(console)
 
 
@@ -370,19 +376,19 @@ def test_the_summary_of_a_scored_run(monkeypatch, tmp_path):
         "0.123 m/s (0.5 s windows); time 12.35 ms/frame",
         "[low, high]: 95 % confidence intervals (circular block bootstrap over the "
         "trajectory)",
-        f"run folder: {tmp_path}"]
+        f"run folder: {tmp_path / RUN}"]
 
 
 def test_the_summary_of_a_diverged_run_that_fell_back(monkeypatch, tmp_path):
     res = _result(lengths_m=[8.0], ape=None, kitti=SimpleNamespace(n=0), velocity=None,
                   time_ms=SimpleNamespace(mean=None), fallback_text=lambda: "3 frames replaced",
                   fell_back=True, ci_level=0.9)
-    assert _summary(monkeypatch, tmp_path, res, diverged=True, offset="a start offset") == [
+    assert _summary(monkeypatch, tmp_path, res, diverged=True, offset="a [i]start offset") == [
         "8 m: 1.000 [0.500, 1.500] deg / 0.200 m; DIVERGED; 3 frames replaced [fell back]",
-        "note: APE with a start offset",
+        "note: APE with a [i]start offset",
         "[low, high]: 90 % confidence intervals (circular block bootstrap over the "
         "trajectory)",
-        f"run folder: {tmp_path}"]
+        f"run folder: {tmp_path / RUN}"]
     res.fell_back = False
     assert _summary(monkeypatch, tmp_path, res)[0].endswith("; 3 frames replaced")
 
@@ -392,11 +398,11 @@ def test_the_summary_of_a_run_without_ground_truth_or_record(monkeypatch, tmp_pa
                   velocity=SimpleNamespace(norm_mean_mps=None), time_ms=SimpleNamespace(
                       mean=None))
     assert _summary(monkeypatch, tmp_path, res) == ["no ground truth: no errors",
-                                                    f"run folder: {tmp_path}"]
+                                                    f"run folder: {tmp_path / RUN}"]
     res.time_ms = SimpleNamespace(mean=2.0)  # something to say, but no lengths: no CI line
     assert _summary(monkeypatch, tmp_path, res) == ["time 2.00 ms/frame",
-                                                    f"run folder: {tmp_path}"]
-    assert _summary(monkeypatch, tmp_path, None) == [f"run folder: {tmp_path}"]
+                                                    f"run folder: {tmp_path / RUN}"]
+    assert _summary(monkeypatch, tmp_path, None) == [f"run folder: {tmp_path / RUN}"]
 
 
 # --- bench score ------------------------------------------------------------------------------
@@ -411,14 +417,14 @@ def scorer(monkeypatch, tmp_path):
     def score_external(store, spec, out, scoring, force):
         state.asked.append((store, spec.name, out, scoring, force, list(state.threads)))
         return SimpleNamespace(coverage=state.coverage, status=state.status,
-                               clock="offset 0.000 s", convention="T_world_sensor",
-                               warnings=state.warnings, frame="identity",
+                               clock="[i]offset 0.000 s", convention="[i]T_world_sensor",
+                               warnings=state.warnings, frame="[i]identity",
                                run_dir=tmp_path / "run")
 
     monkeypatch.setattr(external_score, "score_external", score_external)
     monkeypatch.setattr(drift_intervals, "set_threads", state.threads.append)
     monkeypatch.setattr(commands, "read_run", lambda d: SimpleNamespace(
-        result=SimpleNamespace(clock_note="CPU time of one thread")))
+        result=SimpleNamespace(clock_note="[i]CPU time of one thread")))
     monkeypatch.setattr(commands, "print_run_summary",
                         lambda d, console: console.print(f"summary of {d.name}"))
     return state
@@ -426,7 +432,7 @@ def scorer(monkeypatch, tmp_path):
 
 def _score(scoring=None, force=False):
     console = _console()
-    code = score_command(console, Path("s.h5"), SimpleNamespace(name="orb"), Path("o"), force,
+    code = score_command(console, Path("s.h5"), SimpleNamespace(name="[b]orb"), Path("o"), force,
                          scoring or {"lengths_m": None, "kitti_lengths_m": None,
                                      "alignment": None})
     return code, _out(console)
@@ -438,31 +444,31 @@ def test_score_prints_coverage_checks_frame_timing_and_summary(scorer):
     code, lines = _score()
     assert code == 0
     assert lines == [
-        "orb: 90 of the 100 scans with ground truth scored (90.0 %; 80 matched within 0.005 s, "
+        "[b]orb: 90 of the 100 scans with ground truth scored (90.0 %; 80 matched within 0.005 s, "
         "10 interpolated (--max-gap 0.25 s; the widest gap bridged 0.123 s))",
-        "clock check: offset 0.000 s", "convention check: T_world_sensor",
-        "poses moved to the sensor frame by T_frame_sensor = identity",
-        "timing: CPU time of one thread", "summary of run"]
+        "clock check: [i]offset 0.000 s", "convention check: [i]T_world_sensor",
+        "poses moved to the sensor frame by T_frame_sensor = [i]identity",
+        "timing: [i]CPU time of one thread", "summary of run"]
     cores = min(len(os.sched_getaffinity(0)), 8)
     (store, name, out, scoring, force, threads), = scorer.asked
     assert threads == [cores]  # every core while scoring, then one again
     assert scorer.threads == [cores, 1]
     from bench.runs.evaluate import Scoring
 
-    assert (store, name, out, scoring, force) == (Path("s.h5"), "orb", Path("o"), Scoring(),
+    assert (store, name, out, scoring, force) == (Path("s.h5"), "[b]orb", Path("o"), Scoring(),
                                                   False)
 
 
 def test_score_passes_the_options_given_and_says_what_it_skipped(scorer):
     scorer.status = "skipped"
-    scorer.warnings = ["few scans", "a gap"]
+    scorer.warnings = ["few [i]scans", "a gap"]
     scorer.coverage.update(max_gap_s=None)
     code, lines = _score({"lengths_m": (8.0,), "kitti_lengths_m": None, "alignment": "sim3"},
                          force=True)
-    assert lines[0] == ("orb: 90 of the 100 scans with ground truth scored (90.0 %; 80 "
+    assert lines[0] == ("[b]orb: 90 of the 100 scans with ground truth scored (90.0 %; 80 "
                         "matched within 0.005 s, no interpolation) (unchanged: not scored "
                         "again; --force to)")
-    assert lines[3:5] == ["warning: few scans", "warning: a gap"]
+    assert lines[3:5] == ["warning: few [i]scans", "warning: a gap"]
     scoring, force = scorer.asked[0][3:5]
     assert (scoring.lengths_m, scoring.alignment, force) == ((8.0,), "sim3", True)
 
@@ -513,7 +519,7 @@ def test_external_trajectories_are_scored_and_each_said(monkeypatch):
     from bench.commands import external_runs
 
     asked = []
-    done = [("orb", "done", "scored 90 %"), ("vins", "failed", "no overlap")]
+    done = [("orb", "done", "scored [b]90 %"), ("vins", "failed", "no overlap")]
     monkeypatch.setattr(external_score, "score_experiment_external",
                         lambda exp, force: asked.append((exp.name, force)) or done)
     console = _console()
@@ -521,5 +527,16 @@ def test_external_trajectories_are_scored_and_each_said(monkeypatch):
     assert asked == [] and _out(console) == []
     assert external_runs(SimpleNamespace(external=["x"], name="e"), True, console) == done
     assert asked == [("e", True)]
-    assert _out(console) == ["external orb: done: scored 90 %",
+    assert _out(console) == ["external orb: done: scored [b]90 %",
                              "external vins: failed: no overlap"]
+
+
+def test_score_uses_at_most_eight_threads(scorer, monkeypatch):
+    import os
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(16)))
+    _score()
+    assert scorer.threads == [8, 1]
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2})
+    _score()
+    assert scorer.threads[-2:] == [3, 1]

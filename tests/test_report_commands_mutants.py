@@ -35,6 +35,9 @@ from bench.report.commands import (
 )
 from loaders.errors import DataError
 
+#: a folder name that rich markup would eat: every line naming it must print it whole
+RES = "[bold]res"
+
 
 def _console() -> Console:
     return Console(file=io.StringIO(), width=1000, color_system=None)
@@ -103,7 +106,7 @@ def _table(tmp_path, dirs=None, **given):
     args = dict(format="md", out=None, lengths=None, pivot=False, methods=None, variants=True)
     args.update(given)
     console, status = _console(), _console()
-    code = table_command(console, status, dirs or [tmp_path / "res"], **args)
+    code = table_command(console, status, dirs or [tmp_path / RES], **args)
     return code, status
 
 
@@ -125,7 +128,7 @@ def test_a_bad_option_is_one_message_naming_it_before_any_work(tmp_path, made, g
 
 
 def test_the_whole_table_of_one_folder_is_written_into_it(tmp_path, made, capsys):
-    res = tmp_path / "res"
+    res = tmp_path / RES
     res.mkdir()
     code, status = _table(tmp_path, marks="significance", ci=True)
     assert code == 0
@@ -140,7 +143,7 @@ def test_the_whole_table_of_one_folder_is_written_into_it(tmp_path, made, capsys
 
 
 def test_another_metric_is_its_own_file_and_format(tmp_path, made, capsys):
-    res = tmp_path / "res"
+    res = tmp_path / RES
     res.mkdir()
     assert _table(tmp_path, metric="kitti", format="tex")[0] == 0
     assert capsys.readouterr().out == "TEX\n"
@@ -152,7 +155,7 @@ def test_another_metric_is_its_own_file_and_format(tmp_path, made, capsys):
 @pytest.mark.parametrize("given", [{"variants": False}, {"methods": "m"}, {"lengths": "8"},
                                    {"pivot": True}])
 def test_a_filtered_view_is_printed_not_written(tmp_path, made, capsys, given):
-    res = tmp_path / "res"
+    res = tmp_path / RES
     res.mkdir()
     code, status = _table(tmp_path, **given)
     assert code == 0
@@ -207,7 +210,7 @@ def test_a_run_folder_is_never_written_into(tmp_path, made, capsys):
 
 
 def test_a_user_s_table_file_is_refused_before_any_work(tmp_path, made):
-    res = tmp_path / "res"
+    res = tmp_path / RES
     res.mkdir()
     (res / "table.tex").write_text("my own table")
     with pytest.raises(guard.Refused):
@@ -223,7 +226,7 @@ def test_a_selection_error_is_one_message(tmp_path, made):
 
 
 def test_ape_is_collected_from_one_folder_of_the_selected_runs(tmp_path, made, capsys):
-    res = tmp_path / "res"
+    res = tmp_path / RES
     res.mkdir()
     made.rows = [_row(run_dir="r/1"), _row(run_dir="r/2")]
     assert _table(tmp_path, metric="ape", ci=True)[0] == 0
@@ -240,16 +243,16 @@ def test_stability_flags_the_built_table(tmp_path, made):
 
 
 def test_a_broken_record_fails_and_a_run_without_ground_truth_is_named(tmp_path, made, capsys):
-    res = tmp_path / "res"
+    res = tmp_path / RES
     res.mkdir()
-    made.rows = [_row(), _row(status=folders.BROKEN, error="r/y/metrics.json: not JSON")]
+    made.rows = [_row(), _row(status=folders.BROKEN, error="r/[i]y/metrics.json: not JSON")]
     made.runs = [SimpleNamespace(dir="r/a", result=SimpleNamespace(finished=True, scored=True)),
-                 SimpleNamespace(dir="r/b", result=SimpleNamespace(finished=True, scored=False)),
+                 SimpleNamespace(dir="r/[b]b", result=SimpleNamespace(finished=True, scored=False)),
                  SimpleNamespace(dir="r/c", result=SimpleNamespace(finished=False, scored=False))]
     code, status = _table(tmp_path)
     assert code == 1
-    assert _out(status) == ["broken run record: r/y/metrics.json: not JSON",
-                            "not in the table: r/b (no ground truth: nothing to score)",
+    assert _out(status) == ["broken run record: r/[i]y/metrics.json: not JSON",
+                            "not in the table: r/[b]b (no ground truth: nothing to score)",
                             f"wrote {res}/table.{{md,tex,csv}}"]
     code, status = _table(tmp_path, variants=False)
     assert code == 1 and _out(status)[-1].startswith("a filtered or merged view")
@@ -260,19 +263,22 @@ def test_a_broken_record_fails_and_a_run_without_ground_truth_is_named(tmp_path,
 def test_compare_prints_the_markdown_and_fails_only_when_asked(tmp_path, monkeypatch, capsys):
     cells = pd.DataFrame({"regression": [False, True, True]})
     asked = []
-    monkeypatch.setattr(compare_mod, "compare", lambda a, b, t: asked.append(t) or cells)
-    monkeypatch.setattr(compare_mod, "compare_times", lambda a, b: "times")
-    monkeypatch.setattr(compare_mod, "compare_run_metrics", lambda a, b: "runs")
+    monkeypatch.setattr(compare_mod, "compare",
+                        lambda a, b, t: asked.append(("cells", a, b, t)) or cells)
+    monkeypatch.setattr(compare_mod, "compare_times",
+                        lambda a, b: asked.append(("times", a, b)) or "times")
+    monkeypatch.setattr(compare_mod, "compare_run_metrics",
+                        lambda a, b: asked.append(("runs", a, b)) or "runs")
     monkeypatch.setattr(compare_mod, "to_markdown",
                         lambda c, times, a, b, t, runs: f"{len(c)} {times} {a} {b} {t} {runs}\n")
     a, b = Path("A"), Path("B")
     assert compare_command(_console(), a, b, 0.2, False) == 0
     assert capsys.readouterr().out == "3 times A B 0.2 runs\n"
-    assert asked == [0.2]
+    assert asked == [("cells", a, b, 0.2), ("times", a, b), ("runs", a, b)]
     assert compare_command(_console(), a, b, 0.2, True) == 1
     cells = pd.DataFrame({"regression": [False, False]})
     assert compare_command(_console(), a, b, 0.2, True) == 0
-    cells = pd.DataFrame({"regression": pd.Series([], dtype=bool)})
+    cells = pd.DataFrame([])  # no cell in common: no columns at all
     assert compare_command(_console(), a, b, 0.2, True) == 0
 
 
@@ -284,11 +290,11 @@ def drawn(monkeypatch):
 
     def make_figures(results_dir, out=None, speed_csv=None):
         state.asked.append(("figures", results_dir, out, speed_csv))
-        return [Path("f/a.png"), Path("f/a.pdf"), Path("f/b.png")]
+        return [Path("f/[b]a.png"), Path("f/a.pdf"), Path("f/b.png")]
 
     def plot_pair(store, frame, out):
         state.asked.append(("pair", store, frame, out))
-        return [Path("f/pair.png")]
+        return [Path("f/[i]pair.png")]
 
     monkeypatch.setattr(draw, "make_figures", make_figures)
     monkeypatch.setattr(pair_mod, "plot_pair", plot_pair)
@@ -299,9 +305,9 @@ def drawn(monkeypatch):
 def test_figures_of_a_folder_are_listed_png_by_png(tmp_path, drawn, monkeypatch):
     monkeypatch.chdir(tmp_path)
     console = _console()
-    assert figures_command(console, tmp_path / "res", None, None, None) == 0
-    assert drawn.asked == [("figures", tmp_path / "res", None, None)]
-    assert _out(console) == ["wrote f/a.png (+ .pdf)", "wrote f/b.png (+ .pdf)"]
+    assert figures_command(console, tmp_path / RES, None, None, None) == 0
+    assert drawn.asked == [("figures", tmp_path / RES, None, None)]
+    assert _out(console) == ["wrote f/[b]a.png (+ .pdf)", "wrote f/b.png (+ .pdf)"]
 
 
 def test_figures_use_the_speed_table_given_else_the_default_one_if_there(tmp_path, drawn,
@@ -320,7 +326,7 @@ def test_a_pair_figure_goes_to_out_else_results_figures(tmp_path, drawn, monkeyp
     console = _console()
     assert figures_command(console, None, None, None, (Path("s.h5"), 7)) == 0
     assert drawn.asked == [("pair", Path("s.h5"), 7, Path("results/figures"))]
-    assert _out(console) == ["wrote f/pair.png (+ .pdf)"]
+    assert _out(console) == ["wrote f/[i]pair.png (+ .pdf)"]
     figures_command(console, None, tmp_path / "o", None, (Path("s.h5"), 3))
     assert drawn.asked[-1] == ("pair", Path("s.h5"), 3, tmp_path / "o")
     assert (tmp_path / "o").is_dir() is False  # checked, not made (the writers make it)
@@ -378,7 +384,7 @@ def test_figures_are_current_when_none_is_older_than_the_newest_record(tmp_path)
 def paged(monkeypatch):
     state = SimpleNamespace(asked=[], counts={"tables": 2, "figures": 3, "runs": 4, "failed": 1,
                                               "broken": 0, "damaged": 0},
-                            figures=[Path("f/a.png"), Path("f/a.pdf"), Path("f/b.png")],
+                            figures=[Path("f/[b]a.png"), Path("f/a.pdf"), Path("f/b.png")],
                             error=None, current=False)
 
     def write_page(results_dir, out):
@@ -400,13 +406,24 @@ def paged(monkeypatch):
 
 
 def test_the_report_draws_missing_figures_then_writes_the_page(tmp_path, paged):
+    res = tmp_path / RES
+    res.mkdir()
     console = _console()
-    assert report_command(console, tmp_path, None) == 0
-    assert paged.asked == [("figures", tmp_path), ("page", tmp_path, None)]
+    assert report_command(console, res, None) == 0
+    assert paged.asked == [("figures", res), ("page", res, None)]
     assert _out(console) == [
-        f"drew 2 figure(s) into {tmp_path / 'figures'} (PNG, for the page; `bench figures` "
+        f"drew 2 figure(s) into {res / 'figures'} (PNG, for the page; `bench figures` "
         "writes PDF too)",
-        f"wrote {tmp_path / page.PAGE_NAME}: 2 table(s), 3 figure(s), 4 run(s), 1 not finished"]
+        f"wrote {res / page.PAGE_NAME}: 2 table(s), 3 figure(s), 4 run(s), 1 not finished"]
+
+
+def test_the_report_asks_about_the_figures_of_its_folder(tmp_path, paged, monkeypatch):
+    import bench.report.commands as commands
+
+    asked = []
+    monkeypatch.setattr(commands, "figures_current", lambda d: asked.append(d) or True)
+    report_command(_console(), tmp_path, None)
+    assert asked == [tmp_path] and paged.asked == [("page", tmp_path, None)]
 
 
 def test_the_report_skips_current_figures_or_when_asked(tmp_path, paged):
@@ -422,10 +439,10 @@ def test_the_report_skips_current_figures_or_when_asked(tmp_path, paged):
 
 
 def test_figures_that_cannot_be_drawn_are_said_and_the_page_still_written(tmp_path, paged):
-    paged.error = DataError("r/x/est.tum: unreadable\nmore")
+    paged.error = DataError("r/[b]x/est.tum: unreadable\nmore")
     console = _console()
     assert report_command(console, tmp_path, None) == 0
-    assert _out(console)[0] == "figures not drawn: r/x/est.tum: unreadable"
+    assert _out(console)[0] == "figures not drawn: r/[b]x/est.tum: unreadable"
     assert paged.asked[-1] == ("page", tmp_path, None)
     paged.error = guard.Refused("figures/a.png: a user's file")
     with pytest.raises(guard.Refused):
