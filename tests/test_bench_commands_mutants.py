@@ -424,7 +424,8 @@ def scorer(monkeypatch, tmp_path):
     monkeypatch.setattr(external_score, "score_external", score_external)
     monkeypatch.setattr(drift_intervals, "set_threads", state.threads.append)
     monkeypatch.setattr(commands, "read_run", lambda d: SimpleNamespace(
-        result=SimpleNamespace(clock_note="[i]CPU time of one thread")))
+        result=SimpleNamespace(clock_note="[i]CPU time of one thread"))
+        if d == tmp_path / "run" else None)
     monkeypatch.setattr(commands, "print_run_summary",
                         lambda d, console: console.print(f"summary of {d.name}"))
     return state

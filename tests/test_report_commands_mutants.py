@@ -298,7 +298,9 @@ def drawn(monkeypatch):
 
     monkeypatch.setattr(draw, "make_figures", make_figures)
     monkeypatch.setattr(pair_mod, "plot_pair", plot_pair)
-    monkeypatch.setattr(folders, "load_runs", lambda d, failed=False: state.runs)
+    monkeypatch.setattr(folders, "load_runs",
+                        lambda d, failed=False: state.asked.append(("load_runs", d, failed))
+                        or state.runs)
     return state
 
 
@@ -306,7 +308,8 @@ def test_figures_of_a_folder_are_listed_png_by_png(tmp_path, drawn, monkeypatch)
     monkeypatch.chdir(tmp_path)
     console = _console()
     assert figures_command(console, tmp_path / RES, None, None, None) == 0
-    assert drawn.asked == [("figures", tmp_path / RES, None, None)]
+    assert drawn.asked == [("figures", tmp_path / RES, None, None),
+                           ("load_runs", tmp_path / RES, True)]
     assert _out(console) == ["wrote f/[b]a.png (+ .pdf)", "wrote f/b.png (+ .pdf)"]
 
 
@@ -314,11 +317,11 @@ def test_figures_use_the_speed_table_given_else_the_default_one_if_there(tmp_pat
                                                                          monkeypatch):
     monkeypatch.chdir(tmp_path)
     figures_command(_console(), Path("res"), Path("out"), Path("s.csv"), None)
-    assert drawn.asked[-1] == ("figures", Path("res"), Path("out"), Path("s.csv"))
+    assert drawn.asked[-2] == ("figures", Path("res"), Path("out"), Path("s.csv"))
     Path("results/speed").mkdir(parents=True)
     Path("results/speed/speed.csv").write_text("x")
     figures_command(_console(), Path("res"), None, None, None)
-    assert drawn.asked[-1] == ("figures", Path("res"), None, Path("results/speed/speed.csv"))
+    assert drawn.asked[-2] == ("figures", Path("res"), None, Path("results/speed/speed.csv"))
 
 
 def test_a_pair_figure_goes_to_out_else_results_figures(tmp_path, drawn, monkeypatch):
@@ -330,6 +333,13 @@ def test_a_pair_figure_goes_to_out_else_results_figures(tmp_path, drawn, monkeyp
     figures_command(console, None, tmp_path / "o", None, (Path("s.h5"), 3))
     assert drawn.asked[-1] == ("pair", Path("s.h5"), 3, tmp_path / "o")
     assert (tmp_path / "o").is_dir() is False  # checked, not made (the writers make it)
+
+
+def test_a_pair_and_a_folder_s_figures_are_all_listed(tmp_path, drawn):
+    console = _console()
+    assert figures_command(console, tmp_path, tmp_path / "o", None, (Path("s.h5"), 7)) == 0
+    assert _out(console) == ["wrote f/[i]pair.png (+ .pdf)", "wrote f/[b]a.png (+ .pdf)",
+                             "wrote f/b.png (+ .pdf)"]
 
 
 def test_figures_refuse_a_run_folder_as_out_and_nothing_to_draw(tmp_path, drawn):
@@ -365,6 +375,9 @@ def test_figures_are_current_when_none_is_older_than_the_newest_record(tmp_path)
     assert not figures_current(tmp_path)
     _touch(tmp_path / "figures" / "a.png", 100)
     assert figures_current(tmp_path)  # no records: nothing newer
+    _touch(tmp_path / "figures" / "a.png", 0.5)
+    assert figures_current(tmp_path)  # however old the figure
+    _touch(tmp_path / "figures" / "a.png", 100)
     _touch(tmp_path / "s" / "r1" / "metrics.json", 90)
     _touch(tmp_path / "figures" / "sub" / "b.png", 200)
     assert figures_current(tmp_path)
