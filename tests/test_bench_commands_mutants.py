@@ -541,3 +541,19 @@ def test_score_uses_at_most_eight_threads(scorer, monkeypatch):
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: {0, 1, 2})
     _score()
     assert scorer.threads[-2:] == [3, 1]
+
+
+def test_tables_sweeps_and_refusals_are_never_wrapped_on_a_narrow_terminal(runner, tmp_path,
+                                                                          monkeypatch):
+    long_row = "| " + " | ".join(f"cell {i}" for i in range(20)) + " |"
+    monkeypatch.setattr(paper, "write_tables", lambda d: {"md": long_row})
+    runner.refused = ["doppler on s.h5: " + "no Doppler values in this store " * 3]
+    narrow = Console(file=io.StringIO(), width=30, color_system=None)
+    _run(narrow, experiment=Path("e.yaml"))
+    lines = _out(narrow)
+    assert long_row in lines
+    assert "refused " + runner.refused[0] in lines
+    monkeypatch.setattr(tables_sweep, "sweep_markdown", lambda d: long_row)
+    narrow = Console(file=io.StringIO(), width=30, color_system=None)
+    print_sweeps(tmp_path, {"sweeps": []}, narrow)
+    assert _out(narrow) == [long_row]
