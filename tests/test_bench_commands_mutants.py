@@ -93,7 +93,8 @@ def runner(monkeypatch, tmp_path):
     """The planner and runner replaced: ``state.asked`` lists the calls, ``state.outcomes`` is
     what the runs end as, ``state.refused`` what the planner refuses."""
     state = SimpleNamespace(asked=[], outcomes=[SimpleNamespace(status="done", run_dir=None)],
-                            refused=[], external=[], jobs=["j1", "j2"])
+                            refused=[], external=[], jobs=["j1", "j2"], consoles=[],
+                            exps=[])
     exp = SimpleNamespace(out_dir=tmp_path / "results", jobs=3, external=[], out=None,
                           name="exp")
 
@@ -117,13 +118,15 @@ def runner(monkeypatch, tmp_path):
 
     monkeypatch.setattr(experiment, "load_experiment", record("load", exp))
     monkeypatch.setattr(planning, "jobs_for_experiment",
-                        lambda e, console: state.jobs if e is exp else pytest.fail("exp"))
+                        lambda e, console: state.asked.append(("jobs", console)) or state.jobs
+                        if e is exp else pytest.fail("exp"))
     monkeypatch.setattr(planning, "plan", plan)
     monkeypatch.setattr(planning, "single_job", record("single", "job"))
     monkeypatch.setattr(runs_sweep, "sweep_index", record("sweep_index", {"sweeps": []}))
     monkeypatch.setattr(progress, "run_jobs",
                         lambda jobs, console, workers, *rest: state.asked.append(
-                            ("run_jobs", jobs, workers, *rest)) or state.outcomes)
+                            ("run_jobs", jobs, workers, *rest)) or state.consoles.append(
+                                console) or state.outcomes)
     monkeypatch.setattr(job, "summarize", lambda outcomes: f"{len(outcomes)} run(s) [b]done")
     monkeypatch.setattr(paper, "write_tables",
                         lambda d: state.asked.append(("tables", d)) or {"md": "[b]TABLE"})
@@ -131,6 +134,7 @@ def runner(monkeypatch, tmp_path):
     monkeypatch.setattr(commands, "print_run_summary", record("summary"))
     monkeypatch.setattr(commands, "external_runs",
                         lambda e, force, console: state.asked.append(("external", force))
+                        or state.consoles.append(console) or state.exps.append(e)
                         or state.external)
     return state
 
@@ -149,7 +153,7 @@ def _names(state) -> list[str]:
 def test_an_unknown_executor_is_named_with_the_choices(runner):
     with pytest.raises(DataError) as err:
         _run(_console(), executor="cloud", method="icp", data=Path("s.h5"))
-    assert str(err.value).startswith("unknown executor 'cloud'; choose from local")
+    assert str(err.value) == "unknown executor 'cloud'; choose from local, process, dask"
     assert runner.asked == []
 
 
@@ -181,6 +185,9 @@ def test_an_experiment_runs_its_jobs_then_prints_its_tables_and_sweeps(runner, t
     assert runner.asked[-2] == ("tables", runner.exp.out_dir)
     assert runner.asked[-1][1:3] == (runner.exp.out_dir, {"sweeps": []})
     assert _out(console) == ["1 run(s) [b]done", "[b]TABLE"]
+    assert ("jobs", console) in runner.asked and ("external", True) in runner.asked
+    assert runner.consoles == [console, console] and runner.exps == [runner.exp]
+    assert runner.asked[-1][3] is console  # print_sweeps prints on the command's console
     assert (tmp_path / "results").is_dir() is False  # checked, not made
 
 
@@ -280,7 +287,8 @@ def test_a_single_run_is_planned_for_its_own_folder_and_summarised(runner, tmp_p
 
 def test_no_seed_is_passed_on_and_warned_about_for_a_method_without_a_prior(runner,
                                                                            monkeypatch):
-    monkeypatch.setattr(commands, "seed_option", lambda method, seed: None)
+    monkeypatch.setattr(commands, "seed_option",
+                        lambda method, seed: None if (method, seed) == ("kiss", False) else 1)
     with pytest.warns(UserWarning, match="^kiss takes no initial guess: --no-seed changes "
                                          "nothing \\(it runs once, as in the paper\\)$"):
         _run(_console(), method="kiss", data=Path("s.h5"), seed=False)
@@ -310,7 +318,7 @@ def test_check_tables_refuses_a_user_s_file_of_each_table_name(tmp_path):
         folder = tmp_path / name.replace(".", "_")
         folder.mkdir()
         (folder / name).write_text("mine")
-        with pytest.raises(guard.Refused, match="a table"):
+        with pytest.raises(guard.Refused, match="is not a table this command wrote"):
             check_tables(folder)
     run = tmp_path / "run"
     run.mkdir()
@@ -329,7 +337,7 @@ def test_the_sweep_table_is_written_and_printed(tmp_path, monkeypatch):
     assert _out(console) == [f"| [bold]sweep[/] of {tmp_path.name} |"]  # no markup
     print_sweeps(tmp_path, {"sweeps": []}, _console())  # its own table: made again
     (tmp_path / "sweep.md").write_text("my notes")
-    with pytest.raises(guard.Refused, match="a sweep table"):
+    with pytest.raises(guard.Refused, match="is not a sweep table the harness wrote"):
         print_sweeps(tmp_path, {"sweeps": []}, _console())
 
 
@@ -557,3 +565,21 @@ def test_tables_sweeps_and_refusals_are_never_wrapped_on_a_narrow_terminal(runne
     narrow = Console(file=io.StringIO(), width=30, color_system=None)
     print_sweeps(tmp_path, {"sweeps": []}, narrow)
     assert _out(narrow) == [long_row]
+
+
+def test_only_failed_external_runs_print_no_table_and_skipped_runs_succeed(runner):
+    runner.outcomes = [SimpleNamespace(status="failed", run_dir=None)]
+    runner.external = [("x", "failed", "no file")]
+    assert _run(_console(), experiment=Path("e.yaml")) == 1
+    assert "tables" not in _names(runner)
+    runner.outcomes = [SimpleNamespace(status="skipped", run_dir=None)] * 2
+    runner.external = []
+    assert _run(_console(), experiment=Path("e.yaml")) == 0
+    assert "tables" in _names(runner)
+
+
+def test_check_tables_refuses_a_file_as_the_results_folder(tmp_path):
+    mine = tmp_path / "results"
+    mine.write_text("mine")
+    with pytest.raises(guard.Refused, match="is a file; expected a folder"):
+        check_tables(mine)

@@ -194,26 +194,46 @@ def test_the_methods_and_variants_kept(tmp_path, made):
     assert keep(_row("c", variant=True))
 
 
-def test_a_run_folder_is_never_written_into(tmp_path, made, capsys):
-    run = tmp_path / "run"
+def test_a_run_folder_is_never_written_into(tmp_path, made, capsys, monkeypatch):
+    cwd = tmp_path / "cwd"
+    cwd.mkdir()
+    monkeypatch.chdir(cwd)  # nothing goes to the working folder either
+    run = tmp_path / "[b]run"
     run.mkdir()
     (run / "metrics.json").write_text("{}")
     code, status = _table(tmp_path, dirs=[run])
     assert code == 0
     assert sorted(p.name for p in run.iterdir()) == ["metrics.json"]
-    assert _out(status)[0] == (f"{run} is a run folder: the table is printed, not written "
-                               "into it (--out DIR writes it)")
+    assert _out(status) == [f"{run} is a run folder: the table is printed, not written "
+                            "into it (--out DIR writes it)"]
+    assert list(cwd.iterdir()) == []
     inner = run / "sub"
     inner.mkdir()
     _table(tmp_path, dirs=[inner])
-    assert list(inner.iterdir()) == []
+    assert list(inner.iterdir()) == [] and list(cwd.iterdir()) == []
+
+
+def test_two_folders_without_out_are_a_view_printed_only(tmp_path, made, capsys):
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir(), b.mkdir()
+    code, status = _table(tmp_path, dirs=[a, b])
+    assert code == 0 and list(a.iterdir()) == [] and list(b.iterdir()) == []
+    assert _out(status) == ["a filtered or merged view: not written (--out DIR writes it)"]
+
+
+def test_out_that_is_a_file_is_refused(tmp_path, made):
+    mine = tmp_path / "notes.txt"
+    mine.write_text("mine")
+    with pytest.raises(guard.Refused, match="is a file; expected a folder"):
+        _table(tmp_path, out=mine)
+    assert made.asked == [] and mine.read_text() == "mine"
 
 
 def test_a_user_s_table_file_is_refused_before_any_work(tmp_path, made):
     res = tmp_path / RES
     res.mkdir()
     (res / "table.tex").write_text("my own table")
-    with pytest.raises(guard.Refused):
+    with pytest.raises(guard.Refused, match="is not a table this command wrote"):
         _table(tmp_path)
     assert made.asked == [] and (res / "table.tex").read_text() == "my own table"
 
@@ -479,6 +499,10 @@ def test_broken_records_and_damaged_folders_fail_the_report(tmp_path, paged):
 
 def test_the_report_never_replaces_a_user_s_page(tmp_path, paged):
     (tmp_path / page.PAGE_NAME).write_text("<html>mine</html>")
-    with pytest.raises(guard.Refused):
+    with pytest.raises(guard.Refused, match="is not a report page this command wrote"):
         report_command(_console(), tmp_path, None)
+    mine = tmp_path / "elsewhere.html"
+    mine.write_text("<html>mine too</html>")
+    with pytest.raises(guard.Refused, match="elsewhere.html: exists and is not a report page"):
+        report_command(_console(), tmp_path / "new", mine)
     assert paged.asked == []
