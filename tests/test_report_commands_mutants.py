@@ -506,3 +506,14 @@ def test_the_report_never_replaces_a_user_s_page(tmp_path, paged):
     with pytest.raises(guard.Refused, match="elsewhere.html: exists and is not a report page"):
         report_command(_console(), tmp_path / "new", mine)
     assert paged.asked == []
+
+
+def test_the_folder_s_own_table_is_written_again(tmp_path, made, capsys):
+    res = tmp_path / RES
+    res.mkdir()
+    _table(tmp_path)
+    made.rows = [_row("other")]
+    assert _table(tmp_path, format="csv")[0] == 0
+    assert (res / "table.md").read_text() == "MD built\n"
+    assert made.asked[-2][0] == "render"  # built and written again, not refused
+    assert sorted(p.name for p in _files(res)) == ["table.csv", "table.md", "table.tex"]
