@@ -5,6 +5,7 @@ store) and the store written. Tiny sequences (3 frames of 200 points) keep it fa
 from __future__ import annotations
 
 import io
+import re
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -87,9 +88,9 @@ def test_the_store_holds_the_sequence_asked_for_and_is_made_again(tmp_path):
     assert (p["scene"], p["sensor"], p["seed"], p["noise"], p["options"]) == (
         "loop", "radar-sparse", 1, False, {"points": 200})
     store.close()
-    assert _run(_console(), tmp_path, frames=4, seed=2) == 0  # a synthetic store: replaced
+    assert _run(_console(), tmp_path, frames=4, seed=2, noise=True) == 0  # replaced
     store = StoreSequence(tmp_path / "s.h5")
-    assert (len(store), store.provenance["seed"]) == (4, 2)
+    assert (len(store), store.provenance["seed"], store.provenance["noise"]) == (4, 2, True)
     store.close()
 
 
@@ -103,9 +104,11 @@ def test_a_file_that_is_not_a_synthetic_store_is_never_replaced(tmp_path):
 
 
 def _bars(console) -> list[list[str]]:
-    """Each progress bar's description and count (the bar itself left out)."""
-    return [[w for w in line.split() if "━" not in w][:2]
-            for line in console.file.getvalue().splitlines() if "/" in line]
+    """Each progress bar's description and count (the bar itself left out); every line has
+    its bar and the time elapsed."""
+    lines = [line for line in console.file.getvalue().splitlines() if "/" in line]
+    assert all("━" in line and re.search(r" \d+:\d\d:\d\d$", line) for line in lines)
+    return [[w for w in line.split() if "━" not in w][:2] for line in lines]
 
 
 def _tiny(name="t"):
@@ -127,7 +130,9 @@ def test_a_suite_reports_each_sequence_s_progress_and_writes_synthetic_stores_on
         (data_dir / suite / "s2.h5").write_text("a user's file")
         with pytest.raises(guard.Refused) as err:
             writer(_tiny(), data_dir / suite / "s2.h5", None)
-        assert "a synthetic store" in str(err.value)
+        assert "is not a synthetic store the harness wrote" in str(err.value)
+        writer(_tiny("again"), path, None)  # a stale synthetic store is made again
+        assert StoreSequence(path).name == "again"
         return [path]
 
     monkeypatch.setattr(loaders.synthetic, "ensure_suite", ensure_suite)
@@ -149,7 +154,8 @@ def test_entries_are_written_once_under_their_hash_with_a_bar_each(tmp_path, mon
     import loaders.synthetic.suite as suite
 
     current = {tmp_path / "out" / "e2-he2.h5"}
-    monkeypatch.setattr(suite, "store_is_current", lambda path, entry: path in current)
+    monkeypatch.setattr(suite, "store_is_current",
+                        lambda path, entry: path in current and entry.name == "e2")
     console = _console()
     paths = ensure_entries_with_progress([_entry("e1"), _entry("e2")], tmp_path / "out",
                                          console)
@@ -169,8 +175,19 @@ def test_an_entry_s_path_held_by_a_user_s_file_is_refused(tmp_path, monkeypatch)
     (tmp_path / "out" / "e1-he1.h5").write_text("mine")
     with pytest.raises(guard.Refused) as err:
         ensure_entries_with_progress([_entry("e1")], tmp_path / "out", _console())
-    assert "a synthetic store" in str(err.value)
+    assert "is not a synthetic store the harness wrote" in str(err.value)
     assert (tmp_path / "out" / "e1-he1.h5").read_text() == "mine"
+
+
+def test_an_entry_s_stale_synthetic_store_is_made_again(tmp_path, monkeypatch):
+    import loaders.synthetic.suite as suite
+
+    monkeypatch.setattr(suite, "store_is_current", lambda path, entry: False)
+    guard.write_store(_tiny("stale"), tmp_path / "o2" / "e1-he1.h5", guard.is_synthetic_store)
+    ensure_entries_with_progress([_entry("e1")], tmp_path / "o2", _console())
+    store = StoreSequence(tmp_path / "o2" / "e1-he1.h5")
+    assert store.name == "o2-e1"
+    store.close()
 
 
 def test_a_default_console_is_made_when_none_is_given(tmp_path, monkeypatch):
