@@ -323,7 +323,7 @@ def test_check_tables_refuses_a_user_s_file_of_each_table_name(tmp_path):
     run = tmp_path / "run"
     run.mkdir()
     (run / "metrics.json").write_text("{}")
-    with pytest.raises(guard.Refused):
+    with pytest.raises(guard.Refused, match=f"^--out {run}: is a run folder \\(made by bench run"):
         check_tables(run)
 
 

@@ -517,3 +517,12 @@ def test_the_folder_s_own_table_is_written_again(tmp_path, made, capsys):
     assert (res / "table.md").read_text() == "MD built\n"
     assert made.asked[-2][0] == "render"  # built and written again, not refused
     assert sorted(p.name for p in _files(res)) == ["table.csv", "table.md", "table.tex"]
+
+
+def test_out_that_is_a_run_folder_is_refused_as_such(tmp_path, made):
+    run = tmp_path / "run"
+    run.mkdir()
+    (run / "metrics.json").write_text("{}")
+    with pytest.raises(guard.Refused, match=f"^--out {run}: is a run folder \\(made by bench run"):
+        _table(tmp_path, out=run)
+    assert made.asked == []
