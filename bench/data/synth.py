@@ -27,7 +27,7 @@ def synth_command(console: Console, scene: str | None, sensor: str, frames: int,
                                          for k, v in synthetic.SUITES.items()})):
             console.print(f"[bold]{title}[/]")
             for name, text in items.items():
-                console.print(f"  {name:<18} {text}")
+                console.print(f"  {name:<18} {text}", markup=False)  # units: "[m/s]"
         return 0
     if suite is not None:
         paths = ensure_suite_with_progress(suite, data_dir, console)
