@@ -684,3 +684,26 @@ def test_each_result_is_one_line_with_its_rate(tmp_path, monkeypatch):
     assert "wrote /x/A.h5: 3 frames in 0.5 s (6 frames/s)" in lines
     assert f"failed B: {long}" in lines
     assert lines[-1] == "1 converted, 0 up to date, 1 failed"
+
+
+def test_a_file_put_in_place_after_planning_is_left_alone_and_timed(tmp_path):
+    _frames(tmp_path / "raw")
+    cfg = DatasetConfig.model_validate(yaml.safe_load(open(_config(tmp_path, "S",
+                                                                   tmp_path / "raw"))))
+    out = tmp_path / "s.h5"
+    out.write_text("someone's notes")
+    t0 = time.perf_counter()
+    name, status, message, frames, wall = convert_one(
+        ConvertJob(cfg.model_dump(mode="json"), None, out, "k"))
+    took = time.perf_counter() - t0
+    assert (name, status, frames) == ("S", "failed", 0)
+    assert "is not a store the harness wrote" in message
+    assert out.read_text() == "someone's notes"
+    assert 0 <= wall <= took
+    t0 = time.perf_counter()
+    out.unlink()
+    result = convert_one(ConvertJob(cfg.model_dump(mode="json"), None, out, "k"))
+    assert result[1] == "done" and 0 <= result[4] <= time.perf_counter() - t0
+    t0 = time.perf_counter()
+    broken = convert_one(ConvertJob({"name": "B"}, None, out, "k"))
+    assert broken[1] == "failed" and 0 <= broken[4] <= time.perf_counter() - t0
