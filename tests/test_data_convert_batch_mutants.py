@@ -245,6 +245,7 @@ def test_plan_replaces_its_own_stores_and_refuses_other_files(tmp_path):
     dest = tmp_path / "data" / "real" / "S.h5"
     jobs, current, _ = _plan(tmp_path, [cfg], False)
     assert current == 0 and [(j.name, j.out) for j in jobs] == [("S", dest)]
+    assert json.loads(json.dumps(jobs[0].config)) == jobs[0].config  # plain values: any executor
     key = jobs[0].key
     convert_one(jobs[0])
     jobs, current, text = _plan(tmp_path, [cfg], False)
@@ -608,7 +609,6 @@ def test_progress_is_sent_for_the_first_frame_then_at_most_every_quarter_second(
     # frames 1, 3, 5, 7 (more than 0.25 s after the last message) and the last, 8
     assert queue == [("P", 0, 8), ("P", 1, 8), ("P", 3, 8), ("P", 5, 8), ("P", 7, 8),
                      ("P", 8, 8)]
-    assert json.loads(json.dumps(job.config)) == job.config  # plain values: any executor
 
 
 def test_skips_and_up_to_date_lines_are_plain_text_on_one_line(tmp_path):
