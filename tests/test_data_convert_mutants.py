@@ -50,6 +50,7 @@ runner = CliRunner()
     (str | Path | None, str | Path, True),
     (list[int], list[int], False),
     (Literal["a", "b"] | None, Literal["a", "b"], True),
+    (tuple[int, type(None)], tuple[int, type(None)], False),  # None inside, not optional
 ])
 def test_unwrap_drops_none(annotation, unwrapped, optional):
     got, was_optional = _unwrap(annotation)
@@ -65,6 +66,7 @@ def test_unwrap_drops_none(annotation, unwrapped, optional):
     (list[Literal["a", "b"]], None),  # a list of choices: config only
     (list[dict], None), (dict, None), (dict[str, int], None), (tuple, None),
     (str | Path, Path), (Path | str, Path), (int | str, str), (int | float, str),
+    (int | Path, str),
     (str | dict, None),
 ])
 def test_cli_type_of_each_field_type(tp, cli):
@@ -103,6 +105,7 @@ class _Options(GroundTruthTimeOptions):
     hidden: int = Field(1, description="config only", json_schema_extra={"cli": False})
     table: dict = Field(default_factory=dict, description="a mapping")
     empty: str = Field("", description="empty default")
+    bare: int = 5
 
 
 def _built(Options):
@@ -120,11 +123,11 @@ def _built(Options):
 def test_option_parameters_one_per_command_line_field():
     options, params, flags = _built(_Options)
     # the loader's own fields first (as the model has them), the shared ones last
-    assert [p.name for p in params] == ["zeta", "alpha_s", "mode", "on", "off", "empty", "name",
-                                        "time_offset_s", "max_gap_s", "uncovered"]
+    assert [p.name for p in params] == ["zeta", "alpha_s", "mode", "on", "off", "empty", "bare",
+                                        "name", "time_offset_s", "max_gap_s", "uncovered"]
     assert "hidden" not in options and "table" not in options  # config only / no CLI form
     assert flags == {"zeta": "--zeta", "alpha_s": "--alpha", "mode": "--mode", "on": "--on",
-                     "off": "--off", "empty": "--empty", "name": "--name",
+                     "off": "--off", "empty": "--empty", "bare": "--bare", "name": "--name",
                      "time_offset_s": "--time-offset", "max_gap_s": "--max-gap",
                      "uncovered": "--uncovered"}
     assert all(p.kind is p.KEYWORD_ONLY and p.default is None for p in params)
@@ -138,6 +141,7 @@ def test_option_parameters_one_per_command_line_field():
     assert options["mode"].metavar == "fast|slow" and options["mode"].opts == ["--mode"]
     assert options["uncovered"].help.endswith(" [default: keep]")
     assert options["empty"].help == "empty default"
+    assert options["bare"].help == "[default: 5]"  # no description: the default only
     assert all(o.show_default is False for o in options.values())
 
 
