@@ -1,0 +1,144 @@
+"""Mutation-testing kills for bench/studies/reproduce.py (its code changed since 942ccd0): the
+output checks made before anything runs, the removal of a stale table (ours only), and the
+tables' plans (quiet each, one union that runs a shared run once)."""
+
+from __future__ import annotations
+
+import io
+import warnings
+
+import pytest
+from rich.console import Console
+
+from bench import guard
+from bench.runs.experiment import Experiment
+from bench.studies.reproduce import TABLES, _check_outputs, _remove_stale, plan_tables
+from conftest import SAMPLE_STORE
+
+
+def _console() -> tuple[Console, io.StringIO]:
+    buf = io.StringIO()
+    return Console(file=buf, width=300), buf
+
+
+def _said(buf: io.StringIO) -> str:
+    return " ".join(buf.getvalue().split())
+
+
+def _regenerated_names() -> list[str]:
+    """Every file a reproduction may replace, from the module's documented layout: each
+    table's .md/.tex/.csv (with the KITTI-drift and velocity variants), the page, the
+    fidelity report and the record."""
+    names = [f"{n}.{fmt}" for _, stem, _ in TABLES.values()
+             for n in (stem, f"{stem}_kitti", f"{stem}_velocity") for fmt in ("md", "tex", "csv")]
+    return names + ["report.html", "fidelity.md", "fidelity.csv", "reproduction.json"]
+
+
+def test_the_tables_are_the_papers_three():
+    assert list(TABLES) == ["table3", "table4", "table5"]
+    assert [stem for _, stem, _ in TABLES.values()] == ["table3", "table4", "table5"]
+
+
+def test_an_output_folder_of_no_such_files_or_of_our_own_files_passes(tmp_path):
+    _check_outputs(tmp_path / "new")  # a folder not made yet
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "notes.md").write_text("mine\n")  # a user's file of another name is no concern
+    for name in _regenerated_names():
+        guard.write_text(out / name, "ours\n", guard.derived, "a table")
+    _check_outputs(out)
+
+
+@pytest.mark.parametrize("name, what", [
+    ("table3.md", "a table"), ("table3.tex", "a table"), ("table3.csv", "a table"),
+    ("table3_kitti.md", "a table"), ("table4_velocity.csv", "a table"),
+    ("table5.tex", "a table"), ("table5_kitti.csv", "a table"),
+    ("report.html", "a report page"),
+    ("fidelity.md", "a reproduction record"), ("fidelity.csv", "a reproduction record"),
+    ("reproduction.json", "a reproduction record"),
+])
+def test_a_users_file_where_a_reproduction_writes_is_refused_naming_what(tmp_path, name, what):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / name).write_text("a user's own file\n")
+    with pytest.raises(guard.Refused) as err:
+        _check_outputs(out)
+    said = str(err.value)
+    assert f"--out {out / name}: exists and is not {what} this command wrote" in said
+
+
+def test_an_output_that_is_a_file_is_refused(tmp_path):
+    out = tmp_path / "out"
+    out.write_text("x\n")
+    with pytest.raises(guard.Refused, match="is a file; expected a folder"):
+        _check_outputs(out)
+
+
+def test_a_stale_table_of_ours_is_removed_and_said_a_users_is_left(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    for fmt in ("md", "tex", "csv"):
+        guard.write_text(out / f"table5.{fmt}", "old\n", guard.derived, "a table")
+    guard.write_text(out / "table4.md", "other table\n", guard.derived, "a table")
+    console, buf = _console()
+    _remove_stale(out, "table5", console)
+    assert not any((out / f"table5.{fmt}").exists() for fmt in ("md", "tex", "csv"))
+    assert (out / "table4.md").exists()  # another table's files stay
+    assert _said(buf) == (f"removed {out}/table5.* of an earlier reproduction (not part of "
+                          "this one)")
+
+
+@pytest.mark.parametrize("fmt", ["md", "tex", "csv"])
+def test_each_format_of_a_stale_table_is_removed_alone(tmp_path, fmt):
+    out = tmp_path / "out"
+    out.mkdir()
+    guard.write_text(out / f"table5.{fmt}", "old\n", guard.derived, "a table")
+    console, buf = _console()
+    _remove_stale(out, "table5", console)
+    assert not (out / f"table5.{fmt}").exists()
+    assert "removed" in _said(buf)
+
+
+def test_nothing_to_remove_or_a_users_file_says_nothing(tmp_path):
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "table5.md").write_text("the user's notes\n")
+    console, buf = _console()
+    _remove_stale(out, "table5", console)
+    assert (out / "table5.md").read_text() == "the user's notes\n"
+    assert buf.getvalue() == ""
+
+
+def _experiments(out, names=("table3", "table4")):
+    return {name: Experiment.model_validate({
+        "name": name, "sequences": [{"path": str(SAMPLE_STORE)}],
+        "methods": [{"name": "doppler"}], "out": str(out)}) for name in names}
+
+
+def test_tables_sharing_a_run_plan_it_once_and_the_per_table_plans_are_quiet(tmp_path):
+    experiments = _experiments(tmp_path / "out")
+    console, _ = _console()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        per_table, union = plan_tables(experiments, console)
+    assert set(per_table) == {"table3", "table4"}
+    assert len(per_table["table3"]) == len(per_table["table4"]) == 1
+    # the two tables name the same run folder: the union runs it once
+    assert per_table["table3"][0].run_dir_override == per_table["table4"][0].run_dir_override
+    assert len(union) == 1
+    assert union[0].run_dir_override == per_table["table3"][0].run_dir_override
+    # each warning the union's plan gives is said once (per-table plans ignored theirs)
+    said = [str(w.message) for w in caught]
+    assert said and len(said) == len(set(said))
+
+
+def test_tables_of_different_runs_plan_them_all(tmp_path):
+    experiments = _experiments(tmp_path / "a", names=("table3",))
+    experiments |= {"table4": _experiments(tmp_path / "b", names=("table4",))["table4"]}
+    console, _ = _console()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        per_table, union = plan_tables(experiments, console)
+    assert len(union) == 2
+    assert ({j.run_dir_override for j in union}
+            == {per_table[n][0].run_dir_override for n in ("table3", "table4")})
