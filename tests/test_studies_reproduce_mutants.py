@@ -142,3 +142,56 @@ def test_tables_of_different_runs_plan_them_all(tmp_path):
     assert len(union) == 2
     assert ({j.run_dir_override for j in union}
             == {per_table[n][0].run_dir_override for n in ("table3", "table4")})
+
+
+PAPER_SEQUENCES = {"Campus1", "Campus2", "CurvedWall", "StraightWall", "Tunnel_Empty",
+                   "Tunnel_Vehicles", "Loop1_0", "Loop1_1", "Loop1_2", "Loop1_3", "Loop1_4"}
+
+
+def test_paper_sequences_found_and_missing_by_their_store_under_real(tmp_path):
+    from bench.studies.reproduce import missing_sequences, real_sequences
+
+    (tmp_path / "real").mkdir()
+    assert real_sequences(tmp_path) == []
+    assert set(missing_sequences(tmp_path)) == PAPER_SEQUENCES
+    assert len(missing_sequences(tmp_path)) == 11
+    # a paper sequence's store and a public route's (paper: false) store
+    (tmp_path / "real" / "Tunnel_Empty.h5").write_bytes(b"")
+    (tmp_path / "real" / "NTU4DRadLM_loop1.h5").write_bytes(b"")
+    (tmp_path / "Loop1_0.h5").write_bytes(b"")  # not under real/: not found
+    found = real_sequences(tmp_path)
+    assert [s.name for s in found] == ["Tunnel_Empty"]
+    assert found[0].path == tmp_path / "real" / "Tunnel_Empty.h5"
+    assert found[0].display_name == "Baker-Barry Tunnel (Empty)"
+    assert set(missing_sequences(tmp_path)) == PAPER_SEQUENCES - {"Tunnel_Empty"}
+
+
+def test_a_tables_sequences_are_its_methods_in_the_yamls_order_once():
+    from bench.studies.reproduce import _columns, table_sequences
+
+    assert table_sequences("table5") == ["Tunnel_Empty", "Tunnel_Vehicles"]
+    assert table_sequences("table4") == ["Loop1_0", "Loop1_1", "Loop1_3", "Loop1_4"]
+    from bench.paths import EXPERIMENTS
+    from bench.runs.experiment import load_experiment
+
+    assert _columns(load_experiment(EXPERIMENTS / "table4.yaml")) == [
+        "Loop1_0", "Loop1_1", "Loop1_3", "Loop1_4"]
+
+
+def test_table_experiments_keep_the_tables_with_rows_pointed_at_out(tmp_path):
+    from bench.runs.experiment import SequenceEntry
+    from bench.studies.reproduce import table_experiments
+
+    out, data = tmp_path / "out", tmp_path / "data"
+    synthetic = table_experiments(out, data, [])
+    assert list(synthetic) == ["table3", "table4", "table5"]
+    assert all(e.out == out and e.data_dir == data and e.suite == "synthetic-paper"
+               for e in synthetic.values())
+    tunnel = SequenceEntry(path=data / "real" / "Tunnel_Empty.h5", name="Tunnel_Empty")
+    real = table_experiments(out, data, [tunnel])
+    # table4 names no tunnel: left out; table3 and table5 keep only the tunnel
+    assert list(real) == ["table3", "table5"]
+    for exp in real.values():
+        assert exp.suite is None and [s.name for s in exp.sequences] == ["Tunnel_Empty"]
+        assert exp.methods and all(m.sequences == ["Tunnel_Empty"] for m in exp.methods)
+    assert len(real["table5"].methods) == 8
