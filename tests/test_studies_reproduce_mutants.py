@@ -195,3 +195,65 @@ def test_table_experiments_keep_the_tables_with_rows_pointed_at_out(tmp_path):
         assert exp.suite is None and [s.name for s in exp.sequences] == ["Tunnel_Empty"]
         assert exp.methods and all(m.sequences == ["Tunnel_Empty"] for m in exp.methods)
     assert len(real["table5"].methods) == 8
+
+
+@pytest.fixture(scope="module")
+def twist_store(tmp_path_factory):
+    """10 LiDAR frames 0.1 s apart at 8 m/s: 0.9 s, a ground-truth path of 7.2 m."""
+    from conftest import constant_twist_sequence
+    from loaders.store import write_store
+
+    path = tmp_path_factory.mktemp("store") / "twist.h5"
+    write_store(constant_twist_sequence(n_frames=10, n_points=200, w=(0, 0, 0)), path)
+    return path
+
+
+def _cfg(kind, period_s, path_m):
+    from types import SimpleNamespace
+
+    return SimpleNamespace(name="X", sensor_class="Dense 4D LiDAR", expected=SimpleNamespace(
+        sensor_kind=kind, period_s=period_s, path_m=path_m, source="src"))
+
+
+def test_check_store_describes_it_and_is_silent_when_it_matches(twist_store):
+    from bench.studies.reproduce import check_store
+
+    described, warns = check_store(_cfg("lidar", 0.1, 7.2), twist_store)
+    assert described == "X: 10 frames, 0.9 s, lidar (test), period 0.1000 s, GT path 7 m"
+    assert warns == []
+    # nothing expected: nothing checked
+    assert check_store(_cfg("", 0.0, 0.0), twist_store)[1] == []
+
+
+def test_check_store_warns_of_kind_period_path_and_speed_far_off(twist_store):
+    from bench.studies.reproduce import check_store
+
+    _, warns = check_store(_cfg("radar", 0.2, 100.0), twist_store)
+    p = twist_store
+    assert warns[0] == (f"{p}: a lidar store, but X is a radar sequence (Dense 4D LiDAR): is "
+                        "it the right store?")
+    assert warns[1] == f"{p}: scans 0.1000 s apart, but X's sensor scans every 0.2000 s (src)"
+    assert warns[2].startswith(f"{p}: its ground truth's path is 7 m (1 s), far from X's about "
+                               "100 m (src)")
+    # 100 m in 0.9 s: 111.1 m/s
+    assert warns[3].startswith(f"{p}: 1 s of scans, but X covers about 100 m: that would be "
+                               "111.1 m/s (expected 0.3-40 m/s)")
+    assert len(warns) == 4
+
+
+@pytest.mark.parametrize("period_s, far", [(0.126, False), (0.14, True), (0.081, False),
+                                           (0.075, True)])
+def test_check_store_period_tolerance_is_a_quarter(twist_store, period_s, far):
+    from bench.studies.reproduce import check_store
+
+    warns = check_store(_cfg("lidar", period_s, 0.0), twist_store)[1]
+    assert bool(warns) is far
+
+
+@pytest.mark.parametrize("path_m, far", [(21.0, False), (23.0, True), (2.5, False),
+                                         (2.3, True)])
+def test_check_store_path_within_a_factor_three(twist_store, path_m, far):
+    from bench.studies.reproduce import check_store
+
+    warns = check_store(_cfg("lidar", 0.1, path_m), twist_store)[1]
+    assert any("far from X's" in w for w in warns) is far
