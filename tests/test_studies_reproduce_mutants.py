@@ -257,3 +257,17 @@ def test_check_store_path_within_a_factor_three(twist_store, path_m, far):
 
     warns = check_store(_cfg("lidar", 0.1, path_m), twist_store)[1]
     assert any("far from X's" in w for w in warns) is far
+
+
+def test_a_tables_plan_says_a_skipped_optional_store_on_the_console(tmp_path):
+    absent = tmp_path / "absent.h5"
+    exp = Experiment.model_validate({
+        "name": "table3", "out": str(tmp_path / "out"), "methods": [{"name": "doppler"}],
+        "sequences": [{"path": str(SAMPLE_STORE)}, {"path": str(absent), "optional": True}]})
+    console, buf = _console()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        per_table, union = plan_tables({"table3": exp}, console)
+    said = _said(buf)
+    assert "table3: skipped" in said and "absent.h5" in said and "not found" in said
+    assert len(per_table["table3"]) == len(union) == 1
