@@ -70,8 +70,9 @@ def test_a_users_file_where_a_reproduction_writes_is_refused_naming_what(tmp_pat
 def test_an_output_that_is_a_file_is_refused(tmp_path):
     out = tmp_path / "out"
     out.write_text("x\n")
-    with pytest.raises(guard.Refused, match="is a file; expected a folder"):
+    with pytest.raises(guard.Refused) as err:
         _check_outputs(out)
+    assert str(err.value) == f"--out {out}: is a file; expected a folder to write into"
 
 
 def test_a_stale_table_of_ours_is_removed_and_said_a_users_is_left(tmp_path):
@@ -163,6 +164,7 @@ def test_paper_sequences_found_and_missing_by_their_store_under_real(tmp_path):
     assert [s.name for s in found] == ["Tunnel_Empty"]
     assert found[0].path == tmp_path / "real" / "Tunnel_Empty.h5"
     assert found[0].display_name == "Baker-Barry Tunnel (Empty)"
+    assert found[0].sensor_class == "Dense 4D LiDAR"
     assert set(missing_sequences(tmp_path)) == PAPER_SEQUENCES - {"Tunnel_Empty"}
 
 
@@ -233,11 +235,13 @@ def test_check_store_warns_of_kind_period_path_and_speed_far_off(twist_store):
     assert warns[0] == (f"{p}: a lidar store, but X is a radar sequence (Dense 4D LiDAR): is "
                         "it the right store?")
     assert warns[1] == f"{p}: scans 0.1000 s apart, but X's sensor scans every 0.2000 s (src)"
-    assert warns[2].startswith(f"{p}: its ground truth's path is 7 m (1 s), far from X's about "
-                               "100 m (src)")
+    assert warns[2] == (f"{p}: its ground truth's path is 7 m (1 s), far from X's about "
+                        "100 m (src): a part of the sequence, or another one? Its numbers are "
+                        "not the paper's")
     # 100 m in 0.9 s: 111.1 m/s
-    assert warns[3].startswith(f"{p}: 1 s of scans, but X covers about 100 m: that would be "
-                               "111.1 m/s (expected 0.3-40 m/s)")
+    assert warns[3] == (f"{p}: 1 s of scans, but X covers about 100 m: that would be "
+                        "111.1 m/s (expected 0.3-40 m/s), so the store's duration is far off: "
+                        "a part of the sequence, or another one?")
     assert len(warns) == 4
 
 
@@ -271,3 +275,53 @@ def test_a_tables_plan_says_a_skipped_optional_store_on_the_console(tmp_path):
     said = _said(buf)
     assert "table3: skipped" in said and "absent.h5" in said and "not found" in said
     assert len(per_table["table3"]) == len(union) == 1
+
+
+def test_a_removed_tables_message_shows_a_folder_name_with_brackets_as_it_is(tmp_path):
+    out = tmp_path / "[red]run"
+    out.mkdir()
+    guard.write_text(out / "table5.md", "old\n", guard.derived, "a table")
+    console, buf = _console()
+    _remove_stale(out, "table5", console)
+    assert f"removed {out}/table5.*" in _said(buf)
+
+
+def test_check_store_speed_is_path_over_duration(twist_store):
+    from bench.studies.reproduce import check_store
+
+    # 0.3 m in 0.9 s is 0.33 m/s, a speed (far path aside)
+    warns = check_store(_cfg("lidar", 0.1, 0.3), twist_store)[1]
+    assert not any("m/s" in w for w in warns) and len(warns) == 1
+
+
+def _store(tmp_path, n_frames, gt=True, model="test"):
+    from conftest import constant_twist_sequence
+    from loaders.scan import MemorySequence, SensorInfo
+    from loaders.store import write_store
+
+    seq = constant_twist_sequence(n_frames=n_frames, n_points=200, w=(0, 0, 0))
+    scans = [seq.scan(i) for i in range(len(seq))]
+    seq = MemorySequence("s", SensorInfo("lidar", 0.1, model=model), scans,
+                         seq.ground_truth if gt else None, {})
+    path = tmp_path / "s.h5"
+    write_store(seq, path)
+    return path
+
+
+def test_check_store_of_one_frame_has_no_duration_and_no_path(tmp_path):
+    from bench.studies.reproduce import check_store
+
+    path = _store(tmp_path, 1)
+    described, warns = check_store(_cfg("lidar", 0.1, 100.0), path)
+    assert described == "X: 1 frames, 0.0 s, lidar (test), period 0.1000 s, GT path none"
+    assert warns == [f"{path}: no ground truth: X gives no table row"]
+
+
+def test_check_store_of_two_frames_and_no_model_or_ground_truth(tmp_path):
+    from bench.studies.reproduce import check_store
+
+    path = _store(tmp_path, 2, gt=False, model="")
+    described, warns = check_store(_cfg("", 0.0, 0.0), path)
+    assert described == ("X: 2 frames, 0.1 s, lidar (model not recorded), period 0.1000 s, "
+                         "GT path none")
+    assert warns == [f"{path}: no ground truth: X gives no table row"]
