@@ -7,6 +7,7 @@ from __future__ import annotations
 import io
 import warnings
 
+import numpy as np
 import pytest
 from rich.console import Console
 
@@ -325,3 +326,25 @@ def test_check_store_of_two_frames_and_no_model_or_ground_truth(tmp_path):
     assert described == ("X: 2 frames, 0.1 s, lidar (model not recorded), period 0.1000 s, "
                          "GT path none")
     assert warns == [f"{path}: no ground truth: X gives no table row"]
+
+
+def test_check_store_of_two_late_frames_uses_their_stamps_not_the_nominal_period(tmp_path):
+    """Two frames at 5.0 and 5.1 s, 8 m/s apart (0.8 m of ground truth), a sensor whose
+    nominal period (0.2 s) is not the stamps' spacing."""
+    import dataclasses
+
+    from bench.studies.reproduce import check_store
+    from conftest import constant_twist_sequence
+    from loaders.scan import MemorySequence, SensorInfo
+    from loaders.store import write_store
+    from loaders.trajectory import Trajectory
+
+    seq = constant_twist_sequence(n_frames=2, n_points=200, w=(0, 0, 0))
+    scans = [dataclasses.replace(seq.scan(i), stamp=5.0 + 0.1 * i) for i in range(2)]
+    gt = Trajectory(np.array([5.0, 5.1]), seq.ground_truth.poses)
+    path = tmp_path / "late.h5"
+    write_store(MemorySequence("s", SensorInfo("lidar", 0.2, model="test"), scans, gt, {}),
+                path)
+    described, warns = check_store(_cfg("", 0.0, 0.0), path)
+    assert described == "X: 2 frames, 0.1 s, lidar (test), period 0.1000 s, GT path 1 m"
+    assert warns == []
