@@ -348,3 +348,39 @@ def test_check_store_of_two_late_frames_uses_their_stamps_not_the_nominal_period
     described, warns = check_store(_cfg("", 0.0, 0.0), path)
     assert described == "X: 2 frames, 0.1 s, lidar (test), period 0.1000 s, GT path 1 m"
     assert warns == []
+
+
+@pytest.fixture(scope="module")
+def exact_store(tmp_path_factory):
+    """Two frames 0.625 s apart, 3 m of ground truth: binary-exact numbers, so that each
+    tolerance can be met exactly at its end."""
+    import dataclasses
+
+    from conftest import constant_twist_sequence
+    from loaders.scan import MemorySequence, SensorInfo
+    from loaders.store import write_store
+    from loaders.trajectory import Trajectory
+
+    seq = constant_twist_sequence(n_frames=2, n_points=200, w=(0, 0, 0))
+    scans = [dataclasses.replace(seq.scan(i), stamp=0.625 * i) for i in range(2)]
+    poses = np.stack([np.eye(4), np.eye(4)])
+    poses[1, 0, 3] = 3.0
+    path = tmp_path_factory.mktemp("exact") / "exact.h5"
+    write_store(MemorySequence("s", SensorInfo("lidar", 0.625, model="test"), scans,
+                               Trajectory(np.array([0.0, 0.625]), poses), {}), path)
+    return path
+
+
+@pytest.mark.parametrize("period_s, path_m, far", [
+    (0.5, 0.0, ()),                   # 0.625 / 0.5 - 1 = 0.25: the tolerance's end holds
+    (0.0, 9.0, ()),                   # 3 m = 9 m / 3: the factor's end holds
+    (0.0, 1.0, ()),                   # 3 m = 1 m * 3
+    (0.0, 25.0, ("far from",)),       # 25 m in 0.625 s = 40 m/s: the top speed holds
+    (0.0, 0.1875, ("far from",)),     # 0.1875 m in 0.625 s = 0.3 m/s: the lowest holds
+])
+def test_check_store_tolerances_hold_their_ends(exact_store, period_s, path_m, far):
+    from bench.studies.reproduce import check_store
+
+    described, warns = check_store(_cfg("lidar", period_s, path_m), exact_store)
+    assert described.endswith("0.6 s, lidar (test), period 0.6250 s, GT path 3 m")
+    assert len(warns) == len(far) and all(f in w for f, w in zip(far, warns, strict=True))
