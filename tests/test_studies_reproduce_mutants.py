@@ -384,3 +384,53 @@ def test_check_store_tolerances_hold_their_ends(exact_store, period_s, path_m, f
     described, warns = check_store(_cfg("lidar", period_s, path_m), exact_store)
     assert described.endswith("0.6 s, lidar (test), period 0.6250 s, GT path 3 m")
     assert len(warns) == len(far) and all(f in w for f, w in zip(far, warns, strict=True))
+
+
+def test_choose_data_synthetic_when_asked_or_when_no_store(tmp_path, twist_store):
+    from bench.studies.reproduce import _choose_data
+
+    real_dir = tmp_path / "real"
+    real_dir.mkdir()
+    console, buf = _console()
+    assert _choose_data(tmp_path, True, console) == ([], [])
+    assert _said(buf) == "synthetic only (as asked): using the synthetic suite 'synthetic-paper'"
+    console, buf = _console()
+    assert _choose_data(tmp_path, False, console) == ([], [])
+    assert _said(buf) == (f"no real stores under {real_dir} (the paper's sequences, "
+                          "configs/datasets/*.yaml): using the synthetic suite "
+                          "'synthetic-paper'")
+    import shutil
+
+    shutil.copy(twist_store, real_dir / "Loop1_0.h5")
+    console, buf = _console()
+    assert _choose_data(tmp_path, True, console) == ([], [])
+    assert _said(buf) == ("synthetic only (as asked): using the synthetic suite "
+                          f"'synthetic-paper' (ignoring 1 real store(s) under {real_dir}: "
+                          "Loop1_0)")
+
+
+def test_choose_data_uses_the_real_stores_and_notes_the_missing_and_far_off(tmp_path,
+                                                                           twist_store):
+    import shutil
+
+    from bench.studies.reproduce import _choose_data
+
+    real_dir = tmp_path / "real"
+    real_dir.mkdir()
+    shutil.copy(twist_store, real_dir / "Loop1_0.h5")
+    console, buf = _console()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        found, notes = _choose_data(tmp_path, False, console)
+    said = _said(buf)
+    assert [s.name for s in found] == ["Loop1_0"]
+    missing = sorted(PAPER_SEQUENCES - {"Loop1_0"})
+    assert notes[0] == (f"missing (10 of 11): {', '.join(missing)}; the tables hold only the "
+                        "sequences found (configs/datasets/NAME.yaml says how to convert each)")
+    assert f"real stores under {real_dir}: 1 of the paper's 11 sequences found (Loop1_0)" in said
+    assert notes[0] in said
+    # the 7 m LiDAR store is far from Loop1_0 (a radar sequence of about 1.4 km)
+    assert "Loop1_0: 10 frames, 0.9 s, lidar (test)" in said
+    far = notes[1:]
+    assert far and any("a lidar store, but Loop1_0 is a radar sequence" in w for w in far)
+    assert [str(w.message) for w in caught if str(w.message) in far] == far
