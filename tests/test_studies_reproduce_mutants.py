@@ -389,24 +389,26 @@ def test_check_store_tolerances_hold_their_ends(exact_store, period_s, path_m, f
 def test_choose_data_synthetic_when_asked_or_when_no_store(tmp_path, twist_store):
     from bench.studies.reproduce import _choose_data
 
-    real_dir = tmp_path / "real"
-    real_dir.mkdir()
+    data = tmp_path / "[red]data"  # a bracket in a path is shown as it is (no markup)
+    real_dir = data / "real"
+    real_dir.mkdir(parents=True)
     console, buf = _console()
-    assert _choose_data(tmp_path, True, console) == ([], [])
+    assert _choose_data(data, True, console) == ([], [])
     assert _said(buf) == "synthetic only (as asked): using the synthetic suite 'synthetic-paper'"
     console, buf = _console()
-    assert _choose_data(tmp_path, False, console) == ([], [])
+    assert _choose_data(data, False, console) == ([], [])
     assert _said(buf) == (f"no real stores under {real_dir} (the paper's sequences, "
                           "configs/datasets/*.yaml): using the synthetic suite "
                           "'synthetic-paper'")
     import shutil
 
     shutil.copy(twist_store, real_dir / "Loop1_0.h5")
+    shutil.copy(twist_store, real_dir / "Loop1_1.h5")
     console, buf = _console()
-    assert _choose_data(tmp_path, True, console) == ([], [])
+    assert _choose_data(data, True, console) == ([], [])
     assert _said(buf) == ("synthetic only (as asked): using the synthetic suite "
-                          f"'synthetic-paper' (ignoring 1 real store(s) under {real_dir}: "
-                          "Loop1_0)")
+                          f"'synthetic-paper' (ignoring 2 real store(s) under {real_dir}: "
+                          "Loop1_0, Loop1_1)")
 
 
 def test_choose_data_uses_the_real_stores_and_notes_the_missing_and_far_off(tmp_path,
@@ -415,19 +417,22 @@ def test_choose_data_uses_the_real_stores_and_notes_the_missing_and_far_off(tmp_
 
     from bench.studies.reproduce import _choose_data
 
-    real_dir = tmp_path / "real"
-    real_dir.mkdir()
+    data = tmp_path / "[red]data"  # a bracket in a path is shown as it is (no markup)
+    real_dir = data / "real"
+    real_dir.mkdir(parents=True)
     shutil.copy(twist_store, real_dir / "Loop1_0.h5")
+    shutil.copy(twist_store, real_dir / "Loop1_1.h5")
     console, buf = _console()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        found, notes = _choose_data(tmp_path, False, console)
+        found, notes = _choose_data(data, False, console)
     said = _said(buf)
-    assert [s.name for s in found] == ["Loop1_0"]
-    missing = sorted(PAPER_SEQUENCES - {"Loop1_0"})
-    assert notes[0] == (f"missing (10 of 11): {', '.join(missing)}; the tables hold only the "
+    assert [s.name for s in found] == ["Loop1_0", "Loop1_1"]
+    missing = sorted(PAPER_SEQUENCES - {"Loop1_0", "Loop1_1"})
+    assert notes[0] == (f"missing (9 of 11): {', '.join(missing)}; the tables hold only the "
                         "sequences found (configs/datasets/NAME.yaml says how to convert each)")
-    assert f"real stores under {real_dir}: 1 of the paper's 11 sequences found (Loop1_0)" in said
+    assert (f"real stores under {real_dir}: 2 of the paper's 11 sequences found (Loop1_0, "
+            "Loop1_1)") in said
     assert notes[0] in said
     # the 7 m LiDAR store is far from Loop1_0 (a radar sequence of about 1.4 km)
     assert "Loop1_0: 10 frames, 0.9 s, lidar (test)" in said
