@@ -31,11 +31,12 @@ def write_run(root: Path, sequence: str, method: str, seed, gt: np.ndarray, est:
               *, dt: float = 0.1, diverged: bool = False, label: str | None = None,
               sensor_class: str = "Dense 4D LiDAR", lengths: tuple = (),
               frames: list[tuple[int, float, float]] | None = None, config: str = "",
-              velocity_window_s: float | None = None) -> Path:
+              velocity_window_s: float | None = None, folder_name: str = "") -> Path:
     """A finished run folder ``root/sequence/<method><seed suffix>[-label]``; ``frames``:
     (index, time_ms, correspondences) rows of frames.csv (default: every frame 1 ms, 100
-    pairs)."""
-    folder = root / sequence / (method + Seed.of(seed).suffix + (f"-{label}" if label else ""))
+    pairs); ``folder_name`` instead of the default one."""
+    folder = root / sequence / (folder_name or
+                                method + Seed.of(seed).suffix + (f"-{label}" if label else ""))
     folder.mkdir(parents=True)
     stamps = np.arange(len(gt)) * dt
     velocity = (VelocityResult(window_s=velocity_window_s, n=1)
@@ -57,13 +58,15 @@ def write_run(root: Path, sequence: str, method: str, seed, gt: np.ndarray, est:
 
 
 def capture(monkeypatch, *modules) -> list[tuple[Path, object]]:
-    """Every figure the ``modules`` save, drawn, with its file stem; files are still written."""
+    """Every figure the ``modules`` save, drawn, with its file stem; files are still written
+    (the renderer is kept as ``fig.test_renderer``: a closed figure has none)."""
     figs = []
     for mod in modules:
         original = mod.save
 
         def keep(fig, stem, original=original):
             fig.canvas.draw()
+            fig.test_renderer = fig.canvas.get_renderer()
             figs.append((stem, fig))
             return original(fig, stem)
 
