@@ -324,3 +324,89 @@ def test_for_the_page_restores_the_mode_after_an_error(tmp_path):
         fig, _ = style.figure(1.0)
         assert style.save(fig, tmp_path / "page") == [tmp_path / "page.png"]
     assert not (tmp_path / "page.pdf").exists()
+
+
+# -- what the first mutation run left -----------------------------------------------------------
+
+def test_colour_is_the_registrys_and_differs_between_methods():
+    from methods import registry
+
+    assert style.color("gicp") == registry.color("gicp") != style.color("doppler")
+
+
+def test_figure_with_several_columns_of_axes():
+    fig, axes = style.figure(3.9, 3, 2)
+    assert axes.shape == (3, 2)
+    plt.close(fig)
+
+
+def test_note_wraps_at_76_characters_of_a_column():
+    fig, ax = style.figure(2.0)
+    note = "a" * 70 + " " + "b" * 6  # 77 characters: one too many for a line
+    style.legend_below(fig, *_handles(["A"]), note=note)
+    assert fig.legends[0].get_title().get_text() == "a" * 70 + "\n" + "b" * 6
+    plt.close(fig)
+
+
+def test_default_marker_offset_and_a_run_given_without_its_count():
+    assert style.line_kwargs(_run())["markevery"] == (0.0, 0.1)
+    np.testing.assert_allclose(style.line_kwargs(_run(), 1)["markevery"], (0.1, 0.1))
+    assert style.line_kwargs(_run(), 1, 0, 100)["markevery"] == (10, 10)
+
+
+@pytest.mark.parametrize("lo, hi, want", [
+    (1.0, 3.0, [1.0, 2.0]),  # two of 1-2-5 inside, the limits themselves counted
+    (0.3, 1.0, [0.5, 1.0]),
+    (900.0, 1900.0, [900.0, 1000.0]),  # only 1000 of 1-2-5: every digit
+    (1.0, 10**2.5, [1, 2, 5, 10, 20, 50, 100, 200]),  # 2.5 decades: still 1-2-5
+])
+def test_log_axis_ticks_follow_the_rule_at_its_edges(lo, hi, want):
+    if hi == 10**2.5:
+        assert np.log10(hi / lo) == 2.5  # exactly at the switch to decades
+    ticks, _, _ = _log_axis(lo, hi)
+    np.testing.assert_allclose(ticks, want)
+
+
+def test_own_model_prior_and_a_run_without_a_label_attribute():
+    own = SimpleNamespace(method="kiss-icp", seed=True)  # no label attribute at all
+    assert style.prior_style(own) == Seed.WITH.style("kiss-icp")
+    assert style.prior_style(own)[1] != Seed.WITH.style("icp-p2p")[1]  # its own marker
+
+
+def test_an_unlabelled_run_comes_before_its_labelled_variants():
+    runs = [_run("gicp", True, label="ABC"), _run("gicp", True)]
+    assert [r.label for r in sorted(runs, key=style.run_order)] == [None, "ABC"]
+
+
+def test_div_labels_at_one_x_are_ordered_by_height():
+    fig, ax = plt.subplots(figsize=(3.5, 2.0))
+    ax.set_xlim(0, 100)
+    ax.set_ylim(0, 10)
+    labels = style.div_labels(ax, [(50.0, 8.0, "#000001", 1), (50.0, 1.0, "#fffffe", 1)],
+                              (2, 2), 6)
+    assert [a.xy for a in labels] == [(50.0, 1.0), (50.0, 8.0)]
+    plt.close(fig)
+
+
+def test_refusal_names_the_figure_and_the_png_is_saved_at_300_dpi(tmp_path):
+    from matplotlib.image import imread
+
+    own = tmp_path / "fig.pdf"
+    own.write_bytes(b"%PDF my paper")
+    fig, _ = style.figure(1.0)
+    with pytest.raises(Refused) as err:
+        style.save(fig, tmp_path / "fig")
+    assert str(err.value).startswith(f"figure {own}: exists and is not a figure this command")
+    fig, _ = style.figure(1.0)
+    other, _ = style.figure(1.0)  # the current figure is another one: it stays open
+    (_, png) = style.save(fig, tmp_path / "ok")
+    assert imread(png).shape[:2] == (300, round(3.5 * 300))
+    assert plt.fignum_exists(other.number) and not plt.fignum_exists(fig.number)
+    plt.close(other)
+
+
+def test_titles_break_a_word_longer_than_58_characters():
+    fig, ax = style.figure(2.0)
+    style.set_title(ax, "x" * 59)
+    assert ax.get_title() == "x" * 58 + "\nx"
+    plt.close(fig)
