@@ -57,9 +57,12 @@ def write_run(root: Path, sequence: str, method: str, seed, gt: np.ndarray, est:
     return folder
 
 
-def capture(monkeypatch, *modules) -> list[tuple[Path, object]]:
-    """Every figure the ``modules`` save, drawn, with its file stem; files are still written
-    (the renderer is kept as ``fig.test_renderer``: a closed figure has none)."""
+def capture(monkeypatch, *modules, write: bool = False) -> list[tuple[Path, object]]:
+    """Every figure the ``modules`` save, drawn, with its file stem (the renderer is kept as
+    ``fig.test_renderer``: a closed figure has none); the files are written only with
+    ``write`` (else the paths ``save`` would return: PDF and PNG), which keeps tests fast."""
+    import matplotlib.pyplot as plt
+
     figs = []
     for mod in modules:
         original = mod.save
@@ -68,7 +71,10 @@ def capture(monkeypatch, *modules) -> list[tuple[Path, object]]:
             fig.canvas.draw()
             fig.test_renderer = fig.canvas.get_renderer()
             figs.append((stem, fig))
-            return original(fig, stem)
+            if write:
+                return original(fig, stem)
+            plt.close(fig)
+            return [stem.with_name(stem.name + ".pdf"), stem.with_name(stem.name + ".png")]
 
         monkeypatch.setattr(mod, "save", keep)
     return figs

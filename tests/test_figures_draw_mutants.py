@@ -87,7 +87,7 @@ def test_axes_fill_the_column_at_equal_scale(span, lo, hi, height):
 
 
 def test_trajectory_figure_draws_what_the_reader_compares(results, tmp_path, monkeypatch):
-    figs = capture(monkeypatch, draw)
+    figs = capture(monkeypatch, draw, write=True)
     out = tmp_path / "out"
     paths = draw.plot_trajectories(results, out)
     assert paths == [out / "trajectories" / "seq-a.pdf", out / "trajectories" / "seq-a.png"]
@@ -185,6 +185,7 @@ def test_one_figure_per_sequence_in_the_tables_order_default_folder(tmp_path, mo
 
 
 def test_given_runs_are_drawn_instead_of_the_folders(tmp_path, monkeypatch):
+    capture(monkeypatch, draw)
     root = tmp_path / "results"
     gt = straight(11)
     write_run(root, "seq A", "icp-p2p", True, gt, gt)

@@ -39,7 +39,7 @@ def _sliding():
 
 
 def test_drift_panels_show_each_axis_error_against_the_distance(tmp_path, monkeypatch):
-    figs = capture(monkeypatch, drift)
+    figs = capture(monkeypatch, drift, write=True)
     broken = _sliding()
     broken[6:, 0, 3] = np.inf  # drawn while finite: frames 0-5
     runs = [_run("gicp", est=_yawing()), _run("icp-p2p", est=broken, diverged=True)]

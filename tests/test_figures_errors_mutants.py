@@ -89,7 +89,7 @@ def test_error_along_path_figure(tmp_path, monkeypatch):
     write_run(root, "seq A", "icp-p2p", False, gt, _sliding(21, 0.05))
     write_run(root, "seq A", "gicp", True, gt, _diverging(21), diverged=True)
     runs = load_runs(root)
-    figs = capture(monkeypatch, errors)
+    figs = capture(monkeypatch, errors, write=True)
     paths = errors.plot_error_along_path(runs, tmp_path / "out")
     assert paths == [tmp_path / "out" / "error-along-path" / f"seq-a.{x}" for x in
                      ("pdf", "png")]
@@ -140,6 +140,7 @@ def test_when_every_run_diverged_the_axes_hold_them_all(tmp_path, monkeypatch):
 
 
 def test_no_error_figure_without_two_poses_and_sequences_in_order(tmp_path, monkeypatch):
+    capture(monkeypatch, errors)
     gt = straight(11)
     for seq in ("run10", "run2"):
         write_run(tmp_path, seq, "gicp", True, gt, gt)
@@ -265,7 +266,8 @@ def test_box_plots_of_errors_all_exactly_zero_are_drawn_not_a_crash(tmp_path, mo
         np.testing.assert_allclose(ax.get_ylim(), (1e-3, 1.0))
 
 
-def test_class_with_no_segments_gets_no_box_plot(tmp_path):
+def test_class_with_no_segments_gets_no_box_plot(tmp_path, monkeypatch):
+    capture(monkeypatch, errors)
     gt = straight(11)
     write_run(tmp_path, "s", "gicp", True, gt, gt, lengths=(8.0,))
     write_run(tmp_path, "t", "gicp", True, gt, gt, lengths=(), sensor_class="Sparse 4D Radar")
@@ -332,7 +334,8 @@ def test_frames_figure_time_and_correspondences_per_frame(tmp_path, monkeypatch)
     assert [t.get_text() for t in fig.legends[0].get_texts()] == [ICP]
 
 
-def test_frames_of_a_sequence_without_times_give_no_figure(tmp_path):
+def test_frames_of_a_sequence_without_times_give_no_figure(tmp_path, monkeypatch):
+    capture(monkeypatch, errors)
     gt = straight(3)
     write_run(tmp_path, "b", "gicp", True, gt, gt, frames=[(k, 0.0, -1.0) for k in range(3)])
     write_run(tmp_path, "a", "gicp", True, gt, gt, frames=[(0, 1, 1), (1, 0, 5), (2, 0, 0)])

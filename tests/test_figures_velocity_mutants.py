@@ -86,7 +86,7 @@ def test_window_is_the_first_recorded_one_else_the_default(tmp_path, monkeypatch
 
 
 def test_no_figure_without_a_run_to_show_and_sequences_in_order(tmp_path, monkeypatch):
-    figs = capture(monkeypatch, velocity)
+    figs = capture(monkeypatch, velocity, write=True)
     runs = [_run("icp-p2p", sequence="run10"), _run("icp-p2p", sequence="run2"),
             _run("icp-p2p", sequence="diverged", diverged=True),
             _run("icp-p2p", sequence="short", n=2), _run("gicp", sequence="run2", n=2)]
