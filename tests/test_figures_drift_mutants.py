@@ -72,6 +72,7 @@ def test_drift_panels_show_each_axis_error_against_the_distance(tmp_path, monkey
                                                            "vertical\n[m]"]
     assert [ax.get_xlabel() for ax in axes[-1]] == ["distance travelled [m]"] * 2
     assert axes[0, 0].get_shared_x_axes().joined(axes[0, 0], axes[2, 1])
+    assert fig.get_figheight() == 3.9 and fig.get_figwidth() == 3.5
     title = fig.get_suptitle()
     assert " ".join(title.split("\n")) == \
         "seq A: drift from the first frame (estimate - GT, GT body axes)"
@@ -96,7 +97,7 @@ def test_runs_with_under_two_finite_poses_are_left_out(tmp_path, monkeypatch):
 
 
 def test_one_figure_per_sequence_in_order(tmp_path):
-    runs = [_run("gicp", sequence="run10"), _run("gicp", sequence="run2"),
-            _run("gicp", sequence="run2", n=1)]
-    paths = drift.plot_drift(runs, tmp_path)
+    runs = [_run("gicp", sequence="run10"), _run("gicp", sequence="run2", n=2),
+            _run("gicp", sequence="run2", n=1), _run("gicp", sequence="run1", n=1)]
+    paths = drift.plot_drift(runs, tmp_path)  # nothing for run1; two poses are enough
     assert [p.name for p in paths] == ["run2.pdf", "run2.png", "run10.pdf", "run10.png"]

@@ -1,6 +1,6 @@
 """bench/report/figures/velocity.py: per sequence, each shown run's ego-velocity error norm
 against the distance travelled (known by hand: a path 10 % too long moves 1.1 x the true speed
-of 8 m/s, an error of 0.8 m/s at every window), the GT speed once below, the window in the
+of 16 m/s, an error of 1.6 m/s at every window), the GT speed once below, the window in the
 title, a run that diverged (or whose poses are not finite) left out and named under the
 figure."""
 
@@ -18,7 +18,7 @@ from bench.report.names import display_name
 from metrics.velocity import DEFAULT_WINDOW_S
 
 DT = 0.125  # [s]: the windows' stamps are exact in binary
-STEP = 1.0  # [m] per frame: 8 m/s
+STEP = 2.0  # [m] per frame: 16 m/s
 
 
 def _run(method, seed=True, scale=1.0, sequence="seq A", n=21, window=0.5, diverged=False):
@@ -41,10 +41,10 @@ def test_velocity_error_along_the_path_of_the_runs_shown(tmp_path, monkeypatch):
     assert paths == [tmp_path / "velocity" / "seq-a.pdf", tmp_path / "velocity" / "seq-a.png"]
     ((_, fig),) = figs
     ax, speed_ax = fig.axes
-    # windows of 0.5 s = 4 frames: frames 0..16 start one, at 0..16 m
+    # windows of 0.5 s = 4 frames: frames 0..16 start one, at 0..32 m
     (seed, noseed) = ax.get_lines()  # in the tables' order: seed first
     np.testing.assert_allclose(seed.get_xdata(), np.arange(17) * STEP)
-    np.testing.assert_allclose(seed.get_ydata(), 0.1 * STEP / DT, rtol=1e-9)  # 0.8 m/s
+    np.testing.assert_allclose(seed.get_ydata(), 0.1 * STEP / DT, rtol=1e-9)  # 1.6 m/s
     np.testing.assert_allclose(noseed.get_ydata(), 0.0, atol=1e-9)
     want = line_kwargs(runs[1], 0, 2, points=17)
     assert seed.get_color() == color("icp-p2p") and seed.get_marker() == want["marker"]
@@ -61,6 +61,7 @@ def test_velocity_error_along_the_path_of_the_runs_shown(tmp_path, monkeypatch):
         "seq A: ego-velocity error (sensor frame, 0.5 s windows)"
     assert max(len(r) for r in ax.get_title().split("\n")) <= 56
     assert speed_ax.get_shared_x_axes().joined(ax, speed_ax)
+    assert fig.get_figheight() == 3.0 and fig.get_figwidth() == 3.5
     assert ax.get_position().height == pytest.approx(3 * speed_ax.get_position().height,
                                                      rel=0.05)
     (legend,) = fig.legends
@@ -83,6 +84,17 @@ def test_window_is_the_first_recorded_one_else_the_default(tmp_path, monkeypatch
     assert f"{DEFAULT_WINDOW_S:g} s windows" in b.axes[0].get_title()
     assert len(b.axes[0].get_lines()[0].get_xdata()) == 21 - round(DEFAULT_WINDOW_S / DT)
     assert b.legends[0].get_title().get_text() == ""  # nothing left out: no note
+    assert len(b.axes[1].get_lines()) == 1  # one run: its GT speed
+
+
+def test_a_long_title_wraps_at_56_characters(tmp_path, monkeypatch):
+    figs = capture(monkeypatch, velocity)
+    name = "Baker-Barry Tunnel (Empty)"
+    velocity.plot_velocity_along_path([_run("gicp", sequence=name)], tmp_path)
+    ((_, fig),) = figs
+    # 54 characters up to "(sensor"; " frame," would make 61
+    assert fig.axes[0].get_title() == (f"{name}: ego-velocity error (sensor\n"
+                                       "frame, 0.5 s windows)")
 
 
 def test_no_figure_without_a_run_to_show_and_sequences_in_order(tmp_path, monkeypatch):
