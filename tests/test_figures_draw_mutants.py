@@ -174,14 +174,15 @@ def test_one_figure_per_sequence_in_the_tables_order_default_folder(tmp_path, mo
     for seq in ("run10", "run2"):
         write_run(root, seq, "icp-p2p", True, gt, gt)
     write_run(root, "one pose", "icp-p2p", True, gt[:1], gt[:1])  # nothing to draw
+    write_run(root, "two poses", "icp-p2p", True, gt[:2], gt[:2])  # a path
     no_gt = write_run(root, "no gt", "icp-p2p", True, gt, gt)
     (no_gt / "gt_tum.txt").unlink()
     figs = capture(monkeypatch, draw)
     paths = draw.plot_trajectories(root)
     assert [p.relative_to(root) for p in paths] == [
-        draw.Path(f"figures/trajectories/{s}.{x}") for s in ("run2", "run10")
+        draw.Path(f"figures/trajectories/{s}.{x}") for s in ("run2", "run10", "two-poses")
         for x in ("pdf", "png")]
-    assert [stem.name for stem, _ in figs] == ["run2", "run10"]
+    assert [stem.name for stem, _ in figs] == ["run2", "run10", "two-poses"]
 
 
 def test_given_runs_are_drawn_instead_of_the_folders(tmp_path, monkeypatch):
