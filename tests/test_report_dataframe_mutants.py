@@ -128,3 +128,8 @@ def test_frames_from_a_results_folder(tmp_path):
     assert sorted(zip(df["method"], df["length_m"], strict=True)) == [
         ("gicp", 8.0), ("icp-p2p", 8.0), ("icp-p2p", 16.0)]
     assert all(math.isclose(x, 1.0) for x in df["time_ms_mean"])
+
+
+def test_frames_of_a_folder_without_runs_still_have_their_columns(tmp_path):
+    assert list(dataframe.load_runs_frame(tmp_path).columns) == dataframe.RUN_COLUMNS
+    assert list(dataframe.load_results(tmp_path).columns) == dataframe.COLUMNS
