@@ -154,8 +154,8 @@ def test_runs_leaving_at_one_place_share_a_grey_label(tmp_path, monkeypatch):
 
 
 def test_a_run_with_non_finite_poses_is_not_drawn(tmp_path, monkeypatch):
-    gt = straight(21)
-    bad = straight(21)
+    gt = straight(21, 2.0)
+    bad = straight(21, 2.0)
     bad[5:, 0, 3] = np.nan
 
     def run(method, est):
@@ -165,7 +165,13 @@ def test_a_run_with_non_finite_poses_is_not_drawn(tmp_path, monkeypatch):
     figs = capture(monkeypatch, draw)
     draw.plot_sequence("seq A", [run("gicp", bad), run("icp-p2p", gt)], tmp_path)
     ((_, fig),) = figs
-    assert set(lines_by_label(fig.axes[0])) == {"ground truth", ICP}
+    lines = lines_by_label(fig.axes[0])
+    assert set(lines) == {"ground truth", ICP}
+    np.testing.assert_allclose(lines["ground truth"].get_xydata(), gt[:, :2, 3])  # 0-40 m
+    marks = {m.get_marker(): m for m in fig.axes[0].get_lines()
+             if m.get_label().startswith("_")}
+    np.testing.assert_allclose(marks["s"].get_xydata(), [[40.0, 0.0]])
+    assert marks["o"].get_color() == marks["s"].get_color() == "black"  # the GT's marks
 
 
 def test_one_figure_per_sequence_in_the_tables_order_default_folder(tmp_path, monkeypatch):
