@@ -18,22 +18,25 @@ from bench.report.names import display_name
 N = 11
 
 
+STEP = 2.0  # [m] between frames: distances are not frame indices
+
+
 def _run(method, seed=True, est=None, sequence="seq A", diverged=False, n=N):
-    gt = straight(n)
+    gt = straight(n, STEP)
     return SimpleNamespace(method=method, seed=seed, label=None, config={}, gt=gt,
                            est=gt.copy() if est is None else est, display_name=sequence,
                            diverged=diverged)
 
 
 def _yawing():
-    est = straight(N)
+    est = straight(N, STEP)
     for k in range(N):
         est[k, :3, :3] = rot_z(float(k))
     return est
 
 
 def _sliding():
-    est = straight(N)
+    est = straight(N, STEP)
     est[:, 1, 3] = 0.02 * np.arange(N)
     return est
 
@@ -51,17 +54,20 @@ def test_drift_panels_show_each_axis_error_against_the_distance(tmp_path, monkey
     # runs in the tables' order; each panel: its runs' lines, then the zero line
     order = sorted(["gicp", "icp-p2p"], key=lambda m: drift.run_order(_run(m)))
     k_gicp = order.index("gicp")
-    np.testing.assert_allclose(yaw[k_gicp].get_xdata(), np.arange(N))
+    np.testing.assert_allclose(yaw[k_gicp].get_xdata(), STEP * np.arange(N))
     np.testing.assert_allclose(yaw[k_gicp].get_ydata(), np.arange(N), atol=1e-9)
     for a in range(2):  # no roll or pitch
         np.testing.assert_allclose(axes[a, 0].get_lines()[k_gicp].get_ydata(), 0, atol=1e-9)
     k_icp = 1 - k_gicp
     across = axes[1, 1].get_lines()[k_icp]
-    np.testing.assert_allclose(across.get_xdata(), np.arange(6))
+    np.testing.assert_allclose(across.get_xdata(), STEP * np.arange(6))
     np.testing.assert_allclose(across.get_ydata(), 0.02 * np.arange(6), atol=1e-9)
     np.testing.assert_allclose(axes[0, 1].get_lines()[k_icp].get_ydata(), 0, atol=1e-9)
     np.testing.assert_allclose(axes[2, 1].get_lines()[k_icp].get_ydata(), 0, atol=1e-9)
     assert axes[1, 1].get_lines()[k_gicp].get_color() == color("gicp")
+    for k, run in enumerate(sorted(runs, key=drift.run_order)):  # markers at own offsets
+        assert axes[0, 0].get_lines()[k].get_markevery() == \
+            drift.line_kwargs(run, k, 2)["markevery"]
     for ax in axes.ravel():
         zero = ax.get_lines()[-1]
         np.testing.assert_allclose(zero.get_ydata(), [0, 0])
@@ -86,14 +92,19 @@ def test_drift_panels_show_each_axis_error_against_the_distance(tmp_path, monkey
 
 def test_runs_with_under_two_finite_poses_are_left_out(tmp_path, monkeypatch):
     figs = capture(monkeypatch, drift)
-    bad = straight(N)
+    bad = straight(N, STEP)
     bad[1:, 0, 3] = np.nan  # one finite pose: nothing to draw
-    runs = [_run("gicp", est=bad), _run("icp-p2p"), _run("vgicp", sequence="short", n=1)]
+    two = straight(N, STEP)
+    two[2:, 0, 3] = np.nan  # two finite poses: drawn
+    runs = [_run("gicp", True, est=bad), _run("gicp", False), _run("icp-p2p", est=two),
+            _run("vgicp", sequence="short", n=1)]
     paths = drift.plot_drift(runs, tmp_path)
     assert [p.name for p in paths] == ["seq-a.pdf", "seq-a.png"]  # none for "short"
     ((_, fig),) = figs
-    assert [t.get_text() for t in fig.legends[0].get_texts()] == [display_name("icp-p2p")]
-    assert len(fig.axes[0].get_lines()) == 2  # its line and the zero line
+    # the one-pose run is left out; the no-seed run sorted after it is not
+    assert sorted(t.get_text() for t in fig.legends[0].get_texts()) == sorted(
+        [f"{display_name('gicp')} (no seed)", display_name("icp-p2p")])
+    assert len(fig.axes[0].get_lines()) == 3  # their lines and the zero line
 
 
 def test_one_figure_per_sequence_in_order(tmp_path):
