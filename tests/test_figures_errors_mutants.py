@@ -307,40 +307,57 @@ def test_diverged_note_names_runs_and_their_sequences_in_order():
 def test_frames_figure_time_and_correspondences_per_frame(tmp_path, monkeypatch):
     gt = straight(5)
     write_run(tmp_path, "seq A", "icp-p2p", True, gt, gt,
-              frames=[(0, 99.0, 99.0), (1, 2.0, 300.0), (2, 0.0, 0.0), (3, 4.0, "x"),
-                      (4, 8.0, 500.0)])
+              frames=[(0, 99.0, 99.0), (1, 2.0, 300.0), (2, 0.0, 0.0), (3, 0.5, "x"),
+                      (4, 8.0, 1.0)])
     write_run(tmp_path, "seq A", "gicp", True, gt, gt,  # scored without times: left out
               frames=[(k, "", 0) for k in range(5)])
+    write_run(tmp_path, "seq A", "vgicp", True, gt, gt,  # times below 1 ms, no pairs: shown
+              frames=[(k, 0.25, 0) for k in range(5)])
     figs = capture(monkeypatch, errors)
     paths = errors.plot_frames(load_runs(tmp_path), tmp_path / "out")
     assert [p.relative_to(tmp_path / "out").as_posix() for p in paths] == [
         "frames/seq-a.pdf", "frames/seq-a.png"]
     ((_, fig),) = figs
     top, bottom = fig.axes
-    (time_line,) = top.get_lines()
+    times = lines_by_label(top)
+    assert set(times) == {ICP, display_name("vgicp")}
+    time_line = times[ICP]
     np.testing.assert_allclose(time_line.get_xdata(), [1, 2, 3, 4])  # frame 0 not registered
-    np.testing.assert_allclose(time_line.get_ydata(), [2.0, np.nan, 4.0, 8.0])
-    (pairs,) = bottom.get_lines()
-    np.testing.assert_allclose(pairs.get_ydata(), [300.0, np.nan, np.nan, 500.0])
-    assert time_line.get_label() == ICP and time_line.get_linewidth() == 0.7
+    np.testing.assert_allclose(time_line.get_ydata(), [2.0, np.nan, 0.5, 8.0])
+    np.testing.assert_allclose(times[display_name("vgicp")].get_ydata(), 0.25)
+    pairs = {_hex(line.get_color()): line for line in bottom.get_lines()}
+    icp_pairs = pairs[_hex(color("icp-p2p"))]
+    np.testing.assert_allclose(icp_pairs.get_xdata(), [1, 2, 3, 4])
+    np.testing.assert_allclose(icp_pairs.get_ydata(), [300.0, np.nan, np.nan, 1.0])
+    assert np.all(np.isnan(pairs[_hex(color("vgicp"))].get_ydata()))
+    assert time_line.get_linewidth() == 0.7
     assert time_line.get_color() == color("icp-p2p")
+    runs = sorted((r for r in load_runs(tmp_path) if r.method != "gicp"), key=errors.run_order)
+    for k, run in enumerate(runs):  # markers at each run's own offset, by index
+        want = errors.line_kwargs(run, k, 2, points=4)["markevery"]
+        assert times[errors.run_name(run)].get_markevery() == want
     assert top.get_yscale() == bottom.get_yscale() == "log"
+    assert top.get_shared_x_axes().joined(top, bottom)
     assert top.get_ylabel() == "time per frame [ms]"
     assert bottom.get_ylabel() == "correspondences" and bottom.get_xlabel() == "frame"
     assert top.get_title() == "seq A"
-    note = " ".join(fig.legends[0].get_title().get_text().split("\n"))
+    legend = fig.legends[0]
+    note = " ".join(legend.get_title().get_text().split("\n"))
     assert note == ("Time: all per-frame work from a scan in memory to its pose (time_ms); "
                     f"the first frame is not registered. {PRIOR_NOTE}")
-    assert [t.get_text() for t in fig.legends[0].get_texts()] == [ICP]
+    legend_in = legend.get_window_extent(fig.test_renderer).height / fig.dpi
+    assert fig.get_figheight() == pytest.approx(2.3 + 0.75 + legend_in, abs=0.02)
 
 
 def test_frames_of_a_sequence_without_times_give_no_figure(tmp_path, monkeypatch):
     capture(monkeypatch, errors)
     gt = straight(3)
-    write_run(tmp_path, "b", "gicp", True, gt, gt, frames=[(k, 0.0, -1.0) for k in range(3)])
-    write_run(tmp_path, "a", "gicp", True, gt, gt, frames=[(0, 1, 1), (1, 0, 5), (2, 0, 0)])
+    write_run(tmp_path, "a", "gicp", True, gt, gt, frames=[(k, 0.0, -1.0) for k in range(3)])
+    for seq in ("run10", "run2"):
+        write_run(tmp_path, seq, "gicp", True, gt, gt, frames=[(0, 1, 1), (1, 0, 1), (2, 0, 0)])
     paths = errors.plot_frames(load_runs(tmp_path), tmp_path / "out")
-    assert [p.name for p in paths] == ["a.pdf", "a.png"]  # correspondences alone are enough
+    # correspondences alone are enough; in the tables' order; "a" has nothing
+    assert [p.name for p in paths] == ["run2.pdf", "run2.png", "run10.pdf", "run10.png"]
 
 
 def test_float_of_a_frames_value():
@@ -351,34 +368,46 @@ def test_float_of_a_frames_value():
 # -- bench speed -------------------------------------------------------------------------------
 
 def test_speed_curves_with_their_bands(tmp_path, monkeypatch):
+    """Four methods (none of them in matplotlib's first default colours, so a band drawn
+    without its method's colour shows): each its median curve over the LiDAR rows only and
+    its p5-p95 band, in the tables' order, plain-number log axes, legend in three columns."""
+    from bench.report.names import order_key
+
+    methods = ("vgicp", "dicp", "kiss-icp", "doppler-ego")
+    rows = "".join(f"lidar,{m},8000,{25 * (i + 1)},{24 * (i + 1)},{27 * (i + 1)}\n"
+                   f"lidar,{m},1000,{2 * (i + 1)},{1.8 * (i + 1)},{2.5 * (i + 1)}\n"
+                   f"radar,{m},500,1,1,1\n" for i, m in enumerate(methods))
     csv = tmp_path / "speed.csv"
-    csv.write_text("scenario,method,points,median_ms,p5_ms,p95_ms\n"
-                   "lidar,icp-p2p,8000,25,24,27\nlidar,icp-p2p,1000,2,1.8,2.5\n"
-                   "radar,icp-p2p,500,1,1,1\nlidar,doppler,1000,0.05,0.04,0.06\n"
-                   "lidar,doppler,8000,0.3,0.25,0.35\n")
+    csv.write_text("scenario,method,points,median_ms,p5_ms,p95_ms\n" + rows)
     figs = capture(monkeypatch, errors)
     paths = errors.plot_speed_csv(csv, tmp_path / "out")
     assert paths == [tmp_path / "out" / "speed.pdf", tmp_path / "out" / "speed.png"]
     ((_, fig),) = figs
     (ax,) = fig.axes
     lines = lines_by_label(ax)
-    icp, dop = lines[ICP], lines[display_name("doppler")]
-    np.testing.assert_allclose(icp.get_xydata(), [[1000, 2], [8000, 25]])  # lidar only
-    np.testing.assert_allclose(dop.get_xydata(), [[1000, 0.05], [8000, 0.3]])
-    assert icp.get_color() == color("icp-p2p") and icp.get_marker() == "o"
     bands = {_hex(c.get_facecolor()[0][:3]): c for c in ax.collections}
-    band = bands[_hex(color("icp-p2p"))].get_paths()[0].vertices
-    assert {(round(x), round(y, 6)) for x, y in band} >= {(1000, 1.8), (8000, 24.0),
-                                                           (8000, 27.0), (1000, 2.5)}
+    for i, m in enumerate(methods):
+        line = lines[display_name(m)]
+        np.testing.assert_allclose(line.get_xydata(), [[1000, 2 * (i + 1)],
+                                                       [8000, 25 * (i + 1)]])  # lidar only
+        assert line.get_color() == color(m) and line.get_marker() == "o"
+        band = bands[_hex(color(m))].get_paths()[0].vertices
+        corners = {(1000, 1.8 * (i + 1)), (8000, 24.0 * (i + 1)), (8000, 27.0 * (i + 1)),
+                   (1000, 2.5 * (i + 1))}
+        got = {(round(x), round(y, 6)) for x, y in band}
+        assert {(x, round(y, 6)) for x, y in corners} <= got
     assert ax.get_xscale() == ax.get_yscale() == "log"
+    xlabels = {t.get_text() for t in ax.get_xticklabels() if t.get_text()}
+    assert {"1000", "2000", "5000"} <= xlabels  # plain numbers, 1-2-5
     assert ax.get_xlabel() == "input points per scan"
     assert ax.get_ylabel() == "time per frame [ms]"
     assert ax.get_title() == "speed scaling: all per-frame work (median, p5-p95 band)"
-    names = [t.get_text() for t in fig.legends[0].get_texts()]
-    assert sorted(names) == sorted([ICP, display_name("doppler")])
-    from bench.report.names import order_key
-
-    assert names == [display_name(m) for m in sorted(["icp-p2p", "doppler"], key=order_key)]
+    legend = fig.legends[0]
+    names = [t.get_text() for t in legend.get_texts()]
+    assert names == [display_name(m) for m in sorted(methods, key=order_key)]
+    assert legend._ncols == 3
+    legend_in = legend.get_window_extent(fig.test_renderer).height / fig.dpi
+    assert fig.get_figheight() == pytest.approx(1.9 + 0.75 + legend_in, abs=0.02)
 
 
 @pytest.mark.parametrize("text", [
