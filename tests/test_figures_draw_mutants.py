@@ -168,6 +168,7 @@ def test_a_run_with_non_finite_poses_is_not_drawn(tmp_path, monkeypatch):
     lines = lines_by_label(fig.axes[0])
     assert set(lines) == {"ground truth", ICP}
     np.testing.assert_allclose(lines["ground truth"].get_xydata(), gt[:, :2, 3])  # 0-40 m
+    np.testing.assert_allclose(lines[ICP].get_xydata(), gt[:, :2, 3])
     marks = {m.get_marker(): m for m in fig.axes[0].get_lines()
              if m.get_label().startswith("_")}
     np.testing.assert_allclose(marks["s"].get_xydata(), [[40.0, 0.0]])
@@ -292,3 +293,48 @@ def test_make_figures_refuses_a_run_folder_as_its_output(results):
     with pytest.raises(Refused, match="is a run folder"):
         draw.make_figures(results, run_dir)
     assert not (run_dir / "trajectories").exists()
+
+
+def _ns_run(method, gt, est, diverged=False, seed=True):
+    return SimpleNamespace(method=method, seed=seed, label=None, config={}, gt=gt, est=est,
+                           diverged=diverged)
+
+
+def test_a_short_path_gets_the_one_metre_margin(tmp_path, monkeypatch):
+    figs = capture(monkeypatch, draw)
+    gt = straight(6, 2.0)  # 10 m: 5 % would be 0.5 m
+    draw.plot_sequence("s", [_ns_run("gicp", gt, gt)], tmp_path)
+    ((_, fig),) = figs
+    np.testing.assert_allclose(fig.axes[0].get_xlim(), (-1.0, 11.0))
+
+
+def test_runs_leaving_within_6_percent_of_the_axes_share_a_label(tmp_path, monkeypatch):
+    """Only the ground truth (0-20 m along x) holds: limits -1..21 m x -1..1 m, widened to
+    -2.93..2.93 m in y for the minimum height: 22 m across, so exits within 1.32 m share a
+    label. Exits at (10, 0.5) and (11.25, 0.5) are 1.25 m apart: one label; a run whose
+    second pose is already outside is drawn as its first point, labelled there."""
+    figs = capture(monkeypatch, draw)
+    gt = straight(21)
+
+    def leaving(last_x, last_k):
+        est = straight(21)
+        est[1:last_k + 1, 1, 3] = 0.5
+        est[last_k, 0, 3] = last_x
+        est[last_k + 1:, 1, 3] = 50.0
+        return est
+
+    first = straight(21)
+    first[1:, 1, 3] = 50.0
+    runs = [_ns_run("gicp", gt, leaving(10.0, 10), True),
+            _ns_run("vgicp", gt, leaving(11.25, 11), True),
+            _ns_run("icp-p2p", gt, first, True)]
+    draw.plot_sequence("s", runs, tmp_path)
+    ((_, fig),) = figs
+    ax = fig.axes[0]
+    texts = sorted((t.xy, t.get_text()) for t in ax.texts)
+    assert texts == [((0.0, 0.0), "Div."), ((10.0, 0.5), "Div. (2)")]
+    np.testing.assert_allclose(lines_by_label(ax)[f"{ICP} - Div."].get_xydata(), [[0.0, 0.0]])
+    ordered = sorted(runs, key=draw.run_order)
+    for k, run in enumerate(ordered):  # markers at each run's own offset
+        line = lines_by_label(ax)[draw.run_name(run) + " - Div."]
+        assert line.get_markevery() == draw.line_kwargs(run, k, 3)["markevery"]
