@@ -169,17 +169,24 @@ def test_runs_leaving_at_about_one_distance_share_one_label():
 
 # -- box plots ---------------------------------------------------------------------------------
 
+#: the method of the box plots: not matplotlib's default first colour (a box without its
+#: method's colour would show)
+VG = display_name("vgicp")
+
+
 @pytest.fixture
 def box_runs(tmp_path):
-    gt = straight(41)
+    """A 200 m path (8 m segments: 193, so the 5th and 6th percentile fall on different
+    segments) with a bending estimate; a sliding one without seed; diverged ones."""
+    gt = straight(201)
     root = tmp_path / "r"
-    write_run(root, "seq A", "icp-p2p", True, gt, _bending(41), lengths=(8.0, 16.0, 64.0))
-    write_run(root, "seq A", "icp-p2p", False, gt, _sliding(41), lengths=(8.0,))
-    write_run(root, "seq A", "gicp", True, gt, _diverging(41), diverged=True,
+    write_run(root, "seq A", "vgicp", True, gt, _bending(201), lengths=(8.0, 16.0, 640.0))
+    write_run(root, "seq A", "vgicp", False, gt, _sliding(201), lengths=(8.0,))
+    write_run(root, "seq A", "gicp", True, gt, _diverging(201), diverged=True,
               lengths=(8.0, 16.0))
-    write_run(root, "seq B (synthetic)", "gicp", True, gt, _diverging(41), diverged=True,
+    write_run(root, "seq B (synthetic)", "gicp", True, gt[:41], _diverging(41), diverged=True,
               sensor_class="Sparse 4D Radar", lengths=(8.0,))
-    write_run(root, "seq B (synthetic)", "icp-p2p", True, gt, _turning(41),
+    write_run(root, "seq B (synthetic)", "vgicp", True, gt[:41], _turning(41),
               sensor_class="Sparse 4D Radar", lengths=(8.0,))
     return load_runs(root)
 
@@ -200,7 +207,7 @@ def test_box_plots_per_class_one_box_per_run_name(box_runs, tmp_path, monkeypatc
     assert radar.axes[0].get_title() == "Sparse 4D Radar (synthetic): relative error"
     assert lidar.axes[0].get_title() == "Dense 4D LiDAR: relative error"
     top, bottom = lidar.axes
-    # lengths scored by a run that held: 8 and 16 m; 64 m (listed, no segment on 40 m) is not
+    # lengths scored by a run that held: 8 and 16 m; 640 m (listed, no segment on 200 m) is not
     assert [t.get_text() for t in bottom.get_xticklabels()] == ["8", "16"]
     assert list(bottom.get_xticks()) == [0, 1]
     assert bottom.get_xlim() == (-0.5, 1.5)
@@ -214,15 +221,19 @@ def test_box_plots_per_class_one_box_per_run_name(box_runs, tmp_path, monkeypatc
     ext = [_box_extent(b) for b in boxes]
     centres = sorted(round((e[0] + e[1]) / 2, 6) for e in ext if np.all(np.isfinite(e)))
     np.testing.assert_allclose(centres, [-0.21, 0.21, 0.79, 1.21])
+    seed_centres = sorted(round((e[0] + e[1]) / 2, 6) for b, e in zip(boxes, ext, strict=True)
+                          if not b.get_hatch())
+    np.testing.assert_allclose(seed_centres, [-0.21, 0.79])  # the first name on the left
+    assert top.get_shared_x_axes().joined(top, bottom)
     widths = [e[1] - e[0] for e in ext if np.all(np.isfinite(e))]
     np.testing.assert_allclose(widths, 0.42 * 0.85)
     seed_boxes = [b for b in boxes if not b.get_hatch()]
     noseed_boxes = [b for b in boxes if b.get_hatch()]
     assert len(seed_boxes) == len(noseed_boxes) == 2
-    assert {_hex(b.get_facecolor()) for b in boxes} == {_hex(color("icp-p2p"))}
+    assert {_hex(b.get_facecolor()) for b in boxes} == {_hex(color("vgicp"))}
     assert {b.get_hatch() for b in noseed_boxes} == {"//////"}
     # medians and whiskers of the segment errors (5-95 %), no fliers
-    run = next(r for r in box_runs if r.method == "icp-p2p" and r.seed.option is True
+    run = next(r for r in box_runs if r.method == "vgicp" and r.seed.option is True
                and r.sensor_class == "Dense 4D LiDAR")
     seg = segment_errors(run.gt, run.est, 8.0).trans_m
     medians = [line for line in top.get_lines() if _hex(line.get_color()) == "#000000"]
@@ -236,16 +247,18 @@ def test_box_plots_per_class_one_box_per_run_name(box_runs, tmp_path, monkeypatc
     for end in ends:
         assert any(np.isclose(y, end, rtol=1e-6) for y in wy), end
     assert seg.min() < ends[0] and ends[1] < seg.max()  # not the extremes
-    assert not top.collections  # no fliers drawn as points
+    assert not top.collections
+    assert not [line for line in top.get_lines()  # no fliers: no markers at all
+                if line.get_marker() not in (None, "None", "", " ") and len(line.get_xdata())]
     assert [round(line.get_xdata()[0], 6) for line in top.get_lines()
             if line.get_linestyle() == "-" and _hex(line.get_color()) == _hex("0.8")] == [0.5]
     legend = lidar.legends[0]
     texts = [t.get_text() for t in legend.get_texts()]
-    assert texts == [ICP, f"{ICP} (no seed)"]
+    assert texts == [VG, f"{VG} (no seed)"]
     assert [h.get_hatch() for h in legend.legend_handles] == [None, "//////"] or \
         [bool(h.get_hatch()) for h in legend.legend_handles] == [False, True]
     assert [_hex(h.get_facecolor()) for h in legend.legend_handles] == [
-        _hex(color("icp-p2p"))] * 2
+        _hex(color("vgicp"))] * 2
     note = " ".join(legend.get_title().get_text().split("\n"))
     assert note == ("Boxes: quartiles and median; whiskers: 5-95 %; the class's sequences "
                     f"pooled. {PRIOR_NOTE} Not shown (diverged): {GICP} on seq A")
