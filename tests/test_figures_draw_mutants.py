@@ -84,6 +84,9 @@ def test_axes_fill_the_column_at_equal_scale(span, lo, hi, height):
     assert got_h == pytest.approx(height)
     got = (np.array(got_hi) - got_lo)
     assert got[1] / got[0] == pytest.approx(got_h / (COLUMN_IN - 0.5))  # equal scale
+    shifted = draw._axes_shape(np.array([100.0, -50.0]), np.array([100.0, -50.0]) + span)
+    np.testing.assert_allclose(shifted[0], np.array(lo) + [100.0, -50.0])  # only the span
+    np.testing.assert_allclose(shifted[1], np.array(hi) + [100.0, -50.0])  # counts
 
 
 def test_trajectory_figure_draws_what_the_reader_compares(results, tmp_path, monkeypatch):
@@ -333,6 +336,7 @@ def test_runs_leaving_within_6_percent_of_the_axes_share_a_label(tmp_path, monke
     ax = fig.axes[0]
     texts = sorted((t.xy, t.get_text()) for t in ax.texts)
     assert texts == [((0.0, 0.0), "Div."), ((10.0, 0.5), "Div. (2)")]
+    assert {(t.xyann, t.get_fontsize()) for t in ax.texts} == {((2, 2), 6)}  # up right, 6 pt
     np.testing.assert_allclose(lines_by_label(ax)[f"{ICP} - Div."].get_xydata(), [[0.0, 0.0]])
     ordered = sorted(runs, key=draw.run_order)
     for k, run in enumerate(ordered):  # markers at each run's own offset
