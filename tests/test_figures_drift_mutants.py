@@ -48,6 +48,7 @@ def test_drift_panels_show_each_axis_error_against_the_distance(tmp_path, monkey
     runs = [_run("gicp", est=_yawing()), _run("icp-p2p", est=broken, diverged=True)]
     paths = drift.plot_drift(runs, tmp_path)
     assert paths == [tmp_path / "drift" / "seq-a.pdf", tmp_path / "drift" / "seq-a.png"]
+    assert all(p.exists() for p in paths)
     ((_, fig),) = figs
     axes = np.array(fig.axes).reshape(3, 2)
     yaw = axes[2, 0].get_lines()
@@ -107,7 +108,8 @@ def test_runs_with_under_two_finite_poses_are_left_out(tmp_path, monkeypatch):
     assert len(fig.axes[0].get_lines()) == 3  # their lines and the zero line
 
 
-def test_one_figure_per_sequence_in_order(tmp_path):
+def test_one_figure_per_sequence_in_order(tmp_path, monkeypatch):
+    capture(monkeypatch, drift)
     runs = [_run("gicp", sequence="run10"), _run("gicp", sequence="run2", n=2),
             _run("gicp", sequence="run2", n=1), _run("gicp", sequence="run1", n=1)]
     paths = drift.plot_drift(runs, tmp_path)  # nothing for run1; two poses are enough

@@ -32,13 +32,14 @@ def _run(method, seed=True, scale=1.0, sequence="seq A", n=21, window=0.5, diver
 
 
 def test_velocity_error_along_the_path_of_the_runs_shown(tmp_path, monkeypatch):
-    figs = capture(monkeypatch, velocity)
+    figs = capture(monkeypatch, velocity, write=True)
     gone = _run("gicp", diverged=True)
     nan = _run("vgicp")
     nan.est[3:, 0, 3] = np.nan
     runs = [_run("icp-p2p", False, 1.0), _run("icp-p2p", True, 1.1), gone, nan]
     paths = velocity.plot_velocity_along_path(runs, tmp_path)
     assert paths == [tmp_path / "velocity" / "seq-a.pdf", tmp_path / "velocity" / "seq-a.png"]
+    assert all(p.exists() for p in paths)
     ((_, fig),) = figs
     ax, speed_ax = fig.axes
     # windows of 0.5 s = 4 frames: frames 0..16 start one, at 0..32 m
@@ -98,7 +99,7 @@ def test_a_long_title_wraps_at_56_characters(tmp_path, monkeypatch):
 
 
 def test_no_figure_without_a_run_to_show_and_sequences_in_order(tmp_path, monkeypatch):
-    figs = capture(monkeypatch, velocity, write=True)
+    figs = capture(monkeypatch, velocity)
     runs = [_run("icp-p2p", sequence="run10"), _run("icp-p2p", sequence="run2"),
             _run("icp-p2p", sequence="diverged", diverged=True),
             _run("icp-p2p", sequence="short", n=2), _run("gicp", sequence="run2", n=2)]
