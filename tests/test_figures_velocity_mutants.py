@@ -96,6 +96,10 @@ def test_a_long_title_wraps_at_56_characters(tmp_path, monkeypatch):
     # 54 characters up to "(sensor"; " frame," would make 61
     assert fig.axes[0].get_title() == (f"{name}: ego-velocity error (sensor\n"
                                        "frame, 0.5 s windows)")
+    name = "A" * 29  # "(sensor" would end at character 57: one too many
+    velocity.plot_velocity_along_path([_run("gicp", sequence=name)], tmp_path)
+    assert figs[-1][1].axes[0].get_title() == (f"{name}: ego-velocity error\n"
+                                               "(sensor frame, 0.5 s windows)")
 
 
 def test_no_figure_without_a_run_to_show_and_sequences_in_order(tmp_path, monkeypatch):
