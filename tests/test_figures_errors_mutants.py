@@ -247,6 +247,11 @@ def test_box_plots_per_class_one_box_per_run_name(box_runs, tmp_path, monkeypatc
     for end in ends:
         assert any(np.isclose(y, end, rtol=1e-6) for y in wy), end
     assert seg.min() < ends[0] and ends[1] < seg.max()  # not the extremes
+    for ax in (top, bottom):  # grid lines across (error levels), none between boxes
+        assert ax.yaxis.get_gridlines()[0].get_visible()
+        assert not any(g.get_visible() for g in ax.xaxis.get_gridlines())
+    legend_in = lidar.legends[0].get_window_extent(lidar.test_renderer).height / lidar.dpi
+    assert lidar.get_figheight() == pytest.approx(2.6 + 0.75 + legend_in, abs=0.02)
     assert not top.collections
     assert not [line for line in top.get_lines()  # no fliers: no markers at all
                 if line.get_marker() not in (None, "None", "", " ") and len(line.get_xdata())]
