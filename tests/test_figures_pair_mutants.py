@@ -128,13 +128,21 @@ def test_pair_figure(store, tmp_path, monkeypatch):
         in_view = [(seg >= [lo[0] - 0.5, hi[0] - 0.5]).all() and
                    (seg <= [lo[1] + 0.5, hi[1] + 0.5]).all() for seg in segs]
         assert all(in_view)
-        assert tail == f"({len(segs)} of the {tail.split()[3]} in view drawn)"
+        # in view: both ends within 0.5 m of the window
+        ends = np.stack([src[s_idx, :2], tgt[t_idx, :2]], axis=1)
+        box_lo, box_hi = np.array([lo[0], hi[0]]) - 0.5, np.array([lo[1], hi[1]]) + 0.5
+        n_view = int(((ends >= box_lo) & (ends <= box_hi)).all(axis=(1, 2)).sum())
+        assert tail == f"({min(n_view, pair.MAX_LINES)} of the {n_view} in view drawn)"
+        assert len(segs) == min(n_view, pair.MAX_LINES)
+        assert min(lines.get_linewidths()) >= 0.7 and lines.get_alpha() >= 0.8  # visible
         assert ax.get_ylabel() == "y [m]"
         scatter = ax.collections[:2]
         np.testing.assert_allclose(scatter[0].get_offsets(), src[:, :2])
         np.testing.assert_allclose(scatter[1].get_offsets(), tgt[:, :2])
         assert [_hex(s.get_facecolor()[0]) for s in scatter] == [_hex("0.65"), _hex("0.2")]
     assert bottom.get_xlabel() == "x [m] (sensor frame of frame k)"
+    assert top.get_shared_x_axes().joined(top, bottom)  # the same window in both panels
+    assert top.get_shared_y_axes().joined(top, bottom)
     assert fig.get_suptitle() == "twist, frames 1 -> 2"
     legend = fig.legends[0]
     assert [t.get_text() for t in legend.get_texts()] == [
@@ -161,3 +169,14 @@ def test_pair_figure_without_ground_truth_has_one_colour_and_no_share(store, tmp
     legend = fig.legends[0]
     assert [t.get_text() for t in legend.get_texts()][2:] == ["pair (no ground truth)"]
     assert "the 20 m x 12 m window" in legend.get_title().get_text()
+
+
+def test_pair_figure_draws_the_same_pairs_every_time(store, tmp_path, monkeypatch):
+    path, _ = store
+    figs = capture(monkeypatch, pair)
+    pair.plot_pair(path, 0, tmp_path, window_m=60.0)
+    pair.plot_pair(path, 0, tmp_path, window_m=60.0)
+    (_, a), (_, b) = figs
+    for ax_a, ax_b in zip(a.axes, b.axes, strict=True):
+        np.testing.assert_array_equal(np.array(ax_a.collections[-1].get_segments()),
+                                      np.array(ax_b.collections[-1].get_segments()))
