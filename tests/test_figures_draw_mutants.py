@@ -342,3 +342,21 @@ def test_runs_leaving_within_6_percent_of_the_axes_share_a_label(tmp_path, monke
     for k, run in enumerate(ordered):  # markers at each run's own offset
         line = lines_by_label(ax)[draw.run_name(run) + " - Div."]
         assert line.get_markevery() == draw.line_kwargs(run, k, 3)["markevery"]
+
+
+def test_exits_one_above_the_other_within_6_percent_share_a_label(tmp_path, monkeypatch):
+    """Exits at (10, 0.62) and (10, -0.62): 1.24 m apart, within 6 % of the 22 m span
+    (1.32 m): one label, though their labels would not touch (1.24 m is some 12 pt)."""
+    figs = capture(monkeypatch, draw)
+    gt = straight(21)
+
+    def leaving(y):
+        est = straight(21)
+        est[1:11, 1, 3] = y
+        est[11:, 1, 3] = 50.0 * np.sign(y)
+        return est
+
+    draw.plot_sequence("s", [_ns_run("gicp", gt, leaving(0.62), True),
+                             _ns_run("vgicp", gt, leaving(-0.62), True)], tmp_path)
+    ((_, fig),) = figs
+    assert [(t.get_text(), t.xy) for t in fig.axes[0].texts] == [("Div. (2)", (10.0, 0.62))]
