@@ -109,6 +109,8 @@ def test_error_along_path_figure(tmp_path, monkeypatch):
     div = lines[f"{GICP} - Div."]
     np.testing.assert_allclose(div.get_xdata(), [1, 2, 3, 4])
     np.testing.assert_allclose(div.get_ydata(), [0.5, 2.0, 4.5, hi], rtol=1e-5)
+    assert div.get_color() == color("gicp") and div.get_linestyle() == "-"
+    assert top.get_shared_x_axes().joined(top, bottom)
     (mark,) = [m for m in top.get_lines() if m.get_marker() == "^"]
     np.testing.assert_allclose(mark.get_xydata(), [[4.0, hi]], rtol=1e-6)
     assert mark.get_color() == color("gicp") and mark.get_clip_on() is False
@@ -145,8 +147,29 @@ def test_no_error_figure_without_two_poses_and_sequences_in_order(tmp_path, monk
     for seq in ("run10", "run2"):
         write_run(tmp_path, seq, "gicp", True, gt, gt)
     write_run(tmp_path, "one", "gicp", True, gt[:1], gt[:1])
+    write_run(tmp_path, "two", "gicp", True, gt[:2], gt[:2])  # two poses: a figure
     paths = errors.plot_error_along_path(load_runs(tmp_path), tmp_path / "out")
-    assert [p.name for p in paths] == ["run2.pdf", "run2.png", "run10.pdf", "run10.png"]
+    assert [p.name for p in paths] == ["run2.pdf", "run2.png", "run10.pdf", "run10.png",
+                                       "two.pdf", "two.png"]
+
+
+def test_exact_estimates_draw_no_error_and_exits_cluster_by_distance(tmp_path, monkeypatch):
+    """An estimate equal to the ground truth has no error to draw on a log axis (NaN, not 0);
+    two runs leaving 3 m apart along a 20 m path (more than 6 % of it) get a label each."""
+    gt = straight(21)
+    write_run(tmp_path, "s", "icp-p2p", True, gt, gt)
+    late = _diverging(21)
+    late[:, 1, 3] = 0.5 * np.maximum(np.arange(21) - 3, 0) ** 2  # leaves 3 m later
+    write_run(tmp_path, "s", "gicp", True, gt, _diverging(21), diverged=True)
+    write_run(tmp_path, "s", "vgicp", True, gt, late, diverged=True)
+    figs = capture(monkeypatch, errors)
+    errors.plot_error_along_path(load_runs(tmp_path), tmp_path / "out")
+    ((_, fig),) = figs
+    for ax in fig.axes:
+        assert np.all(np.isnan(lines_by_label(ax)[ICP].get_ydata()))
+    # nothing held with an error: limits 0.001-1 m, so the runs leave at 2 m and 5 m
+    assert sorted((t.get_text(), t.xy[0]) for t in fig.axes[0].texts) == [("Div.", 2.0),
+                                                                          ("Div.", 5.0)]
 
 
 def test_runs_leaving_at_about_one_distance_share_one_label():
