@@ -148,6 +148,14 @@ def test_pair_figure(store, tmp_path, monkeypatch):
     assert [t.get_text() for t in legend.get_texts()] == [
         "frame k (source)", "frame k+1 (target)",
         "pair consistent with the true motion (< 0.5 m)", "pair inconsistent with it"]
+    keys = legend.legend_handles  # the legend's keys look like what they name
+    assert [_hex(h.get_color()) for h in keys] == [_hex("0.65"), _hex("0.2"), "#0072b2",
+                                                   "#d55e00"]
+    assert [h.get_marker() for h in keys[:2]] == ["o", "o"]
+    assert [h.get_linestyle() for h in keys[:2]] == ["None", "None"]
+    legend_in = legend.get_window_extent(fig.test_renderer).height / fig.dpi
+    axes_in = 2 * 0.6 * 3.0 + 0.3  # two panels 0.6 x 3 in (the column less the labels)
+    assert fig.get_figheight() == pytest.approx(axes_in + 0.75 + legend_in, abs=0.02)
     note = " ".join(legend.get_title().get_text().split("\n"))
     assert note == ("Zoom: the 30 m x 18 m window with the most pairs; closest points from "
                     "the identity within 3 m.")
@@ -162,12 +170,15 @@ def test_pair_figure_without_ground_truth_has_one_colour_and_no_share(store, tmp
     figs = capture(monkeypatch, pair)
     pair.plot_pair(path, 0, tmp_path, window_m=20.0)
     ((_, fig),) = figs
-    for ax in fig.axes:
-        assert "consistent" not in ax.get_title()
+    data = pair.pair_correspondences(path, 0)
+    for ax, key, title in zip(fig.axes, ("closest", "doppler"),
+                              ("Closest point (ICP)", "Doppler Correspondence"), strict=True):
+        assert ax.get_title().split("\n")[0] == f"{title}: {len(data[key][0])} pairs"
         assert {_hex(c) for c in ax.collections[-1].get_colors()} == {"#0072b2"}
         assert ax.get_xlim()[1] - ax.get_xlim()[0] == pytest.approx(20.0)
     legend = fig.legends[0]
     assert [t.get_text() for t in legend.get_texts()][2:] == ["pair (no ground truth)"]
+    assert _hex(legend.legend_handles[2].get_color()) == "#0072b2"
     assert "the 20 m x 12 m window" in legend.get_title().get_text()
 
 
