@@ -191,3 +191,16 @@ def test_pair_figure_draws_the_same_pairs_every_time(store, tmp_path, monkeypatc
     for ax_a, ax_b in zip(a.axes, b.axes, strict=True):
         np.testing.assert_array_equal(np.array(ax_a.collections[-1].get_segments()),
                                       np.array(ax_b.collections[-1].get_segments()))
+
+
+def test_window_picks_the_placement_holding_the_most_points():
+    """30 points at 0-2 m, one a metre from 3 to 49 m, 40 at 50-52 m (all at y = 0): a 30 m
+    window holds at most 68 of them, from 22 to 52 m (40 + 28 against 30 + 28 at 0-30 m);
+    it is centred on what it holds, at 37 m."""
+    x = np.concatenate([np.linspace(0, 2, 30), np.arange(3.0, 50.0), np.linspace(50, 52, 40)])
+    points = np.column_stack([x, np.zeros_like(x)])
+    lo, hi = pair._window(points, 30.0, 4.0)
+    np.testing.assert_allclose((lo + hi) / 2, [37.0, 0.0])
+    np.testing.assert_allclose(hi - lo, [30.0, 4.0])
+    swapped = pair._window(points[:, ::-1], 4.0, 30.0)  # the same along y
+    np.testing.assert_allclose((swapped[0] + swapped[1]) / 2, [0.0, 37.0])
