@@ -66,8 +66,20 @@ def test_a_store_without_doppler_is_refused(tmp_path):
                                                  for k in range(len(seq))],
                          seq.ground_truth, seq.provenance)
     path = write_store(seq, tmp_path / "nodop.h5")
-    with pytest.raises(DataError, match="needs Doppler, but the store has no Doppler values"):
+    with pytest.raises(DataError) as err:
         pair.pair_correspondences(path, 0)
+    assert str(err.value).startswith(f"{path}: Doppler Correspondence's pairs needs Doppler, "
+                                     "but the store has no Doppler values")
+
+
+def test_a_synthetic_store_is_named_so(tmp_path):
+    from loaders.scan import MemorySequence
+
+    seq = constant_twist_sequence(n_frames=2, n_points=200)
+    seq = MemorySequence(seq.name, seq.sensor, [seq[k] for k in range(len(seq))],
+                         seq.ground_truth, {"source": "synthetic"})
+    path = write_store(seq, tmp_path / "synth.h5")
+    assert pair.pair_correspondences(path, 0)["name"] == "twist (synthetic), frames 0 -> 1"
 
 
 def test_window_with_the_most_points_centred_on_what_it_holds():
