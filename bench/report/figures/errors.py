@@ -105,6 +105,8 @@ def plot_boxplots(runs: list[RunRecord], out_dir: Path) -> list[Path]:
         for ax in axes:
             ax.set_yscale("log")
             ax.autoscale_view()
+            if not np.isfinite(ax.dataLim.y0):  # no positive error (all exactly 0): an
+                ax.set_ylim(*_log_limits([]))  # empty log axis, not a non-positive one
             log_y(ax)
             for x in np.arange(len(lengths) - 1) + 0.5:
                 ax.axvline(x, color="0.8", lw=0.5, zorder=0)
