@@ -128,8 +128,10 @@ def log_y(ax, axis: str = "y") -> None:
     if not (math.isfinite(lo) and math.isfinite(hi) and 0 < lo < hi):
         return  # nothing positive plotted: matplotlib's own ticks
     # the fewest ticks that still label at least two values inside the limits: 1-2-5 per
-    # decade, every digit on a narrow range (1000-4000 has only 2000 among 1-2-5), plain
-    # evenly spaced values on a range inside one digit step
+    # decade, else every digit (1000-4000 has only 2000 among 1-2-5); where the digits too
+    # would give at most one tick inside, matplotlib's LogLocator itself places evenly spaced
+    # linear ticks (1100-4500: 1500, 2000, ... 4500; 1.2-1.8: 1.2, 1.3, ...), so the
+    # MaxNLocator below is a last resort only
     locator = None
     for subs in ((1.0,), (1.0, 2.0, 5.0), tuple(float(d) for d in range(1, 10))):
         if subs == (1.0,) and math.log10(hi / lo) <= 2.5:
