@@ -37,6 +37,7 @@ from loaders.errors import DataError, GroundTruthWarning
 from loaders.options import GroundTruthTimeOptions, LoaderOptions
 from loaders.registry import LOADERS, LoaderEntry
 from loaders.store import StoreSequence, write_store
+from test_data_convert_batch_mutants import _frames as npy_frame_folder
 
 runner = CliRunner()
 
@@ -333,15 +334,8 @@ def test_an_unavailable_loader_is_a_command_that_says_so(monkeypatch):
 
 
 def _frames(folder, n=6, points=30):
-    rng = np.random.default_rng(5)
-    folder.mkdir(parents=True, exist_ok=True)
-    pts = []
-    for i in range(n):
-        pts.append(rng.uniform(-20, 20, (points, 3)))
-        np.save(folder / f"frame_{i:03d}.npy", pts[-1])
-        np.save(folder / f"frame_{i:03d}_dop.npy", rng.normal(0, 2, points))
-    (folder / "gt.txt").write_text("".join(f"{0.1 * i:.1f} {i} 0 0 0 0 0 1\n" for i in range(n)))
-    return pts
+    """Raw npy frames and a GT file (test_data_convert_batch_mutants' helper, seed 5)."""
+    return npy_frame_folder(folder, n, points, seed=5)
 
 
 def test_a_cut_is_named_by_its_frames_unless_a_name_is_given(tmp_path):

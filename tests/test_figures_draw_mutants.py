@@ -13,13 +13,13 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from helpers_figure_runs import capture, lines_by_label, rot_z, straight, write_run
 
 import bench.report.figures.draw as draw
 from bench.guard import Refused
 from bench.report.figures.style import COLUMN_IN, PRIOR_NOTE, color
 from bench.report.names import display_name
 from bench.runs.folders import load_runs
+from helpers_figure_runs import capture, lines_by_label, rot_z, straight, write_run
 from loaders.se3 import make_T
 
 ICP, GICP = display_name("icp-p2p"), display_name("gicp")

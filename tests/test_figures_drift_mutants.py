@@ -9,11 +9,11 @@ from __future__ import annotations
 from types import SimpleNamespace
 
 import numpy as np
-from helpers_figure_runs import capture, rot_z, straight
 
 import bench.report.figures.drift as drift
 from bench.report.figures.style import PRIOR_NOTE, color
 from bench.report.names import display_name
+from helpers_figure_runs import capture, rot_z, straight
 
 N = 11
 

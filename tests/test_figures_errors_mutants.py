@@ -12,12 +12,12 @@ from __future__ import annotations
 import matplotlib.colors as mcolors
 import numpy as np
 import pytest
-from helpers_figure_runs import capture, lines_by_label, rot_z, straight, write_run
 
 import bench.report.figures.errors as errors
 from bench.report.figures.style import PRIOR_NOTE, SMALL_PT, color
 from bench.report.names import display_name
 from bench.runs.folders import load_runs
+from helpers_figure_runs import capture, lines_by_label, rot_z, straight, write_run
 from loaders.errors import DataError
 from metrics.relative import segment_errors
 

@@ -10,11 +10,11 @@ from __future__ import annotations
 import matplotlib.colors as mcolors
 import numpy as np
 import pytest
-from helpers_figure_runs import capture
 from scipy.spatial import cKDTree
 
 import bench.report.figures.pair as pair
 from conftest import constant_twist_sequence
+from helpers_figure_runs import capture
 from loaders.errors import DataError
 from loaders.se3 import inv_T, transform_points
 from loaders.store import write_store

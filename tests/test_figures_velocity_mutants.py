@@ -10,11 +10,11 @@ from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from helpers_figure_runs import capture, straight
 
 import bench.report.figures.velocity as velocity
 from bench.report.figures.style import color, line_kwargs
 from bench.report.names import display_name
+from helpers_figure_runs import capture, straight
 from metrics.velocity import DEFAULT_WINDOW_S
 
 DT = 0.125  # [s]: the windows' stamps are exact in binary

@@ -9,7 +9,6 @@ import math
 from pathlib import Path
 
 import numpy as np
-from helpers_figure_runs import straight, write_run
 
 from bench.report import dataframe
 from bench.runs.folders import RunRecord
@@ -22,6 +21,7 @@ from bench.runs.result import (
     TimingStats,
     VelocityResult,
 )
+from helpers_figure_runs import straight, write_run
 
 
 def _full(tmp_path: Path) -> RunRecord:
