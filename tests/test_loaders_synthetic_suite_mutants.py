@@ -149,3 +149,30 @@ def test_store_is_current_false_cases(tmp_path):
     path = write_store(other.sequence("s"), tmp_path / "other.h5")
     assert store_is_current(path, other)
     assert not store_is_current(path, TINY)
+
+
+def test_sequence_passes_seed_noise_and_options():
+    noisy = SuiteEntry("n", "N", SPARSE_RADAR, "campus", "radar-sparse", 2, 9, {"points": 50})
+    seq = noisy.sequence()
+    assert (seq.seed, seq.noise) == (9, True)
+    assert seq.options["points"] == 50
+    quiet = TINY.sequence()
+    assert (quiet.seed, quiet.noise) == (7, False)
+
+
+def test_clean_entry_drops_gt_and_keeps_the_rest():
+    entry = SuiteEntry("a", "A", SPARSE_RADAR, "campus", "radar-sparse", 3, 5,
+                       {"gt": "campus", "uturn": True}, imitates="I")
+    clean = suite._clean(entry)
+    assert clean.options == {"uturn": True}
+    assert (clean.name, clean.seed, clean.frames, clean.imitates) == ("a", 5, 3, "I")
+    assert entry.options == {"gt": "campus", "uturn": True}
+
+
+def test_entry_hash_takes_options_json_cannot_encode():
+    from pathlib import Path
+
+    entry = SuiteEntry("p", "P", SPARSE_RADAR, "campus", "radar-sparse", 2, 1,
+                       {"path": Path("x")})
+    as_text = SuiteEntry("p", "P", SPARSE_RADAR, "campus", "radar-sparse", 2, 1, {"path": "x"})
+    assert entry.entry_hash("c") == as_text.entry_hash("c")
