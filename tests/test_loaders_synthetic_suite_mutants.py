@@ -176,3 +176,11 @@ def test_entry_hash_takes_options_json_cannot_encode():
                        {"path": Path("x")})
     as_text = SuiteEntry("p", "P", SPARSE_RADAR, "campus", "radar-sparse", 2, 1, {"path": "x"})
     assert entry.entry_hash("c") == as_text.entry_hash("c")
+
+
+def test_suite_adds_exactly_its_own_provenance_keys():
+    from loaders.synthetic.generate import SyntheticSequence
+
+    plain = SyntheticSequence("campus", "radar-sparse", 2, 7, False, name="tiny", points=50)
+    added = set(TINY.sequence("s").provenance) - set(plain.provenance)
+    assert added == {"suite", "display_name", "class", "suite_entry_hash"}
