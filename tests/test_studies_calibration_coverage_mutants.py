@@ -122,7 +122,7 @@ def test_lines_name_an_angle_never_observed():
 
 
 def test_no_seed_is_an_error():
-    with pytest.raises(ValueError, match="at least one seed"):
+    with pytest.raises(ValueError, match="^calibration coverage needs at least one seed$"):
         cc.calibration_coverage([])
 
 
@@ -135,6 +135,8 @@ def test_the_loop_passes_its_settings(monkeypatch):
         made.append((scene, sensor, frames, seed, noise, opts))
         return SimpleNamespace(seed=seed)
 
+    rotations = []
+
     def fake_cal(seq, bootstrap, seed):
         calls.append((seq.base.seed, bootstrap, seed))
         return _cal({"roll": 1.0, "pitch": 2.0, "yaw": -1.5},
@@ -143,18 +145,29 @@ def test_the_loop_passes_its_settings(monkeypatch):
 
     monkeypatch.setattr(loaders.synthetic, "SyntheticSequence", fake_seq)
     monkeypatch.setattr(cc, "calibrate_sequence", fake_cal)
-    monkeypatch.setattr(cc, "CorrectedSequence", lambda base, R: SimpleNamespace(base=base, R=R))
-    seen = []
+    monkeypatch.setattr(cc, "CorrectedSequence",
+                        lambda base, R: rotations.append(R) or SimpleNamespace(base=base, R=R))
+    seen, got = [], []
+    truth = {"roll": 0.5, "pitch": -1.0, "yaw": 2.0}
+
+    def progress(s, cal):
+        seen.append(s)
+        got.append(cal.block.frames)
+
     cov = cc.calibration_coverage(np.array([4, 9]), frames=33, scene="campus", sensor="x",
-                                  bootstrap=7, progress=lambda s, cal: seen.append(s))
+                                  bootstrap=7, truth_deg=truth, progress=progress)
     assert made == [("campus", "x", 33, 4, True, {"edge_band": True}),
                     ("campus", "x", 33, 9, True, {"edge_band": True})]
     assert all(type(m[3]) is int for m in made)
     assert calls == [(4, 7, 4), (9, 7, 9)]
     assert seen == [4, 9] and all(type(s) is int for s in seen)
-    assert cov.level == 0.95 and cov.truth_deg == TRUTH_DEG
+    R = _rz(2.0) @ _ry(-1.0) @ _rx(0.5)
+    np.testing.assert_allclose(rotations[0], R.T, atol=1e-12)
+    assert got == [4, 9]  # progress is given each result
+    assert cov.level == 0.95 and cov.truth_deg == truth
     assert cov.blocks == [4, 9]
-    assert cov.rate() == pytest.approx(1.0)
+    # truth: roll 0.5 in (0, 2); pitch -1.0 not in (0, 3); yaw 2.0 not in (-2, -1)
+    assert cov.covered == {"roll": 2, "pitch": 0, "yaw": 0}
 
 
 def test_defaults_of_the_loop(monkeypatch):
@@ -187,3 +200,16 @@ def test_a_real_small_run_covers_with_small_errors():
     for ax, errs in cov.errors_deg.items():
         # a tilt of a few degrees is recovered to well under half a degree
         assert all(abs(e) < 0.5 for e in errs), ax
+
+
+def test_an_unobservable_first_angle_skips_only_itself():
+    cov = Coverage(0.95, dict(TRUTH))
+    cov.add(_cal({"roll": 0.0, "pitch": 2.1, "yaw": -1.5},
+                 {"roll": (0, 0), "pitch": (1.9, 2.3), "yaw": (-1.7, -1.3)},
+                 {"roll": 0.1, "pitch": 0.1, "yaw": 0.1}, frames=4, hidden=("roll",)))
+    assert cov.tried == {"roll": 0, "pitch": 1, "yaw": 1}
+    lines = cov.lines()
+    assert lines[0] == "  roll  not observable in any sequence"
+    assert lines[1].startswith("  pitch 1/1 covered (100.0 %")
+    assert lines[2].startswith("  yaw   1/1 covered (100.0 %")
+    assert len(lines) == 4
