@@ -135,8 +135,9 @@ class _Console:
         self.lines.append(text)
 
 
-def _stub_runner(monkeypatch, tmp_path, current, status="done"):
-    """Replace the experiment and its runner; returns what they were called with."""
+def _stub_runner(monkeypatch, tmp_path, current, status="done", console=None):
+    """Replace the experiment and its runner, each checking what it is handed; returns the
+    experiment and what the runner and snapshot saw."""
     import bench.runs.experiment as experiment
     import bench.runs.job as job
     import bench.runs.plan as plan
@@ -144,22 +145,35 @@ def _stub_runner(monkeypatch, tmp_path, current, status="done"):
 
     exp = SimpleNamespace(data_dir=None, out=None, out_dir=tmp_path / "out")
     seen = {}
-    monkeypatch.setattr(experiment, "load_experiment", lambda path: exp)
-    monkeypatch.setattr(plan, "jobs_for_experiment", lambda e, console: ["job"])
-    monkeypatch.setattr(plan, "plan", lambda jobs: jobs)
 
-    def run_jobs(jobs, console, n):
+    def load_experiment(path):
+        assert path == rg.CI_EXPERIMENT
+        return exp
+
+    def jobs_for_experiment(e, con):
+        assert e is exp and isinstance(con, _Console)
+        seen["console"] = con
+        return ["job"]
+
+    def plan_jobs(jobs):
+        assert jobs == ["job"]
+        return ["planned"]
+
+    def run_jobs(jobs, con, n):
+        assert jobs == ["planned"] and con is seen["console"]
         seen["jobs"] = n
         return [SimpleNamespace(status=status, run_dir=tmp_path / "r1"),
                 SimpleNamespace(status="skipped", run_dir=tmp_path / "r2")]
-
-    monkeypatch.setattr(progress, "run_jobs", run_jobs)
-    monkeypatch.setattr(job, "summarize", lambda outcomes: "SUMMARY")
 
     def snapshot(out_dir, only):
         seen["snapshot"] = (out_dir, only)
         return current
 
+    monkeypatch.setattr(experiment, "load_experiment", load_experiment)
+    monkeypatch.setattr(plan, "jobs_for_experiment", jobs_for_experiment)
+    monkeypatch.setattr(plan, "plan", plan_jobs)
+    monkeypatch.setattr(progress, "run_jobs", run_jobs)
+    monkeypatch.setattr(job, "summarize", lambda outcomes: f"SUMMARY of {len(outcomes)}")
     monkeypatch.setattr(rg, "snapshot", snapshot)
     monkeypatch.setattr(rg, "BASELINE", tmp_path / "baseline.json")
     return exp, seen
@@ -189,7 +203,7 @@ def test_command_passes_on_an_equal_baseline(tmp_path, monkeypatch):
 def test_command_fails_when_a_run_fails(tmp_path, monkeypatch):
     _stub_runner(monkeypatch, tmp_path, {}, status="failed")
     code, lines = _command(tmp_path)
-    assert code == 1 and lines == ["SUMMARY"]
+    assert code == 1 and lines == ["SUMMARY of 2"]
 
 
 def test_command_reports_and_advises(tmp_path, monkeypatch):
@@ -246,3 +260,99 @@ def test_command_update_writes_the_baseline_new_or_replaced(tmp_path, monkeypatc
     code, lines = _command(tmp_path, update=True)  # an old one: replaced
     assert code == 0 and rg.read_baseline(rg.BASELINE) == current
     assert lines[-1] == f"baseline updated: {rg.BASELINE} (1 changes)"
+
+
+def test_command_update_compares_with_the_old_baseline_first(tmp_path, monkeypatch):
+    current = {"s/m/-": _run({"8": 1.0}, {})}
+    _stub_runner(monkeypatch, tmp_path, current)
+    rg.write_baseline({"s/m/-": _run({"8": 2.0}, {})}, rg.BASELINE)
+    code, lines = _command(tmp_path, update=True)
+    assert code == 0 and rg.read_baseline(rg.BASELINE) == current
+    assert lines == ["! improved: review  s/m/-  rot_deg at 8 m: 2.0000 -> 1.0000",
+                     f"baseline updated: {rg.BASELINE} (1 changes)"]
+
+
+def test_command_improvements_fail_by_default(tmp_path, monkeypatch):
+    _stub_runner(monkeypatch, tmp_path, {"b/m/-": _run({"8": 0.5}, {})})
+    rg.write_baseline({"b/m/-": _run({"8": 1.0}, {})}, rg.BASELINE)
+    assert rg.regress_command(_Console(), False, 0.10, 1) == 1
+
+
+def test_run_keys_name_sequence_method_and_seed_option():
+    from methods.registry import Seed
+
+    def key(seed):
+        return rg._key(SimpleNamespace(sequence="seq", method="meth", seed=seed))
+
+    assert [key(s) for s in (Seed.WITH, Seed.WITHOUT, Seed.NONE)] == \
+        ["seq/meth/seed", "seq/meth/noseed", "seq/meth/-"]
+
+
+def test_snapshot_keeps_scored_lengths_of_the_selected_runs(tmp_path, monkeypatch):
+    from methods.registry import Seed
+
+    def length(m, n, rot, trans):
+        return SimpleNamespace(length_m=m, n=n, rot_deg_mean=rot, trans_m_mean=trans)
+
+    def run(seq, diverged, errors):
+        return SimpleNamespace(result=SimpleNamespace(
+            sequence=seq, method="m", seed=Seed.NONE, diverged=diverged,
+            relative_error=errors))
+
+    seen = {}
+
+    def load_runs(results_dir, only):
+        seen["args"] = (results_dir, only)
+        return [run("z", 0, [length(8.0, 2, 0.5, 0.25)]),
+                run("a", 1, [length(16.0, 4, 1.5, 0.75), length(24.0, 0, 9.0, 9.0),
+                             length(2.5, 1, 0.1, 0.2)])]
+
+    monkeypatch.setattr(rg, "load_runs", load_runs)
+    only = {tmp_path / "r"}
+    snap = rg.snapshot(tmp_path, only)
+    assert seen["args"] == (tmp_path, only)
+    assert list(snap) == ["a/m/-", "z/m/-"]
+    assert snap["a/m/-"] == {"diverged": True, "rot_deg": {"16": 1.5, "2.5": 0.1},
+                             "trans_m": {"16": 0.75, "2.5": 0.2}}
+    assert snap["a/m/-"]["diverged"] is True and snap["z/m/-"]["diverged"] is False
+    assert snap["z/m/-"] == {"diverged": False, "rot_deg": {"8": 0.5}, "trans_m": {"8": 0.25}}
+
+
+def test_check_goes_on_past_a_non_finite_length_and_a_new_run():
+    base = {"b": _run({"8": math.nan, "16": 1.0}, {})}
+    cur = {"a": _run({}, {}), "b": _run({"8": 1.0, "16": 2.0}, {})}
+    got = [(f.run, f.what, f.kind) for f in rg.check(base, cur)]
+    assert got == [("a", "run", rg.NEW_RUN), ("b", "rot_deg at 16 m", rg.REGRESSION)]
+
+
+def test_a_missing_length_names_its_run():
+    (f,) = rg.check({"s/m/-": _run({"8": 1.0}, {})}, {"s/m/-": _run({}, {})})
+    assert f.run == "s/m/-" and f.kind == rg.REGRESSION
+
+
+def test_exactly_at_the_threshold_is_not_beyond_it():
+    # from the definition: beyond old * (1 +- tolerance) +- floor, so the edge itself is not
+    up, down = 1.0 * (1 + 0.5) + 0.01, 1.0 * (1 - 0.5) - 0.01
+    assert _one(1.0, up, tolerance=0.5)[0].kind == rg.CHANGED
+    assert _one(1.0, down, tolerance=0.5)[0].kind == rg.CHANGED
+    # a difference of exactly 1e-9 is rounding, not a change
+    assert _one(0.0, 1e-9) == []
+
+
+def test_write_baseline_refuses_a_foreign_file_naming_what_it_writes(tmp_path):
+    from bench.guard import Refused
+
+    path = tmp_path / "b.json"
+    path.write_text('{"runs": {}}')
+    with pytest.raises(Refused, match="is not a regress baseline the harness wrote"):
+        rg.write_baseline({}, path)
+    assert path.read_text() == '{"runs": {}}'
+
+
+def test_rewriting_the_committed_baseline_gives_the_same_bytes(tmp_path):
+    """The committed file, read and written back: byte for byte (its layout, one value a line,
+    and its ``about``), so an --update with nothing changed leaves no diff to review."""
+    committed = rg.BASELINE.read_text()
+    path = tmp_path / "b.json"
+    rg.write_baseline(rg.read_baseline(), path)
+    assert path.read_text() == committed
