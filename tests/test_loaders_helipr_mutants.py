@@ -267,3 +267,51 @@ def test_reconstruction_clips_offsets_beyond_the_period(tmp_path):
         d = p / np.linalg.norm(p, axis=1, keepdims=True)
         np.testing.assert_allclose(seq[i].doppler,
                                    vel[seq._keep[i]] - d[:, 0] * SPEED, atol=1e-4)
+
+
+def test_read_errors_name_the_stamp_layout_and_the_other_one(tmp_path):
+    b = INTENSITY_AFTER_NS
+    stamps = np.array([b - 50_000_000, b + 50_000_000, b + 150_000_000], dtype=np.int64)
+    pts = [np.full((4, 3), 5.0, np.float32)] * 3
+    vel = [np.zeros(4, np.float32)] * 3
+    gt_ns = b - 300_000_000 + 100_000_000 * np.arange(8, dtype=np.int64)
+    root = write_helipr(tmp_path / "r", stamps, pts, vel, gt_ns, np.stack([np.eye(4)] * 8))
+    files = [root / "LiDAR" / "Aeva" / f"{t}.bin" for t in stamps]
+    seq = HeliprSequence(root)
+    files[0].write_bytes(b"")
+    with pytest.raises(DataError, match=rf"frame 0: empty file \(0 bytes\); expected HeLiPR Aeva "
+                                        rf"25-byte records \(without intensity: stamp at or "
+                                        rf"before {b} ns\)"):
+        seq[0]
+    np.zeros(2, RECORD_25).tofile(files[1])  # 50 bytes: two 25-byte records, not 29-byte ones
+    with pytest.raises(DataError, match=rf"frame 1: 50 bytes is not a whole number of 29-byte "
+                                        rf"records \(HeLiPR Aeva 29-byte records \(with "
+                                        rf"intensity: stamp after {b} ns\).*the 25-byte layout "
+                                        r"\(without intensity\) \(25 bytes a point\)"):
+        seq[1]
+    # 29 plausible 25-byte records (725 bytes, also 25 29-byte ones) under an intensity stamp
+    rec = np.zeros(29, RECORD_25)
+    rec["x"] = 10.0
+    rec["reflectivity"] = 1e30
+    rec["velocity"] = 1e30
+    rec.tofile(files[2])
+    with pytest.raises(DataError, match=r"frame 2: read as 29-byte records \(with intensity\) "
+                                        r"\(the layout of its stamp\).*read as 25-byte records "
+                                        r"\(without intensity\) they are plausible"):
+        seq[2]
+
+
+def test_one_impossible_point_in_a_hundred_is_tolerated(tmp_path):
+    """MAX_FAR_SHARE is 1 %: a share of exactly 1 % is still read (the NaN point dropped)."""
+    rng = np.random.default_rng(3)
+    p = rng.uniform(5, 20, (100, 3)).astype(np.float32)
+    p[7, 1] = np.nan
+    root, *_ = small_sequence(tmp_path / "s", n=100)
+    f = sorted((root / "LiDAR" / "Aeva").iterdir())[0]
+    rec = np.zeros(100, RECORD_25)
+    rec["x"], rec["y"], rec["z"] = p[:, 0], p[:, 1], p[:, 2]
+    rec.tofile(f)
+    with pytest.warns(UserWarning, match="dropped 1 of 100 points"):
+        s = HeliprSequence(root)[0]
+    assert len(s.points) == 99
+    np.testing.assert_array_equal(s.points.astype(np.float32), np.delete(p, 7, axis=0))
