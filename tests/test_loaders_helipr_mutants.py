@@ -92,6 +92,7 @@ def test_doppler_sign_minus_one_flips_and_other_signs_are_refused(tmp_path):
     root, pts, vel, _ = small_sequence(tmp_path / "s")
     seq = HeliprSequence(root, doppler_sign=-1)
     assert seq.doppler_sign == -1.0 and seq.provenance["doppler_sign"] == -1.0
+    assert seq.options.doppler_sign == -1.0
     np.testing.assert_allclose(seq[1].doppler, -vel[1].astype(np.float64), atol=0)
     with pytest.raises(DataError, match="doppler_sign must be"):
         HeliprSequence(root, doppler_sign=0.5)
@@ -127,6 +128,9 @@ def test_a_truncated_file_is_refused_when_opened(tmp_path):
     f = sorted((root / "LiDAR" / "Aeva").iterdir())[1]
     f.write_bytes(f.read_bytes()[:-3])  # 497 bytes: neither 25 nor 29 divides it
     with pytest.raises(DataError, match=rf"{f.name}, frame 1: 497 bytes.*truncated or not this"):
+        HeliprSequence(root)
+    f.write_bytes(b"x")  # one byte: not empty, not a record
+    with pytest.raises(DataError, match=rf"{f.name}, frame 1: 1 bytes.*truncated or not this"):
         HeliprSequence(root)
 
 
@@ -167,6 +171,10 @@ def test_folder_and_stamp_errors(tmp_path):
     np.zeros(2, RECORD_25).tofile(aeva / "100.bin")
     np.zeros(2, RECORD_25).tofile(aeva / "0100.bin")
     with pytest.raises(DataError, match="two scans share a stamp"):
+        HeliprSequence(tmp_path / "x")
+    (aeva / "0100.bin").unlink()
+    (aeva / "99999999999999999999.bin").write_bytes(b"")  # 20 digits: beyond a ns stamp
+    with pytest.raises(DataError, match=r"99999999999999999999\.bin: the number in the file"):
         HeliprSequence(tmp_path / "x")
 
 
