@@ -194,7 +194,11 @@ def test_gt_option_extrinsic_and_uncovered(tmp_path):
     root, _, _, stamps = small_sequence(tmp_path / "s")
     gt = root / "LiDAR_GT" / "Aeva_gt.txt"
     moved = gt.rename(tmp_path / "elsewhere.txt")
-    assert HeliprSequence(root).ground_truth is None
+    plain = HeliprSequence(root)
+    assert plain.ground_truth is None and len(plain) == 4
+    with pytest.raises(DataError, match=r"neither LiDAR_GT/Aeva_gt\.txt nor "
+                                        r"LiDAR_GT/global_Aeva_gt\.txt exists \(or give gt=FILE\)"):
+        HeliprSequence(root, reconstruct_doppler_from_gt=True)
     seq = HeliprSequence(root, gt=moved, extrinsic="1 2 3 0 0 0 1")
     assert seq.provenance["calibration_source"] == "option extrinsic"
     np.testing.assert_allclose(seq.sensor.T_body_sensor[:3, 3], [1, 2, 3])
