@@ -327,3 +327,20 @@ def test_one_impossible_point_in_a_hundred_is_tolerated(tmp_path):
         s = HeliprSequence(root)[0]
     assert len(s.points) == 99
     np.testing.assert_array_equal(s.points.astype(np.float32), np.delete(p, 7, axis=0))
+
+
+def test_a_single_scan_has_the_nominal_period(tmp_path):
+    root, *_ = small_sequence(tmp_path / "one", frames=1)
+    seq = HeliprSequence(root)
+    assert len(seq) == 1 and seq.sensor.period_s == pytest.approx(0.1)
+
+
+def test_max_gap_option_decides_what_gt_hole_is_interpolated(tmp_path):
+    root, *_ = small_sequence(tmp_path / "s", frames=4)
+    gt = root / "LiDAR_GT" / "Aeva_gt.txt"
+    rows = gt.read_text().splitlines(keepends=True)
+    # GT every 0.05 s from 0.2 s before scan 0; drop rows 5..8: a 0.25 s hole around scan 1
+    gt.write_text("".join(rows[:5] + rows[9:]))
+    assert len(HeliprSequence(root, uncovered="error").ground_truth) == 4  # default 0.3 s
+    with pytest.raises(DataError):
+        HeliprSequence(root, uncovered="error", max_gap=0.2)
