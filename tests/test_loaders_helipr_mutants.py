@@ -344,3 +344,25 @@ def test_max_gap_option_decides_what_gt_hole_is_interpolated(tmp_path):
     assert len(HeliprSequence(root, uncovered="error").ground_truth) == 4  # default 0.3 s
     with pytest.raises(DataError):
         HeliprSequence(root, uncovered="error", max_gap=0.2)
+
+
+def test_reconstruction_shifts_the_gt_by_the_time_offset(tmp_path):
+    """GT x = (s - g0)^2 on the GT clock; the sensor clock is GT + tau, so the sensor speed at
+    sensor time t is 2 (t - tau - g0), and a point's raw radial velocity -d_x times that."""
+    tau = 0.05
+    stamps = T0_NS + 100_000_000 * np.arange(3, dtype=np.int64)
+    rng = np.random.default_rng(4)
+    pts = [rng.uniform([5, -10, -1], [30, 10, 1], (10, 3)).astype(np.float32) for _ in stamps]
+    vel = [np.zeros(10, np.float32)] * 3
+    gt_ns = stamps[0] - 300_000_000 + 50_000_000 * np.arange(20, dtype=np.int64)
+    g = (gt_ns - gt_ns[0]) * 1e-9
+    poses = np.stack([make_T(np.eye(3), [s * s, 0.0, 0.0]) for s in g])
+    root = write_helipr(tmp_path / "acc", stamps, pts, vel, gt_ns, poses)
+    seq = HeliprSequence(root, reconstruct_doppler_from_gt=True, time_offset=tau)
+    assert len(seq) == 3
+    offsets = np.linspace(0, 99_000_000, 10).astype(np.int32) * 1e-9
+    for i in range(3):
+        p = pts[i].astype(np.float64)
+        d = p / np.linalg.norm(p, axis=1, keepdims=True)
+        t_rel = (stamps[i] - gt_ns[0]) * 1e-9 + offsets
+        np.testing.assert_allclose(seq[i].doppler, -d[:, 0] * 2 * (t_rel - tau), atol=1e-3)
