@@ -366,3 +366,15 @@ def test_reconstruction_shifts_the_gt_by_the_time_offset(tmp_path):
         d = p / np.linalg.norm(p, axis=1, keepdims=True)
         t_rel = (stamps[i] - gt_ns[0]) * 1e-9 + offsets
         np.testing.assert_allclose(seq[i].doppler, -d[:, 0] * 2 * (t_rel - tau), atol=1e-3)
+
+
+def test_a_gt_gap_names_the_first_scan_inside_it(tmp_path):
+    root, *_ = small_sequence(tmp_path / "s", frames=5)
+    files = sorted((root / "LiDAR" / "Aeva").iterdir())
+    gt = root / "LiDAR_GT" / "Aeva_gt.txt"
+    rows = gt.read_text().splitlines(keepends=True)
+    gt.write_text("".join(rows[:5] + rows[11:]))  # no GT from 0.05 to 0.3 s: scans 1..3
+    with pytest.raises(DataError, match=rf"{files[1].name}, frame 1: inside a gap of .* "
+                                        r"cannot be reconstructed from the GT; cut the sequence"), \
+            pytest.warns(UserWarning):
+        HeliprSequence(root, reconstruct_doppler_from_gt=True)
