@@ -159,8 +159,15 @@ def test_a_mixed_sequence_drops_intensity_from_every_frame(tmp_path):
 # --- stamps, folders, GT -------------------------------------------------------------------
 
 def test_folder_and_stamp_errors(tmp_path):
-    with pytest.raises(DataError, match="not found; expected a HeLiPR"):
+    with pytest.raises(DataError, match=r"missing: not found; expected a HeLiPR/HeRCULES "
+                                        r"sequence folder with LiDAR/Aeva/<t_ns>\.bin and "
+                                        r"LiDAR_GT/Aeva_gt\.txt$"):
         find_aeva_dir(tmp_path / "missing")
+    (tmp_path / "other" / "Aeva").mkdir(parents=True)  # an Aeva folder not under LiDAR
+    with pytest.raises(DataError, match=r"Aeva: no LiDAR/Aeva folder; expected a HeLiPR/HeRCULES "
+                                        r"sequence folder with LiDAR/Aeva/<t_ns>\.bin and "
+                                        r"LiDAR_GT/Aeva_gt\.txt \(or global_Aeva_gt\.txt\)"):
+        find_aeva_dir(tmp_path / "other" / "Aeva")
     (tmp_path / "x" / "LiDAR" / "Aeva").mkdir(parents=True)
     root, aeva = find_aeva_dir(tmp_path / "x" / "LiDAR" / "Aeva")
     assert root == tmp_path / "x" and aeva == tmp_path / "x" / "LiDAR" / "Aeva"
@@ -323,8 +330,10 @@ def test_one_impossible_point_in_a_hundred_is_tolerated(tmp_path):
     rec = np.zeros(100, RECORD_25)
     rec["x"], rec["y"], rec["z"] = p[:, 0], p[:, 1], p[:, 2]
     rec.tofile(f)
-    with pytest.warns(UserWarning, match="dropped 1 of 100 points"):
-        s = HeliprSequence(root)[0]
+    seq = HeliprSequence(root)
+    with pytest.warns(UserWarning, match=rf"{f.name}, frame 0: dropped 1 of 100 points"):
+        s = seq[0]
+    assert seq.provenance["nan_points_dropped"] == 1
     assert len(s.points) == 99
     np.testing.assert_array_equal(s.points.astype(np.float32), np.delete(p, 7, axis=0))
 
