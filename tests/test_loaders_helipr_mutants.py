@@ -387,3 +387,16 @@ def test_a_gt_gap_names_the_first_scan_inside_it(tmp_path):
                                         r"cannot be reconstructed from the GT; cut the sequence"), \
             pytest.warns(UserWarning):
         HeliprSequence(root, reconstruct_doppler_from_gt=True)
+
+
+def test_a_25_byte_file_under_an_intensity_stamp_is_refused_when_opened(tmp_path):
+    root, *_ = small_sequence(tmp_path / "s", t0_ns=INTENSITY_AFTER_NS + 1_000_000_000)
+    f = sorted((root / "LiDAR" / "Aeva").iterdir())[1]
+    np.zeros(2, RECORD_25).tofile(f)  # 50 bytes: two 25-byte records, not 29-byte ones
+    with pytest.raises(DataError, match=rf"{f.name}, frame 1: 50 bytes is not a whole number of "
+                                        r"29-byte records \(with intensity\), the layout of its "
+                                        r"stamp.*; it is a whole number of 25-byte records "
+                                        r"\(without intensity\): the sequence mixes the two "
+                                        r"layouts \(set --intensity yes/no for the whole "
+                                        r"sequence, or remove the frame\)"):
+        HeliprSequence(root)
