@@ -21,6 +21,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from bench.data.inspect_checks import clock_offset_lines
+from loaders.gt import nearest_indices
 from loaders.store import StoreSequence
 from loaders.trajectory import Trajectory
 
@@ -48,20 +49,11 @@ def windows(n: int) -> list[tuple[str, slice]]:
     return out + [(f"frames {a}-{a + 100}", slice(a, a + 100)) for a in range(0, n - 99, 25)]
 
 
-def nearest_rows(stamps: np.ndarray, query: np.ndarray) -> np.ndarray:
-    """The index of the stamp (sorted ``stamps``) nearest each of ``query``."""
-    if len(stamps) < 2:
-        return np.zeros(len(query), dtype=int)
-    after = np.clip(np.searchsorted(stamps, query), 1, len(stamps) - 1)
-    before_nearer = query - stamps[after - 1] <= stamps[after] - query
-    return np.where(before_nearer, after - 1, after)
-
-
 def variants(gt: Trajectory, rng: np.random.Generator) -> list[tuple[str, float | None,
                                                                      Trajectory]]:
     jit = gt.poses.copy()
     jit[:, :3, 3] += rng.normal(0, 0.02, (len(gt), 3))
-    idx = nearest_rows(gt.stamps, np.round(gt.stamps / 0.1) * 0.1)
+    idx = nearest_indices(gt.stamps, np.round(gt.stamps / 0.1) * 0.1)[0]
     out = [("as is", None, gt), ("GT jittered 2 cm", None, Trajectory(gt.stamps, jit)),
            ("GT from 10 Hz, nearest", None, Trajectory(gt.stamps, gt.poses[idx]))]
     for lag in LAGS_S:
