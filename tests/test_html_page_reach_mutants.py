@@ -158,5 +158,7 @@ def test_a_table_file_older_than_the_newest_run_by_more_than_1_ms(tmp_path):
     os.utime(f, ns=(100_000_000_000, 100_000_000_000))  # mtime 100 s exactly
     assert P._stale_note(f, 100.002) != ""
     assert P._stale_note(f, 100.0009) == ""
+    assert 100.001 - 1e-3 == 100.0  # exactly 1 ms older (no rounding here): not stale yet
+    assert P._stale_note(f, 100.001) == ""
     assert P._stale_note(f, 99.0) == ""
     assert P._stale_note(f, 0.0) == ""  # no run record: nothing to be stale against
