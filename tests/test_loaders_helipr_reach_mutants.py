@@ -66,6 +66,17 @@ def test_a_size_of_neither_layout_says_truncated(tmp_path):
                         "not this layout")
 
 
+def test_a_25_byte_stamp_file_of_29_byte_records_says_the_layouts_are_mixed(tmp_path):
+    """check_layouts 35: 58 bytes under a 25-byte stamp is two 29-byte records (58 % 25 = 8)."""
+    root, _ = straight(tmp_path / "s")
+    f = aeva_files(root)[0]
+    f.write_bytes(bytes(58))
+    with pytest.raises(DataError) as err:
+        HeliprSequence(root)
+    assert "; it is a whole number of 29-byte records (with intensity): the sequence mixes " \
+        "the two layouts" in str(err.value)
+
+
 # --- sensor_velocity -------------------------------------------------------------------------
 
 def test_sensor_velocity_window_is_the_whole_span_for_gt_not_starting_at_zero():
@@ -117,6 +128,44 @@ def test_gt_holes_in_0_2_s_steps_are_bridged_up_to_0_6_s(tmp_path, dropped, hole
     np.testing.assert_allclose(seq.ground_truth.stamps, stamps[~inside] * 1e-9, atol=1e-6)
 
 
+def test_a_gt_file_going_backwards_is_named(tmp_path):
+    """__init__ 139/141/143: the GT checks name the GT file and the pose row."""
+    root, _ = straight(tmp_path / "s")
+    gt = root / "LiDAR_GT" / "Aeva_gt.txt"
+    rows = gt.read_text().splitlines(keepends=True)
+    rows[3], rows[4] = rows[4], rows[3]
+    gt.write_text("".join(rows))
+    with pytest.raises(DataError) as err:
+        HeliprSequence(root)
+    assert str(err.value).startswith(f"{gt}, pose row 4: stamp ")
+
+
+def test_a_single_gt_row_has_the_nominal_step(tmp_path):
+    """__init__ 148: one GT row has no step: the default max gap is 3 x 0.1 s (the nominal
+    period), 0.3 s; the scan at the row's stamp is covered, the next one is not."""
+    root, stamps = straight(tmp_path / "s", frames=2)
+    gt = root / "LiDAR_GT" / "Aeva_gt.txt"
+    rows = gt.read_text().splitlines(keepends=True)
+    gt.write_text(rows[6])  # 0.3 s after the first row (0.3 s before scan 0): scan 0's stamp
+    assert rows[6].startswith(f"{stamps[0]} ")
+    with pytest.warns(UserWarning, match="have no ground truth"):
+        seq = HeliprSequence(root)
+    assert seq.provenance["gt_association"]["max_gap_s"] == pytest.approx(0.3)
+    np.testing.assert_allclose(seq.ground_truth.stamps, [stamps[0] * 1e-9], atol=1e-6)
+
+
+def test_provenance_says_where_the_calibration_and_the_velocity_come_from(tmp_path):
+    """__init__ 114/115/122/124-126: the identity extrinsic and the ego-compensated velocity,
+    with the maintainers' statement cited."""
+    root, _ = straight(tmp_path / "s")
+    prov = HeliprSequence(root).provenance
+    assert prov["calibration_source"].startswith("identity: ")
+    assert "the GT file is the Aeva frame's pose" in prov["calibration_source"]
+    assert prov["doppler_source"].startswith("velocity field, ego-motion compensated by the "
+                                             "sensor ")
+    assert prov["doppler_source"].endswith("(HeLiPR-File-Player issue #4)")
+
+
 def test_association_errors_name_the_scan_folder(tmp_path):
     """__init__ 175/183: uncovered='error' names the Aeva folder and the first uncovered
     frame."""
@@ -144,24 +193,44 @@ def test_reconstruction_of_points_at_and_near_the_sensor(tmp_path):
     np.testing.assert_allclose(s.doppler, [-2.0, -2.0, 2.0, 0.0, 0.0], atol=1e-5)
 
 
-def test_reconstruction_holds_the_velocity_outside_one_period(tmp_path):
-    """scan 88/89/99: GT x = g^2 (g seconds from the first GT row), so the sensor speed at g is
-    2 g. Points take it at their own time, clipped to [stamp, stamp + period]: offsets -0.05
-    and 0 s take 2 g_scan, 0.05 s 2 (g_scan + 0.05), 0.15 and 0.25 s 2 (g_scan + 0.1);
-    every point is on +x, so raw = -speed."""
-    offsets_s = np.array([-0.05, 0.0, 0.05, 0.15, 0.25])
-    offsets = [np.round(offsets_s * 1e9).astype(np.int32)] * 3
-    p = np.tile(np.array([[10.0, 0.0, 0.0]], np.float32), (5, 1))
-    stamps = T0_NS + STEP_NS * np.arange(3, dtype=np.int64)
+def accelerating(root, offsets_s, frames=3):
+    """``frames`` scans 0.1 s apart of one point (10, 0, 0) per offset (compensated velocity 0);
+    GT every 0.05 s with x = g^2 (g seconds from the first GT row, 0.3 s before scan 0), so the
+    sensor speed at g is 2 g along +x. Returns (root, scan stamps ns, GT stamps ns)."""
+    offsets = [np.round(np.asarray(offsets_s) * 1e9).astype(np.int32)] * frames
+    p = np.tile(np.array([[10.0, 0.0, 0.0]], np.float32), (len(offsets_s), 1))
+    stamps = T0_NS + STEP_NS * np.arange(frames, dtype=np.int64)
     gt_ns = stamps[0] - 300_000_000 + 50_000_000 * np.arange(20, dtype=np.int64)
     g = (gt_ns - gt_ns[0]) * 1e-9
     poses = np.stack([make_T(np.eye(3), [s * s, 0.0, 0.0]) for s in g])
-    root = write_helipr(tmp_path / "acc", stamps, [p] * 3, [np.zeros(5, np.float32)] * 3,
-                        gt_ns, poses, time_offset_ns=offsets)
+    zeros = [np.zeros(len(offsets_s), np.float32)] * frames
+    write_helipr(root, stamps, [p] * frames, zeros, gt_ns, poses, time_offset_ns=offsets)
+    return root, stamps, gt_ns
+
+
+def test_reconstruction_holds_the_velocity_outside_one_period(tmp_path):
+    """scan 88/89/99: points take the sensor speed 2 g at their own time, clipped to
+    [stamp, stamp + period]: offsets -0.05 and 0 s take 2 g_scan, 0.05 s 2 (g_scan + 0.05),
+    0.15 and 0.25 s 2 (g_scan + 0.1); every point is on +x, so raw = -speed."""
+    offsets_s = np.array([-0.05, 0.0, 0.05, 0.15, 0.25])
+    root, stamps, gt_ns = accelerating(tmp_path / "acc", offsets_s)
     seq = HeliprSequence(root, reconstruct_doppler_from_gt=True)
     g_scan = (stamps[1] - gt_ns[0]) * 1e-9  # 0.4 s
     taken = g_scan + np.clip(offsets_s, 0.0, 0.1)
     np.testing.assert_allclose(seq[1].doppler, -2.0 * taken, atol=1e-4)
+
+
+def test_reconstruction_of_a_single_scan_takes_the_nominal_period(tmp_path):
+    """__init__ 212: one scan has no period of its own: the nominal 0.1 s is the span its
+    points' times are clipped to (offsets 0.05, 0.1 and 0.2 s take 2 (g_scan + 0.05),
+    2 (g_scan + 0.1) twice)."""
+    offsets_s = np.array([0.0, 0.05, 0.1, 0.2])
+    root, stamps, gt_ns = accelerating(tmp_path / "one", offsets_s, frames=1)
+    seq = HeliprSequence(root, reconstruct_doppler_from_gt=True)
+    assert len(seq) == 1
+    g_scan = (stamps[0] - gt_ns[0]) * 1e-9  # 0.3 s
+    taken = g_scan + np.clip(offsets_s, 0.0, 0.1)
+    np.testing.assert_allclose(seq[0].doppler, -2.0 * taken, atol=1e-4)
 
 
 # --- scan: fields ----------------------------------------------------------------------------
