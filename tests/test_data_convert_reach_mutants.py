@@ -104,3 +104,11 @@ def test_stride_keeps_every_kth_frame(tmp_path):
     st = StoreSequence(out)
     np.testing.assert_allclose(st.stamps, [0.0, 0.2, 0.4], atol=1e-9)
     st.close()
+
+
+def test_a_loader_without_a_layout_has_no_layout_paragraph():
+    """loader_command 129/130: the help is the description and the inputs, nothing after."""
+    command = loader_command(PROBE)
+    assert command.help == "a probe loader.\n\nINPUT: probe files."
+    params = {p.name: p for p in command.params}
+    assert params["inputs"].metavar == "INPUT..." and params["inputs"].nargs == -1
