@@ -426,8 +426,9 @@ def test_the_corrected_store_moves_only_the_ground_truth(mounted):
 
 def test_a_corrected_store_without_gt_or_frames():
     seq = _drive(np.eye(3), n=4, gt=False)
-    seq.sensor = SensorInfo("radar", 0.05, np.eye(4), "radar-x", "radial")
+    seq.sensor = SensorInfo("radar", 0.05, np.eye(4), "radar-x", "gt-reconstructed")
     fixed = est.CorrectedSequence(seq, _rot(0, 0, 10))
+    assert fixed.sensor.doppler_kind == "gt-reconstructed"
     assert fixed.ground_truth is None and fixed.provenance["calibration"]["frames"] is None
     assert set(fixed.provenance["calibration"]) == {"R_gt_sensor", "roll_pitch_yaw_deg",
                                                     "applied_to", "frames"}
@@ -447,6 +448,7 @@ def test_inspect_warns_of_a_rotated_mount_only(mounted):
     np.testing.assert_allclose([float(f[1]) for f in found], MOUNT, atol=0.1)
     assert all(float(f[2]) < 0.3 for f in found)
     assert warning.endswith("velocity); see `bench calibrate`")
+    assert warning.count("velocity), ") == 2  # three angles joined by ", "
     # a limit above every angle: nothing off
     assert est.rotation_check(mounted, limit_deg=30.0)[1] is None
     _, only_yaw = est.rotation_check(mounted, limit_deg=4.5)
@@ -458,3 +460,19 @@ def test_inspect_warns_of_a_rotated_mount_only(mounted):
     _, warning = est.rotation_check(_drive(_rot(0.0, 0.0, 1.0), n=12))
     assert re.search(r"\): yaw \+(0\.9\d|1\.0\d) deg \(\+-0\.\d\d, velocity\); see", warning)
     assert est.rotation_check(_drive(np.eye(3), n=6, gt=False)) == (None, None)
+
+
+def test_the_defaults_of_a_drive_are_those_of_its_cues(mounted):
+    # calibrate_sequence(seq) is calibrate_cues with min spread 0.05, 200 resamples, seed 0,
+    # level 0.95 on the cues of the frames faster than 2 m/s
+    cal = est.calibrate_sequence(mounted)
+    cues = est.collect_cues(mounted, 2.0)
+    same = est.calibrate_cues(cues, 0.05, 1.0, 200, 0, 0.95)
+    assert cal.resamples == 200 and cal.level == 0.95
+    assert cal.std_deg == same.std_deg and cal.interval_deg == same.interval_deg
+    assert cal.block == same.block
+
+
+def test_a_drive_at_two_and_a_half_metres_per_second_is_fast_enough():
+    cal, _ = est.rotation_check(_drive(_rot(*MOUNT), n=8, speed=2.5))
+    assert cal is not None and cal.frames_total == 8 and cal.frames_used >= 5
