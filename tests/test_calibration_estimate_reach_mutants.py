@@ -207,7 +207,9 @@ def test_a_loosely_fixed_roll_comes_from_the_road_instead():
     kept = est.calibrate_cues(cues, bootstrap=30, max_std_deg=1e3)
     assert kept.source["roll"] == "velocity"
     sd = kept.std_deg["roll"]
-    assert sd > 0.5  # the velocity knows roll only to some degrees
+    assert 1.0 < sd < 2.0  # the velocity knows roll only to a degree or two
+    # beyond the default limit of 1 deg: roll from the road
+    assert est.calibrate_cues(cues, bootstrap=30).source["roll"] == "road plane"
     # an sd exactly at the limit is still within it
     assert est.calibrate_cues(cues, bootstrap=30, max_std_deg=sd).source["roll"] == "velocity"
     road = est.calibrate_cues(cues, bootstrap=30, max_std_deg=sd * 0.999)
@@ -333,27 +335,28 @@ def test_the_residual_series_leave_out_the_outlier():
 
 # ---- whole drives: points, Doppler and ground truth ----------------------------------------
 
-def _heading(t):
-    """Travel direction [world] at time t: turning and climbing."""
-    th, ph = 0.9 * np.sin(0.8 * t), 0.3 * np.sin(1.3 * t + 0.5)
+def _heading(t, turn=1.0):
+    """Travel direction [world] at time t: turning and climbing (``turn`` scales both)."""
+    th, ph = turn * 0.9 * np.sin(0.8 * t), turn * 0.3 * np.sin(1.3 * t + 0.5)
     return np.column_stack([np.cos(ph) * np.cos(th), np.cos(ph) * np.sin(th), np.sin(ph)])
 
 
-def _drive(R, n=16, speed=6.0, period=0.1, gt=True, name="d"):
+def _drive(R, n=16, speed=6.0, period=0.1, gt=True, name="d", turn=1.0, noise_mps=0.0):
     """A sensor mounted with R_gt_sensor ``R`` on a vehicle whose GT frame keeps the world's
     axes while it travels along ``_heading``: static points (a road 1.5 m below the GT origin
-    and scattered clutter) seen in the sensor frame with their radial Doppler velocity."""
+    and scattered clutter) seen in the sensor frame with their radial Doppler velocity (plus
+    Gaussian noise of ``noise_mps``)."""
     fine = np.arange(-1.0, n * period + 1.0, 0.002)
-    pos = np.cumsum(speed * _heading(fine), axis=0) * 0.002
+    pos = np.cumsum(speed * _heading(fine, turn), axis=0) * 0.002
     stamps = np.arange(n) * period
     rng = np.random.default_rng(0)
     scans = []
     for k, t in enumerate(stamps):
-        v_sensor = speed * _heading(np.array([t]))[0] @ R  # R^T v
+        v_sensor = speed * _heading(np.array([t]), turn)[0] @ R  # R^T v
         road = np.column_stack([rng.uniform(-20, 20, (250, 2)), np.full(250, -1.5)])
         clutter = rng.uniform(-1, 1, (150, 3)) * [30, 30, 3] + [0, 0, 2]
         p = np.vstack([road, clutter]) @ R  # GT frame -> sensor frame
-        d = -_unit(p) @ v_sensor
+        d = -_unit(p) @ v_sensor + rng.normal(scale=noise_mps, size=len(p))
         scans.append(Scan(t, p, d, source=f"{name}/{k}"))
     poses = np.array([make_T(np.eye(3), x) for x in pos])
     traj = Trajectory(fine, poses) if gt else None
@@ -471,8 +474,31 @@ def test_the_defaults_of_a_drive_are_those_of_its_cues(mounted):
     assert cal.resamples == 200 and cal.level == 0.95
     assert cal.std_deg == same.std_deg and cal.interval_deg == same.interval_deg
     assert cal.block == same.block
+    default = est.calibrate_cues(cues)
+    assert default.resamples == 200 and default.std_deg == same.std_deg
 
 
 def test_a_drive_at_two_and_a_half_metres_per_second_is_fast_enough():
     cal, _ = est.rotation_check(_drive(_rot(*MOUNT), n=8, speed=2.5))
     assert cal is not None and cal.frames_total == 8 and cal.frames_used >= 5
+
+
+def test_inspect_names_an_angle_beyond_three_of_its_sigmas():
+    # noisy Doppler on gentle turns: roll known only to about half a degree
+    noisy = _drive(_rot(-0.6, -3.0, 25.0), turn=0.3, noise_mps=0.1)
+    cal, warning = est.rotation_check(noisy, limit_deg=0.01)
+    assert 3.0 < abs(cal.angles_deg["roll"]) / cal.std_deg["roll"] < 4.0  # the set-up
+    assert "roll +" in warning and "yaw +" in warning
+    nearer = _drive(_rot(-1.2, -3.0, 25.0), turn=0.3, noise_mps=0.1)
+    cal, warning = est.rotation_check(nearer, limit_deg=0.01)
+    assert 1.0 < abs(cal.angles_deg["roll"]) / cal.std_deg["roll"] < 3.0  # the set-up
+    assert "roll" not in warning and "yaw +" in warning
+
+
+def test_a_drive_that_fixes_roll_loosely_takes_it_from_the_road():
+    d = _drive(_rot(0.5, -3.0, 25.0), turn=0.15, noise_mps=0.08)
+    loose = est.calibrate_sequence(d, bootstrap=50, max_std_deg=1e3)
+    assert loose.source["roll"] == "velocity" and 1.0 < loose.std_deg["roll"] < 2.0
+    cal, _ = est.rotation_check(d)  # the default limit of 1 deg
+    assert cal.source["roll"] == "road plane"
+    assert cal.angles_deg["roll"] == pytest.approx(0.5, abs=0.1)
