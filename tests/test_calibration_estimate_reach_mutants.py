@@ -214,6 +214,9 @@ def test_a_loosely_fixed_roll_comes_from_the_road_instead():
     assert est.calibrate_cues(cues, bootstrap=30, max_std_deg=sd).source["roll"] == "velocity"
     road = est.calibrate_cues(cues, bootstrap=30, max_std_deg=sd * 0.999)
     assert road.source == {"roll": "road plane", "pitch": "velocity", "yaw": "velocity"}
+    # the refit after the switch keeps a block length that was set
+    assert est.calibrate_cues(cues, bootstrap=5, max_std_deg=sd * 0.999,
+                              block_frames=5).block.frames == 5
     # the road plane knows roll far better, and gives the truth
     assert road.std_deg["roll"] < sd / 5
     assert road.angles_deg["roll"] == pytest.approx(TRUE[0], abs=0.1)
@@ -226,6 +229,24 @@ def test_an_unknown_roll_spread_counts_as_loose():
     cues = _loose_roll()
     cal = est.calibrate_cues(cues, bootstrap=0, max_std_deg=1e3)
     assert cal.source["roll"] == "road plane"
+
+
+def test_roll_seen_sideways_but_loosely_comes_from_the_road():
+    # a sensor turned sideways: its velocity directions lie near y, so pitch is not observable
+    # from them but roll is; a limit on roll's sd below its value sends roll to the road
+    cues = _cues(_rot(*TRUE), n=30, car=True, road=6, noise_deg=0.05)
+    cues.a[:] = cues.a[:, [1, 0, 2]]
+    cues.b[:] = _jitter(cues.a @ _rot(*TRUE).T, 0.05, np.random.default_rng(1))
+    cal = est.calibrate_cues(cues, bootstrap=10, max_std_deg=1e-9)
+    assert cal.source == {"roll": "road plane", "pitch": "not observable", "yaw": "velocity"}
+    assert cal.angles_deg["roll"] == pytest.approx(TRUE[0], abs=0.3)
+
+
+def test_a_spread_exactly_at_the_limit_is_observable():
+    cues = _cues(_rot(*TRUE), n=30, car=True, noise_deg=0.05)
+    # the RMS spread of the directions about x, as the docstring defines it
+    spread = np.sqrt(np.mean(1.0 - (cues.a @ np.eye(3)) ** 2, axis=0))[0]
+    assert est.calibrate_cues(cues, bootstrap=0, min_spread=spread).source["roll"] == "velocity"
 
 
 def test_min_spread_decides_which_axes_velocity_observes():
