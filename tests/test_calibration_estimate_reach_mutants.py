@@ -523,3 +523,17 @@ def test_a_drive_that_fixes_roll_loosely_takes_it_from_the_road():
     cal, _ = est.rotation_check(d)  # the default limit of 1 deg
     assert cal.source["roll"] == "road plane"
     assert cal.angles_deg["roll"] == pytest.approx(0.5, abs=0.1)
+
+
+def test_a_resample_without_road_frames_is_still_fitted():
+    # roll from the road, whose 5 frames lie together at the start: some resamples of 3-frame
+    # blocks miss them all and are fitted with roll held at 0 (none is left out)
+    cues = _cues(_rot(*TRUE), n=60, car=True, road=5, noise_deg=0.05)
+    cues.road_frame[:] = np.arange(5)
+    drawn = block_indices(60, 3, 40, 0)
+    missed = sum(not np.isin(idx, cues.road_frame).any() for idx in drawn)
+    assert missed > 0  # the set-up
+    block, spread = est._bootstrap(cues, np.array([False, True, True]),
+                                   np.array([True, False, False]), 40, 0, 0.95, block_frames=3)
+    assert spread.resamples == 40
+    assert np.isfinite(spread.sd_deg).all()
