@@ -537,3 +537,20 @@ def test_a_resample_without_road_frames_is_still_fitted():
                                    np.array([True, False, False]), 40, 0, 0.95, block_frames=3)
     assert spread.resamples == 40
     assert np.isfinite(spread.sd_deg).all()
+
+
+@pytest.mark.parametrize("kind", ["lidar", "radar"])
+def test_points_moving_half_a_metre_per_second_are_left_out_of_the_ego_velocity(kind):
+    # a quarter of the points (x > 0, y > 0) belong to something moving: their Doppler is
+    # 0.5 m/s off, beyond the inlier band (0.1 m/s lidar, 0.2 m/s radar), so the velocity
+    # directions are the sensor's own exactly
+    R = _rot(*MOUNT)
+    base = _drive(R, n=8)
+    scans = []
+    for s in base:
+        moving = (s.points[:, 0] > 0) & (s.points[:, 1] > 0)
+        scans.append(Scan(s.stamp, s.points, s.doppler + 0.5 * moving))
+    seq = MemorySequence("m", SensorInfo(kind, 0.1), scans, base.ground_truth)
+    cues = est.collect_cues(seq)
+    assert list(cues.vel_frame) == list(range(8))
+    np.testing.assert_allclose(cues.a, _heading(base.stamps) @ R, atol=1e-4)
