@@ -82,7 +82,6 @@ def test_the_interval_holds_the_truth_and_matches_the_spread(sphere):
         low, high = sphere.interval_deg[ax]
         assert low < truth < high
         assert low < sphere.angles_deg[ax] < high
-        assert high - low == pytest.approx(high - low)
         # 0.3 deg of noise per axis over 60 frames: an sd of some 0.3 / sqrt(60) ~ 0.04 deg
         assert 0.01 < sphere.std_deg[ax] < 0.15
         # a t interval about the estimate: symmetric, about 2 sd either side
@@ -214,9 +213,10 @@ def test_a_loosely_fixed_roll_comes_from_the_road_instead():
     assert est.calibrate_cues(cues, bootstrap=30, max_std_deg=sd).source["roll"] == "velocity"
     road = est.calibrate_cues(cues, bootstrap=30, max_std_deg=sd * 0.999)
     assert road.source == {"roll": "road plane", "pitch": "velocity", "yaw": "velocity"}
-    # the refit after the switch keeps a block length that was set
-    assert est.calibrate_cues(cues, bootstrap=5, max_std_deg=sd * 0.999,
-                              block_frames=5).block.frames == 5
+    # the refit after the switch keeps a block length that was set (an odd length above 3:
+    # never one the rule picks, twice a correlation length)
+    switched = est.calibrate_cues(cues, bootstrap=5, max_std_deg=0.0, block_frames=7)
+    assert switched.source["roll"] == "road plane" and switched.block.frames == 7
     # the road plane knows roll far better, and gives the truth
     assert road.std_deg["roll"] < sd / 5
     assert road.angles_deg["roll"] == pytest.approx(TRUE[0], abs=0.1)
