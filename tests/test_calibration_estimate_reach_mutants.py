@@ -554,3 +554,24 @@ def test_points_moving_half_a_metre_per_second_are_left_out_of_the_ego_velocity(
     cues = est.collect_cues(seq)
     assert list(cues.vel_frame) == list(range(8))
     np.testing.assert_allclose(cues.a, _heading(base.stamps) @ R, atol=1e-4)
+
+
+def test_the_road_plane_comes_from_the_static_points_only():
+    # a moving vehicle's flat deck alongside, 1.05 m below the GT origin and tilted 5 deg,
+    # has more points below the sensor than the road; its Doppler says it moves (3, 1, 0)
+    # m/s, so it is no inlier of the ego velocity and the road (1.5 m below) is still found
+    R = _rot(*MOUNT)
+    base = _drive(R, n=8)
+    rng = np.random.default_rng(3)
+    scans = []
+    for s in base:
+        xy = rng.uniform([2, -6], [6, -2], (330, 2))
+        deck = np.column_stack([xy, -1.05 + np.tan(np.radians(5)) * (xy[:, 0] - 4)]) @ R
+        v_rel = (6.0 * _heading(np.array([s.stamp]))[0] - [3.0, 1.0, 0.0]) @ R
+        scans.append(Scan(s.stamp, np.vstack([s.points, deck]),
+                          np.concatenate([s.doppler, -_unit(deck) @ v_rel])))
+    cues = est.collect_cues(MemorySequence("m", SensorInfo("lidar", 0.1), scans,
+                                           base.ground_truth))
+    assert list(cues.road_frame) == list(range(8))
+    np.testing.assert_allclose(cues.normals, np.tile([0.0, 0.0, 1.0] @ R, (8, 1)), atol=1e-4)
+    np.testing.assert_allclose(cues.heights, 1.5, atol=1e-3)
