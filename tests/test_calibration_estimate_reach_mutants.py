@@ -17,6 +17,7 @@ from loaders.errors import DataError
 from loaders.scan import MemorySequence, Scan, SensorInfo
 from loaders.se3 import make_T
 from loaders.trajectory import Trajectory
+from methods.ego_velocity import estimate_ego_velocity
 from metrics.intervals import block_indices, correlation_length
 
 
@@ -575,3 +576,49 @@ def test_the_road_plane_comes_from_the_static_points_only():
     assert list(cues.road_frame) == list(range(8))
     np.testing.assert_allclose(cues.normals, np.tile([0.0, 0.0, 1.0] @ R, (8, 1)), atol=1e-4)
     np.testing.assert_allclose(cues.heights, 1.5, atol=1e-3)
+
+
+def _still_scans(n, v, seed=4):
+    """``n`` identical scans (stamps k / 8 s) of static points around a sensor moving at ``v``
+    [m/s, sensor frame]: every frame gives the same ego velocity, bit for bit."""
+    rng = np.random.default_rng(seed)
+    p = rng.uniform(-1, 1, (300, 3)) * [30, 30, 3] + [0, 0, 1]
+    d = -_unit(p) @ np.asarray(v, float)
+    return [Scan(k / 8, p, d) for k in range(n)]
+
+
+def _straight_gt(n, speed):
+    """GT along x at ``speed`` [m/s], poses at the scan stamps (binary fractions: the central
+    differences give the speed exactly)."""
+    t = np.arange(n) / 8
+    return Trajectory(t, np.array([make_T(np.eye(3), np.array([speed * s, 0, 0])) for s in t]))
+
+
+def test_a_frame_exactly_at_the_speed_limit_is_too_slow():
+    # the GT says exactly 2 m/s: not faster than 2 m/s
+    seq = MemorySequence("m", SensorInfo("lidar", 0.125), _still_scans(8, [5, 0, 0]),
+                         _straight_gt(8, 2.0))
+    with pytest.raises(DataError, match=r"^m: only 0 frames faster than 2\.0 m/s"):
+        est.collect_cues(seq, min_speed_mps=2.0)
+    assert len(est.collect_cues(seq, min_speed_mps=1.999).a) == 8
+    # the Doppler says exactly the limit (the ego velocity of every frame, computed here)
+    scans = _still_scans(8, [5, 0, 0])
+    speed = estimate_ego_velocity(scans[0].points, scans[0].doppler, threshold_mps=0.1).speed_mps
+    seq = MemorySequence("m", SensorInfo("lidar", 0.125), scans, _straight_gt(8, 8.0))
+    with pytest.raises(DataError, match="^m: only 0 frames faster than"):
+        est.collect_cues(seq, min_speed_mps=speed)
+    assert len(est.collect_cues(seq, min_speed_mps=speed * 0.999).a) == 8
+
+
+def test_the_road_cues_are_reproducible():
+    # a rough road (5 cm): which points a RANSAC plane keeps depends on its draws, so the same
+    # normals twice means seeded draws
+    base = _drive(_rot(*MOUNT), n=6)
+    rng = np.random.default_rng(9)
+    scans = [Scan(s.stamp, s.points + rng.normal(scale=[0, 0, 0.05], size=s.points.shape),
+                  s.doppler) for s in base]
+    seq = MemorySequence("m", base.sensor, scans, base.ground_truth)
+    one, two = est.collect_cues(seq), est.collect_cues(seq)
+    assert list(one.road_frame) == list(range(6))
+    np.testing.assert_array_equal(one.normals, two.normals)
+    np.testing.assert_array_equal(one.heights, two.heights)
