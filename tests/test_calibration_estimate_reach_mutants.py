@@ -622,3 +622,17 @@ def test_the_road_cues_are_reproducible():
     assert list(one.road_frame) == list(range(6))
     np.testing.assert_array_equal(one.normals, two.normals)
     np.testing.assert_array_equal(one.heights, two.heights)
+
+
+def test_a_frame_without_an_ego_velocity_still_gives_its_road_plane():
+    # frames 6 and 7 have Doppler values no velocity explains: no velocity cue there, but
+    # their road plane is found among all their points
+    base = _drive(_rot(*MOUNT), n=8)
+    rng = np.random.default_rng(2)
+    scans = [s if k < 6 else Scan(s.stamp, s.points, rng.uniform(-8, 8, len(s.points)))
+             for k, s in enumerate(base)]
+    ego = estimate_ego_velocity(scans[7].points, scans[7].doppler, threshold_mps=0.1)
+    assert not ego.observable  # the set-up
+    cues = est.collect_cues(MemorySequence("m", base.sensor, scans, base.ground_truth))
+    assert list(cues.vel_frame) == list(range(6)) and list(cues.road_frame) == list(range(8))
+    np.testing.assert_allclose(cues.heights, 1.5, atol=1e-3)
