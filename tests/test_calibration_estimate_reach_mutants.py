@@ -636,3 +636,18 @@ def test_a_frame_without_an_ego_velocity_still_gives_its_road_plane():
     cues = est.collect_cues(MemorySequence("m", base.sensor, scans, base.ground_truth))
     assert list(cues.vel_frame) == list(range(6)) and list(cues.road_frame) == list(range(8))
     np.testing.assert_allclose(cues.heights, 1.5, atol=1e-3)
+
+
+def test_each_frame_draws_its_own_road_samples():
+    # the same rough scan in every frame: each frame's RANSAC draws differ (its index seeds
+    # them), so the planes differ slightly from frame to frame
+    base = _drive(_rot(*MOUNT), n=6)
+    rng = np.random.default_rng(9)
+    first = base.scan(0)
+    rough = first.points + rng.normal(scale=[0, 0, 0.1], size=first.points.shape)
+    scans = [Scan(s.stamp, rough, first.doppler) for s in base]
+    cues = est.collect_cues(MemorySequence("m", base.sensor, scans, base.ground_truth))
+    assert list(cues.road_frame) == list(range(6))
+    assert len({tuple(n) for n in cues.normals}) > 1
+    np.testing.assert_allclose(cues.normals, np.tile([0.0, 0.0, 1.0] @ _rot(*MOUNT), (6, 1)),
+                               atol=0.01)
