@@ -455,12 +455,15 @@ def calibrate_cues(cues: FrameCues, min_spread: float = 0.05, max_std_deg: float
                 "road_roll_in_sensor_deg": float(np.degrees(np.arctan2(n_s[1], n_s[2]))),
                 "up_pitch_in_gt_deg": float(np.degrees(np.arctan2(-u_g[0], u_g[2]))),
                 "up_roll_in_gt_deg": float(np.degrees(np.arctan2(u_g[1], u_g[2])))}
+    # an angle held at 0 has no spread to report (its resamples all give 0)
+    unseen = ~(free_vel | use_road)
+    sd, low, high = (np.where(unseen, np.nan, x) for x in
+                     (spread_deg.sd_deg, spread_deg.low_deg, spread_deg.high_deg))
     per_angle = lambda x: dict(zip(ANGLES, map(float, x), strict=True))  # noqa: E731
     return CalibrationResult(
-        R, per_angle(angles), per_angle(spread_deg.sd_deg), source,
-        int(outlier_cut(cues.a, cues.b).sum()), road,
-        {ax: (float(spread_deg.low_deg[k]), float(spread_deg.high_deg[k]))
-         for k, ax in enumerate(ANGLES)}, level, block, spread_deg.resamples, cues.n_frames,
+        R, per_angle(angles), per_angle(sd), source, int(outlier_cut(cues.a, cues.b).sum()),
+        road, {ax: (float(low[k]), float(high[k])) for k, ax in enumerate(ANGLES)}, level,
+        block, spread_deg.resamples, cues.n_frames,
         _reasons(spread, min_spread, len(cues.normals), free_vel, use_road))
 
 
