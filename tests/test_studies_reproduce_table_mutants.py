@@ -1,0 +1,296 @@
+"""bench/studies/reproduce.py's ``reproduce_table`` in process, within seconds: the three table
+experiments replaced by tiny ones (Doppler Correspondence only, on 12-frame stores), the
+synthetic suite by those stores, ``run_jobs`` wrapped to record how it is asked (the real runs
+still happen, in process) and the figures (bench/report/figures, tested on their own, and nine
+tenths of the time) by a stand-in that records the folder it is given. What it pins: each
+table written as ``bench table`` writes it from that table's runs only, the record
+``reproduction.json``, the page, the fidelity report on the synthetic suite only, the scoring
+options reaching the runs, the failed runs' messages returned, a table without finished runs
+or without sequences not written (and an earlier one of ours removed), a re-run skipping the
+finished runs, and real stores switching the default output folder (the mutation run of
+tools/mutate.py over ``reproduce_table``, which only a >10 min real-data test reached)."""
+
+from __future__ import annotations
+
+import io
+import json
+import warnings
+from pathlib import Path
+
+import pytest
+from rich.console import Console
+
+import bench.studies.reproduce as rep
+from bench import guard
+from bench.report.tables.ape import write_ape_tables
+from bench.report.tables.paper import write_tables
+from bench.runs.experiment import SequenceEntry
+from conftest import constant_twist_sequence
+from loaders.errors import DataError
+from loaders.store import write_store
+
+#: the tiny stores' paths are shorter than KITTI's lengths: plan says so, as expected here
+pytestmark = pytest.mark.filterwarnings("ignore:.*no KITTI drift:UserWarning")
+
+#: the paper's sequences (configs/datasets/*.yaml with paper: true)
+PAPER_SEQUENCES = {"Campus1", "Campus2", "CurvedWall", "StraightWall", "Tunnel_Empty",
+                   "Tunnel_Vehicles", "Loop1_0", "Loop1_1", "Loop1_2", "Loop1_3", "Loop1_4"}
+
+#: tiny stand-ins for configs/experiments/table{3,4,5}.yaml (the same shape: Table III on two
+#: sequences, Table IV on one of them, Table V on a tunnel)
+TINY = {
+    "table3": "methods:\n  - {name: doppler, sequences: [Campus1, Loop1_0]}\n",
+    "table4": "methods:\n  - {name: doppler, sequences: [Loop1_0]}\n",
+    "table5": "methods:\n  - {name: doppler, sequences: [Tunnel_Empty]}\n",
+}
+
+
+@pytest.fixture(scope="module")
+def stores(tmp_path_factory) -> dict[str, Path]:
+    root = tmp_path_factory.mktemp("stores")
+    paths = {}
+    for k, name in enumerate(("Campus1", "Loop1_0", "Tunnel_Empty")):
+        seq = constant_twist_sequence(n_frames=12, n_points=300, max_range_m=60, seed=k)
+        paths[name] = write_store(seq, root / f"{name}.h5")
+    return paths
+
+
+@pytest.fixture()
+def tiny_tables(monkeypatch, tmp_path):
+    folder = tmp_path / "experiments"
+    folder.mkdir()
+    for name, methods in TINY.items():
+        (folder / f"{name}.yaml").write_text(
+            f"name: {name}\nsuite: synthetic-paper\ndata_dir: data\n{methods}"
+            "lengths_m: [4]\nout: results\n")
+    monkeypatch.setattr(rep, "EXPERIMENTS", folder)
+    figures = Figures()
+    monkeypatch.setattr(rep, "make_figures", figures)
+    return figures
+
+
+class Figures:
+    """Stands in for ``make_figures``: records the results folder, returns ``files``."""
+
+    def __init__(self):
+        self.asked, self.files = [], [Path("a.png"), Path("b.pdf")]
+
+    def __call__(self, results_dir):
+        self.asked.append(results_dir)
+        return self.files
+
+
+class Runs:
+    """Wraps ``run_jobs``: records its arguments, runs the jobs for real, except those of
+    ``fail`` (sequence names), which fail without running."""
+
+    def __init__(self, fail=()):
+        self.fail, self.asked = set(fail), []
+
+    def __call__(self, jobs, console, workers, force, executor, job_timeout_s, scheduler):
+        from bench.runs.job import JobOutcome
+        from bench.runs.progress import run_jobs
+
+        self.asked.append((len(jobs), workers, force, executor, job_timeout_s, scheduler))
+        ran = [j for j in jobs if j.name not in self.fail]
+        outcomes = iter(run_jobs(ran, console, workers, force, executor, job_timeout_s,
+                                 scheduler))
+        return [JobOutcome(j, "failed", f"boom: {j.name}") if j.name in self.fail
+                else next(outcomes) for j in jobs]
+
+
+def _console() -> tuple[Console, io.StringIO]:
+    buf = io.StringIO()
+    return Console(file=buf, width=400), buf
+
+
+def _said(buf: io.StringIO) -> str:
+    return " ".join(buf.getvalue().split())
+
+
+def _run_dirs(out: Path, sequences) -> set[Path]:
+    return {p.parent for p in out.rglob("metrics.json") if p.parent.parent.name in sequences}
+
+
+def _synthetic_suite(monkeypatch, stores, asked):
+    def suite(name, data_dir, console):
+        asked.append((name, data_dir, console))
+        return [SequenceEntry(path=p, name=n) for n, p in stores.items()]
+
+    monkeypatch.setattr(rep, "suite_sequences", suite)
+
+
+def test_a_synthetic_reproduction_writes_each_table_from_its_own_runs(
+        monkeypatch, tmp_path, stores, tiny_tables):
+    asked = []
+    _synthetic_suite(monkeypatch, stores, asked)
+    runs = Runs()
+    monkeypatch.setattr(rep, "run_jobs", runs)
+    out, data = tmp_path / "out", tmp_path / "data"
+    console, buf = _console()
+    failed = rep.reproduce_table(out, data, 1, False, False, console, executor="local",
+                                 scoring={"lengths_m": (2.0, 3.0), "alignment": None},
+                                 marks="value", ci=True)
+    said = _said(buf)
+    assert failed == []
+    assert asked == [("synthetic-paper", data, console)]
+    # the union of the tables' runs, once each (Loop1_0's run is Table III's and IV's)
+    assert runs.asked == [(3, 1, False, "local", None, None)]
+    # the scoring option reached the runs: their relative errors are over 2 and 3 m
+    runs_made = _run_dirs(out, stores)
+    assert len(runs_made) == 3
+    for run in runs_made:
+        metrics = json.loads((run / "metrics.json").read_text())
+        assert [r["length_m"] for r in metrics["relative_error"]] == [2.0, 3.0], run
+        assert metrics["ape"]["alignment"] == "se3"  # no alignment given: the yaml's default
+    three = _run_dirs(out, ("Campus1", "Loop1_0"))
+    assert len(three) == 2
+    # each table as `bench table` writes it from that table's runs, with the marks and ci
+    ref = tmp_path / "ref"
+    expected = {"table3": write_tables(out, ref, only=three, stem="t3", marks="value",
+                                       ci=True)["md"]}
+    for metric in ("kitti", "velocity"):
+        expected[f"table3_{metric}"] = write_tables(out, ref, only=three, stem=f"t3{metric}",
+                                                    metric=metric, marks="value", ci=True)["md"]
+    expected["table4"] = write_ape_tables(
+        out, ref, ["Loop1_0"], "t4", rep.TABLES["table4"][2],
+        only=_run_dirs(out, ("Loop1_0",)), marks="value", ci=True)["md"]
+    expected["table5"] = write_ape_tables(
+        out, ref, ["Tunnel_Empty"], "t5", rep.TABLES["table5"][2],
+        only=_run_dirs(out, ("Tunnel_Empty",)), marks="value", ci=True)["md"]
+    for stem, text in expected.items():
+        assert (out / f"{stem}.md").read_text() == text, stem
+        assert (out / f"{stem}.tex").exists() and (out / f"{stem}.csv").exists()
+    assert "Campus1" not in expected["table4"] and "Tunnel" not in expected["table3"]
+    assert "Loop1_0" in expected["table4"] and "Tunnel_Empty" in expected["table5"]
+    for stem in ("table3", "table4", "table5"):  # each table printed
+        assert " ".join(expected[stem].split()) in said
+    record = json.loads((out / "reproduction.json").read_text())
+    assert record == {
+        "data": "the synthetic suite 'synthetic-paper' (synthetic data, not the paper's)",
+        "found": ["Campus1", "Loop1_0", "Tunnel_Empty"], "missing": [],
+        "tables_written": record["tables_written"], "tables_not_written": {}, "notes": []}
+    assert sorted(record["tables_written"]) == ["table3", "table3_kitti", "table3_velocity",
+                                                "table4", "table5"]
+    assert guard.derived(out / "reproduction.json")
+    # the summary, the fidelity report (synthetic suite), the figures and the page
+    assert "3 done, 0 failed in" in said
+    for stem in ("table3", "table3_kitti", "table3_velocity", "table4", "table5"):
+        assert f"{out}/{stem}.{{md,tex,csv}}" in said
+    assert "not written" not in said
+    assert (out / "fidelity.md").exists()
+    assert f"fidelity report (synthetic suite vs the paper): {out / 'fidelity.md'}" in said
+    assert tiny_tables.asked == [out] and f"figures: {out / 'figures'}/ (2 files)" in said
+    assert (out / "report.html").exists() and f"results page: {out / 'report.html'}" in said
+
+    # again: every run is finished, so it is skipped, and nothing failed
+    console, buf = _console()
+    assert rep.reproduce_table(out, data, 2, False, False, console, executor="local",
+                               scoring={"lengths_m": (2.0, 3.0)}) == []
+    assert runs.asked[-1] == (3, 2, False, "local", None, None)
+    assert "3 skipped, 0 failed in" in _said(buf) and " done," not in _said(buf)
+
+
+def test_a_table_without_finished_runs_is_not_written_and_the_failures_are_returned(
+        monkeypatch, tmp_path, stores, tiny_tables):
+    _synthetic_suite(monkeypatch, stores, [])
+    runs = Runs(fail={"Tunnel_Empty"})
+    monkeypatch.setattr(rep, "run_jobs", runs)
+    tiny_tables.files = []
+    out = tmp_path / "out"
+    out.mkdir()
+    guard.write_text(out / "table5.md", "an old table5\n", guard.derived, "a table")
+    console, buf = _console()
+    failed = rep.reproduce_table(out, tmp_path / "data", 1, True, False, console,
+                                 executor="local", job_timeout_s=30.0)
+    said = _said(buf)
+    assert failed == ["boom: Tunnel_Empty"]
+    assert runs.asked == [(3, 1, True, "local", 30.0, None)]
+    assert not (out / "table5.md").exists()  # the earlier one removed
+    assert (out / "table3.md").exists() and (out / "table4.md").exists()
+    assert "table5: no finished runs" in said and "not written: table5 (no finished run)" in said
+    record = json.loads((out / "reproduction.json").read_text())
+    assert record["tables_not_written"] == {"table5": "no finished run"}
+    assert record["notes"] == ["table5 not written: no finished run"]
+    assert "table5" not in record["tables_written"]
+    assert "2 done, 1 failed" in said  # the summary of the runs
+    assert "figures:" not in said  # no figure made: none said
+
+
+def test_real_stores_are_used_and_move_the_default_output_folder(monkeypatch, tmp_path, stores,
+                                                                  tiny_tables):
+    data = tmp_path / "data"
+    (data / "real").mkdir(parents=True)
+    (data / "real" / "Loop1_0.h5").write_bytes(stores["Loop1_0"].read_bytes())
+
+    def no_suite(*a):
+        raise AssertionError("no synthetic suite with real stores")
+
+    monkeypatch.setattr(rep, "suite_sequences", no_suite)
+    monkeypatch.setattr(rep, "run_jobs", Runs())
+    monkeypatch.chdir(tmp_path)
+    out = Path("results/paper-real")
+    out.mkdir(parents=True)
+    guard.write_text(out / "table5.md", "an old table5\n", guard.derived, "a table")
+    console, buf = _console()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        failed = rep.reproduce_table(Path("results/paper-synthetic"), data, 1, False, False,
+                                     console, executor="local")
+    said = _said(buf)
+    assert failed == []
+    # the default synthetic folder is replaced by the real one
+    assert not Path("results/paper-synthetic").exists()
+    assert (out / "table3.md").exists() and (out / "table4.md").exists()
+    assert not (out / "table5.md").exists()  # no tunnel: the earlier one removed
+    record = json.loads((out / "reproduction.json").read_text())
+    missing = sorted(PAPER_SEQUENCES - {"Loop1_0"})
+    assert record["data"] == f"real stores under {data / 'real'}"
+    assert record["found"] == ["Loop1_0"] and sorted(record["missing"]) == missing
+    assert sorted(record["tables_written"]) == ["table3", "table3_kitti", "table3_velocity",
+                                                "table4"]
+    assert record["tables_not_written"] == {"table5": "none of its sequences found "
+                                                      "(Tunnel_Empty)"}
+    # the notes: the missing sequences, the store's warnings (a LiDAR store for a radar
+    # sequence, a far too short path), the table not written
+    notes = record["notes"]
+    assert notes[0].startswith("missing (10 of 11): ")
+    assert notes[-1] == "table5 not written: none of its sequences found (Tunnel_Empty)"
+    store_warnings = [str(w.message) for w in caught if "Loop1_0.h5" in str(w.message)]
+    assert store_warnings and notes[1:-1] == store_warnings
+    assert not (out / "fidelity.md").exists() and "fidelity report" not in said
+    assert "not written: table5 (none of its sequences found (Tunnel_Empty))" in said
+    assert f"results page: {out / 'report.html'}" in said
+
+
+def _nothing(*a):
+    raise AssertionError("nothing may run")
+
+
+def test_a_users_file_where_a_table_goes_stops_it_before_anything_runs(
+        monkeypatch, tmp_path, tiny_tables):
+    monkeypatch.setattr(rep, "suite_sequences", _nothing)
+    monkeypatch.setattr(rep, "run_jobs", _nothing)
+    out = tmp_path / "out"
+    out.mkdir()
+    (out / "table4.md").write_text("my notes\n")
+    with pytest.raises(DataError):
+        rep.reproduce_table(out, tmp_path / "data", 1, False, False, _console()[0])
+    assert (out / "table4.md").read_text() == "my notes\n"
+
+
+def test_real_stores_with_a_users_file_in_the_real_folder_stop_it(monkeypatch, tmp_path,
+                                                                  stores, tiny_tables):
+    data = tmp_path / "data"
+    (data / "real").mkdir(parents=True)
+    (data / "real" / "Loop1_0.h5").write_bytes(stores["Loop1_0"].read_bytes())
+    monkeypatch.setattr(rep, "run_jobs", _nothing)
+    monkeypatch.chdir(tmp_path)
+    Path("results/paper-real").mkdir(parents=True)
+    Path("results/paper-real/table3.md").write_text("my notes\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        with pytest.raises(DataError):
+            rep.reproduce_table(Path("results/paper-synthetic"), data, 1, False, False,
+                                _console()[0])
+    assert Path("results/paper-real/table3.md").read_text() == "my notes\n"
