@@ -104,14 +104,31 @@ def lock_env(monkeypatch, tmp_path):
     RELEASE.set()  # no worker thread left waiting
 
 
+class Flight:
+    """Counts the jobs in flight: submitted to dask and not yet handed to ``finish``."""
+
+    def __init__(self, monkeypatch):
+        self.submitted, self.finished, self.most = 0, [], 0
+        submit = distributed.Client.submit
+
+        def counting(client, *args, **kw):
+            self.submitted += 1
+            self.most = max(self.most, self.submitted - len(self.finished))
+            return submit(client, *args, **kw)
+
+        monkeypatch.setattr(distributed.Client, "submit", counting)
+
+
 def _run(jobs, work, monkeypatch, workers=2, force=False, timeout=None, scheduler=None,
          report=None):
     monkeypatch.setattr(ex, "run_job", work)
-    reports, finished = [], []
+    flight = Flight(monkeypatch)
+    reports = []
     report = report or (lambda job, done, total: reports.append((job.label, done, total)))
-    outcomes = ex.run_dask(jobs, workers, force, report, finished.append, timeout, scheduler,
-                           {"MREACH_TASK_VAR": "set-by-the-task"})
-    return outcomes, reports, finished
+    outcomes = ex.run_dask(jobs, workers, force, report, flight.finished.append, timeout,
+                           scheduler, {"MREACH_TASK_VAR": "set-by-the-task"})
+    _run.most = flight.most
+    return outcomes, reports, flight.finished
 
 
 def test_every_job_is_returned_in_order_a_raising_job_fails_and_the_cluster_is_closed(
@@ -148,6 +165,7 @@ def test_every_job_is_returned_in_order_a_raising_job_fails_and_the_cluster_is_c
                   "dashboard_address": None, "silence_logs": logging.CRITICAL}
     assert allowed == 0
     assert clusters.made[0].status.name == "closed"
+    assert _run.most == 2  # no more jobs in flight than worker threads
 
 
 def test_no_worker_asked_is_still_one_worker(monkeypatch, tmp_path,
@@ -160,6 +178,7 @@ def test_no_worker_asked_is_still_one_worker(monkeypatch, tmp_path,
     assert clusters.asked[0][0]["n_workers"] == 1
     assert [o.status for o in outcomes] == ["done", "done"] and len(finished) == 2
     assert sorted(work.calls) == [("a", False), ("b", False)]
+    assert _run.most == 1  # one worker thread: one job in flight
     assert clusters.made[0].status.name == "closed"
 
 
