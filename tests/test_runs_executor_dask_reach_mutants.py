@@ -13,6 +13,7 @@ from __future__ import annotations
 import json
 import threading
 import time
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import dask
@@ -91,6 +92,20 @@ class Work:
         progress(2, 2)
         time.sleep(0.15)  # the progress events reach the client before the result
         return JobOutcome(job, "done", f"ran {job.label}", frames=2)
+
+
+@pytest.fixture(autouse=True)
+def offload_pool(monkeypatch):
+    """A fresh pool for dask's offload thread (a module global of distributed.utils): in a
+    process forked after dask ran (mutmut forks each mutant's test run from one that ran the
+    tests), the global pool counts a thread that does not exist there, and a cluster started
+    in it waits forever for work sent to that thread."""
+    import distributed.utils
+
+    pool = ThreadPoolExecutor(max_workers=1, thread_name_prefix="Dask-Offload")
+    monkeypatch.setattr(distributed.utils, "_offload_executor", pool)
+    yield
+    pool.shutdown(wait=True)
 
 
 @pytest.fixture()
