@@ -12,6 +12,7 @@ tools/mutate.py over ``reproduce_table``, which only a >10 min real-data test re
 
 from __future__ import annotations
 
+import functools
 import io
 import json
 import warnings
@@ -22,6 +23,7 @@ from rich.console import Console
 
 import bench.studies.reproduce as rep
 from bench import guard
+from bench.data.datasets import dataset_configs
 from bench.report.tables.ape import write_ape_tables
 from bench.report.tables.paper import write_tables
 from bench.runs.experiment import SequenceEntry
@@ -50,20 +52,29 @@ def stores(tmp_path_factory) -> dict[str, Path]:
     root = tmp_path_factory.mktemp("stores")
     paths = {}
     for k, name in enumerate(("Campus1", "Loop1_0", "Tunnel_Empty")):
-        seq = constant_twist_sequence(n_frames=12, n_points=300, max_range_m=60, seed=k)
+        seq = constant_twist_sequence(n_frames=8, n_points=200, max_range_m=60, seed=k)
         paths[name] = write_store(seq, root / f"{name}.h5")
     return paths
+
+
+#: the dataset configs, read once (reproduce reads them several times per call)
+_CONFIGS = functools.cache(dataset_configs)
+
+
+def _write_tables(folder: Path, lengths: str = "[4]", extra: str = "") -> None:
+    for name, methods in TINY.items():
+        (folder / f"{name}.yaml").write_text(
+            f"name: {name}\nsuite: synthetic-paper\ndata_dir: data\n{methods}"
+            f"lengths_m: {lengths}\nout: results\n{extra}")
 
 
 @pytest.fixture()
 def tiny_tables(monkeypatch, tmp_path):
     folder = tmp_path / "experiments"
     folder.mkdir()
-    for name, methods in TINY.items():
-        (folder / f"{name}.yaml").write_text(
-            f"name: {name}\nsuite: synthetic-paper\ndata_dir: data\n{methods}"
-            "lengths_m: [4]\nout: results\n")
+    _write_tables(folder)
     monkeypatch.setattr(rep, "EXPERIMENTS", folder)
+    monkeypatch.setattr(rep, "dataset_configs", _CONFIGS)
     figures = Figures()
     monkeypatch.setattr(rep, "make_figures", figures)
     return figures
@@ -81,21 +92,27 @@ class Figures:
 
 
 class Runs:
-    """Wraps ``run_jobs``: records its arguments, runs the jobs for real, except those of
-    ``fail`` (sequence names), which fail without running."""
+    """Wraps ``run_jobs``: records its arguments, runs the jobs for real (in process: the
+    "local" executor, whichever was asked), except those of ``fail`` (sequence names), which
+    fail without running, recorded as a crashed worker's job is, and those of ``vanish``,
+    which fail leaving no record."""
 
-    def __init__(self, fail=()):
-        self.fail, self.asked = set(fail), []
+    def __init__(self, fail=(), vanish=()):
+        self.fail, self.vanish, self.asked = set(fail), set(vanish), []
 
     def __call__(self, jobs, console, workers, force, executor, job_timeout_s, scheduler):
-        from bench.runs.job import JobOutcome
+        from bench.runs.job import JobOutcome, record_unfinished
         from bench.runs.progress import run_jobs
 
         self.asked.append((len(jobs), workers, force, executor, job_timeout_s, scheduler))
-        ran = [j for j in jobs if j.name not in self.fail]
-        outcomes = iter(run_jobs(ran, console, workers, force, executor, job_timeout_s,
+        failing = self.fail | self.vanish
+        ran = [j for j in jobs if j.name not in failing]
+        for j in jobs:
+            if j.name in self.fail:
+                record_unfinished(j, f"boom: {j.name}", "crashed")
+        outcomes = iter(run_jobs(ran, console, workers, force, "local", job_timeout_s,
                                  scheduler))
-        return [JobOutcome(j, "failed", f"boom: {j.name}") if j.name in self.fail
+        return [JobOutcome(j, "failed", f"boom: {j.name}") if j.name in failing
                 else next(outcomes) for j in jobs]
 
 
@@ -129,8 +146,8 @@ def test_a_synthetic_reproduction_writes_each_table_from_its_own_runs(
     out, data = tmp_path / "out", tmp_path / "data"
     console, buf = _console()
     failed = rep.reproduce_table(out, data, 1, False, False, console, executor="local",
-                                 scoring={"lengths_m": (2.0, 3.0), "alignment": None},
-                                 marks="value", ci=True)
+                                 scoring={"lengths_m": (2.0, 3.0), "alignment": "sim3",
+                                          "kitti_lengths_m": None}, marks="value", ci=True)
     said = _said(buf)
     assert failed == []
     assert asked == [("synthetic-paper", data, console)]
@@ -142,7 +159,8 @@ def test_a_synthetic_reproduction_writes_each_table_from_its_own_runs(
     for run in runs_made:
         metrics = json.loads((run / "metrics.json").read_text())
         assert [r["length_m"] for r in metrics["relative_error"]] == [2.0, 3.0], run
-        assert metrics["ape"]["alignment"] == "se3"  # no alignment given: the yaml's default
+        assert metrics["ape"]["requested"] == "sim3"
+        assert metrics["kitti"]["lengths_m"][0] == 100.0  # not given: the default
     three = _run_dirs(out, ("Campus1", "Loop1_0"))
     assert len(three) == 2
     # each table as `bench table` writes it from that table's runs, with the marks and ci
@@ -183,10 +201,11 @@ def test_a_synthetic_reproduction_writes_each_table_from_its_own_runs(
     assert tiny_tables.asked == [out] and f"figures: {out / 'figures'}/ (2 files)" in said
     assert (out / "report.html").exists() and f"results page: {out / 'report.html'}" in said
 
-    # again: every run is finished, so it is skipped, and nothing failed
+    # again, the same lengths from the YAML (a list): every run is finished, so it is
+    # skipped, and nothing failed
+    _write_tables(rep.EXPERIMENTS, "[2.0, 3.0]", "alignment: sim3\n")
     console, buf = _console()
-    assert rep.reproduce_table(out, data, 2, False, False, console, executor="local",
-                               scoring={"lengths_m": (2.0, 3.0)}) == []
+    assert rep.reproduce_table(out, data, 2, False, False, console, executor="local") == []
     assert runs.asked[-1] == (3, 2, False, "local", None, None)
     assert "3 skipped, 0 failed in" in _said(buf) and " done," not in _said(buf)
 
@@ -194,7 +213,7 @@ def test_a_synthetic_reproduction_writes_each_table_from_its_own_runs(
 def test_a_table_without_finished_runs_is_not_written_and_the_failures_are_returned(
         monkeypatch, tmp_path, stores, tiny_tables):
     _synthetic_suite(monkeypatch, stores, [])
-    runs = Runs(fail={"Tunnel_Empty"})
+    runs = Runs(vanish={"Tunnel_Empty"})
     monkeypatch.setattr(rep, "run_jobs", runs)
     tiny_tables.files = []
     out = tmp_path / "out"
@@ -227,7 +246,8 @@ def test_real_stores_are_used_and_move_the_default_output_folder(monkeypatch, tm
         raise AssertionError("no synthetic suite with real stores")
 
     monkeypatch.setattr(rep, "suite_sequences", no_suite)
-    monkeypatch.setattr(rep, "run_jobs", Runs())
+    runs = Runs()
+    monkeypatch.setattr(rep, "run_jobs", runs)
     monkeypatch.chdir(tmp_path)
     out = Path("results/paper-real")
     out.mkdir(parents=True)
@@ -236,13 +256,22 @@ def test_real_stores_are_used_and_move_the_default_output_folder(monkeypatch, tm
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         failed = rep.reproduce_table(Path("results/paper-synthetic"), data, 1, False, False,
-                                     console, executor="local")
+                                     console)
     said = _said(buf)
     assert failed == []
+    # the defaults: the process executor, no timeout, no scheduler
+    assert runs.asked == [(1, 1, False, "process", None, None)]  # one run, two tables
     # the default synthetic folder is replaced by the real one
     assert not Path("results/paper-synthetic").exists()
     assert (out / "table3.md").exists() and (out / "table4.md").exists()
     assert not (out / "table5.md").exists()  # no tunnel: the earlier one removed
+    # the default marks and no intervals in the cells, as `bench table` writes it
+    ref = tmp_path / "ref"
+    expected = write_ape_tables(out, ref, ["Loop1_0"], "t4", rep.TABLES["table4"][2],
+                                only=_run_dirs(out, ("Loop1_0",)))["md"]
+    # (its caption names the CSV beside it)
+    assert (out / "table4.md").read_text() == expected.replace(f"{ref}/t4.csv",
+                                                               f"{out}/table4.csv")
     record = json.loads((out / "reproduction.json").read_text())
     missing = sorted(PAPER_SEQUENCES - {"Loop1_0"})
     assert record["data"] == f"real stores under {data / 'real'}"
@@ -294,3 +323,26 @@ def test_real_stores_with_a_users_file_in_the_real_folder_stop_it(monkeypatch, t
             rep.reproduce_table(Path("results/paper-synthetic"), data, 1, False, False,
                                 _console()[0])
     assert Path("results/paper-real/table3.md").read_text() == "my notes\n"
+
+
+def test_synthetic_only_ignores_real_stores_and_keeps_the_default_folder(monkeypatch, tmp_path,
+                                                                         stores, tiny_tables):
+    data = tmp_path / "data"
+    (data / "real").mkdir(parents=True)
+    (data / "real" / "Loop1_0.h5").write_bytes(stores["Loop1_0"].read_bytes())
+    asked = []
+    _synthetic_suite(monkeypatch, stores, asked)
+    monkeypatch.setattr(rep, "run_jobs", Runs(fail=set(stores)))  # nothing runs: quick
+    monkeypatch.chdir(tmp_path)
+    console, buf = _console()
+    failed = rep.reproduce_table(Path("results/paper-synthetic"), data, 1, False, True,
+                                 console, executor="local")
+    assert sorted(failed) == [f"boom: {n}" for n in sorted(stores)]
+    assert len(asked) == 1  # the synthetic suite, though a real store is there
+    out = Path("results/paper-synthetic")  # kept: no real store used
+    assert not Path("results/paper-real").exists()
+    record = json.loads((out / "reproduction.json").read_text())
+    assert record["data"] == ("the synthetic suite 'synthetic-paper' (synthetic data, not "
+                              "the paper's)")
+    assert record["found"] == sorted(stores) and record["missing"] == []
+    assert "synthetic only (as asked)" in _said(buf)
