@@ -120,18 +120,24 @@ def lock_env(monkeypatch, tmp_path):
 
 
 class Flight:
-    """Counts the jobs in flight: submitted to dask and not yet handed to ``finish``."""
+    """Counts the jobs in flight (submitted to dask and not yet handed to ``finish``) and
+    records how long each wait for a finished job may last."""
 
     def __init__(self, monkeypatch):
-        self.submitted, self.finished, self.most = 0, [], 0
-        submit = distributed.Client.submit
+        self.submitted, self.finished, self.most, self.waits = 0, [], 0, []
+        submit, wait = distributed.Client.submit, distributed.wait
 
         def counting(client, *args, **kw):
             self.submitted += 1
             self.most = max(self.most, self.submitted - len(self.finished))
             return submit(client, *args, **kw)
 
+        def timed_wait(futures, timeout=None, return_when="ALL_COMPLETED"):
+            self.waits.append(timeout)
+            return wait(futures, timeout=timeout, return_when=return_when)
+
         monkeypatch.setattr(distributed.Client, "submit", counting)
+        monkeypatch.setattr(distributed, "wait", timed_wait)
 
 
 def _run(jobs, work, monkeypatch, workers=2, force=False, timeout=None, scheduler=None,
@@ -142,7 +148,9 @@ def _run(jobs, work, monkeypatch, workers=2, force=False, timeout=None, schedule
     report = report or (lambda job, done, total: reports.append((job.label, done, total)))
     outcomes = ex.run_dask(jobs, workers, force, report, flight.finished.append, timeout,
                            scheduler, {"MREACH_TASK_VAR": "set-by-the-task"})
-    _run.most = flight.most
+    _run.most, _run.waits = flight.most, flight.waits
+    # it polls at least every half second: progress, timeouts and Ctrl-C are seen that soon
+    assert all(w is not None and w <= 0.5 for w in flight.waits), flight.waits
     return outcomes, reports, flight.finished
 
 
@@ -181,6 +189,7 @@ def test_every_job_is_returned_in_order_a_raising_job_fails_and_the_cluster_is_c
     assert allowed == 0
     assert clusters.made[0].status.name == "closed"
     assert _run.most == 2  # no more jobs in flight than worker threads
+    assert _run.waits  # it waited for the jobs through distributed.wait
 
 
 def test_no_worker_asked_is_still_one_worker(monkeypatch, tmp_path,
