@@ -15,6 +15,7 @@ from __future__ import annotations
 import functools
 import io
 import json
+import re
 import warnings
 from pathlib import Path
 
@@ -75,16 +76,24 @@ def tiny_tables(monkeypatch, tmp_path):
     _write_tables(folder)
     monkeypatch.setattr(rep, "EXPERIMENTS", folder)
     monkeypatch.setattr(rep, "dataset_configs", _CONFIGS)
+    plan_tables = rep.plan_tables
+
+    def planning(experiments, console):
+        figures.plan_consoles.append(console)
+        return plan_tables(experiments, console)
+
+    monkeypatch.setattr(rep, "plan_tables", planning)
     figures = Figures()
     monkeypatch.setattr(rep, "make_figures", figures)
     return figures
 
 
 class Figures:
-    """Stands in for ``make_figures``: records the results folder, returns ``files``."""
+    """Stands in for ``make_figures``: records the results folder, returns ``files`` (and
+    keeps the consoles ``plan_tables`` was given)."""
 
     def __init__(self):
-        self.asked, self.files = [], [Path("a.png"), Path("b.pdf")]
+        self.asked, self.files, self.plan_consoles = [], [Path("a.png"), Path("b.pdf")], []
 
     def __call__(self, results_dir):
         self.asked.append(results_dir)
@@ -98,13 +107,14 @@ class Runs:
     which fail leaving no record."""
 
     def __init__(self, fail=(), vanish=()):
-        self.fail, self.vanish, self.asked = set(fail), set(vanish), []
+        self.fail, self.vanish, self.asked, self.consoles = set(fail), set(vanish), [], []
 
     def __call__(self, jobs, console, workers, force, executor, job_timeout_s, scheduler):
         from bench.runs.job import JobOutcome, record_unfinished
         from bench.runs.progress import run_jobs
 
         self.asked.append((len(jobs), workers, force, executor, job_timeout_s, scheduler))
+        self.consoles.append(console)
         failing = self.fail | self.vanish
         ran = [j for j in jobs if j.name not in failing]
         for j in jobs:
@@ -143,7 +153,8 @@ def test_a_synthetic_reproduction_writes_each_table_from_its_own_runs(
     _synthetic_suite(monkeypatch, stores, asked)
     runs = Runs()
     monkeypatch.setattr(rep, "run_jobs", runs)
-    out, data = tmp_path / "out", tmp_path / "data"
+    # a folder name with brackets: every line naming it is printed as it is (no markup)
+    out, data = tmp_path / "paper [b]", tmp_path / "data"
     console, buf = _console()
     failed = rep.reproduce_table(out, data, 1, False, False, console, executor="local",
                                  scoring={"lengths_m": (2.0, 3.0), "alignment": "sim3",
@@ -153,6 +164,7 @@ def test_a_synthetic_reproduction_writes_each_table_from_its_own_runs(
     assert asked == [("synthetic-paper", data, console)]
     # the union of the tables' runs, once each (Loop1_0's run is Table III's and IV's)
     assert runs.asked == [(3, 1, False, "local", None, None)]
+    assert runs.consoles == [console] and tiny_tables.plan_consoles == [console]
     # the scoring option reached the runs: their relative errors are over 2 and 3 m
     runs_made = _run_dirs(out, stores)
     assert len(runs_made) == 3
@@ -181,8 +193,10 @@ def test_a_synthetic_reproduction_writes_each_table_from_its_own_runs(
         assert (out / f"{stem}.tex").exists() and (out / f"{stem}.csv").exists()
     assert "Campus1" not in expected["table4"] and "Tunnel" not in expected["table3"]
     assert "Loop1_0" in expected["table4"] and "Tunnel_Empty" in expected["table5"]
-    for stem in ("table3", "table4", "table5"):  # each table printed
-        assert " ".join(expected[stem].split()) in said
+    lines = buf.getvalue().splitlines()
+    for stem in ("table3", "table4", "table5"):  # each table printed under its name, unwrapped
+        assert stem in lines
+        assert all(line in lines for line in expected[stem].splitlines()), stem
     record = json.loads((out / "reproduction.json").read_text())
     assert record == {
         "data": "the synthetic suite 'synthetic-paper' (synthetic data, not the paper's)",
@@ -191,8 +205,10 @@ def test_a_synthetic_reproduction_writes_each_table_from_its_own_runs(
     assert sorted(record["tables_written"]) == ["table3", "table3_kitti", "table3_velocity",
                                                 "table4", "table5"]
     assert guard.derived(out / "reproduction.json")
+    assert '{\n  "data": "the synthetic suite' in (out / "reproduction.json").read_text()
     # the summary, the fidelity report (synthetic suite), the figures and the page
-    assert "3 done, 0 failed in" in said
+    seconds = re.search(r"3 done, 0 failed in (\d+) s; wrote ", said)
+    assert seconds and int(seconds.group(1)) < 600
     for stem in ("table3", "table3_kitti", "table3_velocity", "table4", "table5"):
         assert f"{out}/{stem}.{{md,tex,csv}}" in said
     assert "not written" not in said
@@ -213,25 +229,28 @@ def test_a_synthetic_reproduction_writes_each_table_from_its_own_runs(
 def test_a_table_without_finished_runs_is_not_written_and_the_failures_are_returned(
         monkeypatch, tmp_path, stores, tiny_tables):
     _synthetic_suite(monkeypatch, stores, [])
-    runs = Runs(vanish={"Tunnel_Empty"})
+    # Loop1_0's run leaves nothing: Table IV has no run, Tables III (Campus1) and V do
+    runs = Runs(vanish={"Loop1_0"})
     monkeypatch.setattr(rep, "run_jobs", runs)
     tiny_tables.files = []
     out = tmp_path / "out"
     out.mkdir()
-    guard.write_text(out / "table5.md", "an old table5\n", guard.derived, "a table")
+    guard.write_text(out / "table4.md", "an old table4\n", guard.derived, "a table")
     console, buf = _console()
     failed = rep.reproduce_table(out, tmp_path / "data", 1, True, False, console,
-                                 executor="local", job_timeout_s=30.0)
+                                 executor="local", job_timeout_s=30.0,
+                                 scheduler="tcp://nowhere:1")
     said = _said(buf)
-    assert failed == ["boom: Tunnel_Empty"]
-    assert runs.asked == [(3, 1, True, "local", 30.0, None)]
-    assert not (out / "table5.md").exists()  # the earlier one removed
-    assert (out / "table3.md").exists() and (out / "table4.md").exists()
-    assert "table5: no finished runs" in said and "not written: table5 (no finished run)" in said
+    assert failed == ["boom: Loop1_0"]
+    assert runs.asked == [(3, 1, True, "local", 30.0, "tcp://nowhere:1")]
+    assert not (out / "table4.md").exists()  # the earlier one removed
+    assert (out / "table3.md").exists() and (out / "table5.md").exists()
+    assert "table4: no finished runs" in said and "not written: table4 (no finished run)" in said
     record = json.loads((out / "reproduction.json").read_text())
-    assert record["tables_not_written"] == {"table5": "no finished run"}
-    assert record["notes"] == ["table5 not written: no finished run"]
-    assert "table5" not in record["tables_written"]
+    assert record["tables_not_written"] == {"table4": "no finished run"}
+    assert record["notes"] == ["table4 not written: no finished run"]
+    assert sorted(record["tables_written"]) == ["table3", "table3_kitti", "table3_velocity",
+                                                "table5"]
     assert "2 done, 1 failed" in said  # the summary of the runs
     assert "figures:" not in said  # no figure made: none said
 
@@ -346,3 +365,23 @@ def test_synthetic_only_ignores_real_stores_and_keeps_the_default_folder(monkeyp
                               "the paper's)")
     assert record["found"] == sorted(stores) and record["missing"] == []
     assert "synthetic only (as asked)" in _said(buf)
+
+
+def test_a_table_without_sequences_before_one_with_does_not_stop_the_tables(
+        monkeypatch, tmp_path, stores, tiny_tables):
+    """Only a tunnel among the real stores: Tables III and IV have no sequence, Table V is
+    still written (its run fails here, recorded: a row all the same)."""
+    data = tmp_path / "data"
+    (data / "real").mkdir(parents=True)
+    (data / "real" / "Tunnel_Empty.h5").write_bytes(stores["Tunnel_Empty"].read_bytes())
+    monkeypatch.setattr(rep, "run_jobs", Runs(fail={"Tunnel_Empty"}))
+    out = tmp_path / "out"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        failed = rep.reproduce_table(out, data, 1, False, False, _console()[0])
+    assert failed == ["boom: Tunnel_Empty"]
+    record = json.loads((out / "reproduction.json").read_text())
+    assert record["tables_written"] == ["table5"]
+    assert record["tables_not_written"] == {
+        "table3": "none of its sequences found (Campus1, Loop1_0)",
+        "table4": "none of its sequences found (Loop1_0)"}
