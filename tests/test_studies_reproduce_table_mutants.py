@@ -236,11 +236,18 @@ def test_a_table_without_finished_runs_is_not_written_and_the_failures_are_retur
     out = tmp_path / "out"
     out.mkdir()
     guard.write_text(out / "table4.md", "an old table4\n", guard.derived, "a table")
-    console, buf = _console()
+    # a terminal's console (colours): the styles of what it says are seen
+    buf = io.StringIO()
+    console = Console(file=buf, width=400, force_terminal=True, color_system="standard")
     failed = rep.reproduce_table(out, tmp_path / "data", 1, True, False, console,
                                  executor="local", job_timeout_s=30.0,
                                  scheduler="tcp://nowhere:1")
-    said = _said(buf)
+    raw = buf.getvalue()
+    said = " ".join(re.sub(r"\x1b\[[0-9;]*m", "", raw).split())
+    assert "\x1b[31mtable4: no finished runs\x1b[0m" in raw  # in red
+    assert "\x1b[1mtable3\x1b[0m" in raw and "\x1b[1mtable5\x1b[0m" in raw  # names in bold
+    rows = [line for line in raw.splitlines() if line.startswith("|")]
+    assert rows and not [r for r in rows if "\x1b" in r]  # the tables printed plain
     assert failed == ["boom: Loop1_0"]
     assert runs.asked == [(3, 1, True, "local", 30.0, "tcp://nowhere:1")]
     assert not (out / "table4.md").exists()  # the earlier one removed
