@@ -140,11 +140,16 @@ def _run_dirs(out: Path, sequences) -> set[Path]:
 
 
 def _synthetic_suite(monkeypatch, stores, asked):
+    """The tiny stores stand in for the suite, wherever it is asked for (reproduce resolves
+    it once; an experiment left with its suite would have the plan resolve it again)."""
+    import bench.runs.plan
+
     def suite(name, data_dir, console):
         asked.append((name, data_dir, console))
         return [SequenceEntry(path=p, name=n) for n, p in stores.items()]
 
     monkeypatch.setattr(rep, "suite_sequences", suite)
+    monkeypatch.setattr(bench.runs.plan, "suite_sequences", suite)
 
 
 def test_a_synthetic_reproduction_writes_each_table_from_its_own_runs(
