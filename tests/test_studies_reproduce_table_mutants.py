@@ -1,5 +1,5 @@
 """bench/studies/reproduce.py's ``reproduce_table`` in process, within seconds: the three table
-experiments replaced by tiny ones (Doppler Correspondence only, on 12-frame stores), the
+experiments replaced by tiny ones (Doppler Correspondence only, on 8-frame stores), the
 synthetic suite by those stores, ``run_jobs`` wrapped to record how it is asked (the real runs
 still happen, in process) and the figures (bench/report/figures, tested on their own, and nine
 tenths of the time) by a stand-in that records the folder it is given. What it pins: each
