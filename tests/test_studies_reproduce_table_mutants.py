@@ -402,3 +402,28 @@ def test_a_table_without_sequences_before_one_with_does_not_stop_the_tables(
     assert record["tables_not_written"] == {
         "table3": "none of its sequences found (Campus1, Loop1_0)",
         "table4": "none of its sequences found (Loop1_0, Campus1)"}
+
+
+def test_stores_without_ground_truth_give_no_table_and_say_so(monkeypatch, tmp_path,
+                                                             tiny_tables):
+    """Runs on stores without ground truth finish, but no table has a row: none is written,
+    and the summary says so."""
+    from loaders.scan import MemorySequence
+
+    stores = {}
+    for name in ("Campus1", "Loop1_0", "Tunnel_Empty"):
+        seq = constant_twist_sequence(n_frames=6, n_points=150, max_range_m=60)
+        bare = MemorySequence(name, seq.sensor, [seq[i] for i in range(len(seq))])
+        stores[name] = write_store(bare, tmp_path / f"{name}.h5")
+    _synthetic_suite(monkeypatch, stores, [])
+    monkeypatch.setattr(rep, "run_jobs", Runs())
+    console, buf = _console()
+    out = tmp_path / "out"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        failed = rep.reproduce_table(out, tmp_path / "data", 1, False, False, console,
+                                     executor="local")
+    assert failed == []
+    record = json.loads((out / "reproduction.json").read_text())
+    assert record["tables_written"] == []
+    assert "; wrote no table" in _said(buf)
