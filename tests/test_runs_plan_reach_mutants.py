@@ -34,11 +34,13 @@ def _store(path: Path, name: str, doppler_kind: str = "radial", v=(8.0, 0.0, 0.0
 @pytest.fixture(scope="module")
 def stores(tmp_path_factory) -> dict[str, Path]:
     """Two stores of one sequence name and different content (a 5.6 m path each: 7 steps of
-    0.8 m), and one with ego-compensated Doppler."""
+    0.8 m), one with ego-compensated Doppler and one of a 14 m path (for the default
+    lengths)."""
     folder = tmp_path_factory.mktemp("plan-stores")
     return {"a": _store(folder / "a.h5", "loop"),
             "b": _store(folder / "b" / "a.h5", "loop", v=(7.0, 0.0, 0.0)),
-            "ego": _store(folder / "ego.h5", "ego", doppler_kind="ego-compensated")}
+            "ego": _store(folder / "ego.h5", "ego", doppler_kind="ego-compensated"),
+            "long": _store(folder / "long.h5", "long", v=(20.0, 0.0, 0.0))}
 
 
 def _job(store: Path, out: Path, method: str = "icp-p2p", seed=True, **fields) -> Job:
@@ -284,3 +286,48 @@ def test_a_finished_run_made_under_another_name_is_reused_saying_so(stores, tmp_
     config = yaml.safe_load((tmp_path / "made" / "config.yaml").read_text())
     assert config["sequence"]["display_name"] == "Named loop"
     assert _quiet(lambda: planning.plan([named]))[1] == []  # renamed once
+
+
+# ---- run_single and jobs_for_experiment -----------------------------------------------------
+
+def _run_single_job(monkeypatch, *args, **kwargs) -> Job:
+    """The job ``run_single`` hands to ``run_job`` (which fails here: no method runs)."""
+    from bench.runs.job import JobOutcome
+
+    seen = []
+
+    def failing(job, force):
+        seen.append(job)
+        return JobOutcome(job, "failed", "stopped here")
+
+    monkeypatch.setattr(planning, "run_job", failing)
+    with pytest.raises(DataError, match="stopped here$"):
+        _quiet(lambda: planning.run_single(*args, **kwargs))
+    (job,) = seen
+    return job
+
+
+def test_run_single_seeds_by_default_into_the_default_folder_with_no_parameters(
+        stores, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    job = _run_single_job(monkeypatch, "icp-p2p", stores["long"])
+    assert job.seed is True and job.params == {}
+    assert job.run_dir_override == Path("results/runs") / "long" / "icp-p2p_seed"
+    job = _run_single_job(monkeypatch, "icp-p2p", str(stores["long"]), seed=False,
+                          params={"max_iterations": 3}, out=str(tmp_path / "mine"))
+    assert job.seed is False and job.params == {"max_iterations": 3}
+    assert job.run_dir_override == tmp_path / "mine"
+
+
+def test_an_experiment_missing_two_stores_names_both(tmp_path):
+    from bench.runs.experiment import load_experiment
+
+    (tmp_path / "a.h5").write_bytes(b"")
+    path = tmp_path / "e.yaml"
+    path.write_text(yaml.safe_dump({
+        "name": "e", "out": "results", "methods": [{"name": "doppler"}],
+        "sequences": [{"path": str(tmp_path / n)} for n in ("a.h5", "x.h5", "y.h5")]}))
+    with pytest.raises(DataError) as raised:
+        planning.jobs_for_experiment(load_experiment(path))
+    assert str(raised.value) == (f"experiment 'e': stores not found: {tmp_path / 'x.h5'}, "
+                                 f"{tmp_path / 'y.h5'}")
