@@ -243,7 +243,8 @@ def test_a_folder_of_another_methods_run_is_refused_only_for_its_own_runs(stores
     (folder / "config.yaml").write_text(yaml.safe_dump(
         _config_of(_job(stores["a"], tmp_path, method="doppler", seed=None))))
     job = _job(stores["a"], tmp_path, run_dir_override=folder)
-    with pytest.raises(DataError, match="bench run"):
+    with pytest.raises(DataError, match=r": holds another run \(method 'doppler'.*\); bench run "
+                                        r"would replace it with method 'icp-p2p'"):
         planning.plan([job], own_only=True)
     (planned,) = planning.plan([job])  # an experiment's folder: its own layout
     assert planned.run_dir_override == folder
@@ -331,3 +332,65 @@ def test_an_experiment_missing_two_stores_names_both(tmp_path):
         planning.jobs_for_experiment(load_experiment(path))
     assert str(raised.value) == (f"experiment 'e': stores not found: {tmp_path / 'x.h5'}, "
                                  f"{tmp_path / 'y.h5'}")
+
+
+def test_a_finished_run_of_other_settings_is_not_renamed(stores, tmp_path):
+    """Only a run of the same key is reused under the new name: one of other parameters in
+    the folder (an experiment's folder runs again) keeps its names."""
+    import numpy as np
+
+    from bench.runs.folders import write_run
+    from methods.base import OdometryResult
+
+    made = _job(stores["a"], tmp_path, method="doppler", seed=None,
+                params={"tau_spatial_m": 2.0}, run_dir_override=tmp_path / "made")
+    write_run(tmp_path / "made", OdometryResult(np.arange(3) * 0.1, np.tile(np.eye(4), (3, 1, 1)),
+                                                []), None, _config_of(made),
+              {"sequence": "loop", "method": "doppler", "seed": None, "frames": 3,
+               "diverged": False})
+    other = dataclasses.replace(made, params={"tau_spatial_m": 3.0}, name="Named",
+                                display_name="Named loop")
+    (planned,), said = _quiet(lambda: planning.plan([other]))
+    assert said == [] and planned.run_dir_override == tmp_path / "made"
+    config = yaml.safe_load((tmp_path / "made" / "config.yaml").read_text())
+    assert config["sequence"]["name"] == "loop" and config["sequence"]["display_name"] == "loop"
+
+
+def test_two_lengths_too_long_are_listed_together(stores, tmp_path):
+    _, said = _quiet(lambda: planning.plan([_job(stores["a"], tmp_path,
+                                                 lengths_m=(2.0, 50.0, 70.0))]))
+    assert said == ["a: the ground truth's path is 5.6 m long: no segments of 50, 70 m (their "
+                    "cells stay empty)"]
+
+
+def test_the_path_of_two_scored_frames_is_their_distance():
+    """Frames 0-8 of 10 calibrated on: frames 9 and 10 (2 m apart) are scored."""
+    from types import SimpleNamespace
+
+    import numpy as np
+
+    from loaders.trajectory import Trajectory
+
+    poses = np.tile(np.eye(4), (11, 1, 1))
+    poses[:, 0, 3] = np.arange(11) * 2.0
+    gt = Trajectory(np.arange(11) * 0.1, poses)
+
+    class Seq(SimpleNamespace):
+        def __len__(self):
+            return len(self.stamps)
+
+    seq = Seq(ground_truth=gt, stamps=gt.stamps, provenance={"calibration": {"frames": [0, 9]}})
+    assert planning._gt_path_length(SimpleNamespace(sequence=seq)) == pytest.approx(2.0)
+
+
+def test_writable_asks_for_writing_and_searching(tmp_path):
+    """``os.access`` with both rights: a file without the execute bit is not, whoever runs
+    this (root too); one with it is."""
+    import os
+
+    path = tmp_path / "f"
+    path.write_text("")
+    os.chmod(path, 0o600)
+    assert planning._writable(path) is False
+    os.chmod(path, 0o700)
+    assert planning._writable(path) is True
