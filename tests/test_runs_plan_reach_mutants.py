@@ -129,7 +129,9 @@ def test_a_store_whose_doppler_the_method_cannot_use_is_a_problem_or_a_refused_p
     refused: list[str] = []
     planned = planning.plan([refusing, fine], refused)
     assert [j.method for j in planned] == ["icp-p2p"]
-    assert len(refused) == 1 and refused[0].startswith("ego / doppler: ")
+    assert len(refused) == 1 and refused[0].startswith(
+        f"ego / doppler: {stores['ego']}: doppler needs the raw radial Doppler velocity, but "
+        "the store's Doppler is ")
     assert "or run a method that needs no Doppler" in refused[0]
     info = json.loads((tmp_path / "ego" / "doppler" / "failed.json").read_text())
     assert info["status"] == "refused" and refused[0] == f"ego / doppler: {info['error']}"
@@ -394,3 +396,16 @@ def test_writable_asks_for_writing_and_searching(tmp_path):
     assert planning._writable(path) is False
     os.chmod(path, 0o700)
     assert planning._writable(path) is True
+
+
+def test_a_finished_runs_folder_needs_no_write_check(tmp_path, monkeypatch):
+    """A folder holding a finished run (its metrics.json) is taken as it is, writable or not
+    (the run is reused); an unfinished one must be writable."""
+    monkeypatch.setattr(planning, "_writable", lambda path: False)
+    done = tmp_path / "done"
+    done.mkdir()
+    (done / "metrics.json").write_text("{}")
+    planning._check_writable(done)
+    (tmp_path / "open").mkdir()
+    with pytest.raises(DataError, match=r"open is not writable$"):
+        planning._check_writable(tmp_path / "open")
