@@ -18,3 +18,25 @@ from bench.runs.folders import run_dir_name
 ])
 def test_a_labels_capitals_are_kept_and_only_its_dashes_stripped(label, expected):
     assert run_dir_name("icp-p2p", True, label) == expected
+
+
+# ---- is_finished ----------------------------------------------------------------------------
+
+
+def test_a_record_that_does_not_say_its_timing_is_clean_is_finished(tmp_path):
+    """Only ``timing_clean: false`` runs again; a record without the field (written before it
+    existed) is a finished run."""
+    import json
+
+    import yaml
+
+    from bench.runs.folders import is_finished
+
+    run_dir = tmp_path / "seq" / "doppler"
+    run_dir.mkdir(parents=True)
+    (run_dir / "config.yaml").write_text(yaml.safe_dump({"run_key": "k1"}))
+    record = {"schema": 2, "sequence": "seq", "method": "doppler", "frames": 3}
+    (run_dir / "metrics.json").write_text(json.dumps(record))
+    assert is_finished(run_dir, "k1") and not is_finished(run_dir, "k2")
+    (run_dir / "metrics.json").write_text(json.dumps({**record, "timing_clean": False}))
+    assert not is_finished(run_dir, "k1")
