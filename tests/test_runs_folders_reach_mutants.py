@@ -40,3 +40,34 @@ def test_a_record_that_does_not_say_its_timing_is_clean_is_finished(tmp_path):
     assert is_finished(run_dir, "k1") and not is_finished(run_dir, "k2")
     (run_dir / "metrics.json").write_text(json.dumps({**record, "timing_clean": False}))
     assert not is_finished(run_dir, "k1")
+
+
+# ---- broken records -------------------------------------------------------------------------
+
+
+def test_a_missing_metrics_file_is_named_with_the_systems_reason(tmp_path):
+    import errno
+    import os
+
+    from bench.runs.folders import BrokenRecord, metrics_raw
+
+    path = tmp_path / "metrics.json"
+    with pytest.raises(BrokenRecord) as raised:
+        metrics_raw(path)
+    # the reason alone ("No such file or directory"), not the exception's "[Errno 2] ..."
+    assert str(raised.value) == f"{path}: cannot be read ({os.strerror(errno.ENOENT)})"
+
+
+def test_a_run_whose_record_is_not_json_keeps_its_folder_and_config(tmp_path):
+    import yaml
+
+    from bench.runs.folders import read_run
+
+    run_dir = tmp_path / "seq" / "doppler"
+    run_dir.mkdir(parents=True)
+    config = {"run_key": "k1", "label": "L", "sequence": {"name": "seq"}}
+    (run_dir / "config.yaml").write_text(yaml.safe_dump(config))
+    (run_dir / "metrics.json").write_text("{truncated")
+    run = read_run(run_dir, failed=True)
+    assert run.dir == run_dir and run.config == config
+    assert run.result.status == "broken" and run.label == "L" and run.sequence == "seq"
