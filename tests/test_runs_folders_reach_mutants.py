@@ -4,6 +4,8 @@ rules the module states."""
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from bench.runs.folders import run_dir_name
@@ -58,16 +60,38 @@ def test_a_missing_metrics_file_is_named_with_the_systems_reason(tmp_path):
     assert str(raised.value) == f"{path}: cannot be read ({os.strerror(errno.ENOENT)})"
 
 
-def test_a_run_whose_record_is_not_json_keeps_its_folder_and_config(tmp_path):
+_GT = "0 0 0 0 0 0 0 1\n0.1 1 0 0 0 0 0 1\n"
+_BROKEN = {
+    # not JSON
+    "json": ({"metrics.json": "{truncated"}, r"metrics\.json: not valid JSON"),
+    # an older record (no schema) whose trajectory files cannot be re-scored
+    "older": ({"metrics.json": '{"sequence": "seq", "method": "doppler", "diverged": false}',
+               "gt_tum.txt": _GT, "est_tum.txt": "0 nonsense\n"},
+              r"metrics\.json: an older record that cannot be re-scored \("),
+    # two fields of the wrong type: both named, one after the other
+    "fields": ({"metrics.json": '{"schema": 2, "sequence": "seq", "method": "doppler", '
+                                '"frames": "many", "frames_scored": "few"}'},
+               r"metrics\.json: not a valid run record: field frames: [^;]*\(got 'many'\); "
+               r"field frames_scored: [^;]*\(got 'few'\)$"),
+}
+
+
+@pytest.mark.parametrize("kind", sorted(_BROKEN))
+def test_a_broken_record_read_as_a_failed_run_keeps_its_folder_and_config(tmp_path, kind):
     import yaml
 
-    from bench.runs.folders import read_run
+    from bench.runs.folders import BrokenRecord, read_run
 
+    files, message = _BROKEN[kind]
     run_dir = tmp_path / "seq" / "doppler"
     run_dir.mkdir(parents=True)
     config = {"run_key": "k1", "label": "L", "sequence": {"name": "seq"}}
     (run_dir / "config.yaml").write_text(yaml.safe_dump(config))
-    (run_dir / "metrics.json").write_text("{truncated")
+    for name, text in files.items():
+        (run_dir / name).write_text(text)
+    with pytest.raises(BrokenRecord, match=message):
+        read_run(run_dir)
     run = read_run(run_dir, failed=True)
     assert run.dir == run_dir and run.config == config
     assert run.result.status == "broken" and run.label == "L" and run.sequence == "seq"
+    assert re.search(message, run.result.error)
