@@ -95,3 +95,28 @@ def test_a_broken_record_read_as_a_failed_run_keeps_its_folder_and_config(tmp_pa
     assert run.dir == run_dir and run.config == config
     assert run.result.status == "broken" and run.label == "L" and run.sequence == "seq"
     assert re.search(message, run.result.error)
+
+
+# ---- the text of a run's files --------------------------------------------------------------
+
+
+def test_a_single_value_is_a_row_and_exponents_are_lowercase():
+    import numpy as np
+
+    from bench.runs.folders import _rows
+
+    assert _rows(np.array([[2.5]])) == "2.5\n"
+    text = _rows(np.array([[2.0**-40, -(2.0**1000)]]))
+    # 17 significant digits, C's %g: a lowercase exponent
+    assert text == "9.0949470177292824e-13 -1.0715086071862673e+301\n"
+
+
+def test_frames_csv_rows_end_with_a_newline_only():
+    import numpy as np
+
+    from bench.runs.folders import frames_csv
+    from methods.base import FrameRecord, OdometryResult
+
+    frames = [FrameRecord(i, 0.1 * i, 1.0, 10, 5, 2, True) for i in range(2)]
+    text = frames_csv(OdometryResult(0.1 * np.arange(2), np.tile(np.eye(4), (2, 1, 1)), frames))
+    assert "\r" not in text and text.count("\n") == 3 and text.endswith("\n")
