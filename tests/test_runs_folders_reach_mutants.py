@@ -120,3 +120,20 @@ def test_frames_csv_rows_end_with_a_newline_only():
     frames = [FrameRecord(i, 0.1 * i, 1.0, 10, 5, 2, True) for i in range(2)]
     text = frames_csv(OdometryResult(0.1 * np.arange(2), np.tile(np.eye(4), (2, 1, 1)), frames))
     assert "\r" not in text and text.count("\n") == 3 and text.endswith("\n")
+
+
+def test_a_folder_where_a_stale_trajectory_file_would_be_is_refused_naming_it(tmp_path):
+    import numpy as np
+
+    from bench.guard import Refused
+    from bench.runs.folders import write_run
+    from methods.base import OdometryResult
+
+    run_dir = tmp_path / "seq" / "doppler"
+    (run_dir / "gt_tum.txt").mkdir(parents=True)
+    result = OdometryResult(0.1 * np.arange(2), np.tile(np.eye(4), (2, 1, 1)), [])
+    with pytest.raises(Refused) as raised:
+        write_run(run_dir, result, None, {"run_key": "k"}, {"sequence": "seq", "method": "m"})
+    assert str(raised.value) == (f"{run_dir / 'gt_tum.txt'}: is a folder; expected the file "
+                                 "name of a run's file")
+    assert (run_dir / "gt_tum.txt").is_dir() and not (run_dir / "metrics.json").exists()
