@@ -137,3 +137,38 @@ def test_a_folder_where_a_stale_trajectory_file_would_be_is_refused_naming_it(tm
     assert str(raised.value) == (f"{run_dir / 'gt_tum.txt'}: is a folder; expected the file "
                                  "name of a run's file")
     assert (run_dir / "gt_tum.txt").is_dir() and not (run_dir / "metrics.json").exists()
+
+
+# ---- older records --------------------------------------------------------------------------
+
+
+def test_an_older_record_saying_schema_1_is_re_scored_as_schema_2(tmp_path):
+    """A metrics.json that names its schema 1 (not only one without the field) reads, once
+    re-scored, as today's record."""
+    import json
+
+    import numpy as np
+
+    from bench.runs.folders import read_run, write_run
+    from loaders.trajectory import Trajectory
+    from methods.base import OdometryResult
+
+    run_dir = tmp_path / "seq" / "doppler"
+    n = 30
+    gt = np.tile(np.eye(4), (n, 1, 1))
+    gt[:, 0, 3] = np.arange(n) * 0.5  # a 14.5 m straight line
+    est = gt.copy()
+    est[:, 0, 3] *= 1.1
+    write_run(run_dir, OdometryResult(0.1 * np.arange(n), est, []),
+              Trajectory(0.1 * np.arange(n), gt), {"lengths_m": [2.0]},
+              {"sequence": "seq", "method": "doppler", "seed": None, "frames": n,
+               "diverged": False})
+    (run_dir / "metrics.json").write_text(json.dumps(
+        {"schema": 1, "sequence": "seq", "method": "doppler", "seed": None, "frames": n,
+         "diverged": False, "relative_error": {"2.0": {"trans_m_mean": 99.0}}}))
+    result = read_run(run_dir).result
+    assert result.schema_version == 2
+    (rel,) = result.relative_error
+    # every 2 m of ground truth is 2.2 m of estimate: 0.2 m of error per segment
+    assert rel.length_m == 2.0
+    np.testing.assert_allclose(rel.trans_m_mean, 0.2, atol=1e-9)
