@@ -122,7 +122,9 @@ def test_frames_csv_rows_end_with_a_newline_only():
     assert "\r" not in text and text.count("\n") == 3 and text.endswith("\n")
 
 
-def test_a_folder_where_a_stale_trajectory_file_would_be_is_refused_naming_it(tmp_path):
+@pytest.mark.parametrize("name, what", [("gt_tum.txt", "a run's file"),
+                                        ("failed.json", "a run's record")])
+def test_a_folder_where_a_stale_file_would_be_is_refused_naming_it(tmp_path, name, what):
     import numpy as np
 
     from bench.guard import Refused
@@ -130,13 +132,12 @@ def test_a_folder_where_a_stale_trajectory_file_would_be_is_refused_naming_it(tm
     from methods.base import OdometryResult
 
     run_dir = tmp_path / "seq" / "doppler"
-    (run_dir / "gt_tum.txt").mkdir(parents=True)
+    (run_dir / name).mkdir(parents=True)
     result = OdometryResult(0.1 * np.arange(2), np.tile(np.eye(4), (2, 1, 1)), [])
     with pytest.raises(Refused) as raised:
         write_run(run_dir, result, None, {"run_key": "k"}, {"sequence": "seq", "method": "m"})
-    assert str(raised.value) == (f"{run_dir / 'gt_tum.txt'}: is a folder; expected the file "
-                                 "name of a run's file")
-    assert (run_dir / "gt_tum.txt").is_dir() and not (run_dir / "metrics.json").exists()
+    assert str(raised.value) == f"{run_dir / name}: is a folder; expected the file name of {what}"
+    assert (run_dir / name).is_dir() and not (run_dir / "metrics.json").exists()
 
 
 # ---- older records --------------------------------------------------------------------------
