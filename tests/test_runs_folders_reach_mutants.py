@@ -122,9 +122,12 @@ def test_frames_csv_rows_end_with_a_newline_only():
     assert "\r" not in text and text.count("\n") == 3 and text.endswith("\n")
 
 
-@pytest.mark.parametrize("name, what", [("gt_tum.txt", "a run's file"),
-                                        ("failed.json", "a run's record")])
-def test_a_folder_where_a_stale_file_would_be_is_refused_naming_it(tmp_path, name, what):
+@pytest.mark.parametrize("name, what", [
+    ("gt_tum.txt", "a run's file"),  # removed as stale
+    ("est_tum.txt", "a run's file"),  # written
+    ("failed.json", "a run's record"),  # removed
+])
+def test_a_folder_where_a_runs_file_would_be_is_refused_naming_it(tmp_path, name, what):
     import numpy as np
 
     from bench.guard import Refused
