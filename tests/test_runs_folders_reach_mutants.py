@@ -176,3 +176,27 @@ def test_an_older_record_saying_schema_1_is_re_scored_as_schema_2(tmp_path):
     # every 2 m of ground truth is 2.2 m of estimate: 0.2 m of error per segment
     assert rel.length_m == 2.0
     np.testing.assert_allclose(rel.trans_m_mean, 0.2, atol=1e-9)
+
+
+# ---- the layout of the JSON files a user opens ----------------------------------------------
+
+
+def test_failed_json_and_meta_json_are_indented_by_two_spaces(tmp_path):
+    """One key per line, indented by two spaces (read by hand when a run failed)."""
+    import numpy as np
+
+    from bench.runs.folders import write_failure, write_run
+    from methods.base import OdometryResult
+
+    def indents(path):
+        lines = path.read_text().splitlines()
+        assert lines[0] == "{" and lines[-1] == "}" and len(lines) > 3
+        return {len(line) - len(line.lstrip(" ")) for line in lines[1:-1]
+                if line.lstrip(" ").startswith('"')}
+
+    run_dir = tmp_path / "seq" / "doppler"
+    write_failure(run_dir, None, "it broke")
+    assert indents(run_dir / "failed.json") == {2}
+    write_run(run_dir, OdometryResult(0.1 * np.arange(2), np.tile(np.eye(4), (2, 1, 1)), []),
+              None, {"run_key": "k"}, {"sequence": "seq", "method": "m"})
+    assert 2 in indents(run_dir / "meta.json") and min(indents(run_dir / "meta.json")) == 2
