@@ -149,3 +149,27 @@ def test_two_other_contents_under_one_name_are_both_said(monkeypatch):
     assert df[df["only_in"] == "A"].iloc[0]["note"] == (
         "only in A; B holds data1 [b.h5], data1 [c.h5]: another content of data1 (other store "
         "or frames), not compared")
+
+
+def test_params_differ_reads_b_as_a():
+    """(kills params_differ 24, 25, 27: B's values split at their first '=' only; 38, 40, 41:
+    a parameter B lacks is '-')"""
+    assert cmp.params_differ("a=x", "a=x=y") == "a A x, B x=y"
+    assert cmp.params_differ("a=1;c=x", "a=1") == "c A x, B -"
+
+
+def test_a_regression_within_the_intervals_is_said_in_full(monkeypatch):
+    """(kills _note 16: the wording a user reads)"""
+    _patch(monkeypatch, [_cell("s1", 8.0, 1.0, 1.0, ci=0.5)],
+           [_cell("s1", 8.0, 1.2, 1.0, ci=0.5)])
+    assert cmp.compare("A", "B").iloc[0]["note"] == (
+        "! regression by value only: A's and B's intervals meet, they cannot tell it from noise")
+
+
+def test_half_an_interval_is_no_interval(monkeypatch):
+    """(kills _stat 6: a side whose interval lacks its low end was read as having one)"""
+    a = _cell("s1", 8.0, 1.0, 1.0, ci=0.1)
+    a["rot_deg_mean_ci_low"] = None
+    a["trans_m_mean_ci_low"] = None
+    _patch(monkeypatch, [a], [_cell("s1", 8.0, 2.0, 2.0, ci=0.1)])
+    assert cmp.compare("A", "B").iloc[0]["note"] == "! regression (by value: no intervals)"
