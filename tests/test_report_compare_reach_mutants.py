@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 
 import pandas as pd
+import pytest
 
 from bench.report import compare as cmp
 
@@ -173,3 +174,41 @@ def test_half_an_interval_is_no_interval(monkeypatch):
     a["trans_m_mean_ci_low"] = None
     _patch(monkeypatch, [a], [_cell("s1", 8.0, 2.0, 2.0, ci=0.1)])
     assert cmp.compare("A", "B").iloc[0]["note"] == "! regression (by value: no intervals)"
+
+
+def _run_folder(root, sequence: str, store: str, content: str, rot: float) -> None:
+    """A finished run folder with what compare reads: metrics.json (one length, 8 m) and the
+    config's record of the sequence's store and content."""
+    import json
+
+    d = root / sequence / "icp-p2p_seed"
+    d.mkdir(parents=True)
+    (d / "metrics.json").write_text(json.dumps({
+        "sequence": sequence, "method": "icp-p2p", "seed": True, "frames": 50,
+        "diverged": False, "time_ms": {"mean": 5.0, "median": 5.0},
+        "relative_error": {"8": {"rot_deg_mean": rot, "trans_m_mean": rot / 2, "n": 10}}}))
+    (d / "config.yaml").write_text(json.dumps({
+        "sequence": {"name": sequence, "store": store, "content_sha256": content}}))
+
+
+def test_folders_holding_one_name_with_two_contents_say_so(tmp_path):
+    """(kills _frame 7 and 10: the sequence's base name lost, so the other content unsaid)"""
+    _run_folder(tmp_path / "A", "seqA", "/data/a.h5", "1" * 64, 1.0)
+    _run_folder(tmp_path / "B", "seqA", "/data/b.h5", "2" * 64, 1.0)
+    df = cmp.compare(tmp_path / "A", tmp_path / "B")
+    notes = dict(zip(df["sequence"], df["note"], strict=True))
+    assert notes == {
+        "seqA [a.h5]": "only in A; B holds seqA [b.h5]: another content of seqA (other store "
+                       "or frames), not compared",
+        "seqA [b.h5]": "only in B; A holds seqA [a.h5]: another content of seqA (other store "
+                       "or frames), not compared"}
+
+
+def test_an_empty_folder_is_refused_in_words(tmp_path):
+    """(kills _frame 4 and 5: the refusal's wording)"""
+    _run_folder(tmp_path / "A", "seqA", "/data/a.h5", "1" * 64, 1.0)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(FileNotFoundError) as caught:
+        cmp.compare(tmp_path / "A", tmp_path / "empty")
+    assert str(caught.value) == (f"{tmp_path / 'empty'}: no finished runs with relative errors "
+                                 "(no metrics.json of a run with ground truth found)")
