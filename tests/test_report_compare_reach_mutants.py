@@ -15,6 +15,7 @@ import pandas as pd
 import pytest
 
 from bench.report import compare as cmp
+from bench.report.names import display_name
 
 NAN = math.nan
 
@@ -176,19 +177,23 @@ def test_half_an_interval_is_no_interval(monkeypatch):
     assert cmp.compare("A", "B").iloc[0]["note"] == "! regression (by value: no intervals)"
 
 
-def _run_folder(root, sequence: str, store: str, content: str, rot: float) -> None:
+def _run_folder(root, sequence: str, store: str, content: str, rot: float,
+                method: str = "icp-p2p", label: str | None = None,
+                doppler_kind: str = "radial"):
     """A finished run folder with what compare reads: metrics.json (one length, 8 m) and the
-    config's record of the sequence's store and content."""
+    config's record of the sequence's store, content and Doppler kind."""
     import json
 
-    d = root / sequence / "icp-p2p_seed"
+    d = root / sequence / f"{method}_seed{'_' + label if label else ''}"
     d.mkdir(parents=True)
     (d / "metrics.json").write_text(json.dumps({
-        "sequence": sequence, "method": "icp-p2p", "seed": True, "frames": 50,
+        "sequence": sequence, "method": method, "seed": True, "frames": 50, "label": label,
         "diverged": False, "time_ms": {"mean": 5.0, "median": 5.0},
         "relative_error": {"8": {"rot_deg_mean": rot, "trans_m_mean": rot / 2, "n": 10}}}))
     (d / "config.yaml").write_text(json.dumps({
-        "sequence": {"name": sequence, "store": store, "content_sha256": content}}))
+        "sequence": {"name": sequence, "store": store, "content_sha256": content,
+                     "doppler_kind": doppler_kind}}))
+    return d
 
 
 def test_folders_holding_one_name_with_two_contents_say_so(tmp_path):
@@ -212,3 +217,39 @@ def test_an_empty_folder_is_refused_in_words(tmp_path):
         cmp.compare(tmp_path / "A", tmp_path / "empty")
     assert str(caught.value) == (f"{tmp_path / 'empty'}: no finished runs with relative errors "
                                  "(no metrics.json of a run with ground truth found)")
+
+
+def test_folders_keep_labels_gt_assisted_marks_and_own_priors_apart(tmp_path):
+    """(kills _frame 16-19: the label not filled with "", 51/57: the label left out of the run's
+    name, 52/56: the GT-assisted mark, 82: the seed tag without the method)"""
+    for side in ("A", "B"):
+        _run_folder(tmp_path / side, "seqA", "/data/a.h5", "1" * 64, 1.0)
+        _run_folder(tmp_path / side, "seqA", "/data/a.h5", "1" * 64, 1.0, label="mine")
+        _run_folder(tmp_path / side, "seqG", "/data/g.h5", "3" * 64, 1.0,
+                    doppler_kind="gt-reconstructed")
+        _run_folder(tmp_path / side, "seqA", "/data/a.h5", "1" * 64, 1.0, method="kiss-icp")
+    df = cmp.compare(tmp_path / "A", tmp_path / "B")
+    got = sorted(zip(df["sequence"], df["method"], df["label"], df["seed"], df["run"],
+                     df["only_in"], strict=True))
+    icp, kiss = display_name("icp-p2p"), display_name("kiss-icp")  # the tables' names
+    assert got == [
+        ("seqA", "icp-p2p", "", "With Seed", f"(With Seed) {icp}", ""),
+        ("seqA", "icp-p2p", "mine", "With Seed", "(With Seed) mine", ""),
+        ("seqA", "kiss-icp", "", "With Seed, own model", f"(With Seed, own model) {kiss}", ""),
+        ("seqG", "icp-p2p", "", "With Seed", f"(With Seed) {icp} [GT-assisted]", "")]
+
+
+def test_a_run_folder_against_a_results_folder_pairs_by_run(tmp_path):
+    """(kills _pair 2: one run folder made both sides pair by sequence alone)"""
+    run = _run_folder(tmp_path / "A", "seqA", "/data/a.h5", "1" * 64, 1.0)
+    _run_folder(tmp_path / "B", "seqA", "/data/a.h5", "1" * 64, 1.0, method="gicp")
+    df = cmp.compare(run, tmp_path / "B")
+    assert sorted(df["only_in"]) == ["A", "B"]
+
+
+def test_an_empty_first_folder_is_named(tmp_path):
+    """(kills _pair 19: A's path left out of its refusal)"""
+    _run_folder(tmp_path / "B", "seqA", "/data/a.h5", "1" * 64, 1.0)
+    (tmp_path / "empty").mkdir()
+    with pytest.raises(FileNotFoundError, match=f"^{tmp_path / 'empty'}: no finished runs"):
+        cmp.compare(tmp_path / "empty", tmp_path / "B")
