@@ -1,0 +1,455 @@
+"""Known answers of the radar scattering centres (loaders/synthetic/scatterers.py): where they
+are sampled (on the surfaces of boxes, cylinders, spheres, the ground, kerbs and tunnel ribs),
+the grid index, and which are seen from a sensor (field of view, range, facing, occlusion,
+RCS towards the sensor, mover velocity).
+
+Expected values come from the documented geometry, worked out by hand on small hand-made
+scenes, or from the scene's own primitives (boxes, cylinders, spheres)."""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from loaders.synthetic import scatterers as SC
+from loaders.synthetic.generate import SyntheticSequence
+from loaders.synthetic.raycast import GROUND_ID, TUNNEL_ID, Geometry
+from loaders.synthetic.scenes import BUILDING, CAR, CROWN, POLE, RIB, TRUNK, TUNNEL_WALL, WALL
+from loaders.synthetic.sensors import SENSORS, detection_margin_deg
+
+RADAR = SENSORS["radar-sparse"]
+
+
+def _build(adds, seed=0) -> SC.Scatterers:
+    b = SC._Builder(np.random.default_rng(seed))
+    for args, kw in adds:
+        b.add(*args, **kw)
+    return b.build()
+
+
+@pytest.fixture(scope="module")
+def campus():
+    return SyntheticSequence("campus", "radar-sparse", 2, seed=1, noise=False)
+
+
+# ---- the builder -----------------------------------------------------------------------------
+
+def test_builder_fills_every_field_and_draws_the_random_ones():
+    n = 20_000
+    pos = np.zeros((n, 3))
+    sc = _build([((pos, (0.0, 1.0, 0.0)), {"rcs": (4.0, 2.0), "material": WALL, "owner": 3,
+                                            "prim": 7, "cos_min": 0.2, "aspect_exp": 0.5,
+                                            "radius": 0.3, "lobe_db": 2.5,
+                                            "lobe_k": (2.0, 5.0), "swerling": 1})])
+    assert len(sc) == n
+    np.testing.assert_array_equal(sc.normal, np.broadcast_to([0.0, 1.0, 0.0], (n, 3)))
+    for name, value in (("cos_min", 0.2), ("aspect_exp", 0.5), ("radius", 0.3),
+                        ("lobe_db", 2.5), ("swerling", 1), ("material", WALL), ("owner", 3),
+                        ("prim", 7)):
+        np.testing.assert_array_equal(getattr(sc, name), value)
+    for name in ("swerling", "material", "owner", "prim"):
+        assert getattr(sc, name).dtype == np.int64
+    assert abs(sc.rcs_db.mean() - 4.0) < 0.05 and abs(sc.rcs_db.std() - 2.0) < 0.05
+    assert sc.lobe_k.min() >= 2.0 and sc.lobe_k.max() < 5.0 and abs(sc.lobe_k.mean() - 3.5) < 0.05
+    assert sc.lobe_phase.min() >= 0.0 and sc.lobe_phase.max() < 2 * np.pi
+    assert abs(sc.lobe_phase.mean() - np.pi) < 0.05
+    assert sc.bias.shape == (n, 2) and abs(sc.bias.std() - 1.0) < 0.02
+    assert abs(sc.bias.mean()) < 0.02
+
+
+def test_builder_defaults_isotropic_and_empty():
+    sc = _build([(([[1.0, 2.0, 3.0]],), {"rcs": (0.0, 0.0), "material": POLE}),
+                 ((np.zeros((0, 3)), (1.0, 0.0, 0.0)), {"rcs": (0.0, 1.0), "material": WALL}),
+                 (([[0.0, 0.0, 1.0]], (1.0, 0.0, 0.0)), {"rcs": (1.0, 0.0), "material": WALL})])
+    assert len(sc) == 2
+    # isotropic: no normal, always facing (cos_min below -1), no incidence loss
+    np.testing.assert_array_equal(sc.normal[0], 0.0)
+    assert sc.cos_min[0] == -2.0 and sc.aspect_exp[0] == 0.0
+    # the defaults of a faced scatterer
+    assert sc.cos_min[1] == 0.05 and sc.aspect_exp[1] == 1.0 and sc.radius[1] == 0.0
+    assert sc.lobe_db[1] == 3.0 and 1.0 <= sc.lobe_k[1] < 6.0 and sc.swerling[1] == 3
+    np.testing.assert_array_equal(sc.owner, -1)
+    np.testing.assert_array_equal(sc.prim, -1)
+    np.testing.assert_array_equal(sc.rcs_db, [0.0, 1.0])
+    empty = SC._Builder(np.random.default_rng(0)).build()
+    assert len(empty) == 0 and empty.pos.shape == (0, 3) and empty.normal.shape == (0, 3)
+    assert empty.bias.shape == (0, 2)
+    for name in ("material", "owner", "swerling", "prim"):
+        assert getattr(empty, name).dtype == np.int64
+    assert len(empty.static_in_sector(np.zeros(2), 0.0, 1.0, 100.0)) == 0
+    assert len(empty.of_mover(0)) == 0
+
+
+# ---- the grid index --------------------------------------------------------------------------
+
+def test_sector_query_is_a_superset_of_the_sector_and_skips_far_cells():
+    xs, ys = np.meshgrid(np.arange(-100.0, 101.0, 3.0), np.arange(-100.0, 101.0, 3.0))
+    pos = np.column_stack([xs.ravel(), ys.ravel(), np.zeros(xs.size)])
+    mover = np.array([[1.0, 1.0, 0.0], [2.0, 0.0, 0.0]])
+    sc = _build([((pos,), {"rcs": (0.0, 1.0), "material": WALL}),
+                 ((mover,), {"rcs": (0.0, 1.0), "material": CAR, "owner": 0}),
+                 ((mover[:1],), {"rcs": (0.0, 1.0), "material": CAR, "owner": 2})])
+    apex, heading, half, radius = np.array([5.0, -3.0]), np.radians(100.0), np.radians(30.0), 50.0
+    got = set(sc.static_in_sector(apex, heading, half, radius).tolist())
+    d = pos[:, :2] - apex
+    dist = np.hypot(d[:, 0], d[:, 1])
+    bearing = np.angle(np.exp(1j * (np.arctan2(d[:, 1], d[:, 0]) - heading)))
+    inside = set(np.flatnonzero((dist <= radius) & (np.abs(bearing) <= half)).tolist())
+    assert inside <= got
+    # nothing from cells wholly beyond the radius or behind the apex
+    diag = SC.GRID_CELL * np.sqrt(2.0)
+    far = set(np.flatnonzero(dist > radius + diag).tolist())
+    behind = set(np.flatnonzero((np.abs(bearing) > half + np.radians(60.0))
+                                & (dist > 2 * diag)).tolist())
+    assert not got & far and not got & behind
+    assert len(got) < 0.5 * len(pos)
+    assert max(got) < len(pos)  # no mover scatterer
+    # the apex cell is always included (a scatterer right beside the sensor)
+    near = set(sc.static_in_sector(np.array([0.5, 0.5]), np.pi, 0.01, 1.0).tolist())
+    at_origin = int(np.flatnonzero((pos[:, 0] == 2.0) & (pos[:, 1] == 2.0))[0])
+    assert at_origin in near
+    np.testing.assert_array_equal(np.sort(sc.of_mover(0)), [len(pos), len(pos) + 1])
+    np.testing.assert_array_equal(sc.of_mover(2), [len(pos) + 2])
+    assert len(sc.of_mover(1)) == 0 and len(sc.of_mover(5)) == 0
+
+
+def test_sector_query_keeps_a_narrow_sector_between_cell_centres():
+    """A thin sector along +x reaches the scatterers of every cell it crosses."""
+    x = np.arange(1.0, 60.0, 2.0)
+    pos = np.column_stack([x, np.full(len(x), 0.1), np.zeros(len(x))])
+    sc = _build([((pos,), {"rcs": (0.0, 1.0), "material": WALL})])
+    got = np.sort(sc.static_in_sector(np.array([0.0, 0.0]), 0.0, 0.001, 60.0))
+    np.testing.assert_array_equal(got, np.arange(len(x)))
+    assert len(sc.static_in_sector(np.array([0.0, 0.0]), np.pi, 0.001, 60.0)) == 0
+
+
+# ---- sampling on a scene's surfaces ----------------------------------------------------------
+
+def _box_frame(p, center, yaw):
+    c, s = np.cos(yaw), np.sin(yaw)
+    d = p - np.asarray(center)
+    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], d[:, 2]])
+
+
+def test_box_scatterers_lie_on_faces_edges_and_the_foot(campus):
+    scene, sc = campus.scene_model, campus.scatterers
+    n_box = 0
+    for pid, (center, half, yaw, mat) in enumerate(scene.boxes):
+        mine = np.flatnonzero((sc.prim == pid) & (sc.owner < 0))
+        if not len(mine):
+            continue
+        n_box += 1
+        q = _box_frame(sc.pos[mine], center, yaw)
+        hx, hy, hz = half
+        on_x = np.isclose(np.abs(q[:, 0]), hx)
+        on_y = np.isclose(np.abs(q[:, 1]), hy)
+        assert np.all(on_x | on_y)
+        assert np.all(np.abs(q[:, 0]) <= hx + 1e-9) and np.all(np.abs(q[:, 1]) <= hy + 1e-9)
+        assert np.all(q[:, 2] >= -hz - 1e-9) and np.all(q[:, 2] <= hz + 1e-9)
+        nl = _box_frame(sc.normal[mine], np.zeros(3), yaw)
+        # faces: the outward axis normal; edges (on both): the diagonal, seen from behind too
+        face = on_x ^ on_y
+        want = np.where(on_x[:, None], [[1.0, 0, 0]], [[0, 1.0, 0]]) * np.sign(q)
+        np.testing.assert_allclose(nl[face], want[face], atol=1e-9)
+        edge = on_x & on_y
+        np.testing.assert_allclose(nl[edge], np.sign(q[edge]) * [1, 1, 0] / np.sqrt(2),
+                                   atol=1e-9)
+        assert np.all(sc.cos_min[mine[edge]] == -0.7) and np.all(sc.aspect_exp[mine[edge]] == 0)
+        np.testing.assert_array_equal(sc.material[mine], mat)
+        if mat == BUILDING:  # the wall-ground dihedral line 5 cm above the foot
+            foot = np.isclose(q[:, 2], -hz + 0.05) & face
+            assert foot.sum() >= 1
+            assert np.all(sc.aspect_exp[mine[foot]] == 0.5)
+        if mat in (BUILDING, WALL):  # faces Swerling 1, edges Swerling 3
+            assert np.all(sc.swerling[mine[edge]] == 3)
+    assert n_box > 5
+
+
+def test_face_density_and_edge_spacing_of_a_box():
+    half = (10.0, 4.0, 5.0)
+    faces, edges, foot = [], [], []
+    for seed in range(20):
+        b = SC._Builder(np.random.default_rng(seed))
+        SC._box_local(b, half, BUILDING, owner=-1, face_density=0.7, face_rcs=(-3.0, 5.0),
+                      edge_spacing=0.6, edge_rcs=(11.0, 4.0), base=True)
+        sc = b.build()
+        on_x, on_y = np.isclose(np.abs(sc.pos[:, 0]), 10.0), np.isclose(np.abs(sc.pos[:, 1]), 4.0)
+        edge = on_x & on_y
+        low = np.isclose(sc.pos[:, 2], -5.0 + 0.05) & ~edge & (sc.aspect_exp == 0.5)
+        faces.append(int((~edge & ~low).sum()))
+        edges.append(int(edge.sum()))
+        foot.append(int(low.sum()))
+        assert np.all(sc.swerling[~edge & ~low] == 1)
+    # faces: Poisson(0.7 / m^2 x 4 faces' area 2 (20 + 8) x 10 m^2 = 392); edges: 4 x 16 rows
+    # (10 m / 0.6 m) kept with p 0.8; foot: 4 faces' length / 2 m -> 10 + 10 + 4 + 4 = 28 slots
+    # kept with p 0.7
+    assert abs(np.mean(faces) - 392.0) < 3 * np.sqrt(392.0 / 20)
+    assert abs(np.mean(edges) - 64 * 0.8) < 3 * np.sqrt(64 * 0.16 / 20)
+    assert abs(np.mean(foot) - 28 * 0.7) < 3 * np.sqrt(28 * 0.21 / 20)
+
+
+def test_vehicle_wheels_and_bumpers():
+    b = SC._Builder(np.random.default_rng(0))
+    half = (2.25, 0.9, 0.75)
+    SC._vehicle(b, half, CAR, 4)
+    sc = b.build()
+    np.testing.assert_array_equal(sc.owner, 4)
+    np.testing.assert_array_equal(sc.material, CAR)
+    wheels = np.isclose(sc.pos[:, 2], -0.75 + 0.35)
+    want = {(sx * 1.5, sy * 0.9) for sx in (-1, 1) for sy in (-1, 1)}
+    assert {(round(x, 9), round(y, 9)) for x, y in sc.pos[wheels, :2]} == want
+    np.testing.assert_allclose(sc.normal[wheels], np.column_stack(
+        [np.zeros(4), np.sign(sc.pos[wheels, 1]), np.zeros(4)]))
+    np.testing.assert_array_equal(sc.cos_min[wheels], -0.3)
+    bump = np.isclose(sc.pos[:, 2], -0.75 + 0.55)
+    assert bump.sum() == 6
+    np.testing.assert_allclose(np.sort(sc.pos[bump, 1]), np.repeat([-0.54, 0.0, 0.54], 2))
+    np.testing.assert_allclose(np.abs(sc.pos[bump, 0]), 2.25)
+    np.testing.assert_allclose(sc.normal[bump], np.sign(sc.pos[bump, :1]) * [[1.0, 0, 0]])
+    np.testing.assert_array_equal(sc.cos_min[bump], 0.1)
+    # the body's faces start 0.25 m above its bottom
+    body = ~wheels & ~bump
+    assert sc.pos[body, 2].min() >= -0.75 + 0.25 - 1e-9
+
+
+def test_cylinders_spheres_and_ground_of_a_campus(campus):
+    scene, sc = campus.scene_model, campus.scatterers
+    pid0 = len(scene.boxes)
+    n_pole = n_trunk = 0
+    for k, (cx, cy, r, z0, z1, mat) in enumerate(scene.vcylinders):
+        mine = np.flatnonzero(sc.prim == pid0 + k)
+        assert len(mine) >= 2
+        np.testing.assert_array_equal(sc.material[mine], mat)
+        # points on the axis with the cylinder's radius (the visible centre is found per view)
+        np.testing.assert_allclose(sc.pos[mine, :2], np.broadcast_to([cx, cy], (len(mine), 2)))
+        np.testing.assert_allclose(sc.radius[mine], r)
+        z = np.sort(sc.pos[mine, 2])
+        if mat == POLE:
+            n_pole += 1
+            assert z[0] == pytest.approx(z0 + 0.15) and z[-1] == pytest.approx(z1 - 0.2)
+            assert 3 <= len(mine) <= 5
+        elif mat == TRUNK:
+            n_trunk += 1
+            assert z[0] == pytest.approx(z0 + 0.2) and z[-1] <= z0 + min(z1 - z0, 3.0)
+            assert 2 <= len(mine) <= 4
+        assert np.all(sc.cos_min[mine] < -1.0)
+    assert n_pole > 0 and n_trunk > 0
+    pid1 = pid0 + len(scene.vcylinders)
+    for k, (center, r, mat) in enumerate(scene.spheres):
+        mine = np.flatnonzero(sc.prim == pid1 + k)
+        assert mat == CROWN
+        d = sc.pos[mine] - np.asarray(center)
+        np.testing.assert_allclose(np.linalg.norm(d, axis=1), r)
+        np.testing.assert_allclose(sc.normal[mine], d / r, atol=1e-9)
+        np.testing.assert_array_equal(sc.swerling[mine], 1)
+    ground = np.flatnonzero((sc.prim == GROUND_ID) & (sc.pos[:, 2] == 0.0))
+    kerb = np.flatnonzero((sc.prim == GROUND_ID) & (sc.pos[:, 2] == 0.08))
+    assert len(ground) > 50 and len(kerb) > 20
+    np.testing.assert_allclose(sc.normal[ground], np.broadcast_to([0.0, 0.0, 1.0],
+                                                                  (len(ground), 3)))
+    for center, half, yaw, _ in scene.boxes:  # never under a box
+        q = _box_frame(sc.pos[ground], center, yaw)
+        assert not np.any((np.abs(q[:, 0]) < half[0]) & (np.abs(q[:, 1]) < half[1]))
+    # within 60 m of the path, kerbs 5.4 m beside it and facing it
+    m = campus.motion
+    lo, hi = m.sigma_span
+    st = m.planar_state(m.time_at_arclength(np.arange(lo + 1.0, hi - 1.0, 0.25)))
+    path = np.column_stack([st["x"], st["y"]])
+    from scipy.spatial import cKDTree
+
+    tree = cKDTree(path)
+    assert tree.query(sc.pos[ground, :2])[0].max() <= 60.0 + 0.3
+    dist, idx = tree.query(sc.pos[kerb, :2])
+    np.testing.assert_allclose(dist, 5.4, atol=0.05)
+    towards = path[idx] - sc.pos[kerb, :2]
+    cos = np.einsum("ij,ij->i", towards / dist[:, None], sc.normal[kerb, :2])
+    assert cos.min() > 0.99
+    # movers: body-frame points inside their box, owned by their index
+    for i, mv in enumerate(scene.movers):
+        mine = sc.of_mover(i)
+        assert len(mine) > 0
+        assert np.all(np.abs(sc.pos[mine]) <= np.asarray(mv.half) + 1e-9)
+
+
+def test_tunnel_ribs_and_wall_features():
+    seq = SyntheticSequence("tunnel", "radar-sparse", 2, seed=3, rib_spacing=4.0)
+    tun, sc = seq.scene_model.tunnel, seq.scatterers
+    rib = sc.material == RIB
+    wall = sc.material == TUNNEL_WALL
+    assert rib.sum() > 100 and wall.sum() > 10
+    np.testing.assert_array_equal(sc.prim[rib | wall], TUNNEL_ID)
+    radial = np.hypot(sc.pos[:, 1] - tun.axis_y, sc.pos[:, 2] - tun.axis_z)
+    np.testing.assert_allclose(radial[rib], tun.radius - tun.rib_depth)
+    np.testing.assert_allclose(radial[wall], tun.radius)
+    assert sc.pos[rib | wall, 2].min() > 0.1
+    # one ring on every rib, half a rib width after its start
+    phase = (sc.pos[rib, 0] - tun.x0 - 0.5 * tun.rib_width) / 4.0
+    np.testing.assert_allclose(phase, np.round(phase), atol=1e-9)
+    assert len(np.unique(np.round(phase))) > 0.9 * (tun.x1 - tun.x0) / 4.0
+    # ring points about 0.6 m apart, 60 % kept
+    per_ring = rib.sum() / len(np.unique(np.round(phase)))
+    r_rib = tun.radius - tun.rib_depth
+    above = np.mean(tun.axis_z + r_rib * np.sin(np.linspace(0, 2 * np.pi, 1000)) > 0.1)
+    assert abs(per_ring - 0.6 * above * 2 * np.pi * r_rib / 0.6) < 1.5
+    # wall features: Poisson(0.05 / m^2 over the tube), those above the road
+    area = 2 * np.pi * tun.radius * (tun.x1 - tun.x0)
+    assert abs(wall.sum() - 0.05 * area * above) < 5 * np.sqrt(0.05 * area)
+    smooth = SyntheticSequence("tunnel", "radar-sparse", 2, seed=3, rib_spacing=0)
+    assert not (smooth.scatterers.material == RIB).any()
+
+
+# ---- what a sensor sees ----------------------------------------------------------------------
+
+def _geom(boxes=(), movers=()) -> Geometry:
+    """A geometry without ground: static boxes then mover boxes (id, center, half, yaw)."""
+    g = Geometry(ground_z=None)
+    n = len(boxes) + len(movers)
+    for k, (center, half, yaw) in enumerate([*boxes, *[m[:3] for m in movers]]):
+        g.boxes.append((k, np.asarray(center, float), np.asarray(half, float), yaw))
+    g.material = np.full(n, WALL)
+    g.dynamic = np.array([False] * len(boxes) + [True] * len(movers))
+    g.velocity = np.array([(0.0, 0.0, 0.0)] * len(boxes) + [m[3] for m in movers]).reshape(-1, 3)
+    g.ref = np.array([b[0] for b in [*boxes, *movers]], float).reshape(-1, 3)
+    g.yaw_rate = np.array([0.0] * len(boxes) + [m[4] for m in movers])
+    g.mover_pid = np.arange(len(boxes), n)
+    return g
+
+
+def _fixed(sc: SC.Scatterers, **values) -> SC.Scatterers:
+    out = dataclasses.replace(sc, **{k: np.asarray(v, float) for k, v in values.items()})
+    return out.finalize()
+
+
+def test_field_of_view_range_and_facing():
+    spec = RADAR  # +-75 x +-15 deg, 0.5-100 m
+    pts = [[10.0, 0.0, 0.0],  # 0 seen
+           [10.0, 10.0 * np.tan(np.radians(74.0)), 0.0],  # 1 inside the azimuth edge
+           [10.0, 10.0 * np.tan(np.radians(76.0)), 0.0],  # 2 outside
+           [10.0, 0.0, 10.0 * np.tan(np.radians(16.0))],  # 3 above
+           [10.0, 0.0, -10.0 * np.tan(np.radians(14.0))],  # 4 inside, below
+           [99.0, 0.0, 0.0], [101.0, 0.0, 0.0], [0.3, 0.0, 0.0],  # 5 seen, 6 far, 7 near
+           [-10.0, 0.0, 0.0]]  # 8 behind
+    sc = _build([((pts,), {"rcs": (0.0, 1.0), "material": WALL})])
+    o, R = np.zeros(3), np.eye(3)
+    cand = SC.candidates(sc, Geometry(ground_z=None), o, R, spec, edge_band=False)
+    assert sorted(cand["ids"].tolist()) == [0, 1, 4, 5]
+    wide = SC.candidates(sc, Geometry(ground_z=None), o, R, spec, edge_band=True)
+    # the band: +-(75 + margin) x +-(15 + margin) deg, margin 1.6-1.7 deg for this radar
+    assert detection_margin_deg(spec).min() > 1.0
+    assert sorted(wide["ids"].tolist()) == [0, 1, 2, 3, 4, 5]
+    # facing: a normal pointing away is not seen, a diagonal at 60 deg is
+    faced = _build([(([[10.0, 0.0, 0.0]] * 3, [(-1.0, 0.0, 0.0)]), {"rcs": (0.0, 1.0),
+                                                                      "material": WALL})])
+    faced = _fixed(faced, normal=[[-1.0, 0.0, 0.0], [1.0, 0.0, 0.0],
+                                  [-0.5, np.sqrt(0.75), 0.0]])
+    cand = SC.candidates(faced, Geometry(ground_z=None), o, R, spec, edge_band=False)
+    assert sorted(cand["ids"].tolist()) == [0, 2]
+    np.testing.assert_allclose(cand["cos_n"][np.argsort(cand["ids"])], [1.0, 0.5])
+
+
+def test_sensor_pose_rotates_and_shifts_the_view():
+    sc = _build([(([[30.0, 2.0, 1.0], [0.0, 10.0, 1.0]],), {"rcs": (0.0, 1.0),
+                                                             "material": WALL})])
+    yaw = np.pi / 2  # the sensor at (0, 1, 1) looks along +y
+    R = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    cand = SC.candidates(sc, Geometry(ground_z=None), np.array([0.0, 1.0, 1.0]), R, RADAR,
+                         edge_band=False)
+    assert cand["ids"].tolist() == [1]
+    np.testing.assert_allclose(cand["points_s"], [[9.0, 0.0, 0.0]], atol=1e-12)
+    np.testing.assert_allclose(cand["points_w"], [[0.0, 10.0, 1.0]])
+    np.testing.assert_allclose(cand["range"], [9.0])
+    assert yaw == pytest.approx(np.arctan2(R[1, 0], R[0, 0]))
+
+
+def test_rcs_towards_the_sensor_aspect_loss_and_lobe():
+    sc = _build([(([[10.0, 0.0, 0.0]] * 3, (-1.0, 0.0, 0.0)), {"rcs": (0.0, 1.0),
+                                                                "material": WALL})])
+    sc = _fixed(sc, rcs_db=[10.0, 10.0, 10.0], aspect_exp=[1.0, 2.0, 1.0],
+                lobe_db=[3.0, 0.0, 2.0], lobe_k=[1.0, 1.0, 2.0], lobe_phase=[0.0, 0.0, 0.5],
+                normal=[[-1.0, 0.0, 0.0], [-0.5, np.sqrt(0.75), 0.0],
+                        [-0.01, np.sqrt(1 - 1e-4), 0.0]], cos_min=[0.0, 0.0, -1.0])
+    cand = SC.candidates(sc, Geometry(ground_z=None), np.zeros(3), np.eye(3), RADAR,
+                         edge_band=False)
+    order = np.argsort(cand["ids"])
+    # the view azimuth from the scatterer to the sensor is pi: lobe 3 cos(pi) = -3;
+    # 2 x 10 log10(0.5); incidence cosine 0.01 clipped at 0.05 and a lobe 2 cos(2 pi + 0.5)
+    np.testing.assert_allclose(cand["rcs_db"][order],
+                               [10.0 - 3.0, 10.0 + 20 * np.log10(0.5),
+                                10.0 + 10 * np.log10(0.05) + 2 * np.cos(0.5)])
+
+
+def test_cylinder_scatterer_is_seen_on_the_surface_facing_the_sensor():
+    sc = _build([(([[10.0, 5.0, 1.0]],), {"rcs": (0.0, 1.0), "material": POLE,
+                                          "radius": 0.5})])
+    cand = SC.candidates(sc, Geometry(ground_z=None), np.array([0.0, 5.0, 1.0]), np.eye(3),
+                         RADAR, edge_band=False)
+    np.testing.assert_allclose(cand["points_w"], [[9.5, 5.0, 1.0]])
+    np.testing.assert_allclose(cand["range"], [9.5])
+    np.testing.assert_allclose(sc.pos, [[10.0, 5.0, 1.0]])  # the stored axis point stays
+
+
+def test_occlusion_and_the_visible_fields():
+    sc = _build([(([[20.0, 0.0, 0.0], [20.0, 6.0, 0.0], [5.0, 0.0, 0.0]],),
+                  {"rcs": (0.0, 1.0), "material": WALL, "swerling": 1})])
+    sc = _fixed(sc, cos_min=[-2.0, -2.0, -2.0])
+    # a wall at x = 10 .. 11 in front of scatterer 0 only
+    geom = _geom(boxes=[((10.5, 0.0, 0.0), (0.5, 1.0, 5.0), 0.0)])
+    vis = SC.visible(sc, geom, np.zeros(3), np.eye(3), RADAR, edge_band=False)
+    assert sorted(vis["ids"].tolist()) == [1, 2]
+    np.testing.assert_array_equal(vis["velocity_w"], 0.0)
+    assert not vis["dynamic"].any()
+    np.testing.assert_array_equal(vis["cos_inc"], 1.0)  # isotropic: no incidence
+    np.testing.assert_array_equal(vis["swerling"], 1)
+    np.testing.assert_array_equal(vis["material"], WALL)
+    np.testing.assert_array_equal(vis["bias"], sc.bias[vis["ids"]])
+    # a surface just behind the scatterer (within OCCLUSION_TOL) does not hide it
+    cand = SC.candidates(sc, geom, np.zeros(3), np.eye(3), RADAR, edge_band=False)
+    t = cand["range"] - SC.OCCLUSION_TOL
+    assert len(SC.finish(sc, geom, np.zeros(3), cand, t)["ids"]) == len(cand["ids"])
+    t = cand["range"] - SC.OCCLUSION_TOL - 1e-3
+    assert len(SC.finish(sc, geom, np.zeros(3), cand, t)["ids"]) == 0
+
+
+def test_mover_scatterers_move_with_their_box():
+    b = SC._Builder(np.random.default_rng(0))
+    b.add([[1.0, 0.0, 0.0], [-1.0, 0.5, 0.2]], (1.0, 0.0, 0.0), rcs=(0.0, 1.0), material=CAR,
+          owner=0, cos_min=-1.5)
+    sc = b.build()
+    yaw = np.pi / 2
+    center = (20.0, 0.0, 0.75)
+    geom = _geom(boxes=[((0.0, 50.0, 0.0), (1.0, 1.0, 1.0), 0.0)],
+                 movers=[(center, (2.0, 1.0, 0.75), yaw, (0.0, 3.0, 0.0), 0.5)])
+    cand = SC.candidates(sc, geom, np.zeros(3), np.eye(3), RADAR, edge_band=False)
+    order = np.argsort(cand["ids"])
+    # body frame rotated by the box's yaw about its centre
+    want = np.array([[20.0, 1.0, 0.75], [19.5, -1.0, 0.95]])
+    np.testing.assert_allclose(cand["points_w"][order], want, atol=1e-12)
+    np.testing.assert_array_equal(cand["prim"], 1)
+    t = np.full(len(cand["ids"]), np.inf)
+    vis = SC.finish(sc, geom, np.zeros(3), cand, t)
+    o = np.argsort(vis["ids"])
+    # rigid motion: v + w x (p - centre), w = 0.5 rad/s about z
+    r = want - np.asarray(center)
+    v = np.column_stack([-0.5 * r[:, 1], 3.0 + 0.5 * r[:, 0], np.zeros(2)])
+    np.testing.assert_allclose(vis["velocity_w"][o], v, atol=1e-12)
+    assert vis["dynamic"].all()
+    # the normal turns with the box: (1, 0, 0) -> (0, 1, 0); cos_n = n . (o - p) / r
+    np.testing.assert_allclose(cand["cos_n"][order],
+                               [(-want[0] @ [0, 1, 0]) / np.linalg.norm(want[0]),
+                                (-want[1] @ [0, 1, 0]) / np.linalg.norm(want[1])])
+    # a mover beyond reach (max range + 1 + 15 m) is skipped whole
+    far = _geom(movers=[((120.0, 0.0, 0.75), (2.0, 1.0, 0.75), 0.0, (0.0, 0.0, 0.0), 0.0)])
+    assert len(SC.candidates(sc, far, np.zeros(3), np.eye(3), RADAR, False)["ids"]) == 0
+    inactive = _geom(movers=[(center, (2.0, 1.0, 0.75), yaw, (0.0, 3.0, 0.0), 0.5)])
+    inactive.mover_pid = np.array([-1])
+    assert len(SC.candidates(sc, inactive, np.zeros(3), np.eye(3), RADAR, False)["ids"]) == 0
+
+
+def test_box_index_of_movers_after_the_static_boxes():
+    geom = _geom(boxes=[((0, 0, 0), (1, 1, 1), 0.0)] * 3,
+                 movers=[((0, 0, 0), (1, 1, 1), 0.0, (0, 0, 0), 0.0)] * 2)
+    geom.mover_pid = np.array([3, -1, 4])
+    geom.boxes = geom.boxes[:5]
+    assert SC._box_index(geom, 3) == 3 and SC._box_index(geom, 4) == 4
