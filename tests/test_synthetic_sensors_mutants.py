@@ -79,6 +79,9 @@ def test_grid_shape_and_sweep_offsets_follow_the_pattern():
     off = S.sweep_offsets(aeva, 64 * 509)
     assert len(off) == 64 * 509
     assert off.min() >= 0.0 and off.max() < aeva.period_s
+    # the grid: columns fired in 50 groups, 2 ms apart over the 0.1 s period
+    grid = S.sweep_offsets(LIDAR, len(S.ray_directions(LIDAR, np.random.default_rng(0))))
+    np.testing.assert_allclose(np.unique(grid), 0.002 * np.arange(50), atol=1e-12)
     with pytest.raises(ValueError, match=r"sweep_offsets: 10 rays, expected the pattern's "
                                          r"32576"):
         S.sweep_offsets(aeva, 10)
@@ -176,9 +179,22 @@ def _on_edge(half_deg: float) -> float:
     raise AssertionError("no exact edge point found")
 
 
+def _on_el_edge(half_deg: float) -> float:
+    """A z with arcsin(z / |(1, 0, z)|) exactly the radians of ``half_deg``."""
+    target = np.radians(half_deg)
+    z = np.tan(target)
+    for _ in range(200):
+        got = S._spherical(np.array([[1.0, 0.0, z]]))[2][0]
+        if got == target:
+            return z
+        z = np.nextafter(z, np.inf if got < target else -np.inf)
+    raise AssertionError("no exact edge point found")
+
+
 def test_lidar_field_of_view_and_range_limits_are_inclusive():
     spec = dataclasses.replace(LIDAR, dropout=0.0)
     y = _on_edge(60.0)
+    z = _on_el_edge(15.0)
     pts = np.array([[1.0, 0.0, 0.0],  # at min_range: kept
                     [150.0, 0.0, 0.0],  # at max_range: kept
                     [0.99, 0.0, 0.0],  # too near
@@ -189,10 +205,11 @@ def test_lidar_field_of_view_and_range_limits_are_inclusive():
                     [10.0, -10.0 * np.tan(np.radians(60.01)), 0.0],
                     [10.0, 0.0, 10.0 * np.tan(np.radians(15.01))],  # above
                     [10.0, 0.0, -10.0 * np.tan(np.radians(15.01))],  # below
-                    [10.0, 0.0, 10.0 * np.tan(np.radians(14.99))]])  # just inside
+                    [10.0, 0.0, 10.0 * np.tan(np.radians(14.99))],  # just inside
+                    [1.0, 0.0, z], [1.0, 0.0, -z]])  # on the elevation edges: kept
     out, dop, fields = _lidar_call(spec, pts)
-    np.testing.assert_array_equal(out, pts[[0, 1, 4, 5, 10]])
-    assert len(dop) == 5 and set(fields) == {"intensity", "gt_label"}
+    np.testing.assert_array_equal(out, pts[[0, 1, 4, 5, 10, 11, 12]])
+    assert len(dop) == 7 and set(fields) == {"intensity", "gt_label"}
 
 
 def test_lidar_intensity_and_weak_return_cut():
@@ -212,13 +229,19 @@ def test_lidar_intensity_and_weak_return_cut():
     out, _, _ = _lidar_call(spec, np.array([[5.0, 0, 0], [5.0, 0, 0]]),
                             cos_inc=np.array([0.001, 0.0005]), material=np.array([0, 0]))
     np.testing.assert_array_equal(out, [[5.0, 0, 0]])
+    # 1 % below the cut at 120 m (0.15 x 0.095 / 1.44 = 0.0098958) and exactly on it at 50 m
+    # (0.5 x 0.005 / 0.25 = 0.01, not above it): both dropped; 1 % above kept
+    pts = np.array([[120.0, 0, 0], [50.0, 0, 0], [120.0, 0, 0]])
+    out, _, _ = _lidar_call(spec, pts, cos_inc=np.array([0.095, 0.005, 0.097]),
+                            material=np.array([0, 2, 0]))
+    np.testing.assert_array_equal(out, pts[2:])
 
 
 def test_lidar_dropout_share_and_time_offsets():
     spec = dataclasses.replace(LIDAR, dropout=0.3)
     n = 20_000
     pts = _cart(np.full(n, 20.0), np.zeros(n), np.zeros(n))
-    off = np.linspace(0.0, 0.09, n)
+    off = np.linspace(0.0, 0.09, n).astype(np.float32)
     out, _, fields = _lidar_call(spec, pts, time_offset_s=off)
     assert abs(len(out) / n - 0.7) < 0.015
     # each kept point keeps its own offset
@@ -247,7 +270,7 @@ def test_lidar_noise_levels():
 def test_radar_point_scatterer_snr_rcs_and_power_known_answers():
     spec = _quiet_radar(snr_threshold_db=-100.0, point_gain_db=40.0, snr_gain_db=30.0)
     pts = _cart([10.0, 20.0, 1.0], [0.0, 0.0, np.radians(37.5)], [0.0, 0.0, 0.0])
-    scat = np.array([4, 7, 9])
+    scat = np.array([4, 7, 0])
     rcs = np.array([5.0, 5.0, 0.0])
     fad = np.array([-1.0, 2.0, 0.0])
     out, _, f = _radar_call(spec, pts, scatterer=scat, rcs_db=rcs, fading=fad)
@@ -258,7 +281,7 @@ def test_radar_point_scatterer_snr_rcs_and_power_known_answers():
     np.testing.assert_allclose(f["snr"], snr)
     np.testing.assert_allclose(f["rcs"], [4.0, 7.0, -0.375])
     np.testing.assert_allclose(f["power"], snr + 40.0)
-    np.testing.assert_array_equal(f["gt_scatterer"], [4.0, 7.0, 9.0])
+    np.testing.assert_array_equal(f["gt_scatterer"], [4.0, 7.0, 0.0])
     np.testing.assert_array_equal(f["gt_label"], [0.0, 0.0, 0.0])
     assert set(f) == {"snr", "gt_scatterer", "rcs", "power", "gt_label"}
 
@@ -280,6 +303,10 @@ def test_radar_diffuse_snr_differences_follow_material_incidence_and_range():
     np.testing.assert_allclose(got["snr"] - ref, [-20 * np.log10(2.0), 20.0,
                                                   -20 * np.log10(0.05) + 8.0 - 10.0,
                                                   15.0 - 8.0])
+    # the antenna taper: 3 dB at the field of view's corner, 1.5 dB at an azimuth edge
+    edge = _cart([10.0] * 4, np.radians([75.0, -75.0, 0.0, 75.0]), np.radians([0, 0, 0, 15.0]))
+    got = _radar_call(spec, edge, material=mat, cos_inc=cos)[2]
+    np.testing.assert_allclose(got["snr"] - ref, [-1.5, -1.5, 0.0, -3.0], atol=1e-9)
     np.testing.assert_array_equal(got["gt_scatterer"], [-1.0] * 4)
 
 
@@ -319,14 +346,16 @@ def test_radar_caller_fading_is_kept_for_scatterers_and_drawn_for_diffuse_rows()
     n = 40_000
     pts = _cart(np.full(n, 10.0), np.zeros(n), np.zeros(n))
     scat = np.where(np.arange(n) < n // 2, np.arange(n), -1)
-    fad = np.full(n, 3.0)
+    fad = np.full(n, 3)  # integer dB: the diffuse rows' fading is still continuous
     f = _radar_call(spec, pts, scatterer=scat, rcs_db=np.zeros(n), fading=fad,
                     material=np.full(n, 6), seed=2)[2]
     point = f["gt_scatterer"] >= 0
     np.testing.assert_allclose(f["snr"][point], 43.0)
     p = 10 ** ((f["snr"][~point] - 45.0) / 10)
     assert abs(p.mean() - 1.0) < 0.03 and p.std() > 0.9
-    np.testing.assert_array_equal(fad, 3.0)  # the caller's array is not changed
+    frac = np.abs(f["snr"][~point] - np.round(f["snr"][~point]))
+    assert frac.mean() > 0.2
+    np.testing.assert_array_equal(fad, 3)  # the caller's array is not changed
 
 
 def test_radar_detection_threshold_is_strict():
@@ -362,28 +391,40 @@ def test_radar_keeps_the_strongest_max_points():
     assert sorted(f["gt_scatterer"].astype(int)) == [1, 3, 5, 8, 11]
 
 
+def test_radar_max_points_ties_keep_the_earlier_rows():
+    spec = _quiet_radar(snr_threshold_db=-300.0, max_points=30)
+    n = 200
+    pts = _cart(np.full(n, 10.0), np.zeros(n), np.zeros(n))
+    rcs = np.tile([3.0, 1.0, 2.0, 3.0, 2.0], 40)  # 80 rows tie at the top
+    f = _radar_call(spec, pts, scatterer=np.arange(n), rcs_db=rcs, fading=np.zeros(n))[2]
+    top = np.flatnonzero(rcs == 3.0)[:30]
+    np.testing.assert_array_equal(np.sort(f["gt_scatterer"]), top)
+
+
 def test_radar_noise_scales_with_snr_between_the_floor_and_1_5():
     spec = _quiet_radar(snr_threshold_db=-300.0, point_gain_db=40.0, snr_ref_db=20.0,
                         noise_floor=0.4, sigma_range=0.1, sigma_az_deg=0.5, sigma_el_deg=0.8,
                         sigma_doppler=0.2)
-    n = 20_000
+    n = 30_000
     r0, az0, el0 = 30.0, 0.1, 0.05
-    pts = _cart(np.full(3 * n, r0), np.full(3 * n, az0), np.full(3 * n, el0))
-    # SNR 20 dB (scale 1), 40 dB (10^-1 -> floor 0.4), 4 dB (10^0.8 = 6.3 -> cap 1.5)
-    snr = np.repeat([20.0, 40.0, 4.0], n)
-    rcs = snr - 40.0 + 40 * np.log10(3.0)
-    out, dop, f = _radar_call(spec, pts, noise=True, seed=11, scatterer=np.arange(3 * n),
-                              rcs_db=rcs, fading=np.zeros(3 * n), doppler=np.full(3 * n, 1.0))
-    assert len(out) == 3 * n
+    pts = _cart(np.full(4 * n, r0), np.full(4 * n, az0), np.full(4 * n, el0))
+    # SNR 20 dB (scale 1), 40 dB (10^-1 -> floor 0.4), 4 dB (10^0.8 = 6.3 -> cap 1.5),
+    # 26 dB (10^-0.3 = 0.501); the antenna taper at (0.1, 0.05) rad is added back
+    taper = S.antenna_db(spec, np.array([az0]), np.array([el0]))[0]
+    snr = np.repeat([20.0, 40.0, 4.0, 26.0], n)
+    rcs = snr - 40.0 + 40 * np.log10(3.0) - taper
+    out, dop, f = _radar_call(spec, pts, noise=True, seed=11, scatterer=np.arange(4 * n),
+                              rcs_db=rcs, fading=np.zeros(4 * n), doppler=np.full(4 * n, 1.0))
+    assert len(out) == 4 * n
     order = np.argsort(f["gt_scatterer"])
     r, az, el = S._spherical(out[order])
     dop = dop[order]
-    for k, scale in enumerate((1.0, 0.4, 1.5)):
+    for k, scale in enumerate((1.0, 0.4, 1.5, 10 ** -0.3)):
         rows = slice(k * n, (k + 1) * n)
         for got, mean, sd in ((r, r0, 0.1 * scale), (az, az0, np.radians(0.5) * scale),
                               (el, el0, np.radians(0.8) * scale), (dop, 1.0, 0.2)):
             assert abs(got[rows].mean() - mean) < 4.5 * sd / np.sqrt(n)
-            assert abs(got[rows].std() / sd - 1.0) < 0.03
+            assert abs(got[rows].std() / sd - 1.0) < 0.015
 
 
 def test_radar_angle_accuracy_adds_in_quadrature_and_bias_shifts():
@@ -471,7 +512,7 @@ def test_radar_ghosts_are_further_copies_with_the_same_doppler():
     assert r.min() < 11.2 and r.max() > 16.8 and abs(r.mean() - 14.0) < 0.1
     np.testing.assert_allclose(np.abs(el), 0.1, atol=1e-4)  # mirrored in elevation or not
     assert abs(np.mean(el < 0) - 0.5) < 0.05
-    assert abs(np.degrees(az.std()) - 3.0) < 0.15
+    assert abs(np.degrees(az.std()) - 3.0) < 0.15 and abs(np.degrees(az.mean())) < 0.3
     np.testing.assert_allclose(dop[ghost], 1.25, atol=1e-4)
     np.testing.assert_array_equal(f["gt_scatterer"][ghost], -1.0)
     # the source's SNR (20 dB less the antenna taper at 0.1 rad elevation) minus U(3, 10) dB
@@ -507,3 +548,79 @@ def test_radar_clutter_is_uniform_with_unrelated_doppler():
     f = _radar_call(spec, pts, seed=14, scatterer=np.arange(n), rcs_db=np.full(n, -20.0),
                     fading=np.zeros(n))[2]
     assert len(f["gt_label"]) == n and not np.any(f["gt_label"] == 2)
+
+
+def test_radar_noise_with_no_detection_adds_no_ghost_or_clutter():
+    spec = _quiet_radar(snr_threshold_db=100.0, ghost_frac=0.5, clutter_frac=0.5)
+    pts = _cart([10.0, 20.0], [0.0, 0.0], [0.0, 0.0])
+    out, dop, f = _radar_call(spec, pts, noise=True, scatterer=np.arange(2),
+                              rcs_db=np.zeros(2), fading=np.zeros(2))
+    assert out.shape == (0, 3) and len(dop) == 0 and len(f["gt_label"]) == 0
+    out, _, _ = _radar_call(spec, np.zeros((0, 3)), noise=True)
+    assert out.shape == (0, 3)
+
+
+def test_radar_ghosts_of_a_single_detection():
+    spec = _quiet_radar(snr_threshold_db=-300.0, ghost_frac=6.0, sigma_range=1e-6)
+    pts = _cart([10.0], [0.0], [0.0])
+    out, _, f = _radar_call(spec, pts, noise=True, seed=3, scatterer=np.array([0]),
+                            rcs_db=np.zeros(1), fading=np.zeros(1))
+    ghost = f["gt_label"] == 2
+    assert ghost.sum() >= 1 and (~ghost).sum() == 1
+    r = np.linalg.norm(out[ghost], axis=1)
+    assert r.min() >= 11.0 - 1e-4 and r.max() <= 17.0 + 1e-4
+
+
+def _spread_spec(**changes) -> S.SensorSpec:
+    base = {"dropout": 0.0, "ghost_frac": 0.0, "clutter_frac": 0.0, "max_points": 0,
+            "sigma_bias_deg": 0.0, "sigma_range": 1e-7, "sigma_az_deg": 1e-7,
+            "sigma_el_deg": 1e-7, "sigma_doppler": 1e-7, "snr_threshold_db": 10.0,
+            "point_gain_db": 40.0, "edge_loss_db": 0.0}
+    return dataclasses.replace(SEMI, **{**base, **changes})
+
+
+def _cells(out, r0, az0, el0):
+    r, az, el = S._spherical(out)
+    return np.column_stack([r - r0, np.degrees(az - az0), np.degrees(el - el0)])
+
+
+def test_radar_spread_of_scatterer_0_with_integer_cells_and_its_bias():
+    spec = _spread_spec(resolution=(1, 2, 3), spread_loss_db=(6, 6, 9), sigma_bias_deg=0.5)
+    pts = _cart([20.0], [0.0], [0.0])
+    out, _, f = _radar_call(spec, pts, noise=True, scatterer=np.array([0]),
+                            rcs_db=np.array([30.0]), fading=np.zeros(1),
+                            angle_bias=np.array([[1.0, -1.0]]))
+    # every detection carries the scatterer's persistent bias (+0.5, -0.5 deg)
+    want = [[0, 0, 0], [-1, 0, 0], [1, 0, 0], [0, -2, 0], [0, 2, 0], [0, 0, -3], [0, 0, 3]]
+    np.testing.assert_allclose(_cells(out, 20.0, np.radians(0.5), np.radians(-0.5)), want,
+                               atol=1e-4)
+    np.testing.assert_array_equal(f["gt_scatterer"], 0.0)
+
+
+def test_radar_spread_source_condition_is_strict():
+    """SNR exactly min loss - 3 dB above the threshold (13 dB): not a source."""
+    spec = _spread_spec()
+    n = 500
+    pts = _cart(np.full(n, 10.0), np.zeros(n), np.zeros(n))
+    out = _radar_call(spec, pts, noise=True, scatterer=np.arange(n),
+                      rcs_db=np.full(n, 13.0 - 40.0), fading=np.zeros(n))[0]
+    assert len(out) == n
+
+
+def test_radar_spread_draws_each_neighbour_independently():
+    """Equal losses and an SNR 6 dB above the threshold: each neighbouring cell of each
+    scatterer is detected with probability 1/2, independently."""
+    spec = _spread_spec(spread_loss_db=(6.0, 6.0, 6.0))
+    n = 400
+    pts = _cart(np.full(n, 10.0), np.zeros(n), np.zeros(n))
+    out, _, f = _radar_call(spec, pts, noise=True, seed=5, scatterer=np.arange(n),
+                            rcs_db=np.full(n, 16.0 - 40.0), fading=np.zeros(n))
+    cells = np.round(_cells(out, 10.0, 0.0, 0.0), 3)
+    for axis, step in ((0, 0.25), (1, 1.0), (2, 2.0)):
+        for sign in (-1.0, 1.0):
+            want = np.zeros(3)
+            want[axis] = sign * step
+            count = np.all(np.isclose(cells, want, atol=1e-3), axis=1).sum()
+            assert abs(count - n / 2) < 5 * np.sqrt(n / 4)
+    nb = f["gt_scatterer"][n:]
+    assert len(np.unique(nb)) > 0.9 * n  # most scatterers have a neighbour
