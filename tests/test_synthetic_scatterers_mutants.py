@@ -453,3 +453,211 @@ def test_box_index_of_movers_after_the_static_boxes():
     geom.mover_pid = np.array([3, -1, 4])
     geom.boxes = geom.boxes[:5]
     assert SC._box_index(geom, 3) == 3 and SC._box_index(geom, 4) == 4
+
+
+# ---- edge cases of the sector query and the candidates ----------------------------------------
+
+@pytest.mark.parametrize("apex", [(0.0, 100.0), (100.0, 0.0), (500.0, 500.0),
+                                  (-500.0, -500.0)])
+def test_sector_query_anywhere_in_the_world(apex):
+    apex = np.array(apex)
+    ang = np.radians(np.arange(-170.0, 180.0, 20.0))
+    dist = np.array([3.0, 15.0, 30.0])
+    pts = np.array([[apex[0] + d * np.cos(a), apex[1] + d * np.sin(a), 0.0]
+                    for a in ang for d in dist])
+    sc = _build([((pts,), {"rcs": (0.0, 1.0), "material": WALL})])
+    got = set(sc.static_in_sector(apex, np.pi / 4, np.pi, 31.0).tolist())
+    assert got == set(range(len(pts)))
+
+
+def _on_az_edge(half_deg: float) -> float:
+    """A y with arctan2(y, 1) exactly the radians of ``half_deg``."""
+    target = np.radians(half_deg)
+    y = np.tan(target)
+    for _ in range(200):
+        got = np.arctan2(y, 1.0)
+        if got == target:
+            return y
+        y = np.nextafter(y, np.inf if got < target else -np.inf)
+    raise AssertionError("no exact edge point found")
+
+
+def _on_el_edge(half_deg: float, x: float) -> float:
+    """A z with |z| exactly |(x, 0, z)| sin(half_deg) (as ``candidates`` computes them)."""
+    s = np.sin(np.radians(half_deg))
+    z = x * np.tan(np.radians(half_deg))
+    for _ in range(400):
+        lim = np.linalg.norm(np.array([[x, 0.0, z]]), axis=1)[0] * s
+        if z == lim:
+            return z
+        z = np.nextafter(z, np.inf if z < lim else -np.inf)
+    raise AssertionError("no exact edge point found")
+
+
+def test_candidate_limits_are_inclusive():
+    y = _on_az_edge(75.0)
+    z = _on_el_edge(15.0, 10.0)
+    pts = [[100.0, 0.0, 0.0], [0.5, 0.0, 0.0], [10.0, 10.0 * y, 0.0], [10.0, 0.0, z],
+           [10.0, 0.0, -z]]
+    sc = _build([((pts,), {"rcs": (0.0, 1.0), "material": WALL})])
+    cand = SC.candidates(sc, Geometry(ground_z=None), np.zeros(3), np.eye(3), RADAR,
+                         edge_band=False)
+    assert sorted(cand["ids"].tolist()) == [0, 1, 2, 3, 4]
+
+
+def test_facing_cut_is_strict():
+    # cos_n = n . (o - p) / r = (-0.5)(-10) / 10 = 0.5 exactly, against cos_min 0.5 and 0.49
+    sc = _build([(([[10.0, 0.0, 0.0]] * 2, (-0.5, np.sqrt(0.75), 0.0)),
+                  {"rcs": (0.0, 1.0), "material": WALL})])
+    sc = _fixed(sc, cos_min=[0.5, 0.49])
+    cand = SC.candidates(sc, Geometry(ground_z=None), np.zeros(3), np.eye(3), RADAR,
+                         edge_band=False)
+    assert cand["ids"].tolist() == [1]
+
+
+def test_candidates_within_a_metre_of_the_sensor():
+    # a faced scatterer 0.6 m ahead: incidence cosine 1; a pole of radius 0.3 m whose axis is
+    # 0.9 m ahead: seen on its surface 0.6 m ahead
+    sc = _build([(([[0.6, 0.0, 0.0]], (-1.0, 0.0, 0.0)), {"rcs": (0.0, 1.0), "material": WALL}),
+                 (([[0.9, 0.0, 0.0]],), {"rcs": (0.0, 1.0), "material": POLE, "radius": 0.3})])
+    cand = SC.candidates(sc, Geometry(ground_z=None), np.zeros(3), np.eye(3), RADAR,
+                         edge_band=False)
+    order = np.argsort(cand["ids"])
+    np.testing.assert_allclose(cand["cos_n"][order][0], 1.0)
+    np.testing.assert_allclose(cand["points_w"][order], [[0.6, 0.0, 0.0], [0.6, 0.0, 0.0]],
+                               atol=1e-12)
+
+
+def test_default_edge_band_and_its_switch():
+    # 76 deg: outside the +-75 deg field of view, inside the band (margin > 1 deg)
+    p = [[10.0, 10.0 * np.tan(np.radians(76.0)), 0.0]]
+    sc = _build([((p,), {"rcs": (0.0, 1.0), "material": WALL})])
+    geom = Geometry(ground_z=None)
+    o, R = np.zeros(3), np.eye(3)
+    assert len(SC.candidates(sc, geom, o, R, RADAR)["ids"]) == 1
+    assert len(SC.visible(sc, geom, o, R, RADAR)["ids"]) == 1
+    assert len(SC.visible(sc, geom, o, R, RADAR, edge_band=True)["ids"]) == 1
+    assert len(SC.visible(sc, geom, o, R, RADAR, edge_band=False)["ids"]) == 0
+
+
+def test_heading_of_a_turned_sensor():
+    yaw = np.radians(-100.0)
+    c, s = np.cos(yaw), np.sin(yaw)
+    R = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    # at bearings -30 and -170 deg: 70 deg either side of the heading, 60 m away
+    pts = [[60 * np.cos(np.radians(b)), 60 * np.sin(np.radians(b)), 0.0] for b in (-30.0, -170.0)]
+    sc = _build([((pts,), {"rcs": (0.0, 1.0), "material": WALL})])
+    cand = SC.candidates(sc, Geometry(ground_z=None), np.zeros(3), R, RADAR, edge_band=False)
+    assert sorted(cand["ids"].tolist()) == [0, 1]
+
+
+def test_static_cell_near_the_range_limit():
+    """A scatterer 99.9 m away on the near corner of its 8 m cell (centre 105.6 m away)."""
+    o = np.array([72.0 - 99.9 / np.sqrt(2), 72.0 - 99.9 / np.sqrt(2), 0.0]) - 1e-3
+    sc = _build([(([[72.0, 72.0, 0.0]],), {"rcs": (0.0, 1.0), "material": WALL})])
+    R = np.array([[np.sqrt(0.5), -np.sqrt(0.5), 0], [np.sqrt(0.5), np.sqrt(0.5), 0], [0, 0, 1.0]])
+    cand = SC.candidates(sc, Geometry(ground_z=None), o, R, RADAR, edge_band=False)
+    assert cand["ids"].tolist() == [0] and cand["range"][0] < 100.0
+
+
+def test_view_azimuth_from_an_offset_sensor():
+    sc = _build([(([[11.0, 7.0, 1.5]],), {"rcs": (0.0, 1.0), "material": WALL})])
+    sc = _fixed(sc, rcs_db=[0.0], lobe_db=[2.0], lobe_k=[3.0], lobe_phase=[0.4])
+    o = np.array([1.0, 2.0, 0.5])
+    cand = SC.candidates(sc, Geometry(ground_z=None), o, np.eye(3), RADAR, edge_band=False)
+    view = np.arctan2(2.0 - 7.0, 1.0 - 11.0)
+    np.testing.assert_allclose(cand["rcs_db"], [2.0 * np.cos(3.0 * view + 0.4)])
+
+
+def test_mover_order_and_skips():
+    """Movers without scatterers, inactive or out of reach do not stop the next ones; a mover
+    can have primitive id 0 (no static primitive)."""
+    b = SC._Builder(np.random.default_rng(0))
+    for owner in (1, 2, 3):
+        b.add([[1.0, 0.0, 0.0]], None, rcs=(0.0, 1.0), material=CAR, owner=owner)
+    sc = b.build()
+    sc = _fixed(sc, rcs_db=[0.0, 0.0, 0.0], lobe_db=[0.0, 0.0, 0.0])
+    m = ((30.0, 0.0, 0.75), (2.0, 1.0, 0.75), 0.0, (0.0, 0.0, 0.0), 0.0)
+    far = ((300.0, 0.0, 0.75), (2.0, 1.0, 0.75), 0.0, (0.0, 0.0, 0.0), 0.0)
+    # mover 0: no scatterers; 1: inactive; 2: active (pid 0); 3: active (pid 1)
+    geom = _geom(movers=[m, m])
+    geom.mover_pid = np.array([-1, -1, 0, 1])
+    cand = SC.candidates(sc, geom, np.zeros(3), np.eye(3), RADAR, edge_band=False)
+    assert sorted(cand["ids"].tolist()) == [1, 2]
+    np.testing.assert_array_equal(np.sort(cand["prim"]), [0, 1])
+    assert SC._box_index(geom, 0) == 0 and SC._box_index(geom, 1) == 1
+    # mover 0 without scatterers first
+    b = SC._Builder(np.random.default_rng(0))
+    b.add([[1.0, 0.0, 0.0]], None, rcs=(0.0, 1.0), material=CAR, owner=1)
+    sc1 = b.build()
+    geom = _geom(movers=[m, m])
+    cand = SC.candidates(sc1, geom, np.zeros(3), np.eye(3), RADAR, edge_band=False)
+    assert cand["ids"].tolist() == [0]
+    # a mover out of reach first
+    geom = _geom(movers=[far, m])
+    b = SC._Builder(np.random.default_rng(0))
+    for owner in (0, 1):
+        b.add([[1.0, 0.0, 0.0]], None, rcs=(0.0, 1.0), material=CAR, owner=owner)
+    cand = SC.candidates(b.build(), geom, np.zeros(3), np.eye(3), RADAR, edge_band=False)
+    assert cand["ids"].tolist() == [1]
+
+
+def test_mover_reach_is_from_the_sensor():
+    b = SC._Builder(np.random.default_rng(0))
+    b.add([[0.0, 0.0, 0.0]], None, rcs=(0.0, 1.0), material=CAR, owner=0)
+    sc = b.build()
+    # 95 m ahead of the sensor (within reach); the sensor itself 60 m from the origin
+    m = ((155.0, 0.0, 0.75), (2.0, 1.0, 0.75), 0.0, (0.0, 0.0, 0.0), 0.0)
+    o = np.array([60.0, 0.0, 0.75])
+    cand = SC.candidates(sc, _geom(movers=[m]), o, np.eye(3), RADAR, edge_band=False)
+    assert cand["ids"].tolist() == [0]
+    np.testing.assert_allclose(cand["range"], [95.0])
+
+
+def test_mover_lobe_uses_the_view_azimuth_in_its_body_frame():
+    b = SC._Builder(np.random.default_rng(0))
+    b.add([[0.0, 0.0, 0.0]], None, rcs=(0.0, 1.0), material=CAR, owner=0)
+    sc = _fixed(b.build(), rcs_db=[1.0], lobe_db=[3.0], lobe_k=[1.0], lobe_phase=[0.0])
+    yaw = 0.7
+    m = ((20.0, 5.0, 0.75), (2.0, 1.0, 0.75), yaw, (0.0, 0.0, 0.0), 0.0)
+    cand = SC.candidates(sc, _geom(movers=[m]), np.zeros(3), np.eye(3), RADAR,
+                         edge_band=False)
+    view = np.arctan2(-5.0, -20.0) - yaw
+    np.testing.assert_allclose(cand["rcs_db"], [1.0 + 3.0 * np.cos(view)])
+
+
+def test_visible_fields_and_the_occlusion_tolerance_edge():
+    sc = _build([(([[20.0, 0.0, 0.0], [20.0, 4.0, 0.0], [30.0, -3.0, 0.0]],
+                   (-1.0, 0.0, 0.0)), {"rcs": (0.0, 1.0), "material": WALL})])
+    sc = _fixed(sc, cos_min=[-1.0, 0.05, -2.0], normal=[[-0.6, -0.8, 0.0], [-0.6, 0.8, 0.0],
+                                                          [0.0, 0.0, 0.0]])
+    # a wall behind the first two (x = 25 .. 26) does not hide them
+    geom = _geom(boxes=[((25.5, 0.0, 0.0), (0.5, 10.0, 5.0), 0.0)])
+    vis = SC.visible(sc, geom, np.zeros(3), np.eye(3), RADAR, edge_band=False)
+    assert vis["ids"].tolist() == [0, 1]
+    cand = SC.candidates(sc, geom, np.zeros(3), np.eye(3), RADAR, edge_band=False)
+    np.testing.assert_allclose(vis["points_s"], cand["points_s"][:2])
+    np.testing.assert_array_equal(vis["prim"], -1)
+    np.testing.assert_allclose(vis["rcs_db"], cand["rcs_db"][:2])
+    # incidence: cos_min -1 is not isotropic (only below -1)
+    d0 = np.array([-20.0, 0.0, 0.0]) / 20.0
+    d1 = np.array([-20.0, -4.0, 0.0]) / np.hypot(20.0, 4.0)
+    np.testing.assert_allclose(vis["cos_inc"], [d0 @ [-0.6, -0.8, 0.0], d1 @ [-0.6, 0.8, 0.0]])
+    # a first hit exactly at range - OCCLUSION_TOL - 1e-9 still counts as seen
+    t = cand["range"] - SC.OCCLUSION_TOL - 1e-9
+    assert len(SC.finish(sc, geom, np.zeros(3), cand, t)["ids"]) == 3
+    # the caller's fading is passed through
+    cand["fading_db"] = np.array([1.0, 2.0, 3.0])
+    out = SC.finish(sc, geom, np.zeros(3), cand, np.full(3, np.inf))
+    np.testing.assert_array_equal(out["fading_db"], [1.0, 2.0, 3.0])
+    np.testing.assert_array_equal(out["cos_inc"][2], 1.0)
+
+
+def test_visible_reports_mover_velocity():
+    b = SC._Builder(np.random.default_rng(0))
+    b.add([[-2.0, 0.0, 0.0]], None, rcs=(0.0, 1.0), material=CAR, owner=0)  # on its rear
+    sc = b.build()
+    m = ((20.0, 0.0, 0.75), (2.0, 1.0, 0.75), 0.0, (4.0, 1.0, 0.0), 0.0)
+    vis = SC.visible(sc, _geom(movers=[m]), np.zeros(3), np.eye(3), RADAR, edge_band=False)
+    assert vis["ids"].tolist() == [0] and vis["dynamic"].tolist() == [True]
+    np.testing.assert_allclose(vis["velocity_w"], [[4.0, 1.0, 0.0]])
