@@ -661,3 +661,135 @@ def test_visible_reports_mover_velocity():
     vis = SC.visible(sc, _geom(movers=[m]), np.zeros(3), np.eye(3), RADAR, edge_band=False)
     assert vis["ids"].tolist() == [0] and vis["dynamic"].tolist() == [True]
     np.testing.assert_allclose(vis["velocity_w"], [[4.0, 1.0, 0.0]])
+
+
+# ---- sampling details of boxes and vehicles ---------------------------------------------------
+
+def _box_samples(half, seeds, **kw):
+    """Faces, edges and foot of ``_box_local`` over several seeds, in the box frame."""
+    out = []
+    for seed in seeds:
+        b = SC._Builder(np.random.default_rng(seed))
+        SC._box_local(b, half, BUILDING, owner=3, face_density=0.7, face_rcs=(-3.0, 5.0),
+                      edge_spacing=0.6, edge_rcs=(11.0, 4.0), base=True, **kw)
+        sc = b.build()
+        on_x = np.isclose(np.abs(sc.pos[:, 0]), half[0])
+        on_y = np.isclose(np.abs(sc.pos[:, 1]), half[1])
+        edge = on_x & on_y
+        foot = (sc.aspect_exp == 0.5) & ~edge
+        out.append((sc, edge, foot, ~edge & ~foot, on_x))
+    return out
+
+
+def test_box_faces_cover_all_four_sides_uniformly():
+    hx, hy, hz = 10.0, 4.0, 5.0
+    runs = _box_samples((hx, hy, hz), range(20))
+    per_face = np.zeros(4)
+    u_x, u_y, z_face, lobes = [], [], [], []
+    for sc, _edge, foot, face, on_x in runs:
+        np.testing.assert_array_equal(sc.owner, 3)
+        p = sc.pos[face]
+        fx = on_x[face]
+        per_face += [np.sum(fx & (p[:, 0] > 0)), np.sum(fx & (p[:, 0] < 0)),
+                     np.sum(~fx & (p[:, 1] > 0)), np.sum(~fx & (p[:, 1] < 0))]
+        u_x.append(p[fx, 1])
+        u_y.append(p[~fx, 0])
+        z_face.append(p[:, 2])
+        lobes.append(sc.lobe_k[face])
+        np.testing.assert_array_equal(sc.lobe_db[face], 4.0)
+        np.testing.assert_array_equal(sc.lobe_db[foot], 3.0)
+    # Poisson(0.7 x area): x faces 8 x 10 m^2 -> 56, y faces 20 x 10 m^2 -> 140
+    want = np.array([56.0, 56.0, 140.0, 140.0])
+    assert np.all(np.abs(per_face / 20 - want) < 4 * np.sqrt(want / 20))
+    u_x, u_y, z_face, lobes = (np.concatenate(a) for a in (u_x, u_y, z_face, lobes))
+    for u, h in ((u_x, hy), (u_y, hx), (z_face, hz)):
+        assert u.min() < -0.95 * h and u.max() > 0.95 * h and abs(u.mean()) < 0.1 * h
+        assert abs(u.std() - 2 * h / np.sqrt(12)) < 0.05 * h
+    assert lobes.min() >= 2.0 and lobes.min() < 2.05 and lobes.max() < 10.0
+    assert lobes.max() > 9.95
+
+
+def test_box_foot_and_edges_are_jittered_slots():
+    hx, hy, hz = 10.0, 4.0, 5.0
+    runs = _box_samples((hx, hy, hz), range(20))
+    frac, foot_u, edge_z, partial_foot, partial_edge = [], [], [], 0, 0
+    corners = set()
+    for sc, edge, foot, _face, _on_x in runs:
+        p = sc.pos[foot]
+        np.testing.assert_allclose(p[:, 2], -hz + 0.05)
+        along = np.where(np.isclose(np.abs(p[:, 0]), hx), p[:, 1] + hy, p[:, 0] + hx)
+        length = np.where(np.isclose(np.abs(p[:, 0]), hx), 2 * hy, 2 * hx)
+        m = np.floor(length / 2.0)
+        frac.append(np.mod(along / (length / m), 1.0))
+        foot_u.append(np.where(np.isclose(np.abs(p[:, 0]), hx), p[:, 1] / hy, p[:, 0] / hx))
+        # a long face keeps 7 of its 10 slots on average, never all-or-nothing every time
+        long_face = np.isclose(p[:, 1], hy)
+        partial_foot += 0 < long_face.sum() < 10
+        q = sc.pos[edge]
+        edge_z.append(q[:, 2])
+        for sx in (-1, 1):
+            for sy in (-1, 1):
+                k = np.sum((np.sign(q[:, 0]) == sx) & (np.sign(q[:, 1]) == sy))
+                if k:
+                    corners.add((sx, sy))
+                partial_edge += 0 < k < 16
+    frac, foot_u, edge_z = (np.concatenate(a) for a in (frac, foot_u, edge_z))
+    # slot offsets U(0.2, 0.8) of the slot width; slots span the whole face
+    assert frac.min() >= 0.2 - 1e-9 and frac.max() <= 0.8 + 1e-9 and frac.std() > 0.1
+    assert foot_u.min() < -0.85 and foot_u.max() > 0.85 and abs(foot_u.mean()) < 0.1
+    # edge rows U(0.1, 0.9) of their 10 m / 16 rows over the whole height
+    assert edge_z.min() < -hz + 0.3 and edge_z.max() > hz - 0.3 and abs(edge_z.mean()) < 0.3
+    slot = np.mod((edge_z + hz) / (2 * hz / 16), 1.0)
+    assert slot.min() >= 0.1 - 1e-9 and slot.max() <= 0.9 + 1e-9 and slot.std() > 0.1
+    assert corners == {(-1, -1), (-1, 1), (1, -1), (1, 1)}
+    assert partial_foot > 10 and partial_edge > 40
+
+
+def test_small_box_has_one_foot_slot_and_one_edge_row_a_side():
+    runs = _box_samples((1.5, 1.5, 0.2), range(40))
+    feet = [int(foot.sum()) for _, _, foot, _, _ in runs]
+    edges = [int(edge.sum()) for _, edge, _, _, _ in runs]
+    # faces 3 m long: one slot (p 0.7) each; 0.4 m high with 0.6 m spacing: one row (p 0.8)
+    assert max(feet) <= 4 and abs(np.mean(feet) - 2.8) < 0.5
+    assert max(edges) <= 4 and abs(np.mean(edges) - 3.2) < 0.4
+
+
+def test_place_rotates_positions_and_normals_about_the_centre():
+    part = {"pos": np.array([[1.0, 0.0, 0.5], [0.0, 2.0, 0.0]]),
+            "normal": np.array([[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])}
+    SC._place(part, [10, 20, 1], np.pi / 2)
+    np.testing.assert_allclose(part["pos"], [[10.0, 21.0, 1.5], [8.0, 20.0, 1.0]], atol=1e-12)
+    np.testing.assert_allclose(part["normal"], [[0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]], atol=1e-12)
+
+
+def test_vehicle_parts_statistics_over_many_cars():
+    b = SC._Builder(np.random.default_rng(3))
+    half = (2.25, 0.9, 0.75)
+    for k in range(300):
+        SC._vehicle(b, half, CAR, k)
+    sc = b.build()
+    wheels = np.isclose(sc.pos[:, 2], -0.75 + 0.35) & np.isclose(np.abs(sc.pos[:, 1]), 0.9) \
+        & np.isclose(np.abs(sc.pos[:, 0]), 1.5)
+    bump = np.isclose(sc.pos[:, 2], -0.75 + 0.55) & np.isclose(np.abs(sc.pos[:, 0]), 2.25) \
+        & (sc.cos_min == 0.1)
+    assert wheels.sum() == 1200 and bump.sum() == 1800
+    np.testing.assert_array_equal(sc.aspect_exp[wheels], 0.0)
+    np.testing.assert_array_equal(sc.aspect_exp[bump], 1.0)
+    assert np.sum(sc.pos[bump, 0] > 0) == 900
+    for rows, mean in ((wheels, 3.0), (bump, 5.0)):
+        assert abs(sc.rcs_db[rows].mean() - mean) < 0.3
+        assert abs(sc.rcs_db[rows].std() - 3.0) < 0.3
+    body = ~wheels & ~bump
+    # the body's faces and edges span from 0.25 m above the bottom to the top
+    assert sc.pos[body, 2].min() < -0.75 + 0.3 and sc.pos[body, 2].max() > 0.7
+
+
+def test_a_mover_beside_an_empty_static_sector():
+    b = SC._Builder(np.random.default_rng(0))
+    b.add([[500.0, 500.0, 0.0]], None, rcs=(0.0, 1.0), material=WALL)  # far static
+    b.add([[-2.0, 0.0, 0.0]], None, rcs=(0.0, 1.0), material=CAR, owner=0)
+    sc = b.build()
+    m = ((20.0, 0.0, 0.75), (2.0, 1.0, 0.75), 0.0, (0.0, 0.0, 0.0), 0.0)
+    assert sc.static_in_sector(np.zeros(2), 0.0, 1.0, 100.0).dtype == np.int64
+    cand = SC.candidates(sc, _geom(movers=[m]), np.zeros(3), np.eye(3), RADAR, edge_band=False)
+    assert cand["ids"].tolist() == [1]
