@@ -301,6 +301,12 @@ def test_sweep_casts_each_ray_group_at_its_own_time():
         np.testing.assert_allclose(raw["doppler"][rows], -(d @ v_s), atol=1e-9)
     scan = seq.scan(1)
     assert "time_offset_s" in scan.fields and len(scan) > 1000
+    # each ray is cast once, in its own group: at most one hit per ray, per offset too
+    offsets = G.sweep_offsets(seq.spec, len(G.ray_directions(seq.spec, None)))
+    assert len(off) <= len(offsets)
+    taus, counts = np.unique(off, return_counts=True)
+    per_tau = {t: int(np.sum(offsets == t)) for t in taus}
+    assert all(c <= per_tau[t] for t, c in zip(taus, counts, strict=True))
 
 
 def test_lidar_points_option_calibrates_the_ray_count():
