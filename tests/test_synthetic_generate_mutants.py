@@ -24,14 +24,14 @@ def _world(T: np.ndarray, p: np.ndarray) -> np.ndarray:
     return p @ T[:3, :3].T + T[:3, 3]
 
 
-@pytest.fixture(scope="module")
-def tunnel():
+# the sequences are built inside each test (mutmut counts only in-test calls as reaching the
+# constructor)
+def _tunnel():
     return G.SyntheticSequence("tunnel", "lidar-dense", 4, seed=2, noise=False, rib_spacing=0,
                                t0=5.0)
 
 
-@pytest.fixture(scope="module")
-def campus():
+def _campus():
     return G.SyntheticSequence("campus", "radar-sparse", 3, seed=1, noise=False)
 
 
@@ -91,7 +91,8 @@ def test_one_frame_is_enough():
 
 # ---- stamps, provenance, ground truth --------------------------------------------------------
 
-def test_stamps_are_periodic_from_t0_and_copied(tunnel):
+def test_stamps_are_periodic_from_t0_and_copied():
+    tunnel = _tunnel()
     np.testing.assert_allclose(tunnel.stamps, 5.0 + 0.1 * np.arange(4))
     s = tunnel.stamps
     s[:] = -1.0
@@ -132,7 +133,8 @@ def test_name_meta_and_provenance():
     json.dumps(p, default=str)
 
 
-def test_exact_ground_truth_is_the_sensor_pose_at_the_stamps(tunnel):
+def test_exact_ground_truth_is_the_sensor_pose_at_the_stamps():
+    tunnel = _tunnel()
     gt = tunnel.ground_truth
     np.testing.assert_allclose(gt.stamps, tunnel.stamps)
     # T_world_sensor = T_world_body @ T_body_sensor (lever arm 1.5, 0, 1.8)
@@ -144,7 +146,8 @@ def test_exact_ground_truth_is_the_sensor_pose_at_the_stamps(tunnel):
     assert abs(gt.poses[0, 2, 3] - 1.8) < 0.05
 
 
-def test_sensor_twist_is_the_derivative_of_the_ground_truth(campus):
+def test_sensor_twist_is_the_derivative_of_the_ground_truth():
+    campus = _campus()
     h = 1e-4
     for i in range(3):
         t = 0.06 * i
@@ -170,7 +173,8 @@ def test_motion_covers_the_range_before_and_after():
 
 # ---- scans -----------------------------------------------------------------------------------
 
-def test_lidar_hits_lie_on_the_surfaces_they_hit(tunnel):
+def test_lidar_hits_lie_on_the_surfaces_they_hit():
+    tunnel = _tunnel()
     raw = tunnel.raw_hits(2)
     T = tunnel.ground_truth.poses[2]
     pw = _world(T, raw["points"])
@@ -191,7 +195,8 @@ def test_lidar_hits_lie_on_the_surfaces_they_hit(tunnel):
     assert r.min() >= 1.0 and r.max() <= 150.0
 
 
-def test_static_doppler_without_noise_is_exact(tunnel):
+def test_static_doppler_without_noise_is_exact():
+    tunnel = _tunnel()
     scan = tunnel.scan(1)
     v_s, _ = tunnel.sensor_twist(1)
     d = scan.points / np.linalg.norm(scan.points, axis=1, keepdims=True)
@@ -230,7 +235,8 @@ def test_scans_are_reproducible_in_any_order():
     assert len(late) != len(early) or not np.allclose(late.points, early.points)
 
 
-def test_radar_scatterers_seen_without_noise_are_exact(campus):
+def test_radar_scatterers_seen_without_noise_are_exact():
+    campus = _campus()
     raw = campus.raw_hits(1)
     sc = campus.scatterers
     rows = np.flatnonzero(raw["scatterer"] >= 0)
@@ -340,12 +346,12 @@ def test_ground_truth_pipeline_option():
 
 # ---- the scan's noise, bias and clutter come from the sequence ---------------------------------
 
-@pytest.fixture(scope="module")
-def noisy_campus():
+def _noisy_campus():
     return G.SyntheticSequence("campus", "radar-sparse", 3, seed=4)
 
 
-def test_noisy_radar_scans_carry_each_scatterers_persistent_bias(noisy_campus):
+def test_noisy_radar_scans_carry_each_scatterers_persistent_bias():
+    noisy_campus = _noisy_campus()
     seq = noisy_campus
     sc = seq.scatterers
     err, bias = [], []
@@ -367,7 +373,8 @@ def test_noisy_radar_scans_carry_each_scatterers_persistent_bias(noisy_campus):
     assert 0.6 < slope < 1.4
 
 
-def test_noisy_scans_are_noisy_and_clutter_doppler_follows_the_ego_motion(noisy_campus):
+def test_noisy_scans_are_noisy_and_clutter_doppler_follows_the_ego_motion():
+    noisy_campus = _noisy_campus()
     seq = noisy_campus
     resid, n_clutter = [], 0
     for i in range(3):
