@@ -158,6 +158,7 @@ def test_box_scatterers_lie_on_faces_edges_and_the_foot():
         np.testing.assert_allclose(nl[edge], np.sign(q[edge]) * [1, 1, 0] / np.sqrt(2),
                                    atol=1e-9)
         assert np.all(sc.cos_min[mine[edge]] == -0.7) and np.all(sc.aspect_exp[mine[edge]] == 0)
+        assert np.all(sc.lobe_db[mine[edge]] == 2.0)
         np.testing.assert_array_equal(sc.material[mine], mat)
         if mat == BUILDING:  # the wall-ground dihedral line 5 cm above the foot
             foot = np.isclose(q[:, 2], -hz + 0.05) & face
@@ -830,3 +831,37 @@ def test_large_cylinders_are_walls_with_features_on_their_surface():
 
 def build_scatterers_of(scene, seed):
     return SC.build_scatterers(scene, np.random.default_rng(seed))
+
+
+def test_tunnel_sampling_known_answers():
+    from loaders.synthetic.raycast import Tunnel
+
+    tun = Tunnel(axis_y=0.0, axis_z=2.0, radius=6.0, x0=0.0, x1=600.0, rib_spacing=0.5,
+                 rib_width=0.3, rib_depth=0.3)
+    b = SC._Builder(np.random.default_rng(11))
+    SC._tunnel(b, tun)
+    sc = b.build()
+    rib, wall = sc.material == RIB, sc.material == TUNNEL_WALL
+    # ribs every 0.5 m (1,200 rings), ring points on the grid 2 pi k / 59 (5.7 m / 0.6 m)
+    n_ring = int(2 * np.pi * 5.7 / 0.6)
+    assert n_ring == 59
+    assert len(np.unique(np.round(sc.pos[rib, 0], 6))) == 1200
+    ang = np.arctan2(sc.pos[rib, 2] - 2.0, sc.pos[rib, 1])
+    k = np.mod(ang, 2 * np.pi) / (2 * np.pi / n_ring)
+    np.testing.assert_allclose(k, np.round(k), atol=1e-6)
+    ring0 = np.isclose(sc.pos[:, 0], 0.15) & rib
+    assert len(np.unique(np.round(sc.pos[ring0], 6), axis=0)) == ring0.sum()
+    np.testing.assert_array_equal(sc.lobe_db[rib], 2.0)
+    assert abs(sc.rcs_db[rib].mean() - 2.0) < 0.1 and abs(sc.rcs_db[rib].std() - 4.0) < 0.1
+    # wall features: Poisson(0.05 / m^2) over the tube, angles uniform, those above 0.1 m
+    a = np.mod(np.arctan2(sc.pos[wall, 2] - 2.0, sc.pos[wall, 1]), 2 * np.pi)
+    above = np.pi + 2 * np.arcsin(1.9 / 6.0)  # the arc above z = 0.1
+    n_all = 0.05 * 2 * np.pi * 6.0 * 600.0
+    assert abs(wall.sum() - n_all * above / (2 * np.pi)) < 4 * np.sqrt(n_all)
+    lower = np.mean(a > np.pi)  # the two short arcs below the axis
+    assert abs(lower - (above - np.pi) / above) < 0.03
+    assert np.mean(a < 1.0) > 0.6 / above
+    assert sc.pos[wall, 2].min() < 0.3 and sc.pos[wall, 2].min() > 0.1
+    np.testing.assert_array_equal(sc.swerling[wall], 1)
+    assert abs(sc.rcs_db[wall].mean() + 8.0) < 0.3 and abs(sc.rcs_db[wall].std() - 5.0) < 0.25
+    np.testing.assert_array_equal(sc.prim[rib | wall], TUNNEL_ID)
