@@ -130,6 +130,8 @@ def test_name_meta_and_provenance():
     assert p["sensor_spec"] == SENSORS["lidar-dense"].as_dict()
     assert p["gt_pipeline"] == {"name": "exact"}
     assert p["scene_summary"]["tunnel"] is True
+    assert p["generator_code_hash"] == G.current_code_hash()
+    assert seq.scene_name == "tunnel"
     json.dumps(p, default=str)
 
 
@@ -165,10 +167,30 @@ def test_sensor_twist_is_the_derivative_of_the_ground_truth():
 
 
 def test_motion_covers_the_range_before_and_after():
-    seq = G.SyntheticSequence("tunnel", "lidar-dense", 3, seed=1, speed=(20.0, 20.0))
-    # margin (max range + 250 m) / lowest speed: 400 m / 20 m/s = 20 s either side
+    seq = G.SyntheticSequence("tunnel", "lidar-dense", 3, seed=1, speed=(20.0, 25.0))
+    # margin (max range + 250 m) / lowest speed: 400 m / 20 m/s = 20 s either side (the speed
+    # may rise to 25 m/s)
     assert seq.motion.grid[0] == pytest.approx(-20.0, abs=2e-3)
     assert seq.motion.grid[-1] == pytest.approx(0.2 + 20.0, abs=3e-3)
+
+
+def test_curved_road_flat_attitude_and_seeded_plan_and_ground_truth():
+    a = G.SyntheticSequence("curved-wall", "lidar-dense", 2, seed=3)
+    b = G.SyntheticSequence("curved-wall", "lidar-dense", 2, seed=3)
+    # the road radius (150-250 m) and side come from the seed
+    k = a.provenance["motion_profile"]["curvature"]
+    assert 1 / 250 <= abs(k) <= 1 / 150 and b.provenance["motion_profile"]["curvature"] == k
+    fixed = G.SyntheticSequence("curved-wall", "lidar-dense", 2, seed=3, road_radius=200.0)
+    assert abs(fixed.provenance["motion_profile"]["curvature"]) == pytest.approx(1 / 200)
+    # attitude_deg=0: no pitch or roll, the sensor's z axis stays vertical
+    flat = G.SyntheticSequence("tunnel", "lidar-dense", 20, seed=3, attitude_deg=0.0)
+    np.testing.assert_allclose(flat.ground_truth.poses[:, 2, 2], 1.0, atol=1e-12)
+    tilted = G.SyntheticSequence("tunnel", "lidar-dense", 20, seed=3)
+    assert np.max(np.abs(tilted.ground_truth.poses[:, 2, :2])) > 1e-4
+    # a noisy ground-truth pipeline is seeded too
+    g1 = G.SyntheticSequence("tunnel", "lidar-dense", 3, seed=3, gt="campus")
+    g2 = G.SyntheticSequence("tunnel", "lidar-dense", 3, seed=3, gt="campus")
+    np.testing.assert_array_equal(g1.ground_truth.poses, g2.ground_truth.poses)
 
 
 # ---- scans -----------------------------------------------------------------------------------
@@ -220,6 +242,12 @@ def test_moving_vehicles_doppler_includes_their_velocity():
                                atol=1e-9)
     np.testing.assert_array_equal(raw["material"][dyn], geom.material[raw["prim"][dyn]])
     assert np.all(raw["prim"][dyn] >= 0)
+    # every object hit (primitive 0, the first mover here, too) has its primitive's material
+    # and motion
+    obj = raw["prim"] >= 0
+    assert np.any(raw["prim"] == 0)
+    np.testing.assert_array_equal(raw["material"][obj], geom.material[raw["prim"][obj]])
+    np.testing.assert_array_equal(raw["dynamic"][obj], geom.dynamic[raw["prim"][obj]])
 
 
 def test_scans_are_reproducible_in_any_order():
@@ -263,16 +291,23 @@ def test_radar_scatterers_seen_without_noise_are_exact():
     np.testing.assert_array_equal(raw["angle_bias"][diffuse], 0.0)
     np.testing.assert_array_equal(raw["fading_db"][diffuse], 0.0)
     assert np.isnan(raw["rcs_db"][diffuse]).all()
-    # static scene points: Doppler = -d . v_s
+    # static scene points: Doppler = -d . v_s; scatterers on movers: d . (R^T u - v_s)
     v_s, _ = campus.sensor_twist(1)
     static = ~raw["dynamic"]
     d = raw["points"] / np.linalg.norm(raw["points"], axis=1, keepdims=True)
     np.testing.assert_allclose(raw["doppler"][static], -(d[static] @ v_s), atol=1e-9)
+    moving = raw["dynamic"] & (raw["scatterer"] >= 0)
+    assert moving.sum() > 5
+    geom = campus.scene_model.geometry(0.06)
+    u_s = geom.point_velocity(raw["prim"][moving], _world(T, raw["points"][moving])) @ T[:3, :3]
+    np.testing.assert_allclose(raw["doppler"][moving],
+                               np.einsum("ij,ij->i", d[moving], u_s - v_s), atol=1e-9)
     # the scan reports each scatterer with its id; without noise the SNR is above threshold
     scan = campus.scan(1)
     f = scan.fields
     point = f["gt_scatterer"] >= 0
     assert point.sum() > 0.8 * len(rows) and set(f["gt_scatterer"][point]) <= set(ids)
+    np.testing.assert_array_equal(f["gt_scatterer"][~point], -1.0)
     assert f["snr"].min() > campus.spec.snr_threshold_db
 
 
