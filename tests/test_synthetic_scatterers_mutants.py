@@ -76,6 +76,9 @@ def test_builder_defaults_isotropic_and_empty():
     empty = SC._Builder(np.random.default_rng(0)).build()
     assert len(empty) == 0 and empty.pos.shape == (0, 3) and empty.normal.shape == (0, 3)
     assert empty.bias.shape == (0, 2)
+    for name in ("cos_min", "aspect_exp", "radius", "rcs_db", "lobe_db", "lobe_k", "lobe_phase",
+                 "swerling", "material", "owner", "prim"):
+        assert getattr(empty, name).shape == (0,)
     for name in ("material", "owner", "swerling", "prim"):
         assert getattr(empty, name).dtype == np.int64
     assert len(empty.static_in_sector(np.zeros(2), 0.0, 1.0, 100.0)) == 0
