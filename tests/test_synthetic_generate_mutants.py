@@ -83,6 +83,8 @@ def test_bad_input_messages():
 
 
 def test_one_frame_is_enough():
+    default = G.SyntheticSequence("tunnel", "lidar-dense", 1)
+    assert default.seed == 0 and default.noise is True and default.name.endswith("_s0")
     seq = G.SyntheticSequence("tunnel", "lidar-dense", 1, seed=3)
     assert len(seq) == 1 and seq.stamps.tolist() == [0.0]
     # the motion spans at least one period after the stamp
@@ -369,7 +371,9 @@ def test_radar_points_option_calibrates_the_count():
 def test_ground_truth_pipeline_option():
     seq = G.SyntheticSequence("tunnel", "lidar-dense", 3, seed=2, gt="campus")
     assert seq.gt_pipeline == "campus"
-    assert seq.provenance["gt_pipeline"]["name"] == "campus"
+    assert seq.provenance["gt_pipeline"] == {"name": "campus",
+                                             **G.pipeline_params("campus")}
+    assert "rate_hz" in seq.provenance["gt_pipeline"]
     exact = G.SyntheticSequence("tunnel", "lidar-dense", 3, seed=2)
     # the campus pipeline adds pose noise: not the exact poses, but within a metre of them
     err = np.linalg.norm(seq.ground_truth.poses[:, :3, 3] - exact.ground_truth.poses[:, :3, 3],
