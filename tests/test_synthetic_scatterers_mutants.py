@@ -700,6 +700,9 @@ def test_box_faces_cover_all_four_sides_uniformly():
                      np.sum(~fx & (p[:, 1] > 0)), np.sum(~fx & (p[:, 1] < 0))]
         u_x.append(p[fx, 1])
         u_y.append(p[~fx, 0])
+        # each face's own points spread along it and over its height (not one shared draw)
+        for rows in (fx & (p[:, 0] > 0), ~fx & (p[:, 1] < 0)):
+            assert p[rows, 2].std() > 0.15 * 2 * hz
         z_face.append(p[:, 2])
         lobes.append(sc.lobe_k[face])
         np.testing.assert_array_equal(sc.lobe_db[face], 4.0)
@@ -731,6 +734,8 @@ def test_box_foot_and_edges_are_jittered_slots():
         # a long face keeps 7 of its 10 slots on average, never all-or-nothing every time
         long_face = np.isclose(p[:, 1], hy)
         partial_foot += 0 < long_face.sum() < 10
+        if long_face.sum() > 2:  # each slot its own offset
+            assert np.mod((p[long_face, 0] + hx) / 2.0, 1.0).std() > 0.02
         q = sc.pos[edge]
         edge_z.append(q[:, 2])
         for sx in (-1, 1):
@@ -738,6 +743,9 @@ def test_box_foot_and_edges_are_jittered_slots():
                 k = np.sum((np.sign(q[:, 0]) == sx) & (np.sign(q[:, 1]) == sy))
                 if k:
                     corners.add((sx, sy))
+                if k > 2:  # each row its own offset
+                    zc = q[(np.sign(q[:, 0]) == sx) & (np.sign(q[:, 1]) == sy), 2]
+                    assert np.mod((zc + hz) / (2 * hz / 16), 1.0).std() > 0.02
                 partial_edge += 0 < k < 16
     frac, foot_u, edge_z = (np.concatenate(a) for a in (frac, foot_u, edge_z))
     # slot offsets U(0.2, 0.8) of the slot width; slots span the whole face
