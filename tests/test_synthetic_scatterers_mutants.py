@@ -876,3 +876,46 @@ def test_tunnel_sampling_known_answers():
     np.testing.assert_array_equal(sc.swerling[wall], 1)
     assert abs(sc.rcs_db[wall].mean() + 8.0) < 0.3 and abs(sc.rcs_db[wall].std() - 5.0) < 0.25
     np.testing.assert_array_equal(sc.prim[rib | wall], TUNNEL_ID)
+
+
+def test_ground_features_and_kerbs_of_a_campus():
+    from scipy.spatial import cKDTree
+
+    campus = _campus()
+    scene, sc = campus.scene_model, campus.scatterers
+    ground = (sc.prim == GROUND_ID) & (sc.pos[:, 2] == 0.0)
+    kerb = (sc.prim == GROUND_ID) & (sc.pos[:, 2] == 0.08)
+    np.testing.assert_array_equal(sc.cos_min[ground], -1.0)
+    np.testing.assert_array_equal(sc.aspect_exp[ground], 0.0)
+    np.testing.assert_array_equal(sc.swerling[ground], 1)
+    np.testing.assert_array_equal(sc.lobe_db[ground], 4.0)
+    assert sc.lobe_k[ground].min() >= 2.0 and sc.lobe_k[ground].max() < 10.0
+    assert sc.lobe_k[ground].min() < 2.5 and sc.lobe_k[ground].max() > 9.5
+    np.testing.assert_array_equal(sc.cos_min[kerb], -0.2)
+    np.testing.assert_array_equal(sc.aspect_exp[kerb], 0.0)
+    np.testing.assert_array_equal(sc.lobe_db[kerb], 3.0)
+    np.testing.assert_array_equal(sc.swerling[kerb], 3)
+    m = campus.motion
+    lo, hi = m.sigma_span
+    sig = np.arange(lo + 1.0, hi - 1.0, 1.0)
+    st = m.planar_state(m.time_at_arclength(sig))
+    path = np.column_stack([st["x"], st["y"]])
+    # kerbs: each metre of path, each side, kept with p 1 / 1.5
+    assert abs(kerb.sum() - 2 * len(sig) / 1.5) < 4 * np.sqrt(2 * len(sig) * 0.22)
+    idx = cKDTree(path).query(sc.pos[kerb, :2])[1]
+    tang = np.column_stack([np.cos(st["yaw"]), np.sin(st["yaw"])])[idx]
+    off = sc.pos[kerb, :2] - path[idx]
+    side = np.sign(tang[:, 0] * off[:, 1] - tang[:, 1] * off[:, 0])
+    assert abs(np.mean(side > 0) - 0.5) < 0.05
+    # ground features: Poisson(0.05 / m^2) over the ground within 60 m of the path and outside
+    # every box (area counted on a 1 m grid)
+    x0, y0 = path.min(axis=0) - 60.0
+    x1, y1 = path.max(axis=0) + 60.0
+    gx, gy = np.meshgrid(np.arange(x0, x1, 1.0) + 0.5, np.arange(y0, y1, 1.0) + 0.5)
+    g = np.column_stack([gx.ravel(), gy.ravel()])
+    free = cKDTree(path).query(g, distance_upper_bound=60.0)[0] <= 60.0
+    for center, half, yaw, _ in scene.boxes:
+        q = _box_frame(np.column_stack([g, np.zeros(len(g))]), center, yaw)
+        free &= ~((np.abs(q[:, 0]) < half[0]) & (np.abs(q[:, 1]) < half[1]))
+    want = 0.05 * free.sum()
+    assert abs(ground.sum() - want) < 4 * np.sqrt(want) + 0.01 * want
