@@ -919,3 +919,43 @@ def test_ground_features_and_kerbs_of_a_campus():
         free &= ~((np.abs(q[:, 0]) < half[0]) & (np.abs(q[:, 1]) < half[1]))
     want = 0.05 * free.sum()
     assert abs(ground.sum() - want) < 4 * np.sqrt(want) + 0.01 * want
+
+
+def test_pedestrians_poles_and_crowns_of_a_campus():
+    campus = _campus()
+    scene, sc = campus.scene_model, campus.scatterers
+    from loaders.synthetic.scenes import PEDESTRIAN
+
+    n_ped = 0
+    for i, mv in enumerate(scene.movers):
+        if mv.material != PEDESTRIAN:
+            continue
+        n_ped += 1
+        mine = sc.of_mover(i)
+        hz = mv.half[2]
+        # torso and legs on the body axis, seen on the cylinder of the body's half width
+        np.testing.assert_allclose(np.sort(sc.pos[mine, 2]), [-0.5 * hz, 0.3 * hz])
+        np.testing.assert_array_equal(sc.pos[mine, :2], 0.0)
+        np.testing.assert_allclose(sc.radius[mine], max(mv.half[:2]))
+        np.testing.assert_array_equal(sc.swerling[mine], 1)
+        np.testing.assert_array_equal(sc.lobe_db[mine], 3.0)
+    assert n_ped > 0
+    pid0 = len(scene.boxes)
+    base, top = [], []
+    for k, (_, _, _, _, _, mat) in enumerate(scene.vcylinders):
+        if mat != POLE:
+            continue
+        mine = np.flatnonzero(sc.prim == pid0 + k)
+        z = sc.pos[mine, 2]
+        base.append(sc.rcs_db[mine[np.argmin(z)]])
+        top.append(sc.rcs_db[mine[np.argmax(z)]])
+    # the base dihedral N(12, 3) dBsm, the lamp N(9, 3): spread, not constant
+    base, top = np.array(base), np.array(top)
+    assert len(base) >= 5 and base.std() > 1.0
+    assert abs(base.mean() - 12.0) < 4 * 3 / np.sqrt(len(base))
+    assert abs(top.mean() - 9.0) < 4 * 3 / np.sqrt(len(top))
+    # crowns: Poisson(2 / m^2 x 4 pi r^2) each
+    pid1 = pid0 + len(scene.vcylinders)
+    want = sum(2.0 * 4 * np.pi * r * r for _, r, _ in scene.spheres)
+    got = np.sum((sc.prim >= pid1) & (sc.prim < pid1 + len(scene.spheres)))
+    assert abs(got - want) < 4 * np.sqrt(want)
