@@ -353,3 +353,91 @@ def test_main_stops_on_stale_decisions(monkeypatch, tmp_path, capsys):
 def test_main_fails_when_a_baseline_fails(monkeypatch, tmp_path):
     _main_layers(monkeypatch, tmp_path, passed=(True, False))
     assert independent.main([]) == 1
+
+
+# the comparison table -------------------------------------------------------------------------
+
+def test_table_markdown_every_line_with_halves():
+    x = independent.Baseline("ours-x", "ref-x", "a test reference")
+    z = independent.Baseline("ours-z", "ref-z", "a third")
+    rows = [*_rows(), independent.Comparison(
+        z, {8.0: (1.15, 3.0), 48.0: (1.0, 1.0)}, {8.0: (1.0, 2.0), 48.0: (0.0, 1.0)}),
+        independent.Comparison(x, {8.0: (1.0, 1.0)}, {8.0: (1.0, 1.0), 48.0: (1.0, 1.0)})]
+    head = ("| Baseline (ours) | Reference | Scored on | Reference setting (tuned on) | ours 8 m "
+            "| reference 8 m | ours / ref. 8 m | ours 48 m | reference 48 m | ours / ref. 48 m "
+            "| within 1.15x |")
+    # x: 1/2, 2/2 at 8 m, 3/3, 4/5 at 48 m; z: 1.15 (the limit: not bold), 3/2 = 1.5 (bold),
+    # a zero reference: inf; the last: ours without 48 m
+    assert independent.table_markdown(rows) == "\n".join([
+        head, "|" + "---|" * 11,
+        "| `ours-x` | `ref-x` | A | gate=2.0 (B) | 1.000 / 2.000 | 2.000 / 2.000 | 0.50 / 1.00 "
+        "| 3.000 / 4.000 | 3.000 / 5.000 | 1.00 / 0.80 | yes (worst 1.00x) |",
+        "| `ours-y` | `ref-y` | A | - (B) | 1.000 / 1.000 | - | - / - | - | - | - / - | no run |",
+        "| `ours-z` | `ref-z` | - | - (-) | 1.150 / 3.000 | 1.000 / 2.000 | 1.15 / **1.50** "
+        "| 1.000 / 1.000 | 0.000 / 1.000 | **inf** / 1.00 | NO (worst infx) |",
+        "| `ours-x` | `ref-x` | - | - (-) | 1.000 / 1.000 | 1.000 / 1.000 | 1.00 / 1.00 | - "
+        "| 1.000 / 1.000 | - / - | no run |",
+        "",
+        "Each cell: mean relative rotation [deg] / translation [m] error over the segments of "
+        "that length; ratios ours / reference (rotation / translation), above 1.15x in bold. "
+        "Ours at its shipped defaults; each reference at the setting the tuning rule of "
+        "configs/splits.yaml chose on the other half (cross-fitted). References:",
+        "- `ref-x` for `ours-x`: a test reference", "- `ref-y` for `ours-y`: another",
+        "- `ref-z` for `ours-z`: a third"]) + "\n"
+
+
+def test_table_markdown_without_halves_and_other_lengths():
+    b = independent.Baseline("ours-x", "ref-x", "a test reference")
+    row = independent.Comparison(b, {16.0: (1.0, 2.0)}, {16.0: (1.0, 1.0)}, lengths_m=(16.0,))
+    assert independent.table_markdown([row]).splitlines() == [
+        "| Baseline (ours) | Reference | ours 16 m | reference 16 m | ours / ref. 16 m "
+        "| within 1.15x |", "|---|---|---|---|---|---|",
+        "| `ours-x` | `ref-x` | 1.000 / 2.000 | 1.000 / 1.000 | 1.00 / **2.00** "
+        "| NO (worst 2.00x) |", "",
+        "Each cell: mean relative rotation [deg] / translation [m] error over the segments of "
+        "that length; ratios ours / reference (rotation / translation), above 1.15x in bold. "
+        "References:", "- `ref-x` for `ours-x`: a test reference"]
+    assert independent.table_markdown([]).splitlines()[0] == (
+        "| Baseline (ours) | Reference | ours 8 m | reference 8 m | ours / ref. 8 m | ours 48 m "
+        "| reference 48 m | ours / ref. 48 m | within 1.15x |")
+
+
+def test_setting_text_of_several_values():
+    assert independent._setting({"gate": 2.0, "on": True, "v": [0.5, 1]}) == \
+        "gate=2.0 on=true v=[0.5, 1]"
+    assert independent._setting(None) == "-"
+
+
+def test_run_dir_needs_a_run_list_per_point(tmp_path):
+    t = independent.Tuned("ref-x", [{"g": 1}, {"g": 2}], [{"A": tmp_path}], {})
+    assert t.run_dir({"g": 1}, "A") == tmp_path
+    with pytest.raises(ValueError):
+        t.run_dir({"g": 2}, "A")
+
+
+def test_stale_decisions_name_an_undecided_reference():
+    t = independent.Tuned("ref-x", [{"g": 1}], [{}], {"A": Decision(0, None, [], "a run is "
+                                                                     "missing")})
+    assert independent.stale_decisions({"ref-x": t}, None) == [
+        "ref-x (A): undecided (a run is missing)"]
+
+
+def test_cross_fitted_without_a_sweep_or_a_decision(monkeypatch, tmp_path):
+    from bench.runs import folders
+
+    seen = []
+    monkeypatch.setattr(independent, "errors_by_method", lambda d, lengths, half: seen.append(
+        (d, lengths, half)) or {"ours-x": {8.0: (1.0, 1.0)}})
+    monkeypatch.setattr(folders, "read_run", lambda d: pytest.fail(f"read {d}"))
+    undecided = independent.Tuned("ref-x", [{"g": 1}], [{"A": tmp_path}],
+                                  {"A": Decision(0, None, [], "?"),
+                                   "B": Decision(0, None, [], "?")})
+    baselines = [independent.Baseline("ours-x", "ref-x", ""),
+                 independent.Baseline("ours-x", "ref-none", "")]
+    rows = independent.cross_fitted({"ref-x": undecided}, tmp_path / "ours", ["A", "B"],
+                                    baselines, (8.0,))
+    assert seen == [(tmp_path / "ours", (8.0,), "A"), (tmp_path / "ours", (8.0,), "B")]
+    assert [(c.half, c.tuned_on, c.setting, c.reference) for c in rows] == [
+        ("A", "B", None, None), ("A", "B", None, None), ("B", "A", None, None),
+        ("B", "A", None, None)]
+    assert all(c.lengths_m == (8.0,) and c.ours == {8.0: (1.0, 1.0)} for c in rows)
