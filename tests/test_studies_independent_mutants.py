@@ -33,11 +33,11 @@ def test_errors_by_method_one_unlabelled_seeded_run_each(monkeypatch, tmp_path):
     from bench.runs import folders
 
     records = [
+        _record("vgicp", sequence="B", rel=[(8, 5, 3.0, 4.0)]),
         _record("gicp", rel=[(8, 5, 1.0, 2.0), (16, 5, 9.0, 9.0), (48, 0, 9.0, 9.0)]),
         _record("gicp", label="variant", rel=[(8, 5, 7.0, 7.0)]),
         _record("dicp", seed=Seed.WITHOUT, rel=[(8, 5, 7.0, 7.0)]),
-        _record("doppler", seed=Seed.NONE, rel=[(8.0, 3, 0.5, 0.25), (48.0, 4, 1.5, 2.5)]),
-        _record("vgicp", sequence="B", rel=[(8, 5, 3.0, 4.0)])]
+        _record("doppler", seed=Seed.NONE, rel=[(8.0, 3, 0.5, 0.25), (48.0, 4, 1.5, 2.5)])]
     seen = []
     monkeypatch.setattr(folders, "load_runs", lambda d: seen.append(d) or iter(records))
     # lengths 8 and 48 only, and only those with segments; seed WITHOUT and labels left out
@@ -45,8 +45,8 @@ def test_errors_by_method_one_unlabelled_seeded_run_each(monkeypatch, tmp_path):
         "gicp": {8.0: (1.0, 2.0)}, "doppler": {8.0: (0.5, 0.25), 48.0: (1.5, 2.5)}}
     assert seen == [tmp_path]
     everywhere = independent.errors_by_method(tmp_path, lengths_m=(8.0,))
-    assert everywhere == {"gicp": {8.0: (1.0, 2.0)}, "doppler": {8.0: (0.5, 0.25)},
-                          "vgicp": {8.0: (3.0, 4.0)}}
+    assert everywhere == {"vgicp": {8.0: (3.0, 4.0)}, "gicp": {8.0: (1.0, 2.0)},
+                          "doppler": {8.0: (0.5, 0.25)}}
     records.append(_record("gicp", rel=[(8, 5, 1.0, 1.0)]))
     with pytest.raises(ValueError, match=f"^{tmp_path}: two runs of gicp$"):
         independent.errors_by_method(tmp_path)
@@ -135,12 +135,13 @@ def _experiment_layers(monkeypatch, tmp_path, statuses, sweeps):
     from bench.runs import experiment, job, plan, progress
     from bench.runs import sweep as sweep_mod
 
-    calls = []
+    calls, consoles = _Calls(), []
     exp = SimpleNamespace(out_dir=tmp_path / "exp", jobs=3)
     monkeypatch.setattr(experiment, "load_experiment",
                         lambda p: calls.append(("load", p)) or exp)
     monkeypatch.setattr(plan, "jobs_for_experiment",
-                        lambda e, console: calls.append(("jobs", e)) or ["j1", "j2"])
+                        lambda e, console: calls.append(("jobs", e)) or consoles.append(console)
+                        or ["j1", "j2"])
     monkeypatch.setattr(plan, "plan", lambda jobs: calls.append(("plan", jobs)) or ["p1", "p2"])
     monkeypatch.setattr(sweep_mod, "sweep_index",
                         lambda e, jobs: calls.append(("index", e, jobs)) or sweeps)
@@ -153,7 +154,12 @@ def _experiment_layers(monkeypatch, tmp_path, statuses, sweeps):
                         lambda d: calls.append(("tables", d)) or {"md": "THE TABLE"})
     monkeypatch.setattr(sweep_tables, "sweep_markdown",
                         lambda d: calls.append(("sweep_md", d)) or "THE SWEEP")
+    calls.consoles = consoles
     return calls, exp
+
+
+class _Calls(list):
+    """A list of calls that also holds the consoles handed down."""
 
 
 def _console():
@@ -167,6 +173,7 @@ def test_run_experiment_runs_writes_tables_and_the_sweep(monkeypatch, tmp_path, 
     calls, exp = _experiment_layers(monkeypatch, tmp_path, statuses, {"sweeps": []})
     console = _console()
     assert independent.run_experiment(console, Path("x.yaml"), None, True, "local") == code
+    assert calls.consoles == [console]
     run = next(c for c in calls if c[0] == "run")
     assert run == ("run", ["p1", "p2"], console, 3, True, "local", None, None)
     assert calls[:4] == [("load", Path("x.yaml")), ("jobs", exp), ("plan", ["j1", "j2"]),
@@ -196,7 +203,9 @@ def test_run_experiment_without_a_sweep_writes_no_sweep_files(monkeypatch, tmp_p
 @pytest.mark.parametrize("sweeps", [{"sweeps": [1]}, None])
 def test_index_experiment_writes_the_sweep_index_only(monkeypatch, tmp_path, sweeps):
     calls, exp = _experiment_layers(monkeypatch, tmp_path, [], sweeps)
-    independent.index_experiment(_console(), Path("y.yaml"))
+    console = _console()
+    independent.index_experiment(console, Path("y.yaml"))
+    assert calls.consoles == [console]
     expected = [("load", Path("y.yaml")), ("jobs", exp), ("plan", ["j1", "j2"]),
                 ("index", exp, ["p1", "p2"])]
     if sweeps is not None:
@@ -228,11 +237,14 @@ def test_tuned_references_read_each_points_runs_and_decide(monkeypatch, tmp_path
     from bench.runs import folders, tuning_rule
     from bench.runs import sweep as sweep_mod
 
-    monkeypatch.setattr(sweep_mod, "read_sweep_index", lambda d: _sweep_index(CRITERION))
+    index = _sweep_index(CRITERION)
+    monkeypatch.setattr(sweep_mod, "read_sweep_index", lambda d: (d, index)[1] if d == tmp_path
+                        else pytest.fail(f"index of {d}"))
     monkeypatch.setattr(folders, "read_run", lambda d: None if d.name == "missing" else
                         SimpleNamespace(gt=f"gt-{d.name}", est=f"est-{d.name}"))
     monkeypatch.setattr(tuning_rule, "run_errors", lambda gt, est, lengths: (gt, est, lengths))
-    monkeypatch.setattr(sweep_tables, "_reference_index", lambda sweep, crit: 0)
+    monkeypatch.setattr(sweep_tables, "_reference_index", lambda sweep, crit: 0 if (
+        sweep is index["sweeps"][0] and crit == CRITERION) else pytest.fail("reference index"))
     seen = []
     monkeypatch.setattr(independent, "half_choices", lambda points, errors, ref, crit: seen.append(
         (points, errors, ref, crit)) or {"rule": Decision(0, 1, [], "why")})
@@ -274,6 +286,10 @@ def test_run_dir_and_setting_of_a_tuned_sweep(tmp_path):
 
 # main -----------------------------------------------------------------------------------------
 
+#: the table main prints: as it is (no markup: "[deg]" stays; no wrapping of a long line)
+TEXT = "rotation [deg] / translation [m] " + "x" * 500
+
+
 def _main_layers(monkeypatch, tmp_path, codes=(0, 0), stale=(), passed=(True, True)):
     from bench.runs import experiment
 
@@ -285,20 +301,26 @@ def _main_layers(monkeypatch, tmp_path, codes=(0, 0), stale=(), passed=(True, Tr
     codes = dict(zip((independent.TUNING, independent.OURS), codes, strict=True))
     monkeypatch.setattr(experiment, "load_experiment", lambda p: exps[p])
     monkeypatch.setattr(independent, "_with_plugin", lambda: calls.append("plugin"))
+    from rich.console import Console
+
+    def console_of(console):
+        assert isinstance(console, Console)
+
     monkeypatch.setattr(independent, "run_experiment",
-                        lambda console, p, jobs, force, ex: calls.append(
+                        lambda console, p, jobs, force, ex: console_of(console) or calls.append(
                             ("run", p, jobs, force, ex)) or codes[p])
-    monkeypatch.setattr(independent, "index_experiment", lambda console, p: calls.append(
-        ("index", p)))
+    monkeypatch.setattr(independent, "index_experiment", lambda console, p: console_of(
+        console) or calls.append(("index", p)))
     monkeypatch.setattr(independent, "tuned_references", lambda d: calls.append(("tuned", d))
                         or "TUNED")
     monkeypatch.setattr(independent, "stale_decisions", lambda t, d: calls.append(
         ("stale", t, d)) or list(stale))
     monkeypatch.setattr(independent, "cross_fitted", lambda t, ours, halves: calls.append(
         ("cross", t, ours, halves)) or [SimpleNamespace(passed=p) for p in passed])
-    monkeypatch.setattr(independent, "decisions_markdown", lambda t: "DEC")
+    monkeypatch.setattr(independent, "decisions_markdown", lambda t: "DEC" if t == "TUNED"
+                        else pytest.fail(f"decisions of {t}"))
     monkeypatch.setattr(independent, "write_outputs", lambda rows, out, dec: calls.append(
-        ("write", len(rows), out, dec)) or "TEXT")
+        ("write", len(rows), out, dec)) or TEXT)
     monkeypatch.setenv("COLUMNS", "400")
     return calls
 
@@ -314,15 +336,16 @@ def test_main_runs_both_steps_then_the_cross_fitted_table(monkeypatch, tmp_path,
     out = capsys.readouterr().out
     assert "tuning: configs/experiments/independent-real-tuning.yaml" in out
     assert "ours: configs/experiments/independent-real-ours.yaml" in out
-    assert "TEXT" in out and f"written: {independent.OUT / 'comparison.md'}" in out
+    assert TEXT in out and f"written: {independent.OUT / 'comparison.md'}" in out
 
 
-def test_main_options_and_no_run(monkeypatch, tmp_path):
+def test_main_options_and_no_run(monkeypatch, tmp_path, capsys):
     calls = _main_layers(monkeypatch, tmp_path)
     assert independent.main(["--jobs", "3", "--executor", "local", "--force", "--out",
-                             str(tmp_path / "o")]) == 0
+                             str(tmp_path / "o[x]")]) == 0
     assert calls[1] == ("run", independent.TUNING, 3, True, "local")
-    assert calls[-1] == ("write", 2, tmp_path / "o", "DEC")
+    assert calls[-1] == ("write", 2, tmp_path / "o[x]", "DEC")
+    assert f"written: {tmp_path / 'o[x]' / 'comparison.md'}" in capsys.readouterr().out
     calls.clear()
     assert independent.main(["--no-run"]) == 0
     assert ("index", independent.TUNING) in calls and ("index", independent.OURS) in calls
@@ -339,12 +362,13 @@ def test_main_stops_on_a_failed_step(monkeypatch, tmp_path, capsys, codes, step)
 
 
 def test_main_stops_on_stale_decisions(monkeypatch, tmp_path, capsys):
-    calls = _main_layers(monkeypatch, tmp_path, stale=["ref-x (A): decided records ..."])
+    stale = ["ref-x (A): decided records [gate=1]", "ref-x (B): undecided"]
+    calls = _main_layers(monkeypatch, tmp_path, stale=stale)
     assert independent.main([]) == 1
     out = capsys.readouterr().out
     assert ("The recorded decisions are not the replay's; update `decided:` in "
-            "configs/experiments/independent-real-tuning.yaml:\nref-x (A): decided records ...") \
-        in out
+            "configs/experiments/independent-real-tuning.yaml:\nref-x (A): decided records "
+            "[gate=1]\nref-x (B): undecided") in out
     # nothing after the tuning step: no run of ours, no table
     assert calls == ["plugin", ("run", independent.TUNING, None, False, "process"),
                      ("tuned", tmp_path / "tuning"), ("stale", "TUNED", {"d": 1})]
@@ -441,3 +465,20 @@ def test_cross_fitted_without_a_sweep_or_a_decision(monkeypatch, tmp_path):
         ("A", "B", None, None), ("A", "B", None, None), ("B", "A", None, None),
         ("B", "A", None, None)]
     assert all(c.lengths_m == (8.0,) and c.ours == {8.0: (1.0, 1.0)} for c in rows)
+
+
+def test_main_help_names_every_option(monkeypatch, capsys):
+    monkeypatch.setenv("COLUMNS", "400")
+    with pytest.raises(SystemExit) as done:
+        independent.main(["--help"])
+    assert done.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    for words in ("ICP-family baselines against independent implementations on the real radar "
+                  "frames, each tuned by the tuning rule (the references' sweep over both "
+                  "halves, ours at its defaults, then the cross-fitted table)",
+                  "--jobs JOBS parallel runs (default: the YAMLs')",
+                  "--executor EXECUTOR local, process or dask",
+                  "--force run again even if finished", "--out OUT where the table is written",
+                  "--no-run start no run: decide and score from the finished runs (a decision "
+                  "whose runs are missing is undecided)"):
+        assert words in text
