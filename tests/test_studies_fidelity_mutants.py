@@ -103,7 +103,8 @@ def test_table3_cells_of_a_run_missing_a_length():
     c16 = [c for c in cells if c.length == "16"]
     assert [c.paper for c in c16] == [0.928, 1.115] and all(math.isnan(c.synth) for c in c16)
     (t,) = [c for c in cells if c.quantity == "time_ms"]
-    assert (t.length, t.paper, t.synth) == ("", 4.0, 8.0)
+    assert (t.length, t.paper, t.synth, t.role, t.klass) == ("", 4.0, 8.0, "prediction",
+                                                             "Semi-Dense 4D Radar")
 
 
 def test_target_check_worst_factor_and_a_zero_ratio():
@@ -164,7 +165,7 @@ def test_finding_doppler_fastest_per_row():
                 _run("Loop1_2", "dicp", False, time_ms=2.0),
                 _run("Loop1_2", "kiss-icp", True, time_ms=0.1),       # not in Table III
                 _run("Loop1_3", "doppler", None, time_ms=5.0),        # alone: no row
-                _run("Loop1_4", "dicp", True), _run("Loop1_4", "gicp", True))  # no doppler
+                _run("Loop1_4", "dicp", True), _run("Loop1_4", "dicp", False))  # no doppler
     f = F.findings(runs, paper)[0]
     assert f.holds and f.source == "Table III"
     assert f.measured == ["Loop1_2: doppler 0.40 ms vs dicp (with seed) 4.00, dicp (no seed) "
@@ -184,37 +185,39 @@ def test_finding_icp_family_diverges_in_both_tunnels():
     assert f.holds and f.source == "Table V"
     assert f.measured == [f"{seq}: icp-p2p Div., icp-p2plane Div., gicp Div., vgicp Div."
                           for seq in F.TUNNELS]
+    # one that did not diverge fails the finding, whatever comes after it
     _put(runs, _run("Tunnel_Vehicles", "gicp", True, ape=5.0))
-    del runs[("Tunnel_Vehicles", "vgicp", True)]
+    del runs[("Tunnel_Empty", "icp-p2p", True)]
     f = F.findings(runs, paper)[1]
     assert not f.holds
-    assert f.measured[1] == "Tunnel_Vehicles: icp-p2p Div., icp-p2plane Div., gicp 5.00 m, " \
-                            "vgicp - m"
+    assert f.measured == ["Tunnel_Empty: icp-p2p - m, icp-p2plane Div., gicp Div., vgicp Div.",
+                          "Tunnel_Vehicles: icp-p2p Div., icp-p2plane Div., gicp 5.00 m, "
+                          "vgicp Div."]
 
 
 def test_findings_lowest_ape_in_the_tunnels_and_on_the_loops():
     paper = F.paper_table3()
     runs = {}
-    for seq in F.TUNNELS:
+    for seq in F.TUNNELS[1:]:  # Tunnel_Empty: no run, no line
         _put(runs, _run(seq, "icp-p2p", True, diverged=True), _run(seq, "dicp", True, ape=3.0),
              _run(seq, "doppler-icp", True, ape=2.0), _run(seq, "doppler", None, ape=2.5),
              _run(seq, "kiss-icp", True, ape=0.1))  # not one of the paper's methods
     for seq in ("Loop1_0", "Loop1_1"):
         _put(runs, _run(seq, "vgicp", True, ape=1.0), _run(seq, "doppler", None, ape=2.0))
-    _put(runs, _run("Loop1_3", "doppler-icp", True, ape=1.0), _run("Loop1_3", "gicp", True,
+    # Loop1_3: no run, no line (the next is still checked)
+    _put(runs, _run("Loop1_4", "doppler-icp", True, ape=1.0), _run("Loop1_4", "gicp", True,
                                                                    ape=4.0))
     found = F.findings(runs, paper)
     tunnels, loops = found[2], found[3]
     assert tunnels.holds and tunnels.source == "Table V"
-    assert tunnels.measured[0] == ("Tunnel_Empty: lowest doppler-icp (2.00 m); icp-p2p Div., "
-                                   "dicp 3.00, doppler 2.50, doppler-icp 2.00")
-    # Loop1_0 reported, not checked; Loop1_1 has vgicp lowest: the finding fails; Loop1_4 has no
-    # run: no line
+    assert tunnels.measured == ["Tunnel_Vehicles: lowest doppler-icp (2.00 m); icp-p2p Div., "
+                                "dicp 3.00, doppler 2.50, doppler-icp 2.00"]
+    # Loop1_0 reported, not checked; Loop1_1 has vgicp lowest: the finding fails
     assert not loops.holds and loops.source == "Table IV"
     assert loops.measured == [
         "Loop1_0: lowest vgicp (1.00 m) [not checked]; vgicp 1.00, doppler 2.00",
         "Loop1_1: lowest vgicp (1.00 m) (NOT a winner); vgicp 1.00, doppler 2.00",
-        "Loop1_3: lowest doppler-icp (1.00 m); gicp 4.00, doppler-icp 1.00"]
+        "Loop1_4: lowest doppler-icp (1.00 m); gicp 4.00, doppler-icp 1.00"]
     del runs[("Loop1_1", "vgicp", True)]
     assert F.findings(runs, paper)[3].holds  # Loop1_0's vgicp alone does not count
 
@@ -350,3 +353,21 @@ def test_write_report_into_another_folder_with_a_header(monkeypatch, tmp_path):
            "0.650 (1.00) |" in text
     rows = (tmp_path / "out" / "fidelity.csv").read_text().splitlines()
     assert len(rows) == 1 + 13 and not (tmp_path / "results" / "fidelity.md").exists()
+
+
+def test_findings_claims_as_the_report_states_them():
+    found = F.findings({}, F.paper_table3())
+    assert [(f.claim, f.source) for f in found] == [
+        ("`doppler` is the fastest method in every Table III row", "Table III"),
+        ("the ICP family (point-to-point, point-to-plane, GICP, VGICP) diverges in both tunnels",
+         "Table V"),
+        ("Doppler 4D-ICP has the lowest APE among the paper's methods in both tunnels",
+         "Table V"),
+        ("on Loop1_1, Loop1_3 and Loop1_4 one of the paper's two Doppler methods (`doppler`, "
+         "`doppler-icp`) has the lowest APE among the paper's methods (Table IV has VGICP "
+         "lowest on Loop1_0, reported for information)", "Table IV"),
+        ("semi-dense Loop1_2: `doppler` within 10 % of DICP (with seed) at 8 m, rotation and "
+         "translation", "Table III")]
+    # no run: nothing measured; the ICP finding fails (no divergence), the two APE findings
+    # hold vacuously, Loop1_2's needs both runs
+    assert [f.holds for f in found] == [True, False, True, True, False]
