@@ -222,17 +222,21 @@ def test_findings_lowest_ape_in_the_tunnels_and_on_the_loops():
     assert F.findings(runs, paper)[3].holds  # Loop1_0's vgicp alone does not count
 
 
-@pytest.mark.parametrize(("rot", "trans", "holds"), [(1.05, 0.95, True), (1.2, 1.0, False),
-                                                     (1.0, 0.85, False)])
-def test_finding_loop1_2_doppler_within_ten_percent_of_dicp(rot, trans, holds):
+@pytest.mark.parametrize(("rot", "trans", "text", "holds"), [
+    (2.1, 0.475, "rotation 2.100 vs 2.000 deg (1.05x), translation 0.475 vs 0.500 m (0.95x)",
+     True),
+    (2.4, 0.5, "rotation 2.400 vs 2.000 deg (1.20x), translation 0.500 vs 0.500 m (1.00x)",
+     False),
+    (2.0, 0.425, "rotation 2.000 vs 2.000 deg (1.00x), translation 0.425 vs 0.500 m (0.85x)",
+     False)])
+def test_finding_loop1_2_doppler_within_ten_percent_of_dicp(rot, trans, text, holds):
     paper = F.paper_table3()
+    # DICP at 2 deg / 0.5 m at 8 m: doppler / DICP per error
     runs = _put({}, _run("Loop1_2", "doppler", None, rot=rot, trans=trans),
-                _run("Loop1_2", "dicp", True, rot=1.0, trans=1.0))
+                _run("Loop1_2", "dicp", True, rot=2.0, trans=0.5))
     f = F.findings(runs, paper)[4]
     assert f.holds is holds and f.source == "Table III"
-    assert f.measured == [f"rotation {rot:.3f} vs 1.000 deg ({rot:.2f}x), translation "
-                          f"{trans:.3f} vs 1.000 m ({trans:.2f}x); paper 0.617 / 0.650 vs "
-                          "0.625 / 0.620"]
+    assert f.measured == [f"{text}; paper 0.617 / 0.650 vs 0.625 / 0.620"]
 
 
 def test_finding_loop1_2_without_both_runs_does_not_hold():
