@@ -375,3 +375,30 @@ def test_findings_claims_as_the_report_states_them():
     # no run: nothing measured; the ICP finding fails (no divergence), the two APE findings
     # hold vacuously, Loop1_2's needs both runs
     assert [f.holds for f in found] == [True, False, True, True, False]
+
+
+def test_format_markdown_prose_and_a_method_without_accuracy_cells():
+    cells = [_cell("gicp", True, "", "time_ms", 1.0, 1.0),
+             _cell("dicp", True, "16", "rot_deg", 1.0, 1.0),
+             _cell("dicp", True, "16", "trans_m", 1.0, 1.0)]
+    lines = F.format_markdown(cells, [F.Finding("c", "s", False)]).splitlines()
+    # no accuracy cell: no share (nan), the goal not reached
+    assert "- `gicp` (prediction): 0 of 0 Table III cells within 2x (nan%; goal 80%: NOT " \
+           "reached)" in lines
+    i = lines.index("## The paper's findings: 0 of 1 hold on the synthetic suite")
+    assert lines[i + 1:i + 5] == [
+        "", "Checked by value, as the paper states them (fastest, lowest APE, within 10 %), one "
+        "drive per sequence: \"holds\" says the values fall that way, not that the 95 % "
+        "intervals tell the methods apart (the tables' marks and their intervals say where "
+        "they do; APE intervals mostly overlap).", "", "1. **does NOT hold**: c (s)"]
+    j = lines.index("## Table III, every cell: paper / synthetic (ratio synthetic / paper)")
+    assert lines[j - 1:j + 4] == [
+        "", "## Table III, every cell: paper / synthetic (ratio synthetic / paper)", "",
+        "Rotation [deg] / translation [m] mean relative error per segment length; time [ms] per "
+        "frame (the paper's i7-14700KF against this machine: not a fidelity measure). `*` marks "
+        "a ratio outside 2x. Role: `doppler` = calibration target, others = prediction.", ""]
+    # a method with a 16 m row only (no 8 m): its row is still there
+    assert lines[-2:] == [
+        "| S1 | gicp (with seed) | prediction | time | 1.00 / 1.00 ms (1.00) | |",
+        "| S1 | dicp (with seed) | prediction | 16 m | 1.000 / 1.000 (1.00) | 1.000 / 1.000 "
+        "(1.00) |"]
