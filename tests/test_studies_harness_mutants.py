@@ -78,10 +78,10 @@ def test_read_cost_per_scan_and_the_median_scan_of_the_frames_read(tmp_path, mon
                                                                    frames, n, median):
     # sizes 100, 300, 500, 50, 60: median of all 100, of the first 3 300, of the first 2 200
     store = _sized_store(tmp_path / "s.h5", [100, 300, 500, 50, 60])
-    _fake_time(monkeypatch, [2.0, 2.5], [7.0, 8.0])
+    _fake_time(monkeypatch, [2.0, 2.5], [7.0, 9.0])
     r = harness.read_cost(store, None, frames)
     assert r["read_ms"] == pytest.approx(1e3 * 0.5 / n)
-    assert r["read_wall_ms"] == pytest.approx(1e3 * 1.0 / n)
+    assert r["read_wall_ms"] == pytest.approx(1e3 * 2.0 / n)
     assert r["points"] == median and isinstance(r["points"], int)
 
 
@@ -344,8 +344,26 @@ def test_print_rows_has_every_phase_and_the_ratios_to_the_method():
     # harness 3 / method 2 = 1.50x, read 0.5 / 2 = 0.25x
     assert ("radar (doppler) 4321 300 2.000 0.500 (0.625) 0.250 (0.375) 1.000 (1.125) "
             "0.750 (0.875) 3.000 (3.500) 1.50x 0.25x 1.23 (2.35)") in text
-    assert "[ms, CPU time] (wall time in brackets)" in text
-    assert "limits (issue 29): harness <= 1.5x and read <= 2.0x the method" in text
+    assert ("scan points frames method read driver evaluate write harness harness / method "
+            "read / method fixed [s]") in text
+    assert ("The harness's own cost per frame beside the method's [ms, CPU time] (wall time in "
+            "brackets)") in text
+    assert ("read: a scan from the store (the arrays the method reads); driver: the loop around "
+            "the method; fixed: start-up (store, method, warm-up) and the part of writing the run "
+            "folder that does not grow with the frames; limits (issue 29): harness <= 1.5x and "
+            "read <= 2.0x the method") in text
+
+
+def test_print_rows_scan_left_and_figures_right():
+    console = _console()
+    short = {**ROW, "scenario": "a", "method": "b", "points": 7}
+    harness.print_rows([ROW, short], console)
+    (row,) = [ln for ln in console.export_text().splitlines() if "a (b)" in ln]
+    cells = row.split("\u2502")[1:-1]
+    # "radar (doppler)" sets the scan column's width: "a (b)" padded on the right; the points
+    # column is as wide as its header ("points"): 7 padded on the left
+    assert cells[0].startswith(" a (b) ") and cells[0].endswith("  ")
+    assert cells[1] == "      7 "
 
 
 def test_print_whole_run_line():
@@ -365,12 +383,20 @@ def test_report_writes_harness_csv_with_six_significant_digits(tmp_path, monkeyp
     rows = [{"scenario": "radar", "frames": 300, "method_ms": 1.23456789},
             {"scenario": "a.h5", "frames": 7, "method_ms": 2.0}]
     printed = []
-    monkeypatch.setattr(harness, "print_rows", lambda r, c: printed.append(r))
     console = _console()
+    monkeypatch.setattr(harness, "print_rows", lambda r, c: printed.append(r) if c is console
+                        else pytest.fail("another console"))
     harness.report(rows, tmp_path / "out", console)
     assert (tmp_path / "out" / "harness.csv").read_text() == (
         "scenario,frames,method_ms\nradar,300,1.23457\na.h5,7,2\n")
     assert printed == [rows]
+    harness.report(rows[:1], tmp_path / "out", console)  # its own file: replaced
+    assert (tmp_path / "out" / "harness.csv").read_text() == "scenario,frames,method_ms\n" \
+                                                            "radar,300,1.23457\n"
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "harness.csv").write_text("someone else's\n")
+    with pytest.raises(guard.Refused, match="a harness table"):
+        harness.report(rows, tmp_path / "other", console)
     assert f"wrote {tmp_path / 'out'}/harness.csv" in _text(console)
 
 
@@ -412,3 +438,45 @@ def test_run_harness_on_a_store_with_a_whole_run(monkeypatch, tmp_path):
                      ("whole", store, "dicp"), ("print", "R")]
     assert (f"timing `bench run --method dicp` on {store} and on its first 50 frames (child "
             "processes)") in _text(console)
+
+
+def test_run_harness_defaults_and_its_console(monkeypatch, tmp_path):
+    calls = []
+    console = _console()
+    monkeypatch.setattr(harness, "synthetic_scenarios",
+                        lambda n: calls.append(("scenes", n)) or iter([("radar", "R")]))
+    monkeypatch.setattr(harness, "scenario_row", lambda s, seq, frames, method: calls.append(
+        (s, frames, method)) or {"scenario": s})
+    monkeypatch.setattr(harness, "report", lambda rows, out, c: calls.append(
+        ("report", c is console)))
+    harness.run_harness(tmp_path, console)
+    assert calls == [("scenes", 64000), ("radar", 300, "doppler"), ("report", True)]
+
+
+def test_run_harness_store_line_as_it_is(monkeypatch, tmp_path):
+    console = _console()
+    seen = []
+    monkeypatch.setattr(harness, "phases", lambda store, method: {"method": method})
+    monkeypatch.setattr(harness, "report", lambda rows, out, c: None)
+    monkeypatch.setattr(harness, "whole_run", lambda store, method: seen.append(method) or "R")
+    monkeypatch.setattr(harness, "print_whole_run", lambda r, c: seen.append(c is console))
+    store = tmp_path / "d[x]" / "s.h5"
+    harness.run_harness(tmp_path / "out", console, store=store)
+    assert seen == ["doppler", True]
+    assert f"timing `bench run --method doppler` on {store} and on its first 50 frames" \
+        in _text(console)
+
+
+def test_whole_run_default_method(tmp_path, monkeypatch):
+    store = harness.tiled_store(constant_twist_sequence(n_frames=2, n_points=30), 4,
+                                tmp_path / "t.h5")
+    seen = []
+
+    def bench_run(path, method, out):
+        seen.append(method)
+        Path(out).mkdir(parents=True)
+        Path(out, "frames.csv").write_text("time_ms\n1.0\n")
+        return 1.0, 1.0
+
+    monkeypatch.setattr(harness, "_bench_run", bench_run)
+    assert harness.whole_run(store)["method"] == "doppler" and seen == ["doppler", "doppler"]
