@@ -30,7 +30,7 @@ def _console() -> Console:
 
 
 def _text(console: Console) -> str:
-    text = console.export_text()
+    text = console.export_text(clear=False)
     # the table's rules and borders as blanks
     return " ".join("".join(" " if 0x2500 <= ord(ch) <= 0x257F else ch for ch in text).split())
 

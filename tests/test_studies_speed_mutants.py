@@ -6,6 +6,7 @@ asserted: every figure is scripted and every expected value worked out by hand."
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -27,7 +28,7 @@ def _console() -> Console:
 
 
 def _text(console: Console) -> str:
-    text = console.export_text()
+    text = console.export_text(clear=False)
     # the tables' rules and borders as blanks
     return " ".join("".join(" " if 0x2500 <= ord(ch) <= 0x257F else ch for ch in text).split())
 
@@ -136,10 +137,16 @@ def test_compare_with_run_writes_a_store_without_ground_truth(monkeypatch, tmp_p
         return SimpleNamespace(result=SimpleNamespace(time_ms=SimpleNamespace(median=4.0)))
 
     monkeypatch.setattr(plan, "run_single", run_single)
-    monkeypatch.setattr(speed, "time_method", lambda n, seq: {"median_ms": 3.0})
     seq = constant_twist_sequence(n_frames=3, n_points=50)
+    monkeypatch.setattr(speed, "time_method", lambda n, s: {"median_ms": 3.0} if (
+        n == "gicp" and s is seq) else pytest.fail("arguments"))
     assert speed.compare_with_run("gicp", seq, tmp_path) == (3.0, 4.0)
     assert seen == [("gicp", "gicp.h5", True, {}, tmp_path / "gicp", True, 3, True)]
+    # its own scratch store is replaced; a file it did not write is refused
+    assert speed.compare_with_run("gicp", seq, tmp_path) == (3.0, 4.0)
+    (tmp_path / "dicp.h5").write_text("someone else's\n")
+    with pytest.raises(guard.Refused, match="a scratch store"):
+        speed.compare_with_run("dicp", seq, tmp_path)
 
 
 # the memory probe -----------------------------------------------------------------------------
@@ -152,7 +159,8 @@ def _probe(monkeypatch, stdout, returncode=0, stderr="boom"):
         return subprocess.CompletedProcess(cmd, returncode, stdout, stderr)
 
     monkeypatch.setattr(speed.subprocess, "run", run)
-    monkeypatch.setattr(speed, "method_params", lambda n, t: {"num_threads": t})
+    monkeypatch.setattr(speed, "method_params", lambda n, t: {"num_threads": t} if n in (
+        "kiss-icp", "gicp", "doppler") else pytest.fail(n))
     monkeypatch.setenv("PYTHONPATH", "/elsewhere")
     return calls
 
@@ -169,7 +177,9 @@ def test_peak_memory_of_run_reads_both_marks_of_the_child(monkeypatch, tmp_path)
                            "bench.runs.job, loaders.store\n")
     assert "'--method','kiss-icp','--data'," + repr(str(tmp_path / "s.h5")) in code
     assert "'--executor','local',*['-p', 'num_threads=3']]" in code
-    assert "VmHWM" in code and "print('BASE_KB', hwm())" in code
+    assert "VmHWM" in code and "\nprint('BASE_KB', hwm())\nsys.argv=['bench','run'," in code
+    assert "\ntry:\n    bench.cli.main()\nexcept SystemExit as e:\n" in code
+    assert re.search(r"'--out','/[^']+/run','--executor'", code)
     assert "print('PEAK_KB', hwm())" in code and "print('EXIT', e.code or 0)" in code
     root = str(Path(speed.__file__).resolve().parents[2])
     assert kw["env"]["PYTHONPATH"] == root + os.pathsep + "/elsewhere"
@@ -212,7 +222,18 @@ def test_memory_table_and_csv(monkeypatch, tmp_path):
     assert "Peak memory of `bench run` [MB], LiDAR store (20 frames of 64000 points)" in text
     # peak rounded, and what the run added above the imports
     assert "doppler 300 144" in text and "gicp 400 241" in text
-    assert "take 156-159 MB before a scan is read" in text
+    assert "method peak RSS above the imports" in text
+    assert ("the imports of every run (bench.cli, methods.registry, bench.commands, "
+            "bench.runs.job, loaders.store: Python, NumPy, SciPy, numba, small_gicp, h5py, ...) "
+            "take 156-159 MB before a scan is read") in text
+    (row,) = [ln for ln in console.export_text().splitlines() if "doppler" in ln]
+    # figures right-aligned under their (wider) headers
+    assert row.split("\u2502")[2:4] == ["      300 ", "               144 "]
+    speed._memory(["doppler"], tmp_path, _console(), 2)  # its own memory.csv: replaced
+    (tmp_path / "other").mkdir()
+    (tmp_path / "other" / "memory.csv").write_text("someone else's\n")
+    with pytest.raises(guard.Refused, match="a table of memory"):
+        speed._memory(["doppler"], tmp_path / "other", _console(), 2)
 
 
 # bench speed ----------------------------------------------------------------------------------
@@ -329,7 +350,8 @@ def test_run_speed_every_method_by_default(monkeypatch, tmp_path):
 
 def test_print_vs_run_table(monkeypatch):
     monkeypatch.setattr(speed, "compare_with_run", lambda name, seq, folder: {
-        "doppler": (2.0, 1.0), "gicp": (3.0, 4.0)}[name])
+        "doppler": (2.0, 1.0), "gicp": (3.0, 4.0)}[name] if seq == "SEQ" and folder.is_dir()
+        else pytest.fail("arguments"))
     console = _console()
     speed._print_vs_run(["doppler", "gicp"], "SEQ", "lidar, 500 points, 5 frames", console)
     text = _text(console)
@@ -337,6 +359,9 @@ def test_print_vs_run_table(monkeypatch):
             "median time_ms [ms]") in text
     assert "method bench speed bench run speed / run" in text
     assert "doppler 2.000 1.000 2.00" in text and "gicp 3.000 4.000 0.75" in text
+    (row,) = [ln for ln in console.export_text().splitlines() if "gicp" in ln]
+    cells = row.split("\u2502")[1:-1]
+    assert cells[0].startswith(" gicp ") and cells[3].endswith(" 0.75 ")
 
 
 def test_print_table_cells_and_missing_thread_settings():
@@ -353,6 +378,14 @@ def test_print_table_cells_and_missing_thread_settings():
     speed._print_table(rows, ["doppler", "gicp"], console)
     text = _text(console)
     assert "scan input points threads doppler gicp" in text
+    assert ("Time per frame, median [ms]: total (all per-frame work) / registration call, and "
+            "total x doppler; input points per scan, before each method's own downsampling") \
+        in text
+    assert ("clock: CPU time on 1 thread, wall time on more (threads: the count asked for; a "
+            "method without a thread count runs on 1); preparation") in text
+    (row,) = [ln for ln in console.export_text().splitlines() if "3.00 / 2.00" in ln]
+    cells = row.split("\u2502")[1:-1]
+    assert cells[1] == "         1000 " and cells[2] == "       4 "
     assert "lidar 1000 1 2.00 / 1.00 (1.0x) 7.00 / 5.50 (3.5x)" in text
     assert "lidar 1000 4 - 3.00 / 2.00 (1.5x)" in text
     assert "preparation (timed in the total): doppler: all points; gicp: voxel grid 0.5 m" in text
@@ -368,6 +401,11 @@ def test_write_csv_six_digits_and_quoted_commas(tmp_path):
         'a,b,c,d\n1.23457,"x, y",3,plain\n2,z,4,q\n')
 
 
+def test_check_outputs_refuses_a_folder_holding_an_input(tmp_path):
+    with pytest.raises(guard.Refused, match="holds an input"):
+        speed.check_outputs(tmp_path, inputs=[tmp_path / "in.h5"])
+
+
 def test_check_outputs_refuses_a_speed_file_it_did_not_write(tmp_path):
     speed.check_outputs(tmp_path / "new")
     speed.check_outputs(tmp_path)
@@ -378,7 +416,8 @@ def test_check_outputs_refuses_a_speed_file_it_did_not_write(tmp_path):
         d = tmp_path / name.replace(".", "_")
         d.mkdir()
         (d / name).write_text("someone else's\n")
-        with pytest.raises(guard.Refused, match=name):
+        with pytest.raises(guard.Refused, match=f"{name}: exists and is not a speed table or "
+                                                "plot this command wrote"):
             speed.check_outputs(d)
 
 
