@@ -447,3 +447,57 @@ def test_plot_draws_the_one_thread_lidar_curves(monkeypatch, tmp_path):
     assert ax.get_xlabel() == "input points per scan"
     assert [t.get_text() for t in ax.get_legend().get_texts()] == [
         display_name("doppler"), display_name("gicp")]
+
+
+def test_run_speed_reference_rows_per_scenario_at_the_asked_threads(monkeypatch, tmp_path):
+    from bench.studies import speed_reference
+
+    times = {("doppler", "SEQ-radar"): 2.0, ("gicp", "SEQ-radar"): 8.0,
+             ("doppler", "SEQ-1000"): 1.0, ("gicp", "SEQ-1000"): 3.0}
+    calls = _fake_speed(monkeypatch, times)
+    console = _console()
+    seen = {"plot": [], "ref": [], "table": []}
+    monkeypatch.setattr(speed, "_plot", lambda rows, names, path: seen["plot"].append(
+        (len(rows), list(names), path)))
+    monkeypatch.setattr(speed_reference, "available_libraries",
+                        lambda c: "LIBS" if c is console else pytest.fail("console"))
+    monkeypatch.setattr(speed_reference, "reference_rows", lambda s, n, seq, rows, threads,
+                        libs: seen["ref"].append((s, n, str(seq), [
+                            (r["scenario"], r["points"], r["method"], r["threads_setting"])
+                            for r in rows], threads, libs)) or [{"scenario": s, "n": n}])
+    monkeypatch.setattr(speed_reference, "print_reference_table", lambda rows, libs, c: seen[
+        "table"].append((list(rows), libs, c is console)))
+    monkeypatch.setattr(harness_study, "report", lambda rows, out, c: calls["harness"].append(
+        ("report", out, c is console)))
+    speed.run_speed([1000], ["gicp"], 1, tmp_path, console, memory=False, threads=4,
+                    reference=True)
+    # each scenario's pairs at the asked thread count (4) only, right after its methods
+    assert seen["ref"] == [
+        ("radar", 4000, "SEQ-radar", [("radar", 4000, "doppler", 4), ("radar", 4000, "gicp", 4)],
+         4, "LIBS"),
+        ("lidar", 1000, "SEQ-1000", [("lidar", 1000, "doppler", 4), ("lidar", 1000, "gicp", 4)],
+         4, "LIBS")]
+    assert seen["table"] == [([{"scenario": "radar", "n": 4000},
+                               {"scenario": "lidar", "n": 1000}], "LIBS", True)]
+    assert (tmp_path / "speed_reference.csv").read_text() == "scenario,n\nradar,4000\nlidar,1000\n"
+    assert seen["plot"] == [(8, ["doppler", "gicp"], tmp_path / "speed.png")]
+    assert calls["harness"][-1] == ("report", tmp_path, True)
+    assert f"wrote {tmp_path}/speed_reference.csv" in _text(console)
+
+
+def test_run_speed_reference_without_counterparts(monkeypatch, tmp_path):
+    from bench.studies import speed_reference
+
+    calls = _fake_speed(monkeypatch, {("doppler", "SEQ-100"): 1.0})
+    monkeypatch.setattr(speed_reference, "available_libraries", lambda c: "LIBS")
+    monkeypatch.setattr(speed_reference, "reference_rows", lambda *a: [])
+    monkeypatch.setattr(speed_reference, "COUNTERPARTS", {"ref[a]": 1, "b": 2})
+    monkeypatch.setattr(speed, "time_method", lambda name, seq, threads=1: {
+        **_row(1.0), "prep": "voxel [grid]"})
+    console = _console()
+    speed.run_speed([100], ["doppler"], 1, tmp_path, console, memory=False, radar=False,
+                    harness=False, reference=True)
+    text = _text(console)
+    assert "--reference: none of these methods has a library counterpart (ref[a], b)" in text
+    assert "voxel [grid], 1 thr., CPU time)" in text
+    assert not (tmp_path / "speed_reference.csv").exists() and calls["harness"] == []
