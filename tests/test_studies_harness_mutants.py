@@ -480,3 +480,30 @@ def test_whole_run_default_method(tmp_path, monkeypatch):
 
     monkeypatch.setattr(harness, "_bench_run", bench_run)
     assert harness.whole_run(store)["method"] == "doppler" and seen == ["doppler", "doppler"]
+
+
+def test_tiled_store_keeps_each_scans_arrays_and_owns_its_file(tmp_path):
+    base = constant_twist_sequence(n_frames=2, n_points=40)
+    path = tmp_path / "t.h5"
+    harness.tiled_store(base, 3, path)
+    harness.tiled_store(base, 4, path)  # its own scratch store: replaced
+    store = StoreSequence(path)
+    assert len(store) == 4
+    np.testing.assert_allclose(store[3].doppler, base[1].doppler, rtol=1e-6)
+    np.testing.assert_allclose(store[3].fields["power"], base[1].fields["power"], rtol=1e-6)
+    store.close()
+    (tmp_path / "x.h5").write_text("someone else's\n")
+    with pytest.raises(guard.Refused, match="a scratch store"):
+        harness.tiled_store(base, 3, tmp_path / "x.h5")
+
+
+def test_synthetic_scenarios_are_the_same_on_every_call():
+    first = [(name, seq) for name, seq in harness.synthetic_scenarios(lidar_points=200,
+                                                                        frames=2)]
+    again = [(name, seq) for name, seq in harness.synthetic_scenarios(lidar_points=200,
+                                                                        frames=2)]
+    for (_, a), (_, b) in zip(first, again, strict=True):
+        assert a.sensor.kind == b.sensor.kind and a.ground_truth is not None
+        for sa, sb in zip(a, b, strict=True):
+            np.testing.assert_array_equal(sa.points, sb.points)
+    assert [seq.sensor.kind for _, seq in first] == ["radar", "lidar"]
