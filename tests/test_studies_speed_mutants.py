@@ -423,6 +423,8 @@ def test_check_outputs_refuses_a_speed_file_it_did_not_write(tmp_path):
 
 
 def test_plot_draws_the_one_thread_lidar_curves(monkeypatch, tmp_path):
+    import matplotlib.colors
+
     from bench.report.names import display_name
 
     saved = []
@@ -446,6 +448,15 @@ def test_plot_draws_the_one_thread_lidar_curves(monkeypatch, tmp_path):
     np.testing.assert_allclose(lines[0].get_ydata(), [0.5, 1.0])
     np.testing.assert_allclose(lines[1].get_xdata(), [1000])
     assert ax.get_xlabel() == "input points per scan"
+    assert ax.get_ylabel() == "time per frame, all per-frame work [ms]"
+    assert ax.get_title() == "median with p5-p95 band, 1 thread (synthetic FMCW LiDAR)"
+    # a p5-p95 band under each curve, in its colour: doppler's from 0.25 to 2 ms
+    bands = ax.collections
+    assert len(bands) == 2
+    ys = bands[0].get_paths()[0].vertices[:, 1]
+    np.testing.assert_allclose([ys.min(), ys.max()], [0.25, 2.0])
+    np.testing.assert_allclose(bands[0].get_facecolor()[0][:3],
+                               matplotlib.colors.to_rgb(lines[0].get_color()))
     assert [t.get_text() for t in ax.get_legend().get_texts()] == [
         display_name("doppler"), display_name("gicp")]
 
