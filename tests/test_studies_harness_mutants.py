@@ -395,7 +395,7 @@ def test_report_writes_harness_csv_with_six_significant_digits(tmp_path, monkeyp
                                                             "radar,300,1.23457\n"
     (tmp_path / "other").mkdir()
     (tmp_path / "other" / "harness.csv").write_text("someone else's\n")
-    with pytest.raises(guard.Refused, match="a harness table"):
+    with pytest.raises(guard.Refused, match="is not a harness table the harness wrote"):
         harness.report(rows, tmp_path / "other", console)
     assert f"wrote {tmp_path / 'out'}/harness.csv" in _text(console)
 
@@ -493,7 +493,7 @@ def test_tiled_store_keeps_each_scans_arrays_and_owns_its_file(tmp_path):
     np.testing.assert_allclose(store[3].fields["power"], base[1].fields["power"], rtol=1e-6)
     store.close()
     (tmp_path / "x.h5").write_text("someone else's\n")
-    with pytest.raises(guard.Refused, match="a scratch store"):
+    with pytest.raises(guard.Refused, match="is not a scratch store the harness wrote"):
         harness.tiled_store(base, 3, tmp_path / "x.h5")
 
 
