@@ -482,3 +482,38 @@ def test_main_help_names_every_option(monkeypatch, capsys):
                   "--no-run start no run: decide and score from the finished runs (a decision "
                   "whose runs are missing is undecided)"):
         assert words in text
+
+
+def test_half_choices_hand_the_criterion_to_the_rule(monkeypatch):
+    seen = []
+    monkeypatch.setattr(independent, "decide", lambda *a, **kw: seen.append((a, kw)) or len(seen))
+    crit = {"lengths_m": [8, 48], "folds": [{"tuning": ["A"], "validation": ["B"]},
+                                            {"tuning": ["B", "C"], "validation": ["A"]}],
+            "domain": ["S"], "level": 0.9, "reps": 50, "min_gain": 0.02}
+    out = independent.half_choices(["p"], ["e"], 0, crit)
+    assert out == {independent.RULE: 1, "A": 2, "B+C": 3}
+    args = {"level": 0.9, "reps": 50, "min_gain": 0.02}
+    assert seen == [((["p"], ["e"], 0, [(["A"], ["B"]), (["B", "C"], ["A"])],
+                      ["S"], [8.0, 48.0]), args),
+                    ((["p"], ["e"], 0, [(["A"], [])], ["S"], [8.0, 48.0]), args),
+                    ((["p"], ["e"], 0, [(["B", "C"], [])], ["S"], [8.0, 48.0]), args)]
+    seen.clear()
+    independent.half_choices(["p"], ["e"], 0, {"lengths_m": [8], "folds": []})
+    assert seen == [((["p"], ["e"], 0, [], [], [8.0]),
+                     {"level": 0.95, "reps": 1000, "min_gain": 0.0})]
+
+
+def test_run_experiment_prints_its_texts_as_they_are(monkeypatch, tmp_path, capsys):
+    from bench.report.tables import paper as paper_tables
+    from bench.runs import job
+
+    _experiment_layers(monkeypatch, tmp_path, ["skipped"], None)
+    long = "[deg] " + "y" * 400
+    monkeypatch.setattr(job, "summarize", lambda outcomes: "1 [skipped]")
+    monkeypatch.setattr(paper_tables, "write_tables", lambda d: {"md": "table [m] " + long})
+    console = _console()
+    # a skipped run counts as finished: its tables are written
+    assert independent.run_experiment(console, Path("x.yaml"), None, False, "local") == 0
+    text = console.export_text()
+    # as they are: no markup eating "[...]", the table's long line not wrapped
+    assert "1 [skipped]" in text and "table [m] " + long in text
