@@ -208,7 +208,8 @@ def print_rows(rows: list[dict], console) -> None:
                                "time] (wall time in brackets)"))
     for col in ("scan", "points", "frames", "method", "read", "driver", "evaluate", "write",
                 "harness", "harness / method", "read / method", "fixed [s]"):
-        table.add_column(col, justify="left" if col == "scan" else "right")
+        # escaped: "[s]" would be read as rich markup (strike-through) and vanish
+        table.add_column(escape(col), justify="left" if col == "scan" else "right")
     for r in rows:
         m = r["method_ms"]
         table.add_row(
