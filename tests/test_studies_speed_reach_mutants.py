@@ -1,0 +1,169 @@
+"""``bench.studies.speed``: how ``make_sequence`` densifies, what ``memory_store``,
+``_scenarios``, ``time_method`` and the memory probe ask for, and how ``run_speed`` hands on
+its thread settings, scratch folder and console: tests reaching the survivors the first
+mutation pass left."""
+
+from __future__ import annotations
+
+import subprocess
+from pathlib import Path
+
+import numpy as np
+from rich.console import Console
+
+from bench.studies import speed
+from conftest import constant_twist_sequence
+from loaders.store import StoreSequence
+
+# make_sequence ---------------------------------------------------------------------------------
+
+
+def _generator(monkeypatch, size_of):
+    """``SyntheticSequence`` replaced: records each ``points`` asked for; its scans hold
+    ``size_of(points)`` points."""
+    import loaders.synthetic as synthetic
+
+    asked = []
+
+    class Gen:
+        def __init__(self, scene, sensor, frames, seed, points=None):
+            asked.append(points)
+            base = constant_twist_sequence(n_frames=frames, n_points=600)
+            self.name, self.sensor, self.ground_truth = base.name, base.sensor, base.ground_truth
+            self.scans = [s.select(np.arange(size_of(points))) for s in base]
+
+        def __iter__(self):
+            return iter(self.scans)
+
+    monkeypatch.setattr(synthetic, "SyntheticSequence", Gen)
+    return asked
+
+
+def test_make_sequence_four_tries_each_half_again_as_many_rays(monkeypatch):
+    asked = _generator(monkeypatch, lambda points: 10)  # never dense enough
+    seq = speed.make_sequence("campus", "lidar-dense", 2, 100)
+    # 1.6 rays a point asked for first, then 1.5 times more on each of the 3 retries
+    assert asked == [160, 240, 360, 540]
+    assert len(seq) == 2 and [len(s) for s in seq] == [10, 10]
+
+
+def test_make_sequence_stops_when_exactly_dense_enough(monkeypatch):
+    asked = _generator(monkeypatch, lambda points: 100)
+    seq = speed.make_sequence("campus", "lidar-dense", 2, 100)
+    assert asked == [160] and [len(s) for s in seq] == [100, 100]
+
+
+# memory_store, _scenarios, time_method ----------------------------------------------------------
+
+def _recorded_make(monkeypatch, n_points=60):
+    calls = []
+
+    def make(*args, **kwargs):
+        calls.append((args, kwargs))
+        return constant_twist_sequence(n_frames=args[2], n_points=n_points)
+
+    monkeypatch.setattr(speed, "make_sequence", make)
+    return calls
+
+
+def test_memory_store_asks_for_the_tunnel_at_the_points_seed_1(monkeypatch, tmp_path):
+    calls = _recorded_make(monkeypatch)
+    speed.memory_store(tmp_path / "m.h5", points=40, frames=3)
+    assert calls == [(("tunnel", "lidar-dense", 3, 40), {"seed": 1})]
+
+
+def test_scenarios_lidar_dense_enough_for_the_largest_size_with_ground_truth(monkeypatch,
+                                                                             tmp_path):
+    calls = _recorded_make(monkeypatch)
+    base = constant_twist_sequence(n_frames=3, n_points=60)
+    found = []
+    for scenario, n, seq in speed._scenarios([20, 30], False, 3, tmp_path):
+        found.append((scenario, n, list(seq.points_per_frame())))
+        np.testing.assert_allclose(seq.ground_truth.poses, base.ground_truth.poses, atol=1e-9)
+        np.testing.assert_allclose(seq.ground_truth.stamps, base.ground_truth.stamps)
+    assert calls == [((speed.LIDAR_SCENE, "lidar-dense", 3, 30), {})]
+    assert found == [("lidar", 20, [20] * 3), ("lidar", 30, [30] * 3)]
+    store = StoreSequence(tmp_path / "lidar-30.h5")
+    assert store.ground_truth is not None
+    store.close()
+
+
+def test_time_method_asks_the_methods_own_thread_parameters(monkeypatch):
+    made = []
+
+    class Method:
+        params, threads = None, 2
+
+    monkeypatch.setattr(speed, "make_method", lambda n, p, s: made.append((n, p)) or Method())
+    monkeypatch.setattr(speed, "time_frames", lambda m, seq: {"median_ms": 1.0})
+    seq = constant_twist_sequence(n_frames=2, n_points=20)
+    speed.time_method("icp-p2p", seq, threads=2)
+    # icp-p2p has a num_threads parameter
+    assert made == [("icp-p2p", {"num_threads": 2})]
+
+
+def test_peak_memory_of_run_one_thread_by_default(monkeypatch, tmp_path):
+    codes = []
+
+    def run(cmd, **kw):
+        codes.append(cmd[2])
+        return subprocess.CompletedProcess(cmd, 0, "BASE_KB 1024\nPEAK_KB 2048\n", "")
+
+    monkeypatch.setattr(speed.subprocess, "run", run)
+    assert speed.peak_memory_of_run("icp-p2p", tmp_path / "s.h5") == (2.0, 1.0)
+    assert "*['-p', 'num_threads=1']]" in codes[0]
+
+
+# run_speed --------------------------------------------------------------------------------------
+
+class _Seq(list):
+    """A scripted scenario's scans (``frames`` of them)."""
+
+
+def _fake_run_speed(monkeypatch):
+    calls = {"scenarios": [], "time": [], "memory": [], "vs_run": []}
+
+    def scenarios(sizes, radar, frames, folder):
+        calls["scenarios"].append((frames, folder, Path(folder).is_dir()))
+        for n in sizes:
+            yield "lidar", n, _Seq(range(frames))
+
+    def time_method(name, seq, threads=1):
+        calls["time"].append((name, threads))
+        return {"median_ms": 1.0, "register_median_ms": 1.0, "repeats": 1, "iterations": 1,
+                "prep": "all points", "threads": threads, "clock": "CPU"}
+
+    monkeypatch.setattr(speed, "_scenarios", scenarios)
+    monkeypatch.setattr(speed, "time_method", time_method)
+    monkeypatch.setattr(speed, "_plot", lambda rows, names, path: None)
+    monkeypatch.setattr(speed, "_memory", lambda names, out, console, threads: calls[
+        "memory"].append((console, threads)))
+    monkeypatch.setattr(speed, "_print_vs_run", lambda names, seq, what, console: calls[
+        "vs_run"].append((console, what)))
+    return calls
+
+
+def test_run_speed_two_threads_only_for_methods_with_a_thread_count(monkeypatch, tmp_path):
+    calls = _fake_run_speed(monkeypatch)
+    # kiss-icp stands for a method without a thread count (a plugin's): timed on 1 only
+    monkeypatch.setattr(speed, "method_params",
+                        lambda n, t: {} if n == "kiss-icp" else {"num_threads": t})
+    console = Console(record=True, width=200, color_system=None)
+    speed.run_speed([50], ["icp-p2p", "kiss-icp"], 1, tmp_path, console, radar=False,
+                    threads=2, harness=False, vs_run=True)
+    assert calls["time"] == [("doppler", 1), ("icp-p2p", 1), ("kiss-icp", 1), ("doppler", 2),
+                             ("icp-p2p", 2)]
+    # timed and compared on max(1, 2) + 1 = 3 frames, each from stores in a scratch folder
+    assert [(frames, is_dir) for frames, _, is_dir in calls["scenarios"]] == [(3, True),
+                                                                              (3, True)]
+    folders = {folder for _, folder, _ in calls["scenarios"]}
+    assert len(folders) == 1 and not Path(folders.pop()).exists()  # cleaned up afterwards
+    assert calls["vs_run"] == [(console, "lidar, 50 points, 2 frames")]
+    assert calls["memory"] == [(console, 2)]
+
+
+def test_run_speed_one_thread_setting_by_default(monkeypatch, tmp_path):
+    calls = _fake_run_speed(monkeypatch)
+    speed.run_speed([50], ["icp-p2p"], 1, tmp_path, Console(color_system=None), memory=False,
+                    radar=False, harness=False)
+    assert calls["time"] == [("doppler", 1), ("icp-p2p", 1)]
