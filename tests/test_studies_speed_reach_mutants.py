@@ -9,6 +9,7 @@ import subprocess
 from pathlib import Path
 
 import numpy as np
+import pytest
 from rich.console import Console
 
 from bench.studies import speed
@@ -167,3 +168,51 @@ def test_run_speed_one_thread_setting_by_default(monkeypatch, tmp_path):
     speed.run_speed([50], ["icp-p2p"], 1, tmp_path, Console(color_system=None), memory=False,
                     radar=False, harness=False)
     assert calls["time"] == [("doppler", 1), ("icp-p2p", 1)]
+
+
+# _plot ------------------------------------------------------------------------------------------
+
+def _plot_rows():
+    def row(method, n, ms):
+        return {"method": method, "points": n, "median_ms": ms, "p5_ms": ms / 2,
+                "p95_ms": 2 * ms, "scenario": "lidar", "threads_setting": 1}
+
+    return [row("doppler", 1000, 0.5), row("doppler", 4000, 1.0), row("gicp", 1000, 2.0),
+            row("gicp", 4000, 3.0)]
+
+
+def test_plot_replaces_its_own_figure_and_refuses_a_foreign_one(tmp_path):
+    from bench import guard
+
+    path = tmp_path / "speed.png"
+    speed._plot(_plot_rows(), ["doppler", "gicp"], path)
+    speed._plot(_plot_rows(), ["doppler", "gicp"], path)  # its own figure: replaced
+    assert guard.derived(path) and path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    other = tmp_path / "mine.png"
+    other.write_bytes(b"not the harness's")
+    with pytest.raises(guard.Refused) as err:
+        speed._plot(_plot_rows(), ["doppler", "gicp"], other)
+    assert f"{other}: exists and is not a speed plot the harness wrote" in str(err.value)
+    assert other.read_bytes() == b"not the harness's"
+
+
+def test_plot_style(monkeypatch, tmp_path):
+    saved = []
+    monkeypatch.setattr(speed.guard, "savefig", lambda fig, *a, **kw: saved.append(fig))
+    speed._plot(_plot_rows(), ["doppler", "gicp"], tmp_path / "speed.png")
+    (fig,) = saved
+    (ax,) = fig.axes
+    np.testing.assert_allclose(fig.get_size_inches(), [6, 4])
+    # each median a line with round markers over a borderless, faint band of its colour
+    assert [ln.get_marker() for ln in ax.get_lines()] == ["o", "o"]
+    for band in ax.collections:
+        assert band.get_alpha() == pytest.approx(0.2)
+        np.testing.assert_allclose(band.get_linewidth(), 0)
+    assert ax.title.get_fontsize() == pytest.approx(9)
+    assert [t.get_fontsize() for t in ax.get_legend().get_texts()] == pytest.approx([7, 7])
+    # a faint grid on the major and the minor ticks of both log axes
+    fig.canvas.draw()
+    for axis in (ax.xaxis, ax.yaxis):
+        for ticks in (axis.get_major_ticks(), axis.get_minor_ticks()):
+            assert ticks and all(t.gridline.get_visible() for t in ticks)
+            assert all(t.gridline.get_alpha() == pytest.approx(0.3) for t in ticks)
