@@ -6,6 +6,7 @@ mutation pass left."""
 from __future__ import annotations
 
 import subprocess
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -199,7 +200,9 @@ def test_plot_replaces_its_own_figure_and_refuses_a_foreign_one(tmp_path):
 def test_plot_style(monkeypatch, tmp_path):
     saved = []
     monkeypatch.setattr(speed.guard, "savefig", lambda fig, *a, **kw: saved.append(fig))
-    speed._plot(_plot_rows(), ["doppler", "gicp"], tmp_path / "speed.png")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # drawn without a warning from matplotlib
+        speed._plot(_plot_rows(), ["doppler", "gicp"], tmp_path / "speed.png")
     (fig,) = saved
     (ax,) = fig.axes
     np.testing.assert_allclose(fig.get_size_inches(), [6, 4])
