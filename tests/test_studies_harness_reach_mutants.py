@@ -110,3 +110,27 @@ def test_synthetic_scenarios_keep_a_scan_with_fewer_points_whole(monkeypatch):
     expected = _Small(real_class("campus", "lidar-dense", frames=2, seed=0, points=160), 50)
     for got, want in zip(lidar, expected, strict=True):
         np.testing.assert_array_equal(got.points, want.points)
+
+
+def test_read_cost_reads_only_the_fields_asked_for(monkeypatch, tmp_path):
+    import bench.studies.harness as h
+
+    store = harness.tiled_store(constant_twist_sequence(n_frames=2, n_points=50), 3,
+                                tmp_path / "t.h5")
+    opened = []
+    real = h.StoreSequence
+
+    def store_sequence(path, **kwargs):
+        opened.append(kwargs)
+        return real(path, **kwargs)
+
+    monkeypatch.setattr(h, "StoreSequence", store_sequence)
+    r = harness.read_cost(store, ("doppler",))
+    assert opened == [{"fields": ("doppler",)}] and r["points"] == 50
+
+
+def test_synthetic_scenarios_subsample_distinct_points():
+    (_, _), (_, lidar) = harness.synthetic_scenarios(lidar_points=100, frames=2)
+    for scan in lidar:
+        # 100 points drawn without replacement: no point twice
+        assert len(scan) == 100 == len(np.unique(scan.points, axis=0))

@@ -219,3 +219,78 @@ def test_plot_style(monkeypatch, tmp_path):
         for ticks in (axis.get_major_ticks(), axis.get_minor_ticks()):
             assert ticks and all(t.gridline.get_visible() for t in ticks)
             assert all(t.gridline.get_alpha() == pytest.approx(0.3) for t in ticks)
+
+
+# the scratch stores and the CSV: written through the guard --------------------------------------
+
+def test_subsample_draws_distinct_points():
+    scan = constant_twist_sequence(n_frames=1, n_points=200)[0]
+    picked = speed.subsample(scan, 150, 3)
+    # 150 of the 200 points, each once (drawn without replacement), in their order
+    assert len(np.unique(picked.points, axis=0)) == 150 == len(picked)
+    rows = [np.flatnonzero((scan.points == p).all(axis=1))[0] for p in picked.points]
+    assert rows == sorted(rows)
+
+
+def test_memory_store_is_the_same_every_time_with_ground_truth(tmp_path):
+    a, _ = speed.memory_store(tmp_path / "a.h5", points=300, frames=2)
+    b, _ = speed.memory_store(tmp_path / "b.h5", points=300, frames=2)
+    sa, sb = StoreSequence(a), StoreSequence(b)
+    try:
+        assert sa.ground_truth is not None and len(sa.ground_truth.stamps) == 2
+        for x, y in zip(sa, sb, strict=True):
+            np.testing.assert_array_equal(x.points, y.points)
+    finally:
+        sa.close()
+        sb.close()
+
+
+def test_memory_store_replaces_its_own_store_and_refuses_a_foreign_file(tmp_path):
+    from bench import guard
+
+    path = tmp_path / "m.h5"
+    speed.memory_store(path, points=100, frames=2)
+    speed.memory_store(path, points=120, frames=2)  # its own scratch store: replaced
+    store = StoreSequence(path)
+    assert list(store.points_per_frame()) == [120, 120]
+    store.close()
+    other = tmp_path / "x.h5"
+    other.write_text("someone else's\n")
+    with pytest.raises(guard.Refused) as err:
+        speed.memory_store(other, points=100, frames=2)
+    assert f"{other}: exists and is not a scratch store the harness wrote" in str(err.value)
+
+
+def _lidar_points(folder, sizes=(50,)):
+    out = []
+    for _, _, seq in speed._scenarios(list(sizes), False, 2, folder):
+        out.append([s.points.copy() for s in seq])
+    return out
+
+
+def test_scenarios_the_same_scans_every_time_and_their_own_stores_replaced(tmp_path):
+    first = _lidar_points(tmp_path)
+    again = _lidar_points(tmp_path)  # into the same folder: its own stores replaced
+    for a, b in zip(first[0], again[0], strict=True):
+        np.testing.assert_array_equal(a, b)
+
+
+def test_scenarios_refuse_a_foreign_file_in_their_folder(tmp_path):
+    from bench import guard
+
+    (tmp_path / "lidar-50.h5").write_text("someone else's\n")
+    with pytest.raises(guard.Refused) as err:
+        _lidar_points(tmp_path)
+    assert (f"{tmp_path / 'lidar-50.h5'}: exists and is not a scratch store the harness "
+            "wrote") in str(err.value)
+
+
+def test_write_csv_refuses_a_foreign_file_naming_a_table_of_times(tmp_path):
+    from bench import guard
+
+    path = tmp_path / "speed.csv"
+    path.write_text("mine\n")
+    with pytest.raises(guard.Refused) as err:
+        speed.write_csv([{"a": 1}], path)
+    assert f"{path}: exists and is not a table of times the harness wrote" in str(err.value)
+    assert path.read_text() == "mine\n"
