@@ -63,6 +63,7 @@ def test_phases_hands_the_parameters_to_the_job(monkeypatch, tmp_path):
 def test_phases_scores_the_jobs_lengths_without_the_calibration_frames(monkeypatch, tmp_path):
     import bench.runs.evaluate as evaluate
     import bench.runs.job as job
+    import bench.runs.plan  # noqa: F401  (imported first: it keeps the real calibration_frames)
 
     store, _ = _stubbed(monkeypatch, tmp_path)
     mask = np.arange(10) < 2
