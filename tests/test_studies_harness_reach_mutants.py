@@ -135,3 +135,14 @@ def test_synthetic_scenarios_subsample_distinct_points():
     for scan in lidar:
         # 100 points drawn without replacement: no point twice
         assert len(scan) == 100 == len(np.unique(scan.points, axis=0))
+
+
+def test_print_whole_run_prints_a_method_name_with_brackets_as_it_is():
+    from rich.console import Console
+
+    r = {"method": "plug[v2]", "frames": 4, "wall_s": 1.0, "cpu_s": 1.0, "short_frames": 2,
+         "short_wall_s": 0.5, "short_cpu_s": 0.5, "method_ms": 1.0, "marginal_cpu_ms": 1.0,
+         "marginal_wall_ms": 1.0, "issue_cpu_ms": 1.0, "issue_wall_ms": 1.0}
+    console = Console(record=True, width=1000, color_system=None)
+    harness.print_whole_run(r, console)
+    assert console.export_text().startswith("bench run --method plug[v2]: 4 frames in ")

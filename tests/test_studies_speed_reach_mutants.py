@@ -294,3 +294,10 @@ def test_write_csv_refuses_a_foreign_file_naming_a_table_of_times(tmp_path):
         speed.write_csv([{"a": 1}], path)
     assert f"{path}: exists and is not a table of times the harness wrote" in str(err.value)
     assert path.read_text() == "mine\n"
+
+
+def test_memory_store_default_twenty_frames_of_64k_points(monkeypatch, tmp_path):
+    # the store every memory figure is measured on: 20 frames of 64,000 points
+    calls = _recorded_make(monkeypatch)
+    speed.memory_store(tmp_path / "m.h5")
+    assert calls == [(("tunnel", "lidar-dense", 20, 64_000), {"seed": 1})]
