@@ -301,3 +301,18 @@ def test_memory_store_default_twenty_frames_of_64k_points(monkeypatch, tmp_path)
     calls = _recorded_make(monkeypatch)
     speed.memory_store(tmp_path / "m.h5")
     assert calls == [(("tunnel", "lidar-dense", 20, 64_000), {"seed": 1})]
+
+
+def test_print_table_method_columns_right_aligned():
+    def row(method, setting, ms):
+        return {"scenario": "lidar", "points": 1000, "threads_setting": setting,
+                "method": method, "median_ms": ms, "register_median_ms": ms / 2,
+                "ratio_to_doppler": 1.0, "prep": "all points"}
+
+    console = Console(record=True, width=200, color_system=None)
+    speed._print_table([row("doppler", 1, 2.0), row("gicp", 1, 20.0), row("gicp", 4, 10.0)],
+                       ["doppler", "gicp"], console)
+    (line,) = [ln for ln in console.export_text().splitlines() if "10.00 / 5.00" in ln]
+    doppler = line.split("\u2502")[1:-1][3]
+    # doppler has no 4-thread figure: its "-" at the right of a column as wide as its cells
+    assert doppler.strip() == "-" and doppler.endswith("- ") and doppler.startswith("    ")
