@@ -88,3 +88,45 @@ def test_cast_point_velocity_of_a_turning_mover_is_rigid_body():
     expected = np.einsum("ij,ij->i", D, u - v_s)  # (1, -1.24)
     np.testing.assert_allclose(out["doppler"], expected, atol=1e-9)
     np.testing.assert_allclose(out["doppler"], [1.0, -1.24], atol=1e-9)
+
+
+# ---- constructor options ---------------------------------------------------------------------
+
+def test_attitude_default_is_the_documented_one():
+    # OPTIONS["attitude_deg"]: "pitch/roll oscillation amplitude [deg] (0 = flat, default 0.6)"
+    assert "default 0.6" in G.OPTIONS["attitude_deg"]
+    default = G.SyntheticSequence("straight-wall", "lidar-dense", 2, seed=3, noise=False)
+    explicit = G.SyntheticSequence("straight-wall", "lidar-dense", 2, seed=3, noise=False,
+                                   attitude_deg=0.6)
+    t = np.linspace(0.0, 5.0, 51)
+    np.testing.assert_allclose(default.motion.sensor_pose(t), explicit.motion.sensor_pose(t),
+                               atol=1e-12)
+    # the amplitude bounds pitch and roll (two sinusoids of total amplitude <= 0.6 deg)
+    pitch, _, roll, _ = default.motion.profile.attitude(np.linspace(-50.0, 50.0, 2001))
+    assert np.degrees(np.abs(pitch)).max() <= 0.6 + 1e-9
+    assert np.degrees(np.abs(roll)).max() <= 0.6 + 1e-9
+
+
+def test_slow_drive_motion_reaches_back_beyond_the_sensor_range():
+    # a drive at 1-1.5 m/s: the motion starts far enough back that the ego has travelled more
+    # than the sensor's range plus the scene's 250 m placement margin before t = 0 (the speed
+    # floor of the margin is 1 m/s: margin = (max_range + 250) / max(v_low, 1))
+    seq = G.SyntheticSequence("straight-wall", "lidar-dense", 1, seed=0, noise=False,
+                              speed=(1.0, 1.5))
+    max_range = seq.spec.max_range
+    sigma = seq.motion.planar_state(np.array([seq.motion.t0, 0.0]))["sigma"]
+    assert sigma[1] - sigma[0] >= max_range + 250.0
+
+
+def test_plan_and_motion_streams_are_independent():
+    # the plan (curved-wall: the road radius, uniform in 150-250 m) and the motion (the initial
+    # speed, uniform in the speed range) use their own RNG streams: their uniform variates
+    # must differ
+    for seed in range(3):
+        seq = G.SyntheticSequence("curved-wall", "lidar-dense", 1, seed=seed, noise=False,
+                                  speed=(10.0, 14.0))
+        prof = seq.motion.profile
+        u_radius = (1.0 / abs(prof.curvature) - 150.0) / 100.0
+        u_speed = (prof.v0 - 10.0) / 4.0
+        assert 0.0 <= u_radius <= 1.0 and 0.0 <= u_speed <= 1.0
+        assert abs(u_radius - u_speed) > 1e-9
