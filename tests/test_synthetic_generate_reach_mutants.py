@@ -130,3 +130,26 @@ def test_plan_and_motion_streams_are_independent():
         u_speed = (prof.v0 - 10.0) / 4.0
         assert 0.0 <= u_radius <= 1.0 and 0.0 <= u_speed <= 1.0
         assert abs(u_radius - u_speed) > 1e-9
+
+
+# ---- the points option (_calibrated) ---------------------------------------------------------
+
+def test_radar_calibration_meets_its_tolerance_for_moderate_targets():
+    # _calibrated: radar probes the middle frame until target / points is within 5 % of 1
+    # (at most 6 probes); for targets well inside the sensor's limits it converges
+    for scene, seed, target in (("campus", 0, 250), ("loop", 1, 300), ("campus", 3, 600),
+                                ("loop", 2, 700)):
+        seq = G.SyntheticSequence(scene, "radar-sparse", 3, seed=seed, points=target)
+        n = len(seq.scan(1))
+        assert abs(target / n - 1.0) < 0.05, (scene, seed, target, n)
+
+
+def test_radar_target_already_met_leaves_the_spec_unchanged():
+    # a target within the 5 % tolerance of what the sensor already gives on the middle frame:
+    # the first probe meets it, so the calibrated spec is the sensor's own
+    plain = G.SyntheticSequence("campus", "radar-sparse", 3, seed=0)
+    n = len(plain.scan(1))
+    assert n > 60
+    seq = G.SyntheticSequence("campus", "radar-sparse", 3, seed=0, points=n + 2)
+    assert seq.spec == plain.spec
+    assert len(seq.scan(1)) == n
