@@ -12,7 +12,7 @@ import numpy as np
 
 from loaders.synthetic import scatterers as SC
 from loaders.synthetic.raycast import GROUND_ID
-from loaders.synthetic.scenes import BUILDING, GROUND, WALL
+from loaders.synthetic.scenes import BUILDING, CROWN, GROUND, PEDESTRIAN, WALL
 
 
 class _Path:
@@ -130,3 +130,30 @@ def test_building_boxes_get_building_edges_and_base_wall_boxes_do_not():
         assert abs(sc.rcs_db[edges].mean() - mean) < 4 * std / np.sqrt(len(edges)), mat
         n_base = np.sum(np.isclose(sc.pos[box, 2], 0.05))  # foot of the facade, z = 0.05 m
         assert (n_base > 0) == (mat == BUILDING), mat
+
+
+def test_crown_scatterers_facing_the_sensor_are_visible():
+    # Scatterers: visible when cos(normal, towards sensor) > cos_min; vegetation on a crown
+    # (outward normals) faces the sensor on its near side, so cos = 1 there must be visible
+    scene = _scene("straight-wall", _Path(0.0, 10.0))
+    centre = np.array([0.0, 20.0, 5.0])
+    scene.spheres = [(centre, 2.5, CROWN)]
+    sc = SC.build_scatterers(scene, np.random.default_rng(2))
+    crown = np.flatnonzero(sc.material == CROWN)
+    assert len(crown) > 50  # about 2 per m^2 of a 78.5 m^2 crown surface
+    np.testing.assert_allclose(sc.normal[crown], (sc.pos[crown] - centre) / 2.5, atol=1e-9)
+    assert (sc.cos_min[crown] < 1.0).all()
+
+
+def test_pedestrians_are_weak_radar_targets():
+    # a pedestrian's RCS at 77 GHz is measured around -15 to 0 dBsm (far below a car's ~10
+    # dBsm): the incoherent sum of a pedestrian's scatterers stays below a few dBsm
+    scene = _scene("straight-wall", _Path(0.0, 10.0))
+    scene.movers = [SimpleNamespace(half=(0.3, 0.3, 0.9), material=PEDESTRIAN)
+                    for _ in range(200)]
+    sc = SC.build_scatterers(scene, np.random.default_rng(3))
+    ped = np.flatnonzero(sc.owner >= 0)
+    assert (sc.material[ped] == PEDESTRIAN).all()
+    total = np.zeros(200)
+    np.add.at(total, sc.owner[ped], 10.0 ** (sc.rcs_db[ped] / 10.0))
+    assert np.median(10.0 * np.log10(total)) < 3.0
