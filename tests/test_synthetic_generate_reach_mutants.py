@@ -153,3 +153,19 @@ def test_radar_target_already_met_leaves_the_spec_unchanged():
     seq = G.SyntheticSequence("campus", "radar-sparse", 3, seed=0, points=n + 2)
     assert seq.spec == plain.spec
     assert len(seq.scan(1)) == n
+
+
+def test_jitter_stream_is_not_shared_with_another_component():
+    # each component draws from its own stream of the seed (the plan 1, the motion 2, the scene
+    # 3, the radar scatterers 5, the ground truth 6): the stamp jitter's normal draws must not
+    # be any of theirs
+    seed, jitter, frames = 4, 1e-3, 6
+    seq = G.SyntheticSequence("campus", "radar-sparse", frames, seed=seed, noise=False,
+                              jitter_s=jitter)
+    period = seq.spec.period_s
+    offsets = seq.stamps - period * np.arange(frames)
+    assert np.abs(offsets).max() < period / 4  # not clipped
+    assert np.std(offsets) > 0.2 * jitter
+    for stream in (1, 2, 3, 5, 6):
+        other = np.random.default_rng([seed, stream]).normal(0.0, jitter, frames)
+        assert not np.allclose(offsets, other, rtol=0.0, atol=1e-12), stream
