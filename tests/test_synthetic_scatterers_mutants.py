@@ -13,6 +13,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from helpers_angles import on_azimuth_edge
 from loaders.synthetic import scatterers as SC
 from loaders.synthetic.generate import SyntheticSequence
 from loaders.synthetic.raycast import GROUND_ID, TUNNEL_ID, Geometry
@@ -476,18 +477,6 @@ def test_sector_query_anywhere_in_the_world(apex):
     assert got == set(range(len(pts)))
 
 
-def _on_az_edge(half_deg: float) -> float:
-    """A y with arctan2(y, 1) exactly the radians of ``half_deg``."""
-    target = np.radians(half_deg)
-    y = np.tan(target)
-    for _ in range(200):
-        got = np.arctan2(y, 1.0)
-        if got == target:
-            return y
-        y = np.nextafter(y, np.inf if got < target else -np.inf)
-    raise AssertionError("no exact edge point found")
-
-
 def _on_el_edge(half_deg: float, x: float) -> float:
     """A z with |z| exactly |(x, 0, z)| sin(half_deg) (as ``candidates`` computes them)."""
     s = np.sin(np.radians(half_deg))
@@ -501,7 +490,7 @@ def _on_el_edge(half_deg: float, x: float) -> float:
 
 
 def test_candidate_limits_are_inclusive():
-    y = _on_az_edge(75.0)
+    y = on_azimuth_edge(75.0)
     z = _on_el_edge(15.0, 10.0)
     pts = [[100.0, 0.0, 0.0], [0.5, 0.0, 0.0], [10.0, 10.0 * y, 0.0], [10.0, 0.0, z],
            [10.0, 0.0, -z]]

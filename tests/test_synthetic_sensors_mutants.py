@@ -12,6 +12,7 @@ import dataclasses
 import numpy as np
 import pytest
 
+from helpers_angles import on_azimuth_edge
 from loaders.synthetic import patterns
 from loaders.synthetic import sensors as S
 
@@ -167,18 +168,6 @@ def _lidar_call(spec, points, *, seed=0, noise=False, material=None, cos_inc=Non
                      **kw)
 
 
-def _on_edge(half_deg: float) -> float:
-    """A y with arctan2(y, 1) exactly the radians of ``half_deg``."""
-    target = np.radians(half_deg)
-    y = np.tan(target)
-    for _ in range(200):
-        got = np.arctan2(y, 1.0)
-        if got == target:
-            return y
-        y = np.nextafter(y, np.inf if got < target else -np.inf)
-    raise AssertionError("no exact edge point found")
-
-
 def _on_el_edge(half_deg: float) -> float:
     """A z with arcsin(z / |(1, 0, z)|) exactly the radians of ``half_deg``."""
     target = np.radians(half_deg)
@@ -193,7 +182,7 @@ def _on_el_edge(half_deg: float) -> float:
 
 def test_lidar_field_of_view_and_range_limits_are_inclusive():
     spec = dataclasses.replace(LIDAR, dropout=0.0)
-    y = _on_edge(60.0)
+    y = on_azimuth_edge(60.0)
     z = _on_el_edge(15.0)
     pts = np.array([[1.0, 0.0, 0.0],  # at min_range: kept
                     [150.0, 0.0, 0.0],  # at max_range: kept
