@@ -40,3 +40,60 @@ def test_a_radar_keeps_doppler_residuals_of_0_15_mps_and_a_lidar_drops_them():
     lidar = est.collect_cues(_drive("lidar"))
     assert len(lidar.road_frame) == 0
     np.testing.assert_allclose(lidar.a, np.tile([1.0, 0, 0], (6, 1)), atol=1e-6)
+
+
+def _line_and_one(n_line):
+    """Points of the road plane z = -1.5 (sensor frame): the first off the x axis at y = 1, the
+    other ``n_line`` on it, so a plane through three of them needs the first."""
+    line = np.column_stack([np.linspace(1.0, 30.0, n_line), np.zeros(n_line),
+                            np.full(n_line, -1.5)])
+    return Scan(0.0, np.vstack([[0.0, 1.0, -1.5], line]), None)
+
+
+def _has_plane(draw, n):
+    """Whether one of RANSAC's triples (rows of ``draw``) spans a plane: point 0 with two
+    different points of the line."""
+    s = np.sort(draw, axis=1)
+    return bool(np.any((s[:, 0] == 0) & (s[:, 1] > 0) & (s[:, 1] != s[:, 2])))
+
+
+def _only_a_201st_triple_spans(n, count=4):
+    """Seeds whose first 200 triples miss the plane and whose 201st (same stream) spans it."""
+    seeds = []
+    for seed in range(300, 100_000):
+        draw = np.random.default_rng(seed).integers(0, n, size=(201, 3))
+        if not _has_plane(draw[:200], n) and _has_plane(draw[200:], n):
+            seeds.append(seed)
+            if len(seeds) == count:
+                return seeds
+    raise AssertionError("too few seeds")
+
+
+def test_road_normal_draws_the_first_point_and_keeps_a_downward_triple():
+    # kills road_normal 29 (point 0 never drawn: no plane) and 60 (a triple whose normal
+    # points down is not turned up: then dropped as not upright): point 0 plus a line of 29
+    # points, every triple without point 0 is degenerate; the plane is z = -1.5 with all 30
+    # points, its answer ((0, 0, 1), 1.5 m) worked out by hand
+    scan = _line_and_one(29)
+    for seed in range(5):
+        normal, height = est.road_normal(scan, seed=seed)
+        np.testing.assert_allclose(normal, [0, 0, 1.0], atol=1e-12)
+        np.testing.assert_allclose(height, 1.5, atol=1e-12)
+
+
+def test_road_normal_finds_the_plane_iff_one_of_its_200_triples_spans_it():
+    # RANSAC's 200 triples drawn uniformly from the points below the sensor (the selection
+    # keeps the scan's order); with 600 points on the line, point 0 is in ~1 triple of 200:
+    # the answer is a plane exactly when a drawn triple holds point 0 and two others of the
+    # line; a triple with point 0 points down as often as up (kills road_normal 60 too)
+    # (kills road_normal 30 with the seeds whose 201st triple would be the first to span it)
+    n = 600
+    scan = _line_and_one(n - 1)
+    found = 0
+    for seed in [*range(300), *_only_a_201st_triple_spans(n)]:
+        draw = np.random.default_rng(seed).integers(0, n, size=(200, 3))
+        expected = _has_plane(draw, n)
+        got = est.road_normal(scan, seed=seed)
+        assert (got is not None) == expected, seed
+        found += expected
+    assert 50 < found < 250
