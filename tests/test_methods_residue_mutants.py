@@ -3,8 +3,11 @@
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
+from scipy.spatial.transform import Rotation
 
 from loaders.scan import Scan
+from loaders.se3 import make_T
 from methods.dicp import Dicp
 
 
@@ -68,3 +71,49 @@ def test_the_answer_does_not_depend_on_the_order_of_the_target_points():
         assert (run.iterations, run.converged, run.correspondences) == \
             (runs[0].iterations, runs[0].converged, runs[0].correspondences)
         np.testing.assert_allclose(run.T_target_source, runs[0].T_target_source, atol=1e-9)
+
+
+def _drifting_scans(seed):
+    """A small flat patch whose Doppler (with noise) says a fast motion the geometry does not
+    hold, seen by a sensor mounted with a random extrinsic: DICP's steps drift off the patch
+    (as found by a search over seeds: seed 3 loses every pair after its third step)."""
+    rng = np.random.default_rng(seed)
+    n = 60
+    pts = rng.uniform(-1, 1, (n, 3)) * [2, 2, 0.05] + [rng.uniform(2, 6), 0, -1.5]
+    speed = rng.uniform(1, 40)
+    v = rng.normal(size=3)
+    v *= speed / np.linalg.norm(v)
+    src = pts + rng.normal(0, 0.02, pts.shape)
+    doppler = -(src / np.linalg.norm(src, axis=1, keepdims=True)) @ v
+    doppler += rng.normal(0, rng.uniform(0, 3), n)
+    lam = rng.choice([0.01, 0.1, 0.5])
+    lever = rng.normal(0, 2, 3) if rng.random() < 0.5 else np.zeros(3)
+    T_vs = make_T(Rotation.from_rotvec(rng.normal(0, 0.3, 3)).as_matrix(), lever)
+    params = dict(downsample=1, lambda_doppler=float(lam), T_vehicle_sensor=T_vs.tolist())
+    return params, Scan(0.0, src, doppler), Scan(0.1, pts, np.zeros(n))
+
+
+def _pairs_after(T_sensor, T_vs, source, target):
+    """Source points (vehicle frame) with a target point within 0.3 m once moved by the
+    sensor-frame transform T_sensor: scipy's kd-tree, independent of DICP's."""
+    T = T_vs @ T_sensor @ np.linalg.inv(T_vs)
+    moved = source.points @ T[:3, :3].T + T[:3, 3]
+    dist, _ = cKDTree(target.points).query(moved, distance_upper_bound=0.3)
+    return int(np.isfinite(dist).sum())
+
+
+def test_a_run_that_loses_every_pair_counts_the_steps_before_the_one_that_lost_them():
+    # kills DICP _iterate 88 (a step fewer counted): runs capped at m = 1, 2, ... steps give
+    # the transform after m steps; the first m that leaves no pair (counted with scipy) is
+    # the step that lost them: the uncapped run reports m - 1 steps, the identity, unconverged
+    params, source_scan, target_scan = _drifting_scans(3)
+    T_vs = np.asarray(params["T_vehicle_sensor"])
+    dicp = Dicp(**params)
+    source, target = dicp.preprocess(source_scan), dicp.preprocess(target_scan)
+    lost = next(m for m in range(1, 20) if _pairs_after(
+        Dicp(**params, max_iterations=m).register(source, target, np.eye(4)).T_target_source,
+        T_vs, source, target) == 0)
+    assert lost >= 3  # so that a step fewer is still more than none
+    run = dicp.register(source, target, np.eye(4))
+    assert (run.iterations, run.correspondences, run.converged) == (lost - 1, 0, False)
+    np.testing.assert_allclose(run.T_target_source, np.eye(4), atol=1e-12)
