@@ -117,3 +117,18 @@ def test_a_run_that_loses_every_pair_counts_the_steps_before_the_one_that_lost_t
     run = dicp.register(source, target, np.eye(4))
     assert (run.iterations, run.correspondences, run.converged) == (lost - 1, 0, False)
     np.testing.assert_allclose(run.T_target_source, np.eye(4), atol=1e-12)
+
+
+def test_a_convergence_threshold_above_any_change_stops_after_the_first_step():
+    # kills DICP _iterate 92 (fitness as pairs * points): fitness (pairs / points) lies in
+    # [0, 1] and the inlier RMSE in [0, gate = 0.3 m], so with a threshold of 1.5 both
+    # changes are below it after the first step, whatever the pairs do (here their count
+    # changes after that step: otherwise this would not tell the fitness apart)
+    source_scan, target = _room_scans(0)
+    dicp = Dicp(downsample=1, convergence=1.5)
+    source = dicp.preprocess(source_scan)
+    target = dicp.preprocess(Scan(0.1, target, np.zeros(len(target))))
+    start = Dicp(downsample=1, max_iterations=1).register(source, target, np.eye(4))
+    run = dicp.register(source, target, np.eye(4))
+    assert (run.iterations, run.converged) == (1, True)
+    assert run.correspondences != start.correspondences  # pairs at the start vs after
