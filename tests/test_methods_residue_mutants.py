@@ -132,3 +132,31 @@ def test_a_convergence_threshold_above_any_change_stops_after_the_first_step():
     run = dicp.register(source, target, np.eye(4))
     assert (run.iterations, run.converged) == (1, True)
     assert run.correspondences != start.correspondences  # pairs at the start vs after
+
+
+def _fitness_rmse(T, source, target):
+    """Fitness and inlier RMSE of the source (vehicle frame) moved by T: scipy's kd-tree."""
+    dist, _ = cKDTree(target.points).query(source.points @ T[:3, :3].T + T[:3, 3],
+                                           distance_upper_bound=0.3)
+    ok = np.isfinite(dist)
+    return ok.sum() / len(dist), float(np.sqrt(np.mean(dist[ok] ** 2)))
+
+
+def test_convergence_needs_a_fitness_change_strictly_below_the_threshold():
+    # kills DICP _iterate 103 (<= for the fitness change): the first step changes the fitness
+    # by exactly df (a multiple of 1 / points, worked out with scipy's pairs) and the RMSE by
+    # less; a threshold of df does not stop the run there (strictly below: as Open3D), the
+    # next float above df does
+    source_scan, target = _room_scans(0)
+    dicp = Dicp(downsample=1)
+    source = dicp.preprocess(source_scan)
+    target = dicp.preprocess(Scan(0.1, target, np.zeros(len(target))))
+    T1 = Dicp(downsample=1, max_iterations=1).register(source, target, np.eye(4))
+    (f0, r0), (f1, r1) = (_fitness_rmse(T, source, target)
+                          for T in (np.eye(4), T1.T_target_source))
+    df = abs(f0 - f1)
+    assert 0 < abs(r0 - r1) < df
+    at = Dicp(downsample=1, convergence=df).register(source, target, np.eye(4))
+    above = Dicp(downsample=1, convergence=np.nextafter(df, 1)).register(source, target,
+                                                                          np.eye(4))
+    assert at.iterations > 1 and (above.iterations, above.converged) == (1, True)
