@@ -7,9 +7,13 @@ from __future__ import annotations
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
+import bench.report.figures.errors as errors
 import bench.report.figures.pair as pair
+from bench.runs.folders import load_runs
 from conftest import constant_twist_sequence
+from helpers_figure_runs import capture, straight, write_run
 from loaders.scan import MemorySequence
 from loaders.se3 import inv_T
 from loaders.store import write_store
@@ -56,3 +60,70 @@ def test_scan_stamps_a_fraction_of_a_microsecond_late_still_match(tmp_path):
     got = pair.pair_correspondences(path, 0)["T_true"]
     assert got is not None
     np.testing.assert_allclose(got, _true_motion(seq), atol=1e-9)
+
+
+# -- errors.py: "Div." clusters, box plots with an empty slot, the error-along-path figure ----
+
+
+def _dist_texts(ax):
+    return sorted((round(t.xy[0], 9), t.get_text()) for t in ax.texts)
+
+
+def test_divergence_clusters_are_measured_from_their_first_exit():
+    """Exits at 50 and 55 m of 100 m are 5 m apart, within 6 % of the path: one grey label at
+    50 m; 90 m is 40 m on, a label of its own (a 20 in wide axes: no label touches)."""
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(20.0, 2.0))
+    ax.set_xlim(0, 100)
+    ax.set_ylim(0.01, 1.0)
+    ax.set_yscale("log")
+    errors.label_divergence(ax, [(55.0, "#ff0000"), (50.0, "#0000ff"), (90.0, "#00ff00")],
+                            1.0, 100.0)
+    assert _dist_texts(ax) == [(50.0, "Div. (2)"), (90.0, "Div.")]
+    plt.close(fig)
+
+
+def test_a_run_without_segments_of_a_length_leaves_its_box_empty(tmp_path, monkeypatch):
+    """A 200 m run and a 20 m one, lengths 8 and 100 m: the short one has no 100 m segment,
+    so its translation box there is empty (NaN) while the three others hold positive errors."""
+    figs = capture(monkeypatch, errors)
+    bend = straight(201)
+    bend[:, 1, 3] = 0.01 * np.arange(201) ** 2
+    write_run(tmp_path, "s", "gicp", True, straight(201), bend, lengths=(8.0, 100.0))
+    short = straight(21)
+    short[:, 1, 3] = 0.01 * np.arange(21) ** 2
+    write_run(tmp_path, "s", "vgicp", True, straight(21), short, lengths=(8.0,))
+    errors.plot_boxplots(load_runs(tmp_path), tmp_path / "out")
+    ((_, fig),) = figs
+    top = fig.axes[0]  # translation: the estimates bend, no rotation error at all
+    boxes = [b.get_path().vertices[:-1, 1] for b in top.patches]  # without CLOSEPOLY
+    assert len(boxes) == 4  # two runs x two lengths
+    assert sum(np.all(np.isnan(y)) for y in boxes) == 1
+    assert all(np.all(y > 0) for y in boxes if not np.all(np.isnan(y)))
+
+
+def _jump(n: int, k: int, step_m: float) -> np.ndarray:
+    """A path ``step_m`` per frame that jumps 5 m sideways from frame ``k`` on."""
+    est = straight(n, step_m)
+    est[k:, 1, 3] = 5.0
+    return est
+
+
+def test_a_path_shorter_than_a_metre_clusters_exits_by_its_own_length(tmp_path, monkeypatch):
+    """A 0.1 m path (0.01 m a frame): the run that held has no error, so the axes hold
+    1 mm - 1 m and the 5 m jumps leave them at 0.02 and 0.07 m travelled. 0.05 m apart is
+    50 % of this path (not within 6 %): two labels. The axes are 2.3 in tall in all, the
+    legend below them (fit_height: + 0.75 in for titles and labels)."""
+    figs = capture(monkeypatch, errors)
+    gt = straight(11, 0.01)
+    write_run(tmp_path, "s", "gicp", True, gt, gt)
+    write_run(tmp_path, "s", "vgicp", True, gt, _jump(11, 2, 0.01), diverged=True)
+    write_run(tmp_path, "s", "icp-p2p", True, gt, _jump(11, 7, 0.01), diverged=True)
+    errors.plot_error_along_path(load_runs(tmp_path), tmp_path / "out")
+    ((_, fig),) = figs
+    top, bottom = fig.axes
+    assert _dist_texts(top) == [(0.02, "Div."), (0.07, "Div.")]
+    assert len(bottom.texts) == 0  # no rotation error at all
+    legend_in = fig.legends[0].get_window_extent(fig.test_renderer).height / fig.dpi
+    assert fig.get_figheight() == pytest.approx(2.3 + 0.75 + legend_in, abs=0.02)
