@@ -5,10 +5,12 @@ misses the target frame, and stamps a few tenths of a microsecond apart on eithe
 from __future__ import annotations
 
 from dataclasses import replace
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+import bench.report.figures.draw as draw
 import bench.report.figures.errors as errors
 import bench.report.figures.pair as pair
 from bench.runs.folders import load_runs
@@ -127,3 +129,28 @@ def test_a_path_shorter_than_a_metre_clusters_exits_by_its_own_length(tmp_path, 
     assert len(bottom.texts) == 0  # no rotation error at all
     legend_in = fig.legends[0].get_window_extent(fig.test_renderer).height / fig.dpi
     assert fig.get_figheight() == pytest.approx(2.3 + 0.75 + legend_in, abs=0.02)
+
+
+# -- draw.py: "Div." labels of runs leaving on either side of the path ------------------------
+
+
+def test_runs_leaving_on_either_side_get_a_label_each(tmp_path, monkeypatch):
+    """Only the ground truth (0-20 m along x) holds: limits -1..21 m x -1..1 m, 22 m across,
+    so exits within 1.32 m share a label. Runs leaving at (10, 0.9) and (10, -0.9) are 1.8 m
+    apart: a label each (about 0.25 in apart: they do not touch)."""
+    figs = capture(monkeypatch, draw)
+    gt = straight(21)
+
+    def leaving(side):
+        est = straight(21)
+        est[1:11, 1, 3] = 0.9 * side
+        est[11:, 1, 3] = 50.0 * side
+        return est
+
+    runs = [SimpleNamespace(method=m, seed=True, label=None, config={}, gt=gt,
+                            est=leaving(side), diverged=True)
+            for m, side in (("gicp", 1.0), ("vgicp", -1.0))]
+    draw.plot_sequence("s", runs, tmp_path)
+    ((_, fig),) = figs
+    texts = sorted((t.xy, t.get_text()) for t in fig.axes[0].texts)
+    assert texts == [((10.0, -0.9), "Div."), ((10.0, 0.9), "Div.")]
