@@ -154,3 +154,53 @@ def test_runs_leaving_on_either_side_get_a_label_each(tmp_path, monkeypatch):
     ((_, fig),) = figs
     texts = sorted((t.xy, t.get_text()) for t in fig.axes[0].texts)
     assert texts == [((10.0, -0.9), "Div."), ((10.0, 0.9), "Div.")]
+
+
+# -- pair.py: the zoomed window against a brute-force count ----------------------------------
+
+
+def _window_by_brute_force(points, width_m, height_m, cell_m=1.0):
+    """The definition, point by point: cells of ``cell_m`` from the lowest corner of the
+    points; the window is the run of whole cells (at least one each way) that fits in
+    width x height; the first placement (by cell index) holding the most points wins, then
+    it is re-centred on the points within it."""
+    lo = points.min(axis=0)
+    cell = np.floor((points - lo) / cell_m).astype(int)
+    w, h = max(1, int(width_m / cell_m)), max(1, int(height_m / cell_m))
+    best, at = -1, None
+    for i in range(cell[:, 0].max() + 1):
+        for j in range(cell[:, 1].max() + 1):
+            n = int(np.sum((cell[:, 0] >= i) & (cell[:, 0] < i + w)
+                           & (cell[:, 1] >= j) & (cell[:, 1] < j + h)))
+            if n > best:
+                best, at = n, (i, j)
+    corner = lo + np.array(at) * cell_m
+    size = np.array([width_m, height_m])
+    held = points[np.all((points >= corner) & (points <= corner + size), axis=1)]
+    mid = (held.min(axis=0) + held.max(axis=0)) / 2
+    return mid - size / 2, mid + size / 2
+
+
+def _clustered(seed):
+    """A few clusters of different sizes and spreads in a 24 m square."""
+    rng = np.random.default_rng(seed)
+    parts = [rng.normal(rng.uniform(0, 24, 2), rng.uniform(0.3, 3.0), (rng.integers(1, 12), 2))
+             for _ in range(rng.integers(2, 5))]
+    return np.vstack(parts)
+
+
+#: (window size, cell): windows at least a cell wide and high each way, as the figure's are
+#: (30 m x 18 m in 1 m cells); a window narrower than its cell may hold none of its cell's
+#: points, which the re-centring cannot handle (no caller asks for one)
+_SIZES_CELLS = [((6.0, 3.0), None), ((6.0, 3.0), 0.5), ((6.0, 3.0), 2.0), ((1.0, 1.0), None),
+                ((1.0, 1.0), 0.5), ((1.5, 7.0), None), ((1.5, 7.0), 0.5), ((2.0, 4.5), 2.0)]
+
+
+@pytest.mark.parametrize("seed", range(12))
+@pytest.mark.parametrize(("size", "cell_m"), _SIZES_CELLS)
+def test_window_holds_the_most_points_by_brute_force(seed, size, cell_m):
+    points = _clustered(seed)
+    kw = {} if cell_m is None else {"cell_m": cell_m}  # None: the default, 1 m cells
+    got = pair._window(points, *size, **kw)
+    want = _window_by_brute_force(points, *size, **kw)
+    np.testing.assert_allclose(got, want, atol=1e-9)
