@@ -204,3 +204,28 @@ def test_window_holds_the_most_points_by_brute_force(seed, size, cell_m):
     got = pair._window(points, *size, **kw)
     want = _window_by_brute_force(points, *size, **kw)
     np.testing.assert_allclose(got, want, atol=1e-9)
+
+
+# -- style.py: a log axis too narrow for any per-decade tick ---------------------------------
+
+
+@pytest.mark.parametrize(("lo", "hi"), [(999.9, 1000.1), (0.999, 1.001)])
+def test_a_log_axis_narrower_than_its_digits_gets_few_even_ticks(lo, hi):
+    """1-2-5 and every digit give at most one tick inside (1000; 1), so the axis falls back
+    on even steps: still the fewest that label at least two values (two to four inside, not
+    matplotlib's crowded default of up to ten), evenly spaced, labelled as plain numbers."""
+    import matplotlib.pyplot as plt
+
+    from bench.report.figures.style import log_y
+
+    fig, ax = plt.subplots()
+    ax.plot([0, 1], [lo, hi])
+    ax.set_ylim(lo, hi)
+    log_y(ax)
+    ticks = np.array([v for v in ax.yaxis.get_major_locator()() if lo <= v <= hi])
+    assert 2 <= len(ticks) <= 4
+    np.testing.assert_allclose(np.diff(ticks), np.diff(ticks)[0], rtol=1e-6)
+    fig.canvas.draw()
+    labels = {round(t.get_position()[1], 9): t.get_text() for t in ax.get_yticklabels()}
+    assert [labels[round(v, 9)] for v in ticks] == [f"{v:g}" for v in ticks]
+    plt.close(fig)
