@@ -2,9 +2,12 @@
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 
 from bench.data.inspect_checks import MAX_LAG_S, lag_interval
+from loaders.npy_frames import NpyFramesSequence
 
 
 def _speed(t: np.ndarray) -> np.ndarray:
@@ -41,3 +44,28 @@ def test_lag_interval_is_finite_when_the_gt_covers_only_one_end():
         lo, hi = interval
         assert np.isfinite(lo) and np.isfinite(hi)
         assert -MAX_LAG_S - 1e-9 <= lo <= hi <= MAX_LAG_S + 1e-9
+
+
+def _npy_folder(folder, gt_stamps) -> None:
+    rng = np.random.default_rng(0)
+    for i in range(1, 6):
+        np.save(folder / f"frame_{i:03d}.npy", rng.normal(size=(50, 3)) * 10)
+        np.save(folder / f"frame_{i:03d}_dop.npy", rng.normal(size=50))
+    t = np.asarray(gt_stamps, float)
+    np.savetxt(folder / "gt.txt", np.column_stack(
+        [t, t * 5.0, np.zeros((len(t), 5)), np.ones(len(t))]))
+
+
+def test_time_association_of_gt_stamps_that_never_advance(tmp_path):
+    """associate="time" with GT rows that all share one stamp (0.3 s, x = 1.5 m): there is
+    no GT step to scale a gap limit from, so none is set (max_gap_s None, not a NaN from the
+    median of no steps, with its "Mean of empty slice" warning); the one frame at 0.3 s gets
+    the pose. Kills NpyFramesSequence._associate 57 (the median taken of no steps)."""
+    _npy_folder(tmp_path, [0.3, 0.3, 0.3])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        seq = NpyFramesSequence(tmp_path, period_s=0.1, associate="time")
+    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)]
+    assert seq.gt_report["max_gap_s"] is None
+    np.testing.assert_allclose(seq.ground_truth.stamps, [0.3])
+    np.testing.assert_allclose(seq.ground_truth.poses[0, :3, 3], [1.5, 0.0, 0.0])
