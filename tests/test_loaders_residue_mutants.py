@@ -5,9 +5,12 @@ from __future__ import annotations
 import warnings
 
 import numpy as np
+import pytest
 
 from bench.data.inspect_checks import MAX_LAG_S, lag_interval
+from loaders.errors import DataError
 from loaders.npy_frames import NpyFramesSequence
+from loaders.snail_radar import SnailRadarSequence
 
 
 def _speed(t: np.ndarray) -> np.ndarray:
@@ -69,3 +72,35 @@ def test_time_association_of_gt_stamps_that_never_advance(tmp_path):
     assert seq.gt_report["max_gap_s"] is None
     np.testing.assert_allclose(seq.ground_truth.stamps, [0.3])
     np.testing.assert_allclose(seq.ground_truth.poses[0, :3, 3], [1.5, 0.0, 0.0])
+
+
+def test_a_damaged_pointcloud2_in_a_bag_is_named_by_bag_topic_and_message(tmp_path):
+    """A Snail-Radar bag whose second PointCloud2 lost its last 20 bytes: the first frame
+    reads, the second fails with a DataError naming the bag, the topic and message 1 (no
+    "None" location). Kills _BagFrames.read 3 (the location not passed to the parser)."""
+    from rosbags.rosbag1 import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    from helpers_snail import EAGLE_OFFSETS, EAGLE_STEP, cloud2_msg, radar_array
+
+    day = tmp_path / "20240123"
+    day.mkdir()
+    bag = day / "data2.bag"
+    store = get_typestore(Stores.ROS1_NOETIC)
+    msgtype = "sensor_msgs/msg/PointCloud2"
+    rng = np.random.default_rng(0)
+    with Writer(bag) as w:
+        conn = w.add_connection("/radar_enhanced_pcl2", msgtype, typestore=store)
+        for i in range(3):
+            t = 1706000000.0 + 0.1 * i
+            arr = radar_array("eagle", rng.uniform(-20, 20, (6, 3)), rng.uniform(-3, 3, 6), rng)
+            raw = store.serialize_ros1(cloud2_msg(store, t, arr, EAGLE_OFFSETS, EAGLE_STEP,
+                                                  seq=i), msgtype)
+            w.write(conn, int(round((t + 0.004) * 1e9)), raw[:-20] if i == 1 else raw)
+    seq = SnailRadarSequence(bag)
+    assert len(seq) == 3 and len(seq[0].points) == 6
+    with pytest.raises(DataError) as err:
+        seq[1]
+    text = str(err.value)
+    assert text.startswith(f"{bag}, /radar_enhanced_pcl2 message 1: ")
+    assert "None" not in text
