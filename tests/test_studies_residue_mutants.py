@@ -1,9 +1,16 @@
-"""Residual mutants of bench/studies: the speed ranges of score_cases.synthetic_bases."""
+"""Residual mutants of bench/studies: the speed ranges of score_cases.synthetic_bases and
+reproduce._choose_data's store lines printed without markup."""
 
 from __future__ import annotations
 
-import numpy as np
+import dataclasses
+import io
+import warnings
 
+import numpy as np
+from rich.console import Console
+
+from bench.studies.reproduce import _choose_data
 from bench.studies.score_cases import synthetic_bases
 
 #: the documented draw of each synthetic drive's speed (m/s), make_profile's ``speed``
@@ -40,3 +47,25 @@ def test_synthetic_speed_draws_span_their_ranges():
     assert max(v.max() for v in drives["curve"]) <= 6.0 + 0.05
     assert min(v[:3].mean() for v in drives["gentle turns"]) < 4.0
     assert min(v[:3].mean() for v in drives["U-turn"]) < 7.0
+
+
+def test_a_store_line_shows_a_bracketed_sensor_model_as_it_is(tmp_path):
+    """A real store whose recorded sensor model is "Eagle [rev b]": the line describing it
+    shows the model with its brackets (rich markup would take "[rev b]" for a style tag and
+    drop it). Kills _choose_data 62 (markup=None: the console's default, markup on), 65 (no
+    markup argument) and 67 (markup=True)."""
+    from conftest import constant_twist_sequence
+    from loaders.store import write_store
+
+    seq = constant_twist_sequence(n_frames=10, n_points=200, w=(0, 0, 0))
+    seq.sensor = dataclasses.replace(seq.sensor, model="Eagle [rev b]")
+    real_dir = tmp_path / "data" / "real"
+    real_dir.mkdir(parents=True)
+    write_store(seq, real_dir / "Loop1_0.h5")
+    buf = io.StringIO()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        found, _ = _choose_data(tmp_path / "data", False, Console(file=buf, width=300))
+    assert [s.name for s in found] == ["Loop1_0"]
+    said = " ".join(buf.getvalue().split())
+    assert "Loop1_0: 10 frames, 0.9 s, lidar (Eagle [rev b])" in said
