@@ -49,6 +49,25 @@ def test_lag_interval_is_finite_when_the_gt_covers_only_one_end():
         assert -MAX_LAG_S - 1e-9 <= lo <= hi <= MAX_LAG_S + 1e-9
 
 
+def test_lag_interval_survives_replicates_that_miss_the_only_feature():
+    """A speed that is flat but for one scan (6 m/s at 15 s) and GT that has it 0.3 s later:
+    a replicate (8 blocks of 40 of the 300 scans) misses that scan with chance
+    (260/300)**8 = 0.32 and then has no correlation at any lag; the other ~136 of 200 still
+    place the lag at 0.3 s, so there is an interval and it is about 0.3 s. Kills lag_interval
+    156 (the first failing replicate ending the bootstrap)."""
+    t = np.arange(0, 30, 0.1)
+    v_d = np.full(len(t), 5.0)
+    v_d[150] = 6.0
+    v_g = np.interp(t - 0.3, t, v_d)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        interval = lag_interval(t, v_d, v_g)
+    assert interval is not None
+    lo, hi = interval
+    assert lo <= hi
+    np.testing.assert_allclose([lo, hi], [0.3, 0.3], atol=5e-3)
+
+
 def _npy_folder(folder, gt_stamps) -> None:
     rng = np.random.default_rng(0)
     for i in range(1, 6):
