@@ -68,6 +68,25 @@ def test_lag_interval_survives_replicates_that_miss_the_only_feature():
     np.testing.assert_allclose([lo, hi], [0.3, 0.3], atol=5e-3)
 
 
+def test_lag_interval_counts_a_scan_on_the_first_gt_stamp():
+    """Scans every 0.125 s (exact in binary) and GT over exactly 10 of them (14.5 to 15.625 s)
+    that is the speed 2 s earlier: at the lag -2 s (the first lag searched, exact) the 10 GT
+    stamps fall exactly on scans, the first on the GT span's first stamp; the span includes
+    both its ends, so that lag has the 10 scans a correlation needs and the interval starts
+    there. Kills lag_interval 26 (the first GT stamp excluded: 9 scans, no interval)."""
+    t = np.arange(200) * 0.125
+    v_d = 5 + np.sin(2 * np.pi * t / 3.0)
+    v_g = np.full(len(t), np.nan)
+    v_g[116:126] = 5 + np.sin(2 * np.pi * (t[116:126] + 2.0) / 3.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        interval = lag_interval(t, v_d, v_g)
+    assert interval is not None
+    lo, hi = interval
+    np.testing.assert_allclose(lo, -MAX_LAG_S, atol=1e-12)
+    assert lo <= hi <= MAX_LAG_S
+
+
 def _npy_folder(folder, gt_stamps) -> None:
     rng = np.random.default_rng(0)
     for i in range(1, 6):
