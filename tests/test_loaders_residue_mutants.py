@@ -87,6 +87,25 @@ def test_lag_interval_counts_a_scan_on_the_first_gt_stamp():
     assert lo <= hi <= MAX_LAG_S
 
 
+def test_lag_interval_refines_a_peak_one_step_inside_the_searchable_lags():
+    """100 Hz scans over 20 s and GT only over the last second, the speed delayed by -0.886 s:
+    lags below -0.9 s leave fewer than 10 scans under the GT (no correlation), so the peak's
+    grid lag -0.89 s is one step inside the searchable ones; its two neighbours have a
+    correlation and the parabolic refinement brings the interval's lower end to -0.886 s
+    (within 1 ms; the grid lag is 4 ms off). Kills lag_interval 168 (the k - 2 neighbour
+    checked instead of k - 1: no refinement there)."""
+    t = np.arange(2000) * 0.01
+
+    def speed(x):
+        return 5 + np.sin(2 * np.pi * x / 0.37) + 0.5 * np.sin(2 * np.pi * x / 0.23)
+
+    lag = -0.886
+    v_g = np.where(t >= 18.995, speed(t - lag), np.nan)
+    lo, hi = lag_interval(t, speed(t), v_g)
+    np.testing.assert_allclose(lo, lag, atol=1e-3)
+    assert lo <= hi <= MAX_LAG_S
+
+
 def _npy_folder(folder, gt_stamps) -> None:
     rng = np.random.default_rng(0)
     for i in range(1, 6):
