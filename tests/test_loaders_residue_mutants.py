@@ -106,6 +106,25 @@ def test_lag_interval_refines_a_peak_one_step_inside_the_searchable_lags():
     assert lo <= hi <= MAX_LAG_S
 
 
+def test_lag_interval_is_none_when_most_replicates_find_no_lag():
+    """30 scans 5 s apart (blocks of one scan: an iid bootstrap) under GT sampled every 0.1 s:
+    the speed is flat but for scan 5, the GT flat but for a 1 s bump at scan 20, so a replicate
+    correlates at some lag only if it draws both scans: chance 1 - 2 (29/30)**30 +
+    (28/30)**30 = 0.40, about 81 of the 200 replicates (sd 7), under the half the interval
+    needs: no interval. Kills lag_interval 198 (a third of the replicates enough)."""
+    t = np.round(np.arange(0, 150, 0.1), 6)
+    scans = np.flatnonzero(np.isclose(t % 5.0, 0.0))
+    assert len(scans) == 30
+    v_d = np.full(len(t), np.nan)
+    v_d[scans] = 5.0
+    v_d[scans[5]] = 6.0
+    v_g = np.where(np.abs(t - t[scans[20]]) <= 0.5, 6.0, 5.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        for seed in (0, 1):
+            assert lag_interval(t, v_d, v_g, seed=seed) is None
+
+
 def _npy_folder(folder, gt_stamps) -> None:
     rng = np.random.default_rng(0)
     for i in range(1, 6):
